@@ -1,0 +1,274 @@
+"""Aggregation of 25 cm profiles to longer segments, and decimation for display.
+
+* :func:`aggregate_profile` groups 25 cm rows into segments of ``level_m``
+  (1 / 10 / 100 m, ...) and gives the NaN-aware mean, max and 95th percentile
+  of every column per segment. Segment ``g`` of a row with bin index ``b`` is
+  ``floor(b * bin_length / level_m)``; it spans ``[g, g + 1) * level_m`` m.
+* :func:`decimate_for_display` reduces a long curve to at most ``max_points``
+  points for plotting while keeping the local minima and maxima (peaks
+  survive), and always the global minimum and maximum.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["aggregate_profile", "decimate_for_display"]
+
+
+def _level_ratio(level_m: float, bin_length: float) -> int:
+    try:
+        lvl = float(level_m)
+        bl = float(bin_length)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"level_m and bin_length must be numbers, got {level_m!r}, {bin_length!r}"
+        ) from None
+    if not np.isfinite(bl) or bl <= 0:
+        raise ValueError(f"bin_length must be a finite number > 0 m, got {bin_length!r}")
+    if not np.isfinite(lvl) or lvl <= 0:
+        raise ValueError(f"level_m must be a finite number > 0 m, got {level_m!r}")
+    ratio = lvl / bl
+    k = round(ratio)
+    if k < 1 or abs(ratio - k) > 1e-9 * max(ratio, 1.0):
+        raise ValueError(
+            f"level_m must be a positive integer multiple of bin_length={bl} m, got {level_m!r}"
+        )
+    return int(k)
+
+
+def _group_percentile(
+    values: np.ndarray, group_start: np.ndarray, group_id: np.ndarray, q: float
+) -> np.ndarray:
+    """NaN-aware per-group percentile (linear interpolation, like numpy's default).
+
+    ``values`` are sorted by group (``group_id`` non-decreasing, groups start at
+    ``group_start``).
+    """
+    ng = group_start.size
+    finite = np.isfinite(values)
+    # Sort by (group, value) with the NaNs of each group at its end.
+    key = np.where(finite, values, np.inf)
+    order = np.lexsort((~finite, key, group_id))
+    v_sorted = values[order]
+    n_fin = np.bincount(group_id, weights=finite.astype(np.float64), minlength=ng).astype(np.int64)
+    out = np.full(ng, np.nan)
+    has = n_fin > 0
+    pos = q / 100.0 * (n_fin[has] - 1)
+    lo = np.floor(pos).astype(np.int64)
+    hi = np.minimum(lo + 1, n_fin[has] - 1)
+    frac = pos - lo
+    start = group_start[has]
+    v_lo = v_sorted[start + lo]
+    v_hi = v_sorted[start + hi]
+    out[has] = v_lo + frac * (v_hi - v_lo)
+    return out
+
+
+def aggregate_profile(
+    df: pd.DataFrame,
+    level_m: float,
+    columns: Sequence[str],
+    bin_length: float = 0.25,
+) -> pd.DataFrame:
+    """Aggregate a 25 cm profile to segments of ``level_m``.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        One row per bin with an int ``bin`` column (``floor(track_m / bin_length)``)
+        and the ``columns`` to aggregate. Bins must be unique (aggregate one wheel
+        at a time); row order does not matter.
+    level_m : float
+        Segment length, m; a positive integer multiple of ``bin_length``
+        (``level_m == bin_length`` returns one segment per bin).
+    columns : sequence of str
+        Numeric columns of ``df`` to aggregate (e.g. ``order_amp_01`` in m/s²).
+    bin_length : float, optional
+        Bin length of ``df``, m (default 0.25).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per segment that holds at least one bin, sorted along the track:
+        ``km_from``, ``km_to`` (segment bounds, km), ``n_bins`` (number of rows of
+        ``df`` in the segment), then ``<col>_mean``, ``<col>_max`` and ``<col>_p95``
+        for every column (NaN values ignored; NaN where a segment has no finite value).
+
+    Raises
+    ------
+    ValueError
+        If ``level_m`` is not a multiple of ``bin_length``, ``df`` lacks ``bin`` or
+        one of ``columns``, or ``bin`` is not unique integers.
+    """
+    k = _level_ratio(level_m, bin_length)
+    level = k * float(bin_length)
+    if not isinstance(df, pd.DataFrame):
+        raise ValueError("df must be a pandas DataFrame")
+    if isinstance(columns, str):
+        columns = [columns]
+    columns = list(columns)
+    if "bin" not in df.columns:
+        raise ValueError("df must have a 'bin' column")
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        raise ValueError(f"columns {missing} are not in df")
+
+    out_cols = ["km_from", "km_to", "n_bins"] + [
+        f"{c}_{s}" for c in columns for s in ("mean", "max", "p95")
+    ]
+    bins = df["bin"].to_numpy()
+    if bins.size == 0:
+        return pd.DataFrame({c: pd.Series(dtype=np.int64 if c == "n_bins" else np.float64)
+                             for c in out_cols})
+    if not np.issubdtype(bins.dtype, np.integer):
+        raise ValueError(f"df['bin'] must hold integers, got dtype {bins.dtype}")
+    bins = bins.astype(np.int64)
+    order = np.argsort(bins, kind="stable")
+    bins = bins[order]
+    if np.any(np.diff(bins) == 0):
+        raise ValueError("df['bin'] must be unique (aggregate one wheel at a time)")
+
+    seg = np.floor_divide(bins, k)
+    starts = np.flatnonzero(np.r_[True, np.diff(seg) != 0])
+    seg_ids = seg[starts]
+    ng = starts.size
+    group_id = np.repeat(np.arange(ng), np.diff(np.r_[starts, bins.size]))
+    n_bins = np.diff(np.r_[starts, bins.size]).astype(np.int64)
+
+    result: dict[str, np.ndarray] = {
+        "km_from": seg_ids * level / 1000.0,
+        "km_to": (seg_ids + 1) * level / 1000.0,
+        "n_bins": n_bins,
+    }
+    for c in columns:
+        v = pd.to_numeric(df[c], errors="raise").to_numpy(dtype=np.float64, na_value=np.nan)
+        v = v[order]
+        finite = np.isfinite(v)
+        n_fin = np.add.reduceat(finite.astype(np.int64), starts)
+        total = np.add.reduceat(np.where(finite, v, 0.0), starts)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.where(n_fin > 0, total / np.maximum(n_fin, 1), np.nan)
+        vmax = np.maximum.reduceat(np.where(finite, v, -np.inf), starts)
+        vmax = np.where(n_fin > 0, vmax, np.nan)
+        result[f"{c}_mean"] = mean
+        result[f"{c}_max"] = vmax
+        result[f"{c}_p95"] = _group_percentile(v, starts, group_id, 95.0)
+    return pd.DataFrame(result, columns=out_cols)
+
+
+def _minmax_indices(values: np.ndarray, n_buckets: int) -> np.ndarray:
+    """Indices of the min and max of each of ``n_buckets`` equal-count buckets.
+
+    NaN values are ignored; a bucket without a finite value contributes its first
+    index (so gaps stay visible as NaN).
+    """
+    n = values.size
+    edges = np.linspace(0, n, n_buckets + 1).astype(np.int64)
+    edges = np.unique(edges)
+    starts = edges[:-1]
+    sizes = np.diff(edges)
+    bucket = np.repeat(np.arange(starts.size), sizes)
+    finite = np.isfinite(values)
+    n_fin = np.add.reduceat(finite.astype(np.int64), starts)
+    idx = np.arange(n)
+    key_min = np.where(finite, values, np.inf)
+    key_max = np.where(finite, -values, np.inf)
+    ord_min = np.lexsort((idx, key_min, bucket))
+    ord_max = np.lexsort((idx, key_max, bucket))
+    i_min = ord_min[starts]
+    i_max = ord_max[starts]
+    empty = n_fin == 0
+    i_min[empty] = starts[empty]
+    i_max[empty] = starts[empty]
+    return np.concatenate([i_min, i_max])
+
+
+def _tsdownsample_indices(km: np.ndarray, values: np.ndarray, n_out: int) -> np.ndarray | None:
+    try:
+        from tsdownsample import MinMaxLTTBDownsampler  # type: ignore[import-not-found]
+    except ImportError:
+        return None
+    if not np.all(np.isfinite(values)) or np.any(np.diff(km) <= 0):
+        return None  # tsdownsample wants strictly increasing x and finite y
+    try:
+        idx = MinMaxLTTBDownsampler().downsample(km, values, n_out=n_out)
+    except Exception:  # any failure of the optional backend: fall back to min-max
+        return None
+    idx = np.asarray(idx, dtype=np.int64)
+    if idx.ndim != 1 or idx.size > n_out or np.any((idx < 0) | (idx >= km.size)):
+        return None
+    return idx
+
+
+def decimate_for_display(
+    km: np.ndarray,
+    values: np.ndarray,
+    max_points: int,
+    *,
+    use_tsdownsample: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Decimate a curve for plotting while keeping its peaks.
+
+    Parameters
+    ----------
+    km : array_like
+        (n,) positions, km (finite; need not be sorted).
+    values : array_like
+        (n,) values (NaN allowed: gaps).
+    max_points : int
+        Maximum number of points returned, >= 4.
+    use_tsdownsample : bool, optional
+        Use the ``tsdownsample`` package's MinMaxLTTB when it is importable and
+        the input suits it (finite values, strictly increasing km). Otherwise a
+        min-max decimation over equal-count buckets is used.
+
+    Returns
+    -------
+    km_out, values_out : numpy.ndarray
+        At most ``max_points`` points of the input, sorted by km. The first and
+        last points and the global minimum and maximum are always kept. If the
+        input has at most ``max_points`` points it is returned whole (sorted).
+
+    Raises
+    ------
+    ValueError
+        If ``km`` and ``values`` differ in shape, are not 1-D, ``km`` is not
+        finite, or ``max_points`` < 4.
+    """
+    x = np.asarray(km, dtype=np.float64)
+    y = np.asarray(values, dtype=np.float64)
+    if x.ndim != 1:
+        raise ValueError(f"km must be 1-D, got shape {x.shape}")
+    if y.shape != x.shape:
+        raise ValueError(f"values must have the shape of km {x.shape}, got {y.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("km must be finite (found NaN or inf)")
+    if isinstance(max_points, bool) or int(max_points) != max_points or max_points < 4:
+        raise ValueError(f"max_points must be an integer >= 4, got {max_points!r}")
+    max_points = int(max_points)
+
+    order = np.argsort(x, kind="stable")
+    x, y = x[order], y[order]
+    n = x.size
+    if n <= max_points:
+        return x, y
+
+    finite = np.isfinite(y)
+    extremes: list[int] = [0, n - 1]
+    if finite.any():
+        extremes += [int(np.nanargmin(y)), int(np.nanargmax(y))]
+    budget = max_points - len(extremes)
+
+    # Interior points: at most ``budget`` so that, with the extremes, the total
+    # never exceeds max_points.
+    idx = None
+    if use_tsdownsample and budget >= 3:
+        idx = _tsdownsample_indices(x, y, budget)
+    if idx is None:
+        idx = _minmax_indices(y, budget // 2) if budget >= 2 else np.empty(0, dtype=np.int64)
+    idx = np.unique(np.concatenate([idx, np.asarray(extremes, dtype=np.int64)]))
+    return x[idx], y[idx]

@@ -1,0 +1,624 @@
+"""Multi-order Vold–Kalman filter (VKF) order tracking.
+
+The VKF (Hoelzl et al., paper Eqs. 1–20) models a measured signal as a sum of
+``s`` orders with slowly varying complex envelopes,
+
+    y[k] = Σ_n A_n[k] · exp(j φ_n[k]) + η[k],   φ_n[k] = 2π Σ_{l≤k} f_n[l] / fs,
+
+and finds all envelopes *jointly* by minimising
+``Σ_k |η[k]|² + Σ_n Σ_k r_n[k]² |∇^q A_n[k]|²``, i.e. by solving
+``[Cᴴ C + (R S)ᵀ (R S)] a = Cᴴ y``. Solving the orders together is what
+separates close orders (the sleeper passage sits 0.18 wheel orders from
+wheel order 5).
+
+How it is solved (see docs/vkf.md):
+
+* the signal is mixed to complex baseband and decimated when the sample rate
+  is far above the tracked band (``decimation="auto"``), which makes the
+  problem both small and well conditioned;
+* the coupled normal equations are factored as one banded Hermitian matrix
+  (time-major unknowns, ``q·s`` sub-diagonals) and solved for all channels;
+  iterative refinement with a residual computed from the structure removes
+  the rounding bias of narrow bandwidths;
+* long signals are cut into chunks whose overlap follows from the filter's
+  own impulse response and which are joined with a raised-cosine crossfade.
+
+Public API
+----------
+vkf, vkf_stream, vkf_into, VKFResult, VKFWarning, wheel_orders,
+sleeper_passage, OrderTrack.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from ._vkf_banded import solve_orders
+from ._vkf_baseband import EnvelopeSpline, mixing_phase, plan_baseband, to_baseband
+from ._vkf_input import InputStats, VKFInput, check_mode, prepare_input, scan_input
+from ._vkf_weights import bandwidth_from_weight, impulse_length, weight_squared
+from .orders import OrderTrack, sleeper_passage, wheel_orders
+
+__all__ = [
+    "vkf",
+    "vkf_stream",
+    "vkf_into",
+    "VKFResult",
+    "VKFWarning",
+    "wheel_orders",
+    "sleeper_passage",
+    "OrderTrack",
+]
+
+_EPS = np.finfo(np.float64).eps
+#: signals up to this long (s) are solved in one piece by default
+_SINGLE_SOLVE_S = 90.0
+#: default chunk core length for longer signals, s
+_AUTO_CHUNK_S = 60.0
+#: relative level at which the impulse response tail is cut for the overlap
+_OVERLAP_TOL = 1e-8
+#: refinement that ends above this relative correction did not converge
+_CONVERGED = 1e-8
+
+
+class VKFWarning(UserWarning):
+    """Issued when orders come closer than their bandwidth, or when a solve is
+    ill-conditioned (a bandwidth narrower than double precision can resolve
+    at the solve rate was widened, or refinement did not converge)."""
+
+
+# --------------------------------------------------------------------------
+# chunk planning
+# --------------------------------------------------------------------------
+
+
+@dataclass
+class _Segment:
+    """One solved chunk: its envelope spline and crossfade weights."""
+
+    lo: int  # solve range [lo, hi)
+    hi: int
+    out_lo: int  # support of its weight [out_lo, out_hi)
+    out_hi: int
+    fade_in: tuple[int, int] | None  # (boundary, crossfade length)
+    fade_out: tuple[int, int] | None
+    spline: EnvelopeSpline | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def weight(self, index: np.ndarray) -> np.ndarray:
+        """Crossfade weight at global sample indices (0 outside its support)."""
+        w = np.ones(index.shape)
+        if self.fade_in is not None:
+            w *= _ramp(index, *self.fade_in)
+        if self.fade_out is not None:
+            w *= 1.0 - _ramp(index, *self.fade_out)
+        return w
+
+
+def _ramp(index: np.ndarray, boundary: int, length: int) -> np.ndarray:
+    """Raised-cosine step from 0 to 1 over [boundary - length/2, boundary + length/2)."""
+    x = (index - (boundary - length / 2.0) + 0.5) / length
+    return np.sin(0.5 * np.pi * np.clip(x, 0.0, 1.0)) ** 2
+
+
+def _padding(inp: VKFInput, stats: InputStats, a: int, b: int, decimation: str | int) -> int:
+    """Input samples of overlap a segment [a, b) needs on each side."""
+    f_lo, f_hi, bw_min, bw_max = stats.over(a, b)
+    plan = plan_baseband(f_lo, f_hi, bw_max, inp.fs, decimation)
+    factor = 1 if plan is None else plan.factor
+    delay = 0 if plan is None else plan.delay
+    rate = inp.fs / factor
+    return impulse_length(bw_min, rate, inp.q, _OVERLAP_TOL) * factor + delay + factor
+
+
+def _plan_segments(
+    inp: VKFInput, stats: InputStats, chunk_duration: float | None, decimation: str | int
+) -> list[_Segment]:
+    n, fs = inp.n, inp.fs
+    if chunk_duration is None:
+        core = n if n <= _SINGLE_SOLVE_S * fs else int(round(_AUTO_CHUNK_S * fs))
+    else:
+        core = n if math.isinf(chunk_duration) else max(int(round(chunk_duration * fs)), 1)
+    if core >= n:
+        return [_Segment(0, n, 0, n, None, None)]
+    bounds = list(range(0, n, core)) + [n]
+    if len(bounds) > 2 and bounds[-1] - bounds[-2] < core // 2:
+        del bounds[-2]
+    k = len(bounds) - 1
+    pads = []
+    for i in range(k):
+        a, b = bounds[i], bounds[i + 1]
+        guess = _padding(inp, stats, a, b, decimation)
+        lo, hi = max(a - guess - core // 4, 0), min(b + guess + core // 4, n)
+        pads.append(max(guess, _padding(inp, stats, lo, hi, decimation)))
+    # crossfade of each interior boundary: short against the cores, never
+    # longer than the overlap that protects it
+    fades = [0] * (k + 1)
+    for i in range(1, k):
+        fade = min(pads[i - 1], pads[i], (bounds[i] - bounds[i - 1]) // 4, (bounds[i + 1] - bounds[i]) // 4)
+        fades[i] = max(2 * (fade // 2), 2)
+    segments = []
+    for i in range(k):
+        a, b = bounds[i], bounds[i + 1]
+        out_lo = a - fades[i] // 2 if i > 0 else 0
+        out_hi = b + fades[i + 1] // 2 if i < k - 1 else n
+        segments.append(
+            _Segment(
+                lo=max(out_lo - pads[i], 0),
+                hi=min(out_hi + pads[i], n),
+                out_lo=out_lo,
+                out_hi=out_hi,
+                fade_in=(a, fades[i]) if i > 0 else None,
+                fade_out=(b, fades[i + 1]) if i < k - 1 else None,
+            )
+        )
+    return segments
+
+
+# --------------------------------------------------------------------------
+# solving one segment
+# --------------------------------------------------------------------------
+
+
+def _close_pairs(f: np.ndarray, bw: np.ndarray) -> set[tuple[int, int]]:
+    """Order pairs whose frequencies come closer than their mean bandwidth."""
+    pairs = set()
+    s = f.shape[0]
+    for i in range(s - 1):
+        gap = np.abs(f[i + 1 :] - f[i])
+        limit = 0.5 * (bw[i + 1 :] + bw[i])
+        hit = np.any(gap < limit, axis=1)
+        pairs.update((i, i + 1 + int(j)) for j in np.flatnonzero(hit))
+    return pairs
+
+
+def _solve_segment(inp: VKFInput, seg: _Segment, cum_lo: np.ndarray, decimation: str | int) -> set[tuple[int, int]]:
+    """Solve one segment in place (sets ``seg.spline`` and ``seg.info``).
+
+    ``cum_lo`` is Σ_{l<lo} f_n[l] (Hz·samples) for the global phase.
+    """
+    lo, hi, fs, q = seg.lo, seg.hi, inp.fs, inp.q
+    y = inp.y_slice(lo, hi)
+    f = inp.f_slice(lo, hi)
+    bw = inp.bw_slice(lo, hi)
+    plan = plan_baseband(float(f.min()), float(f.max()), float(bw.max()), fs, decimation)
+    cs = np.cumsum(f, axis=1)
+    if plan is None:
+        factor = 1
+        phi = inp.phase0[:, None] + (2.0 * np.pi / fs) * (cum_lo[:, None] + cs)
+        ys = y
+    else:
+        factor = plan.factor
+        idx = np.arange(0, hi - lo, factor)
+        phi = inp.phase0[:, None] + (2.0 * np.pi / fs) * (cum_lo[:, None] + cs[:, idx])
+        phi -= mixing_phase(plan, lo + idx, fs)[None, :]
+        ys = to_baseband(y, lo, plan, fs)
+        f, bw = f[:, idx], bw[:, idx]
+    del cs
+    rate = fs / factor
+    r2 = weight_squared(bw[:, q:], rate, q)
+    r2_max = 0.25 / (_EPS * 4.0**q)
+    widened = bool(np.any(r2 > r2_max))
+    if widened:
+        np.minimum(r2, r2_max, out=r2)
+    sol = solve_orders(ys, phi, r2, q)
+    seg.spline = EnvelopeSpline(2.0 * sol.envelope, lo, factor)
+    seg.info = {
+        "decimation": factor,
+        "solve_rate_hz": rate,
+        "center_hz": None if plan is None else plan.center,
+        "refinement_iterations": sol.iterations,
+        "refinement_correction": sol.correction,
+        "widened_min_bandwidth_hz": float(bandwidth_from_weight(r2_max, rate, q)) if widened else None,
+    }
+    if widened:
+        warnings.warn(
+            f"bandwidth below {seg.info['widened_min_bandwidth_hz']:.3g} Hz cannot be resolved in double "
+            f"precision at a solve rate of {rate:g} Hz (filter_order={q}); it was widened to that value "
+            f"for samples {lo}–{hi}. Use decimation='auto'.",
+            VKFWarning,
+            stacklevel=4,
+        )
+    if sol.correction > _CONVERGED:
+        warnings.warn(
+            f"VKF refinement did not converge (relative correction {sol.correction:.2g}) for samples "
+            f"{lo}–{hi}: the problem is too ill-conditioned at this solve rate; use decimation='auto'.",
+            VKFWarning,
+            stacklevel=4,
+        )
+    return _close_pairs(f, bw)
+
+
+def _iter_segments(
+    inp: VKFInput, chunk_duration: float | None, decimation: str | int
+) -> Iterator[tuple[int, list[_Segment], np.ndarray, set[tuple[int, int]]]]:
+    """Solve the planned segments in order.
+
+    Yields ``(i, segments, cum_lo, pairs)`` after segment ``i`` is solved,
+    with ``cum_lo = Σ_{l<lo} f_n[l]`` of that segment.
+    """
+    stats = scan_input(inp)
+    segments = _plan_segments(inp, stats, chunk_duration, decimation)
+    cum = np.zeros(inp.s)
+    pos = 0
+    for i, seg in enumerate(segments):
+        if seg.lo > pos:
+            cum = cum + inp.f_slice(pos, seg.lo).sum(axis=1)
+            pos = seg.lo
+        pairs = _solve_segment(inp, seg, cum, decimation)
+        yield i, segments, cum.copy(), pairs
+
+
+# --------------------------------------------------------------------------
+# results
+# --------------------------------------------------------------------------
+
+
+class VKFResult:
+    """Envelopes and components of a VKF run over input samples [start, stop).
+
+    Full-rate arrays are computed on first access and cached; use
+    :meth:`envelope_at` for a reduced output rate without materialising them.
+    Arrays have a leading channel axis when ``y`` was 2-D.
+
+    Attributes
+    ----------
+    envelope : ndarray, complex, shape ([channels,] s, n)
+        Complex envelope of every order, m/s² for ABA: ``2·A_n`` of the paper,
+        so that ``waveform = Re(envelope · exp(j·phi))``. NaN where the order
+        is not trackable (see ``valid``).
+    amplitude : ndarray, shape ([channels,] s, n)
+        Peak amplitude of each real component, ``|envelope|``.
+    phase : ndarray, shape ([channels,] s, n)
+        ``angle(envelope)``, rad, relative to ``phi``.
+    waveform : ndarray, shape ([channels,] s, n)
+        Real components ``x_n[k]``; 0 where not trackable.
+    residual : ndarray, shape ([channels,] n)
+        ``y − Σ_n waveform_n``.
+    phi : ndarray, shape (s, n)
+        Phases used, rad: ``phase0 + 2π Σ_{l≤k} f_n[l] / fs`` (paper Eq. 3).
+    bandwidth : ndarray, shape (s, n)
+        Requested full −3 dB bandwidth, Hz.
+    valid : ndarray of bool, shape (s, n)
+        False where an order's frequency is below its bandwidth (e.g. a
+        standing train): the order then overlaps its own mirror image at
+        −f and DC and cannot be separated.
+    close_orders : list of (int, int)
+        Pairs of orders that come closer than their mean bandwidth somewhere
+        (their separation then rests on the coupled solve alone).
+    info : dict
+        Decimation, solve rate, refinement iterations per chunk.
+    start, stop : int
+        Input sample range of this result.
+    fs : float
+        Input sample rate, Hz.
+    filter_order : int
+        q.
+    """
+
+    def __init__(
+        self,
+        inp: VKFInput,
+        segments: list[_Segment],
+        start: int,
+        stop: int,
+        cum_start: np.ndarray,
+        close_orders: list[tuple[int, int]],
+    ) -> None:
+        self._inp = inp
+        self._segments = segments
+        self.start = int(start)
+        self.stop = int(stop)
+        self._cum_start = cum_start
+        self.close_orders = close_orders
+        self.fs = inp.fs
+        self.filter_order = inp.q
+        self.info = {"chunks": [dict(lo=s.lo, hi=s.hi, **s.info) for s in segments]}
+
+    def __len__(self) -> int:
+        return self.stop - self.start
+
+    def __repr__(self) -> str:
+        return (
+            f"VKFResult(samples {self.start}–{self.stop}, orders={self._inp.s}, channels={self._inp.channels}, "
+            f"fs={self.fs:g} Hz, filter_order={self.filter_order}, chunks={len(self._segments)})"
+        )
+
+    def _squeeze(self, a: np.ndarray) -> np.ndarray:
+        return a[0] if self._inp.y_is_1d else a
+
+    def _raw_envelope(self, index: np.ndarray) -> np.ndarray:
+        """Crossfaded envelopes (channels, s, len(index)) at global indices."""
+        out = np.zeros((self._inp.channels, self._inp.s, index.size), dtype=np.complex128)
+        for seg in self._segments:
+            sel = np.flatnonzero((index >= seg.out_lo) & (index < seg.out_hi))
+            if sel.size == 0:
+                continue
+            k = index[sel]
+            w = seg.weight(k)
+            if np.all(w == 1.0):
+                out[..., sel] = seg.spline(k)
+            else:
+                out[..., sel] += seg.spline(k) * w
+        return out
+
+    def _valid_at(self, index: np.ndarray) -> np.ndarray:
+        if index.size == 0:
+            return np.ones((self._inp.s, 0), dtype=bool)
+        lo, hi = int(index.min()), int(index.max()) + 1
+        f = self._inp.f_slice(lo, hi)[:, index - lo]
+        bw = self._inp.bw_slice(lo, hi)[:, index - lo]
+        return f >= bw
+
+    def envelope_at(self, index: Any) -> np.ndarray:
+        """Envelopes at sample indices relative to ``start`` (e.g. a reduced rate).
+
+        Parameters
+        ----------
+        index : array_like of int
+            Sample indices in ``[0, len(self))``, e.g. ``np.arange(0, len(res), 24)``
+            for a 1 kHz output from 24 kHz input.
+
+        Returns
+        -------
+        ndarray, complex, shape ([channels,] s, len(index))
+            NaN where the order is not trackable.
+        """
+        index = np.asarray(index, dtype=np.int64).reshape(-1)
+        if index.size and (index.min() < 0 or index.max() >= len(self)):
+            raise ValueError(f"index must lie in [0, {len(self)}), got {index.min()}..{index.max()}")
+        g = index + self.start
+        env = self._raw_envelope(g)
+        env[:, ~self._valid_at(g)] = np.nan
+        return self._squeeze(env)
+
+    @cached_property
+    def _full_index(self) -> np.ndarray:
+        return np.arange(self.start, self.stop)
+
+    @cached_property
+    def _raw(self) -> np.ndarray:
+        return self._raw_envelope(self._full_index)
+
+    @cached_property
+    def valid(self) -> np.ndarray:
+        return self._valid_at(self._full_index)
+
+    @cached_property
+    def envelope(self) -> np.ndarray:
+        env = self._raw.copy()
+        env[:, ~self.valid] = np.nan
+        return self._squeeze(env)
+
+    @cached_property
+    def amplitude(self) -> np.ndarray:
+        return np.abs(self.envelope)
+
+    @cached_property
+    def phase(self) -> np.ndarray:
+        return np.angle(self.envelope)
+
+    @cached_property
+    def phi(self) -> np.ndarray:
+        f = self._inp.f_slice(self.start, self.stop)
+        cs = np.cumsum(f, axis=1)
+        cs += self._cum_start[:, None]
+        return self._inp.phase0[:, None] + (2.0 * np.pi / self.fs) * cs
+
+    @cached_property
+    def bandwidth(self) -> np.ndarray:
+        return np.array(self._inp.bw_slice(self.start, self.stop))
+
+    @cached_property
+    def waveform(self) -> np.ndarray:
+        wave = (self._raw * np.exp(1j * self.phi)).real
+        wave[:, ~self.valid] = 0.0
+        return self._squeeze(wave)
+
+    @cached_property
+    def residual(self) -> np.ndarray:
+        y = self._inp.y_slice(self.start, self.stop)
+        wave = self.waveform if not self._inp.y_is_1d else self.waveform[None]
+        return self._squeeze(y - wave.sum(axis=-2))
+
+
+def _warn_close(pairs: set[tuple[int, int]]) -> list[tuple[int, int]]:
+    close = sorted(pairs)
+    if close:
+        warnings.warn(
+            f"orders {close} come closer than their bandwidth; their separation rests on the coupled solve",
+            VKFWarning,
+            stacklevel=3,
+        )
+    return close
+
+
+def vkf(
+    y: Any,
+    fs: float,
+    freqs: Any,
+    bandwidth: Any,
+    filter_order: int = 2,
+    *,
+    decimation: str | int = "auto",
+    chunk_duration: float | None = None,
+    phase0: Any = None,
+) -> VKFResult:
+    """Extract orders with the multi-order Vold–Kalman filter.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,) or (channels, N)
+        Real signal, e.g. axle-box acceleration in m/s². Channels share the
+        orders: the system is factored once and solved for all of them.
+        ndarrays, ``np.memmap`` and h5py datasets are read chunk by chunk.
+    fs : float
+        Sample rate, Hz.
+    freqs : array_like, shape (s, N) or (s,)
+        Instantaneous frequency of each order, Hz, in ``[0, fs/2)``; a (s,)
+        array means constant frequencies. May be an
+        :class:`~app.analysis.orders.OrderTrack` (lazy ``multiplier × speed``).
+    bandwidth : float or array_like, shape (s,) or (s, N)
+        Full −3 dB (half-power) bandwidth of each order's filter, Hz, > 0.
+        An (s, N) array lets it follow the speed (constant in orders).
+    filter_order : {1, 2, 3}
+        Order q of the difference operator of the structural equation.
+        Higher q gives a flatter pass band and steeper roll-off (and longer
+        impulse response).
+    decimation : {"auto", "off"} or int, optional
+        ``"auto"`` (default) mixes to complex baseband and decimates when the
+        sample rate is at least 4x what the tracked band needs; results are
+        returned at the input rate. ``"off"`` solves Eq. 20 at the input rate
+        exactly. An int forces that factor.
+    chunk_duration : float, optional
+        Core length of a chunk, s. None (default): one solve up to 90 s,
+        60 s chunks beyond. ``math.inf``: always one solve.
+    phase0 : array_like, shape (s,), optional
+        Phase of each order before the first sample, rad (default 0).
+
+    Returns
+    -------
+    VKFResult
+
+    Raises
+    ------
+    ValueError
+        If an argument is invalid; the message names it.
+
+    Warns
+    -----
+    VKFWarning
+        If orders come closer than their bandwidth, or a solve is
+        ill-conditioned (only possible with ``decimation="off"`` or a fixed
+        factor).
+
+    Notes
+    -----
+    The bandwidth sets the weights ``r = sqrt(√2 − 1) / (2 sin(π B / (2 f_r)))^q``
+    at the solve rate ``f_r``, which puts the stationary response
+    ``1 / (1 + r² (2 sin(ω/2))^(2q))`` at −3 dB ``B/2`` Hz either side of the
+    tracked frequency.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from app.analysis.vkf import vkf
+    >>> fs = 2000.0
+    >>> t = np.arange(4000) / fs
+    >>> y = 2.0 * np.cos(2 * np.pi * 100.0 * t + 0.3)
+    >>> res = vkf(y, fs, [100.0], bandwidth=5.0)
+    >>> bool(abs(res.amplitude[0, 2000] - 2.0) < 1e-6)
+    True
+    """
+    decimation, chunk_duration = check_mode(decimation, chunk_duration)
+    inp = prepare_input(y, fs, freqs, bandwidth, filter_order, phase0)
+    pairs: set[tuple[int, int]] = set()
+    segments: list[_Segment] = []
+    for _, segments, _, seg_pairs in _iter_segments(inp, chunk_duration, decimation):  # noqa: B007
+        pairs |= seg_pairs
+    return VKFResult(inp, segments, 0, inp.n, np.zeros(inp.s), _warn_close(pairs))
+
+
+def vkf_stream(
+    y: Any,
+    fs: float,
+    freqs: Any,
+    bandwidth: Any,
+    filter_order: int = 2,
+    *,
+    decimation: str | int = "auto",
+    chunk_duration: float | None = None,
+    phase0: Any = None,
+) -> Iterator[VKFResult]:
+    """Run :func:`vkf` chunk by chunk with bounded memory.
+
+    Same parameters as :func:`vkf`. Yields :class:`VKFResult` blocks with the
+    final, crossfaded results for consecutive input ranges
+    ``[block.start, block.stop)`` that cover the input exactly once, in
+    order. Only the current and the previous chunk are held in memory, so
+    inputs of any length (memory-mapped) can be processed. Values are checked
+    in a first pass before anything is yielded.
+    """
+    decimation, chunk_duration = check_mode(decimation, chunk_duration)
+    inp = prepare_input(y, fs, freqs, bandwidth, filter_order, phase0)
+    seen: set[tuple[int, int]] = set()
+    for i, segments, cum_lo, pairs in _iter_segments(inp, chunk_duration, decimation):
+        seg = segments[i]
+        start = 0 if i == 0 else seg.out_lo
+        stop = segments[i + 1].out_lo if i + 1 < len(segments) else inp.n
+        start_cum = cum_lo + inp.f_slice(seg.lo, start).sum(axis=1)
+        new = pairs - seen
+        seen |= pairs
+        close = _warn_close(new) if new else []
+        yield VKFResult(inp, segments[max(i - 1, 0) : i + 1], start, stop, start_cum, sorted(pairs) or close)
+        if i > 0:
+            segments[i - 1].spline = None  # release: no later block needs it
+
+
+def vkf_into(
+    sink: Mapping[str, Any],
+    y: Any,
+    fs: float,
+    freqs: Any,
+    bandwidth: Any,
+    filter_order: int = 2,
+    *,
+    step: int = 1,
+    decimation: str | int = "auto",
+    chunk_duration: float | None = None,
+    phase0: Any = None,
+) -> None:
+    """Run the VKF chunk by chunk and write results into caller-owned arrays.
+
+    Parameters
+    ----------
+    sink : mapping of str to array-like
+        Keys among ``"envelope"``, ``"amplitude"``, ``"phase"`` (shape
+        ``([channels,] s, ceil(N/step))``), ``"waveform"`` (same) and
+        ``"residual"`` (``([channels,] ceil(N/step))``); values are ndarrays,
+        ``np.memmap`` or h5py datasets, written slice by slice.
+    step : int
+        Output every ``step``-th input sample (``step=24`` at 24 kHz writes
+        1 kHz envelopes). Default 1.
+    y, fs, freqs, bandwidth, filter_order, decimation, chunk_duration, phase0
+        As for :func:`vkf`.
+    """
+    allowed = {"envelope", "amplitude", "phase", "waveform", "residual"}
+    unknown = set(sink) - allowed
+    if unknown:
+        raise ValueError(f"sink has unknown field(s) {sorted(unknown)}; allowed: {sorted(allowed)}")
+    if isinstance(step, bool) or int(step) != step or step < 1:
+        raise ValueError(f"step must be a positive integer, got {step!r}")
+    step = int(step)
+    for blk in vkf_stream(
+        y, fs, freqs, bandwidth, filter_order, decimation=decimation, chunk_duration=chunk_duration, phase0=phase0
+    ):
+        first = -(-blk.start // step) * step
+        local = np.arange(first, blk.stop, step) - blk.start
+        if local.size == 0:
+            continue
+        o0, o1 = first // step, first // step + local.size
+        if step == 1:
+            values = {name: getattr(blk, name) for name in sink}
+        else:
+            env = blk.envelope_at(local)
+            values = {}
+            if "envelope" in sink:
+                values["envelope"] = env
+            if "amplitude" in sink:
+                values["amplitude"] = np.abs(env)
+            if "phase" in sink:
+                values["phase"] = np.angle(env)
+            if "waveform" in sink or "residual" in sink:
+                wave = blk.waveform[..., local]
+                values["waveform"] = wave
+                values["residual"] = blk.residual[..., local]
+        for name, target in sink.items():
+            target[..., o0:o1] = values[name]
