@@ -55,12 +55,16 @@ class BasebandPlan:
     factor: int
     center: float
     half_width: float
-    taps: np.ndarray
+    stages: tuple[tuple[int, np.ndarray], ...]
 
     @property
     def delay(self) -> int:
-        """Half length of the FIR, input samples (edge transient length)."""
-        return (len(self.taps) - 1) // 2
+        """Half length of the cascaded FIR, input samples (edge transient length)."""
+        total, step = 0, 1
+        for factor, taps in self.stages:
+            total += (len(taps) - 1) // 2 * step
+            step *= factor
+        return total
 
 
 def plan_baseband(
@@ -100,18 +104,57 @@ def plan_baseband(
                 f"{f_lo:.3g}–{f_hi:.3g} Hz with bandwidth {bw_max:.3g} Hz needs a "
                 f"decimation factor of at most {max(max_factor, 1)} at fs={fs:g} Hz"
             )
-    rate = fs / factor
-    width = (rate - 2.0 * half_width) / (fs / 2.0)
-    numtaps, beta = kaiserord(_ATTEN_DB, width)
-    numtaps |= 1  # odd length: integer group delay
-    taps = firwin(numtaps, rate / 2.0, window=("kaiser", beta), fs=fs)
-    return BasebandPlan(factor=factor, center=(f_lo + f_hi) / 2.0, half_width=half_width, taps=taps)
+    if factor >= 16 and decimation == "auto":
+        first = int(np.floor(np.sqrt(factor)))
+        factors = [first, factor // first]
+    else:
+        factors = [factor]
+    stages = []
+    rate = fs
+    for f in factors:
+        out_rate = rate / f
+        width = (out_rate - 2.0 * half_width) / (rate / 2.0)
+        numtaps, beta = kaiserord(_ATTEN_DB, width)
+        numtaps |= 1  # odd length: integer group delay
+        stages.append((f, firwin(numtaps, out_rate / 2.0, window=("kaiser", beta), fs=rate)))
+        rate = out_rate
+    return BasebandPlan(
+        factor=int(np.prod(factors)), center=(f_lo + f_hi) / 2.0, half_width=half_width, stages=tuple(stages)
+    )
 
 
 def mixing_phase(plan: BasebandPlan, index: np.ndarray, fs: float) -> np.ndarray:
     """Phase of the mixing oscillator at global sample indices, rad (mod 2π)."""
     cycles = np.mod(plan.center / fs * np.asarray(index, dtype=np.float64), 1.0)
     return 2.0 * np.pi * cycles
+
+
+def _oscillator(plan: BasebandPlan, first_index: int, n: int, fs: float) -> np.ndarray:
+    """exp(-j 2π f_c k / fs) for k = first_index … first_index + n - 1.
+
+    One block of exponentials times one complex factor per block: a complex
+    multiply per sample instead of a complex exponential.
+    """
+    block = 4096
+    nb = -(-n // block)
+    base = np.exp(-1j * mixing_phase(plan, np.arange(block), fs))
+    starts = np.exp(-1j * mixing_phase(plan, first_index + block * np.arange(nb), fs))
+    return (starts[:, None] * base[None, :]).reshape(-1)[:n]
+
+
+def _decimate(x: np.ndarray, factor: int, taps: np.ndarray) -> np.ndarray:
+    """Zero-phase FIR + decimation of a real 1-D array.
+
+    Output m is Σ_j taps[j] x[m·factor + c − j] (c = half length), with x = 0
+    outside, for m = 0 … ceil(n / factor) − 1.
+    """
+    n = x.shape[-1]
+    m = -(-n // factor)
+    c = (len(taps) - 1) // 2
+    pad = (-c) % factor
+    skip = (c + pad) // factor
+    padded = np.concatenate([np.zeros(pad), x]) if pad else x
+    return upfirdn(taps, padded, up=1, down=factor)[skip : skip + m]
 
 
 def to_baseband(y: np.ndarray, first_index: int, plan: BasebandPlan, fs: float) -> np.ndarray:
@@ -134,17 +177,17 @@ def to_baseband(y: np.ndarray, first_index: int, plan: BasebandPlan, fs: float) 
         ``M = ceil(n / D)``; samples outside the segment count as zero.
     """
     n = y.shape[-1]
-    d = plan.factor
-    m = -(-n // d)
-    c = plan.delay
-    pad = (-c) % d
-    skip = (c + pad) // d
-    osc = np.exp(-1j * mixing_phase(plan, np.arange(first_index, first_index + n), fs))
+    m = -(-n // plan.factor)
+    osc = _oscillator(plan, first_index, n, fs)
     out = np.empty((y.shape[0], m), dtype=np.complex128)
     for ch in range(y.shape[0]):
-        mixed = np.concatenate([np.zeros(pad, dtype=np.complex128), y[ch] * osc])
-        filtered = upfirdn(plan.taps, mixed, up=1, down=d)
-        out[ch] = filtered[skip : skip + m]
+        mixed = y[ch] * osc
+        # real taps: filter the real and imaginary parts separately (2x
+        # fewer multiplications than a complex-by-complex convolution)
+        re, im = mixed.real.copy(), mixed.imag.copy()
+        for factor, taps in plan.stages:
+            re, im = _decimate(re, factor, taps), _decimate(im, factor, taps)
+        out[ch] = re[:m] + 1j * im[:m]
     return out
 
 

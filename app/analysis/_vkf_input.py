@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from .orders import OrderTrack
+
 __all__ = ["VKFInput", "prepare_input", "check_mode"]
 
 #: samples per validation / statistics block
@@ -62,6 +64,44 @@ class VKFInput:
         if self.bw_const is not None:
             return np.broadcast_to(self.bw_const[:, None], (self.s, b - a))
         return np.asarray(self.bandwidth[:, a:b], dtype=np.float64)
+
+    def at(self, which: str, a: int, b: int, idx: np.ndarray) -> np.ndarray:
+        """``freqs`` or ``bandwidth`` over [a, b) at local indices ``idx``.
+
+        Lazy order tracks are evaluated only at ``idx`` (a decimated grid).
+        """
+        src, const = (self.freqs, self.freqs_const) if which == "freqs" else (self.bandwidth, self.bw_const)
+        if const is not None:
+            return np.broadcast_to(const[:, None], (self.s, idx.size))
+        if isinstance(src, OrderTrack):
+            v = np.asarray(src.speed[a:b], dtype=np.float64)[idx]
+            return _track_values(src, v)
+        return np.asarray(src[:, a:b], dtype=np.float64)[:, idx]
+
+    def cumsum_freqs(self, a: int, b: int, idx: np.ndarray | None = None) -> np.ndarray:
+        """Σ_{a≤l≤k} f_n[l] for k in [a, b) (at local indices ``idx``), Hz·samples."""
+        if isinstance(self.freqs, OrderTrack) and self.freqs.floor == 0.0:
+            cv = np.cumsum(np.asarray(self.freqs.speed[a:b], dtype=np.float64))
+            if idx is not None:
+                cv = cv[idx]
+            return np.multiply.outer(self.freqs.multipliers, cv)
+        cs = np.cumsum(self.f_slice(a, b), axis=1)
+        return cs if idx is None else cs[:, idx]
+
+    def sum_freqs(self, a: int, b: int) -> np.ndarray:
+        """Σ_{a≤l<b} f_n[l], Hz·samples, shape (s,)."""
+        if b <= a:
+            return np.zeros(self.s)
+        if isinstance(self.freqs, OrderTrack) and self.freqs.floor == 0.0:
+            return self.freqs.multipliers * float(np.sum(np.asarray(self.freqs.speed[a:b], dtype=np.float64)))
+        return self.f_slice(a, b).sum(axis=1)
+
+
+def _track_values(track: OrderTrack, v: np.ndarray) -> np.ndarray:
+    out = np.multiply.outer(track.multipliers, v)
+    if track.floor > 0:
+        np.maximum(out, track.floor, out=out)
+    return out
 
 
 def check_mode(decimation: Any, chunk_duration: Any) -> tuple[str | int, float | None]:
@@ -199,6 +239,22 @@ def _check_values(name: str, values: np.ndarray, a: int, low: float, high: float
         raise ValueError(f"{name} must be below fs/2 = {high:g} Hz, got {vmax:g} {unit}")
 
 
+def _extremes(src: Any, const: np.ndarray | None, slicer: Any, a: int, e: int) -> np.ndarray:
+    """Values whose min/max/finiteness equal those of the block [a, e).
+
+    For a lazy order track only the speed is scanned: the extremes of
+    ``multiplier × speed`` are the products with the speed extremes.
+    """
+    if const is not None:
+        return const[:, None]
+    if isinstance(src, OrderTrack):
+        v = np.asarray(src.speed[a:e], dtype=np.float64)
+        if not np.all(np.isfinite(v)):
+            return v[None, :]
+        return _track_values(src, np.array([v.min(), v.max()]))
+    return slicer(a, e)
+
+
 def scan_input(inp: VKFInput) -> InputStats:
     """Check every value of y, freqs and bandwidth; collect per-block extremes.
 
@@ -214,9 +270,9 @@ def scan_input(inp: VKFInput) -> InputStats:
         if not np.all(np.isfinite(yb)):
             bad = int(np.argwhere(~np.isfinite(yb))[0][-1]) + a
             raise ValueError(f"y contains NaN or inf (first at sample {bad})")
-        fb = inp.f_slice(a, e)
+        fb = _extremes(inp.freqs, inp.freqs_const, inp.f_slice, a, e)
         _check_values("freqs", fb, a, 0.0, nyq, False, "Hz")
-        bb = inp.bw_slice(a, e)
+        bb = _extremes(inp.bandwidth, inp.bw_const, inp.bw_slice, a, e)
         _check_values("bandwidth", bb, a, 0.0, nyq, True, "Hz")
         stats.f_min[b], stats.f_max[b] = fb.min(), fb.max()
         stats.bw_min[b], stats.bw_max[b] = bb.min(), bb.max()

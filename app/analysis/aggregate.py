@@ -122,8 +122,9 @@ def aggregate_profile(
     ]
     bins = df["bin"].to_numpy()
     if bins.size == 0:
-        return pd.DataFrame({c: pd.Series(dtype=np.int64 if c == "n_bins" else np.float64)
-                             for c in out_cols})
+        return pd.DataFrame(
+            {c: pd.Series(dtype=np.int64 if c == "n_bins" else np.float64) for c in out_cols}
+        )
     if not np.issubdtype(bins.dtype, np.integer):
         raise ValueError(f"df['bin'] must hold integers, got dtype {bins.dtype}")
     bins = bins.astype(np.int64)

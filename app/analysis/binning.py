@@ -343,11 +343,11 @@ class BinSums:
         sums, sq, vweight = {}, {}, {}
         for k in keys:
             if k.startswith(_PREFIX_SUM):
-                sums[k[len(_PREFIX_SUM):]] = np.asarray(d[k])
+                sums[k[len(_PREFIX_SUM) :]] = np.asarray(d[k])
             elif k.startswith(_PREFIX_SQ):
-                sq[k[len(_PREFIX_SQ):]] = np.asarray(d[k])
+                sq[k[len(_PREFIX_SQ) :]] = np.asarray(d[k])
             elif k.startswith(_PREFIX_VW):
-                vweight[k[len(_PREFIX_VW):]] = np.asarray(d[k])
+                vweight[k[len(_PREFIX_VW) :]] = np.asarray(d[k])
         return cls(
             bins=np.asarray(d["bins"]),
             weight=np.asarray(d["weight"]),

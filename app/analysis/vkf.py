@@ -167,6 +167,19 @@ def _plan_segments(
 # --------------------------------------------------------------------------
 
 
+def _segment_extremes(inp: VKFInput, lo: int, hi: int) -> tuple[float, float, float, float]:
+    """(f_min, f_max, bw_min, bw_max) over [lo, hi), exact (not block-rounded)."""
+    idx = np.arange(hi - lo)
+    if inp.freqs_const is None and not isinstance(inp.freqs, OrderTrack):
+        f = inp.f_slice(lo, hi)
+        f_lo, f_hi = float(f.min()), float(f.max())
+    else:
+        f = inp.at("freqs", lo, hi, idx) if inp.freqs_const is None else inp.freqs_const
+        f_lo, f_hi = float(np.min(f)), float(np.max(f))
+    bw = inp.bw_const if inp.bw_const is not None else inp.at("bandwidth", lo, hi, idx)
+    return f_lo, f_hi, float(np.min(bw)), float(np.max(bw))
+
+
 def _close_pairs(f: np.ndarray, bw: np.ndarray) -> set[tuple[int, int]]:
     """Order pairs whose frequencies come closer than their mean bandwidth."""
     pairs = set()
@@ -185,23 +198,23 @@ def _solve_segment(inp: VKFInput, seg: _Segment, cum_lo: np.ndarray, decimation:
     ``cum_lo`` is Σ_{l<lo} f_n[l] (Hz·samples) for the global phase.
     """
     lo, hi, fs, q = seg.lo, seg.hi, inp.fs, inp.q
+    f_lo, f_hi, _, bw_max = _segment_extremes(inp, lo, hi)
+    plan = plan_baseband(f_lo, f_hi, bw_max, fs, decimation)
     y = inp.y_slice(lo, hi)
-    f = inp.f_slice(lo, hi)
-    bw = inp.bw_slice(lo, hi)
-    plan = plan_baseband(float(f.min()), float(f.max()), float(bw.max()), fs, decimation)
-    cs = np.cumsum(f, axis=1)
     if plan is None:
         factor = 1
-        phi = inp.phase0[:, None] + (2.0 * np.pi / fs) * (cum_lo[:, None] + cs)
+        idx = np.arange(hi - lo)
         ys = y
     else:
         factor = plan.factor
         idx = np.arange(0, hi - lo, factor)
-        phi = inp.phase0[:, None] + (2.0 * np.pi / fs) * (cum_lo[:, None] + cs[:, idx])
-        phi -= mixing_phase(plan, lo + idx, fs)[None, :]
         ys = to_baseband(y, lo, plan, fs)
-        f, bw = f[:, idx], bw[:, idx]
-    del cs
+    del y
+    phi = inp.phase0[:, None] + (2.0 * np.pi / fs) * (cum_lo[:, None] + inp.cumsum_freqs(lo, hi, idx))
+    if plan is not None:
+        phi -= mixing_phase(plan, lo + idx, fs)[None, :]
+    f = inp.at("freqs", lo, hi, idx)
+    bw = inp.at("bandwidth", lo, hi, idx)
     rate = fs / factor
     r2 = weight_squared(bw[:, q:], rate, q)
     r2_max = 0.25 / (_EPS * 4.0**q)
@@ -250,7 +263,7 @@ def _iter_segments(
     pos = 0
     for i, seg in enumerate(segments):
         if seg.lo > pos:
-            cum = cum + inp.f_slice(pos, seg.lo).sum(axis=1)
+            cum = cum + inp.sum_freqs(pos, seg.lo)
             pos = seg.lo
         pairs = _solve_segment(inp, seg, cum, decimation)
         yield i, segments, cum.copy(), pairs
@@ -407,8 +420,7 @@ class VKFResult:
 
     @cached_property
     def phi(self) -> np.ndarray:
-        f = self._inp.f_slice(self.start, self.stop)
-        cs = np.cumsum(f, axis=1)
+        cs = self._inp.cumsum_freqs(self.start, self.stop)
         cs += self._cum_start[:, None]
         return self._inp.phase0[:, None] + (2.0 * np.pi / self.fs) * cs
 
@@ -553,7 +565,7 @@ def vkf_stream(
         seg = segments[i]
         start = 0 if i == 0 else seg.out_lo
         stop = segments[i + 1].out_lo if i + 1 < len(segments) else inp.n
-        start_cum = cum_lo + inp.f_slice(seg.lo, start).sum(axis=1)
+        start_cum = cum_lo + inp.sum_freqs(seg.lo, start)
         new = pairs - seen
         seen |= pairs
         close = _warn_close(new) if new else []

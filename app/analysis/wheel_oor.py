@@ -214,9 +214,7 @@ def _wrap(phase: np.ndarray) -> np.ndarray:
     return (phase + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def _weighted_line(
-    s: np.ndarray, p: np.ndarray, w: np.ndarray
-) -> tuple[float, float, float]:
+def _weighted_line(s: np.ndarray, p: np.ndarray, w: np.ndarray) -> tuple[float, float, float]:
     """Weighted LS fit ``p ≈ a + b s``; returns (a, b, standard error of b)."""
     sw = w.sum()
     s_mean = (w * s).sum() / sw
@@ -433,9 +431,7 @@ def apply_diameter_correction(
     return p * (d1 / d0) ** 2 * np.exp(-1j * k * s[None, :])
 
 
-def reconstruct_profile(
-    phasors: np.ndarray, orders: np.ndarray, n_angles: int = 360
-) -> np.ndarray:
+def reconstruct_profile(phasors: np.ndarray, orders: np.ndarray, n_angles: int = 360) -> np.ndarray:
     """Radius deviation around the wheel from its order phasors.
 
     Parameters
@@ -466,9 +462,7 @@ def reconstruct_profile(
     return np.real(np.tensordot(p, basis, axes=([0], [0])))
 
 
-def summarize_oor(
-    window_phasors: np.ndarray, orders: np.ndarray, n_angles: int = 360
-) -> dict:
+def summarize_oor(window_phasors: np.ndarray, orders: np.ndarray, n_angles: int = 360) -> dict:
     """Summary of a wheel's OOR over windows (JSON-ready: lists and floats).
 
     Only windows where every order is finite are used.
@@ -509,8 +503,13 @@ def summarize_oor(
         return {
             "n_windows": 0,
             "orders": [
-                {"order": int(o), "radius_um": float("nan"), "radius_um_p05": float("nan"),
-                 "radius_um_p95": float("nan"), "phase_rad": float("nan")}
+                {
+                    "order": int(o),
+                    "radius_um": float("nan"),
+                    "radius_um_p05": float("nan"),
+                    "radius_um_p95": float("nan"),
+                    "phase_rad": float("nan"),
+                }
                 for o in ords
             ],
             "angles_deg": angles,

@@ -1,0 +1,133 @@
+"""Tests of app.analysis.aggregate: segment aggregation and display decimation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from app.analysis import aggregate
+from app.analysis.aggregate import aggregate_profile, decimate_for_display
+
+
+def _profile(rng: np.random.Generator) -> pd.DataFrame:
+    bins = np.sort(rng.choice(np.arange(-800, 4000), size=3000, replace=False))
+    a = rng.gamma(2.0, 0.5, bins.size)
+    a[rng.random(bins.size) < 0.15] = np.nan
+    a[(bins >= 1200) & (bins < 1240)] = np.nan  # one 10 m segment entirely NaN
+    b = rng.normal(20.0, 3.0, bins.size)
+    df = pd.DataFrame({"bin": bins, "km": (bins + 0.5) * 0.25e-3, "a": a, "b": b})
+    return df.sample(frac=1.0, random_state=4)  # row order must not matter
+
+
+@pytest.mark.parametrize("level_m", [1.0, 10.0, 100.0])
+def test_matches_pandas_groupby(level_m: float) -> None:
+    df = _profile(np.random.default_rng(5))
+    got = aggregate_profile(df, level_m, ["a", "b"])
+    k = round(level_m / 0.25)
+    g = df.assign(seg=df["bin"] // k).groupby("seg")
+    ref = pd.DataFrame(
+        {
+            "n_bins": g.size(),
+            "a_mean": g["a"].mean(),
+            "a_max": g["a"].max(),
+            "a_p95": g["a"].quantile(0.95),
+            "b_mean": g["b"].mean(),
+            "b_max": g["b"].max(),
+            "b_p95": g["b"].quantile(0.95),
+        }
+    ).sort_index()
+    assert list(got.columns) == [
+        "km_from",
+        "km_to",
+        "n_bins",
+        "a_mean",
+        "a_max",
+        "a_p95",
+        "b_mean",
+        "b_max",
+        "b_p95",
+    ]
+    np.testing.assert_allclose(got["km_from"], ref.index.to_numpy() * level_m / 1000, rtol=1e-15)
+    np.testing.assert_allclose(got["km_to"] - got["km_from"], level_m / 1000, rtol=1e-9)
+    np.testing.assert_array_equal(got["n_bins"], ref["n_bins"])
+    for c in ref.columns[1:]:
+        np.testing.assert_allclose(got[c].to_numpy(), ref[c].to_numpy(), rtol=1e-12, err_msg=c)
+    if level_m == 10.0:
+        assert got.loc[np.isclose(got["km_from"], 0.3), "a_mean"].isna().all()
+
+
+def test_level_equal_to_bin_length_is_identity() -> None:
+    df = _profile(np.random.default_rng(6))
+    got = aggregate_profile(df, 0.25, ["a"])
+    srt = df.sort_values("bin")
+    np.testing.assert_allclose(got["km_from"], srt["bin"].to_numpy() * 0.25e-3, rtol=1e-15)
+    np.testing.assert_array_equal(got["n_bins"], 1)
+    for s in ("mean", "max", "p95"):
+        np.testing.assert_array_equal(got[f"a_{s}"].to_numpy(), srt["a"].to_numpy())
+
+
+def test_aggregate_validation() -> None:
+    df = pd.DataFrame({"bin": [0, 1, 2], "a": [1.0, 2.0, 3.0]})
+    with pytest.raises(ValueError, match="level_m"):
+        aggregate_profile(df, 0.3, ["a"])
+    with pytest.raises(ValueError, match="level_m"):
+        aggregate_profile(df, 0.0, ["a"])
+    with pytest.raises(ValueError, match="columns"):
+        aggregate_profile(df, 1.0, ["nope"])
+    with pytest.raises(ValueError, match="unique"):
+        aggregate_profile(pd.DataFrame({"bin": [0, 0], "a": [1.0, 2.0]}), 1.0, ["a"])
+    empty = aggregate_profile(df.iloc[:0], 1.0, ["a"])
+    assert empty.empty and "a_p95" in empty.columns
+
+
+def _spiky(rng: np.random.Generator, n: int = 200_000) -> tuple[np.ndarray, np.ndarray]:
+    km = np.linspace(10.0, 60.0, n)
+    y = np.cumsum(rng.normal(0.0, 1.0, n)) * 0.01
+    return km, y
+
+
+@pytest.mark.parametrize("use_ts", [False, True])
+def test_decimation_keeps_global_extremes_and_order(use_ts: bool) -> None:
+    rng = np.random.default_rng(7)
+    km, y = _spiky(rng)
+    y[123_457] = 50.0
+    y[4_321] = -40.0
+    perm = rng.permutation(km.size)  # unsorted input
+    xo, yo = decimate_for_display(km[perm], y[perm], 1000, use_tsdownsample=use_ts)
+    assert xo.size <= 1000
+    assert np.all(np.diff(xo) > 0)
+    assert yo.max() == 50.0 and xo[np.argmax(yo)] == km[123_457]
+    assert yo.min() == -40.0 and xo[np.argmin(yo)] == km[4_321]
+    assert xo[0] == km[0] and xo[-1] == km[-1]
+    # every returned point is an input point
+    np.testing.assert_array_equal(np.interp(xo, km, y), yo)
+
+
+def test_minmax_fallback_keeps_every_separated_peak_and_gaps(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    rng = np.random.default_rng(8)
+    km, y = _spiky(rng, 100_000)
+    peaks = np.arange(2_000, 98_000, 9_000)  # > 2 buckets apart at 400 points
+    y[peaks] = 30.0 + np.arange(peaks.size)
+    y[50_000:52_000] = np.nan  # standing train: a gap wider than a bucket
+    monkeypatch.setattr(aggregate, "_tsdownsample_indices", lambda *a: None)
+    xo, yo = decimate_for_display(km, y, 400)
+    assert xo.size <= 400
+    for p in peaks:
+        assert km[p] in xo
+    assert np.isnan(yo).any()
+    assert np.nanmax(yo) == y[peaks].max()
+
+
+def test_decimation_short_input_and_validation() -> None:
+    xo, yo = decimate_for_display(np.array([3.0, 1.0, 2.0]), np.array([30.0, 10.0, 20.0]), 10)
+    np.testing.assert_array_equal(xo, [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(yo, [10.0, 20.0, 30.0])
+    with pytest.raises(ValueError, match="max_points"):
+        decimate_for_display(np.arange(10.0), np.arange(10.0), 3)
+    with pytest.raises(ValueError, match="values"):
+        decimate_for_display(np.arange(10.0), np.arange(9.0), 5)
+    with pytest.raises(ValueError, match="km"):
+        decimate_for_display(np.array([0.0, np.nan]), np.arange(2.0), 5)
