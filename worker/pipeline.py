@@ -1,0 +1,455 @@
+"""Processing pipeline of a run: plan chunks → process each chunk → assemble.
+
+The three steps are plain functions over files so that any queue can run
+them (the local SQLite worker, Procrastinate workers on several hosts, the
+``process`` command):
+
+* :func:`plan_chunks` cuts the run into chunks of ``settings.chunk_seconds``
+  with the overlap the VKF needs (from its impulse response at the slowest
+  speed of the chunk) and a raised-cosine crossfade at each seam.
+* :func:`process_chunk` runs the VKF for every wheel (Z and, if present, Q
+  channel solved together: one factorisation, two right-hand sides) and
+  writes **additive** per-bin sums (crossfade-weighted) to one ``.npz`` file,
+  atomically. Running it twice writes the same file.
+* :func:`assemble` adds the chunk sums and turns them into the 25 cm profile
+  rows and the wheel out-of-roundness results. It is deterministic and
+  idempotent; it reads no raw signal.
+
+Orders per wheel: index 0 = sleeper passage ``v/d_s``, 1..n = wheel orders
+``l·v/(π d_w)`` with that wheel's diameter. Bandwidth = ``bandwidth_orders ×
+v/(π d_w)`` (constant in orders), floored at its value at the minimum speed.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from app.analysis.binning import BinSums, position_to_bin
+from app.analysis.orders import OrderTrack, railway_multipliers
+from app.analysis.settings import ProcessingSettings
+from app.analysis.vkf import VKFResult, vkf, vkf_overlap
+from app.analysis.wheel_oor import (
+    apply_diameter_correction,
+    radius_phasor,
+    refine_diameter,
+    summarize_oor,
+)
+from app.io import WHEELS, open_run
+
+__all__ = [
+    "ChunkSpec",
+    "RunResults",
+    "PipelineCancelled",
+    "plan_chunks",
+    "process_chunk",
+    "assemble",
+    "run_pipeline",
+    "ENGINE_VERSION",
+]
+
+#: bump when the stored numbers would change for the same input and settings
+ENGINE_VERSION = "trackvkf-pipeline/1"
+#: wheel OOR phasors are averaged over windows of this travelled distance, m
+OOR_WINDOW_M = 50.0
+#: envelope output spacing for binning, m (several points per 25 cm bin)
+_OUTPUT_SPACING_M = 0.05
+#: full-rate block length for residuals, samples
+_BLOCK = 1 << 16
+
+
+class PipelineCancelled(RuntimeError):
+    """Raised by :func:`process_chunk` when ``should_cancel()`` turned true."""
+
+
+@dataclass(frozen=True)
+class ChunkSpec:
+    """One chunk of a run.
+
+    Attributes
+    ----------
+    index : int
+        Position in the run, from 0.
+    start, stop : int
+        Core sample range (the chunks' cores tile the run).
+    lo, hi : int
+        Solve range, including the overlap.
+    out_lo, out_hi : int
+        Samples that receive a non-zero crossfade weight.
+    fade_in, fade_out : (int, int) or None
+        (boundary sample, crossfade length) at the start / end seam.
+    """
+
+    index: int
+    start: int
+    stop: int
+    lo: int
+    hi: int
+    out_lo: int
+    out_hi: int
+    fade_in: tuple[int, int] | None
+    fade_out: tuple[int, int] | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> ChunkSpec:
+        d = dict(d)
+        for key in ("fade_in", "fade_out"):
+            if d.get(key) is not None:
+                d[key] = tuple(int(x) for x in d[key])
+        return cls(**d)
+
+    def weight(self, index: np.ndarray) -> np.ndarray:
+        """Crossfade weight of this chunk at global sample indices."""
+        w = np.ones(index.shape)
+        if self.fade_in is not None:
+            w *= _ramp(index, *self.fade_in)
+        if self.fade_out is not None:
+            w *= 1.0 - _ramp(index, *self.fade_out)
+        w[(index < self.out_lo) | (index >= self.out_hi)] = 0.0
+        return w
+
+
+def _ramp(index: np.ndarray, boundary: int, length: int) -> np.ndarray:
+    x = (index - (boundary - length / 2.0) + 0.5) / length
+    return np.sin(0.5 * np.pi * np.clip(x, 0.0, 1.0)) ** 2
+
+
+@dataclass
+class RunResults:
+    """Profiles, wheel results and provenance of one processed run."""
+
+    profiles: pd.DataFrame
+    wheels: list[dict[str, Any]]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+def _wheel_orders(run: Any, wheel: str, settings: ProcessingSettings) -> tuple[np.ndarray, float]:
+    d_w = float(run.metadata.wheel_diameters.get(wheel, 0.92))
+    mult = railway_multipliers(d_w, float(run.metadata.sleeper_spacing), settings.n_wheel_orders)
+    return mult, d_w
+
+
+def _bandwidth_per_speed(settings: ProcessingSettings, d_w: float) -> tuple[float, float]:
+    """(Hz per m/s, floor in Hz) of the order filters."""
+    per_speed = settings.bandwidth_orders / (np.pi * d_w)
+    return per_speed, per_speed * max(settings.min_speed_kmh / 3.6, 1.0)
+
+
+def plan_chunks(run_path: Path, settings: ProcessingSettings) -> list[ChunkSpec]:
+    """Cut a run into chunks with the overlap the VKF needs.
+
+    Parameters
+    ----------
+    run_path : Path
+        Canonical run file (HDF5).
+    settings : ProcessingSettings
+
+    Returns
+    -------
+    list of ChunkSpec
+        Cores tile ``[0, n_samples)``; JSON-serialisable via ``to_dict``.
+    """
+    with open_run(run_path) as run:
+        n, fs = run.n_samples, run.fs
+        speed = run.speed()
+        d_min = min(float(run.metadata.wheel_diameters.get(w, 0.92)) for w in WHEELS)
+        d_max = max(float(run.metadata.wheel_diameters.get(w, 0.92)) for w in WHEELS)
+        mult = railway_multipliers(d_min, float(run.metadata.sleeper_spacing), settings.n_wheel_orders)
+    core = max(int(round(settings.chunk_seconds * fs)), 1)
+    bounds = list(range(0, n, core)) + [n]
+    if len(bounds) > 2 and bounds[-1] - bounds[-2] < core // 2:
+        del bounds[-2]
+    k = len(bounds) - 1
+    per_speed, floor = _bandwidth_per_speed(settings, d_max)
+    fmax_nyq = 0.499 * fs
+
+    def overlap(a: int, b: int) -> int:
+        v = np.abs(speed[max(a, 0) : min(b, n)])
+        v_min, v_max = float(v.min()), float(v.max())
+        f_max = min(float(mult.max()) * v_max, fmax_nyq)
+        bw_min = max(per_speed * v_min, floor)
+        bw_max = max(per_speed * v_max, floor)
+        return vkf_overlap(fs, 0.0, f_max, bw_min, bw_max, settings.filter_order)
+
+    pads = []
+    for i in range(k):
+        a, b = bounds[i], bounds[i + 1]
+        guess = overlap(a, b)
+        pads.append(max(guess, overlap(a - guess - core // 4, b + guess + core // 4)))
+    fades = [0] * (k + 1)
+    for i in range(1, k):
+        fade = min(pads[i - 1], pads[i], (bounds[i] - bounds[i - 1]) // 4, (bounds[i + 1] - bounds[i]) // 4)
+        fades[i] = max(2 * (fade // 2), 2)
+    chunks = []
+    for i in range(k):
+        a, b = bounds[i], bounds[i + 1]
+        out_lo = a - fades[i] // 2 if i > 0 else 0
+        out_hi = b + fades[i + 1] // 2 if i < k - 1 else n
+        chunks.append(
+            ChunkSpec(
+                index=i, start=a, stop=b,
+                lo=max(out_lo - pads[i], 0), hi=min(out_hi + pads[i], n),
+                out_lo=out_lo, out_hi=out_hi,
+                fade_in=(a, fades[i]) if i > 0 else None,
+                fade_out=(b, fades[i + 1]) if i < k - 1 else None,
+            )
+        )
+    return chunks
+
+
+def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _residual_sums(res: VKFResult, chunk: ChunkSpec, lo: int, bins_of: Callable[[np.ndarray], np.ndarray],
+                   keep: Callable[[np.ndarray], np.ndarray], channel: int,
+                   should_cancel: Callable[[], bool]) -> BinSums:
+    """Crossfade-weighted Σ residual² per bin at the full rate, block by block."""
+    parts = []
+    for a in range(chunk.out_lo, chunk.out_hi, _BLOCK):
+        if should_cancel():
+            raise PipelineCancelled(f"cancelled in chunk {chunk.index}")
+        b = min(a + _BLOCK, chunk.out_hi)
+        sub = res.sub(a - lo, b - lo)
+        r = sub.residual
+        r = r[channel] if r.ndim == 2 else r
+        idx = np.arange(a, b)
+        w = chunk.weight(idx) * keep(idx)
+        parts.append(BinSums.from_samples(bins_of(idx), w, {"residual": r}, squares=("residual",)))
+    return BinSums.merge_all(parts)
+
+
+def process_chunk(
+    run_path: Path,
+    settings: ProcessingSettings,
+    chunk: ChunkSpec,
+    out_path: Path,
+    should_cancel: Callable[[], bool] = lambda: False,
+) -> None:
+    """Process one chunk of a run and write its per-bin sums atomically.
+
+    Parameters
+    ----------
+    run_path : Path
+        Canonical run file.
+    settings : ProcessingSettings
+    chunk : ChunkSpec
+    out_path : Path
+        Target ``.npz``; written via a temporary file and ``os.replace``.
+    should_cancel : callable
+        Polled between wheels and residual blocks.
+
+    Raises
+    ------
+    PipelineCancelled
+        If ``should_cancel()`` returned True.
+    """
+    arrays: dict[str, np.ndarray] = {"chunk_index": np.array(chunk.index)}
+    with open_run(run_path) as run:
+        fs = run.fs
+        lo, hi = chunk.lo, chunk.hi
+        speed = run.speed(lo, hi)
+        v_abs = np.abs(speed)
+        min_v = settings.min_speed_kmh / 3.6
+        position = run.position(lo, hi)
+        v_max = max(float(v_abs.max()), 1.0)
+        step = max(1, int(np.floor(fs * _OUTPUT_SPACING_M / v_max)))
+        out_idx = np.arange(chunk.out_lo, chunk.out_hi, step)
+        w_out = chunk.weight(out_idx)
+        moving = v_abs[out_idx - lo] >= min_v
+
+        def keep(idx: np.ndarray) -> np.ndarray:
+            return (v_abs[idx - lo] >= min_v).astype(float)
+
+        for wheel in WHEELS:
+            z_name, q_name = f"Z{wheel}", f"Q{wheel}"
+            if not run.has(z_name):
+                continue
+            if should_cancel():
+                raise PipelineCancelled(f"cancelled in chunk {chunk.index}")
+            channels = [z_name] + ([q_name] if run.has(q_name) else [])
+            y = np.vstack([run.read(c, lo, hi) for c in channels])
+            mult, d_w = _wheel_orders(run, wheel, settings)
+            per_speed, floor = _bandwidth_per_speed(settings, d_w)
+            freqs = OrderTrack(v_abs, mult)
+            bandwidth = OrderTrack(v_abs, np.full(mult.size, per_speed), floor=floor)
+            res = vkf(y, fs, freqs, bandwidth, settings.filter_order, chunk_duration=np.inf)
+            env = res.envelope_at(out_idx - lo)  # (channels, s, m)
+            amp = np.abs(env)
+            track_m = run.track_m(lo, hi, axle=wheel[0])
+
+            def bins_of(idx: np.ndarray, track_m: np.ndarray = track_m) -> np.ndarray:
+                return position_to_bin(track_m[idx - lo], settings.bin_length_m)
+
+            values = {"speed": v_abs[out_idx - lo], "sleeper_amp": amp[0, 0]}
+            for lvl in range(1, settings.n_wheel_orders + 1):
+                values[f"order_amp_{lvl:02d}"] = amp[0, lvl]
+            if len(channels) > 1:
+                values["sleeper_force_amp"] = amp[1, 0]
+            w = w_out * moving
+            sums = BinSums.from_samples(bins_of(out_idx), w, values)
+            resid = _residual_sums(res, chunk, lo, bins_of, keep, 0, should_cancel)
+            for key, val in sums.to_arrays().items():
+                arrays[f"bins_{wheel}__{key}"] = val
+            for key, val in resid.to_arrays().items():
+                arrays[f"resid_{wheel}__{key}"] = val
+
+            # wheel OOR: radius phasors of the wheel orders, summed per window
+            orders = np.arange(1, settings.n_wheel_orders + 1)
+            rho = radius_phasor(env[0, 1:], v_abs[out_idx - lo], d_w, orders)
+            ok = moving & np.all(np.isfinite(rho), axis=0)
+            win = np.floor(position[out_idx - lo] / OOR_WINDOW_M).astype(np.int64)
+            oor_vals = {}
+            for i, lvl in enumerate(orders):
+                oor_vals[f"re_{lvl:02d}"] = np.where(ok, rho[i].real, np.nan)
+                oor_vals[f"im_{lvl:02d}"] = np.where(ok, rho[i].imag, np.nan)
+                oor_vals[f"acc_{lvl:02d}"] = np.where(ok, amp[0, i + 1], np.nan)
+            oor = BinSums.from_samples(win, w_out * ok, oor_vals)
+            for key, val in oor.to_arrays().items():
+                arrays[f"oor_{wheel}__{key}"] = val
+            arrays[f"diameter_{wheel}"] = np.array(d_w)
+    _atomic_savez(out_path, arrays)
+
+
+def _load_group(npz: Any, prefix: str) -> BinSums | None:
+    keys = {k[len(prefix) :]: npz[k] for k in npz.files if k.startswith(prefix)}
+    return BinSums.from_arrays(keys) if keys else None
+
+
+def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence[Path]) -> RunResults:
+    """Merge chunk files into profile rows and wheel results.
+
+    Parameters
+    ----------
+    run_path : Path
+        Canonical run file (only its metadata is read).
+    settings : ProcessingSettings
+    chunk_paths : sequence of Path
+        One file per chunk (any order).
+
+    Returns
+    -------
+    RunResults
+    """
+    groups: dict[str, dict[str, list[BinSums]]] = {}
+    diameters: dict[str, float] = {}
+    for path in sorted(chunk_paths, key=lambda p: str(p)):
+        with np.load(path) as npz:
+            for wheel in WHEELS:
+                for kind in ("bins", "resid", "oor"):
+                    part = _load_group(npz, f"{kind}_{wheel}__")
+                    if part is not None:
+                        groups.setdefault(wheel, {}).setdefault(kind, []).append(part)
+                if f"diameter_{wheel}" in npz.files:
+                    diameters[wheel] = float(npz[f"diameter_{wheel}"])
+    order_cols = [f"order_amp_{lvl:02d}" for lvl in range(1, settings.n_wheel_orders + 1)]
+    frames, wheels = [], []
+    for wheel in WHEELS:
+        if wheel not in groups:
+            continue
+        g = groups[wheel]
+        prof = BinSums.merge_all(g["bins"]).finalize(settings.bin_length_m)
+        resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
+        prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
+        prof = prof[prof["n_samples"] > 0]
+        if "sleeper_force_amp" not in prof:
+            prof["sleeper_force_amp"] = np.nan
+        prof = prof.rename(columns={"speed": "speed_mean"})
+        prof.insert(0, "wheel", wheel)
+        cols = ["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *order_cols,
+                "residual_rms", "sleeper_force_amp"]
+        frames.append(prof[cols])
+        wheels.append(_wheel_result(wheel, g.get("oor", []), diameters.get(wheel, 0.92), settings))
+    profiles = (
+        pd.concat(frames, ignore_index=True) if frames
+        else pd.DataFrame(columns=["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *order_cols,
+                                   "residual_rms", "sleeper_force_amp"])
+    )
+    profiles = profiles.sort_values(["wheel", "bin"]).reset_index(drop=True)
+    profiles["bin"] = profiles["bin"].astype(np.int64)
+    profiles["n_samples"] = profiles["n_samples"].astype(np.int64)
+    meta = {"engine": ENGINE_VERSION, "settings": settings.to_dict(), "oor_window_m": OOR_WINDOW_M,
+            "n_chunks": len(chunk_paths)}
+    return RunResults(profiles=profiles, wheels=wheels, meta=meta)
+
+
+def _wheel_result(wheel: str, parts: list[BinSums], d_w: float, settings: ProcessingSettings) -> dict[str, Any]:
+    orders = np.arange(1, settings.n_wheel_orders + 1)
+    windows = BinSums.merge_all(parts).finalize(OOR_WINDOW_M) if parts else None
+    if windows is None or windows.empty:
+        phasors = np.full((orders.size, 0), np.nan + 0j)
+        centres = np.zeros(0)
+        acc = np.full(orders.size, np.nan)
+    else:
+        windows = windows.dropna(subset=[f"re_{lvl:02d}" for lvl in orders])
+        phasors = np.vstack([windows[f"re_{lvl:02d}"].to_numpy() + 1j * windows[f"im_{lvl:02d}"].to_numpy()
+                             for lvl in orders])
+        centres = (windows["bin"].to_numpy() + 0.5) * OOR_WINDOW_M
+        acc = np.array([float(np.nanmean(windows[f"acc_{lvl:02d}"])) if len(windows) else np.nan for lvl in orders])
+    diameter = d_w
+    if phasors.shape[1] >= 5:
+        diameter = refine_diameter(phasors, centres, d_w, orders)
+        if diameter != d_w:
+            phasors = apply_diameter_correction(phasors, centres, orders, d_w, diameter)
+    summary = summarize_oor(phasors, orders)
+    for entry, a in zip(summary["orders"], acc, strict=True):
+        entry["accel_amp"] = float(a)
+    summary.update({"wheel": wheel, "wheel_diameter_m": float(d_w), "refined_diameter_m": float(diameter)})
+    return summary
+
+
+def run_pipeline(
+    run_path: Path,
+    settings: ProcessingSettings,
+    work_dir: Path,
+    progress: Callable[[float], None] | None = None,
+    should_cancel: Callable[[], bool] | None = None,
+) -> RunResults:
+    """Plan, process (skipping chunk files that exist) and assemble a run.
+
+    Parameters
+    ----------
+    run_path : Path
+        Canonical run file.
+    settings : ProcessingSettings
+    work_dir : Path
+        Directory for chunk files ``chunk-00000.npz`` …
+    progress : callable, optional
+        Called with the fraction of chunks done (0–1).
+    should_cancel : callable, optional
+        Polled between sub-blocks.
+    """
+    cancel = should_cancel or (lambda: False)
+    chunks = plan_chunks(run_path, settings)
+    work_dir = Path(work_dir)
+    paths = []
+    for i, chunk in enumerate(chunks):
+        path = work_dir / f"chunk-{chunk.index:05d}.npz"
+        if not path.exists():
+            process_chunk(run_path, settings, chunk, path, cancel)
+        paths.append(path)
+        if progress is not None:
+            progress((i + 1) / len(chunks))
+    return assemble(run_path, settings, paths)
