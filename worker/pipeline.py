@@ -35,7 +35,7 @@ import pandas as pd
 from app.analysis.binning import BinSums, position_to_bin
 from app.analysis.orders import OrderTrack, railway_multipliers
 from app.analysis.settings import ProcessingSettings
-from app.analysis.vkf import VKFResult, vkf, vkf_overlap
+from app.analysis.vkf import vkf, vkf_overlap
 from app.analysis.wheel_oor import (
     apply_diameter_correction,
     radius_phasor,
@@ -223,19 +223,46 @@ def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
         raise
 
 
-def _residual_sums(res: VKFResult, chunk: ChunkSpec, lo: int, bins_of: Callable[[np.ndarray], np.ndarray],
-                   keep: Callable[[np.ndarray], np.ndarray], channel: int,
-                   should_cancel: Callable[[], bool]) -> BinSums:
-    """Crossfade-weighted Σ residual² per bin at the full rate, block by block."""
+def _residual_sums(
+    y: np.ndarray,
+    env: np.ndarray,
+    out_idx: np.ndarray,
+    psi: np.ndarray,
+    mult: np.ndarray,
+    chunk: ChunkSpec,
+    lo: int,
+    bins_of: Callable[[np.ndarray], np.ndarray],
+    keep: Callable[[np.ndarray], np.ndarray],
+    should_cancel: Callable[[], bool],
+) -> BinSums:
+    """Crossfade-weighted Σ residual² per bin at the full rate, block by block.
+
+    The orders are ``mult[n] × speed`` with wheel orders ``l × mult[1]``, so
+    their phasors are powers of one phasor: the waveform sum is evaluated by
+    Horner's scheme (one complex exponential per sample for the wheel orders
+    and one for the sleeper order). Envelopes are interpolated linearly from
+    the output grid (spacing ≤ 5 cm, ≥ 100x the filter bandwidth).
+    """
+    n_wheel = mult.size - 1
     parts = []
     for a in range(chunk.out_lo, chunk.out_hi, _BLOCK):
         if should_cancel():
             raise PipelineCancelled(f"cancelled in chunk {chunk.index}")
         b = min(a + _BLOCK, chunk.out_hi)
-        sub = res.sub(a - lo, b - lo)
-        r = sub.residual
-        r = r[channel] if r.ndim == 2 else r
         idx = np.arange(a, b)
+        ph = psi[a - lo : b - lo]
+        e1 = np.exp(1j * mult[1] * ph)
+        es = np.exp(1j * mult[0] * ph)
+
+        def at(n: int, idx: np.ndarray = idx) -> np.ndarray:
+            e = env[0, n]
+            return np.interp(idx, out_idx, e.real) + 1j * np.interp(idx, out_idx, e.imag)
+
+        acc = at(n_wheel)
+        for n in range(n_wheel - 1, 0, -1):
+            acc = acc * e1 + at(n)
+        x = (acc * e1 + at(0) * es).real
+        r = y[0, a - lo : b - lo] - x
         w = chunk.weight(idx) * keep(idx)
         parts.append(BinSums.from_samples(bins_of(idx), w, {"residual": r}, squares=("residual",)))
     return BinSums.merge_all(parts)
@@ -295,8 +322,11 @@ def process_chunk(
             per_speed, floor = _bandwidth_per_speed(settings, d_w)
             freqs = OrderTrack(v_abs, mult)
             bandwidth = OrderTrack(v_abs, np.full(mult.size, per_speed), floor=floor)
-            res = vkf(y, fs, freqs, bandwidth, settings.filter_order, chunk_duration=np.inf)
+            # phases referred to the run start (wheel angle θ = 2 s / d_w)
+            phase0 = 2.0 * np.pi * mult * float(position[0])
+            res = vkf(y, fs, freqs, bandwidth, settings.filter_order, chunk_duration=np.inf, phase0=phase0)
             env = res.envelope_at(out_idx - lo)  # (channels, s, m)
+            psi = 2.0 * np.pi * (float(position[0]) + np.cumsum(v_abs) / fs)
             amp = np.abs(env)
             track_m = run.track_m(lo, hi, axle=wheel[0])
 
@@ -310,7 +340,7 @@ def process_chunk(
                 values["sleeper_force_amp"] = amp[1, 0]
             w = w_out * moving
             sums = BinSums.from_samples(bins_of(out_idx), w, values)
-            resid = _residual_sums(res, chunk, lo, bins_of, keep, 0, should_cancel)
+            resid = _residual_sums(y, env, out_idx, psi, mult, chunk, lo, bins_of, keep, should_cancel)
             for key, val in sums.to_arrays().items():
                 arrays[f"bins_{wheel}__{key}"] = val
             for key, val in resid.to_arrays().items():
