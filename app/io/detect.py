@@ -1,0 +1,136 @@
+"""Recognise the format of an input run file from its bytes and name."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from app.io.errors import RunFileError
+
+__all__ = ["FORMATS", "HDF5_SIGNATURE", "detect_format", "resolve_format"]
+
+#: Accepted input formats.
+FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet")
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+_PARQUET_MAGIC = b"PAR1"
+_GZIP_MAGIC = b"\x1f\x8b"
+_CSV_SUFFIXES = (".csv", ".tsv", ".txt", ".csv.gz", ".tsv.gz", ".txt.gz")
+_HDF5_SUFFIXES = (".h5", ".hdf5", ".hdf", ".he5", ".mat")
+_PARQUET_SUFFIXES = (".parquet", ".pq")
+
+
+def _has_hdf5_signature(path: Path, size: int) -> bool:
+    # the superblock sits at 0, 512, 1024, 2048 … (after a user block, e.g. MATLAB v7.3)
+    with open(path, "rb") as fh:
+        offset = 0
+        while offset + len(HDF5_SIGNATURE) <= size:
+            fh.seek(offset)
+            if fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE:
+                return True
+            offset = 512 if offset == 0 else offset * 2
+    return False
+
+
+def _is_parquet(path: Path, size: int) -> bool:
+    if size < 12:
+        return False
+    with open(path, "rb") as fh:
+        head = fh.read(4)
+        fh.seek(size - 4)
+        tail = fh.read(4)
+    return head == _PARQUET_MAGIC and tail == _PARQUET_MAGIC
+
+
+def _looks_like_text(path: Path) -> bool:
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    if b"\x00" in head:
+        return False
+    try:
+        text = head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.start < len(head) - 4:  # a multi-byte character cut at the end is fine
+            return False
+        text = head[: exc.start].decode("utf-8")
+    first = text.lstrip("\ufeff").splitlines()[0] if text.strip() else ""
+    return any(sep in first for sep in (",", ";", "\t"))
+
+
+def _is_gzip(path: Path) -> bool:
+    with open(path, "rb") as fh:
+        return fh.read(2) == _GZIP_MAGIC
+
+
+def detect_format(path: Path) -> tuple[str, str | None]:
+    """Detect the format of a non-empty file.
+
+    Parameters
+    ----------
+    path : Path
+        Input file.
+
+    Returns
+    -------
+    fmt : str
+        ``"hdf5"``, ``"csv"`` or ``"parquet"``.
+    compression : str or None
+        ``"gzip"`` for gzip-compressed CSV, else ``None``.
+
+    Raises
+    ------
+    RunFileError
+        ``field == "format"`` if the format is not recognised.
+    """
+    size = path.stat().st_size
+    if _has_hdf5_signature(path, size):
+        return "hdf5", None
+    if _is_parquet(path, size):
+        return "parquet", None
+    name = path.name.lower()
+    if _is_gzip(path):
+        if name.endswith(_CSV_SUFFIXES) or not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES):
+            return "csv", "gzip"
+    elif name.endswith(_CSV_SUFFIXES) or (
+        not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES) and _looks_like_text(path)
+    ):
+        return "csv", None
+    raise RunFileError(
+        "format",
+        f"unknown format of {path.name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic) "
+        "and not delimited text (CSV)",
+    )
+
+
+def resolve_format(path: Path, fmt: str | None) -> tuple[str, str | None]:
+    """Check a declared format against the file, or detect it when ``fmt`` is None.
+
+    Returns ``(fmt, compression)`` as :func:`detect_format`.
+
+    Raises
+    ------
+    RunFileError
+        ``field == "format"`` for an unknown declared format or a file whose
+        bytes do not match it.
+    """
+    if fmt is None:
+        return detect_format(path)
+    if not isinstance(fmt, str) or fmt.lower() not in FORMATS:
+        raise RunFileError(
+            "format", f"unknown format {fmt!r}; expected one of {', '.join(FORMATS)}"
+        )
+    fmt = fmt.lower()
+    size = path.stat().st_size
+    if fmt == "hdf5":
+        if not _has_hdf5_signature(path, size):
+            raise RunFileError(
+                "format", "declared format 'hdf5' but the file has no HDF5 signature"
+            )
+        return fmt, None
+    if fmt == "parquet":
+        if not _is_parquet(path, size):
+            raise RunFileError("format", "declared format 'parquet' but the file has no PAR1 magic")
+        return fmt, None
+    if _is_gzip(path):
+        return fmt, "gzip"
+    if _has_hdf5_signature(path, size) or _is_parquet(path, size) or not _looks_like_text(path):
+        raise RunFileError("format", "declared format 'csv' but the file is not delimited text")
+    return fmt, None

@@ -1,0 +1,412 @@
+"""Validate an input run file and write it in the canonical HDF5 form."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import pydantic
+from pydantic import ConfigDict
+
+from app.io.canonical import CanonicalWriter, Compression, atomic_output
+from app.io.channels import ACCEL_CHANNELS, ALL_CHANNELS, TIME_COLUMN
+from app.io.detect import resolve_format
+from app.io.errors import RunFileError
+from app.io.gapfill import GapFiller
+from app.io.kinematics import POSITION_BLOCK, SPEED_WINDOW_S, integrate_block, speed_from_position
+from app.io.limits import DEFAULT_LIMITS, IngestLimits
+from app.io.metadata import RunMetadata, parse_metadata
+from app.io.sources import Source, open_source
+
+__all__ = ["RunSummary", "ingest"]
+
+
+class RunSummary(pydantic.BaseModel):
+    """What ingest learned about a run.
+
+    Attributes
+    ----------
+    fs : float
+        Sample rate, Hz.
+    n_samples : int
+        Samples per channel.
+    duration_s : float
+        ``n_samples / fs``, s.
+    channels : list of str
+        Stored channels, canonical order (always includes speed and position).
+    metadata : RunMetadata
+        Validated metadata as stored.
+    distance_m : float
+        Distance covered by the position reference, m.
+    speed_min, speed_max : float
+        Range of the speed, m/s.
+    source_format : str
+        ``"hdf5"``, ``"csv"`` or ``"parquet"``.
+    nan_filled : dict[str, int]
+        Interpolated samples per channel (channels without NaN omitted).
+    """
+
+    model_config = ConfigDict(frozen=True)
+
+    fs: float
+    n_samples: int
+    duration_s: float
+    channels: list[str]
+    metadata: RunMetadata
+    distance_m: float
+    speed_min: float
+    speed_max: float
+    source_format: str = ""
+    nan_filled: dict[str, int] = {}
+
+
+def ingest(
+    src: Path,
+    fmt: str | None,
+    metadata: Mapping[str, Any] | None,
+    dest: Path,
+    limits: IngestLimits = DEFAULT_LIMITS,
+    *,
+    compression: Compression = "lzf",
+) -> RunSummary:
+    """Validate a run file and write it as a canonical HDF5 file.
+
+    Parameters
+    ----------
+    src : Path
+        Input file (HDF5, CSV or Parquet).
+    fmt : {"hdf5", "csv", "parquet"} or None
+        Declared format; ``None`` detects it from the magic bytes (and the file
+        suffix for CSV).
+    metadata : mapping or None
+        Run metadata (see :class:`app.io.RunMetadata`). Required for CSV and
+        Parquet; for HDF5 it is merged over the file's ``metadata`` attribute
+        (given keys win; ``calibration`` is merged per channel).
+    dest : Path
+        Output file; written atomically (temporary file beside it, then
+        :func:`os.replace`). Its directory must exist.
+    limits : IngestLimits
+        Acceptance limits.
+    compression : {"lzf", "gzip", None}
+        Compression of the output datasets.
+
+    Returns
+    -------
+    RunSummary
+
+    Raises
+    ------
+    RunFileError
+        On any problem with the file or the metadata; nothing is left at
+        ``dest`` (an existing file there is not touched) and no temporary file
+        remains.
+    """
+    src, dest = Path(src), Path(dest)
+    if not isinstance(limits, IngestLimits):
+        raise TypeError(f"limits must be an IngestLimits, got {type(limits).__name__}")
+    if not src.is_file():
+        raise RunFileError("file", f"{src.name!r} does not exist or is not a regular file")
+    if src.stat().st_size == 0:
+        raise RunFileError("file", "file is empty")
+    if metadata is not None and not isinstance(metadata, Mapping):
+        raise RunFileError(
+            "metadata", f"metadata must be a JSON object, got {type(metadata).__name__}"
+        )
+    fmt_name, comp = resolve_format(src, fmt)
+    with open_source(src, fmt_name, comp) as source:
+        return _ingest(source, fmt_name, metadata, dest, limits, compression)
+
+
+def _merge_metadata(source: Source, given: Mapping[str, Any] | None) -> RunMetadata:
+    info = source.info
+    if given is None and not info.file_metadata:
+        return parse_metadata(None)
+    merged: dict[str, Any] = {**info.file_metadata, **(given or {})}
+    calibration: dict[str, Any] = dict(info.calibration)
+    for part in (info.file_metadata.get("calibration"), (given or {}).get("calibration")):
+        if part is not None:
+            if not isinstance(part, Mapping):
+                raise RunFileError(
+                    "calibration", "calibration must map channel names to {gain, offset}"
+                )
+            calibration.update(part)
+    merged["calibration"] = calibration
+    return parse_metadata(merged)
+
+
+def _check_channels(channels: list[str]) -> list[str]:
+    if not any(c in channels for c in ACCEL_CHANNELS):
+        raise RunFileError(
+            "Z11", f"missing channel: at least one of {', '.join(ACCEL_CHANNELS)} is required"
+        )
+    if "speed" not in channels and "position" not in channels:
+        raise RunFileError("speed", "missing channel: speed or position is required")
+    return [c for c in ALL_CHANNELS if c in channels]
+
+
+def _resolve_fs(
+    meta: RunMetadata, source: Source, first: dict[str, np.ndarray]
+) -> tuple[float, bool]:
+    """Return ``(fs, from_time)``."""
+    fs = meta.sample_rate_hz
+    hint = source.info.fs_hint
+    if fs is not None and hint is not None and not math.isclose(fs, hint, rel_tol=1e-9):
+        raise RunFileError(
+            "sample_rate_hz", f"metadata gives {fs:g} Hz but the file attribute says {hint:g} Hz"
+        )
+    fs = fs if fs is not None else hint
+    time_fs = _fs_from_time(first.get(TIME_COLUMN))
+    if fs is None:
+        if time_fs is None:
+            raise RunFileError(
+                "sample_rate_hz",
+                "sample rate missing: give sample_rate_hz in the metadata (or a time column)",
+            )
+        return time_fs, True
+    if time_fs is not None and abs(time_fs - fs) > 1e-3 * fs:
+        raise RunFileError(
+            "sample_rate_hz",
+            f"sample rate {fs:g} Hz disagrees with the time column ({time_fs:.6g} Hz)",
+        )
+    return float(fs), False
+
+
+def _fs_from_time(t: np.ndarray | None) -> float | None:
+    if t is None:
+        return None
+    idx = np.flatnonzero(np.isfinite(t))
+    if idx.size < 2 or t[idx[-1]] <= t[idx[0]]:
+        raise RunFileError("time", "time column must increase (cannot derive the sample rate)")
+    fs = float((idx[-1] - idx[0]) / (t[idx[-1]] - t[idx[0]]))
+    rounded = round(fs)
+    return float(rounded) if abs(fs - rounded) <= 1e-6 * fs else fs
+
+
+class _Checks:
+    """Per-block checks on physical values of speed, position and time."""
+
+    def __init__(self, meta: RunMetadata, fs: float, limits: IngestLimits, from_time: bool) -> None:
+        self.meta, self.fs, self.limits, self.from_time = meta, fs, limits, from_time
+        self.last_pos = -math.inf
+        self.t0: tuple[int, float] | None = None
+
+    def physical(self, name: str, x: np.ndarray) -> np.ndarray:
+        gain, offset = self.meta.gain_offset(name)
+        return x * gain + offset if (gain, offset) != (1.0, 0.0) else x
+
+    def position(self, offset: int, raw: np.ndarray) -> None:
+        p = self.physical("position", raw)
+        idx = np.flatnonzero(~np.isnan(p))
+        if idx.size == 0:
+            return
+        v = p[idx]
+        prev = np.concatenate(([self.last_pos], v[:-1]))
+        bad = np.flatnonzero(v < prev)
+        if bad.size:
+            i = int(bad[0])
+            raise RunFileError(
+                "position",
+                f"non-monotonic position: decreases from {prev[i]:.6g} m to {v[i]:.6g} m at sample "
+                f"{offset + int(idx[i])}; position must be non-decreasing along the run "
+                "(the km direction is given by metadata km_increasing)",
+            )
+        self.last_pos = float(v[-1])
+
+    def speed(self, offset: int, raw: np.ndarray) -> None:
+        v = self.physical("speed", raw)
+        with np.errstate(invalid="ignore"):
+            hi = np.flatnonzero(v > self.limits.max_speed_mps)
+            lo = np.flatnonzero(v < -self.limits.speed_tolerance_mps)
+        if hi.size:
+            i = int(hi[0])
+            raise RunFileError(
+                "speed",
+                f"speed {v[i]:.6g} m/s at sample {offset + i} exceeds {self.limits.max_speed_mps:g} m/s; "
+                "speed must be given in m/s (not km/h)",
+            )
+        if lo.size:
+            i = int(lo[0])
+            raise RunFileError(
+                "speed", f"negative speed {v[i]:.6g} m/s at sample {offset + i}; speed must be >= 0"
+            )
+
+    def time(self, offset: int, t: np.ndarray) -> None:
+        idx = np.flatnonzero(np.isfinite(t))
+        if idx.size == 0:
+            return
+        if self.t0 is None:
+            self.t0 = (offset + int(idx[0]), float(t[idx[0]]))
+        k0, t0 = self.t0
+        expected = t0 + (offset + idx - k0) / self.fs
+        err = np.abs(t[idx] - expected)
+        bad = np.flatnonzero(err > 0.5 / self.fs)
+        if bad.size:
+            i = int(idx[bad[0]])
+            what = "derived from the time column" if self.from_time else "given"
+            raise RunFileError(
+                "time",
+                f"time {t[i]:.9g} s at sample {offset + i} is off the uniform grid of the "
+                f"sample rate {self.fs:g} Hz ({what}); one sample rate per file is required",
+            )
+
+
+def _ingest(
+    source: Source,
+    fmt: str,
+    given: Mapping[str, Any] | None,
+    dest: Path,
+    limits: IngestLimits,
+    compression: Compression,
+) -> RunSummary:
+    info = source.info
+    meta = _merge_metadata(source, given)
+    stored = _check_channels(info.channels)
+    n_known = info.n_samples
+    if n_known is not None:
+        if n_known == 0:
+            raise RunFileError("file", "no samples")
+        if n_known > limits.max_samples:
+            raise RunFileError(
+                "file", f"{n_known} samples exceed the limit of {limits.max_samples}"
+            )
+    blocks: Iterator[dict[str, np.ndarray]] = source.blocks(limits.block_samples)
+    first = next(blocks, None)
+    if first is None or len(next(iter(first.values()))) == 0:
+        raise RunFileError("file", "no samples")
+    fs, from_time = _resolve_fs(meta, source, first)
+    if not (limits.min_sample_rate_hz <= fs <= limits.max_sample_rate_hz):
+        raise RunFileError(
+            "sample_rate_hz",
+            f"invalid sample rate {fs:g} Hz; accepted {limits.min_sample_rate_hz:g} … "
+            f"{limits.max_sample_rate_hz:g} Hz",
+        )
+    meta = meta.model_copy(update={"sample_rate_hz": fs})
+    checks = _Checks(meta, fs, limits, from_time)
+
+    with atomic_output(dest) as tmp, h5py.File(tmp, "w") as h5:
+        writer = CanonicalWriter(
+            h5,
+            fs=fs,
+            metadata=meta,
+            channels=stored,
+            n_samples=n_known,
+            compression=compression,
+            source_format=fmt,
+        )
+        fillers = {
+            c: GapFiller(lambda a, v, c=c: writer.write(c, a, v), chunk=limits.block_samples)
+            for c in stored
+        }
+        offset = 0
+        for block in itertools.chain([first], blocks):
+            m = len(next(iter(block.values())))
+            if offset + m > limits.max_samples:
+                raise RunFileError("file", f"more than {limits.max_samples} samples (limit)")
+            if TIME_COLUMN in block:
+                checks.time(offset, block[TIME_COLUMN])
+            for c in stored:
+                x = block[c]
+                if not x.flags.writeable:
+                    x = x.copy()
+                if np.isinf(x).any():
+                    i = int(np.flatnonzero(np.isinf(x))[0])
+                    raise RunFileError(c, f"infinite value at sample {offset + i}")
+                fillers[c].process(offset, x)
+                if n_known is not None and fillers[c].n_nan > limits.max_nan_fraction * n_known:
+                    _too_many_nan(c, fillers[c].n_nan, n_known, limits)
+                if c == "position":
+                    checks.position(offset, x)
+                elif c == "speed":
+                    checks.speed(offset, x)
+                writer.write(c, offset, x)
+            offset += m
+        n = offset
+        if n_known is not None and n != n_known:
+            raise RunFileError("file", f"read {n} samples but the file declares {n_known}")
+        for c in stored:
+            if fillers[c].n_nan > limits.max_nan_fraction * n:
+                _too_many_nan(c, fillers[c].n_nan, n, limits)
+            fillers[c].finish(n)
+        writer.n_samples = n
+        stats = _derive_kinematics(writer, stored, n, fs, limits)
+        writer.finish(n)
+        channels = [c for c in ALL_CHANNELS if c in h5]
+        final_meta = writer.metadata
+    return RunSummary(
+        fs=fs,
+        n_samples=n,
+        duration_s=n / fs,
+        channels=channels,
+        metadata=final_meta,
+        distance_m=stats["distance"],
+        speed_min=stats["vmin"],
+        speed_max=stats["vmax"],
+        source_format=fmt,
+        nan_filled={c: f.n_nan for c, f in fillers.items() if f.n_nan},
+    )
+
+
+def _too_many_nan(channel: str, count: int, n: int, limits: IngestLimits) -> None:
+    raise RunFileError(
+        channel,
+        f"too many NaN: {count} of {n} samples ({100.0 * count / n:.3g} %) exceed the limit of "
+        f"{100.0 * limits.max_nan_fraction:.3g} %",
+    )
+
+
+def _derive_kinematics(
+    writer: CanonicalWriter, stored: list[str], n: int, fs: float, limits: IngestLimits
+) -> dict[str, float]:
+    """Store the missing one of speed/position; return distance and speed range."""
+    h5 = writer.h5
+    meta = writer.metadata
+
+    def read(name: str, a: int, b: int) -> np.ndarray:
+        gain, offset = (1.0, 0.0) if h5[name].attrs["derived"] else meta.gain_offset(name)
+        return h5[name][a:b].astype(np.float64) * gain + offset
+
+    vmin, vmax = math.inf, -math.inf
+    if "speed" not in stored:
+        writer.add_channel(
+            "speed", derived=f"smoothed gradient of position, window {SPEED_WINDOW_S:g} s"
+        )
+        for a in range(0, n, limits.block_samples):
+            b = min(a + limits.block_samples, n)
+            v = speed_from_position(lambda i, j: read("position", i, j), n, fs, a, b)
+            writer.write("speed", a, v)
+            vmin, vmax = min(vmin, float(v.min())), max(vmax, float(v.max()))
+    # integrate speed block-wise (POSITION_BLOCK grid) for the stored position or the check
+    derive_pos = "position" not in stored
+    if derive_pos:
+        writer.add_channel("position", derived="cumulative trapezoid of max(speed, 0)")
+    p = 0.0
+    for a in range(0, n, POSITION_BLOCK):
+        length = min(POSITION_BLOCK, n - a)
+        v_ext = read("speed", a, min(a + length + 1, n))
+        if "speed" in stored:
+            vmin, vmax = min(vmin, float(v_ext.min())), max(vmax, float(v_ext.max()))
+        pos, p_next = integrate_block(v_ext, fs, p, length)
+        if derive_pos:
+            writer.write("position", a, pos)
+        p = p_next
+    integrated = p
+    if derive_pos:
+        distance = integrated
+    else:
+        first = float(read("position", 0, 1)[0])
+        last = float(read("position", n - 1, n)[0])
+        distance = last - first
+        if "speed" in stored and max(distance, integrated) > 20.0:
+            rel = abs(integrated - distance) / max(distance, integrated)
+            if rel > limits.speed_position_tolerance:
+                raise RunFileError(
+                    "speed",
+                    f"integrated speed gives {integrated:.1f} m but position covers {distance:.1f} m "
+                    f"({100 * rel:.0f} % apart); check the units (m/s, m) and calibration",
+                )
+    return {"distance": float(distance), "vmin": vmin, "vmax": vmax}

@@ -1,0 +1,76 @@
+"""Acceptance limits applied when a run file is ingested."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["IngestLimits", "DEFAULT_LIMITS"]
+
+
+@dataclass(frozen=True)
+class IngestLimits:
+    """What ingest accepts.
+
+    Attributes
+    ----------
+    max_nan_fraction : float
+        Largest fraction of NaN samples per channel, in [0, 1) (default 0.01 = 1 %).
+        Fewer NaN are filled by linear interpolation in sample index (leading and
+        trailing gaps by the nearest valid value).
+    min_sample_rate_hz, max_sample_rate_hz : float
+        Accepted sample-rate range, Hz (default 1 kHz … 100 kHz).
+    max_samples : int
+        Largest number of samples per channel (default 400 M, 4.6 h at 24 kHz).
+    max_speed_mps : float
+        Largest plausible speed, m/s (default 100 m/s = 360 km/h); larger values
+        usually mean the speed was given in km/h.
+    speed_tolerance_mps : float
+        Negative speeds down to ``-speed_tolerance_mps`` (sensor noise at
+        standstill) are accepted and treated as 0 when integrating position;
+        default 0.1 m/s.
+    speed_position_tolerance : float
+        When both ``speed`` and ``position`` are given and the run covers more
+        than 20 m, the integrated speed must match the distance covered by
+        ``position`` within this relative tolerance (default 0.1).
+    block_samples : int
+        Samples per block when streaming the input (memory bound), default 2**19.
+    """
+
+    max_nan_fraction: float = 0.01
+    min_sample_rate_hz: float = 1_000.0
+    max_sample_rate_hz: float = 100_000.0
+    max_samples: int = 400_000_000
+    max_speed_mps: float = 100.0
+    speed_tolerance_mps: float = 0.1
+    speed_position_tolerance: float = 0.1
+    block_samples: int = 2**19
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.max_nan_fraction < 1.0):
+            raise ValueError(f"max_nan_fraction must be in [0, 1), got {self.max_nan_fraction!r}")
+        lo, hi = self.min_sample_rate_hz, self.max_sample_rate_hz
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo <= hi):
+            raise ValueError(
+                f"min_sample_rate_hz/max_sample_rate_hz must satisfy 0 < min <= max, got {lo!r}, {hi!r}"
+            )
+        if int(self.max_samples) != self.max_samples or self.max_samples < 1:
+            raise ValueError(f"max_samples must be a positive integer, got {self.max_samples!r}")
+        if not (math.isfinite(self.max_speed_mps) and self.max_speed_mps > 0):
+            raise ValueError(f"max_speed_mps must be > 0 m/s, got {self.max_speed_mps!r}")
+        if not (math.isfinite(self.speed_tolerance_mps) and self.speed_tolerance_mps >= 0):
+            raise ValueError(
+                f"speed_tolerance_mps must be >= 0 m/s, got {self.speed_tolerance_mps!r}"
+            )
+        if not (math.isfinite(self.speed_position_tolerance) and self.speed_position_tolerance > 0):
+            raise ValueError(
+                f"speed_position_tolerance must be > 0, got {self.speed_position_tolerance!r}"
+            )
+        if int(self.block_samples) != self.block_samples or not 1024 <= self.block_samples <= 2**24:
+            raise ValueError(
+                f"block_samples must be an integer in [1024, 2**24], got {self.block_samples!r}"
+            )
+
+
+#: The default limits.
+DEFAULT_LIMITS = IngestLimits()

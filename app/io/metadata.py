@@ -1,0 +1,258 @@
+"""Run metadata: the model, its defaults and its validation."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import pydantic
+from pydantic import AliasChoices, AwareDatetime, ConfigDict, Field, field_validator
+
+from app.io.channels import ALL_CHANNELS, AXLES, WHEELS
+from app.io.errors import RunFileError
+
+__all__ = [
+    "Calibration",
+    "RunMetadata",
+    "DEFAULT_WHEEL_DIAMETER_M",
+    "DEFAULT_SLEEPER_SPACING_M",
+    "DEFAULT_AXLE_POSITIONS_M",
+    "parse_metadata",
+]
+
+#: Nominal wheel diameter, m.
+DEFAULT_WHEEL_DIAMETER_M = 0.92
+#: Nominal sleeper spacing, m.
+DEFAULT_SLEEPER_SPACING_M = 0.6
+#: Axle positions relative to the position reference, m (axle 4 runs 17.5 m behind axle 1).
+DEFAULT_AXLE_POSITIONS_M: dict[str, float] = {"1": 0.0, "4": -17.5}
+
+
+def _finite(value: float, what: str) -> float:
+    if not math.isfinite(value):
+        raise ValueError(f"{what} must be finite, got {value!r}")
+    return value
+
+
+class Calibration(pydantic.BaseModel):
+    """Linear calibration of one channel: ``physical = gain * raw + offset``.
+
+    Attributes
+    ----------
+    gain : float
+        Physical units per raw unit; finite and non-zero.
+    offset : float
+        Physical units; finite.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    gain: float = 1.0
+    offset: float = 0.0
+
+    @field_validator("gain")
+    @classmethod
+    def _gain(cls, v: float) -> float:
+        _finite(v, "gain")
+        if v == 0.0:
+            raise ValueError("gain must be non-zero")
+        return v
+
+    @field_validator("offset")
+    @classmethod
+    def _offset(cls, v: float) -> float:
+        return _finite(v, "offset")
+
+
+def _to_str(v: Any) -> Any:
+    if isinstance(v, bool):
+        return v
+    if isinstance(v, int | float) and not isinstance(v, bool):
+        return str(v)
+    return v
+
+
+class RunMetadata(pydantic.BaseModel):
+    """Descriptive data of one measurement run.
+
+    Attributes
+    ----------
+    vehicle_id : str
+        Id of the measuring vehicle.
+    start_time : datetime
+        Start of the run, ISO 8601 **with** time zone (naive times are rejected).
+    line_id : str
+        Id of the railway line.
+    track : str
+        Track id on the line (e.g. ``"1"``).
+    direction : str
+        Direction of travel as named by the operator (free text, e.g. ``"up"``).
+    km_start : float
+        Line km of the position reference (axle 1 by default) at the first sample, km.
+    km_increasing : bool
+        Whether the line km increases along the run.
+    wheel_diameters : dict[str, float]
+        Diameter per wheel (keys ``"11"``, ``"12"``, ``"41"``, ``"42"``), m, in
+        (0.3, 1.5); missing wheels get 0.92 m.
+    sleeper_spacing : float
+        Sleeper spacing, m, in [0.3, 1.0]; default 0.6.
+    axle_positions : dict[str, float]
+        Axle positions relative to the position reference (keys ``"1"``, ``"4"``),
+        m, positive ahead; default ``{"1": 0.0, "4": -17.5}``; a missing axle
+        gets its default.
+    calibration : dict[str, Calibration]
+        Per-channel calibration (``physical = gain * raw + offset``); channels
+        not listed use gain 1, offset 0.
+    sample_rate_hz : float or None
+        Sample rate, Hz. Input files may give it here, as an HDF5 attribute or
+        through a ``time`` column; ingest fills it in.
+    extra : dict
+        Free, JSON-serialisable information (operator, notes …); not interpreted.
+    """
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, populate_by_name=True)
+
+    vehicle_id: str = Field(min_length=1, max_length=200)
+    start_time: AwareDatetime
+    line_id: str = Field(min_length=1, max_length=200)
+    track: str = Field(min_length=1, max_length=100)
+    direction: str = Field(min_length=1, max_length=100)
+    km_start: float
+    km_increasing: bool
+    wheel_diameters: dict[str, float] = Field(
+        default_factory=lambda: dict.fromkeys(WHEELS, DEFAULT_WHEEL_DIAMETER_M)
+    )
+    sleeper_spacing: float = DEFAULT_SLEEPER_SPACING_M
+    axle_positions: dict[str, float] = Field(default_factory=lambda: dict(DEFAULT_AXLE_POSITIONS_M))
+    calibration: dict[str, Calibration] = Field(default_factory=dict)
+    sample_rate_hz: float | None = Field(
+        default=None, validation_alias=AliasChoices("sample_rate_hz", "sample_rate")
+    )
+    extra: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("vehicle_id", "line_id", "track", "direction", mode="before")
+    @classmethod
+    def _strings(cls, v: Any) -> Any:
+        v = _to_str(v)
+        return v.strip() if isinstance(v, str) else v
+
+    @field_validator("km_start")
+    @classmethod
+    def _km(cls, v: float) -> float:
+        _finite(v, "km_start")
+        if abs(v) > 100_000:
+            raise ValueError(f"km_start must be within ±100000 km, got {v}")
+        return v
+
+    @field_validator("wheel_diameters")
+    @classmethod
+    def _wheels(cls, v: dict[str, float]) -> dict[str, float]:
+        out = dict.fromkeys(WHEELS, DEFAULT_WHEEL_DIAMETER_M)
+        for key, d in v.items():
+            if key not in WHEELS:
+                raise ValueError(f"unknown wheel {key!r}; wheels are {', '.join(WHEELS)}")
+            if not (math.isfinite(d) and 0.3 < d < 1.5):
+                raise ValueError(f"diameter of wheel {key} must be in (0.3, 1.5) m, got {d}")
+            out[key] = float(d)
+        return out
+
+    @field_validator("sleeper_spacing")
+    @classmethod
+    def _spacing(cls, v: float) -> float:
+        if not (math.isfinite(v) and 0.3 <= v <= 1.0):
+            raise ValueError(f"sleeper_spacing must be in [0.3, 1.0] m, got {v}")
+        return v
+
+    @field_validator("axle_positions")
+    @classmethod
+    def _axles(cls, v: dict[str, float]) -> dict[str, float]:
+        out = dict(DEFAULT_AXLE_POSITIONS_M)
+        for key, x in v.items():
+            if key not in AXLES:
+                raise ValueError(f"unknown axle {key!r}; axles are {', '.join(AXLES)}")
+            if not (math.isfinite(x) and abs(x) <= 100.0):
+                raise ValueError(f"position of axle {key} must be within ±100 m, got {x}")
+            out[key] = float(x)
+        return out
+
+    @field_validator("calibration")
+    @classmethod
+    def _calibration(cls, v: dict[str, Calibration]) -> dict[str, Calibration]:
+        for key in v:
+            if key not in ALL_CHANNELS:
+                raise ValueError(
+                    f"calibration for unknown channel {key!r}; channels are {', '.join(ALL_CHANNELS)}"
+                )
+        return v
+
+    @field_validator("sample_rate_hz")
+    @classmethod
+    def _fs(cls, v: float | None) -> float | None:
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise ValueError(f"sample rate must be a finite number > 0 Hz, got {v}")
+        return v
+
+    def gain_offset(self, channel: str) -> tuple[float, float]:
+        """Calibration ``(gain, offset)`` of a channel (``(1.0, 0.0)`` if none)."""
+        cal = self.calibration.get(channel)
+        return (1.0, 0.0) if cal is None else (cal.gain, cal.offset)
+
+    def to_json(self) -> str:
+        """The metadata as a JSON string (the form stored in the canonical file)."""
+        return self.model_dump_json()
+
+
+def _field_of(loc: tuple[Any, ...]) -> str:
+    return ".".join(str(p) for p in loc) or "metadata"
+
+
+def parse_metadata(data: Mapping[str, Any] | RunMetadata | None) -> RunMetadata:
+    """Validate a metadata mapping into :class:`RunMetadata`.
+
+    Parameters
+    ----------
+    data : mapping or RunMetadata
+        Metadata fields (see :class:`RunMetadata`).
+
+    Returns
+    -------
+    RunMetadata
+
+    Raises
+    ------
+    RunFileError
+        ``field`` is the offending metadata field (``"start_time"``,
+        ``"wheel_diameters"``, …) or ``"metadata"`` if ``data`` is missing or not
+        a mapping.
+    """
+    if isinstance(data, RunMetadata):
+        return data
+    if data is None:
+        raise RunFileError("metadata", "metadata is required (vehicle_id, start_time, line_id, …)")
+    if not isinstance(data, Mapping):
+        raise RunFileError("metadata", f"metadata must be a JSON object, got {type(data).__name__}")
+    try:
+        return RunMetadata.model_validate(dict(data))
+    except pydantic.ValidationError as exc:
+        err = exc.errors()[0]
+        field = _field_of(tuple(err.get("loc", ())))
+        msg = str(err.get("msg", "invalid value"))
+        if msg.startswith("Value error, "):
+            msg = msg[len("Value error, ") :]
+        if err.get("type") == "timezone_aware":
+            msg = "start time must include a time zone (ISO 8601, e.g. 2024-05-01T08:00:00+02:00)"
+        elif err.get("type") == "missing":
+            msg = "required field is missing"
+        elif err.get("type") == "extra_forbidden":
+            msg = "unknown metadata field"
+        given = err.get("input")
+        shown = repr(given)
+        if (
+            err.get("type") != "missing"
+            and given is not None
+            and len(shown) < 80
+            and "got" not in msg
+        ):
+            msg = f"{msg} (got {shown})"
+        raise RunFileError(field, msg) from None

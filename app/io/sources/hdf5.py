@@ -1,0 +1,132 @@
+"""HDF5 input: one 1-D numeric dataset per channel at the file root."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from app.io.canonical import check_hdf5_tree
+from app.io.channels import TIME_COLUMN, UNIT_SYNONYMS, UNITS
+from app.io.errors import RunFileError
+from app.io.sources.base import Source, SourceInfo, map_channel_names
+
+__all__ = ["Hdf5Source"]
+
+
+def _attr_text(value: Any) -> str:
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    if isinstance(value, np.ndarray) and value.shape == ():
+        return _attr_text(value[()])
+    return str(value)
+
+
+def _attr_float(value: Any, field: str) -> float:
+    try:
+        out = float(np.asarray(value).reshape(()))
+    except (TypeError, ValueError):
+        raise RunFileError(field, f"attribute must be a number, got {value!r}") from None
+    if not math.isfinite(out):
+        raise RunFileError(field, f"attribute must be finite, got {out}")
+    return out
+
+
+class Hdf5Source(Source):
+    """Read an HDF5 run file.
+
+    The tree is checked before any data are read: external links, soft links
+    that do not resolve to a dataset inside the file, groups, virtual datasets
+    and datasets with external storage are rejected.
+
+    Parameters
+    ----------
+    path : Path
+        Input file.
+    """
+
+    def __init__(self, path: Path) -> None:
+        try:
+            self._h5 = h5py.File(path, "r")
+        except (OSError, ValueError) as exc:
+            raise RunFileError("file", f"cannot open HDF5 file: {exc}") from None
+        try:
+            self._setup()
+        except BaseException:
+            self._h5.close()
+            raise
+
+    def _setup(self) -> None:
+        members = check_hdf5_tree(self._h5)
+        names = map_channel_names(members)
+        self._ds: dict[str, h5py.Dataset] = {}
+        calibration: dict[str, dict[str, float]] = {}
+        for orig, canon in names.items():
+            ds = members[orig]
+            if ds.ndim != 1:
+                raise RunFileError(orig, f"must be a 1-D dataset, got shape {ds.shape}")
+            if ds.dtype.kind not in "iuf":
+                raise RunFileError(orig, f"wrong dtype {ds.dtype}: channels must be numeric")
+            units = ds.attrs.get("units")
+            if units is not None:
+                text = _attr_text(units).strip()
+                want = UNITS[canon]
+                if text.lower() not in {u.lower() for u in UNIT_SYNONYMS[want]}:
+                    raise RunFileError(orig, f"units {text!r} not accepted; expected {want}")
+            if canon != TIME_COLUMN and ("gain" in ds.attrs or "offset" in ds.attrs):
+                calibration[canon] = {
+                    "gain": _attr_float(ds.attrs.get("gain", 1.0), f"{orig}.gain"),
+                    "offset": _attr_float(ds.attrs.get("offset", 0.0), f"{orig}.offset"),
+                }
+            self._ds[canon] = ds
+        lengths = {c: d.shape[0] for c, d in self._ds.items()}
+        if len(set(lengths.values())) > 1:
+            ref = max(lengths, key=lambda c: list(lengths.values()).count(lengths[c]))
+            bad = next(c for c in lengths if lengths[c] != lengths[ref])
+            listing = ", ".join(f"{c}={n}" for c, n in lengths.items())
+            raise RunFileError(bad, f"channels of unequal length ({listing})")
+        attrs = self._h5.attrs
+        file_meta: dict[str, Any] = {}
+        if "metadata" in attrs:
+            try:
+                file_meta = json.loads(_attr_text(attrs["metadata"]))
+            except json.JSONDecodeError as exc:
+                raise RunFileError(
+                    "metadata", f"metadata attribute is not valid JSON: {exc}"
+                ) from None
+            if not isinstance(file_meta, dict):
+                raise RunFileError("metadata", "metadata attribute must be a JSON object")
+        fs_hint = None
+        for key in ("sample_rate_hz", "sample_rate"):
+            if key in attrs:
+                fs_hint = _attr_float(attrs[key], "sample_rate_hz")
+                break
+        self.info = SourceInfo(
+            channels=[c for c in self._ds if c != TIME_COLUMN],
+            has_time=TIME_COLUMN in self._ds,
+            n_samples=next(iter(lengths.values())) if lengths else 0,
+            file_metadata=file_meta,
+            fs_hint=fs_hint,
+            calibration=calibration,
+        )
+
+    def blocks(self, size: int) -> Iterator[dict[str, np.ndarray]]:
+        n = self.info.n_samples or 0
+        for a in range(0, n, size):
+            b = min(a + size, n)
+            block: dict[str, np.ndarray] = {}
+            for canon, ds in self._ds.items():
+                try:
+                    block[canon] = np.asarray(ds[a:b], dtype=np.float64)
+                except (OSError, ValueError) as exc:
+                    raise RunFileError(canon, f"cannot read samples {a}:{b}: {exc}") from None
+            yield block
+
+    def close(self) -> None:
+        if self._h5.id.valid:
+            self._h5.close()
