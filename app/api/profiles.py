@@ -1,0 +1,290 @@
+"""Indicator profiles of a run: JSON query, CSV and Parquet export (streamed)."""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Iterator
+from typing import Annotated
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+from fastapi import APIRouter, Query
+from fastapi.responses import StreamingResponse
+
+from app.analysis.aggregate import aggregate_profile
+from app.api.deps import DbDep, RunId, SettingsDep
+from app.api.errors import ApiError, not_found
+from app.api.schemas.profiles import ProfileOut
+from app.db import crud
+from app.db.models import PROFILE_VALUE_COLUMNS
+from app.db.session import Database
+
+__all__ = ["router", "AGGREGATED_COLUMNS"]
+
+router = APIRouter(tags=["profiles"])
+
+#: Columns aggregated to 1 / 10 / 100 m segments (mean, max, p95 of each).
+AGGREGATED_COLUMNS: tuple[str, ...] = tuple(c for c in PROFILE_VALUE_COLUMNS if c != "n_samples")
+_MAX_LEVEL_M = 10_000.0
+_KM_BOUND = 100_000.0
+_EXPORT_PAGE = 50_000
+_STREAM_BLOCK = 1024 * 1024
+
+Wheel = Annotated[
+    str, Query(pattern=r"^[0-9A-Za-z]{1,8}$", description='Wheel: "11", "12", "41" or "42"')
+]
+OptionalWheel = Annotated[
+    str | None,
+    Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="Wheel; all wheels when omitted"),
+]
+KmFrom = Annotated[
+    float | None, Query(ge=-_KM_BOUND, le=_KM_BOUND, description="Lower km bound of the bin centres")
+]
+KmTo = Annotated[
+    float | None, Query(ge=-_KM_BOUND, le=_KM_BOUND, description="Upper km bound of the bin centres")
+]
+Level = Annotated[
+    float,
+    Query(
+        gt=0,
+        le=_MAX_LEVEL_M,
+        description="Segment length, m: 0.25 (the stored bins) or an aggregation level "
+        "such as 1, 10 or 100 (mean, max, 95th percentile per segment)",
+    ),
+]
+
+
+def _check_km(km_from: float | None, km_to: float | None) -> None:
+    for name, value in (("km_from", km_from), ("km_to", km_to)):
+        if value is not None and not math.isfinite(value):
+            raise ApiError(422, name, "must be a finite number")
+    if km_from is not None and km_to is not None and km_from > km_to:
+        raise ApiError(422, "km_from", f"({km_from}) is greater than km_to ({km_to})")
+
+
+def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int, float, list[str]]:
+    """Job id and bin length of the stored results and the wheels; 404/409 if none."""
+    with db.read() as session:
+        if crud.get_run(session, run_id) is None:
+            raise not_found("run", run_id)
+        job = crud.results_job(session, run_id)
+        if job is None:
+            latest = crud.latest_job(session, run_id)
+            state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
+            raise ApiError(409, "profile", f"run {run_id} has no results yet ({state})")
+        wheels = crud.profile_wheels(session, run_id)
+    if wheel is not None and wheel not in wheels:
+        raise ApiError(
+            404, "wheel", f"run {run_id} has no profile for wheel {wheel!r} (wheels: {', '.join(wheels)})"
+        )
+    bin_length = float((job.settings or {}).get("bin_length_m", 0.25))
+    return job.id, bin_length, wheels
+
+
+def _level_ratio(level_m: float, bin_length: float) -> int:
+    ratio = level_m / bin_length
+    k = round(ratio)
+    if k < 1 or abs(ratio - k) > 1e-9 * max(ratio, 1.0):
+        raise ApiError(
+            422, "level", f"must be a positive multiple of the bin length {bin_length} m, got {level_m}"
+        )
+    return int(k)
+
+
+def _aggregate(df: pd.DataFrame, level_m: float, bin_length: float) -> pd.DataFrame:
+    out = aggregate_profile(df, level_m, list(AGGREGATED_COLUMNS), bin_length)
+    out.insert(0, "wheel", df["wheel"].iloc[0] if len(df) else "")
+    return out
+
+
+def _records(df: pd.DataFrame) -> list[dict]:
+    clean = df.astype(object).where(df.notna(), None)
+    records = clean.to_dict("records")
+    for rec in records:
+        for key, value in rec.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                rec[key] = None
+            elif isinstance(value, np.generic):
+                rec[key] = value.item()
+    return records
+
+
+@router.get(
+    "/runs/{run_id}/profile",
+    response_model=ProfileOut,
+    summary="Indicator profile of a run and wheel",
+    responses={409: {"description": "The run has no results yet"}},
+)
+def get_profile(
+    run_id: RunId,
+    db: DbDep,
+    settings: SettingsDep,
+    wheel: Wheel,
+    km_from: KmFrom = None,
+    km_to: KmTo = None,
+    level: Level = 0.25,
+) -> ProfileOut:
+    """Per-bin indicators of one wheel in a km range, or their aggregates per segment."""
+    _check_km(km_from, km_to)
+    job_id, bin_length, _ = _results_context(db, run_id, wheel)
+    k = _level_ratio(level, bin_length)
+    if k == 1:
+        limit = settings.max_profile_rows
+        with db.read() as session:
+            df = crud.profile_rows(
+                session, run_id, wheel=wheel, km_from=km_from, km_to=km_to, limit=limit + 1
+            )
+        truncated = len(df) > limit
+        df = df.iloc[:limit]
+    else:
+        with db.read() as session:
+            df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
+        df = _aggregate(df, level, bin_length)
+        truncated = len(df) > settings.max_profile_rows
+        df = df.iloc[: settings.max_profile_rows]
+    return ProfileOut(
+        run_id=run_id,
+        job_id=job_id,
+        wheel=wheel,
+        level_m=level,
+        bin_length_m=bin_length,
+        km_from=km_from,
+        km_to=km_to,
+        n_rows=len(df),
+        truncated=truncated,
+        columns=list(df.columns),
+        rows=_records(df),
+    )
+
+
+def _frames(
+    db: Database,
+    run_id: int,
+    wheels: list[str],
+    km_from: float | None,
+    km_to: float | None,
+    level: float,
+    bin_length: float,
+) -> Iterator[pd.DataFrame]:
+    """Pages of the export: stored rows, or aggregated segments wheel by wheel."""
+    if _level_ratio(level, bin_length) == 1:
+        for wheel in wheels:
+            yield from crud.iter_profile_pages(
+                db.read, run_id, wheel=wheel, km_from=km_from, km_to=km_to, page_size=_EXPORT_PAGE
+            )
+        return
+    for wheel in wheels:
+        with db.read() as session:
+            df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
+        if len(df):
+            yield _aggregate(df, level, bin_length)
+
+
+def _export_prelude(
+    db: Database, run_id: int, wheel: str | None, km_from, km_to, level: float
+) -> tuple[list[str], float]:
+    _check_km(km_from, km_to)
+    _, bin_length, wheels = _results_context(db, run_id, wheel)
+    _level_ratio(level, bin_length)
+    return ([wheel] if wheel else wheels), bin_length
+
+
+def _filename(run_id: int, wheel: str | None, level: float, ext: str) -> str:
+    parts = [f"run-{run_id}-profile"]
+    if wheel:
+        parts.append(f"wheel-{wheel}")
+    parts.append(f"{level:g}m")
+    return "_".join(parts) + f".{ext}"
+
+
+@router.get(
+    "/runs/{run_id}/profile.csv",
+    summary="Export the profile as CSV (streamed)",
+    response_class=StreamingResponse,
+    responses={200: {"content": {"text/csv": {}}}, 409: {"description": "No results yet"}},
+)
+def export_csv(
+    run_id: RunId,
+    db: DbDep,
+    wheel: OptionalWheel = None,
+    km_from: KmFrom = None,
+    km_to: KmTo = None,
+    level: Level = 0.25,
+) -> StreamingResponse:
+    """All profile rows of a run (or one wheel) as CSV, in pages, never whole in memory."""
+    wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
+
+    def generate() -> Iterator[bytes]:
+        header = True
+        for df in _frames(db, run_id, wheels, km_from, km_to, level, bin_length):
+            yield df.to_csv(index=False, header=header, float_format="%.9g").encode()
+            header = False
+        if header:  # no rows: still send the header line
+            cols = ["wheel", "bin", "km", *PROFILE_VALUE_COLUMNS]
+            yield (",".join(cols) + "\n").encode()
+
+    return StreamingResponse(
+        generate(),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="{_filename(run_id, wheel, level, "csv")}"'},
+    )
+
+
+@router.get(
+    "/runs/{run_id}/profile.parquet",
+    summary="Export the profile as Parquet (streamed)",
+    response_class=StreamingResponse,
+    responses={
+        200: {"content": {"application/vnd.apache.parquet": {}}},
+        409: {"description": "No results yet"},
+    },
+)
+def export_parquet(
+    run_id: RunId,
+    db: DbDep,
+    wheel: OptionalWheel = None,
+    km_from: KmFrom = None,
+    km_to: KmTo = None,
+    level: Level = 0.25,
+) -> StreamingResponse:
+    """All profile rows of a run (or one wheel) as Parquet.
+
+    The file is written page by page to a temporary file, streamed out in
+    blocks, and removed.
+    """
+    wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
+
+    def generate() -> Iterator[bytes]:
+        fd, tmp = tempfile.mkstemp(suffix=".parquet", prefix="trackvkf-export-")
+        os.close(fd)
+        try:
+            writer: pq.ParquetWriter | None = None
+            try:
+                for df in _frames(db, run_id, wheels, km_from, km_to, level, bin_length):
+                    table = pa.Table.from_pandas(df, preserve_index=False)
+                    if writer is None:
+                        writer = pq.ParquetWriter(tmp, table.schema)
+                    writer.write_table(table.cast(writer.schema))
+                if writer is None:
+                    empty = crud.profile_frame([])
+                    pq.write_table(pa.Table.from_pandas(empty, preserve_index=False), tmp)
+            finally:
+                if writer is not None:
+                    writer.close()
+            with open(tmp, "rb") as fh:
+                while block := fh.read(_STREAM_BLOCK):
+                    yield block
+        finally:
+            os.unlink(tmp)
+
+    return StreamingResponse(
+        generate(),
+        media_type="application/vnd.apache.parquet",
+        headers={
+            "Content-Disposition": f'attachment; filename="{_filename(run_id, wheel, level, "parquet")}"'
+        },
+    )

@@ -1,0 +1,206 @@
+"""Runs: upload (streamed), list with filters, detail, delete."""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Request, Response, status
+from starlette.concurrency import run_in_threadpool
+
+from app.api.deps import DbDep, PrincipalDep, RunId, SettingsDep, StoreDep
+from app.api.errors import ApiError, not_found
+from app.api.schemas.runs import RunDetail, RunList
+from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
+from app.api.views import API_PREFIX, run_detail, run_out
+from app.db import crud
+
+__all__ = ["router"]
+
+log = logging.getLogger(__name__)
+
+router = APIRouter(prefix="/runs", tags=["runs"])
+
+_UPLOAD_BODY = {
+    "required": True,
+    "description": (
+        "Either `multipart/form-data` with the parts `file` (the run file), `metadata` "
+        "(JSON object, see docs/run-format.md; optional for HDF5 files that carry it as "
+        "attributes) and `format`; or the raw file as the body with `format`, `metadata` "
+        "and `filename` as query parameters."
+    ),
+    "content": {
+        "multipart/form-data": {
+            "schema": {
+                "type": "object",
+                "required": ["file"],
+                "properties": {
+                    "file": {"type": "string", "format": "binary"},
+                    "metadata": {"type": "string", "description": "JSON object"},
+                    "format": {"type": "string", "enum": list(SUPPORTED_FORMATS)},
+                },
+            }
+        },
+        "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
+        "application/x-hdf5": {"schema": {"type": "string", "format": "binary"}},
+        "text/csv": {"schema": {"type": "string", "format": "binary"}},
+        "application/vnd.apache.parquet": {"schema": {"type": "string", "format": "binary"}},
+    },
+}
+
+
+def _parse_date(value: str | None, name: str, end_of_day: bool) -> dt.datetime | None:
+    """Parse an ISO date or datetime query parameter to an aware UTC datetime."""
+    if value is None or value == "":
+        return None
+    try:
+        if len(value) == 10:
+            day = dt.date.fromisoformat(value)
+            t = dt.time.max if end_of_day else dt.time.min
+            return dt.datetime.combine(day, t, tzinfo=dt.UTC)
+        parsed = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
+    except ValueError:
+        raise ApiError(
+            422, name, f"not an ISO 8601 date or datetime: {value!r}"
+        ) from None
+    if parsed.tzinfo is None:
+        parsed = parsed.replace(tzinfo=dt.UTC)
+    return parsed
+
+
+@router.post(
+    "",
+    response_model=RunDetail,
+    status_code=status.HTTP_201_CREATED,
+    summary="Upload a run file (streamed); queues its processing",
+    openapi_extra={"requestBody": _UPLOAD_BODY},
+    responses={
+        200: {"description": "The same file was uploaded before: the existing run"},
+        413: {"description": "The upload is larger than TRACKVKF_MAX_UPLOAD_BYTES"},
+        422: {"description": "The file or its metadata is invalid; `detail` names the problem"},
+    },
+)
+async def upload_run(
+    request: Request,
+    response: Response,
+    settings: SettingsDep,
+    db: DbDep,
+    store: StoreDep,
+    principal: PrincipalDep,
+    format: Annotated[
+        str | None, Query(description="hdf5, csv or parquet (raw body uploads)", max_length=16)
+    ] = None,
+    metadata: Annotated[
+        str | None, Query(description="Metadata JSON object (raw body uploads)", max_length=65536)
+    ] = None,
+    filename: Annotated[
+        str | None, Query(description="Original file name (raw body uploads)", max_length=255)
+    ] = None,
+) -> RunDetail:
+    """Create a run from an uploaded file.
+
+    The body is streamed to the run store while its sha256 is computed. The
+    same file uploaded again returns the existing run with status 200. Invalid
+    input is answered with 4xx whose ``detail`` names the problem, and leaves
+    no run, job or file behind.
+    """
+    outcome = await receive_and_create_run(
+        request,
+        settings=settings,
+        db=db,
+        store=store,
+        principal_name=principal.name,
+        query_format=format,
+        query_metadata=metadata,
+        query_filename=filename,
+    )
+    if not outcome.created:
+        response.status_code = status.HTTP_200_OK
+    response.headers["Location"] = f"{API_PREFIX}/runs/{outcome.run_id}"
+    with db.read() as session:
+        run = crud.get_run(session, outcome.run_id)
+        if run is None:  # deleted in between
+            raise not_found("run", outcome.run_id)
+        latest = crud.latest_job(session, run.id)
+        counts = crud.chunk_counts(session, [latest.id]) if latest else {}
+        return run_detail(run, latest, counts.get(latest.id) if latest else None)
+
+
+@router.get("", response_model=RunList, summary="List runs")
+def list_runs(
+    db: DbDep,
+    settings: SettingsDep,
+    line_id: Annotated[str | None, Query(max_length=200, description="Line id")] = None,
+    vehicle_id: Annotated[str | None, Query(max_length=200, description="Vehicle id")] = None,
+    track: Annotated[str | None, Query(max_length=100, description="Track id")] = None,
+    date_from: Annotated[
+        str | None, Query(max_length=40, description="Runs starting at/after (ISO date or datetime)")
+    ] = None,
+    date_to: Annotated[
+        str | None, Query(max_length=40, description="Runs starting at/before (ISO date or datetime; a date includes the whole day)")
+    ] = None,
+    limit: Annotated[int, Query(ge=1, description="Page size")] = 50,
+    offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+) -> RunList:
+    """Runs, newest start time first, filtered by line, vehicle, track and start date."""
+    if limit > settings.max_page_size:
+        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
+    start_from = _parse_date(date_from, "date_from", end_of_day=False)
+    start_to = _parse_date(date_to, "date_to", end_of_day=True)
+    if start_from and start_to and start_from > start_to:
+        raise ApiError(422, "date_from", "is after date_to")
+    with db.read() as session:
+        runs, total = crud.list_runs(
+            session,
+            line_id=line_id,
+            vehicle_id=vehicle_id,
+            track=track,
+            start_from=start_from,
+            start_to=start_to,
+            limit=limit,
+            offset=offset,
+        )
+        latest = crud.latest_jobs(session, [r.id for r in runs])
+        counts = crud.chunk_counts(session, [j.id for j in latest.values()])
+        items = [
+            run_out(r, latest.get(r.id), counts.get(latest[r.id].id) if r.id in latest else None)
+            for r in runs
+        ]
+    return RunList(items=items, total=total, limit=limit, offset=offset)
+
+
+@router.get("/{run_id}", response_model=RunDetail, summary="Run detail")
+def get_run(run_id: RunId, db: DbDep) -> RunDetail:
+    """Metadata, sha256, file summary and latest job of a run."""
+    with db.read() as session:
+        run = crud.get_run(session, run_id)
+        if run is None:
+            raise not_found("run", run_id)
+        latest = crud.latest_job(session, run_id)
+        counts = crud.chunk_counts(session, [latest.id]) if latest else {}
+        return run_detail(run, latest, counts.get(latest.id) if latest else None)
+
+
+@router.delete(
+    "/{run_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    summary="Delete a run with its jobs, results and files",
+)
+async def delete_run(run_id: RunId, db: DbDep, store: StoreDep) -> Response:
+    """Delete the run's rows (jobs, chunks, profiles, wheels) and its files.
+
+    A worker processing the run notices that its job is gone and stops.
+    """
+
+    def _delete() -> bool:
+        with db.write() as session:
+            deleted = crud.delete_run(session, run_id)
+        if deleted:
+            store.remove_run(run_id)
+        return deleted
+
+    if not await run_in_threadpool(_delete):
+        raise not_found("run", run_id)
+    log.info("run %s deleted", run_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

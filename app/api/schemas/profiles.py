@@ -1,0 +1,33 @@
+"""Schemas of indicator profiles."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+__all__ = ["ProfileOut"]
+
+
+class ProfileOut(BaseModel):
+    """Indicator profile of one wheel of a run.
+
+    At ``level_m`` equal to the bin length (0.25 m) every row is one stored bin
+    with the columns ``wheel, bin, km, n_samples, speed_mean`` (m/s),
+    ``sleeper_amp`` (m/s²), ``order_amp_01..11`` (m/s²), ``residual_rms`` (m/s²),
+    ``sleeper_force_amp`` (kN). At a coarser level every row is one segment with
+    ``km_from, km_to, n_bins`` and ``<column>_mean``, ``<column>_max``,
+    ``<column>_p95`` for every indicator column.
+    """
+
+    run_id: int
+    job_id: int | None = Field(None, description="Job whose results these are")
+    wheel: str
+    level_m: float
+    bin_length_m: float
+    km_from: float | None = None
+    km_to: float | None = None
+    n_rows: int
+    truncated: bool = Field(False, description="True if more rows matched than returned")
+    columns: list[str]
+    rows: list[dict[str, Any]]

@@ -1,0 +1,61 @@
+"""Schemas of runs."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from app.api.schemas.jobs import JobOut
+
+__all__ = ["RunSummaryOut", "RunOut", "RunDetail", "RunList"]
+
+
+class RunSummaryOut(BaseModel):
+    """What the run file holds."""
+
+    fs: float = Field(description="Sample rate, Hz")
+    n_samples: int
+    duration_s: float
+    distance_m: float | None = Field(None, description="Distance covered, m")
+    speed_min: float | None = Field(None, description="Lowest speed, m/s")
+    speed_max: float | None = Field(None, description="Highest speed, m/s")
+    channels: list[str]
+
+
+class RunOut(BaseModel):
+    """A run as listed."""
+
+    id: int
+    sha256: str = Field(description="sha256 of the uploaded file (hex)")
+    source_format: str
+    original_filename: str | None = None
+    size_bytes: int
+    vehicle_id: str | None = None
+    line_id: str | None = None
+    track: str | None = None
+    direction: str | None = None
+    start_time: dt.datetime | None = None
+    km_start: float | None = None
+    km_increasing: bool | None = None
+    created_by: str | None = None
+    created_at: dt.datetime
+    summary: RunSummaryOut
+    latest_job: JobOut | None = None
+    links: dict[str, str] = Field(default_factory=dict)
+
+
+class RunDetail(RunOut):
+    """A run with its full metadata."""
+
+    metadata: dict[str, Any]
+
+
+class RunList(BaseModel):
+    """A page of runs."""
+
+    items: list[RunOut]
+    total: int
+    limit: int
+    offset: int

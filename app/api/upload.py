@@ -1,0 +1,483 @@
+"""Streamed run uploads: request body → run store, sha256, validation, run row.
+
+Two request shapes are accepted on ``POST /api/v1/runs``:
+
+``multipart/form-data``
+    parts ``file`` (the run file, required), ``metadata`` (JSON object,
+    optional for HDF5) and ``format`` (``hdf5``, ``csv`` or ``parquet``,
+    optional: else taken from the file name or the part's content type).
+any other content type (``application/octet-stream``, ``application/x-hdf5``,
+``text/csv``, ``application/vnd.apache.parquet``)
+    the body is the file; ``format``, ``metadata`` and ``filename`` come as
+    query parameters.
+
+The body is read block by block into ``<run_store>/.uploads/<token>/`` while
+its sha256 is computed and its size checked against the cap; it is never held
+in memory whole. The file is then validated and converted by
+:func:`app.io.ingest` to the canonical HDF5 file, and only then are the run
+row and its processing job inserted and the directory moved to its final
+place. Any failure removes the upload directory: no row, job or file remains.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import logging
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from python_multipart.exceptions import FormParserError
+from python_multipart.multipart import MultipartParser, parse_options_header
+from sqlalchemy.exc import IntegrityError
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import ClientDisconnect, Request
+
+from app.analysis.settings import ProcessingSettings
+from app.api.errors import ApiError
+from app.core.config import Settings
+from app.core.runstore import RunStore
+from app.db import crud
+from app.db.models import Run, utcnow
+from app.db.session import Database
+from app.io import RunFileError, ingest
+
+__all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
+
+log = logging.getLogger(__name__)
+
+SUPPORTED_FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet")
+_FORMAT_ALIASES = {"h5": "hdf5", "hdf": "hdf5", "hdf5": "hdf5", "csv": "csv", "parquet": "parquet", "pq": "parquet"}
+_EXTENSIONS = {
+    ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".he5": "hdf5", ".mat": "hdf5",
+    ".csv": "csv", ".tsv": "csv", ".txt": "csv",
+    ".csv.gz": "csv", ".tsv.gz": "csv", ".txt.gz": "csv",
+    ".parquet": "parquet", ".pq": "parquet",
+}
+_CONTENT_TYPES = {
+    "application/x-hdf5": "hdf5", "application/x-hdf": "hdf5", "application/hdf5": "hdf5",
+    "text/csv": "csv", "application/csv": "csv",
+    "application/vnd.apache.parquet": "parquet", "application/x-parquet": "parquet",
+    "application/parquet": "parquet",
+}
+_FORM_FIELDS = ("file", "metadata", "format")
+_UPLOAD_NAME = "upload"
+
+
+@dataclass
+class UploadOutcome:
+    """Result of an upload: the run id and whether it was created now."""
+
+    run_id: int
+    created: bool
+
+
+@dataclass
+class _Received:
+    path: Path
+    sha256: str
+    size: int
+    filename: str | None = None
+    content_type: str | None = None
+    fields: dict[str, str] = field(default_factory=dict)
+
+
+class _Sink:
+    """Capped, hashing file writer fed with blocks of the body."""
+
+    def __init__(self, path: Path, block_bytes: int) -> None:
+        self.path = path
+        self.block_bytes = block_bytes
+        self.hash = hashlib.sha256()
+        self.size = 0
+        self._buffer = bytearray()
+        self._fh = open(path, "wb")  # noqa: SIM115 - closed in close()
+
+    def _write(self, data: bytes) -> None:
+        self.hash.update(data)
+        self._fh.write(data)
+
+    async def feed(self, data: bytes) -> None:
+        self.size += len(data)
+        self._buffer += data
+        if len(self._buffer) >= self.block_bytes:
+            block, self._buffer = bytes(self._buffer), bytearray()
+            await run_in_threadpool(self._write, block)
+
+    async def close(self) -> None:
+        if self._buffer:
+            block, self._buffer = bytes(self._buffer), bytearray()
+            await run_in_threadpool(self._write, block)
+        self._fh.close()
+
+    def abort(self) -> None:
+        self._fh.close()
+
+
+def _too_large(cap: int) -> ApiError:
+    return ApiError(
+        413, "file", f"upload exceeds the size limit of {cap} bytes (TRACKVKF_MAX_UPLOAD_BYTES)"
+    )
+
+
+def _safe_filename(name: str | None) -> str | None:
+    """Keep only the last path component of a client file name (stored as text only)."""
+    if not name:
+        return None
+    name = name.replace("\\", "/").rsplit("/", 1)[-1].strip()
+    name = "".join(ch for ch in name if ch.isprintable())
+    return name[:255] or None
+
+
+async def _receive_raw(request: Request, path: Path, settings: Settings) -> _Received:
+    sink = _Sink(path, settings.upload_block_bytes)
+    try:
+        async for chunk in request.stream():
+            if sink.size + len(chunk) > settings.max_upload_bytes:
+                raise _too_large(settings.max_upload_bytes)
+            await sink.feed(chunk)
+        await sink.close()
+    except BaseException:
+        sink.abort()
+        raise
+    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower() or None
+    return _Received(path=path, sha256=sink.hash.hexdigest(), size=sink.size, content_type=ctype)
+
+
+class _MultipartState:
+    """Collects the events of the synchronous multipart parser."""
+
+    def __init__(self, max_field_bytes: int) -> None:
+        self.max_field_bytes = max_field_bytes
+        self.header_field = bytearray()
+        self.header_value = bytearray()
+        self.headers: dict[str, str] = {}
+        self.name: str | None = None
+        self.is_file = False
+        self.file_seen = False
+        self.filename: str | None = None
+        self.file_content_type: str | None = None
+        self.field_data = bytearray()
+        self.fields: dict[str, str] = {}
+        self.pending_file_data: list[bytes] = []
+        self.error: ApiError | None = None
+        self.ended = False
+
+    def callbacks(self) -> dict[str, Any]:
+        return {
+            "on_part_begin": self.on_part_begin,
+            "on_header_field": self.on_header_field,
+            "on_header_value": self.on_header_value,
+            "on_header_end": self.on_header_end,
+            "on_headers_finished": self.on_headers_finished,
+            "on_part_data": self.on_part_data,
+            "on_part_end": self.on_part_end,
+            "on_end": self.on_end,
+        }
+
+    def on_part_begin(self) -> None:
+        self.headers = {}
+        self.name = None
+        self.is_file = False
+        self.field_data = bytearray()
+
+    def on_header_field(self, data: bytes, start: int, end: int) -> None:
+        self.header_field += data[start:end]
+
+    def on_header_value(self, data: bytes, start: int, end: int) -> None:
+        self.header_value += data[start:end]
+
+    def on_header_end(self) -> None:
+        self.headers[self.header_field.decode("latin-1").lower()] = self.header_value.decode(
+            "latin-1"
+        )
+        self.header_field = bytearray()
+        self.header_value = bytearray()
+
+    def on_headers_finished(self) -> None:
+        _, options = parse_options_header(self.headers.get("content-disposition"))
+        name = options.get(b"name", b"").decode("utf-8", "replace")
+        if name not in _FORM_FIELDS:
+            self.error = self.error or ApiError(
+                422, "form", f"unknown form field {name!r} (expected file, metadata or format)"
+            )
+        self.name = name
+        if name == "file":
+            if self.file_seen:
+                self.error = self.error or ApiError(422, "file", "more than one file part")
+            self.file_seen = True
+            self.is_file = True
+            raw = options.get(b"filename")
+            self.filename = _safe_filename(raw.decode("utf-8", "replace")) if raw else None
+            ctype = self.headers.get("content-type")
+            self.file_content_type = ctype.split(";")[0].strip().lower() if ctype else None
+
+    def on_part_data(self, data: bytes, start: int, end: int) -> None:
+        if self.error is not None:
+            return
+        if self.is_file:
+            self.pending_file_data.append(bytes(data[start:end]))
+        else:
+            self.field_data += data[start:end]
+            if len(self.field_data) > self.max_field_bytes:
+                self.error = ApiError(
+                    413, self.name or "form", f"form field larger than {self.max_field_bytes} bytes"
+                )
+
+    def on_part_end(self) -> None:
+        if self.error is None and not self.is_file and self.name:
+            if self.name in self.fields:
+                self.error = ApiError(422, self.name, "given more than once")
+                return
+            try:
+                self.fields[self.name] = self.field_data.decode("utf-8")
+            except UnicodeDecodeError:
+                self.error = ApiError(422, self.name, "not valid UTF-8 text")
+
+    def on_end(self) -> None:
+        self.ended = True
+
+
+async def _receive_multipart(
+    request: Request, path: Path, settings: Settings, content_type: str
+) -> _Received:
+    _, params = parse_options_header(content_type)
+    boundary = params.get(b"boundary")
+    if not boundary:
+        raise ApiError(400, "file", "multipart body without a boundary in Content-Type")
+    state = _MultipartState(settings.max_metadata_bytes)
+    try:
+        parser = MultipartParser(boundary, state.callbacks())
+    except FormParserError as exc:
+        raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+    sink = _Sink(path, settings.upload_block_bytes)
+    received = 0
+    try:
+        async for chunk in request.stream():
+            received += len(chunk)
+            if received > settings.max_upload_bytes:
+                raise _too_large(settings.max_upload_bytes)
+            try:
+                parser.write(chunk)
+            except FormParserError as exc:
+                raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+            if state.error is not None:
+                raise state.error
+            for data in state.pending_file_data:
+                await sink.feed(data)
+            state.pending_file_data.clear()
+        try:
+            parser.finalize()
+        except FormParserError as exc:
+            raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+        if state.error is not None:
+            raise state.error
+        await sink.close()
+    except BaseException:
+        sink.abort()
+        raise
+    if not state.file_seen:
+        raise ApiError(422, "file", "the multipart body has no 'file' part")
+    if not state.ended:
+        raise ApiError(400, "file", "multipart body ended early (truncated upload)")
+    return _Received(
+        path=path,
+        sha256=sink.hash.hexdigest(),
+        size=sink.size,
+        filename=state.filename,
+        content_type=state.file_content_type,
+        fields=state.fields,
+    )
+
+
+def _known_suffix(filename: str | None) -> str:
+    """The file name's extension if it is a known run-file extension, else ``""``."""
+    if not filename:
+        return ""
+    name = filename.lower()
+    for suffix in sorted(_EXTENSIONS, key=len, reverse=True):
+        if name.endswith(suffix):
+            return suffix
+    return ""
+
+
+def infer_format(
+    explicit: str | None, filename: str | None, content_type: str | None
+) -> str | None:
+    """The upload's format: explicit value, else file extension, else content type.
+
+    Returns None when nothing tells (ingest then inspects the file).
+
+    Raises
+    ------
+    ApiError
+        422 naming ``format`` if ``explicit`` is not a supported format.
+    """
+    if explicit:
+        key = explicit.strip().lower()
+        if key not in _FORMAT_ALIASES:
+            raise ApiError(
+                422,
+                "format",
+                f"unknown format {explicit!r}; supported formats are {', '.join(SUPPORTED_FORMATS)}",
+            )
+        return _FORMAT_ALIASES[key]
+    suffix = _known_suffix(filename)
+    if suffix:
+        return _EXTENSIONS[suffix]
+    if content_type and content_type in _CONTENT_TYPES:
+        return _CONTENT_TYPES[content_type]
+    return None
+
+
+def _parse_metadata(text: str | None) -> dict[str, Any] | None:
+    if text is None or not text.strip():
+        return None
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ApiError(422, "metadata", f"not valid JSON: {exc.msg} at position {exc.pos}") from None
+    if not isinstance(value, dict):
+        raise ApiError(422, "metadata", f"must be a JSON object, got {type(value).__name__}")
+    return value
+
+
+def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
+    if form_value is not None and query_value is not None:
+        raise ApiError(422, name, "given both as form field and as query parameter")
+    return form_value if form_value is not None else query_value
+
+
+def _run_row(summary: Any, received: _Received, fmt: str | None, principal_name: str) -> Run:
+    md = summary.metadata
+    meta_json = md.model_dump(mode="json") if hasattr(md, "model_dump") else dict(md)
+    return Run(
+        sha256=received.sha256,
+        file_path="",
+        source_format=getattr(summary, "source_format", "") or fmt or "unknown",
+        original_filename=received.filename,
+        size_bytes=received.size,
+        vehicle_id=getattr(md, "vehicle_id", None),
+        line_id=getattr(md, "line_id", None),
+        track=getattr(md, "track", None),
+        direction=getattr(md, "direction", None),
+        start_time=getattr(md, "start_time", None),
+        km_start=getattr(md, "km_start", None),
+        km_increasing=getattr(md, "km_increasing", None),
+        fs=float(summary.fs),
+        n_samples=int(summary.n_samples),
+        duration_s=float(summary.duration_s),
+        distance_m=_float_or_none(getattr(summary, "distance_m", None)),
+        speed_min=_float_or_none(getattr(summary, "speed_min", None)),
+        speed_max=_float_or_none(getattr(summary, "speed_max", None)),
+        channels=list(summary.channels),
+        meta=meta_json,
+        created_by=principal_name,
+        created_at=utcnow(),
+    )
+
+
+def _float_or_none(value: Any) -> float | None:
+    if value is None:
+        return None
+    value = float(value)
+    return value if value == value and abs(value) != float("inf") else None
+
+
+async def receive_and_create_run(
+    request: Request,
+    *,
+    settings: Settings,
+    db: Database,
+    store: RunStore,
+    principal_name: str,
+    query_format: str | None = None,
+    query_metadata: str | None = None,
+    query_filename: str | None = None,
+) -> UploadOutcome:
+    """Receive an upload, validate it and create the run and its processing job.
+
+    Returns
+    -------
+    UploadOutcome
+        The new run (``created=True``) or the existing run with the same
+        sha256 (``created=False``).
+
+    Raises
+    ------
+    ApiError
+        413 for a body over the cap, 400 for a malformed body, 422 naming the
+        field for invalid content (format, metadata, channels, ...). Nothing
+        is left behind.
+    """
+    declared = request.headers.get("content-length")
+    if declared is not None and declared.isdigit() and int(declared) > settings.max_upload_bytes:
+        raise _too_large(settings.max_upload_bytes)
+    content_type = request.headers.get("content-type", "")
+    upload_dir = await run_in_threadpool(store.new_upload_dir)
+    installed_run_id: int | None = None
+    try:
+        path = upload_dir / _UPLOAD_NAME
+        try:
+            if content_type.lower().startswith("multipart/form-data"):
+                received = await _receive_multipart(request, path, settings, content_type)
+            else:
+                received = await _receive_raw(request, path, settings)
+                received.filename = _safe_filename(query_filename)
+        except ClientDisconnect:
+            raise ApiError(400, "file", "client disconnected during the upload") from None
+        if received.size == 0:
+            raise ApiError(422, "file", "the uploaded file is empty")
+        # A known extension helps ingest recognise e.g. gzip-compressed CSV.
+        suffix = _known_suffix(received.filename)
+        if suffix:
+            path = path.rename(upload_dir / f"upload{suffix}")
+            received.path = path
+        fmt = infer_format(
+            _one_of("format", received.fields.get("format"), query_format),
+            received.filename,
+            received.content_type,
+        )
+        metadata = _parse_metadata(_one_of("metadata", received.fields.get("metadata"), query_metadata))
+
+        with db.read() as session:
+            existing = crud.get_run_by_sha256(session, received.sha256)
+        if existing is not None:
+            return UploadOutcome(run_id=existing.id, created=False)
+
+        dest = upload_dir / "run.h5"
+        try:
+            summary = await run_in_threadpool(ingest, path, fmt, metadata, dest)
+        except RunFileError as exc:
+            raise ApiError(422, exc.field, exc.message) from None
+        await run_in_threadpool(path.unlink)
+
+        settings_dict = ProcessingSettings().to_dict()
+        try:
+            with db.write() as session:
+                run = _run_row(summary, received, fmt, principal_name)
+                session.add(run)
+                session.flush()
+                run.file_path = store.relative_run_file(run.id)
+                crud.create_job(session, run.id, settings_dict, principal_name)
+                store.install_run_dir(upload_dir, run.id)
+                installed_run_id = run.id
+            run_id = installed_run_id
+            installed_run_id = None  # committed: keep the files
+        except IntegrityError:
+            # The same file was uploaded concurrently and committed first.
+            with db.read() as session:
+                existing = crud.get_run_by_sha256(session, received.sha256)
+            if existing is None:
+                raise
+            return UploadOutcome(run_id=existing.id, created=False)
+        log.info("run %s created from %s (%d bytes, sha256 %s)", run_id, fmt, received.size, received.sha256)
+        return UploadOutcome(run_id=run_id, created=True)
+    finally:
+        if installed_run_id is not None:
+            store.remove_run(installed_run_id)
+        with contextlib.suppress(OSError):
+            shutil.rmtree(upload_dir, ignore_errors=True)

@@ -1,0 +1,370 @@
+"""Command line of trackvkf: ``serve``, ``worker``, ``migrate``, ``demo``, ``simulate``, ``process``.
+
+Every command reads the service settings from ``TRACKVKF_*`` environment
+variables (see :class:`app.core.config.Settings`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from app.core.config import get_settings
+from app.core.logging import configure_logging
+
+__all__ = ["app", "main"]
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Track stiffness and wheel out-of-roundness from axle-box accelerations.",
+)
+
+
+def _echo(message: str) -> None:
+    typer.echo(message, err=False)
+
+
+# --- service ----------------------------------------------------------------
+@app.command()
+def serve(
+    host: Annotated[str, typer.Option(help="Interface to listen on")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port")] = 8000,
+    log_level: Annotated[str, typer.Option(help="uvicorn log level")] = "info",
+) -> None:
+    """Run the REST API (uvicorn). Migrate the database first (``trackvkf migrate``)."""
+    import uvicorn
+
+    uvicorn.run(
+        "app.main:create_app", factory=True, host=host, port=port, log_level=log_level.lower()
+    )
+
+
+@app.command()
+def worker(
+    once: Annotated[bool, typer.Option(help="Exit after one job")] = False,
+    exit_when_idle: Annotated[bool, typer.Option(help="Exit when no job is queued")] = False,
+) -> None:
+    """Run the local worker: claim queued jobs and process them until Ctrl-C."""
+    from worker.runner import run_worker
+
+    settings = get_settings()
+    configure_logging(settings.log_level)
+    try:
+        run_worker(settings, once=once, exit_when_idle=exit_when_idle)
+    except KeyboardInterrupt:
+        raise typer.Exit(130) from None
+
+
+@app.command()
+def migrate(
+    revision: Annotated[str, typer.Option(help="Target revision")] = "head",
+) -> None:
+    """Apply the database migrations (Alembic) to TRACKVKF_DATABASE_URL."""
+    from app.db import migrate as db_migrate
+
+    settings = get_settings()
+    db_migrate.upgrade(settings.database_url, revision)
+    _echo(f"database {settings.database_url} at {db_migrate.current_revision(settings.database_url)}")
+
+
+# --- simulation and local processing ---------------------------------------------
+@app.command()
+def simulate(
+    out: Annotated[Path, typer.Argument(help="Output run file (.h5); truth is written beside it")],
+    length_km: Annotated[float, typer.Option(help="Length of the simulated line, km")] = 5.0,
+    fs: Annotated[float, typer.Option(help="Sample rate, Hz")] = 10_000.0,
+    seed: Annotated[int, typer.Option(help="Random seed")] = 0,
+    forces: Annotated[bool, typer.Option(help="Also simulate Q (force) channels")] = True,
+) -> None:
+    """Write a synthetic run in the canonical format with its ground truth beside it."""
+    from app.simulate.run import simulate_run
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces)
+    _echo(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
+    truth_path = getattr(truth, "path", None)
+    if truth_path:
+        _echo(f"ground truth: {truth_path}")
+
+
+def _file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(1 << 20):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _wheel_tables(wheels: list[dict[str, Any]]):
+    import pandas as pd
+
+    order_rows, profile_rows = [], []
+    for w in wheels:
+        for o in w.get("orders", []):
+            order_rows.append(
+                {"wheel": str(w["wheel"]), "wheel_diameter_m": w.get("wheel_diameter_m"), **o}
+            )
+        angles = w.get("angles_deg") or []
+        for i, angle in enumerate(angles):
+            profile_rows.append(
+                {
+                    "wheel": str(w["wheel"]),
+                    "angle_deg": angle,
+                    "profile_um": (w.get("profile_um") or [None] * len(angles))[i],
+                    "profile_p05_um": (w.get("profile_p05_um") or [None] * len(angles))[i],
+                    "profile_p95_um": (w.get("profile_p95_um") or [None] * len(angles))[i],
+                }
+            )
+    return pd.DataFrame(order_rows), pd.DataFrame(profile_rows)
+
+
+def _jsonable(value: Any) -> Any:
+    from app.db.crud import jsonable
+
+    return jsonable(value)
+
+
+@app.command()
+def process(
+    run_file: Annotated[Path, typer.Argument(help="Run file: HDF5, CSV or Parquet")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output directory")] = Path("trackvkf-out"),
+    format: Annotated[
+        str | None, typer.Option("--format", help="hdf5, csv or parquet (default: detect)")
+    ] = None,
+    metadata: Annotated[
+        Path | None, typer.Option(help="Metadata JSON file (required for CSV/Parquet)")
+    ] = None,
+    n_wheel_orders: Annotated[int | None, typer.Option(help="Wheel orders (default 11)")] = None,
+    bandwidth_orders: Annotated[
+        float | None, typer.Option(help="Bandwidth in wheel orders (default 0.1)")
+    ] = None,
+    filter_order: Annotated[int | None, typer.Option(help="VKF filter order q (default 2)")] = None,
+) -> None:
+    """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
+
+    Intermediate chunk results are kept in ``OUT/.work`` so an interrupted run
+    resumes where it stopped.
+    """
+    from tqdm import tqdm
+    from worker.pipeline import run_pipeline
+
+    from app.analysis.settings import ProcessingSettings
+    from app.io import RunFileError, ingest
+
+    if not run_file.is_file():
+        raise typer.BadParameter(f"{run_file} is not a file", param_hint="RUN_FILE")
+    changes = {
+        k: v
+        for k, v in {
+            "n_wheel_orders": n_wheel_orders,
+            "bandwidth_orders": bandwidth_orders,
+            "filter_order": filter_order,
+        }.items()
+        if v is not None
+    }
+    try:
+        settings = ProcessingSettings.from_dict(changes)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from None
+    md = None
+    if metadata is not None:
+        try:
+            md = json.loads(metadata.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise typer.BadParameter(f"cannot read {metadata}: {exc}", param_hint="--metadata") from None
+
+    source_sha = _file_sha256(run_file)
+    key = hashlib.sha256(
+        json.dumps({"sha": source_sha, "md": md, "settings": settings.to_dict()}, sort_keys=True).encode()
+    ).hexdigest()[:16]
+    work = out / ".work" / key
+    work.mkdir(parents=True, exist_ok=True)
+    canonical = work / "run.h5"
+    if not canonical.is_file():
+        _echo(f"validating {run_file} ...")
+        try:
+            summary = ingest(run_file, format, md, canonical)
+        except RunFileError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(2) from None
+        _echo(
+            f"{summary.duration_s:.1f} s at {summary.fs:g} Hz, {summary.distance_m / 1000:.2f} km, "
+            f"channels {', '.join(summary.channels)}"
+        )
+    with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar:
+
+        def progress(fraction: float) -> None:
+            bar.update(max(0.0, 100 * fraction - bar.n))
+
+        results = run_pipeline(canonical, settings, work / "chunks", progress=progress)
+        progress(1.0)
+
+    out.mkdir(parents=True, exist_ok=True)
+    results.profiles.to_csv(out / "profiles.csv", index=False)
+    results.profiles.to_parquet(out / "profiles.parquet", index=False)
+    orders, wheel_profiles = _wheel_tables(results.wheels)
+    orders.to_csv(out / "wheel_orders.csv", index=False)
+    orders.to_parquet(out / "wheel_orders.parquet", index=False)
+    wheel_profiles.to_csv(out / "wheel_profiles.csv", index=False)
+    wheel_profiles.to_parquet(out / "wheel_profiles.parquet", index=False)
+    (out / "wheels.json").write_text(json.dumps(_jsonable(results.wheels), indent=1))
+    meta = {
+        **dict(results.meta or {}),
+        "source_file": str(run_file),
+        "source_sha256": source_sha,
+        "settings": settings.to_dict(),
+    }
+    (out / "meta.json").write_text(json.dumps(_jsonable(meta), indent=1))
+    _echo(
+        f"{len(results.profiles)} profile rows, {len(results.wheels)} wheels -> {out}/ "
+        "(profiles.csv/.parquet, wheel_orders.csv/.parquet, wheel_profiles.csv/.parquet, "
+        "wheels.json, meta.json)"
+    )
+
+
+# --- demo ---------------------------------------------------------------------------
+def _port_free(host: str, port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        try:
+            sock.bind((host, port))
+        except OSError:
+            return False
+        return True
+
+
+def _wait_healthy(base: str, procs: list[subprocess.Popen], timeout_s: float = 60.0) -> None:
+    import httpx
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for p in procs:
+            if p.poll() is not None:
+                raise RuntimeError(f"process {p.args} exited with {p.returncode}")
+        try:
+            if httpx.get(f"{base}/api/v1/health", timeout=2).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.3)
+    raise RuntimeError(f"the API did not answer on {base} within {timeout_s:.0f} s")
+
+
+def _stop(procs: list[subprocess.Popen]) -> None:
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+    for p in procs:
+        try:
+            p.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
+@app.command()
+def demo(
+    host: Annotated[str, typer.Option(help="Interface for the API")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port for the API")] = 8000,
+    length_km: Annotated[float, typer.Option(help="Length of the demo run, km")] = 3.0,
+    fs: Annotated[float, typer.Option(help="Sample rate of the demo run, Hz")] = 10_000.0,
+    serve_after: Annotated[
+        bool, typer.Option("--serve/--no-serve", help="Keep serving after processing (until Ctrl-C)")
+    ] = True,
+) -> None:
+    """Migrate, simulate a demo run, start API and worker, upload and process it over HTTP."""
+    import httpx
+
+    from app.db import migrate as db_migrate
+
+    settings = get_settings()
+    db_migrate.upgrade(settings.database_url)
+    _echo(f"database ready: {settings.database_url}")
+
+    demo_dir = Path(settings.run_store).resolve().parent / "demo"
+    run_file = demo_dir / f"demo-run-{length_km:g}km-{fs:g}Hz.h5"
+    if not run_file.is_file():
+        _echo(f"simulating a {length_km:g} km demo run at {fs:g} Hz ...")
+        from app.simulate.run import simulate_run
+
+        demo_dir.mkdir(parents=True, exist_ok=True)
+        simulate_run(run_file, length_km=length_km, fs=fs, seed=7, with_forces=True)
+    _echo(f"demo run: {run_file}")
+
+    if not _port_free(host, port):
+        typer.echo(f"error: port {port} on {host} is in use; pass --port", err=True)
+        raise typer.Exit(1)
+    base = f"http://{host}:{port}"
+    env = dict(os.environ)
+    api = subprocess.Popen(
+        [sys.executable, "-m", "uvicorn", "--factory", "app.main:create_app",
+         "--host", host, "--port", str(port), "--log-level", "warning"],
+        env=env,
+    )
+    wrk = subprocess.Popen([sys.executable, "-m", "worker"], env=env)
+    procs = [api, wrk]
+    try:
+        _wait_healthy(base, procs)
+        _echo(f"API up at {base}; uploading the demo run ...")
+        with open(run_file, "rb") as fh, httpx.Client(timeout=600) as client:
+            resp = client.post(
+                f"{base}/api/v1/runs",
+                files={"file": (run_file.name, fh, "application/x-hdf5")},
+            )
+            if resp.status_code not in (200, 201):
+                raise RuntimeError(f"upload failed: {resp.status_code} {resp.text}")
+            run = resp.json()
+            run_id = run["id"]
+            _echo(f"run {run_id} {'created' if resp.status_code == 201 else 'already uploaded'}")
+            job = run["latest_job"]
+            last = -1.0
+            while job["status"] in ("queued", "running"):
+                if job["progress"] != last:
+                    _echo(f"  job {job['id']} {job['status']} {100 * job['progress']:.0f} %")
+                    last = job["progress"]
+                time.sleep(1.0)
+                for p in procs:
+                    if p.poll() is not None:
+                        raise RuntimeError(f"process {p.args} exited with {p.returncode}")
+                job = client.get(f"{base}/api/v1/jobs/{job['id']}").json()
+            _echo(f"  job {job['id']} {job['status']}" + (f": {job['error']}" if job["error"] else ""))
+        runs = f"{base}/api/v1/runs/{run_id}"
+        _echo(
+            "\nWhere to look:\n"
+            f"  API docs (OpenAPI)       {base}/docs\n"
+            f"  run detail               {runs}\n"
+            f"  profile, wheel 11, 10 m  {runs}/profile?wheel=11&level=10\n"
+            f"  profile export (CSV)     {runs}/profile.csv?wheel=11\n"
+            f"  wheel OOR                {runs}/wheels\n"
+            f"  jobs                     {base}/api/v1/jobs\n"
+        )
+        if not serve_after:
+            return
+        _echo("Serving until Ctrl-C ...")
+        while all(p.poll() is None for p in procs):
+            time.sleep(0.5)
+        raise RuntimeError("a service process exited unexpectedly")
+    except KeyboardInterrupt:
+        _echo("\nstopping ...")
+    except RuntimeError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(1) from None
+    finally:
+        _stop(procs)
+
+
+def main() -> None:
+    """Entry point of the ``trackvkf`` console script."""
+    app()
+

@@ -1,0 +1,176 @@
+"""Layout of the run store: where run files, uploads and chunk results live.
+
+The run store is a directory (``Settings.run_store``)::
+
+    <root>/.uploads/<token>/          an upload in progress (removed on any error)
+    <root>/<run_id>/run.h5            the canonical HDF5 file of a run
+    <root>/<run_id>/jobs/<job_id>/chunk-00000.npz   chunk results of a job
+
+Every path is generated here from integer ids and random tokens: a client's
+file name never becomes a path. Files are written through :func:`atomic_path`
+(temporary name in the same directory, fsync, ``os.replace``), so a reader
+sees either the whole file or none.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import operator
+import os
+import shutil
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+__all__ = ["RunStore", "atomic_path", "RUN_FILE_NAME"]
+
+log = logging.getLogger(__name__)
+
+RUN_FILE_NAME = "run.h5"
+_UPLOADS = ".uploads"
+
+
+@contextlib.contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success move it onto ``path``.
+
+    Parameters
+    ----------
+    path : Path
+        Final location. Its directory is created if missing.
+
+    The caller writes the temporary file; when the ``with`` block ends without
+    an exception the file is fsynced and renamed onto ``path`` atomically
+    (``os.replace``). On an exception the temporary file is removed and
+    ``path`` is left untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
+    try:
+        yield tmp
+        if tmp.exists():
+            with open(tmp, "rb") as fh:
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+
+
+class RunStore:
+    """Paths and file operations of the run store rooted at ``root``.
+
+    Parameters
+    ----------
+    root : Path
+        Directory of the run store; created on first use.
+    """
+
+    def __init__(self, root: Path | str) -> None:
+        self.root = Path(root).resolve()
+
+    # --- layout -----------------------------------------------------------
+    @property
+    def uploads_dir(self) -> Path:
+        """Directory holding uploads in progress."""
+        return self.root / _UPLOADS
+
+    def run_dir(self, run_id: int) -> Path:
+        """Directory of run ``run_id``."""
+        return self.root / str(_check_id(run_id, "run_id"))
+
+    def run_file(self, run_id: int) -> Path:
+        """Canonical HDF5 file of run ``run_id``."""
+        return self.run_dir(run_id) / RUN_FILE_NAME
+
+    def relative_run_file(self, run_id: int) -> str:
+        """Path of the run file relative to the store root (stored in SQL)."""
+        return f"{_check_id(run_id, 'run_id')}/{RUN_FILE_NAME}"
+
+    def resolve(self, relative: str) -> Path:
+        """Absolute path of a store-relative path; refuses paths leaving the store."""
+        path = (self.root / relative).resolve()
+        if self.root not in path.parents:
+            raise ValueError(f"relative: path {relative!r} leaves the run store")
+        return path
+
+    def job_dir(self, run_id: int, job_id: int) -> Path:
+        """Working directory of job ``job_id`` of run ``run_id`` (chunk results)."""
+        return self.run_dir(run_id) / "jobs" / str(_check_id(job_id, "job_id"))
+
+    def chunk_path(self, run_id: int, job_id: int, index: int) -> Path:
+        """Result file of chunk ``index`` of a job: ``chunk-XXXXX.npz``."""
+        if index < 0:
+            raise ValueError(f"index must be >= 0, got {index}")
+        return self.job_dir(run_id, job_id) / f"chunk-{index:05d}.npz"
+
+    # --- uploads ------------------------------------------------------------
+    def new_upload_dir(self) -> Path:
+        """Create and return a fresh, empty directory for one upload."""
+        path = self.uploads_dir / uuid.uuid4().hex
+        path.mkdir(parents=True)
+        return path
+
+    def install_run_dir(self, upload_dir: Path, run_id: int) -> Path:
+        """Move a finished upload directory to ``run_dir(run_id)`` atomically.
+
+        A directory already at the target belongs to no run (left by a crash
+        between this move and the database commit) and is removed first.
+        """
+        target = self.run_dir(run_id)
+        if target.exists():
+            log.warning("removing orphan run directory %s", target)
+            shutil.rmtree(target, ignore_errors=True)
+        os.replace(upload_dir, target)
+        return target
+
+    def remove_run(self, run_id: int) -> None:
+        """Delete everything stored for run ``run_id`` (no error if absent)."""
+        shutil.rmtree(self.run_dir(run_id), ignore_errors=True)
+
+    def remove_tree(self, path: Path) -> None:
+        """Delete a directory inside the store (no error if absent)."""
+        path = Path(path).resolve()
+        if self.root not in path.parents:
+            raise ValueError(f"path: {path} is not inside the run store")
+        shutil.rmtree(path, ignore_errors=True)
+
+    def sweep_uploads(self, older_than_s: float) -> int:
+        """Remove uploads in progress older than ``older_than_s`` seconds.
+
+        Returns
+        -------
+        int
+            Number of upload directories removed.
+        """
+        if not self.uploads_dir.is_dir():
+            return 0
+        cutoff = time.time() - older_than_s
+        removed = 0
+        for entry in self.uploads_dir.iterdir():
+            try:
+                if entry.stat().st_mtime < cutoff:
+                    shutil.rmtree(entry, ignore_errors=True) if entry.is_dir() else entry.unlink()
+                    removed += 1
+            except FileNotFoundError:
+                continue
+        return removed
+
+    def run_ids_on_disk(self) -> list[int]:
+        """Ids of the run directories present in the store."""
+        if not self.root.is_dir():
+            return []
+        return sorted(int(p.name) for p in self.root.iterdir() if p.is_dir() and p.name.isdigit())
+
+
+def _check_id(value: int, name: str) -> int:
+    try:
+        number = operator.index(value)
+    except TypeError:
+        number = 0
+    if isinstance(value, bool) or number < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return number

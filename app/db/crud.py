@@ -1,0 +1,490 @@
+"""Queries and changes shared by the API and the worker.
+
+Every function takes an open :class:`~sqlalchemy.orm.Session`; the caller
+decides the transaction (``Database.read()`` or ``Database.write()``).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from sqlalchemy import and_, delete, func, insert, or_, select, update
+from sqlalchemy.orm import Session
+
+from app.db.models import (
+    PROFILE_VALUE_COLUMNS,
+    Job,
+    JobChunk,
+    JobStatus,
+    ProfileBin,
+    Run,
+    WheelOOR,
+    utcnow,
+)
+
+__all__ = [
+    "get_run",
+    "get_run_by_sha256",
+    "list_runs",
+    "delete_run",
+    "create_job",
+    "get_job",
+    "list_jobs",
+    "latest_job",
+    "latest_jobs",
+    "active_job",
+    "request_cancel",
+    "chunk_counts",
+    "replace_results",
+    "profile_rows",
+    "profile_frame",
+    "profile_wheels",
+    "iter_profile_pages",
+    "get_wheels",
+    "results_job",
+    "queue_counts",
+    "jsonable",
+    "PROFILE_COLUMNS",
+]
+
+#: Columns of a stored profile row, in export order.
+PROFILE_COLUMNS: tuple[str, ...] = ("wheel", "bin", "km", *PROFILE_VALUE_COLUMNS)
+
+_INSERT_BATCH = 20_000
+
+
+# --- runs -------------------------------------------------------------------
+def get_run(session: Session, run_id: int) -> Run | None:
+    """The run with id ``run_id``, or None."""
+    return session.get(Run, run_id)
+
+
+def get_run_by_sha256(session: Session, sha256: str) -> Run | None:
+    """The run whose uploaded file has this sha256 (hex), or None."""
+    return session.scalar(select(Run).where(Run.sha256 == sha256))
+
+
+def list_runs(
+    session: Session,
+    *,
+    line_id: str | None = None,
+    vehicle_id: str | None = None,
+    track: str | None = None,
+    start_from: dt.datetime | None = None,
+    start_to: dt.datetime | None = None,
+    limit: int = 50,
+    offset: int = 0,
+) -> tuple[list[Run], int]:
+    """Runs matching the filters, newest start first, and the total count.
+
+    Parameters
+    ----------
+    line_id, vehicle_id, track : str, optional
+        Exact matches.
+    start_from, start_to : datetime, optional
+        Start time range, inclusive (aware datetimes).
+    limit, offset : int
+        Page size (> 0) and offset (>= 0).
+    """
+    if limit < 1:
+        raise ValueError(f"limit must be >= 1, got {limit}")
+    if offset < 0:
+        raise ValueError(f"offset must be >= 0, got {offset}")
+    conditions = []
+    if line_id is not None:
+        conditions.append(Run.line_id == line_id)
+    if vehicle_id is not None:
+        conditions.append(Run.vehicle_id == vehicle_id)
+    if track is not None:
+        conditions.append(Run.track == track)
+    if start_from is not None:
+        conditions.append(Run.start_time >= start_from)
+    if start_to is not None:
+        conditions.append(Run.start_time <= start_to)
+    where = and_(True, *conditions)
+    total = session.scalar(select(func.count()).select_from(Run).where(where)) or 0
+    rows = session.scalars(
+        select(Run)
+        .where(where)
+        .order_by(Run.start_time.desc(), Run.id.desc())
+        .limit(limit)
+        .offset(offset)
+    ).all()
+    return list(rows), int(total)
+
+
+def delete_run(session: Session, run_id: int) -> bool:
+    """Delete a run and everything that belongs to it; False if there was none.
+
+    Children are deleted explicitly (not only through ``ON DELETE CASCADE``),
+    so the result does not depend on foreign-key enforcement.
+    """
+    job_ids = select(Job.id).where(Job.run_id == run_id).scalar_subquery()
+    session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
+    session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
+    session.execute(delete(JobChunk).where(JobChunk.job_id.in_(job_ids)))
+    session.execute(delete(Job).where(Job.run_id == run_id))
+    result = session.execute(delete(Run).where(Run.id == run_id))
+    return result.rowcount > 0
+
+
+# --- jobs -------------------------------------------------------------------
+def create_job(
+    session: Session, run_id: int, settings: dict[str, Any], created_by: str | None = None
+) -> Job:
+    """Queue a processing job for run ``run_id`` with ``settings`` (a settings dict)."""
+    job = Job(
+        run_id=run_id,
+        status=JobStatus.QUEUED,
+        progress=0.0,
+        settings=dict(settings),
+        cancel_requested=False,
+        attempts=0,
+        created_by=created_by,
+        created_at=utcnow(),
+    )
+    session.add(job)
+    session.flush()
+    return job
+
+
+def get_job(session: Session, job_id: int) -> Job | None:
+    """The job with id ``job_id``, or None."""
+    return session.get(Job, job_id)
+
+
+def list_jobs(
+    session: Session,
+    *,
+    run_id: int | None = None,
+    status: str | None = None,
+    limit: int = 50,
+    offset: int = 0,
+) -> tuple[list[Job], int]:
+    """Jobs, newest first, optionally of one run and/or one status, and the total."""
+    if status is not None and status not in JobStatus.ALL:
+        raise ValueError(f"status must be one of {', '.join(JobStatus.ALL)}, got {status!r}")
+    conditions = []
+    if run_id is not None:
+        conditions.append(Job.run_id == run_id)
+    if status is not None:
+        conditions.append(Job.status == status)
+    where = and_(True, *conditions)
+    total = session.scalar(select(func.count()).select_from(Job).where(where)) or 0
+    jobs = session.scalars(
+        select(Job).where(where).order_by(Job.id.desc()).limit(limit).offset(offset)
+    ).all()
+    return list(jobs), int(total)
+
+
+def latest_job(session: Session, run_id: int) -> Job | None:
+    """The newest job of a run, or None."""
+    return session.scalar(
+        select(Job).where(Job.run_id == run_id).order_by(Job.id.desc()).limit(1)
+    )
+
+
+def latest_jobs(session: Session, run_ids: Sequence[int]) -> dict[int, Job]:
+    """The newest job of each of ``run_ids`` (runs without a job are absent)."""
+    if not run_ids:
+        return {}
+    newest = (
+        select(func.max(Job.id)).where(Job.run_id.in_(list(run_ids))).group_by(Job.run_id)
+    ).scalar_subquery()
+    jobs = session.scalars(select(Job).where(Job.id.in_(newest))).all()
+    return {job.run_id: job for job in jobs}
+
+
+def active_job(session: Session, run_id: int) -> Job | None:
+    """The queued or running job of a run, or None."""
+    return session.scalar(
+        select(Job)
+        .where(Job.run_id == run_id, Job.status.in_(JobStatus.ACTIVE))
+        .order_by(Job.id.desc())
+        .limit(1)
+    )
+
+
+def request_cancel(session: Session, job_id: int) -> str | None:
+    """Cancel a job: a queued job at once, a running one at its next chunk boundary.
+
+    Returns
+    -------
+    str or None
+        ``"cancelled"`` (was queued), ``"requested"`` (running; the worker
+        stops it), ``"final"`` (already done/failed/cancelled: nothing
+        changed), or None if there is no such job.
+    """
+    now = utcnow()
+    res = session.execute(
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.QUEUED)
+        .values(status=JobStatus.CANCELLED, cancel_requested=True, finished_at=now)
+    )
+    if res.rowcount:
+        return "cancelled"
+    res = session.execute(
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.RUNNING)
+        .values(cancel_requested=True)
+    )
+    if res.rowcount:
+        return "requested"
+    return "final" if session.get(Job, job_id) is not None else None
+
+
+def chunk_counts(session: Session, job_ids: Iterable[int]) -> dict[int, dict[str, int]]:
+    """Number of chunks per status for each job: ``{job_id: {status: n}}``."""
+    ids = list(job_ids)
+    if not ids:
+        return {}
+    rows = session.execute(
+        select(JobChunk.job_id, JobChunk.status, func.count())
+        .where(JobChunk.job_id.in_(ids))
+        .group_by(JobChunk.job_id, JobChunk.status)
+    ).all()
+    out: dict[int, dict[str, int]] = {}
+    for job_id, status, n in rows:
+        out.setdefault(job_id, {})[status] = int(n)
+    return out
+
+
+def queue_counts(session: Session) -> dict[str, int]:
+    """Number of jobs per status."""
+    rows = session.execute(select(Job.status, func.count()).group_by(Job.status)).all()
+    return {status: int(n) for status, n in rows}
+
+
+# --- results ------------------------------------------------------------------
+def _none_if_nan(value: Any) -> Any:
+    if value is None:
+        return None
+    if isinstance(value, float | np.floating) and not math.isfinite(float(value)):
+        return None
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _profile_records(profiles: pd.DataFrame, run_id: int, job_id: int) -> list[dict[str, Any]]:
+    required = ("wheel", "bin", "km", "n_samples")
+    missing = [c for c in required if c not in profiles.columns]
+    if missing:
+        raise ValueError(f"profiles: missing column(s) {', '.join(missing)}")
+    n = len(profiles)
+    data: dict[str, list[Any]] = {
+        "run_id": [run_id] * n,
+        "job_id": [job_id] * n,
+        "wheel": profiles["wheel"].astype(str).tolist(),
+        "bin": profiles["bin"].astype(np.int64).tolist(),
+        "km": profiles["km"].astype(np.float64).tolist(),
+        "n_samples": profiles["n_samples"].astype(np.int64).tolist(),
+    }
+    for col in PROFILE_VALUE_COLUMNS:
+        if col == "n_samples":
+            continue
+        if col in profiles.columns:
+            values = profiles[col].to_numpy(dtype=np.float64, na_value=np.nan)
+            data[col] = [None if not math.isfinite(v) else v for v in values.tolist()]
+        else:
+            data[col] = [None] * n
+    keys = list(data)
+    return [dict(zip(keys, row, strict=True)) for row in zip(*data.values(), strict=True)]
+
+
+def replace_results(
+    session: Session,
+    run_id: int,
+    job_id: int,
+    profiles: pd.DataFrame,
+    wheels: Sequence[dict[str, Any]],
+) -> int:
+    """Replace all profile and wheel rows of a run by a job's results.
+
+    Run it inside one write transaction: the old rows are deleted and the new
+    ones inserted together, so a retried job never duplicates rows and readers
+    see either the old or the new results.
+
+    Parameters
+    ----------
+    profiles : pandas.DataFrame
+        One row per (wheel, bin) with the columns of ``RunResults.profiles``;
+        order columns beyond ``order_amp_11`` are not stored in SQL.
+    wheels : sequence of dict
+        ``RunResults.wheels``.
+
+    Returns
+    -------
+    int
+        Number of profile rows written.
+    """
+    session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
+    session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
+    records = _profile_records(profiles, run_id, job_id)
+    for start in range(0, len(records), _INSERT_BATCH):
+        session.execute(insert(ProfileBin), records[start : start + _INSERT_BATCH])
+    known = {
+        "wheel", "wheel_diameter_m", "n_windows", "orders", "angles_deg",
+        "profile_um", "profile_p05_um", "profile_p95_um",
+    }
+    wheel_rows = []
+    for w in wheels:
+        if "wheel" not in w:
+            raise ValueError("wheels: every wheel result needs a 'wheel' key")
+        wheel_rows.append(
+            {
+                "run_id": run_id,
+                "job_id": job_id,
+                "wheel": str(w["wheel"]),
+                "wheel_diameter_m": _none_if_nan(w.get("wheel_diameter_m")),
+                "n_windows": _none_if_nan(w.get("n_windows")),
+                "orders": jsonable(w.get("orders", [])),
+                "angles_deg": jsonable(w.get("angles_deg", [])),
+                "profile_um": jsonable(w.get("profile_um", [])),
+                "profile_p05_um": jsonable(w.get("profile_p05_um")),
+                "profile_p95_um": jsonable(w.get("profile_p95_um")),
+                "extra": jsonable({k: v for k, v in w.items() if k not in known}) or None,
+            }
+        )
+    if wheel_rows:
+        session.execute(insert(WheelOOR), wheel_rows)
+    return len(records)
+
+
+def jsonable(value: Any) -> Any:
+    """Convert numpy values and NaN (-> None) so that ``value`` is valid JSON."""
+    if value is None:
+        return None
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [jsonable(v) for v in value.tolist()]
+    return _none_if_nan(value)
+
+
+def _profile_where(run_id: int, wheel: str | None, km_from: float | None, km_to: float | None):
+    conditions = [ProfileBin.run_id == run_id]
+    if wheel is not None:
+        conditions.append(ProfileBin.wheel == wheel)
+    if km_from is not None:
+        conditions.append(ProfileBin.km >= km_from)
+    if km_to is not None:
+        conditions.append(ProfileBin.km <= km_to)
+    return and_(*conditions)
+
+
+def profile_rows(
+    session: Session,
+    run_id: int,
+    *,
+    wheel: str | None = None,
+    km_from: float | None = None,
+    km_to: float | None = None,
+    limit: int | None = None,
+) -> pd.DataFrame:
+    """Stored profile rows of a run as a DataFrame with :data:`PROFILE_COLUMNS`.
+
+    Rows are ordered by wheel and bin (along the km axis). ``km_from`` and
+    ``km_to`` bound the bin centres (km, inclusive) whatever the run direction.
+    """
+    cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
+    stmt = (
+        select(*cols)
+        .where(_profile_where(run_id, wheel, km_from, km_to))
+        .order_by(ProfileBin.wheel, ProfileBin.bin)
+    )
+    if limit is not None:
+        stmt = stmt.limit(limit)
+    rows = session.execute(stmt).all()
+    return profile_frame(rows)
+
+
+def profile_frame(rows: Sequence[Any]) -> pd.DataFrame:
+    """DataFrame with :data:`PROFILE_COLUMNS` and their dtypes from result rows."""
+    df = pd.DataFrame.from_records(rows, columns=list(PROFILE_COLUMNS))
+    df["wheel"] = df["wheel"].astype(str)
+    df["bin"] = df["bin"].astype(np.int64)
+    df["n_samples"] = df["n_samples"].astype(np.int64)
+    for col in PROFILE_COLUMNS[2:]:
+        if col != "n_samples":
+            df[col] = pd.to_numeric(df[col], errors="coerce").astype(np.float64)
+    return df
+
+
+def profile_wheels(session: Session, run_id: int) -> list[str]:
+    """Wheels that have profile rows in run ``run_id``, sorted."""
+    return list(
+        session.scalars(
+            select(ProfileBin.wheel).where(ProfileBin.run_id == run_id).distinct().order_by(
+                ProfileBin.wheel
+            )
+        ).all()
+    )
+
+
+def iter_profile_pages(
+    read_session,
+    run_id: int,
+    *,
+    wheel: str | None = None,
+    km_from: float | None = None,
+    km_to: float | None = None,
+    page_size: int = 50_000,
+):
+    """Yield the profile rows of a run as DataFrames of at most ``page_size`` rows.
+
+    Parameters
+    ----------
+    read_session : callable
+        Context manager factory of read sessions (``Database.read``); every
+        page is read in its own short transaction (keyset pagination on
+        wheel and bin), so a long export never holds the database.
+    """
+    where = _profile_where(run_id, wheel, km_from, km_to)
+    cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
+    last: tuple[str, int] | None = None
+    while True:
+        stmt = select(*cols).where(where)
+        if last is not None:
+            stmt = stmt.where(
+                or_(
+                    ProfileBin.wheel > last[0],
+                    and_(ProfileBin.wheel == last[0], ProfileBin.bin > last[1]),
+                )
+            )
+        stmt = stmt.order_by(ProfileBin.wheel, ProfileBin.bin).limit(page_size)
+        with read_session() as session:
+            rows = session.execute(stmt).all()
+        if not rows:
+            return
+        yield profile_frame(rows)
+        if len(rows) < page_size:
+            return
+        last = (rows[-1][0], int(rows[-1][1]))
+
+
+def results_job(session: Session, run_id: int) -> Job | None:
+    """The job whose results (profile and wheel rows) are stored for a run, or None."""
+    job_id = session.scalar(
+        select(ProfileBin.job_id).where(ProfileBin.run_id == run_id).limit(1)
+    )
+    if job_id is None:
+        job_id = session.scalar(select(WheelOOR.job_id).where(WheelOOR.run_id == run_id).limit(1))
+    return session.get(Job, job_id) if job_id is not None else None
+
+
+def get_wheels(session: Session, run_id: int) -> list[WheelOOR]:
+    """Wheel OOR rows of a run, sorted by wheel."""
+    return list(
+        session.scalars(
+            select(WheelOOR).where(WheelOOR.run_id == run_id).order_by(WheelOOR.wheel)
+        ).all()
+    )
+

@@ -1,0 +1,275 @@
+"""The job queue in SQL: claiming, heartbeats, chunk bookkeeping, completion.
+
+Used by the local worker (embedded mode). Every change that a worker makes to
+a job is guarded by ``worker_id = <me> AND status = 'running'``: a worker that
+lost its job (cancelled, run deleted, or claimed by another worker after the
+heartbeat went stale) changes nothing and learns so from the return value.
+
+Progress is derived from the chunk rows (done / all), never from a counter,
+so a repeated chunk cannot count twice.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import pandas as pd
+from sqlalchemy import and_, case, func, literal, or_, select, update
+
+from app.db import crud
+from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
+from app.db.session import Database
+
+__all__ = [
+    "Lease",
+    "claim_next_job",
+    "heartbeat",
+    "release_job",
+    "record_chunks",
+    "mark_chunk",
+    "finish_job",
+    "complete_job",
+]
+
+
+@dataclass(frozen=True)
+class Lease:
+    """State of a worker's hold on a job after a heartbeat.
+
+    Attributes
+    ----------
+    owned : bool
+        The job is still running under this worker.
+    cancel_requested : bool
+        A user asked to cancel the job.
+    """
+
+    owned: bool
+    cancel_requested: bool
+
+
+def _now_literal(now: dt.datetime):
+    return literal(now, UTCDateTime())
+
+
+def _claimable(cutoff: dt.datetime):
+    return or_(
+        Job.status == JobStatus.QUEUED,
+        and_(
+            Job.status == JobStatus.RUNNING,
+            or_(Job.heartbeat_at.is_(None), Job.heartbeat_at < cutoff),
+        ),
+    )
+
+
+def claim_next_job(db: Database, worker_id: str, stale_after_s: float) -> int | None:
+    """Claim the oldest queued job, or a running job whose worker is dead.
+
+    A job left ``running`` with a heartbeat older than ``stale_after_s``
+    seconds belongs to a dead worker and is claimed again. The claim is one
+    conditional ``UPDATE`` whose row count tells whether this worker won.
+
+    Returns
+    -------
+    int or None
+        Id of the claimed job, or None when nothing is claimable.
+    """
+    if stale_after_s <= 0:
+        raise ValueError(f"stale_after_s must be > 0 s, got {stale_after_s}")
+    now = utcnow()
+    cutoff = now - dt.timedelta(seconds=stale_after_s)
+    with db.read() as session:
+        candidates = session.scalars(
+            select(Job.id).where(_claimable(cutoff)).order_by(Job.created_at, Job.id).limit(20)
+        ).all()
+    for job_id in candidates:
+        with db.write() as session:
+            result = session.execute(
+                update(Job)
+                .where(Job.id == job_id, _claimable(cutoff))
+                .values(
+                    status=JobStatus.RUNNING,
+                    worker_id=worker_id,
+                    heartbeat_at=now,
+                    started_at=func.coalesce(Job.started_at, _now_literal(now)),
+                    attempts=Job.attempts + 1,
+                )
+            )
+            if result.rowcount == 1:
+                return int(job_id)
+    return None
+
+
+def _owned(job_id: int, worker_id: str):
+    return and_(Job.id == job_id, Job.worker_id == worker_id, Job.status == JobStatus.RUNNING)
+
+
+def heartbeat(db: Database, job_id: int, worker_id: str) -> Lease:
+    """Refresh the heartbeat of a job this worker runs; report ownership and cancel."""
+    with db.write() as session:
+        result = session.execute(
+            update(Job).where(_owned(job_id, worker_id)).values(heartbeat_at=utcnow())
+        )
+        if result.rowcount != 1:
+            return Lease(owned=False, cancel_requested=False)
+        cancel = session.scalar(select(Job.cancel_requested).where(Job.id == job_id))
+        return Lease(owned=True, cancel_requested=bool(cancel))
+
+
+def release_job(db: Database, job_id: int, worker_id: str) -> bool:
+    """Put a job this worker runs back in the queue (graceful worker shutdown)."""
+    with db.write() as session:
+        result = session.execute(
+            update(Job)
+            .where(_owned(job_id, worker_id))
+            .values(status=JobStatus.QUEUED, worker_id=None, heartbeat_at=None)
+        )
+        return result.rowcount == 1
+
+
+def record_chunks(
+    db: Database, job_id: int, worker_id: str, specs: Sequence[tuple[int, dict[str, Any]]]
+) -> bool:
+    """Record the planned chunks of a job (idempotent: existing rows are kept).
+
+    Parameters
+    ----------
+    specs : sequence of (int, dict)
+        Chunk index and its JSON-serialisable spec (``ChunkSpec.to_dict()``).
+
+    Returns
+    -------
+    bool
+        False if the job is no longer owned by this worker.
+    """
+    with db.write() as session:
+        result = session.execute(
+            update(Job)
+            .where(_owned(job_id, worker_id))
+            .values(n_chunks=len(specs), heartbeat_at=utcnow())
+        )
+        if result.rowcount != 1:
+            return False
+        existing = set(
+            session.scalars(select(JobChunk.chunk_index).where(JobChunk.job_id == job_id)).all()
+        )
+        for index, spec in specs:
+            if index not in existing:
+                session.add(
+                    JobChunk(
+                        job_id=job_id, chunk_index=index, status=ChunkStatus.PENDING, spec=spec
+                    )
+                )
+        return True
+
+
+def mark_chunk(
+    db: Database,
+    job_id: int,
+    worker_id: str,
+    index: int,
+    status: str,
+    result_path: str | None = None,
+) -> float | None:
+    """Set the status of a chunk and update the job's progress.
+
+    Returns
+    -------
+    float or None
+        The job's progress (done chunks / all chunks), or None if the job is
+        no longer owned by this worker.
+    """
+    if status not in (ChunkStatus.PENDING, ChunkStatus.RUNNING, ChunkStatus.DONE, ChunkStatus.FAILED):
+        raise ValueError(f"status: unknown chunk status {status!r}")
+    now = utcnow()
+    with db.write() as session:
+        owned = session.execute(
+            update(Job).where(_owned(job_id, worker_id)).values(heartbeat_at=now)
+        )
+        if owned.rowcount != 1:
+            return None
+        values: dict[str, Any] = {"status": status}
+        if status == ChunkStatus.RUNNING:
+            values["started_at"] = now
+        if status in (ChunkStatus.DONE, ChunkStatus.FAILED):
+            values["finished_at"] = now
+        if result_path is not None:
+            values["result_path"] = result_path
+        session.execute(
+            update(JobChunk)
+            .where(JobChunk.job_id == job_id, JobChunk.chunk_index == index)
+            .values(**values)
+        )
+        total, done = session.execute(
+            select(
+                func.count(),
+                func.coalesce(func.sum(case((JobChunk.status == ChunkStatus.DONE, 1), else_=0)), 0),
+            ).where(JobChunk.job_id == job_id)
+        ).one()
+        progress = float(done) / float(total) if total else 0.0
+        # Never report 1.0 before the results are stored.
+        progress = min(progress, 0.999)
+        session.execute(update(Job).where(Job.id == job_id).values(progress=progress))
+        return progress
+
+
+def finish_job(
+    db: Database, job_id: int, worker_id: str, status: str, error: str | None = None
+) -> bool:
+    """Mark a job this worker runs as failed or cancelled (with its error text)."""
+    if status not in (JobStatus.FAILED, JobStatus.CANCELLED):
+        raise ValueError(f"status must be failed or cancelled, got {status!r}")
+    with db.write() as session:
+        result = session.execute(
+            update(Job)
+            .where(_owned(job_id, worker_id))
+            .values(status=status, error=error, finished_at=utcnow(), heartbeat_at=None)
+        )
+        return result.rowcount == 1
+
+
+def complete_job(
+    db: Database,
+    job_id: int,
+    worker_id: str,
+    run_id: int,
+    profiles: pd.DataFrame,
+    wheels: Sequence[dict[str, Any]],
+    meta: dict[str, Any],
+) -> bool:
+    """Store a job's results and mark it done, all in one transaction.
+
+    The profile and wheel rows of the run are replaced (never duplicated).
+    Nothing is written if the job is no longer owned by this worker or a
+    cancel was requested meanwhile.
+
+    Returns
+    -------
+    bool
+        True if the results were stored.
+    """
+    with db.write() as session:
+        result = session.execute(
+            update(Job)
+            .where(_owned(job_id, worker_id), Job.cancel_requested.is_(False))
+            .values(heartbeat_at=utcnow())
+        )
+        if result.rowcount != 1:
+            return False
+        crud.replace_results(session, run_id, job_id, profiles, wheels)
+        session.execute(
+            update(Job)
+            .where(Job.id == job_id)
+            .values(
+                status=JobStatus.DONE,
+                progress=1.0,
+                error=None,
+                meta=crud.jsonable(meta),
+                finished_at=utcnow(),
+                heartbeat_at=None,
+            )
+        )
+        return True

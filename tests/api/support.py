@@ -1,0 +1,35 @@
+"""Helpers shared by the API and end-to-end tests."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from app.core.config import Settings
+
+__all__ = ["make_settings", "store_files"]
+
+
+def make_settings(tmp_path: Path, **overrides: Any) -> Settings:
+    """Settings on ``tmp_path``: SQLite file ``db.sqlite``, run store ``runs/``.
+
+    Heartbeat and stale timeout are short so that fault tests run fast.
+    """
+    values: dict[str, Any] = {
+        "database_url": f"sqlite:///{tmp_path / 'db.sqlite'}",
+        "run_store": tmp_path / "runs",
+        "worker_poll_interval_s": 0.2,
+        "worker_heartbeat_s": 0.5,
+        "worker_stale_after_s": 3.0,
+        "log_level": "WARNING",
+    }
+    values.update(overrides)
+    return Settings(_env_file=None, **values)
+
+
+def store_files(root: Path) -> list[Path]:
+    """All regular files below a run store root (empty directories do not count)."""
+    root = Path(root)
+    if not root.exists():
+        return []
+    return sorted(p for p in root.rglob("*") if p.is_file())

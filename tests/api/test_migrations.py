@@ -1,0 +1,67 @@
+"""Alembic migrations on SQLite: upgrade -> downgrade -> upgrade, and models match."""
+
+from __future__ import annotations
+
+from alembic.autogenerate import compare_metadata
+from alembic.runtime.migration import MigrationContext
+from sqlalchemy import inspect
+
+from app.db import migrate
+from app.db.models import Base
+from app.db.session import make_engine
+
+TABLES = {"runs", "jobs", "job_chunks", "profile_bins", "wheel_oor"}
+
+
+def _tables(url: str) -> set[str]:
+    engine = make_engine(url)
+    try:
+        return set(inspect(engine).get_table_names()) - {"alembic_version"}
+    finally:
+        engine.dispose()
+
+
+def test_upgrade_downgrade_upgrade(tmp_path):
+    url = f"sqlite:///{tmp_path / 'm.sqlite'}"
+    migrate.upgrade(url)
+    assert _tables(url) == TABLES
+    head = migrate.current_revision(url)
+    assert head is not None
+
+    migrate.downgrade(url, "base")
+    assert _tables(url) == set()
+    assert migrate.current_revision(url) is None
+
+    migrate.upgrade(url)
+    assert _tables(url) == TABLES
+    assert migrate.current_revision(url) == head
+
+
+def test_migrated_schema_matches_models(tmp_path):
+    url = f"sqlite:///{tmp_path / 'm.sqlite'}"
+    migrate.upgrade(url)
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            ctx = MigrationContext.configure(conn, opts={"compare_type": True})
+            assert compare_metadata(ctx, Base.metadata) == []
+    finally:
+        engine.dispose()
+
+
+def test_profile_bins_unique_and_indexed(tmp_path):
+    url = f"sqlite:///{tmp_path / 'm.sqlite'}"
+    migrate.upgrade(url)
+    engine = make_engine(url)
+    try:
+        insp = inspect(engine)
+        pk = insp.get_pk_constraint("profile_bins")["constrained_columns"]
+        assert pk == ["run_id", "wheel", "bin"]
+        indexes = {tuple(ix["column_names"]) for ix in insp.get_indexes("profile_bins")}
+        assert ("run_id", "wheel", "km") in indexes
+        uniques = {tuple(u["column_names"]) for u in insp.get_unique_constraints("job_chunks")}
+        assert ("job_id", "chunk_index") in uniques
+        fks = {fk["referred_table"]: fk["options"] for fk in insp.get_foreign_keys("jobs")}
+        assert fks["runs"].get("ondelete") == "CASCADE"
+    finally:
+        engine.dispose()

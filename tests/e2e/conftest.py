@@ -1,0 +1,154 @@
+"""End-to-end fixtures: a simulated run, and the real service (uvicorn + worker
+subprocesses on a free loopback port) on a temporary database and run store."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import httpx
+import pytest
+
+from app.db import migrate
+
+SIM_LENGTH_KM = 1.5
+SIM_FS = 10_000.0
+SIM_SEED = 1
+
+
+@pytest.fixture(scope="session")
+def sim_run(tmp_path_factory) -> tuple[Path, object]:
+    """A short simulated run (1.5 km at 10 kHz, with forces) and its truth."""
+    from app.simulate.run import simulate_run
+
+    path = tmp_path_factory.mktemp("sim") / "sim-run.h5"
+    truth = simulate_run(path, length_km=SIM_LENGTH_KM, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
+    return path, truth
+
+
+@pytest.fixture(scope="session")
+def short_sim_run(tmp_path_factory) -> tuple[Path, object]:
+    """A shorter simulated run (0.8 km, ~36 s at 10 kHz) for the fault tests."""
+    from app.simulate.run import simulate_run
+
+    path = tmp_path_factory.mktemp("sim-short") / "sim-short.h5"
+    truth = simulate_run(path, length_km=0.8, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
+    return path, truth
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@dataclass
+class Service:
+    """A running API plus worker processes started by the test."""
+
+    base_url: str
+    env: dict[str, str]
+    workdir: Path
+    database_url: str
+    run_store: Path
+    api: subprocess.Popen | None = None
+    workers: list[subprocess.Popen] = field(default_factory=list)
+    logs: list[Path] = field(default_factory=list)
+
+    def _spawn(self, args: list[str], name: str) -> subprocess.Popen:
+        log = self.workdir / f"{name}-{len(self.logs)}.log"
+        self.logs.append(log)
+        with open(log, "wb") as fh:
+            return subprocess.Popen(
+                [sys.executable, *args], env=self.env, cwd=self.workdir, stdout=fh,
+                stderr=subprocess.STDOUT, start_new_session=True,
+            )
+
+    def start_api(self) -> None:
+        port = int(self.base_url.rsplit(":", 1)[1])
+        self.api = self._spawn(
+            ["-m", "uvicorn", "--factory", "app.main:create_app", "--host", "127.0.0.1",
+             "--port", str(port), "--log-level", "warning"],
+            "api",
+        )
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            if self.api.poll() is not None:
+                raise RuntimeError(f"uvicorn exited:\n{self.log_text()}")
+            try:
+                if httpx.get(f"{self.base_url}/api/v1/health", timeout=1).status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.2)
+        raise RuntimeError(f"uvicorn did not come up:\n{self.log_text()}")
+
+    def start_worker(self) -> subprocess.Popen:
+        proc = self._spawn(["-m", "worker"], "worker")
+        self.workers.append(proc)
+        return proc
+
+    def log_text(self) -> str:
+        return "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-4000:]}" for p in self.logs if p.exists())
+
+    def stop(self) -> None:
+        procs = [p for p in [self.api, *self.workers] if p is not None]
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+    def wait_job(self, client: httpx.Client, job_id: int, timeout_s: float = 240.0) -> dict:
+        """Poll a job until it is final; fail with the service logs on timeout."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            job = client.get(f"/api/v1/jobs/{job_id}").json()
+            if job["status"] in ("done", "failed", "cancelled"):
+                return job
+            time.sleep(0.3)
+        raise AssertionError(f"job {job_id} not final after {timeout_s} s:\n{self.log_text()}")
+
+
+@pytest.fixture
+def service(tmp_path) -> Iterator[Service]:
+    """The real service on a fresh SQLite database; the API is started, workers on demand."""
+    db_url = f"sqlite:///{tmp_path / 'service.sqlite'}"
+    migrate.upgrade(db_url)
+    env = {
+        k: v for k, v in os.environ.items() if not k.startswith("TRACKVKF_")
+    }
+    env.update(
+        {
+            "TRACKVKF_DATABASE_URL": db_url,
+            "TRACKVKF_RUN_STORE": str(tmp_path / "runs"),
+            "TRACKVKF_WORKER_POLL_INTERVAL_S": "0.2",
+            "TRACKVKF_WORKER_HEARTBEAT_S": "0.5",
+            "TRACKVKF_WORKER_STALE_AFTER_S": "3",
+            "TRACKVKF_LOG_LEVEL": "INFO",
+            "PYTHONUNBUFFERED": "1",
+        }
+    )
+    svc = Service(
+        base_url=f"http://127.0.0.1:{_free_port()}",
+        env=env,
+        workdir=tmp_path,
+        database_url=db_url,
+        run_store=tmp_path / "runs",
+    )
+    try:
+        svc.start_api()
+        yield svc
+    finally:
+        svc.stop()
