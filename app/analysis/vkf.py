@@ -616,7 +616,7 @@ def vkf_stream(
         close = _warn_close(new) if new else []
         yield VKFResult(inp, segments[max(i - 1, 0) : i + 1], start, stop, start_cum, sorted(pairs) or close)
         if i > 0:
-            segments[i - 1].spline = None  # release: no later block needs it
+            segments[i - 1] = None  # type: ignore[call-overload]  # only the yielded block keeps it
 
 
 def vkf_into(
