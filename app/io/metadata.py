@@ -64,6 +64,12 @@ class Calibration(pydantic.BaseModel):
     def _offset(cls, v: float) -> float:
         return _finite(v, "offset")
 
+    def __getitem__(self, key: str) -> float:
+        """Mapping-style access, ``cal["gain"]``, as for the JSON form."""
+        if key not in ("gain", "offset"):
+            raise KeyError(key)
+        return float(getattr(self, key))
+
 
 def _to_str(v: Any) -> Any:
     if isinstance(v, bool):

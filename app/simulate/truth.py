@@ -181,6 +181,11 @@ class SimulationTruth:
     bins: dict[str, WheelBins]
 
     @property
+    def path(self) -> Path:
+        """The truth file (same as ``truth_path``)."""
+        return self.truth_path
+
+    @property
     def wheel_diameters(self) -> dict[str, float]:
         """True wheel diameters, m."""
         return {w: o.diameter_m for w, o in self.wheels.items()}

@@ -52,6 +52,8 @@ def test_canonical_hdf5_reingest_without_metadata(sim: dict, out_dir: Path) -> N
     assert summary.source_format == "hdf5"
     assert summary.channels == list(ALL_CHANNELS)
     assert summary.metadata.vehicle_id == "SIM-1"
+    assert summary.metadata.calibration == {}  # identity gain/offset attributes are not copied
+    assert summary.metadata.wheel_diameters == sim["truth"].reported_diameters
     assert summary.distance_m == pytest.approx(sim["truth"].distance_m, abs=1e-9)
     assert summary.speed_min == pytest.approx(25.0) and summary.speed_max == pytest.approx(28.0)
     assert summary.duration_s == pytest.approx(3.0)
@@ -109,7 +111,9 @@ def test_calibration_is_stored_and_applied_at_read(tmp_path: Path, out_dir: Path
             run.read("Z11", 10, 20), gain * counts[10:20] + offset, rtol=1e-12
         )
         assert run.calibration("Z11") == (gain, offset)
-        assert run.metadata.calibration["Z11"].gain == gain
+        assert (
+            run.metadata.calibration["Z11"].gain == gain == run.metadata.calibration["Z11"]["gain"]
+        )
 
 
 def test_hdf5_calibration_attributes_are_honoured_and_metadata_wins(
