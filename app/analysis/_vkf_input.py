@@ -268,8 +268,9 @@ def scan_input(inp: VKFInput) -> InputStats:
         a, e = b * STAT_BLOCK, min((b + 1) * STAT_BLOCK, inp.n)
         yb = inp.y_slice(a, e)
         if not np.all(np.isfinite(yb)):
-            bad = int(np.argwhere(~np.isfinite(yb))[0][-1]) + a
-            raise ValueError(f"y contains NaN or inf (first at sample {bad})")
+            ch, k = np.argwhere(~np.isfinite(yb))[0]
+            where = f"sample {int(k) + a}" if inp.y_is_1d else f"channel {int(ch)}, sample {int(k) + a}"
+            raise ValueError(f"y contains NaN or inf (first at {where})")
         fb = _extremes(inp.freqs, inp.freqs_const, inp.f_slice, a, e)
         _check_values("freqs", fb, a, 0.0, nyq, False, "Hz")
         bb = _extremes(inp.bandwidth, inp.bw_const, inp.bw_slice, a, e)

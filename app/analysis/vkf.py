@@ -51,6 +51,7 @@ __all__ = [
     "vkf_stream",
     "vkf_into",
     "vkf_overlap",
+    "VKFBlock",
     "VKFResult",
     "VKFWarning",
     "wheel_orders",
@@ -269,6 +270,15 @@ def _iter_segments(
 # --------------------------------------------------------------------------
 # results
 # --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class VKFBlock:
+    """One block of :func:`vkf_stream`: final results for input samples [start, stop)."""
+
+    start: int
+    stop: int
+    result: VKFResult
 
 
 class VKFResult:
@@ -593,13 +603,13 @@ def vkf_stream(
     decimation: str | int = "auto",
     chunk_duration: float | None = None,
     phase0: Any = None,
-) -> Iterator[VKFResult]:
+) -> Iterator[VKFBlock]:
     """Run :func:`vkf` chunk by chunk with bounded memory.
 
-    Same parameters as :func:`vkf`. Yields :class:`VKFResult` blocks with the
+    Same parameters as :func:`vkf`. Yields :class:`VKFBlock` objects with the
     final, crossfaded results for consecutive input ranges
     ``[block.start, block.stop)`` that cover the input exactly once, in
-    order. Only the current and the previous chunk are held in memory, so
+    order (``block.result`` is a :class:`VKFResult` over that range). Only the current and the previous chunk are held in memory, so
     inputs of any length (memory-mapped) can be processed. Values are checked
     in a first pass before anything is yielded.
     """
@@ -614,7 +624,8 @@ def vkf_stream(
         new = pairs - seen
         seen |= pairs
         close = _warn_close(new) if new else []
-        yield VKFResult(inp, segments[max(i - 1, 0) : i + 1], start, stop, start_cum, sorted(pairs) or close)
+        res = VKFResult(inp, segments[max(i - 1, 0) : i + 1], start, stop, start_cum, sorted(pairs) or close)
+        yield VKFBlock(start, stop, res)
         if i > 0:
             segments[i - 1] = None  # type: ignore[call-overload]  # only the yielded block keeps it
 
@@ -654,9 +665,10 @@ def vkf_into(
     if isinstance(step, bool) or int(step) != step or step < 1:
         raise ValueError(f"step must be a positive integer, got {step!r}")
     step = int(step)
-    for blk in vkf_stream(
+    for block in vkf_stream(
         y, fs, freqs, bandwidth, filter_order, decimation=decimation, chunk_duration=chunk_duration, phase0=phase0
     ):
+        blk = block.result
         first = -(-blk.start // step) * step
         local = np.arange(first, blk.stop, step) - blk.start
         if local.size == 0:

@@ -32,7 +32,19 @@ __all__ = [
 ]
 
 #: Default radius deviation (µm) of wheel orders 1..11 used by :func:`railway_signal`.
-DEFAULT_OOR_RADIUS_UM: tuple[float, ...] = (20.0, 12.0, 8.0, 6.0, 10.0, 4.0, 3.0, 8.0, 2.0, 1.5, 1.0)
+DEFAULT_OOR_RADIUS_UM: tuple[float, ...] = (
+    20.0,
+    12.0,
+    8.0,
+    6.0,
+    10.0,
+    4.0,
+    3.0,
+    8.0,
+    2.0,
+    1.5,
+    1.0,
+)
 
 SpeedSpec = tuple[float, float] | Sequence[float] | np.ndarray | Callable[[np.ndarray], ArrayLike]
 AmplitudeSpec = float | np.ndarray | Callable[[np.ndarray, np.ndarray], ArrayLike] | None
@@ -347,7 +359,12 @@ def railway_signal(
     if not np.isfinite(sleeper_spacing) or sleeper_spacing <= 0:
         raise ValueError(f"sleeper_spacing must be positive (m), got {sleeper_spacing!r}")
     rho_um = np.asarray(DEFAULT_OOR_RADIUS_UM if oor_radius_um is None else oor_radius_um, float)
-    if rho_um.ndim != 1 or rho_um.size == 0 or not np.all(np.isfinite(rho_um)) or np.any(rho_um < 0):
+    if (
+        rho_um.ndim != 1
+        or rho_um.size == 0
+        or not np.all(np.isfinite(rho_um))
+        or np.any(rho_um < 0)
+    ):
         raise ValueError("oor_radius_um must be a non-empty 1-D array of finite values >= 0 (µm)")
     n_orders = rho_um.size
     rng = np.random.default_rng(seed)

@@ -104,7 +104,7 @@ def test_chunked_equals_unchunked_and_stream_covers_once() -> None:
         warnings.simplefilter("ignore", VKFWarning)
         whole = vkf(y, fs, f, 3.0, 2, chunk_duration=math.inf)
         chunked = vkf(y, fs, f, 3.0, 2, chunk_duration=6.0)
-        blocks = list(vkf_stream(y, fs, f, 3.0, 2, chunk_duration=6.0))
+        blocks = [b.result for b in vkf_stream(y, fs, f, 3.0, 2, chunk_duration=6.0)]
     assert len(chunked.info["chunks"]) > 3
     m = slice(int(2 * fs), y.size - int(2 * fs))
     scale = np.abs(whole.envelope[:, m]).max()
