@@ -158,10 +158,10 @@ def process(
     resumes where it stopped.
     """
     from tqdm import tqdm
-    from worker.pipeline import run_pipeline
 
     from app.analysis.settings import ProcessingSettings
     from app.io import RunFileError, ingest
+    from worker.pipeline import run_pipeline
 
     if not run_file.is_file():
         raise typer.BadParameter(f"{run_file} is not a file", param_hint="RUN_FILE")
@@ -307,6 +307,13 @@ def demo(
         raise typer.Exit(1)
     base = f"http://{host}:{port}"
     env = dict(os.environ)
+
+    def _interrupt(signum: int, frame: object) -> None:  # noqa: ARG001
+        raise KeyboardInterrupt
+
+    # Ctrl-C and SIGTERM stop the demo and its processes (also when started in background)
+    signal.signal(signal.SIGINT, _interrupt)
+    signal.signal(signal.SIGTERM, _interrupt)
     api = subprocess.Popen(
         [sys.executable, "-m", "uvicorn", "--factory", "app.main:create_app",
          "--host", host, "--port", str(port), "--log-level", "warning"],
@@ -328,11 +335,13 @@ def demo(
             run_id = run["id"]
             _echo(f"run {run_id} {'created' if resp.status_code == 201 else 'already uploaded'}")
             job = run["latest_job"]
-            last = -1.0
+            last: tuple = ()
             while job["status"] in ("queued", "running"):
-                if job["progress"] != last:
-                    _echo(f"  job {job['id']} {job['status']} {100 * job['progress']:.0f} %")
-                    last = job["progress"]
+                state = (job["status"], job["chunks_done"], job["n_chunks"])
+                if state != last:
+                    chunks = f", {job['chunks_done']}/{job['n_chunks']} chunks" if job["n_chunks"] else ""
+                    _echo(f"  job {job['id']} {job['status']}{chunks}")
+                    last = state
                 time.sleep(1.0)
                 for p in procs:
                     if p.poll() is not None:

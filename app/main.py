@@ -18,7 +18,6 @@ from app.api.health import software_version
 from app.core.config import Settings, get_settings
 from app.core.logging import configure_logging
 from app.core.runstore import RunStore
-from app.db.migrate import current_revision
 from app.db.session import Database
 
 __all__ = ["create_app"]
@@ -46,6 +45,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         swept = store.sweep_uploads(settings.upload_stale_after_s)
         if swept:
             log.info("removed %d abandoned upload(s) from the run store", swept)
+        from app.db.migrate import current_revision  # alembic: imported only here
+
         try:
             revision = current_revision(settings.database_url)
         except Exception as exc:  # noqa: BLE001 - reported, the health check tells too

@@ -55,3 +55,10 @@ def make_client(tmp_path: Path) -> Iterator[Callable[..., Any]]:
 def client(make_client):
     """API test client with default test settings."""
     return make_client()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # fastapi.testclient works with httpx; the suggestion to use httpx2 is noise here
+    config.addinivalue_line(
+        "filterwarnings", "ignore:Using `httpx` with `starlette.testclient`"
+    )

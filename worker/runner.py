@@ -16,6 +16,7 @@ checked between chunks and, through ``should_cancel``, inside a chunk.
 from __future__ import annotations
 
 import logging
+import multiprocessing
 import os
 import signal
 import socket
@@ -23,8 +24,12 @@ import threading
 import time
 import traceback
 import uuid
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from app.analysis.settings import ProcessingSettings
 from app.core.config import Settings
@@ -57,6 +62,29 @@ class JobOutcome:
 
     job_id: int
     status: str
+
+
+class _JobLost(Exception):
+    """The job is no longer this worker's (cancelled and deleted, or taken over)."""
+
+
+_POOL_CANCEL: Any = None
+
+
+def _pool_init(cancel_event: Any) -> None:
+    """Initializer of chunk-pool processes: remember the shared cancel event."""
+    global _POOL_CANCEL
+    _POOL_CANCEL = cancel_event
+    # Ctrl-C in a terminal reaches the whole process group: the parent decides
+    # (graceful stop sets the cancel event), the pool processes ignore it.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _pool_process_chunk(run_path: Path, settings: ProcessingSettings, chunk: Any, out: Path) -> None:
+    """Run one chunk in a pool process; stops when the shared cancel event is set."""
+    from worker.pipeline import process_chunk
+
+    process_chunk(run_path, settings, chunk, out, should_cancel=_POOL_CANCEL.is_set)
 
 
 class _Lease(threading.Thread):
@@ -114,6 +142,8 @@ class LocalWorker:
         self.store = RunStore(settings.run_store)
         self.worker_id = worker_id or new_worker_id()
         self._stop = threading.Event()
+        self._pool: ProcessPoolExecutor | None = None
+        self._cancel_event: Any = None
 
     # --- control ----------------------------------------------------------
     def stop(self) -> None:
@@ -160,6 +190,7 @@ class LocalWorker:
             processed += 1
             if once:
                 break
+        self._close_pool()
         log.info("worker %s stopped after %d job(s)", self.worker_id, processed)
         return processed
 
@@ -184,7 +215,7 @@ class LocalWorker:
         def should_cancel() -> bool:
             return lease.lost or lease.cancel_requested or self._stop.is_set()
 
-        current_chunk: int | None = None
+        failed_chunk: list[int] = []
         try:
             if should_cancel():
                 raise PipelineCancelled("cancelled before start")
@@ -196,36 +227,29 @@ class LocalWorker:
             if not queue.record_chunks(
                 self.db, job_id, self.worker_id, [(c.index, c.to_dict()) for c in chunks]
             ):
-                return self._lost(job_id, run_id)
+                raise _JobLost
             discard_partial_files(self.store.job_dir(run_id, job_id))
             paths: list[Path] = []
+            pending: list[tuple[Any, Path]] = []
             t0 = time.perf_counter()
             for chunk in chunks:
                 out = self.store.chunk_path(run_id, job_id, chunk.index)
                 paths.append(out)
                 if chunk_done(out):
-                    if queue.mark_chunk(
-                        self.db, job_id, self.worker_id, chunk.index, ChunkStatus.DONE,
-                        relative_to_store(self.store, out),
-                    ) is None:
-                        return self._lost(job_id, run_id)
-                    continue
-                if should_cancel():
-                    raise PipelineCancelled(f"cancelled before chunk {chunk.index}")
-                current_chunk = chunk.index
-                if queue.mark_chunk(
-                    self.db, job_id, self.worker_id, chunk.index, ChunkStatus.RUNNING
-                ) is None:
-                    return self._lost(job_id, run_id)
-                process_chunk(run_path, settings, chunk, out, should_cancel=should_cancel)
-                progress = queue.mark_chunk(
-                    self.db, job_id, self.worker_id, chunk.index, ChunkStatus.DONE,
-                    relative_to_store(self.store, out),
-                )
-                current_chunk = None
-                if progress is None:
-                    return self._lost(job_id, run_id)
-                log.debug("job %s chunk %s done (%.0f %%)", job_id, chunk.index, 100 * progress)
+                    self._mark(job_id, chunk.index, ChunkStatus.DONE, out)
+                else:
+                    pending.append((chunk, out))
+            if self.settings.worker_chunk_processes > 1 and len(pending) > 1:
+                self._run_parallel(job_id, run_path, settings, pending, should_cancel, failed_chunk)
+            else:
+                for chunk, out in pending:
+                    if should_cancel():
+                        raise PipelineCancelled(f"cancelled before chunk {chunk.index}")
+                    self._mark(job_id, chunk.index, ChunkStatus.RUNNING)
+                    failed_chunk[:] = [chunk.index]
+                    process_chunk(run_path, settings, chunk, out, should_cancel=should_cancel)
+                    failed_chunk.clear()
+                    self._mark(job_id, chunk.index, ChunkStatus.DONE, out)
             if should_cancel():
                 raise PipelineCancelled("cancelled before assembling")
             results = assemble(run_path, settings, paths)
@@ -246,24 +270,123 @@ class LocalWorker:
             if lease.cancel_requested and not lease.lost:
                 raise PipelineCancelled("cancelled before storing the results")
             return self._lost(job_id, run_id)
+        except _JobLost:
+            return self._lost(job_id, run_id)
         except PipelineCancelled:
             return self._cancelled(job_id, run_id, lease)
         except Exception as exc:  # noqa: BLE001 - any error fails the job with its text
             if lease.lost:
                 return self._lost(job_id, run_id)
+            if self._stop.is_set() and not lease.cancel_requested:
+                log.warning("job %s interrupted by shutdown (%s): back to the queue", job_id, exc)
+                queue.release_job(self.db, job_id, self.worker_id)
+                return JobOutcome(job_id, "requeued")
             log.error("job %s failed:\n%s", job_id, traceback.format_exc())
-            if current_chunk is not None:
+            for index in failed_chunk:
                 try:
-                    queue.mark_chunk(
-                        self.db, job_id, self.worker_id, current_chunk, ChunkStatus.FAILED
-                    )
+                    queue.mark_chunk(self.db, job_id, self.worker_id, index, ChunkStatus.FAILED)
                 except Exception:  # noqa: BLE001
-                    log.exception("cannot mark chunk %s failed", current_chunk)
+                    log.exception("cannot mark chunk %s failed", index)
             error = f"{type(exc).__name__}: {exc}"
             queue.finish_job(self.db, job_id, self.worker_id, JobStatus.FAILED, error[:4000])
             return JobOutcome(job_id, JobStatus.FAILED)
         finally:
             lease.stop()
+
+    def _mark(self, job_id: int, index: int, status: str, out: Path | None = None) -> float:
+        """Record a chunk's status; raises :class:`_JobLost` if the job is not ours any more."""
+        progress = queue.mark_chunk(
+            self.db, job_id, self.worker_id, index, status,
+            relative_to_store(self.store, out) if out is not None else None,
+        )
+        if progress is None:
+            raise _JobLost
+        if status == ChunkStatus.DONE:
+            log.debug("job %s chunk %s done (%.0f %%)", job_id, index, 100 * progress)
+        return progress
+
+    def _ensure_pool(self) -> tuple[ProcessPoolExecutor, Any]:
+        if self._pool is None:
+            if "forkserver" in multiprocessing.get_all_start_methods():
+                ctx = multiprocessing.get_context("forkserver")
+                # pool processes fork from a server that has the pipeline imported
+                ctx.set_forkserver_preload(["worker.runner", "worker.pipeline"])
+            else:
+                ctx = multiprocessing.get_context("spawn")
+            self._cancel_event = ctx.Event()
+            self._pool = ProcessPoolExecutor(
+                max_workers=self.settings.worker_chunk_processes,
+                mp_context=ctx,
+                initializer=_pool_init,
+                initargs=(self._cancel_event,),
+            )
+        return self._pool, self._cancel_event
+
+    def _close_pool(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+            self._cancel_event = None
+
+    def _run_parallel(
+        self,
+        job_id: int,
+        run_path: Path,
+        settings: ProcessingSettings,
+        pending: list[tuple[Any, Path]],
+        should_cancel: Callable[[], bool],
+        failed_chunk: list[int],
+    ) -> None:
+        """Process chunks in a pool of ``worker_chunk_processes`` processes.
+
+        At most one chunk per process is in flight, so a cancel or a loss of
+        the job stops the work at the next sub-block of the running chunks.
+        """
+        pool, cancel = self._ensure_pool()
+        cancel.clear()
+        todo = list(pending)
+        running: dict[Future, Any] = {}
+        error: BaseException | None = None
+
+        def submit() -> None:
+            chunk, out = todo.pop(0)
+            self._mark(job_id, chunk.index, ChunkStatus.RUNNING)
+            running[pool.submit(_pool_process_chunk, run_path, settings, chunk, out)] = (chunk, out)
+
+        try:
+            while todo and len(running) < self.settings.worker_chunk_processes:
+                submit()
+            while running:
+                done, _ = wait(list(running), timeout=0.2, return_when=FIRST_COMPLETED)
+                if should_cancel():
+                    cancel.set()
+                for future in done:
+                    chunk, out = running.pop(future)
+                    exc = future.exception()
+                    if exc is not None:
+                        if error is None:
+                            error = exc
+                            failed_chunk[:] = [chunk.index]
+                        cancel.set()
+                        continue
+                    self._mark(job_id, chunk.index, ChunkStatus.DONE, out)
+                if error is None and not should_cancel():
+                    while todo and len(running) < self.settings.worker_chunk_processes:
+                        submit()
+        except BaseException:
+            cancel.set()
+            for future in running:
+                future.cancel()
+            wait(list(running))
+            raise
+        if error is not None:
+            if isinstance(error, BrokenProcessPool):
+                self._close_pool()
+            raise error
+        if todo or should_cancel():
+            from worker.pipeline import PipelineCancelled
+
+            raise PipelineCancelled("cancelled between chunks")
 
     def _cancelled(self, job_id: int, run_id: int, lease: _Lease) -> JobOutcome:
         if lease.lost:

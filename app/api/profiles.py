@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+import json
 import math
 import os
 import tempfile
@@ -11,8 +13,9 @@ from typing import Annotated
 import numpy as np
 import pandas as pd
 import pyarrow as pa
+import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Query, Response
 from fastapi.responses import StreamingResponse
 
 from app.analysis.aggregate import aggregate_profile
@@ -101,16 +104,13 @@ def _aggregate(df: pd.DataFrame, level_m: float, bin_length: float) -> pd.DataFr
     return out
 
 
-def _records(df: pd.DataFrame) -> list[dict]:
-    clean = df.astype(object).where(df.notna(), None)
-    records = clean.to_dict("records")
-    for rec in records:
-        for key, value in rec.items():
-            if isinstance(value, float) and not math.isfinite(value):
-                rec[key] = None
-            elif isinstance(value, np.generic):
-                rec[key] = value.item()
-    return records
+def _json_response(meta: ProfileOut, df: pd.DataFrame) -> Response:
+    """The profile as JSON; rows are serialised by pandas (fast, NaN -> null)."""
+    head = meta.model_dump(mode="json", exclude={"rows"})
+    values = df.replace([np.inf, -np.inf], np.nan)
+    rows = values.to_json(orient="records", double_precision=15) if len(df) else "[]"
+    body = json.dumps(head)[:-1] + ', "rows": ' + rows + "}"
+    return Response(content=body, media_type="application/json")
 
 
 @router.get(
@@ -127,7 +127,7 @@ def get_profile(
     km_from: KmFrom = None,
     km_to: KmTo = None,
     level: Level = 0.25,
-) -> ProfileOut:
+) -> Response:
     """Per-bin indicators of one wheel in a km range, or their aggregates per segment."""
     _check_km(km_from, km_to)
     job_id, bin_length, _ = _results_context(db, run_id, wheel)
@@ -146,7 +146,7 @@ def get_profile(
         df = _aggregate(df, level, bin_length)
         truncated = len(df) > settings.max_profile_rows
         df = df.iloc[: settings.max_profile_rows]
-    return ProfileOut(
+    meta = ProfileOut(
         run_id=run_id,
         job_id=job_id,
         wheel=wheel,
@@ -157,8 +157,9 @@ def get_profile(
         n_rows=len(df),
         truncated=truncated,
         columns=list(df.columns),
-        rows=_records(df),
+        rows=[],
     )
+    return _json_response(meta, df)
 
 
 def _frames(
@@ -174,7 +175,7 @@ def _frames(
     if _level_ratio(level, bin_length) == 1:
         for wheel in wheels:
             yield from crud.iter_profile_pages(
-                db.read, run_id, wheel=wheel, km_from=km_from, km_to=km_to, page_size=_EXPORT_PAGE
+                db.read, run_id, wheel, km_from=km_from, km_to=km_to, page_size=_EXPORT_PAGE
             )
         return
     for wheel in wheels:
@@ -221,7 +222,13 @@ def export_csv(
     def generate() -> Iterator[bytes]:
         header = True
         for df in _frames(db, run_id, wheels, km_from, km_to, level, bin_length):
-            yield df.to_csv(index=False, header=header, float_format="%.9g").encode()
+            buffer = io.BytesIO()
+            pa_csv.write_csv(
+                pa.Table.from_pandas(df, preserve_index=False),
+                buffer,
+                pa_csv.WriteOptions(include_header=header, quoting_style="none"),
+            )
+            yield buffer.getvalue()
             header = False
         if header:  # no rows: still send the header line
             cols = ["wheel", "bin", "km", *PROFILE_VALUE_COLUMNS]

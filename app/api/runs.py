@@ -118,11 +118,15 @@ async def upload_run(
     if not outcome.created:
         response.status_code = status.HTTP_200_OK
     response.headers["Location"] = f"{API_PREFIX}/runs/{outcome.run_id}"
+    return await run_in_threadpool(_detail, db, outcome.run_id)
+
+
+def _detail(db, run_id: int) -> RunDetail:
     with db.read() as session:
-        run = crud.get_run(session, outcome.run_id)
-        if run is None:  # deleted in between
-            raise not_found("run", outcome.run_id)
-        latest = crud.latest_job(session, run.id)
+        run = crud.get_run(session, run_id)
+        if run is None:
+            raise not_found("run", run_id)
+        latest = crud.latest_job(session, run_id)
         counts = crud.chunk_counts(session, [latest.id]) if latest else {}
         return run_detail(run, latest, counts.get(latest.id) if latest else None)
 
@@ -173,13 +177,7 @@ def list_runs(
 @router.get("/{run_id}", response_model=RunDetail, summary="Run detail")
 def get_run(run_id: RunId, db: DbDep) -> RunDetail:
     """Metadata, sha256, file summary and latest job of a run."""
-    with db.read() as session:
-        run = crud.get_run(session, run_id)
-        if run is None:
-            raise not_found("run", run_id)
-        latest = crud.latest_job(session, run_id)
-        counts = crud.chunk_counts(session, [latest.id]) if latest else {}
-        return run_detail(run, latest, counts.get(latest.id) if latest else None)
+    return _detail(db, run_id)
 
 
 @router.delete(

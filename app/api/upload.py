@@ -387,6 +387,43 @@ def _float_or_none(value: Any) -> float | None:
     return value if value == value and abs(value) != float("inf") else None
 
 
+def _existing_run_id(db: Database, sha256: str) -> int | None:
+    with db.read() as session:
+        run = crud.get_run_by_sha256(session, sha256)
+        return run.id if run is not None else None
+
+
+def _create_run(
+    db: Database,
+    store: RunStore,
+    upload_dir: Path,
+    summary: Any,
+    received: _Received,
+    fmt: str | None,
+    principal_name: str,
+) -> int:
+    """Insert the run and its queued job and move the upload to the run's directory.
+
+    The directory is moved inside the transaction; if the commit fails the
+    moved directory is removed again.
+    """
+    installed: int | None = None
+    try:
+        with db.write() as session:
+            run = _run_row(summary, received, fmt, principal_name)
+            session.add(run)
+            session.flush()
+            run.file_path = store.relative_run_file(run.id)
+            crud.create_job(session, run.id, ProcessingSettings().to_dict(), principal_name)
+            store.install_run_dir(upload_dir, run.id)
+            installed = run.id
+        return installed
+    except BaseException:
+        if installed is not None:
+            store.remove_run(installed)
+        raise
+
+
 async def receive_and_create_run(
     request: Request,
     *,
@@ -418,7 +455,6 @@ async def receive_and_create_run(
         raise _too_large(settings.max_upload_bytes)
     content_type = request.headers.get("content-type", "")
     upload_dir = await run_in_threadpool(store.new_upload_dir)
-    installed_run_id: int | None = None
     try:
         path = upload_dir / _UPLOAD_NAME
         try:
@@ -443,10 +479,9 @@ async def receive_and_create_run(
         )
         metadata = _parse_metadata(_one_of("metadata", received.fields.get("metadata"), query_metadata))
 
-        with db.read() as session:
-            existing = crud.get_run_by_sha256(session, received.sha256)
-        if existing is not None:
-            return UploadOutcome(run_id=existing.id, created=False)
+        existing_id = await run_in_threadpool(_existing_run_id, db, received.sha256)
+        if existing_id is not None:
+            return UploadOutcome(run_id=existing_id, created=False)
 
         dest = upload_dir / "run.h5"
         try:
@@ -455,29 +490,20 @@ async def receive_and_create_run(
             raise ApiError(422, exc.field, exc.message) from None
         await run_in_threadpool(path.unlink)
 
-        settings_dict = ProcessingSettings().to_dict()
         try:
-            with db.write() as session:
-                run = _run_row(summary, received, fmt, principal_name)
-                session.add(run)
-                session.flush()
-                run.file_path = store.relative_run_file(run.id)
-                crud.create_job(session, run.id, settings_dict, principal_name)
-                store.install_run_dir(upload_dir, run.id)
-                installed_run_id = run.id
-            run_id = installed_run_id
-            installed_run_id = None  # committed: keep the files
+            run_id = await run_in_threadpool(
+                _create_run, db, store, upload_dir, summary, received, fmt, principal_name
+            )
         except IntegrityError:
             # The same file was uploaded concurrently and committed first.
-            with db.read() as session:
-                existing = crud.get_run_by_sha256(session, received.sha256)
-            if existing is None:
+            existing_id = await run_in_threadpool(_existing_run_id, db, received.sha256)
+            if existing_id is None:
                 raise
-            return UploadOutcome(run_id=existing.id, created=False)
-        log.info("run %s created from %s (%d bytes, sha256 %s)", run_id, fmt, received.size, received.sha256)
+            return UploadOutcome(run_id=existing_id, created=False)
+        log.info(
+            "run %s created from %s (%d bytes, sha256 %s)", run_id, fmt, received.size, received.sha256
+        )
         return UploadOutcome(run_id=run_id, created=True)
     finally:
-        if installed_run_id is not None:
-            store.remove_run(installed_run_id)
         with contextlib.suppress(OSError):
             shutil.rmtree(upload_dir, ignore_errors=True)

@@ -45,6 +45,10 @@ class Settings(BaseSettings):
     worker_stale_after_s : float
         A running job whose heartbeat is older than this (s) belongs to a dead
         worker and is claimed again.
+    worker_chunk_processes : int
+        Processes a worker uses to run the chunks of one job in parallel
+        (default 1: in the worker process itself). Set it to the number of
+        cores to process a single long run faster.
     anonymous_principal : str
         Name of the principal every request runs as until authentication is on.
     anonymous_role : str
@@ -71,6 +75,7 @@ class Settings(BaseSettings):
     worker_poll_interval_s: float = Field(default=1.0, gt=0)
     worker_heartbeat_s: float = Field(default=2.0, gt=0)
     worker_stale_after_s: float = Field(default=30.0, gt=0)
+    worker_chunk_processes: int = Field(default=1, ge=1, le=64)
     anonymous_principal: str = "local"
     anonymous_role: str = "admin"
     log_level: str = "INFO"

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import and_, delete, func, insert, or_, select, update
+from sqlalchemy import and_, delete, func, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import (
@@ -271,7 +271,8 @@ def _none_if_nan(value: Any) -> Any:
     return value
 
 
-def _profile_records(profiles: pd.DataFrame, run_id: int, job_id: int) -> list[dict[str, Any]]:
+def _profile_columns(profiles: pd.DataFrame, run_id: int, job_id: int) -> dict[str, list[Any]]:
+    """Column lists of the rows to insert (NaN and infinities as None)."""
     required = ("wheel", "bin", "km", "n_samples")
     missing = [c for c in required if c not in profiles.columns]
     if missing:
@@ -281,20 +282,42 @@ def _profile_records(profiles: pd.DataFrame, run_id: int, job_id: int) -> list[d
         "run_id": [run_id] * n,
         "job_id": [job_id] * n,
         "wheel": profiles["wheel"].astype(str).tolist(),
-        "bin": profiles["bin"].astype(np.int64).tolist(),
-        "km": profiles["km"].astype(np.float64).tolist(),
-        "n_samples": profiles["n_samples"].astype(np.int64).tolist(),
+        "bin": profiles["bin"].to_numpy(dtype=np.int64).tolist(),
+        "km": profiles["km"].to_numpy(dtype=np.float64).tolist(),
+        "n_samples": profiles["n_samples"].to_numpy(dtype=np.int64).tolist(),
     }
     for col in PROFILE_VALUE_COLUMNS:
         if col == "n_samples":
             continue
         if col in profiles.columns:
             values = profiles[col].to_numpy(dtype=np.float64, na_value=np.nan)
-            data[col] = [None if not math.isfinite(v) else v for v in values.tolist()]
+            column = values.astype(object)
+            column[~np.isfinite(values)] = None
+            data[col] = column.tolist()
         else:
             data[col] = [None] * n
-    keys = list(data)
-    return [dict(zip(keys, row, strict=True)) for row in zip(*data.values(), strict=True)]
+    return data
+
+
+def _insert_profiles(session: Session, data: dict[str, list[Any]]) -> None:
+    """Bulk insert: plain ``executemany`` on SQLite (3-4x faster than Core), Core elsewhere."""
+    names = list(data)
+    rows = zip(*data.values(), strict=True)
+    if session.get_bind().dialect.name == "sqlite":
+        sql = (
+            f"INSERT INTO {ProfileBin.__tablename__} ({', '.join(names)}) "
+            f"VALUES ({', '.join('?' * len(names))})"
+        )
+        session.connection().exec_driver_sql(sql, list(rows))
+        return
+    batch: list[dict[str, Any]] = []
+    for row in rows:
+        batch.append(dict(zip(names, row, strict=True)))
+        if len(batch) == _INSERT_BATCH:
+            session.execute(insert(ProfileBin), batch)
+            batch = []
+    if batch:
+        session.execute(insert(ProfileBin), batch)
 
 
 def replace_results(
@@ -325,9 +348,9 @@ def replace_results(
     """
     session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
     session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
-    records = _profile_records(profiles, run_id, job_id)
-    for start in range(0, len(records), _INSERT_BATCH):
-        session.execute(insert(ProfileBin), records[start : start + _INSERT_BATCH])
+    data = _profile_columns(profiles, run_id, job_id)
+    if data["wheel"]:
+        _insert_profiles(session, data)
     known = {
         "wheel", "wheel_diameter_m", "n_windows", "orders", "angles_deg",
         "profile_um", "profile_p05_um", "profile_p95_um",
@@ -353,7 +376,7 @@ def replace_results(
         )
     if wheel_rows:
         session.execute(insert(WheelOOR), wheel_rows)
-    return len(records)
+    return len(data["wheel"])
 
 
 def jsonable(value: Any) -> Any:
@@ -395,27 +418,28 @@ def profile_rows(
     ``km_to`` bound the bin centres (km, inclusive) whatever the run direction.
     """
     cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
-    stmt = (
-        select(*cols)
-        .where(_profile_where(run_id, wheel, km_from, km_to))
-        .order_by(ProfileBin.wheel, ProfileBin.bin)
+    stmt = select(*cols).where(_profile_where(run_id, wheel, km_from, km_to))
+    stmt = stmt.order_by(ProfileBin.bin) if wheel is not None else stmt.order_by(
+        ProfileBin.wheel, ProfileBin.bin
     )
     if limit is not None:
         stmt = stmt.limit(limit)
-    rows = session.execute(stmt).all()
+    rows = session.connection().execute(stmt).all()  # Core: no ORM row overhead
     return profile_frame(rows)
 
 
 def profile_frame(rows: Sequence[Any]) -> pd.DataFrame:
     """DataFrame with :data:`PROFILE_COLUMNS` and their dtypes from result rows."""
-    df = pd.DataFrame.from_records(rows, columns=list(PROFILE_COLUMNS))
-    df["wheel"] = df["wheel"].astype(str)
-    df["bin"] = df["bin"].astype(np.int64)
-    df["n_samples"] = df["n_samples"].astype(np.int64)
-    for col in PROFILE_COLUMNS[2:]:
-        if col != "n_samples":
-            df[col] = pd.to_numeric(df[col], errors="coerce").astype(np.float64)
-    return df
+    columns = list(zip(*rows, strict=True)) if len(rows) else [()] * len(PROFILE_COLUMNS)
+    data: dict[str, Any] = {}
+    for name, values in zip(PROFILE_COLUMNS, columns, strict=True):
+        if name == "wheel":
+            data[name] = np.array([str(v) for v in values], dtype=object)
+        elif name in ("bin", "n_samples"):
+            data[name] = np.array(values, dtype=np.int64)
+        else:
+            data[name] = np.array(values, dtype=np.float64)  # None -> NaN
+    return pd.DataFrame(data)
 
 
 def profile_wheels(session: Session, run_id: int) -> list[str]:
@@ -432,42 +456,37 @@ def profile_wheels(session: Session, run_id: int) -> list[str]:
 def iter_profile_pages(
     read_session,
     run_id: int,
+    wheel: str,
     *,
-    wheel: str | None = None,
     km_from: float | None = None,
     km_to: float | None = None,
     page_size: int = 50_000,
 ):
-    """Yield the profile rows of a run as DataFrames of at most ``page_size`` rows.
+    """Yield the profile rows of one wheel of a run as DataFrames of at most ``page_size`` rows.
 
     Parameters
     ----------
     read_session : callable
         Context manager factory of read sessions (``Database.read``); every
-        page is read in its own short transaction (keyset pagination on
-        wheel and bin), so a long export never holds the database.
+        page is read in its own short transaction (keyset pagination on the
+        bin), so a long export never holds the database.
     """
     where = _profile_where(run_id, wheel, km_from, km_to)
     cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
-    last: tuple[str, int] | None = None
+    last_bin: int | None = None
     while True:
         stmt = select(*cols).where(where)
-        if last is not None:
-            stmt = stmt.where(
-                or_(
-                    ProfileBin.wheel > last[0],
-                    and_(ProfileBin.wheel == last[0], ProfileBin.bin > last[1]),
-                )
-            )
-        stmt = stmt.order_by(ProfileBin.wheel, ProfileBin.bin).limit(page_size)
+        if last_bin is not None:
+            stmt = stmt.where(ProfileBin.bin > last_bin)
+        stmt = stmt.order_by(ProfileBin.bin).limit(page_size)
         with read_session() as session:
-            rows = session.execute(stmt).all()
+            rows = session.connection().execute(stmt).all()  # Core: no ORM row overhead
         if not rows:
             return
         yield profile_frame(rows)
         if len(rows) < page_size:
             return
-        last = (rows[-1][0], int(rows[-1][1]))
+        last_bin = int(rows[-1][1])
 
 
 def results_job(session: Session, run_id: int) -> Job | None:

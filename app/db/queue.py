@@ -198,11 +198,11 @@ def mark_chunk(
             values["finished_at"] = now
         if result_path is not None:
             values["result_path"] = result_path
-        session.execute(
-            update(JobChunk)
-            .where(JobChunk.job_id == job_id, JobChunk.chunk_index == index)
-            .values(**values)
-        )
+        stmt = update(JobChunk).where(JobChunk.job_id == job_id, JobChunk.chunk_index == index)
+        if status == ChunkStatus.DONE:
+            # a chunk found done again (resumed job) keeps its first finish time
+            stmt = stmt.where(JobChunk.status != ChunkStatus.DONE)
+        session.execute(stmt.values(**values))
         total, done = session.execute(
             select(
                 func.count(),

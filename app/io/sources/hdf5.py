@@ -79,10 +79,10 @@ class Hdf5Source(Source):
                 if text.lower() not in {u.lower() for u in UNIT_SYNONYMS[want]}:
                     raise RunFileError(orig, f"units {text!r} not accepted; expected {want}")
             if canon != TIME_COLUMN and ("gain" in ds.attrs or "offset" in ds.attrs):
-                calibration[canon] = {
-                    "gain": _attr_float(ds.attrs.get("gain", 1.0), f"{orig}.gain"),
-                    "offset": _attr_float(ds.attrs.get("offset", 0.0), f"{orig}.offset"),
-                }
+                gain = _attr_float(ds.attrs.get("gain", 1.0), f"{orig}.gain")
+                offset = _attr_float(ds.attrs.get("offset", 0.0), f"{orig}.offset")
+                if (gain, offset) != (1.0, 0.0):
+                    calibration[canon] = {"gain": gain, "offset": offset}
             self._ds[canon] = ds
         lengths = {c: d.shape[0] for c, d in self._ds.items()}
         if len(set(lengths.values())) > 1:
