@@ -25,7 +25,7 @@ from __future__ import annotations
 import os
 import tempfile
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from app.analysis.binning import BinSums, position_to_bin
+from app.analysis.chunking import Chunk, plan_chunk_layout
 from app.analysis.orders import OrderTrack, railway_multipliers
 from app.analysis.settings import ProcessingSettings
 from app.analysis.vkf import vkf, vkf_overlap
@@ -69,59 +70,8 @@ class PipelineCancelled(RuntimeError):
     """Raised by :func:`process_chunk` when ``should_cancel()`` turned true."""
 
 
-@dataclass(frozen=True)
-class ChunkSpec:
-    """One chunk of a run.
-
-    Attributes
-    ----------
-    index : int
-        Position in the run, from 0.
-    start, stop : int
-        Core sample range (the chunks' cores tile the run).
-    lo, hi : int
-        Solve range, including the overlap.
-    out_lo, out_hi : int
-        Samples that receive a non-zero crossfade weight.
-    fade_in, fade_out : (int, int) or None
-        (boundary sample, crossfade length) at the start / end seam.
-    """
-
-    index: int
-    start: int
-    stop: int
-    lo: int
-    hi: int
-    out_lo: int
-    out_hi: int
-    fade_in: tuple[int, int] | None
-    fade_out: tuple[int, int] | None
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> ChunkSpec:
-        d = dict(d)
-        for key in ("fade_in", "fade_out"):
-            if d.get(key) is not None:
-                d[key] = tuple(int(x) for x in d[key])
-        return cls(**d)
-
-    def weight(self, index: np.ndarray) -> np.ndarray:
-        """Crossfade weight of this chunk at global sample indices."""
-        w = np.ones(index.shape)
-        if self.fade_in is not None:
-            w *= _ramp(index, *self.fade_in)
-        if self.fade_out is not None:
-            w *= 1.0 - _ramp(index, *self.fade_out)
-        w[(index < self.out_lo) | (index >= self.out_hi)] = 0.0
-        return w
-
-
-def _ramp(index: np.ndarray, boundary: int, length: int) -> np.ndarray:
-    x = (index - (boundary - length / 2.0) + 0.5) / length
-    return np.sin(0.5 * np.pi * np.clip(x, 0.0, 1.0)) ** 2
+#: a chunk task of a run: the engine's chunk layout (JSON via to_dict/from_dict)
+ChunkSpec = Chunk
 
 
 @dataclass
@@ -166,45 +116,18 @@ def plan_chunks(run_path: Path, settings: ProcessingSettings) -> list[ChunkSpec]
         d_max = max(float(run.metadata.wheel_diameters.get(w, 0.92)) for w in WHEELS)
         mult = railway_multipliers(d_min, float(run.metadata.sleeper_spacing), settings.n_wheel_orders)
     core = max(int(round(settings.chunk_seconds * fs)), 1)
-    bounds = list(range(0, n, core)) + [n]
-    if len(bounds) > 2 and bounds[-1] - bounds[-2] < core // 2:
-        del bounds[-2]
-    k = len(bounds) - 1
     per_speed, floor = _bandwidth_per_speed(settings, d_max)
     fmax_nyq = 0.499 * fs
 
     def overlap(a: int, b: int) -> int:
-        v = np.abs(speed[max(a, 0) : min(b, n)])
+        v = np.abs(speed[a:b])
         v_min, v_max = float(v.min()), float(v.max())
         f_max = min(float(mult.max()) * v_max, fmax_nyq)
         bw_min = max(per_speed * v_min, floor)
         bw_max = max(per_speed * v_max, floor)
         return vkf_overlap(fs, 0.0, f_max, bw_min, bw_max, settings.filter_order)
 
-    pads = []
-    for i in range(k):
-        a, b = bounds[i], bounds[i + 1]
-        guess = overlap(a, b)
-        pads.append(max(guess, overlap(a - guess - core // 4, b + guess + core // 4)))
-    fades = [0] * (k + 1)
-    for i in range(1, k):
-        fade = min(pads[i - 1], pads[i], (bounds[i] - bounds[i - 1]) // 4, (bounds[i + 1] - bounds[i]) // 4)
-        fades[i] = max(2 * (fade // 2), 2)
-    chunks = []
-    for i in range(k):
-        a, b = bounds[i], bounds[i + 1]
-        out_lo = a - fades[i] // 2 if i > 0 else 0
-        out_hi = b + fades[i + 1] // 2 if i < k - 1 else n
-        chunks.append(
-            ChunkSpec(
-                index=i, start=a, stop=b,
-                lo=max(out_lo - pads[i], 0), hi=min(out_hi + pads[i], n),
-                out_lo=out_lo, out_hi=out_hi,
-                fade_in=(a, fades[i]) if i > 0 else None,
-                fade_out=(b, fades[i + 1]) if i < k - 1 else None,
-            )
-        )
-    return chunks
+    return plan_chunk_layout(n, core, overlap)
 
 
 def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:

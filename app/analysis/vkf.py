@@ -44,6 +44,7 @@ from ._vkf_banded import solve_orders
 from ._vkf_baseband import EnvelopeSpline, mixing_phase, plan_baseband, to_baseband
 from ._vkf_input import InputStats, VKFInput, check_mode, prepare_input, scan_input
 from ._vkf_weights import bandwidth_from_weight, impulse_length, weight_squared
+from .chunking import Chunk, plan_chunk_layout
 from .orders import OrderTrack, sleeper_passage, wheel_orders
 
 __all__ = [
@@ -83,31 +84,20 @@ class VKFWarning(UserWarning):
 
 @dataclass
 class _Segment:
-    """One solved chunk: its envelope spline and crossfade weights."""
+    """One solved chunk: its layout, envelope spline and solve information."""
 
-    lo: int  # solve range [lo, hi)
-    hi: int
-    out_lo: int  # support of its weight [out_lo, out_hi)
-    out_hi: int
-    fade_in: tuple[int, int] | None  # (boundary, crossfade length)
-    fade_out: tuple[int, int] | None
+    chunk: Chunk
     spline: EnvelopeSpline | None = None
     info: dict[str, Any] = field(default_factory=dict)
 
+    lo = property(lambda self: self.chunk.lo)
+    hi = property(lambda self: self.chunk.hi)
+    out_lo = property(lambda self: self.chunk.out_lo)
+    out_hi = property(lambda self: self.chunk.out_hi)
+
     def weight(self, index: np.ndarray) -> np.ndarray:
-        """Crossfade weight at global sample indices (0 outside its support)."""
-        w = np.ones(index.shape)
-        if self.fade_in is not None:
-            w *= _ramp(index, *self.fade_in)
-        if self.fade_out is not None:
-            w *= 1.0 - _ramp(index, *self.fade_out)
-        return w
-
-
-def _ramp(index: np.ndarray, boundary: int, length: int) -> np.ndarray:
-    """Raised-cosine step from 0 to 1 over [boundary - length/2, boundary + length/2)."""
-    x = (index - (boundary - length / 2.0) + 0.5) / length
-    return np.sin(0.5 * np.pi * np.clip(x, 0.0, 1.0)) ** 2
+        """Crossfade weight at global sample indices."""
+        return self.chunk.weight(index)
 
 
 def _padding(inp: VKFInput, stats: InputStats, a: int, b: int, decimation: str | int) -> int:
@@ -124,40 +114,8 @@ def _plan_segments(
         core = n if n <= _SINGLE_SOLVE_S * fs else int(round(_AUTO_CHUNK_S * fs))
     else:
         core = n if math.isinf(chunk_duration) else max(int(round(chunk_duration * fs)), 1)
-    if core >= n:
-        return [_Segment(0, n, 0, n, None, None)]
-    bounds = list(range(0, n, core)) + [n]
-    if len(bounds) > 2 and bounds[-1] - bounds[-2] < core // 2:
-        del bounds[-2]
-    k = len(bounds) - 1
-    pads = []
-    for i in range(k):
-        a, b = bounds[i], bounds[i + 1]
-        guess = _padding(inp, stats, a, b, decimation)
-        lo, hi = max(a - guess - core // 4, 0), min(b + guess + core // 4, n)
-        pads.append(max(guess, _padding(inp, stats, lo, hi, decimation)))
-    # crossfade of each interior boundary: short against the cores, never
-    # longer than the overlap that protects it
-    fades = [0] * (k + 1)
-    for i in range(1, k):
-        fade = min(pads[i - 1], pads[i], (bounds[i] - bounds[i - 1]) // 4, (bounds[i + 1] - bounds[i]) // 4)
-        fades[i] = max(2 * (fade // 2), 2)
-    segments = []
-    for i in range(k):
-        a, b = bounds[i], bounds[i + 1]
-        out_lo = a - fades[i] // 2 if i > 0 else 0
-        out_hi = b + fades[i + 1] // 2 if i < k - 1 else n
-        segments.append(
-            _Segment(
-                lo=max(out_lo - pads[i], 0),
-                hi=min(out_hi + pads[i], n),
-                out_lo=out_lo,
-                out_hi=out_hi,
-                fade_in=(a, fades[i]) if i > 0 else None,
-                fade_out=(b, fades[i + 1]) if i < k - 1 else None,
-            )
-        )
-    return segments
+    chunks = plan_chunk_layout(n, core, lambda a, b: _padding(inp, stats, a, b, decimation))
+    return [_Segment(chunk) for chunk in chunks]
 
 
 # --------------------------------------------------------------------------
