@@ -10,7 +10,6 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
-from fastapi.responses import RedirectResponse
 
 from app.api import build_api_router
 from app.api.errors import install_error_handlers
@@ -19,6 +18,7 @@ from app.core.config import Settings, get_settings
 from app.core.logging import configure_logging
 from app.core.runstore import RunStore
 from app.db.session import Database
+from app.web import install_pages
 
 __all__ = ["create_app"]
 
@@ -71,9 +71,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.store = store
     install_error_handlers(app)
     app.include_router(build_api_router())
-
-    @app.get("/", include_in_schema=False)
-    def root() -> RedirectResponse:
-        return RedirectResponse("/docs")
+    install_pages(app)  # dashboard: HTML pages at /, /runs/{id}, ..., /static, Plotly.js
 
     return app

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["aggregate_profile", "decimate_for_display"]
+__all__ = ["aggregate_profile", "decimate_for_display", "display_indices"]
 
 
 def _level_ratio(level_m: float, bin_length: float) -> int:
@@ -242,6 +242,40 @@ def decimate_for_display(
     """
     x = np.asarray(km, dtype=np.float64)
     y = np.asarray(values, dtype=np.float64)
+    idx = display_indices(x, y, max_points, use_tsdownsample=use_tsdownsample)
+    return x[idx], y[idx]
+
+
+def display_indices(
+    km: np.ndarray,
+    values: np.ndarray,
+    max_points: int,
+    *,
+    use_tsdownsample: bool = True,
+) -> np.ndarray:
+    """Indices of the points :func:`decimate_for_display` keeps.
+
+    Use it to decimate several columns of a table by the peaks of one of them
+    (e.g. the rows of a profile by the sleeper-passage amplitude).
+
+    Parameters
+    ----------
+    km, values, max_points, use_tsdownsample
+        As in :func:`decimate_for_display`.
+
+    Returns
+    -------
+    numpy.ndarray of int
+        At most ``max_points`` indices into ``km``, ordered by km (all indices,
+        ordered by km, when the input has at most ``max_points`` points).
+
+    Raises
+    ------
+    ValueError
+        As :func:`decimate_for_display`.
+    """
+    x = np.asarray(km, dtype=np.float64)
+    y = np.asarray(values, dtype=np.float64)
     if x.ndim != 1:
         raise ValueError(f"km must be 1-D, got shape {x.shape}")
     if y.shape != x.shape:
@@ -256,7 +290,7 @@ def decimate_for_display(
     x, y = x[order], y[order]
     n = x.size
     if n <= max_points:
-        return x, y
+        return order
 
     finite = np.isfinite(y)
     extremes: list[int] = [0, n - 1]
@@ -272,4 +306,4 @@ def decimate_for_display(
     if idx is None:
         idx = _minmax_indices(y, budget // 2) if budget >= 2 else np.empty(0, dtype=np.int64)
     idx = np.unique(np.concatenate([idx, np.asarray(extremes, dtype=np.int64)]))
-    return x[idx], y[idx]
+    return order[idx]

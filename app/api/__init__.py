@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Depends
 
-from app.api import health, jobs, profiles, runs, wheels
+from app.api import health, jobs, profiles, runs, spectrogram, wheels
 from app.api.deps import get_principal
 
 __all__ = ["build_api_router", "API_PREFIX"]
@@ -22,7 +22,7 @@ def build_api_router() -> APIRouter:
     api = APIRouter(prefix=API_PREFIX)
     api.include_router(health.router)
     protected = APIRouter(dependencies=[Depends(get_principal)])
-    for module in (runs, jobs, profiles, wheels):
+    for module in (runs, jobs, profiles, wheels, spectrogram):
         protected.include_router(module.router)
     api.include_router(protected)
     return api

@@ -18,7 +18,7 @@ import pyarrow.parquet as pq
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import StreamingResponse
 
-from app.analysis.aggregate import aggregate_profile
+from app.analysis.aggregate import aggregate_profile, display_indices
 from app.api.deps import DbDep, RunId, SettingsDep
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
@@ -57,6 +57,16 @@ Level = Annotated[
         le=_MAX_LEVEL_M,
         description="Segment length, m: 0.25 (the stored bins) or an aggregation level "
         "such as 1, 10 or 100 (mean, max, 95th percentile per segment)",
+    ),
+]
+MaxPoints = Annotated[
+    int | None,
+    Query(
+        ge=4,
+        le=1_000_000,
+        description="Display decimation: at most this many rows, chosen to keep the peaks "
+        "(local minima and maxima) of the sleeper-passage amplitude "
+        "(sleeper_amp, or sleeper_amp_max of segments); all rows when omitted",
     ),
 ]
 
@@ -104,6 +114,19 @@ def _aggregate(df: pd.DataFrame, level_m: float, bin_length: float) -> pd.DataFr
     return out
 
 
+def _decimate(df: pd.DataFrame, max_points: int, column: str) -> pd.DataFrame:
+    """At most ``max_points`` rows of ``df`` keeping the peaks of ``column``."""
+    if len(df) <= max_points:
+        return df
+    km_col = "km" if "km" in df.columns else "km_from"
+    idx = display_indices(
+        df[km_col].to_numpy(dtype=np.float64),
+        df[column].to_numpy(dtype=np.float64, na_value=np.nan),
+        max_points,
+    )
+    return df.iloc[idx].reset_index(drop=True)
+
+
 def _json_response(meta: ProfileOut, df: pd.DataFrame) -> Response:
     """The profile as JSON; rows are serialised by pandas (fast, NaN -> null)."""
     head = meta.model_dump(mode="json", exclude={"rows"})
@@ -127,12 +150,27 @@ def get_profile(
     km_from: KmFrom = None,
     km_to: KmTo = None,
     level: Level = 0.25,
+    max_points: MaxPoints = None,
 ) -> Response:
-    """Per-bin indicators of one wheel in a km range, or their aggregates per segment."""
+    """Per-bin indicators of one wheel in a km range, or their aggregates per segment.
+
+    With ``max_points`` the rows are decimated for display: a plot of a whole
+    100 km run asks for a few thousand rows that keep every peak, and asks again
+    with a narrower km range when the user zooms in.
+    """
     _check_km(km_from, km_to)
     job_id, bin_length, _ = _results_context(db, run_id, wheel)
     k = _level_ratio(level, bin_length)
-    if k == 1:
+    if max_points is not None and max_points > settings.max_profile_rows:
+        raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
+    if max_points is not None:
+        with db.read() as session:
+            df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
+        if k > 1:
+            df = _aggregate(df, level, bin_length)
+        df = _decimate(df, max_points, "sleeper_amp" if k == 1 else "sleeper_amp_max")
+        truncated = False
+    elif k == 1:
         limit = settings.max_profile_rows
         with db.read() as session:
             df = crud.profile_rows(
@@ -154,6 +192,7 @@ def get_profile(
         bin_length_m=bin_length,
         km_from=km_from,
         km_to=km_to,
+        max_points=max_points,
         n_rows=len(df),
         truncated=truncated,
         columns=list(df.columns),

@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+import math
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query
 
 from app.api.deps import DbDep, RunId
 from app.api.errors import ApiError, not_found
-from app.api.schemas.wheels import WheelList, WheelOrderOut, WheelOut
+from app.api.schemas.wheels import (
+    WheelList,
+    WheelOrderOut,
+    WheelOut,
+    WheelTrend,
+    WheelTrendPoint,
+)
 from app.db import crud
+from app.db.trends import wheel_history
 
 __all__ = ["router"]
 
@@ -45,3 +55,48 @@ def get_wheels(run_id: RunId, db: DbDep) -> WheelList:
             for row in rows
         ]
     return WheelList(run_id=run_id, items=items)
+
+
+def _num(value: Any) -> float | None:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+@router.get("/wheels/trend", response_model=WheelTrend, summary="Wheel OOR of a vehicle over its runs")
+def wheel_trend(
+    db: DbDep,
+    vehicle_id: Annotated[str, Query(min_length=1, max_length=200, description="Vehicle id")],
+    wheel: Annotated[
+        str | None, Query(pattern=r"^(11|12|41|42)$", description="One wheel; all when omitted")
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=500, description="Most recent runs")] = 200,
+) -> WheelTrend:
+    """Radius deviation (µm) and acceleration amplitude (m/s²) per OOR order and the
+    peak-to-peak of r(θ) for every wheel in every processed run of a vehicle, oldest
+    run first: the trend of the wheels' out-of-roundness between re-profilings."""
+    with db.read() as session:
+        rows = wheel_history(session, vehicle_id, wheel, limit)
+        items = []
+        n_orders = 0
+        for run, oor in rows:
+            orders = sorted(oor.orders or [], key=lambda o: int(o.get("order", 0)))
+            n_orders = max(n_orders, len(orders))
+            profile = [v for v in (_num(x) for x in (oor.profile_um or [])) if v is not None]
+            items.append(
+                WheelTrendPoint(
+                    run_id=run.id,
+                    start_time=run.start_time,
+                    line_id=run.line_id,
+                    track=run.track,
+                    wheel=oor.wheel,
+                    wheel_diameter_m=_num(oor.wheel_diameter_m),
+                    refined_diameter_m=_num((oor.extra or {}).get("refined_diameter_m")),
+                    radius_um=[_num(o.get("radius_um")) for o in orders],
+                    accel_amp=[_num(o.get("accel_amp")) for o in orders],
+                    peak_to_peak_um=(max(profile) - min(profile)) if profile else None,
+                )
+            )
+    return WheelTrend(vehicle_id=vehicle_id, orders=list(range(1, n_orders + 1)), items=items)

@@ -27,6 +27,7 @@ class ProfileOut(BaseModel):
     bin_length_m: float
     km_from: float | None = None
     km_to: float | None = None
+    max_points: int | None = Field(None, description="Display decimation asked for (rows kept)")
     n_rows: int
     truncated: bool = Field(False, description="True if more rows matched than returned")
     columns: list[str]

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import datetime as dt
+
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["WheelOrderOut", "WheelOut", "WheelList"]
+__all__ = ["WheelOrderOut", "WheelOut", "WheelList", "WheelTrendPoint", "WheelTrend"]
 
 
 class WheelOrderOut(BaseModel):
@@ -39,3 +41,26 @@ class WheelList(BaseModel):
 
     run_id: int
     items: list[WheelOut]
+
+
+class WheelTrendPoint(BaseModel):
+    """OOR of one wheel in one run of a vehicle."""
+
+    run_id: int
+    start_time: dt.datetime | None = None
+    line_id: str | None = None
+    track: str | None = None
+    wheel: str
+    wheel_diameter_m: float | None = Field(None, description="Diameter from the run metadata, m")
+    refined_diameter_m: float | None = Field(None, description="Diameter refined from the data, m")
+    radius_um: list[float | None] = Field(description="Radius deviation per order 1..n, µm")
+    accel_amp: list[float | None] = Field(description="Acceleration amplitude per order, m/s²")
+    peak_to_peak_um: float | None = Field(None, description="Peak-to-peak of r(θ), µm")
+
+
+class WheelTrend(BaseModel):
+    """Wheel OOR of a vehicle over its runs, oldest first."""
+
+    vehicle_id: str
+    orders: list[int]
+    items: list[WheelTrendPoint]

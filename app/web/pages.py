@@ -1,0 +1,111 @@
+"""HTML pages of the dashboard, static files and the local Plotly.js bundle."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from fastapi import APIRouter, FastAPI, Request
+from fastapi.responses import FileResponse, HTMLResponse
+from fastapi.staticfiles import StaticFiles
+from fastapi.templating import Jinja2Templates
+
+from app.api import API_PREFIX
+from app.api.deps import RunId
+
+__all__ = ["FRONTEND_DIR", "PLOTLY_JS", "build_pages_router", "install_pages", "plotly_js_path"]
+
+#: templates/ and static/ of the dashboard
+FRONTEND_DIR = Path(__file__).resolve().parents[2] / "frontend"
+#: URL of the Plotly.js bundle served from the installed plotly package
+PLOTLY_JS = "/vendor/plotly.min.js"
+
+#: API features a page uses only when the server has them (built by other modules)
+_FEATURES = {
+    "analytics_segments": f"{API_PREFIX}/analytics/segments",
+    "analytics_segment_trend": f"{API_PREFIX}/analytics/segment-trend",
+    "analytics_subsidence": f"{API_PREFIX}/analytics/subsidence-fit",
+    "analytics_unsprung_mass": f"{API_PREFIX}/analytics/unsprung-mass",
+    "analytics_maintenance": f"{API_PREFIX}/analytics/maintenance",
+    "reference_superstructure": f"{API_PREFIX}/reference/superstructure",
+    "reference_maintenance": f"{API_PREFIX}/reference/maintenance",
+}
+
+#: nav bar: (page key, URL, label)
+NAV = (
+    ("runs", "/", "Runs"),
+    ("lines", "/lines", "Line view"),
+    ("wheels", "/wheels", "Wheels"),
+    ("correlations", "/correlations", "Correlations"),
+)
+
+
+def plotly_js_path() -> Path:
+    """``plotly.min.js`` shipped in the installed plotly package."""
+    import plotly
+
+    path = Path(plotly.__file__).resolve().parent / "package_data" / "plotly.min.js"
+    if not path.is_file():
+        raise FileNotFoundError(f"plotly.min.js not found in the plotly package ({path})")
+    return path
+
+
+def _features(request: Request) -> dict[str, bool]:
+    paths = {getattr(route, "path", "") for route in request.app.routes}
+    return {name: path in paths for name, path in _FEATURES.items()}
+
+
+def build_pages_router(templates: Jinja2Templates) -> APIRouter:
+    """Router of the HTML pages (not in the OpenAPI schema)."""
+    router = APIRouter(include_in_schema=False)
+
+    def page(request: Request, template: str, key: str, title: str, **context: Any) -> HTMLResponse:
+        boot = {"api": API_PREFIX, "page": key, "features": _features(request), **context}
+        return templates.TemplateResponse(
+            request,
+            template,
+            {"title": title, "active": key, "nav": NAV, "boot_json": json.dumps(boot),
+             "plotly_js": PLOTLY_JS, **context},
+        )
+
+    @router.get("/", response_class=HTMLResponse)
+    def runs_page(request: Request) -> HTMLResponse:
+        return page(request, "runs.html", "runs", "Runs")
+
+    @router.get("/runs/{run_id}", response_class=HTMLResponse)
+    def run_page(request: Request, run_id: RunId) -> HTMLResponse:
+        return page(request, "run.html", "runs", f"Run {run_id} · stiffness map", run_id=run_id)
+
+    @router.get("/runs/{run_id}/spectrogram", response_class=HTMLResponse)
+    def spectrogram_page(request: Request, run_id: RunId) -> HTMLResponse:
+        return page(request, "spectrogram.html", "runs", f"Run {run_id} · spectrogram", run_id=run_id)
+
+    @router.get("/lines", response_class=HTMLResponse)
+    def lines_page(request: Request) -> HTMLResponse:
+        return page(request, "lines.html", "lines", "Line view")
+
+    @router.get("/wheels", response_class=HTMLResponse)
+    def wheels_page(request: Request) -> HTMLResponse:
+        return page(request, "wheels.html", "wheels", "Wheels")
+
+    @router.get("/correlations", response_class=HTMLResponse)
+    def correlations_page(request: Request) -> HTMLResponse:
+        return page(request, "correlations.html", "correlations", "Correlations")
+
+    @router.get(PLOTLY_JS)
+    def plotly_bundle() -> FileResponse:
+        return FileResponse(
+            plotly_js_path(),
+            media_type="text/javascript",
+            headers={"Cache-Control": "public, max-age=86400"},
+        )
+
+    return router
+
+
+def install_pages(app: FastAPI) -> None:
+    """Mount the dashboard on ``app``: pages, ``/static`` and the Plotly.js bundle."""
+    templates = Jinja2Templates(directory=str(FRONTEND_DIR / "templates"))
+    app.include_router(build_pages_router(templates))
+    app.mount("/static", StaticFiles(directory=str(FRONTEND_DIR / "static")), name="static")

@@ -1,0 +1,116 @@
+/* The one fetch wrapper of the dashboard: every request to the server goes through it.
+ *
+ * - JSON in/out, errors as ApiError(status, detail, field) with the API's message
+ *   ({"detail": "<field>: <message>", "field": ...});
+ * - state-changing requests carry X-CSRF-Token from the cookie trackvkf_csrf when present;
+ * - a 401 answer navigates to /login?next=<current path>.
+ */
+(function () {
+  "use strict";
+  const boot = JSON.parse(document.getElementById("boot").textContent);
+  const API = boot.api || "/api/v1";
+  const UNSAFE = new Set(["POST", "PUT", "PATCH", "DELETE"]);
+
+  class ApiError extends Error {
+    constructor(status, detail, field) {
+      super(detail || `HTTP ${status}`);
+      this.status = status;
+      this.detail = detail || `HTTP ${status}`;
+      this.field = field || null;
+    }
+  }
+
+  function cookie(name) {
+    const hit = document.cookie.split(";").map((c) => c.trim()).find((c) => c.startsWith(name + "="));
+    return hit ? decodeURIComponent(hit.slice(name.length + 1)) : null;
+  }
+
+  function toLogin() {
+    const next = window.location.pathname + window.location.search;
+    window.location.assign("/login?next=" + encodeURIComponent(next));
+  }
+
+  function url(path, params) {
+    const u = new URL(path.startsWith("/api/") ? path : API + path, window.location.origin);
+    if (params) {
+      for (const [k, v] of Object.entries(params)) {
+        if (v !== undefined && v !== null && v !== "") u.searchParams.set(k, v);
+      }
+    }
+    return u.pathname + u.search;
+  }
+
+  function headers(method, extra) {
+    const h = Object.assign({ Accept: "application/json" }, extra || {});
+    const csrf = cookie("trackvkf_csrf");
+    if (csrf && UNSAFE.has(method)) h["X-CSRF-Token"] = csrf;
+    return h;
+  }
+
+  async function errorOf(status, text) {
+    let detail = text, field = null;
+    try {
+      const body = JSON.parse(text);
+      if (typeof body.detail === "string") detail = body.detail;
+      else if (Array.isArray(body.detail)) {
+        detail = body.detail.map((d) => `${(d.loc || []).slice(1).join(".")}: ${d.msg}`).join("; ");
+      }
+      field = body.field || null;
+    } catch (_) { /* not JSON */ }
+    return new ApiError(status, detail, field);
+  }
+
+  async function request(method, path, { params, json, body, headers: extra } = {}) {
+    const init = { method, headers: headers(method, extra), credentials: "same-origin" };
+    if (json !== undefined) {
+      init.body = JSON.stringify(json);
+      init.headers["Content-Type"] = "application/json";
+    } else if (body !== undefined) {
+      init.body = body;
+    }
+    const res = await fetch(url(path, params), init);
+    if (res.status === 401) { toLogin(); throw new ApiError(401, "authentication required"); }
+    const text = res.status === 204 ? "" : await res.text();
+    if (!res.ok) throw await errorOf(res.status, text);
+    return text ? JSON.parse(text) : null;
+  }
+
+  /* Upload with progress (XMLHttpRequest: fetch has no upload progress). */
+  function upload(path, formData, onProgress) {
+    return new Promise((resolve, reject) => {
+      const xhr = new XMLHttpRequest();
+      xhr.open("POST", url(path));
+      const h = headers("POST");
+      for (const [k, v] of Object.entries(h)) xhr.setRequestHeader(k, v);
+      xhr.withCredentials = true;
+      xhr.upload.onprogress = (e) => { if (e.lengthComputable && onProgress) onProgress(e.loaded / e.total); };
+      xhr.onload = async () => {
+        if (xhr.status === 401) { toLogin(); reject(new ApiError(401, "authentication required")); return; }
+        if (xhr.status >= 200 && xhr.status < 300) {
+          resolve({ status: xhr.status, body: xhr.responseText ? JSON.parse(xhr.responseText) : null });
+        } else {
+          reject(await errorOf(xhr.status, xhr.responseText));
+        }
+      };
+      xhr.onerror = () => reject(new ApiError(0, "network error: the server could not be reached"));
+      xhr.send(formData);
+    });
+  }
+
+  window.trackvkf = Object.assign(window.trackvkf || {}, {
+    boot,
+    ApiError,
+    api: {
+      get: (path, params) => request("GET", path, { params }),
+      post: (path, json) => request("POST", path, { json }),
+      del: (path) => request("DELETE", path),
+      upload,
+      url,
+      /* GET that answers null for 404 (a resource or feature that does not exist yet). */
+      async optional(path, params) {
+        try { return await request("GET", path, { params }); }
+        catch (e) { if (e.status === 404) return null; throw e; }
+      },
+    },
+  });
+})();

@@ -1,0 +1,135 @@
+/* Shared plotting helpers: wheel colours, layout, PNG (Plotly modebar) and CSV downloads,
+ * empty states, banner, formatting. */
+(function () {
+  "use strict";
+  const T = window.trackvkf;
+  const WHEELS = ["11", "12", "41", "42"];
+  const WHEEL_COLORS = { "11": "#1f5fa8", "12": "#e07b00", "41": "#2e8b57", "42": "#8e44ad" };
+  const FONT = { family: '"DejaVu Sans", "Segoe UI", Roboto, Helvetica, Arial, sans-serif', size: 13, color: "#1d2733" };
+  const csvProviders = new Map();
+
+  function wheelId(w) { return String(w).replace(/^Z/, ""); }
+  function wheelLabel(w) { return "Z" + wheelId(w); }
+  function wheelColor(w) { return WHEEL_COLORS[wheelId(w)] || "#555"; }
+
+  function axis(title, extra) {
+    return Object.assign({ title: { text: title }, gridcolor: "#e6ebf0", zerolinecolor: "#c9d2dc",
+      linecolor: "#9aa8b6", showline: true, ticks: "outside", automargin: true }, extra || {});
+  }
+
+  function layout(extra) {
+    return Object.assign({
+      font: FONT, paper_bgcolor: "#fff", plot_bgcolor: "#fff",
+      margin: { l: 70, r: 30, t: 20, b: 60 },
+      legend: { orientation: "h", x: 0, y: 1.02, yanchor: "bottom" },
+      hoverlabel: { font: { family: FONT.family, size: 12 } },
+    }, extra || {});
+  }
+
+  function config(filename) {
+    return {
+      displaylogo: false, displayModeBar: true, responsive: true,
+      modeBarButtonsToRemove: ["lasso2d", "select2d"],
+      toImageButtonOptions: { format: "png", filename: filename || "trackvkf-plot", scale: 2 },
+    };
+  }
+
+  function countPoints(traces) {
+    let n = 0;
+    for (const t of traces) {
+      const v = t.z || t.r || t.y || t.x || [];
+      n += Array.isArray(v) ? v.length : 0;
+    }
+    return n;
+  }
+
+  /* Draw a plot; `csv` is a function returning {columns, rows} for the "Download CSV" button. */
+  async function plot(el, traces, lay, { filename, csv } = {}) {
+    el = typeof el === "string" ? document.getElementById(el) : el;
+    const empty = el.querySelector(".empty");
+    if (empty) empty.remove();
+    await Plotly.react(el, traces, layout(lay), config(filename));
+    el.dataset.state = "ready";
+    el.dataset.points = String(countPoints(traces));
+    if (csv) csvProviders.set(el.id, { filename: filename || el.id, csv });
+    const btn = document.querySelector(`button[data-csv-for="${el.id}"]`);
+    if (btn) btn.disabled = !csv;
+    return el;
+  }
+
+  function csvCell(v) {
+    if (v === null || v === undefined || (typeof v === "number" && !Number.isFinite(v))) return "";
+    const s = String(v);
+    return /[",\n]/.test(s) ? '"' + s.replace(/"/g, '""') + '"' : s;
+  }
+
+  function csvText(columns, rows) {
+    return [columns.map(csvCell).join(","), ...rows.map((r) => r.map(csvCell).join(","))].join("\n") + "\n";
+  }
+
+  function downloadCSV(filename, columns, rows) {
+    const blob = new Blob([csvText(columns, rows)], { type: "text/csv" });
+    const a = document.createElement("a");
+    a.href = URL.createObjectURL(blob);
+    a.download = filename.endsWith(".csv") ? filename : filename + ".csv";
+    document.body.appendChild(a);
+    a.click();
+    setTimeout(() => { URL.revokeObjectURL(a.href); a.remove(); }, 0);
+  }
+
+  document.addEventListener("click", (ev) => {
+    const btn = ev.target.closest("button[data-csv-for]");
+    if (!btn) return;
+    const p = csvProviders.get(btn.dataset.csvFor);
+    if (!p) return;
+    const { columns, rows } = p.csv();
+    downloadCSV(p.filename, columns, rows);
+  });
+
+  function emptyState(el, title, html) {
+    el = typeof el === "string" ? document.getElementById(el) : el;
+    if (window.Plotly && el.data) Plotly.purge(el);
+    el.innerHTML = `<div class="empty"><strong>${title}</strong>${html || ""}</div>`;
+    el.dataset.state = "empty";
+    el.dataset.points = "0";
+    csvProviders.delete(el.id);
+    const btn = document.querySelector(`button[data-csv-for="${el.id}"]`);
+    if (btn) btn.disabled = true;
+  }
+
+  function banner(message, kind) {
+    const b = document.getElementById("banner");
+    if (!message) { b.hidden = true; b.textContent = ""; return; }
+    b.className = "banner" + (kind ? " " + kind : "");
+    b.textContent = message;
+    b.hidden = false;
+  }
+
+  function esc(s) {
+    return String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" }[c]));
+  }
+  function fmt(v, digits) {
+    if (v === null || v === undefined || !Number.isFinite(Number(v))) return "–";
+    return Number(v).toFixed(digits ?? 3);
+  }
+  function date(iso) { return iso ? iso.slice(0, 10) : "–"; }
+  function datetime(iso) { return iso ? iso.slice(0, 16).replace("T", " ") + " UTC" : "–"; }
+  function ready() { document.body.dataset.ready = "1"; }
+  function param(name) { return new URLSearchParams(window.location.search).get(name); }
+
+  /* Distinct runs metadata for selectors (line/track, vehicles). */
+  async function allRuns(params) {
+    const out = [];
+    for (let offset = 0; offset < 5000; offset += 500) {
+      const page = await T.api.get("/runs", Object.assign({ limit: 500, offset }, params || {}));
+      out.push(...page.items);
+      if (out.length >= page.total || page.items.length === 0) break;
+    }
+    return out;
+  }
+
+  Object.assign(T, {
+    WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelColor, axis, layout, config, plot, emptyState,
+    banner, downloadCSV, csvText, esc, fmt, date, datetime, ready, param, allRuns,
+  });
+})();

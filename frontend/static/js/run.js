@@ -1,0 +1,187 @@
+/* Stiffness map of one run: sleeper-passage amplitude along km for the four wheels,
+ * decimated on the server per zoom level, speed on a second axis, superstructure sections
+ * and maintenance actions shaded when the reference data exist. */
+(function () {
+  "use strict";
+  const T = window.trackvkf;
+  const runId = T.boot.run_id;
+  const el = document.getElementById("stiffness-plot");
+  const SECTION_COLORS = ["rgba(31,95,168,0.07)", "rgba(224,123,0,0.08)", "rgba(46,139,87,0.08)", "rgba(142,68,173,0.07)"];
+  let run = null, wheels = [], full = null, current = null, data = {}, shapes = [], annotations = [];
+  let busy = false, pending = null, seq = 0;
+
+  function maxPoints() { return Math.max(600, Math.min(4000, Math.round(2 * (el.clientWidth || 1200)))); }
+
+  function runKm(r) {
+    const len = (r.summary.distance_m || 0) / 1000;
+    const end = r.km_increasing === false ? r.km_start - len : r.km_start + len;
+    return [Math.min(r.km_start, end), Math.max(r.km_start, end)];
+  }
+
+  function meta(r) {
+    const job = r.latest_job || {};
+    const s = job.settings || {};
+    const [a, b] = runKm(r);
+    const items = [
+      ["Vehicle", r.vehicle_id], ["Line / track", `${r.line_id} / ${r.track}`], ["Direction", r.direction],
+      ["Start", T.datetime(r.start_time)], ["km", `${T.fmt(a)} – ${T.fmt(b)}`],
+      ["Speed", `${T.fmt((r.summary.speed_min || 0) * 3.6, 0)} – ${T.fmt((r.summary.speed_max || 0) * 3.6, 0)} km/h`],
+      ["Sample rate", `${T.fmt(r.summary.fs / 1000, 1)} kHz`],
+      ["Job", `${job.id ?? "–"} (${job.status ?? "none"})`],
+      ["Bandwidth", `${s.bandwidth_orders ?? "–"} orders, q = ${s.filter_order ?? "–"}`],
+      ["Wheel diameters", Object.entries((r.metadata || {}).wheel_diameters || {}).map(([w, d]) => `${T.wheelLabel(w)} ${d} m`).join(", ")],
+      ["File sha256", (r.sha256 || "").slice(0, 16) + "…"],
+    ];
+    document.getElementById("run-meta").innerHTML = items.map(([k, v]) => `<div><span>${k}</span><b>${T.esc(v)}</b></div>`).join("");
+  }
+
+  async function loadReference(a, b) {
+    shapes = []; annotations = [];
+    const info = [];
+    const q = { line_id: run.line_id, track: run.track, km_from: a, km_to: b };
+    if (T.boot.features.reference_superstructure) {
+      const res = await T.api.optional("/reference/superstructure", q);
+      const types = [];
+      for (const s of (res && res.items) || []) {
+        if (!types.includes(s.type)) types.push(s.type);
+        shapes.push({ type: "rect", xref: "x", yref: "paper", x0: s.km_from, x1: s.km_to, y0: 0, y1: 1,
+          fillcolor: SECTION_COLORS[types.indexOf(s.type) % SECTION_COLORS.length], line: { width: 0 }, layer: "below" });
+        annotations.push({ x: (s.km_from + s.km_to) / 2, y: 1, xref: "x", yref: "paper", yanchor: "bottom",
+          text: T.esc(s.type), showarrow: false, font: { size: 11, color: "#5d6b7a" } });
+      }
+      info.push(types.length ? `${(res.items || []).length} superstructure sections` : "no superstructure data");
+    }
+    if (T.boot.features.reference_maintenance) {
+      const res = await T.api.optional("/reference/maintenance", q);
+      for (const m of (res && res.items) || []) {
+        shapes.push({ type: "rect", xref: "x", yref: "paper", x0: m.km_from, x1: Math.max(m.km_to, m.km_from + 0.0005),
+          y0: 0, y1: 0.04, fillcolor: "rgba(198,40,40,0.55)", line: { width: 0 } });
+      }
+      info.push(`${((res && res.items) || []).length} maintenance actions (red marks)`);
+    }
+    if (!info.length) info.push("superstructure and maintenance shading appear when reference data are available");
+    document.getElementById("sections-info").textContent = info.join(" · ");
+  }
+
+  async function fetchRange(a, b) {
+    const mp = maxPoints();
+    const out = {};
+    await Promise.all(wheels.map(async (w) => {
+      out[w] = await T.api.get(`/runs/${runId}/profile`, { wheel: w, km_from: a, km_to: b, max_points: mp });
+    }));
+    return out;
+  }
+
+  function traces() {
+    const tr = [];
+    let speedSrc = null;
+    for (const w of wheels) {
+      const rows = data[w].rows;
+      if (!speedSrc && rows.length) speedSrc = rows;
+      tr.push({
+        type: "scatter", mode: "lines", name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 1.3 },
+        x: rows.map((r) => r.km), y: rows.map((r) => r.sleeper_amp),
+        customdata: rows.map((r) => (r.speed_mean ?? NaN) * 3.6),
+        hovertemplate: `${T.wheelLabel(w)}<br>km %{x:.4f}<br>amplitude %{y:.3f} m/s²<br>speed %{customdata:.1f} km/h<extra></extra>`,
+      });
+    }
+    if (speedSrc) {
+      tr.push({
+        type: "scatter", mode: "lines", name: "speed", yaxis: "y2", line: { color: "#7f8c99", width: 1.2, dash: "dot" },
+        x: speedSrc.map((r) => r.km), y: speedSrc.map((r) => (r.speed_mean ?? NaN) * 3.6),
+        hovertemplate: "km %{x:.4f}<br>speed %{y:.1f} km/h<extra></extra>",
+      });
+    }
+    return tr;
+  }
+
+  async function draw(a, b) {
+    const scale = document.getElementById("amp-scale").value;
+    const tr = traces();
+    const n = wheels.length ? data[wheels[0]].n_rows : 0;
+    document.getElementById("map-info").textContent =
+      `${n} points per wheel in ${T.fmt(a)}–${T.fmt(b)} km (25 cm bins, peaks kept)`;
+    await T.plot(el, tr, {
+      uirevision: "map",
+      xaxis: T.axis("Track position (km)", { range: [a, b], tickformat: ".3f" }),
+      yaxis: T.axis("Sleeper-passage amplitude (m/s²)", { type: scale, rangemode: scale === "log" ? undefined : "tozero" }),
+      yaxis2: T.axis("Speed (km/h)", { overlaying: "y", side: "right", showgrid: false, rangemode: "tozero", dtick: 20 }),
+      margin: { l: 75, r: 75, t: 40, b: 60 },
+      hovermode: "x unified",
+      shapes, annotations,
+    }, {
+      filename: `run-${runId}-stiffness-map`,
+      csv: () => {
+        const rows = [];
+        for (const w of wheels) for (const r of data[w].rows) rows.push([w, r.km, r.sleeper_amp, (r.speed_mean ?? NaN) * 3.6, r.sleeper_force_amp]);
+        return { columns: ["wheel", "km", "sleeper_amp_mps2", "speed_kmh", "sleeper_force_amp_kn"], rows };
+      },
+    });
+  }
+
+  async function show(a, b) {
+    if (busy) { pending = [a, b]; return; }
+    busy = true;
+    const my = ++seq;
+    try {
+      const got = await fetchRange(a, b);
+      if (my !== seq) return;
+      data = got; current = [a, b];
+      document.getElementById("km-from").value = a.toFixed(3);
+      document.getElementById("km-to").value = b.toFixed(3);
+      await loadReference(a, b);
+      await draw(a, b);
+    } catch (e) {
+      T.banner(`Could not load the profile: ${e.detail || e.message}`);
+    } finally {
+      busy = false;
+      if (pending) { const p = pending; pending = null; show(p[0], p[1]); }
+    }
+  }
+
+  let zoomTimer = null;
+  function onRelayout(ev) {
+    let a, b;
+    if (ev["xaxis.autorange"]) { [a, b] = full; }
+    else if (ev["xaxis.range[0]"] !== undefined) { a = +ev["xaxis.range[0]"]; b = +ev["xaxis.range[1]"]; }
+    else if (ev["xaxis.range"]) { [a, b] = ev["xaxis.range"].map(Number); }
+    else return;
+    if (current && Math.abs(a - current[0]) < 1e-9 && Math.abs(b - current[1]) < 1e-9) return;
+    clearTimeout(zoomTimer);
+    zoomTimer = setTimeout(() => show(Math.max(a, full[0] - 0.01), Math.min(b, full[1] + 0.01)), 250);
+  }
+
+  document.getElementById("map-controls").addEventListener("submit", (ev) => {
+    ev.preventDefault();
+    const a = parseFloat(document.getElementById("km-from").value), b = parseFloat(document.getElementById("km-to").value);
+    if (!(b > a)) { T.banner("km to must be greater than km from."); return; }
+    T.banner(null);
+    show(a, b);
+  });
+  document.getElementById("km-reset").addEventListener("click", () => show(full[0], full[1]));
+  document.getElementById("amp-scale").addEventListener("change", () => current && draw(current[0], current[1]));
+
+  (async () => {
+    try {
+      run = await T.api.get(`/runs/${runId}`);
+      meta(run);
+      document.getElementById("run-subtitle").textContent = `stiffness map · ${run.vehicle_id} on line ${run.line_id} track ${run.track}, ${T.date(run.start_time)}`;
+      if (run.vehicle_id) document.getElementById("wheels-link").href = `/wheels?vehicle_id=${encodeURIComponent(run.vehicle_id)}&run_id=${runId}`;
+      const job = run.latest_job;
+      if (!job || job.status !== "done") {
+        // results of an earlier job may still exist: the profile answers 409 when there are none
+      }
+      wheels = T.WHEELS.filter((w) => run.summary.channels.includes("Z" + w));
+      const first = await T.api.get(`/runs/${runId}/profile`, { wheel: wheels[0], level: 100 });
+      const rows = first.rows;
+      full = rows.length ? [rows[0].km_from, rows[rows.length - 1].km_to] : runKm(run);
+      const ka = T.param("km_from"), kb = T.param("km_to");
+      await show(ka ? +ka : full[0], kb ? +kb : full[1]);
+      el.on("plotly_relayout", onRelayout);
+    } catch (e) {
+      if (e.status === 409) T.emptyState(el, "No results yet", `<p>${T.esc(e.detail)}. The map appears when the processing job is done.</p>`);
+      else T.banner(`Could not load run ${runId}: ${e.detail || e.message}`);
+    }
+    T.ready();
+  })();
+})();
