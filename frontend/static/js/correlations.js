@@ -1,0 +1,188 @@
+/* Correlations: subsidence vs log amplitude with the fitted line and the per-wheel table
+ * (paper table tab:01), force vs acceleration with the fitted unsprung mass, maintenance
+ * actions per 25 cm vs amplitude as box plots. Data from the analytics endpoints; a helpful
+ * empty state while there are no reference data (or no analytics on the server). */
+(function () {
+  "use strict";
+  const T = window.trackvkf;
+  const F = T.boot.features;
+  const PLOTS = ["subsidence-plot", "mass-plot", "maintenance-plot"];
+  const HOWTO = `<p>Import reference data with <code>POST /api/v1/reference/subsidence</code>,
+    <code>/maintenance</code> or <code>/superstructure</code> (CSV or Parquet), then reload this page.</p>`;
+  let fit = null;
+
+  function query() {
+    const key = document.getElementById("line-track").value;
+    const [line_id, track] = key ? key.split("\u0001") : [undefined, undefined];
+    return { line_id, track, km_from: document.getElementById("km-from").value, km_to: document.getElementById("km-to").value };
+  }
+
+  function logOf(base) {
+    if (base === "10") return Math.log10;
+    if (base === "2") return Math.log2;
+    return Math.log;
+  }
+
+  function fitTable() {
+    const table = document.getElementById("fit-table");
+    const ws = (fit && fit.wheels) || [];
+    if (!ws.length) {
+      table.innerHTML = `<tbody><tr><td class="muted">No fit: no subsidence data yet.</td></tr></tbody>`;
+      document.getElementById("fit-csv").disabled = true;
+      return;
+    }
+    const ci = (v) => (v ? ` <span class="muted">[${T.fmt(v[0], 3)}, ${T.fmt(v[1], 3)}]</span>` : "");
+    const row = (label, f) => `<tr><th>${label}</th>${ws.map((w) => `<td class="num">${f(w)}</td>`).join("")}</tr>`;
+    table.innerHTML = `<thead><tr><th>Regressor</th>${ws.map((w) => `<th class="num">Wheel ${T.esc(T.wheelId(w.wheel))}</th>`).join("")}</tr></thead><tbody>` +
+      row("Intercept b (mm)", (w) => T.fmt(w.intercept, 3) + ci(w.intercept_ci)) +
+      row("Slope a (mm)", (w) => T.fmt(w.slope, 3) + ci(w.slope_ci)) +
+      row("RMSE (mm)", (w) => T.fmt(w.rmse, 3)) +
+      row("R²", (w) => T.fmt(w.r2, 3)) +
+      row("Samples", (w) => String(w.n_samples ?? "–")) + "</tbody>";
+    document.getElementById("fit-note").textContent =
+      `u: subsidence (${fit.subsidence_unit || "mm"}); Z: sleeper-passage amplitude (${fit.amplitude_unit || "m/s^2"}); log base ${fit.log_base || "e"}; 95 % confidence intervals in brackets.`;
+    document.getElementById("fit-csv").disabled = false;
+  }
+
+  document.getElementById("fit-csv").addEventListener("click", () => {
+    const ws = fit.wheels;
+    T.downloadCSV("subsidence-fit.csv", ["wheel", "intercept_mm", "intercept_ci_lo", "intercept_ci_hi", "slope_mm", "slope_ci_lo", "slope_ci_hi", "rmse_mm", "r2", "n_samples", "log_base"],
+      ws.map((w) => [w.wheel, w.intercept, (w.intercept_ci || [])[0], (w.intercept_ci || [])[1], w.slope, (w.slope_ci || [])[0], (w.slope_ci || [])[1], w.rmse, w.r2, w.n_samples, fit.log_base]));
+  });
+
+  async function drawSubsidence() {
+    const el = document.getElementById("subsidence-plot");
+    const ws = ((fit && fit.wheels) || []).filter((w) => w.points && w.points.amplitude && w.points.amplitude.length);
+    if (!ws.length) { T.emptyState(el, "No subsidence data yet.", HOWTO); return false; }
+    const lg = logOf(fit.log_base);
+    const traces = [];
+    for (const w of ws) {
+      const amps = w.points.amplitude.filter((a) => a > 0);
+      traces.push({ type: "scatter", mode: "markers", name: T.wheelLabel(w.wheel), legendgroup: w.wheel,
+        x: w.points.amplitude, y: w.points.subsidence_mm, marker: { color: T.wheelColor(w.wheel), size: 4, opacity: 0.35 },
+        hovertemplate: `${T.wheelLabel(w.wheel)}<br>%{x:.3f} m/s²<br>%{y:.3f} mm<extra></extra>` });
+      if (amps.length && Number.isFinite(w.slope)) {
+        const lo = Math.min(...amps), hi = Math.max(...amps);
+        const xs = Array.from({ length: 40 }, (_, i) => lo * Math.pow(hi / lo, i / 39));
+        traces.push({ type: "scatter", mode: "lines", name: `${T.wheelLabel(w.wheel)} fit`, legendgroup: w.wheel, showlegend: false,
+          x: xs, y: xs.map((x) => w.slope * lg(x) + w.intercept), line: { color: T.wheelColor(w.wheel), width: 2.5 },
+          hovertemplate: `${T.wheelLabel(w.wheel)} fit<br>u = ${T.fmt(w.slope, 3)}·log(Z) ${w.intercept < 0 ? "−" : "+"} ${T.fmt(Math.abs(w.intercept), 3)}<extra></extra>` });
+      }
+    }
+    await T.plot(el, traces, {
+      xaxis: T.axis("Sleeper-passage amplitude Z (m/s², log scale)", { type: "log" }),
+      yaxis: T.axis("Subsidence u (mm)"),
+    }, {
+      filename: "subsidence-vs-amplitude",
+      csv: () => {
+        const rows = [];
+        for (const w of ws) w.points.amplitude.forEach((a, i) => rows.push([w.wheel, a, w.points.subsidence_mm[i]]));
+        return { columns: ["wheel", "amplitude_mps2", "subsidence_mm"], rows };
+      },
+    });
+    return true;
+  }
+
+  async function drawMass(res) {
+    const el = document.getElementById("mass-plot");
+    const ws = ((res && res.wheels) || []).filter((w) => w.points && w.points.acceleration && w.points.acceleration.length);
+    if (!ws.length) { T.emptyState(el, "No force channels or no data yet.", "<p>Runs with vertical force channels Q11…Q42 give the unsprung mass.</p>"); return false; }
+    const traces = [];
+    for (const w of ws) {
+      const amax = Math.max(...w.points.acceleration.filter(Number.isFinite));
+      traces.push({ type: "scatter", mode: "markers", name: `${T.wheelLabel(w.wheel)}: ${T.fmt(w.mass_kg, 0)} kg${w.plausible ? "" : " (implausible)"}`,
+        legendgroup: w.wheel, x: w.points.acceleration, y: w.points.force_kn, marker: { color: T.wheelColor(w.wheel), size: 4, opacity: 0.35 },
+        hovertemplate: `${T.wheelLabel(w.wheel)}<br>%{x:.3f} m/s²<br>%{y:.3f} kN<extra></extra>` });
+      traces.push({ type: "scatter", mode: "lines", showlegend: false, legendgroup: w.wheel, x: [0, amax], y: [0, w.mass_kg * amax / 1000],
+        line: { color: T.wheelColor(w.wheel), width: 2.5 }, hovertemplate: `F = ${T.fmt(w.mass_kg, 0)} kg × a<extra></extra>` });
+    }
+    await T.plot(el, traces, {
+      xaxis: T.axis("Acceleration amplitude (m/s²)", { rangemode: "tozero" }),
+      yaxis: T.axis("Force amplitude (kN)", { rangemode: "tozero" }),
+      legend: { orientation: "v", x: 0.01, y: 0.99, bgcolor: "rgba(255,255,255,0.8)" },
+    }, {
+      filename: "force-vs-acceleration",
+      csv: () => {
+        const rows = [];
+        for (const w of ws) w.points.acceleration.forEach((a, i) => rows.push([w.wheel, a, w.points.force_kn[i], w.mass_kg]));
+        return { columns: ["wheel", "acceleration_mps2", "force_kn", "fitted_mass_kg"], rows };
+      },
+    });
+    return true;
+  }
+
+  async function drawMaintenance(res) {
+    const el = document.getElementById("maintenance-plot");
+    const groups = (res && res.groups) || [];
+    if (!groups.length) { T.emptyState(el, "No maintenance records yet.", HOWTO); return false; }
+    const trace = {
+      type: "box", name: "amplitude", x: groups.map((g) => g.n_actions), q1: groups.map((g) => g.q1), median: groups.map((g) => g.median),
+      q3: groups.map((g) => g.q3), lowerfence: groups.map((g) => g.whisker_low), upperfence: groups.map((g) => g.whisker_high),
+      mean: groups.map((g) => g.mean), marker: { color: "#1f5fa8" }, fillcolor: "rgba(31,95,168,0.25)", line: { color: "#1f5fa8" },
+    };
+    const reg = res.regression || {};
+    await T.plot(el, [trace], {
+      xaxis: T.axis("Maintenance actions per 25 cm bin (count)", { type: "category" }),
+      yaxis: T.axis("Sleeper-passage amplitude (m/s²)", { rangemode: "tozero" }),
+      showlegend: false,
+      annotations: Number.isFinite(reg.slope) ? [{ xref: "paper", yref: "paper", x: 0.02, y: 0.98, showarrow: false, xanchor: "left",
+        text: `slope ${T.fmt(reg.slope, 3)} m/s² per action · r = ${T.fmt(reg.r, 2)} · p = ${Number(reg.p_value).toExponential(1)} · n = ${reg.n}` }] : [],
+    }, {
+      filename: "maintenance-vs-amplitude",
+      csv: () => ({ columns: ["n_actions", "n_bins", "whisker_low", "q1", "median", "q3", "whisker_high", "mean"],
+        rows: groups.map((g) => [g.n_actions, g.n_bins, g.whisker_low, g.q1, g.median, g.q3, g.whisker_high, g.mean]) }),
+    });
+    return true;
+  }
+
+  function showEmpty(html) {
+    const box = document.getElementById("corr-empty");
+    box.hidden = !html;
+    document.getElementById("corr-empty-text").innerHTML = html || "";
+  }
+
+  async function show() {
+    T.banner(null);
+    const analytics = F.analytics_subsidence || F.analytics_unsprung_mass || F.analytics_maintenance;
+    if (!analytics) {
+      for (const id of PLOTS) T.emptyState(id, "No data yet.", "");
+      fit = null; fitTable();
+      showEmpty(`<strong>Correlations need reference data.</strong>
+        <p>This server has no analytics endpoints yet (<code>/api/v1/analytics/…</code>). When they are installed and
+        subsidence, maintenance or superstructure records are imported, this page shows the subsidence model per wheel
+        (slope, intercept, RMSE, samples), the unsprung mass fitted from force and acceleration, and the amplitude by the
+        number of maintenance actions.</p>${HOWTO}`);
+      return;
+    }
+    const q = query();
+    try {
+      const [sub, mass, maint] = await Promise.all([
+        F.analytics_subsidence ? T.api.optional("/analytics/subsidence-fit", q) : null,
+        F.analytics_unsprung_mass ? T.api.optional("/analytics/unsprung-mass", q) : null,
+        F.analytics_maintenance ? T.api.optional("/analytics/maintenance", Object.assign({ type: document.getElementById("mtype").value }, q)) : null,
+      ]);
+      fit = sub;
+      fitTable();
+      const any = [await drawSubsidence(), await drawMass(mass), await drawMaintenance(maint)];
+      showEmpty(any.some(Boolean) ? null : `<strong>No reference data yet.</strong><p>The analyses run as soon as reference data exist for the processed runs.</p>${HOWTO}`);
+    } catch (e) {
+      T.banner(`Could not load the correlations (HTTP ${e.status}): ${e.detail}`);
+    }
+  }
+
+  document.getElementById("corr-controls").addEventListener("submit", (ev) => { ev.preventDefault(); show(); });
+
+  (async () => {
+    try {
+      const runs = await T.allRuns();
+      const keys = [...new Set(runs.filter((r) => r.line_id).map((r) => `${r.line_id}\u0001${r.track}`))].sort();
+      document.getElementById("line-track").innerHTML = `<option value="">all lines</option>` +
+        keys.map((k) => { const [l, t] = k.split("\u0001"); return `<option value="${T.esc(k)}">line ${T.esc(l)} / track ${T.esc(t)}</option>`; }).join("");
+      if (keys.length === 1) document.getElementById("line-track").value = keys[0];
+      await show();
+    } catch (e) {
+      T.banner(`Could not load the correlations: ${e.detail || e.message}`);
+    }
+    T.ready();
+  })();
+})();

@@ -1,0 +1,179 @@
+/* Line view: heat map runs × km (from /analytics/segments, or built here from each run's
+ * 100 m profile when that endpoint is not on the server), overlaid profiles, trend of one
+ * segment across run dates. */
+(function () {
+  "use strict";
+  const T = window.trackvkf;
+  const F = T.boot.features;
+  let runs = [], seg = null, profiles = [];
+  const SEG_M = 100;
+
+  function lineKey(r) { return `${r.line_id}\u0001${r.track}`; }
+  function runLabel(r) { return `${T.date(r.start_time)} · run ${r.run_id}`; }
+
+  /* runs × km matrix from the runs' own 100 m profiles */
+  async function segmentsFromProfiles(doneRuns, wheel) {
+    const per = await Promise.all(doneRuns.map((r) => T.api.get(`/runs/${r.id}/profile`, { wheel, level: SEG_M }).catch(() => null)));
+    const keys = new Set();
+    per.forEach((p) => p && p.rows.forEach((row) => keys.add(Math.round(row.km_from * 1e4))));
+    const km = [...keys].sort((a, b) => a - b).map((k) => k / 1e4);
+    const index = new Map(km.map((k, i) => [Math.round(k * 1e4), i]));
+    const matrix = per.map((p) => {
+      const row = new Array(km.length).fill(null);
+      if (p) p.rows.forEach((r) => { row[index.get(Math.round(r.km_from * 1e4))] = r.sleeper_amp_mean; });
+      return row;
+    });
+    const mean = km.map((_, j) => {
+      const v = matrix.map((row) => row[j]).filter((x) => x !== null && Number.isFinite(x));
+      return v.length ? v.reduce((a, b) => a + b, 0) / v.length : null;
+    });
+    const spread = km.map((_, j) => {
+      const v = matrix.map((row) => row[j]).filter((x) => x !== null && Number.isFinite(x));
+      if (v.length < 2) return null;
+      const m = v.reduce((a, b) => a + b, 0) / v.length;
+      return Math.sqrt(v.reduce((a, b) => a + (b - m) ** 2, 0) / (v.length - 1));
+    });
+    return { segment_m: SEG_M, km, runs: doneRuns.map((r) => ({ run_id: r.id, start_time: r.start_time, shift_m: 0 })), matrix, mean, spread, source: "profiles" };
+  }
+
+  async function drawHeatmap() {
+    const el = document.getElementById("heatmap-plot");
+    if (!seg || !seg.runs.length || !seg.km.length) {
+      T.emptyState(el, "No processed runs on this line and track.", "<p>Upload runs on the Runs page.</p>");
+      return;
+    }
+    const x = seg.km.map((k) => k + seg.segment_m / 2000);
+    await T.plot(el, [{
+      type: "heatmap", x, y: seg.runs.map(runLabel), z: seg.matrix, colorscale: "YlOrRd", reversescale: true, hoverongaps: false,
+      colorbar: { title: { text: "Amplitude (m/s²)", side: "right" }, thickness: 14 },
+      hovertemplate: "%{y}<br>km %{x:.3f}<br>%{z:.3f} m/s²<extra></extra>",
+    }], {
+      xaxis: T.axis("Track position, segment centre (km)", { tickformat: ".3f" }),
+      yaxis: T.axis("Run (start date)", { type: "category", autorange: "reversed" }),
+      margin: { l: 150, r: 30, t: 20, b: 60 },
+    }, {
+      filename: "line-heatmap",
+      csv: () => {
+        const rows = [];
+        seg.runs.forEach((r, i) => seg.km.forEach((k, j) => rows.push([r.run_id, r.start_time, k, k + seg.segment_m / 1000, seg.matrix[i][j]])));
+        return { columns: ["run_id", "start_time", "km_from", "km_to", "sleeper_amp_mean_mps2"], rows };
+      },
+    });
+    el.on("plotly_click", (ev) => {
+      const p = ev.points && ev.points[0];
+      if (!p) return;
+      document.getElementById("trend-km").value = (p.x - seg.segment_m / 2000).toFixed(3);
+      drawTrend();
+    });
+  }
+
+  async function drawProfiles(doneRuns, wheel) {
+    const el = document.getElementById("profiles-plot");
+    profiles = await Promise.all(doneRuns.map(async (r) => {
+      try { return { run: r, rows: (await T.api.get(`/runs/${r.id}/profile`, { wheel, level: 10, max_points: 3000 })).rows }; }
+      catch (_) { return { run: r, rows: [] }; }
+    }));
+    profiles = profiles.filter((p) => p.rows.length);
+    if (!profiles.length) { T.emptyState(el, "No profiles.", ""); return; }
+    const n = profiles.length;
+    const traces = profiles.map((p, i) => {
+      const t = n > 1 ? i / (n - 1) : 1;
+      const color = `rgb(${Math.round(60 + 170 * t)}, ${Math.round(110 - 60 * t)}, ${Math.round(190 - 150 * t)})`;
+      return {
+        type: "scatter", mode: "lines", name: `${T.date(p.run.start_time)} (run ${p.run.id})`, line: { color, width: 1.4 },
+        x: p.rows.map((r) => (r.km_from + r.km_to) / 2), y: p.rows.map((r) => r.sleeper_amp_mean),
+        hovertemplate: `run ${p.run.id} ${T.date(p.run.start_time)}<br>km %{x:.3f}<br>%{y:.3f} m/s²<extra></extra>`,
+      };
+    });
+    await T.plot(el, traces, {
+      xaxis: T.axis("Track position (km)", { tickformat: ".3f" }),
+      yaxis: T.axis(`Amplitude ${T.wheelLabel(wheel)}, 10 m mean (m/s²)`, { rangemode: "tozero" }),
+      legend: { orientation: "v", x: 1.01, y: 1, xanchor: "left" },
+      margin: { l: 75, r: 20, t: 20, b: 60 },
+    }, {
+      filename: `line-profiles-${wheel}`,
+      csv: () => {
+        const rows = [];
+        for (const p of profiles) for (const r of p.rows) rows.push([p.run.id, p.run.start_time, wheel, r.km_from, r.km_to, r.sleeper_amp_mean, r.sleeper_amp_max, (r.speed_mean_mean ?? NaN) * 3.6]);
+        return { columns: ["run_id", "start_time", "wheel", "km_from", "km_to", "sleeper_amp_mean_mps2", "sleeper_amp_max_mps2", "speed_kmh"], rows };
+      },
+    });
+  }
+
+  async function drawTrend() {
+    const el = document.getElementById("trend-plot");
+    const km = parseFloat(document.getElementById("trend-km").value);
+    const wheel = document.getElementById("wheel").value;
+    const [line_id, track] = document.getElementById("line-track").value.split("\u0001");
+    if (!seg || !Number.isFinite(km)) { T.emptyState(el, "Choose a segment.", "<p>Click a cell of the heat map or enter a km.</p>"); return; }
+    let points = null;
+    if (F.analytics_segment_trend) {
+      const res = await T.api.optional("/analytics/segment-trend", { line_id, track, km, wheel });
+      points = res ? res.points : null;
+    }
+    if (!points) {
+      const j = seg.km.findIndex((k) => km >= k - 1e-9 && km < k + seg.segment_m / 1000 - 1e-9);
+      points = j < 0 ? [] : seg.runs.map((r, i) => ({ run_id: r.run_id, start_time: r.start_time, amplitude: seg.matrix[i][j] }))
+        .filter((p) => p.amplitude !== null);
+    }
+    const k0 = Math.floor(km * 1000 / seg.segment_m) * seg.segment_m / 1000;
+    document.getElementById("trend-title").textContent = `Trend of segment km ${k0.toFixed(3)}–${(k0 + seg.segment_m / 1000).toFixed(3)} across run dates`;
+    if (!points.length) { T.emptyState(el, "No runs cover this segment.", ""); return; }
+    await T.plot(el, [{
+      type: "scatter", mode: "lines+markers", name: T.wheelLabel(wheel), x: points.map((p) => p.start_time), y: points.map((p) => p.amplitude),
+      customdata: points.map((p) => p.run_id), line: { color: T.wheelColor(wheel), width: 2 }, marker: { size: 9 },
+      hovertemplate: "%{x|%Y-%m-%d}<br>%{y:.3f} m/s²<br>run %{customdata}<extra></extra>",
+    }], {
+      xaxis: T.axis("Run start (date)", { type: "date" }),
+      yaxis: T.axis("Segment mean (m/s²)", { rangemode: "tozero" }),
+      margin: { l: 75, r: 20, t: 20, b: 55 }, showlegend: true,
+    }, {
+      filename: `segment-trend-km${k0.toFixed(3)}`,
+      csv: () => ({ columns: ["run_id", "start_time", "km_from", "wheel", "amplitude_mps2"], rows: points.map((p) => [p.run_id, p.start_time, k0, wheel, p.amplitude]) }),
+    });
+  }
+
+  async function show() {
+    T.banner(null);
+    const key = document.getElementById("line-track").value;
+    const wheel = document.getElementById("wheel").value;
+    const [line_id, track] = key.split("\u0001");
+    const doneRuns = runs.filter((r) => lineKey(r) === key && r.latest_job && r.latest_job.status === "done")
+      .sort((a, b) => String(a.start_time).localeCompare(String(b.start_time)));
+    seg = null;
+    if (F.analytics_segments) {
+      try { seg = await T.api.optional("/analytics/segments", { line_id, track, segment_m: SEG_M, align: true }); }
+      catch (e) { T.banner(`Segments not available (HTTP ${e.status}): ${e.detail}`); }
+      if (seg) seg.source = "analytics";
+    }
+    if (!seg || !seg.runs || !seg.runs.length) seg = await segmentsFromProfiles(doneRuns, wheel);
+    document.getElementById("line-info").textContent = `${doneRuns.length} processed run${doneRuns.length === 1 ? "" : "s"}` +
+      (seg.source === "analytics" ? " · runs aligned by the analytics service" : " · matrix built from each run's 100 m profile");
+    const trendKm = document.getElementById("trend-km");
+    if (!trendKm.value && seg.km.length) trendKm.value = seg.km[Math.floor(seg.km.length / 2)].toFixed(3);
+    await drawHeatmap();
+    await drawProfiles(doneRuns, wheel);
+    await drawTrend();
+  }
+
+  document.getElementById("line-controls").addEventListener("submit", (ev) => { ev.preventDefault(); show(); });
+
+  (async () => {
+    try {
+      runs = await T.allRuns();
+      const keys = [...new Set(runs.filter((r) => r.line_id).map(lineKey))].sort();
+      const sel = document.getElementById("line-track");
+      sel.innerHTML = keys.map((k) => { const [l, t] = k.split("\u0001"); return `<option value="${T.esc(k)}">line ${T.esc(l)} / track ${T.esc(t)}</option>`; }).join("");
+      document.getElementById("wheel").innerHTML = T.WHEELS.map((w) => `<option value="${w}">${T.wheelLabel(w)}</option>`).join("");
+      document.getElementById("wheel").value = "12";
+      if (!keys.length) {
+        for (const id of ["heatmap-plot", "profiles-plot", "trend-plot"]) T.emptyState(id, "No runs yet.", "<p>Upload runs on the Runs page.</p>");
+      } else {
+        await show();
+      }
+    } catch (e) {
+      T.banner(`Could not load the line view: ${e.detail || e.message}`);
+    }
+    T.ready();
+  })();
+})();

@@ -1,0 +1,110 @@
+/* Spectrogram of a km window (paper fig. 3): (a) raw ABA with the tracked order frequencies,
+ * (b) the sum of the VKF-extracted orders, (c) speed. */
+(function () {
+  "use strict";
+  const T = window.trackvkf;
+  const runId = T.boot.run_id;
+  const el = document.getElementById("spectrogram-plot");
+  let spec = null;
+
+  function orderLines(yaxis, showlegend) {
+    return spec.orders.map((o, i) => ({
+      type: "scatter", mode: "lines", x: spec.km, y: o.freq_hz, xaxis: "x", yaxis,
+      name: o.label === "sleeper" ? "sleeper passage" : "wheel orders 1–" + (spec.orders.length - 1),
+      legendgroup: o.label === "sleeper" ? "sleeper" : "wheel", showlegend: showlegend && (i === 0 || i === 1),
+      line: o.label === "sleeper" ? { color: "#ff3b3b", width: 1.8, dash: "dash" } : { color: "#ff9db0", width: 1, dash: "dot" },
+      hovertemplate: (o.label === "sleeper" ? "sleeper passage" : "wheel order " + o.label) + "<br>km %{x:.4f}<br>%{y:.1f} Hz<extra></extra>",
+    }));
+  }
+
+  function heat(z, yaxis, showscale) {
+    return {
+      type: "heatmap", x: spec.km, y: spec.freq_hz, z, xaxis: "x", yaxis, colorscale: "Viridis",
+      zmin: zRange()[0], zmax: zRange()[1], showscale,
+      colorbar: { title: { text: "PSD (dB re 1 (m/s²)²/Hz)", side: "right" }, len: 0.62, y: 0.69, thickness: 14 },
+      hovertemplate: "km %{x:.4f}<br>%{y:.1f} Hz<br>%{z:.1f} dB<extra></extra>",
+    };
+  }
+
+  function zRange() {
+    let max = -Infinity;
+    for (const row of spec.raw_db) for (const v of row) if (v !== null && v > max) max = v;
+    return [max - 60, max];
+  }
+
+  async function draw() {
+    const fTop = spec.freq_hz[spec.freq_hz.length - 1];
+    const traces = [
+      heat(spec.raw_db, "y", true), ...orderLines("y", true),
+      heat(spec.components_db, "y2", false),
+      { type: "scatter", mode: "lines", x: spec.km, y: spec.speed_kmh, xaxis: "x", yaxis: "y3", name: "speed",
+        line: { color: "#1f3b57", width: 1.6 }, hovertemplate: "km %{x:.4f}<br>%{y:.1f} km/h<extra></extra>" },
+    ];
+    const ann = (text, y) => ({ text, x: 0, xref: "paper", y, yref: "paper", xanchor: "left", yanchor: "bottom",
+      showarrow: false, font: { size: 12, color: "#1d2733" } });
+    await T.plot(el, traces, {
+      grid: { rows: 3, columns: 1 },
+      xaxis: T.axis("Track position (km)", { anchor: "y3", tickformat: ".3f", range: [spec.km[0], spec.km[spec.km.length - 1]] }),
+      yaxis: T.axis("Frequency (Hz)", { domain: [0.6, 0.96], range: [0, fTop] }),
+      yaxis2: T.axis("Frequency (Hz)", { domain: [0.24, 0.56], range: [0, fTop] }),
+      yaxis3: T.axis("Speed (km/h)", { domain: [0, 0.18] }),
+      annotations: [ann(`a) raw ABA ${spec.channel}`, 0.96), ann(`b) extracted components ${spec.channel} (sleeper passage + ${spec.orders.length - 1} wheel orders)`, 0.56), ann("c) speed", 0.18)],
+      margin: { l: 75, r: 30, t: 50, b: 60 },
+      legend: { orientation: "h", x: 0.45, y: 1.0, yanchor: "bottom", bgcolor: "rgba(0,0,0,0)" },
+    }, {
+      filename: `run-${runId}-spectrogram-${spec.channel}`,
+      csv: () => {
+        const rows = [];
+        for (let j = 0; j < spec.km.length; j++) {
+          for (let i = 0; i < spec.freq_hz.length; i++) {
+            rows.push([spec.km[j], spec.time_s[j], spec.speed_kmh[j], spec.freq_hz[i], spec.raw_db[i][j], spec.components_db[i][j]]);
+          }
+        }
+        return { columns: ["km", "time_s", "speed_kmh", "freq_hz", "raw_psd_db", "components_psd_db"], rows };
+      },
+    });
+    document.getElementById("spec-info").textContent =
+      `${spec.channel}: ${spec.km.length} frames × ${spec.freq_hz.length} frequencies, resolution ${T.fmt(spec.resolution_hz, 2)} Hz, ` +
+      `bandwidth ${spec.settings.bandwidth_orders} orders, q = ${spec.settings.filter_order}, d_w = ${spec.wheel_diameter_m} m`;
+  }
+
+  async function compute() {
+    const wheel = document.getElementById("wheel").value;
+    const a = parseFloat(document.getElementById("km-from").value), b = parseFloat(document.getElementById("km-to").value);
+    const revolutions = parseFloat(document.getElementById("revs").value) || 8;
+    T.banner(null);
+    el.style.opacity = 0.5;
+    try {
+      spec = await T.api.get(`/runs/${runId}/spectrogram`, { wheel, km_from: a, km_to: b, revolutions });
+      await draw();
+    } catch (e) {
+      T.banner(`Spectrogram not available (HTTP ${e.status}): ${e.detail}`);
+    } finally {
+      el.style.opacity = 1;
+    }
+  }
+
+  document.getElementById("spec-controls").addEventListener("submit", (ev) => { ev.preventDefault(); compute(); });
+
+  (async () => {
+    try {
+      const run = await T.api.get(`/runs/${runId}`);
+      document.getElementById("run-subtitle").textContent = `spectrogram · ${run.vehicle_id} on line ${run.line_id} track ${run.track}, ${T.date(run.start_time)}`;
+      const wheels = T.WHEELS.filter((w) => run.summary.channels.includes("Z" + w));
+      const sel = document.getElementById("wheel");
+      sel.innerHTML = wheels.map((w) => `<option value="${w}">${T.wheelLabel(w)}</option>`).join("");
+      sel.value = wheels.includes(T.param("wheel") || "12") ? (T.param("wheel") || "12") : wheels[0];
+      const len = (run.summary.distance_m || 0) / 1000;
+      const end = run.km_increasing === false ? run.km_start - len : run.km_start + len;
+      const lo = Math.min(run.km_start, end), hi = Math.max(run.km_start, end);
+      const mid = (lo + hi) / 2;
+      const half = Math.min(0.1, (hi - lo) / 2);
+      document.getElementById("km-from").value = (T.param("km_from") || (mid - half).toFixed(3));
+      document.getElementById("km-to").value = (T.param("km_to") || (mid + half).toFixed(3));
+      await compute();
+    } catch (e) {
+      T.banner(`Could not load run ${runId}: ${e.detail || e.message}`);
+    }
+    T.ready();
+  })();
+})();

@@ -1,0 +1,172 @@
+/* Wheels page: polar plot of r(θ) (paper fig. 31), order amplitudes as bars, r along the
+ * circumference, and the trend of the OOR over the vehicle's runs. */
+(function () {
+  "use strict";
+  const T = window.trackvkf;
+  let runs = [], wheels = null, trend = null;
+
+  function finite(v) { return v !== null && v !== undefined && Number.isFinite(v); }
+
+  async function drawPolar() {
+    const el = document.getElementById("polar-plot");
+    let lim = 10;
+    for (const w of wheels.items) for (const v of w.profile_um) if (finite(v)) lim = Math.max(lim, Math.abs(v));
+    lim = Math.ceil(lim * 1.15 / 10) * 10;
+    const traces = wheels.items.map((w) => ({
+      type: "scatterpolar", mode: "lines", name: T.wheelLabel(w.wheel), theta: w.angles_deg.concat([w.angles_deg[0]]),
+      r: w.profile_um.concat([w.profile_um[0]]), line: { color: T.wheelColor(w.wheel), width: 2 },
+      hovertemplate: `${T.wheelLabel(w.wheel)}<br>θ %{theta:.0f}°<br>%{r:.1f} µm<extra></extra>`,
+    }));
+    await T.plot(el, traces, {
+      polar: { radialaxis: { range: [-lim, lim], ticksuffix: " µm", angle: 90, tickangle: 90, gridcolor: "#e6ebf0" },
+        angularaxis: { direction: "clockwise", rotation: 90, ticksuffix: "°", gridcolor: "#e6ebf0" } },
+      margin: { l: 40, r: 40, t: 40, b: 30 },
+      legend: { orientation: "v", x: 0, y: 1, yanchor: "top" },
+    }, {
+      filename: `run-${wheels.run_id}-wheel-polar`,
+      csv: () => {
+        const rows = [];
+        for (const w of wheels.items) w.angles_deg.forEach((a, i) => rows.push([w.wheel, a, w.profile_um[i], w.profile_p05_um ? w.profile_p05_um[i] : null, w.profile_p95_um ? w.profile_p95_um[i] : null]));
+        return { columns: ["wheel", "angle_deg", "radius_deviation_um", "p05_um", "p95_um"], rows };
+      },
+    });
+  }
+
+  async function drawOrders() {
+    const el = document.getElementById("orders-plot");
+    const traces = wheels.items.map((w) => ({
+      type: "bar", name: T.wheelLabel(w.wheel), marker: { color: T.wheelColor(w.wheel) },
+      x: w.orders.map((o) => o.order), y: w.orders.map((o) => o.radius_um),
+      error_y: { type: "data", symmetric: false, color: "#555", thickness: 1, width: 2,
+        array: w.orders.map((o) => finite(o.radius_um_p95) ? o.radius_um_p95 - o.radius_um : 0),
+        arrayminus: w.orders.map((o) => finite(o.radius_um_p05) ? o.radius_um - o.radius_um_p05 : 0) },
+      hovertemplate: `${T.wheelLabel(w.wheel)} order %{x}<br>%{y:.1f} µm<extra></extra>`,
+    }));
+    await T.plot(el, traces, {
+      barmode: "group",
+      xaxis: T.axis("Wheel OOR order (harmonics per revolution)", { dtick: 1 }),
+      yaxis: T.axis("Radius deviation amplitude (µm)", { rangemode: "tozero" }),
+      margin: { l: 70, r: 20, t: 40, b: 60 },
+    }, {
+      filename: `run-${wheels.run_id}-wheel-orders`,
+      csv: () => {
+        const rows = [];
+        for (const w of wheels.items) for (const o of w.orders) rows.push([w.wheel, o.order, o.radius_um, o.radius_um_p05, o.radius_um_p95, o.phase_rad, o.accel_amp]);
+        return { columns: ["wheel", "order", "radius_um", "radius_um_p05", "radius_um_p95", "phase_rad", "accel_amp_mps2"], rows };
+      },
+    });
+  }
+
+  async function drawProfile() {
+    const el = document.getElementById("profile-plot");
+    const traces = wheels.items.map((w) => {
+      const circ = Math.PI * (w.wheel_diameter_m || 0.92) * 1000;
+      return {
+        type: "scatter", mode: "lines", name: T.wheelLabel(w.wheel), line: { color: T.wheelColor(w.wheel), width: 1.6 },
+        x: w.angles_deg.map((a) => a / 360 * circ), y: w.profile_um,
+        hovertemplate: `${T.wheelLabel(w.wheel)}<br>%{x:.0f} mm<br>%{y:.1f} µm<extra></extra>`,
+      };
+    });
+    await T.plot(el, traces, {
+      xaxis: T.axis("Position along the circumference (mm)"),
+      yaxis: T.axis("Radius deviation (µm)"),
+      margin: { l: 70, r: 20, t: 30, b: 55 },
+    }, {
+      filename: `run-${wheels.run_id}-wheel-circumference`,
+      csv: () => {
+        const rows = [];
+        for (const w of wheels.items) {
+          const circ = Math.PI * (w.wheel_diameter_m || 0.92) * 1000;
+          w.angles_deg.forEach((a, i) => rows.push([w.wheel, a, a / 360 * circ, w.profile_um[i]]));
+        }
+        return { columns: ["wheel", "angle_deg", "circumference_mm", "radius_deviation_um"], rows };
+      },
+    });
+  }
+
+  function trendValue(item, q) {
+    if (q === "p2p") return item.peak_to_peak_um;
+    return item.radius_um[Number(q) - 1];
+  }
+
+  async function drawTrend() {
+    const el = document.getElementById("trend-plot");
+    if (!trend || !trend.items.length) {
+      T.emptyState(el, "No processed runs of this vehicle yet.", "");
+      return;
+    }
+    const q = document.getElementById("trend-quantity").value;
+    const label = q === "p2p" ? "Peak-to-peak of r(θ) (µm)" : `Order ${q} radius deviation (µm)`;
+    const traces = T.WHEELS.filter((w) => trend.items.some((i) => i.wheel === w)).map((w) => {
+      const items = trend.items.filter((i) => i.wheel === w);
+      return {
+        type: "scatter", mode: "lines+markers", name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 2 },
+        marker: { size: 8 }, x: items.map((i) => i.start_time), y: items.map((i) => trendValue(i, q)),
+        customdata: items.map((i) => i.run_id),
+        hovertemplate: `${T.wheelLabel(w)}<br>%{x|%Y-%m-%d %H:%M}<br>%{y:.1f} µm<br>run %{customdata}<extra></extra>`,
+      };
+    });
+    await T.plot(el, traces, {
+      xaxis: T.axis("Run start (date)", { type: "date" }),
+      yaxis: T.axis(label, { rangemode: "tozero" }),
+      margin: { l: 70, r: 20, t: 30, b: 55 },
+    }, {
+      filename: `vehicle-${trend.vehicle_id}-wheel-trend`,
+      csv: () => ({
+        columns: ["run_id", "start_time", "wheel", "wheel_diameter_m", "peak_to_peak_um", ...trend.orders.map((o) => `order_${o}_radius_um`)],
+        rows: trend.items.map((i) => [i.run_id, i.start_time, i.wheel, i.wheel_diameter_m, i.peak_to_peak_um, ...i.radius_um]),
+      }),
+    });
+  }
+
+  async function loadRun() {
+    const runId = document.getElementById("run").value;
+    if (!runId) {
+      for (const id of ["polar-plot", "orders-plot", "profile-plot"]) T.emptyState(id, "No processed run of this vehicle.", "<p>Upload a run on the Runs page; the wheels appear when its job is done.</p>");
+      return;
+    }
+    try {
+      wheels = await T.api.get(`/runs/${runId}/wheels`);
+      await Promise.all([drawPolar(), drawOrders(), drawProfile()]);
+    } catch (e) {
+      for (const id of ["polar-plot", "orders-plot", "profile-plot"]) T.emptyState(id, "No wheel results", `<p>${T.esc(e.detail)}</p>`);
+    }
+  }
+
+  async function loadVehicle() {
+    const vehicle = document.getElementById("vehicle").value;
+    const mine = runs.filter((r) => r.vehicle_id === vehicle && r.latest_job && r.latest_job.status === "done");
+    const sel = document.getElementById("run");
+    sel.innerHTML = mine.map((r) => `<option value="${r.id}">Run ${r.id} · ${T.date(r.start_time)} · line ${T.esc(r.line_id)}/${T.esc(r.track)}</option>`).join("");
+    const want = T.param("run_id");
+    if (want && mine.some((r) => String(r.id) === want)) sel.value = want;
+    trend = vehicle ? await T.api.get("/wheels/trend", { vehicle_id: vehicle }) : null;
+    const qsel = document.getElementById("trend-quantity");
+    const orders = trend ? trend.orders : [];
+    qsel.innerHTML = `<option value="p2p">peak-to-peak r(θ)</option>` + orders.map((o) => `<option value="${o}">order ${o}</option>`).join("");
+    await Promise.all([loadRun(), drawTrend()]);
+  }
+
+  document.getElementById("vehicle").addEventListener("change", loadVehicle);
+  document.getElementById("run").addEventListener("change", loadRun);
+  document.getElementById("trend-quantity").addEventListener("change", drawTrend);
+  document.getElementById("wheel-legend").innerHTML = T.WHEELS.map((w) => `<span><i style="background:${T.wheelColor(w)}"></i>${T.wheelLabel(w)}</span>`).join("");
+
+  (async () => {
+    try {
+      runs = await T.allRuns();
+      const vehicles = [...new Set(runs.filter((r) => r.vehicle_id).map((r) => r.vehicle_id))].sort();
+      const sel = document.getElementById("vehicle");
+      sel.innerHTML = vehicles.map((v) => `<option>${T.esc(v)}</option>`).join("");
+      if (T.param("vehicle_id") && vehicles.includes(T.param("vehicle_id"))) sel.value = T.param("vehicle_id");
+      if (!vehicles.length) {
+        for (const id of ["polar-plot", "orders-plot", "profile-plot", "trend-plot"]) T.emptyState(id, "No runs yet.", "<p>Upload a run on the Runs page.</p>");
+      } else {
+        await loadVehicle();
+      }
+    } catch (e) {
+      T.banner(`Could not load the wheels: ${e.detail || e.message}`);
+    }
+    T.ready();
+  })();
+})();
