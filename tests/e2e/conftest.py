@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -121,10 +122,11 @@ class Service:
         raise AssertionError(f"job {job_id} not final after {timeout_s} s:\n{self.log_text()}")
 
 
-@pytest.fixture
-def service(tmp_path) -> Iterator[Service]:
-    """The real service on a fresh SQLite database; the API is started, workers on demand."""
-    db_url = f"sqlite:///{tmp_path / 'service.sqlite'}"
+@contextmanager
+def running_service(workdir: Path) -> Iterator[Service]:
+    """The real service (API started, workers on demand) on a fresh SQLite database in
+    ``workdir``; stopped on exit. Shared by the ``service`` fixture and the browser tests."""
+    db_url = f"sqlite:///{workdir / 'service.sqlite'}"
     migrate.upgrade(db_url)
     env = {
         k: v for k, v in os.environ.items() if not k.startswith("TRACKVKF_")
@@ -132,7 +134,7 @@ def service(tmp_path) -> Iterator[Service]:
     env.update(
         {
             "TRACKVKF_DATABASE_URL": db_url,
-            "TRACKVKF_RUN_STORE": str(tmp_path / "runs"),
+            "TRACKVKF_RUN_STORE": str(workdir / "runs"),
             "TRACKVKF_WORKER_POLL_INTERVAL_S": "0.2",
             "TRACKVKF_WORKER_HEARTBEAT_S": "0.5",
             "TRACKVKF_WORKER_STALE_AFTER_S": "3",
@@ -143,12 +145,19 @@ def service(tmp_path) -> Iterator[Service]:
     svc = Service(
         base_url=f"http://127.0.0.1:{_free_port()}",
         env=env,
-        workdir=tmp_path,
+        workdir=workdir,
         database_url=db_url,
-        run_store=tmp_path / "runs",
+        run_store=workdir / "runs",
     )
     try:
         svc.start_api()
         yield svc
     finally:
         svc.stop()
+
+
+@pytest.fixture
+def service(tmp_path) -> Iterator[Service]:
+    """The real service on a fresh SQLite database; the API is started, workers on demand."""
+    with running_service(tmp_path) as svc:
+        yield svc

@@ -29,7 +29,8 @@
   function config(filename) {
     return {
       displaylogo: false, displayModeBar: true, responsive: true,
-      modeBarButtonsToRemove: ["lasso2d", "select2d"],
+      modeBarButtonsToRemove: ["lasso2d", "select2d", "sendChartToCloud", "sendDataToCloud"],
+      showSendToCloud: false, showEditInChartStudio: false, plotlyServerURL: "",
       toImageButtonOptions: { format: "png", filename: filename || "trackvkf-plot", scale: 2 },
     };
   }

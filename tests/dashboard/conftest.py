@@ -1,0 +1,185 @@
+"""Browser tests of the dashboard: Debian's chromium driven by Playwright against the real
+service (uvicorn + worker subprocesses, tests/e2e/conftest.py) with processed simulated runs.
+
+No browser is downloaded: /usr/bin/chromium comes from the Debian package, installed here
+with apt-get when it is missing (the CI machine runs as root).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from urllib.parse import urlsplit
+
+import httpx
+import pytest
+
+from tests.e2e.conftest import Service, running_service
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+]
+SCREENSHOTS = Path(__file__).resolve().parents[2] / "docs" / "screenshots"
+#: the fixture's runs: same line and track (same track model), two dates
+RUN_DATES = ("2024-05-01T08:00:00+02:00", "2024-09-01T08:00:00+02:00")
+RUN_LENGTH_KM = 1.5
+RUN_FS = 10_000.0
+LINE_SEED = 7
+
+
+def _install_chromium() -> None:
+    """apt-get install Debian's chromium (idempotent; only when /usr/bin/chromium is missing)."""
+    if CHROMIUM.exists():
+        return
+    if shutil.which("apt-get") is None or os.geteuid() != 0:
+        pytest.fail("/usr/bin/chromium is missing: install the Debian package `chromium` (needs root and apt-get)")
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    for cmd in (["apt-get", "update", "-qq"],
+                ["apt-get", "install", "-y", "-qq", "--no-install-recommends", "chromium", "fonts-dejavu-core"]):
+        done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=900)
+        if done.returncode != 0:
+            pytest.fail(f"{' '.join(cmd)} failed:\n{done.stdout[-2000:]}\n{done.stderr[-2000:]}")
+    if not CHROMIUM.exists():
+        pytest.fail("apt-get installed chromium but /usr/bin/chromium is missing")
+
+
+@dataclass
+class Dashboard:
+    """The running service with its processed runs."""
+
+    service: Service
+    run_ids: list[int]
+    upload_file: Path
+    bad_file: Path
+
+    @property
+    def base_url(self) -> str:
+        return self.service.base_url
+
+
+@pytest.fixture(scope="session")
+def dashboard(tmp_path_factory) -> Iterator[Dashboard]:
+    """The real service with two processed simulated runs of one line (1.5 km at 10 kHz),
+    a worker left running, a third run file for the upload test and a bad file."""
+    from app.simulate.run import simulate_run
+
+    work = tmp_path_factory.mktemp("dashboard")
+    files = []
+    for i, start in enumerate(RUN_DATES):
+        path = work / f"sim-{i + 1}.h5"
+        simulate_run(path, length_km=RUN_LENGTH_KM, fs=RUN_FS, seed=11 + i, line_seed=LINE_SEED,
+                     start_time=start, with_forces=True)
+        files.append(path)
+    upload = work / "upload-run.h5"
+    simulate_run(upload, length_km=0.6, fs=RUN_FS, seed=21, line_seed=LINE_SEED,
+                 start_time="2025-01-15T09:30:00+01:00", with_forces=False)
+    bad = work / "broken-run.csv"
+    bad.write_text("time,Z11,speed\n0.0,1.0,20\n0.0001,oops,20\n")
+    with running_service(work / "service") as svc:
+        svc.start_worker()
+        svc.start_worker()
+        run_ids, jobs = [], []
+        with httpx.Client(base_url=svc.base_url, timeout=120) as client:
+            for path in files:
+                with open(path, "rb") as fh:
+                    r = client.post("/api/v1/runs", files={"file": (path.name, fh, "application/x-hdf5")})
+                assert r.status_code == 201, r.text
+                run_ids.append(r.json()["id"])
+                jobs.append(r.json()["latest_job"]["id"])
+            for job_id in jobs:
+                job = svc.wait_job(client, job_id)
+                assert job["status"] == "done", f"{job['error']}\n{svc.log_text()}"
+        yield Dashboard(service=svc, run_ids=run_ids, upload_file=upload, bad_file=bad)
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[object]:
+    """Headless Debian chromium driven by Playwright (no Playwright browser download)."""
+    _install_chromium()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+@pytest.fixture
+def context(browser, dashboard) -> Iterator[object]:
+    """THE place where browser contexts are made (a login step belongs here)."""
+    ctx = browser.new_context(
+        base_url=dashboard.base_url, viewport={"width": 1400, "height": 900}, accept_downloads=True
+    )
+    ctx.set_default_timeout(60_000)
+    try:
+        yield ctx
+    finally:
+        ctx.close()
+
+
+@dataclass
+class PageLog:
+    """What a page did: console errors, page errors, failed requests, every request URL."""
+
+    origin: str
+    console_errors: list[str] = field(default_factory=list)
+    page_errors: list[str] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+    requests: list[str] = field(default_factory=list)
+
+    def attach(self, page) -> None:
+        page.on("console", lambda m: self.console_errors.append(m.text) if m.type == "error" else None)
+        page.on("pageerror", lambda e: self.page_errors.append(str(e)))
+        page.on("requestfailed", lambda r: self.failed.append(f"{r.method} {r.url}: {r.failure}"))
+        page.on("response", lambda r: self.failed.append(f"{r.request.method} {r.url}: HTTP {r.status}")
+                if r.status >= 400 else None)
+        page.on("request", lambda r: self.requests.append(r.url))
+
+    def foreign(self) -> list[str]:
+        """Requests that did not go to the app's own origin (blob:/data: URLs are local)."""
+        own = urlsplit(self.origin)
+        out = []
+        for url in self.requests:
+            parts = urlsplit(url)
+            if parts.scheme in ("blob", "data"):
+                continue
+            if (parts.scheme, parts.netloc) != (own.scheme, own.netloc):
+                out.append(url)
+        return out
+
+    def assert_clean(self) -> None:
+        assert not self.page_errors, f"page errors: {self.page_errors}"
+        assert not self.console_errors, f"console errors: {self.console_errors}"
+        assert not self.failed, f"failed requests: {self.failed}"
+
+
+@pytest.fixture
+def open_page(context, dashboard):
+    """Open a dashboard URL, wait until its script says ready; returns (page, log)."""
+
+    def _open(path: str):
+        page = context.new_page()
+        log = PageLog(origin=dashboard.base_url)
+        log.attach(page)
+        page.goto(path)
+        page.wait_for_selector("body[data-ready='1']")
+        return page, log
+
+    return _open
+
+
+def save_screenshot(page, name: str) -> Path:
+    """Full-page screenshot to docs/screenshots/<name>.png."""
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    path = SCREENSHOTS / f"{name}.png"
+    page.wait_for_timeout(300)  # let Plotly finish its transitions
+    page.screenshot(path=str(path), full_page=True)
+    return path

@@ -1,0 +1,149 @@
+"""Every dashboard page in a real headless Chromium against the real service."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import httpx
+import pytest
+
+from tests.dashboard.conftest import save_screenshot
+
+pytestmark = pytest.mark.timeout(300)
+
+
+def _pages(dashboard) -> list[tuple[str, str]]:
+    first = dashboard.run_ids[0]
+    return [
+        ("runs", "/"),
+        ("stiffness-map", f"/runs/{first}"),
+        ("spectrogram", f"/runs/{first}/spectrogram?wheel=12"),
+        ("line-view", "/lines"),
+        ("wheels", "/wheels"),
+        ("correlations", "/correlations"),
+    ]
+
+
+def _plots(page) -> list[dict]:
+    return page.evaluate(
+        """() => Array.from(document.querySelectorAll('.plot')).map(el => ({
+            id: el.id, state: el.dataset.state || '', points: Number(el.dataset.points || 0),
+            traces: el.data ? el.data.length : 0,
+            modebarPng: Array.from(el.querySelectorAll('.modebar-btn')).some(
+                b => (b.getAttribute('data-title') || '').toLowerCase() === 'download plot as a png'),
+            modebarCloud: Array.from(el.querySelectorAll('.modebar-btn')).some(
+                b => (b.getAttribute('data-title') || '').toLowerCase().includes('share')),
+            csvEnabled: !!document.querySelector(`button[data-csv-for="${el.id}"]:not([disabled])`),
+            xtitle: el.layout && el.layout.xaxis && el.layout.xaxis.title ? el.layout.xaxis.title.text : null,
+            ytitle: el.layout && el.layout.yaxis && el.layout.yaxis.title ? el.layout.yaxis.title.text : null,
+        }))"""
+    )
+
+
+@pytest.mark.parametrize(
+    "name", ["runs", "stiffness-map", "spectrogram", "line-view", "wheels", "correlations"]
+)
+def test_page_loads_clean_with_data(open_page, dashboard, name):
+    path = dict(_pages(dashboard))[name]
+    page, log = open_page(path)
+    plots = _plots(page)
+    if name == "correlations":
+        # no analytics / reference data on this server yet: a helpful empty state
+        assert plots and all(p["state"] == "empty" for p in plots)
+        text = page.inner_text("#corr-empty")
+        assert "reference data" in text and "/api/v1/reference/subsidence" in text
+    elif name != "runs":
+        assert plots, f"{name}: no plot"
+        for p in plots:
+            assert p["state"] == "ready" and p["traces"] > 0 and p["points"] > 0, p
+            assert p["modebarPng"], f"{p['id']}: no PNG download button"
+            assert not p["modebarCloud"], f"{p['id']}: a button that sends the chart outside"
+            assert p["csvEnabled"], f"{p['id']}: no Download CSV button"
+            if p["id"] != "polar-plot":
+                assert p["xtitle"] and p["ytitle"] and "(" in p["ytitle"], f"{p['id']}: axis titles {p}"
+    else:
+        rows = page.locator("#runs-body tr[data-run]")
+        assert rows.count() >= len(dashboard.run_ids)
+        assert page.locator("#runs-body .badge.done").count() >= len(dashboard.run_ids)
+    save_screenshot(page, name)
+    log.assert_clean()
+    assert not log.foreign()
+
+
+def test_all_requests_go_to_own_origin(open_page, dashboard):
+    """Visit every page (and zoom the map): every request URL is on the app's origin."""
+    seen: list[str] = []
+    for _, path in _pages(dashboard):
+        page, log = open_page(path)
+        if path.startswith("/runs/") and "spectrogram" not in path:
+            page.fill("#km-from", "12.4")
+            page.fill("#km-to", "12.6")
+            page.click("#map-controls button[type=submit]")
+            page.wait_for_function("document.querySelector('#km-from').value === '12.400'")
+        page.wait_for_load_state("networkidle")
+        seen += log.requests
+        assert not log.foreign(), f"{path}: requests outside the server: {log.foreign()}"
+        log.assert_clean()
+    assert any(u.endswith("/vendor/plotly.min.js") for u in seen)
+    assert any("/api/v1/" in u for u in seen)
+    assert all(u.startswith(dashboard.base_url) or u.startswith(("blob:", "data:")) for u in seen)
+
+
+def test_stiffness_map_zoom_refetches_decimated_range(open_page, dashboard):
+    page, log = open_page(f"/runs/{dashboard.run_ids[0]}")
+    whole = page.evaluate("document.getElementById('stiffness-plot').data[0].x.length")
+    assert 100 < whole <= 4000  # 6000 bins of 25 cm decimated for display
+    with page.expect_response(lambda r: "/profile?" in r.url and "km_from=12.5" in r.url):
+        page.fill("#km-from", "12.5")
+        page.fill("#km-to", "12.6")
+        page.click("#map-controls button[type=submit]")
+    page.wait_for_function("document.querySelector('#map-info').textContent.includes('12.500')")
+    xs = page.evaluate("document.getElementById('stiffness-plot').data[0].x")
+    assert 300 <= len(xs) <= 401  # 100 m of 25 cm bins: all of them, not decimated
+    assert min(xs) >= 12.5 and max(xs) <= 12.6
+    page.select_option("#amp-scale", "log")
+    page.wait_for_function("document.getElementById('stiffness-plot').layout.yaxis.type === 'log'")
+    with page.expect_download() as dl:
+        page.click("button[data-csv-for='stiffness-plot']")
+    text = dl.value.path().read_text()
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert rows and set(rows[0]) >= {"wheel", "km", "sleeper_amp_mps2", "speed_kmh"}
+    assert {r["wheel"] for r in rows} == {"11", "12", "41", "42"}
+    log.assert_clean()
+
+
+def test_upload_shows_job_finishing(open_page, dashboard):
+    page, log = open_page("/")
+    page.set_input_files("#upload-file", str(dashboard.upload_file))
+    page.click("#upload-button")
+    page.wait_for_function(
+        "document.getElementById('upload-status').textContent.includes('done')", timeout=180_000
+    )
+    status = page.inner_text("#upload-status")
+    assert "processing job" in status
+    width = page.evaluate("document.querySelector('#upload-progress > span').style.width")
+    assert width == "100%"
+    run_id = int(status.split("Run ", 1)[1].split(":", 1)[0])
+    row = page.locator(f"#runs-body tr[data-run='{run_id}'] .badge.done")
+    row.wait_for()
+    log.assert_clean()
+
+
+def test_bad_file_shows_the_api_error(open_page, dashboard):
+    with open(dashboard.bad_file, "rb") as fh:
+        api = httpx.post(f"{dashboard.base_url}/api/v1/runs", files={"file": (dashboard.bad_file.name, fh)})
+    assert api.status_code == 422
+    detail = api.json()["detail"]
+    page, log = open_page("/")
+    page.set_input_files("#upload-file", str(dashboard.bad_file))
+    page.click("#upload-button")
+    banner = page.locator("#banner")
+    banner.wait_for(state="visible")
+    assert detail in banner.inner_text()
+    assert "422" in banner.inner_text()
+    assert page.inner_text("#upload-status") == "Upload rejected."
+    # the only failure is the rejected upload itself
+    assert all("/api/v1/runs" in f and "422" in f for f in log.failed), log.failed
+    assert all("422" in e for e in log.console_errors), log.console_errors
+    assert not log.page_errors
