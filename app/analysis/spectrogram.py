@@ -157,7 +157,7 @@ def psd_spectrogram(
     rate = fs / down
     nperseg = int(min(max(16, round(rate / resolution_hz)), x.size))
     hop = max(1, int(round(nperseg * (1.0 - overlap))))
-    sft = ShortTimeFFT(hann(nperseg, sym=False), hop, rate, fft_mode="onesided", scale_to="psd")
+    sft = ShortTimeFFT(hann(nperseg, sym=False), hop, rate, fft_mode="onesided2X", scale_to="psd")
     p0 = sft.lower_border_end[1]
     p1 = max(sft.upper_border_begin(x.size)[1], p0 + 1)
     psd = sft.spectrogram(x, p0=p0, p1=p1)

@@ -28,7 +28,7 @@ CHROMIUM_ARGS = [
 SCREENSHOTS = Path(__file__).resolve().parents[2] / "docs" / "screenshots"
 #: the fixture's runs: same line and track (same track model), two dates
 RUN_DATES = ("2024-05-01T08:00:00+02:00", "2024-09-01T08:00:00+02:00")
-RUN_LENGTH_KM = 1.5
+RUN_LENGTH_KM = 1.2
 RUN_FS = 10_000.0
 LINE_SEED = 7
 
