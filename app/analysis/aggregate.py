@@ -172,20 +172,18 @@ def _minmax_indices(values: np.ndarray, n_buckets: int) -> np.ndarray:
     edges = np.unique(edges)
     starts = edges[:-1]
     sizes = np.diff(edges)
-    bucket = np.repeat(np.arange(starts.size), sizes)
     finite = np.isfinite(values)
     n_fin = np.add.reduceat(finite.astype(np.int64), starts)
-    idx = np.arange(n)
-    key_min = np.where(finite, values, np.inf)
-    key_max = np.where(finite, -values, np.inf)
-    ord_min = np.lexsort((idx, key_min, bucket))
-    ord_max = np.lexsort((idx, key_max, bucket))
-    i_min = ord_min[starts]
-    i_max = ord_max[starts]
-    empty = n_fin == 0
-    i_min[empty] = starts[empty]
-    i_max[empty] = starts[empty]
-    return np.concatenate([i_min, i_max])
+    # O(n): the extreme of each bucket by reduceat, then its first index in the bucket
+    rev = n - np.arange(n)  # larger for earlier indices
+    out = []
+    for key in (np.where(finite, -values, -np.inf), np.where(finite, values, -np.inf)):
+        best = np.maximum.reduceat(key, starts)
+        hit = key == np.repeat(best, sizes)
+        first = n - np.maximum.reduceat(np.where(hit, rev, 0), starts)
+        first[n_fin == 0] = starts[n_fin == 0]
+        out.append(first)
+    return np.concatenate(out)
 
 
 def _tsdownsample_indices(km: np.ndarray, values: np.ndarray, n_out: int) -> np.ndarray | None:

@@ -23,6 +23,7 @@ from app.api.deps import DbDep, RunId, SettingsDep
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
 from app.db import crud
+from app.db.display import profile_column_arrays, profile_rows_of_bins
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
 
@@ -163,12 +164,22 @@ def get_profile(
     k = _level_ratio(level, bin_length)
     if max_points is not None and max_points > settings.max_profile_rows:
         raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
-    if max_points is not None:
+    if max_points is not None and k == 1:
+        # choose the rows from two columns, then read only those rows whole
+        with db.read() as session:
+            cols = profile_column_arrays(
+                session, run_id, wheel, ["km", "sleeper_amp"], km_from=km_from, km_to=km_to
+            )
+            if cols["bin"].size > max_points:
+                keep = display_indices(cols["km"], cols["sleeper_amp"], max_points)
+                df = profile_rows_of_bins(session, run_id, wheel, cols["bin"][keep])
+            else:
+                df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
+        truncated = False
+    elif max_points is not None:
         with db.read() as session:
             df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
-        if k > 1:
-            df = _aggregate(df, level, bin_length)
-        df = _decimate(df, max_points, "sleeper_amp" if k == 1 else "sleeper_amp_max")
+        df = _decimate(_aggregate(df, level, bin_length), max_points, "sleeper_amp_max")
         truncated = False
     elif k == 1:
         limit = settings.max_profile_rows

@@ -146,3 +146,36 @@ def test_bad_file_shows_the_api_error(open_page, dashboard):
     assert all("/api/v1/runs" in f and "422" in f for f in log.failed), log.failed
     assert all("422" in e for e in log.console_errors), log.console_errors
     assert not log.page_errors
+
+
+def test_reprocess_and_cancel_from_the_runs_page(open_page, dashboard):
+    run_id = dashboard.run_ids[1]
+    page, log = open_page("/")
+    row = page.locator(f"#runs-body tr[data-run='{run_id}']")
+    row.locator("button[data-act='reprocess']").click()
+    page.wait_for_function("document.getElementById('banner').textContent.includes('reprocessing job')")
+    banner = page.inner_text("#banner")
+    job_id = int(banner.split("reprocessing job ", 1)[1].split(" ", 1)[0])
+    cancel = page.locator(f"#runs-body tr[data-run='{run_id}'] button[data-act='cancel']")
+    cancel.wait_for()
+    cancel.click()
+    page.wait_for_function(
+        "document.getElementById('banner').textContent.includes('Cancel requested') || "
+        "document.getElementById('banner').textContent.includes('already')"
+    )
+    job = httpx.get(f"{dashboard.base_url}/api/v1/jobs/{job_id}").json()
+    deadline = 120
+    while job["status"] in ("queued", "running") and deadline > 0:
+        page.wait_for_timeout(500)
+        deadline -= 0.5
+        job = httpx.get(f"{dashboard.base_url}/api/v1/jobs/{job_id}").json()
+    assert job["status"] in ("cancelled", "done") and job["cancel_requested"] in (True, job["status"] == "done")
+    badge = page.locator(f"#runs-body tr[data-run='{run_id}'] .job-status .badge")
+    page.wait_for_function(
+        f"document.querySelector(\"#runs-body tr[data-run='{run_id}'] .job-status .badge\").textContent === '{job['status']}'"
+    )
+    assert badge.inner_text() == job["status"]
+    if "already" in page.inner_text("#banner"):  # the job finished before the cancel reached it
+        assert all("/cancel" in f and "409" in f for f in log.failed), log.failed
+    else:
+        log.assert_clean()

@@ -1,0 +1,83 @@
+"""Display decimation of a long profile: GET /runs/{id}/profile with max_points.
+
+A synthetic 100 km run (400 000 bins of 25 cm per wheel, four wheels) is stored in a fresh
+SQLite database; the stiffness-map page's requests are timed through the ASGI app:
+the whole run (max_points=3000 per wheel) and zooms to 10 km and 1 km.
+
+    python bench/bench_profile_display.py [--km 100]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--km", type=float, default=100.0, help="run length, km")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+
+    from fastapi.testclient import TestClient
+
+    from app.core.config import Settings
+    from app.db import crud, migrate
+    from app.db.models import Run
+    from app.db.session import Database
+    from app.main import create_app
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-profile-"))
+    settings = Settings(_env_file=None, database_url=f"sqlite:///{tmp / 'db.sqlite'}",
+                        run_store=tmp / "runs", log_level="WARNING")
+    migrate.upgrade(settings.database_url)
+    n = int(args.km * 4000)
+    rng = np.random.default_rng(0)
+    frames = []
+    for wheel in ("11", "12", "41", "42"):
+        b = np.arange(n, dtype=np.int64)
+        frames.append(pd.DataFrame({
+            "wheel": wheel, "bin": b, "km": (b + 0.5) * 0.25 / 1000, "n_samples": 125,
+            "speed_mean": 30.0, "sleeper_amp": rng.lognormal(0, 0.4, n),
+            **{f"order_amp_{i:02d}": rng.random(n) for i in range(1, 12)},
+            "residual_rms": 0.3, "sleeper_force_amp": rng.random(n),
+        }))
+    profiles = pd.concat(frames, ignore_index=True)
+    db = Database(settings.database_url)
+    t0 = time.perf_counter()
+    with db.write() as session:
+        run = Run(sha256="0" * 64, file_path="1/run.h5", source_format="hdf5", size_bytes=0, fs=24000.0,
+                  n_samples=1, duration_s=1.0, channels=[], meta={}, vehicle_id="BENCH", line_id="B",
+                  track="1", km_start=0.0, km_increasing=True)
+        session.add(run)
+        session.flush()
+        job = crud.create_job(session, run.id, {"bin_length_m": 0.25})
+        job.status = "done"
+        crud.replace_results(session, run.id, job.id, profiles, [])
+        run_id = run.id
+    db.dispose()
+    print(f"stored {len(profiles)} rows in {time.perf_counter() - t0:.1f} s")
+
+    with TestClient(create_app(settings)) as client:
+        cases = [("whole run", 0.0, args.km), ("10 km", 40.0, 50.0), ("1 km", 45.0, 46.0)]
+        print("| view | rows per wheel in range | rows returned per wheel | median s per wheel | bytes per wheel |")
+        print("|---|---|---|---|---|")
+        for name, a, b in cases:
+            times = []
+            for _ in range(args.repeat):
+                t = time.perf_counter()
+                r = client.get(f"/api/v1/runs/{run_id}/profile",
+                               params={"wheel": "12", "km_from": a, "km_to": b, "max_points": 3000})
+                times.append(time.perf_counter() - t)
+            body = r.json()
+            print(f"| {name} | {int((b - a) * 4000)} | {body['n_rows']} | {statistics.median(times):.3f} | {len(r.content)} |")
+
+
+if __name__ == "__main__":
+    main()
