@@ -59,6 +59,8 @@
         return { columns: ["run_id", "start_time", "km_from", "km_to", "sleeper_amp_mean_mps2"], rows };
       },
     });
+    if (el.dataset.clickBound) return;
+    el.dataset.clickBound = "1";
     el.on("plotly_click", (ev) => {
       const p = ev.points && ev.points[0];
       if (!p) return;

@@ -93,6 +93,7 @@
     el.innerHTML = `<div class="empty"><strong>${title}</strong>${html || ""}</div>`;
     el.dataset.state = "empty";
     el.dataset.points = "0";
+    delete el.dataset.clickBound;
     csvProviders.delete(el.id);
     const btn = document.querySelector(`button[data-csv-for="${el.id}"]`);
     if (btn) btn.disabled = true;
