@@ -34,6 +34,7 @@ import pandas as pd
 
 from app.analysis.binning import BinSums, position_to_bin
 from app.analysis.chunking import Chunk, plan_chunk_layout
+from app.analysis.order_residual import railway_residual
 from app.analysis.orders import OrderTrack, railway_multipliers
 from app.analysis.settings import ProcessingSettings
 from app.analysis.vkf import vkf, vkf_overlap
@@ -173,53 +174,23 @@ def _residual_sums(
 
     Notes
     -----
-    The orders are ``mult[n] × speed`` with wheel orders ``l × mult[1]``, so the
-    waveform sum is a polynomial in one phasor, evaluated by Horner's scheme.
-    Envelopes are linear between grid points (spacing ≤ 5 cm, ≥ 100x the filter
-    bandwidth). Because the scheme is linear in the envelopes, the samples of a
-    block are laid out as (grid interval, offset) rows and the polynomial is
-    evaluated once with the envelopes at the interval starts and once with their
-    slopes, instead of interpolating every order at every sample.
+    The waveforms are evaluated by :func:`app.analysis.order_residual.railway_residual`
+    (envelopes linear between grid points: spacing ≤ 5 cm, ≥ 100x the filter
+    bandwidth), one block of grid intervals at a time.
     """
-    n_wheel = mult.size - 1
     step = int(out_idx[1] - out_idx[0]) if out_idx.size > 1 else 1
     base = int(out_idx[0])
-    # envelope at interval starts and slope per sample; beyond the last grid
-    # point the envelope is held (slope 0), like np.interp
-    e_lo = np.concatenate([env, env[:, -1:]], axis=1)
-    e_d = np.diff(e_lo, axis=1) / step
     rows_per_block = max(1, _BLOCK // step)
-    frac = np.arange(step, dtype=np.float64)[None, :]
-    parts = []
     n_rows = -(-(chunk.out_hi - base) // step)
+    parts = []
     for r0 in range(0, n_rows, rows_per_block):
         if should_cancel():
             raise PipelineCancelled(f"cancelled in chunk {chunk.index}")
         r1 = min(r0 + rows_per_block, n_rows)
         a = base + r0 * step
         b = min(base + r1 * step, chunk.out_hi)
-        m = b - a
-        ph = np.empty((r1 - r0) * step)
-        ph[:m] = psi[a - lo : b - lo]
-        ph[m:] = ph[m - 1] if m else 0.0
-        ph = ph.reshape(r1 - r0, step)
-        e1 = np.exp(1j * mult[1] * ph)
-        acc0 = e_lo[n_wheel, r0:r1, None] * e1
-        accd = e_d[n_wheel, r0:r1, None] * e1
-        for n in range(n_wheel - 1, 0, -1):
-            acc0 += e_lo[n, r0:r1, None]
-            acc0 *= e1
-            accd += e_d[n, r0:r1, None]
-            accd *= e1
-        accd *= frac
-        acc0 += accd
-        sleeper = e_d[0, r0:r1, None] * frac
-        sleeper += e_lo[0, r0:r1, None]
-        sleeper *= np.exp(1j * mult[0] * ph)
-        acc0 += sleeper
-        x = acc0.real.reshape(-1)[:m]
+        r = railway_residual(y[a - lo : b - lo], psi[a - lo : b - lo], env[:, r0 : r1 + 1], step, mult)
         idx = np.arange(a, b)
-        r = y[a - lo : b - lo] - x
         w = chunk.weight(idx) * keep(idx)
         parts.append(BinSums.from_samples(bins_of(idx), w, {"residual": r}, squares=("residual",)))
     return BinSums.merge_all(parts)

@@ -14,6 +14,8 @@ __all__ = ["VKFInput", "prepare_input", "check_mode"]
 
 #: samples per validation / statistics block
 STAT_BLOCK = 1 << 16
+#: most orders one solve takes (the band of the system grows with the order count)
+_MAX_CONST_ORDERS = 256
 
 
 def _shape(a: Any) -> tuple[int, ...]:
@@ -165,6 +167,13 @@ def prepare_input(
         freqs = np.asarray(freqs, dtype=np.float64)
     fshape = _shape(freqs)
     if len(fshape) == 1:
+        if fshape[0] == n and n > _MAX_CONST_ORDERS:
+            raise ValueError(
+                f"freqs has shape ({n},), one value per sample of y: a (s,) array means s constant "
+                f"orders; pass one time-varying order as shape (1, N), e.g. freqs[None, :]"
+            )
+        if fshape[0] > _MAX_CONST_ORDERS:
+            raise ValueError(f"freqs has {fshape[0]} orders; at most {_MAX_CONST_ORDERS} are supported")
         freqs_const = np.asarray(freqs, dtype=np.float64)
         s = fshape[0]
     elif len(fshape) == 2:

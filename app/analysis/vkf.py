@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from ._vkf_banded import solve_orders
-from ._vkf_baseband import EnvelopeSpline, mixing_phase, plan_baseband, to_baseband
+from ._vkf_baseband import BasebandPlan, EnvelopeSpline, mixing_phase, plan_baseband, to_baseband
 from ._vkf_input import InputStats, VKFInput, check_mode, extremes_over, prepare_input, scan_input
 from ._vkf_weights import bandwidth_from_weight, impulse_length, weight_squared
 from .chunking import Chunk, plan_chunk_layout
@@ -128,6 +128,21 @@ def _segment_extremes(inp: VKFInput, lo: int, hi: int) -> tuple[float, float, fl
     return extremes_over(inp, lo, hi)
 
 
+def _filtered_inside(plan: BasebandPlan, length: int, idx: np.ndarray) -> np.ndarray:
+    """Decimated samples whose anti-alias filter window lies inside the segment.
+
+    Within ``plan.delay`` input samples of a segment end the FIR reads zeros
+    beyond it and biases the baseband samples low. Those samples are left out
+    of the data equation; their envelopes follow from the structural equation,
+    which for a steady component extrapolates it exactly. Keeps at least half
+    of the samples.
+    """
+    inside = (idx >= plan.delay) & (idx < length - plan.delay)
+    if np.count_nonzero(inside) < idx.size // 2:
+        return np.ones(idx.size, dtype=bool)
+    return inside
+
+
 def _close_pairs(f: np.ndarray, bw: np.ndarray) -> set[tuple[int, int]]:
     """Order pairs whose frequencies come closer than their mean bandwidth."""
     pairs = set()
@@ -169,7 +184,7 @@ def _solve_segment(inp: VKFInput, seg: _Segment, cum_lo: np.ndarray, decimation:
     widened = bool(np.any(r2 > r2_max))
     if widened:
         np.minimum(r2, r2_max, out=r2)
-    sol = solve_orders(ys, phi, r2, q)
+    sol = solve_orders(ys, phi, r2, q, None if plan is None else _filtered_inside(plan, hi - lo, idx))
     seg.spline = EnvelopeSpline(2.0 * sol.envelope, lo, factor)
     seg.info = {
         "decimation": factor,

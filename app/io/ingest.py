@@ -72,7 +72,7 @@ def ingest(
     dest: Path,
     limits: IngestLimits = DEFAULT_LIMITS,
     *,
-    compression: Compression = "lzf",
+    compression: Compression = "auto",
 ) -> RunSummary:
     """Validate a run file and write it as a canonical HDF5 file.
 
@@ -92,8 +92,8 @@ def ingest(
         :func:`os.replace`). Its directory must exist.
     limits : IngestLimits
         Acceptance limits.
-    compression : {"lzf", "gzip", None}
-        Compression of the output datasets.
+    compression : {"auto", "lzf", "gzip", None}
+        Compression of the output datasets (see :class:`~app.io.canonical.CanonicalWriter`).
 
     Returns
     -------

@@ -95,7 +95,7 @@ def simulate_run(
     direction: str = "up",
     calibration: Mapping[str, Calibration | Mapping[str, float]] | None = None,
     block_samples: int = 2**18,
-    compression: Compression = "lzf",
+    compression: Compression = "auto",
 ) -> SimulationTruth:
     """Write a synthetic run (canonical HDF5) and its truth file ``<stem>.truth.h5``.
 
@@ -154,8 +154,8 @@ def simulate_run(
         Channel → ``{"gain", "offset"}``: the file stores ``(physical - offset) / gain``.
     block_samples : int
         Samples generated per block (memory bound).
-    compression : {"lzf", "gzip", None}
-        Dataset compression of the run file.
+    compression : {"auto", "lzf", "gzip", None}
+        Dataset compression of the run file (see :class:`~app.io.canonical.CanonicalWriter`).
 
     Returns
     -------
