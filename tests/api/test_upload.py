@@ -266,7 +266,9 @@ def test_concurrent_duplicate_commit_leaves_no_directory(client, tmp_path):
     db = Database(client.settings.database_url)
     try:
         with pytest.raises(IntegrityError):
-            _create_run(db, store, upload_dir, summary, received, "hdf5", "test")
+            _create_run(
+                    db, store, upload_dir, summary, received, "hdf5", Principal("test", "admin")
+                )
     finally:
         db.dispose()
     assert store.run_ids_on_disk() == [first["id"]]
