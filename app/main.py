@@ -19,8 +19,8 @@ from app.api.health import software_version
 from app.api.login_page import install_protected_docs
 from app.api.login_page import router as login_page_router
 from app.core.config import ProductionConfigError, Settings, get_settings
-from app.core.ratelimit import RateLimiter
 from app.core.logging import configure_logging
+from app.core.ratelimit import RateLimiter
 from app.core.runstore import RunStore
 from app.db.session import Database
 

@@ -253,6 +253,7 @@ def test_concurrent_duplicate_commit_leaves_no_directory(client, tmp_path):
     sha256 and its upload directory is not installed as a run directory."""
     from sqlalchemy.exc import IntegrityError
 
+    from app.api.deps import Principal
     from app.api.upload import _create_run, _Received
     from app.core.runstore import RunStore
     from app.io import ingest

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import io
 
-import httpx
 import numpy as np
 import pandas as pd
 import pytest
