@@ -29,11 +29,8 @@ class Keys:
         return {} if role is None else {"Authorization": f"Bearer {self.keys[role]}"}
 
 
-@pytest.fixture
-def secured(tmp_path: Path):
-    """An unauthenticated client on an app whose database holds a key per role and
-    users ``alice`` (admin), ``erin`` (engineer) and ``vic`` (viewer)."""
-    settings = make_settings(tmp_path)
+def _secured(tmp_path: Path, **overrides):
+    settings = make_settings(tmp_path, **overrides)
     migrate.upgrade(settings.database_url)
     keys = {role: create_api_key(settings.database_url, role) for role in ("viewer", "engineer", "admin")}
     db = Database(settings.database_url)
@@ -44,3 +41,18 @@ def secured(tmp_path: Path):
     db.dispose()
     with TestClient(create_app(settings), follow_redirects=False) as client:
         yield Keys(settings=settings, client=client, keys=keys)
+
+
+@pytest.fixture
+def secured(tmp_path: Path):
+    """An unauthenticated client on an app whose database holds a key per role and
+    users ``alice`` (admin), ``erin`` (engineer) and ``vic`` (viewer)."""
+    yield from _secured(tmp_path)
+
+
+@pytest.fixture(scope="module")
+def secured_shared(tmp_path_factory):
+    """Like ``secured``, shared by a module (rate limits lifted); tests clear its cookies."""
+    yield from _secured(
+        tmp_path_factory.mktemp("secured"), login_rate_limit=100_000, upload_rate_limit=100_000
+    )

@@ -63,6 +63,17 @@ def _open(path: Path, compression: str | None, limits: IngestLimits):
     return open(path, "rb")  # noqa: SIM115 - closed by the caller
 
 
+def _scan_gzip(path: Path, limits: IngestLimits) -> None:
+    """Decompress once without parsing: a bomb is refused before pandas sees a byte."""
+    try:
+        with BoundedGzipReader(path, limits.max_decoded_bytes(path.stat().st_size)) as raw:
+            buffer = bytearray(1 << 20)
+            while raw.readinto(buffer):
+                pass
+    except (OSError, EOFError, gzip.BadGzipFile) as exc:
+        raise RunFileError("file", f"cannot read gzip file: {exc}") from None
+
+
 def _first_line(path: Path, compression: str | None, limits: IngestLimits) -> str:
     try:
         with _open(path, compression, limits) as fh:
@@ -103,6 +114,8 @@ class CsvSource(Source):
         self._path = path
         self._compression = compression
         self._limits = limits
+        if compression == "gzip":
+            _scan_gzip(path, limits)
         header = _first_line(path, compression, limits)
         if not header.strip():
             raise RunFileError("file", "CSV file has no header row")
