@@ -100,7 +100,12 @@ def _parse_time(value: str | None, name: str) -> dt.datetime | None:
         parsed = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
     except ValueError:
         raise ApiError(422, name, f"not an ISO 8601 date or datetime: {value!r}") from None
-    return parsed if parsed.tzinfo else parsed.replace(tzinfo=dt.UTC)
+    if parsed.tzinfo is None:
+        parsed = parsed.replace(tzinfo=dt.UTC)
+    try:
+        return parsed.astimezone(dt.UTC)
+    except OverflowError:
+        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
 
 
 @router.get("/audit", response_model=AuditList, summary="Read the audit log (admin)")

@@ -67,7 +67,10 @@ def _parse_date(value: str | None, name: str, end_of_day: bool) -> dt.datetime |
         ) from None
     if parsed.tzinfo is None:
         parsed = parsed.replace(tzinfo=dt.UTC)
-    return parsed
+    try:
+        return parsed.astimezone(dt.UTC)
+    except OverflowError:
+        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
 
 
 @router.post(

@@ -270,3 +270,22 @@ def test_login_page_and_docs(secured):
     schema = secured.client.get("/openapi.json", headers=secured.headers("viewer")).json()
     assert schema["components"]["securitySchemes"]["bearerKey"]["scheme"] == "bearer"
     assert schema["paths"]["/api/v1/health"]["get"]["security"] == []
+
+
+@pytest.mark.parametrize(
+    "url",
+    [
+        "/api/v1/runs?date_to=9999-12-31T23:59:59-14:00",
+        "/api/v1/runs?date_from=0001-01-01T00:00:00%2B14:00",
+        "/api/v1/audit?since=9999-12-31T23:59:59-14:00",
+        "/api/v1/audit?until=0001-01-01T00:00:00%2B14:00",
+        "/api/v1/runs?limit=100000000000000000000000000",
+        "/api/v1/runs/1/profile?wheel=11&level=nan",
+        "/api/v1/runs/1/profile?wheel=11&km_from=inf",
+        "/api/v1/jobs?run_id=99999999999999999999",
+        "/api/v1/audit?limit=0",
+    ],
+)
+def test_out_of_range_query_parameters_are_422_not_500(secured, url):
+    r = secured.client.get(url, headers=secured.headers("admin"))
+    assert r.status_code == 422, r.text
