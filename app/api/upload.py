@@ -498,9 +498,12 @@ async def receive_and_create_run(
 def _record_rejection(
     db: Database, request: Request, principal: Principal, exc: ApiError, outcome: str
 ) -> None:
-    record_now(db, request, principal, "run.upload", outcome=outcome, detail={
-        "status": exc.status_code, "field": exc.field, "message": exc.message[:500],
-    })
+    try:
+        record_now(db, request, principal, "run.upload", outcome=outcome, detail={
+            "status": exc.status_code, "field": exc.field, "message": exc.message[:500],
+        })
+    except Exception:  # noqa: BLE001 - the client gets the rejection; the failure is logged
+        log.exception("could not write the audit entry of a rejected upload")
 
 
 async def _receive_and_create(
