@@ -118,7 +118,7 @@ def ingest(
             "metadata", f"metadata must be a JSON object, got {type(metadata).__name__}"
         )
     fmt_name, comp = resolve_format(src, fmt)
-    with open_source(src, fmt_name, comp) as source:
+    with open_source(src, fmt_name, comp, limits) as source:
         return _ingest(source, fmt_name, metadata, dest, limits, compression)
 
 

@@ -65,4 +65,7 @@ def test_migrate_command(tmp_path, monkeypatch):
     finally:
         get_settings.cache_clear()
     assert result.exit_code == 0, result.output
-    assert "0001_service_tables" in result.output
+    from app.db import migrate
+
+    head = migrate.current_revision(url)
+    assert head is not None and head in result.output
