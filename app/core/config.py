@@ -60,6 +60,16 @@ class Settings(BaseSettings):
     max_profile_rows : int
         Largest number of rows a JSON profile query returns (exports stream
         and are not limited).
+    max_reference_bytes : int
+        Largest accepted reference data file (subsidence, maintenance,
+        superstructure), bytes.
+    analytics_min_speed_kmh : float
+        Profile bins slower than this (km/h) are left out of the analytics.
+    analytics_reference_speed_kmh : float
+        Default reference speed of the speed-normalised indicator, km/h.
+    analytics_edge_trim_m : float
+        The first and last metres of every run's profile left out of the
+        analytics (filter end transients).
     """
 
     model_config = SettingsConfigDict(
@@ -81,6 +91,10 @@ class Settings(BaseSettings):
     log_level: str = "INFO"
     max_page_size: int = Field(default=500, ge=1)
     max_profile_rows: int = Field(default=200_000, ge=1)
+    max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
+    analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
+    analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
+    analytics_edge_trim_m: float = Field(default=50.0, ge=0)
 
     @field_validator("anonymous_role")
     @classmethod

@@ -132,7 +132,7 @@ def flag_segments(
     if keys.size:
         uniq, inv = np.unique(keys, axis=0, return_inverse=True)
         inv = inv.ravel()
-        for j, (s, g) in enumerate(uniq):
+        for j, (s, _g) in enumerate(uniq):
             m = inv == j
             if m.sum() < need:
                 continue
