@@ -123,7 +123,7 @@ def load_profiles(
                 select(ProfileBin.wheel, func.min(ProfileBin.bin), func.max(ProfileBin.bin))
                 .where(ProfileBin.run_id == run.id).group_by(ProfileBin.wheel)
             ).all()
-            df = crud.profile_rows(session, run.id, wheel=wheel, km_from=km_from, km_to=km_to)
+            df = _rows(session, run.id, wheel, km_from, km_to)
             if df.empty:
                 continue
             lo = df["wheel"].map({w: b0 for w, b0, _ in ext})
@@ -137,6 +137,29 @@ def load_profiles(
     if not frames:
         return pd.DataFrame({c: pd.Series(dtype=object if c == "wheel" else float) for c in _COLS})
     return pd.concat(frames, ignore_index=True)
+
+
+def _rows(session, run_id: int, wheel: str | None, km_from: float | None, km_to: float | None) -> pd.DataFrame:
+    """The analytics' columns of a run's profile rows (ordered by wheel and bin)."""
+    cols = [ProfileBin.wheel, ProfileBin.bin, ProfileBin.km, ProfileBin.speed_mean,
+            ProfileBin.sleeper_amp, ProfileBin.sleeper_force_amp]
+    cond = [ProfileBin.run_id == run_id]
+    if wheel is not None:
+        cond.append(ProfileBin.wheel == wheel)
+    if km_from is not None:
+        cond.append(ProfileBin.km >= km_from)
+    if km_to is not None:
+        cond.append(ProfileBin.km <= km_to)
+    rows = session.connection().execute(
+        select(*cols).where(*cond).order_by(ProfileBin.wheel, ProfileBin.bin)).all()
+    names = ["wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
+    if not rows:
+        return pd.DataFrame(columns=names)
+    w, b, *rest = zip(*rows, strict=True)
+    out = {"wheel": np.array(w, dtype=object), "bin": np.array(b, dtype=np.int64)}
+    for name, vals in zip(names[2:], rest, strict=True):
+        out[name] = np.array(vals, dtype=np.float64)  # None -> NaN
+    return pd.DataFrame(out)
 
 
 def per_bin(df: pd.DataFrame, column: str = "sleeper_amp") -> pd.DataFrame:

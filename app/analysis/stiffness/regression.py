@@ -66,6 +66,40 @@ def _nan_fit(n: int, lag: int, confidence: float) -> LinearFit:
     return LinearFit(nan, nan, (nan, nan), (nan, nan), nan, nan, nan, nan, nan, nan, n, lag, confidence)
 
 
+def _series_bounds(groups: np.ndarray | None, n: int) -> list[tuple[int, int]]:
+    if groups is None:
+        return [(0, n)]
+    cut = np.flatnonzero(groups[1:] != groups[:-1]) + 1
+    edges = np.r_[0, cut, n]
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True))
+
+
+def _hac_meat(u: np.ndarray, groups: np.ndarray | None, lag: int) -> np.ndarray:
+    """Newey–West ``S = G_0 + sum_k w_k (G_k + G_k^T)`` of ``u`` (p, n) within each series.
+
+    Lagged products ``G_k = sum_t u_t u_{t-k}^T`` come from FFT cross-correlations.
+    """
+    p, n = u.shape
+    s = u @ u.T
+    if lag == 0:
+        return s
+    w = 1.0 - np.arange(1, lag + 1) / (lag + 1.0)
+    for a, b in _series_bounds(groups, n):
+        m = b - a
+        if m < 2:
+            continue
+        k = min(lag, m - 1)
+        nfft = 1 << int(np.ceil(np.log2(2 * m)))
+        f = np.fft.rfft(u[:, a:b], n=nfft)
+        for i in range(p):
+            for j in range(p):
+                c = np.fft.irfft(f[i] * np.conj(f[j]), n=nfft)[1: k + 1]  # sum_t u_i[t+k] u_j[t]
+                g = float(w[:k] @ c)
+                s[i, j] += g
+                s[j, i] += g
+    return s
+
+
 def linear_fit(
     x: np.ndarray,
     y: np.ndarray,
@@ -126,16 +160,7 @@ def linear_fit(
     r = float(np.corrcoef(x, y)[0, 1]) if syy > 0 else float("nan")
 
     # HAC covariance of (intercept, slope): (X'X)^-1 S (X'X)^-1, S over u_t = x_t e_t
-    u = np.stack([resid, x * resid])  # (2, n)
-    s = u @ u.T
-    for k in range(1, min(lag, n - 1) + 1):
-        w = 1.0 - k / (lag + 1.0)
-        a, b = u[:, k:], u[:, :-k]
-        if groups is not None:
-            same = groups[k:] == groups[:-k]
-            a, b = a[:, same], b[:, same]
-        g = a @ b.T
-        s += w * (g + g.T)
+    s = _hac_meat(np.stack([resid, x * resid]), groups, lag)
     xtx = np.array([[n, x.sum()], [x.sum(), float(x @ x)]])
     inv = np.linalg.inv(xtx)
     cov = inv @ s @ inv * (n / (n - 2))
