@@ -109,13 +109,25 @@ def _subsidence_wheel(wheel, amp, u, groups, lag, confidence=0.95):
 def subsidence_fit(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
                    run_ids: RunIdsQ = None, km_from: KmFromQ = None, km_to: KmToQ = None,
                    wheel: WheelQ = None,
-                   confidence: Annotated[float, Query(gt=0.5, lt=1)] = 0.95) -> dict:
+                   confidence: Annotated[float, Query(gt=0.5, lt=1)] = 0.95,
+                   normalise: Annotated[bool, Query(
+                       description="fit on the amplitude normalised to reference_speed_kmh")] = False,
+                   reference_speed_kmh: RefSpeedQ = None) -> dict:
     """Fit u (mm) = slope · ln(Z / 1 m/s²) + intercept on 25 cm bins with both a
     sleeper-passage amplitude Z and a subsidence value of the wheel's rail (or of
-    both rails). Intervals: ``confidence`` (default 95 %), Newey–West over 100 m."""
+    both rails). Intervals: ``confidence`` (default 95 %), Newey–West over 100 m.
+    With ``normalise`` Z is the speed-normalised amplitude (runs of different speeds pool)."""
     sel = _sel(db, line_id, track, run_ids, km_from, km_to)
     w = _wheel(wheel)
     df = data.load_profiles(db, settings, sel, km_from=km_from, km_to=km_to, wheel=w)
+    if normalise and not df.empty:
+        ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
+        min_v = settings.analytics_min_speed_kmh
+        _, fits = _norm_context(db, settings, sel, df, ref_v, min_v)
+        namp, _ = data.normalised(df, data.reference(db, "superstructure", sel), fits, sel.bin_length,
+                                  ref_v, min_v)
+        df = df.assign(sleeper_amp=namp)
+        df = df[np.isfinite(df["sleeper_amp"].to_numpy())]
     sub = data.reference(db, "subsidence", sel, km_from=km_from, km_to=km_to)
     wheels = []
     for wh in ([w] if w else sorted(set(df["wheel"]))):

@@ -51,6 +51,18 @@ def test_subsidence_fit_recovers_truth_per_wheel(api, sim_set, name):
         assert w["rmse"] < 2 * sim_set.reference.subsidence_noise_mm
 
 
+def test_subsidence_fit_on_speed_normalised_amplitude_pools_speeds(api, sim_set):
+    client, ids = api
+    params = {"line_id": LINE_ID, "track": TRACK, "run_ids": f"{ids['A']},{ids['C']}", "confidence": 0.99}
+    raw = _get(client, "/analytics/subsidence-fit", **params)
+    body = _get(client, "/analytics/subsidence-fit", normalise="true", reference_speed_kmh=100, **params)
+    a, b = sim_set.reference.subsidence_slope_mm, sim_set.reference.subsidence_intercept_mm
+    for w, r in zip(body["wheels"], raw["wheels"], strict=True):
+        # the estimated speed exponent adds its own (small) error: fixed tolerances here
+        assert abs(w["slope"] - a) < 0.02 and abs(w["intercept"] - b) < 0.01, (w["slope"], w["intercept"])
+        assert w["rmse"] < 0.8 * r["rmse"]  # mixing speeds blurs the raw fit
+
+
 def test_unsprung_mass_within_5_percent(api, sim_set):
     client, ids = api
     body = _get(client, "/analytics/unsprung-mass", line_id=LINE_ID, track=TRACK)
