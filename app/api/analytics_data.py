@@ -20,7 +20,7 @@ from app.db import crud, reference_crud
 from app.db.models import ProfileBin, Run
 from app.db.session import Database
 
-__all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "per_bin", "reference",
+__all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
            "speed_exponents", "normalised", "section_types", "num", "nums"]
 
 _COLS = ["run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
@@ -160,15 +160,6 @@ def _rows(session, run_id: int, wheel: str | None, km_from: float | None, km_to:
     for name, vals in zip(names[2:], rest, strict=True):
         out[name] = np.array(vals, dtype=np.float64)  # None -> NaN
     return pd.DataFrame(out)
-
-
-def per_bin(df: pd.DataFrame, column: str = "sleeper_amp") -> pd.DataFrame:
-    """Mean of ``column`` over the wheels per (run, bin): columns run_id, bin, km, value, speed_mean."""
-    if df.empty:
-        return pd.DataFrame(columns=["run_id", "bin", "km", "value", "speed_mean"])
-    g = df.groupby(["run_id", "bin"], sort=True)
-    out = g.agg(km=("km", "mean"), value=(column, "mean"), speed_mean=("speed_mean", "mean")).reset_index()
-    return out
 
 
 def reference(db: Database, kind: str, sel: Selection, **kw) -> pd.DataFrame:
