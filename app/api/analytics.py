@@ -75,10 +75,11 @@ def _lag(sel) -> int:
 
 
 def _subsidence_pairs(df: pd.DataFrame, sub: pd.DataFrame, wheel: str, bin_length: float):
-    """(amplitude, subsidence, run group, km) of bins of ``wheel`` with a subsidence value of its rail."""
+    """(amplitude, subsidence, run group, mask of the wheel's rows) of bins of ``wheel`` with a
+    subsidence value of its rail."""
     pw = df[df["wheel"] == wheel]
     if sub.empty or pw.empty:
-        return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)
+        return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(len(pw), dtype=bool)
     rail = sub["rail"].to_numpy(dtype=np.float64, na_value=np.nan)
     side = int(wheel[1])
     own = sub[rail == side]
@@ -87,7 +88,7 @@ def _subsidence_pairs(df: pd.DataFrame, sub: pd.DataFrame, wheel: str, bin_lengt
     bins = pw["bin"].to_numpy()
     m = np.isin(bins, sb)
     return (pw["sleeper_amp"].to_numpy()[m], sv[np.searchsorted(sb, bins[m])],
-            pw["run_id"].to_numpy()[m], pw["km"].to_numpy()[m])
+            pw["run_id"].to_numpy()[m], m)
 
 
 def _subsidence_wheel(wheel, amp, u, groups, lag, confidence=0.95):
@@ -165,8 +166,8 @@ def predicted_subsidence(run_id: RunId, db: DbDep, settings: SettingsDep,
         else np.full(z.size, np.nan)
     measured = np.full(z.size, np.nan)
     if not sub.empty and z.size:
-        a2, u2, g2, km2 = _subsidence_pairs(df, sub, w, fit_sel.bin_length)
-        measured[np.isin(df["km"].to_numpy(), km2)] = u2
+        _, u2, _, has = _subsidence_pairs(df, sub, w, fit_sel.bin_length)  # df holds wheel w only
+        measured[has] = u2
     if model is not None:
         model["points"] = {"amplitude": [], "subsidence_mm": []}
     return {"run_id": run_id, "wheel": w, "log_base": LOG_BASE, "model": model,
