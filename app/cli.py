@@ -112,6 +112,9 @@ def simulate(
     fs: Annotated[float, typer.Option(help="Sample rate, Hz")] = 10_000.0,
     seed: Annotated[int, typer.Option(help="Random seed")] = 0,
     forces: Annotated[bool, typer.Option(help="Also simulate Q (force) channels")] = True,
+    reference: Annotated[bool, typer.Option(
+        help="Also write matching subsidence, maintenance and superstructure CSV files "
+        "(OUT stem + '-reference/')")] = False,
 ) -> None:
     """Write a synthetic run in the canonical format with its ground truth beside it."""
     from app.simulate.run import simulate_run
@@ -123,6 +126,13 @@ def simulate(
     truth_path = getattr(truth, "path", None)
     if truth_path:
         _echo(f"ground truth: {truth_path}")
+    if reference:
+        from app.simulate.reference import simulate_reference
+
+        meta_line = "SIM"  # simulate_run's default line_id and track
+        ref = simulate_reference(truth.line, out.with_name(f"{out.stem}-reference"), line_id=meta_line,
+                                 track="1", seed=seed)
+        _echo("reference data: " + ", ".join(ref.files[k] for k in ("subsidence", "maintenance", "superstructure")))
 
 
 def _file_sha256(path: Path) -> str:

@@ -1,6 +1,7 @@
 """REST API of trackvkf under ``/api/v1``.
 
-Routers by resource: runs, jobs, profiles, wheels, health, auth, audit. Every
+Routers by resource: runs, jobs, profiles, wheels, reference data, analytics,
+health, auth, audit. Every
 route declares its access policy through a dependency (see
 :func:`app.api.deps.route_policy`): ``public`` (health, login), or
 ``require_role(role)`` — the resource routers below get ``viewer`` for all their
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Depends
 
-from app.api import audit, auth, health, jobs, profiles, runs, wheels
+from app.api import analytics, audit, auth, health, jobs, profiles, reference, runs, wheels
 from app.api.deps import public, require_role
 
 __all__ = ["build_api_router", "API_PREFIX"]
@@ -25,7 +26,7 @@ def build_api_router() -> APIRouter:
     api.include_router(health.router, dependencies=[Depends(public)])
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
-    for module in (runs, jobs, profiles, wheels, auth, audit):
+    for module in (runs, jobs, profiles, wheels, reference, analytics, auth, audit):
         protected.include_router(module.router)
     api.include_router(protected)
     return api

@@ -40,6 +40,7 @@ ACTIONS: tuple[str, ...] = (
     "job.create",
     "job.cancel",
     "reference.import",
+    "reference.delete",
 )
 
 router = APIRouter(tags=["audit"], dependencies=[Depends(require_role("admin"))])

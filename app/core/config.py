@@ -88,6 +88,16 @@ class Settings(BaseSettings):
     upload_rate_limit, upload_rate_window_s : int, float
         At most ``upload_rate_limit`` uploads per principal (API key or user)
         within ``upload_rate_window_s`` seconds (per API process).
+    max_reference_bytes : int
+        Largest accepted reference data file (subsidence, maintenance,
+        superstructure), bytes.
+    analytics_min_speed_kmh : float
+        Profile bins slower than this (km/h) are left out of the analytics.
+    analytics_reference_speed_kmh : float
+        Default reference speed of the speed-normalised indicator, km/h.
+    analytics_edge_trim_m : float
+        The first and last metres of every run's profile left out of the
+        analytics (filter end transients).
     """
 
     model_config = SettingsConfigDict(
@@ -118,6 +128,10 @@ class Settings(BaseSettings):
     login_rate_window_s: float = Field(default=60.0, gt=0)
     upload_rate_limit: int = Field(default=60, ge=1)
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
+    max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
+    analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
+    analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
+    analytics_edge_trim_m: float = Field(default=50.0, ge=0)
 
     @field_validator("anonymous_role")
     @classmethod

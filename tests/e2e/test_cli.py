@@ -65,7 +65,9 @@ def test_migrate_command(tmp_path, monkeypatch):
     finally:
         get_settings.cache_clear()
     assert result.exit_code == 0, result.output
-    from app.db import migrate
+    from alembic.script import ScriptDirectory
 
-    head = migrate.current_revision(url)
-    assert head is not None and head in result.output
+    from app.db.migrate import alembic_config
+
+    head = ScriptDirectory.from_config(alembic_config(url)).get_current_head()
+    assert head and head in result.output

@@ -1,7 +1,7 @@
 """Access control and audit: users, sessions, api_keys, audit_log (append-only).
 
-Revision ID: 0004_auth_audit
-Revises: 0001_service_tables
+Revision ID: 0003_auth_audit
+Revises: 0002_reference_data
 Create Date: 2026-11-22
 """
 
@@ -11,8 +11,8 @@ import sqlalchemy as sa
 from alembic import op
 from sqlalchemy.dialects import postgresql
 
-revision: str = "0004_auth_audit"
-down_revision: str | None = "0001_service_tables"
+revision: str = "0003_auth_audit"
+down_revision: str | None = "0002_reference_data"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
