@@ -1,4 +1,5 @@
-"""Command line of trackvkf: ``serve``, ``worker``, ``migrate``, ``demo``, ``simulate``, ``process``.
+"""Command line of trackvkf: ``serve``, ``worker``, ``migrate``, ``demo``, ``simulate``,
+``process``, ``user`` (create, set-password, list) and ``key`` (create, revoke, list).
 
 Every command reads the service settings from ``TRACKVKF_*`` environment
 variables (see :class:`app.core.config.Settings`).
@@ -35,6 +36,26 @@ def _echo(message: str) -> None:
     typer.echo(message, err=False)
 
 
+def _refuse_unsafe_production() -> None:
+    """Exit with a message when production mode is configured unsafely."""
+    from app.core.config import ProductionConfigError
+    from app.db.session import Database
+    from app.main import check_production_database
+
+    settings = get_settings()
+    try:
+        settings.check_production()
+        if settings.is_production:
+            db = Database(settings.database_url)
+            try:
+                check_production_database(db)
+            finally:
+                db.dispose()
+    except ProductionConfigError as exc:
+        typer.echo(f"error: refusing to start in production mode: {exc}", err=True)
+        raise typer.Exit(2) from None
+
+
 # --- service ----------------------------------------------------------------
 @app.command()
 def serve(
@@ -42,9 +63,14 @@ def serve(
     port: Annotated[int, typer.Option(help="TCP port")] = 8000,
     log_level: Annotated[str, typer.Option(help="uvicorn log level")] = "info",
 ) -> None:
-    """Run the REST API (uvicorn). Migrate the database first (``trackvkf migrate``)."""
+    """Run the REST API (uvicorn). Migrate the database first (``trackvkf migrate``).
+
+    With ``TRACKVKF_ENV=production`` it refuses to start without a secret key
+    of its own or while a user still has the password printed by ``demo``.
+    """
     import uvicorn
 
+    _refuse_unsafe_production()
     uvicorn.run(
         "app.main:create_app", factory=True, host=host, port=port, log_level=log_level.lower()
     )
@@ -86,6 +112,9 @@ def simulate(
     fs: Annotated[float, typer.Option(help="Sample rate, Hz")] = 10_000.0,
     seed: Annotated[int, typer.Option(help="Random seed")] = 0,
     forces: Annotated[bool, typer.Option(help="Also simulate Q (force) channels")] = True,
+    reference: Annotated[bool, typer.Option(
+        help="Also write matching subsidence, maintenance and superstructure CSV files "
+        "(OUT stem + '-reference/')")] = False,
 ) -> None:
     """Write a synthetic run in the canonical format with its ground truth beside it."""
     from app.simulate.run import simulate_run
@@ -97,6 +126,13 @@ def simulate(
     truth_path = getattr(truth, "path", None)
     if truth_path:
         _echo(f"ground truth: {truth_path}")
+    if reference:
+        from app.simulate.reference import simulate_reference
+
+        meta_line = "SIM"  # simulate_run's default line_id and track
+        ref = simulate_reference(truth.line, out.with_name(f"{out.stem}-reference"), line_id=meta_line,
+                                 track="1", seed=seed)
+        _echo("reference data: " + ", ".join(ref.files[k] for k in ("subsidence", "maintenance", "superstructure")))
 
 
 def _file_sha256(path: Path) -> str:
@@ -234,6 +270,220 @@ def process(
     )
 
 
+# --- users and API keys ---------------------------------------------------------------
+user_app = typer.Typer(no_args_is_help=True, help="Browser users (stored with Argon2id password hashes).")
+key_app = typer.Typer(no_args_is_help=True, help="API keys of data systems (stored hashed, shown once).")
+app.add_typer(user_app, name="user")
+app.add_typer(key_app, name="key")
+
+_CLI_ACTOR = "cli"
+
+
+def _database():
+    from app.db.session import Database
+
+    return Database(get_settings().database_url)
+
+
+def _cli_audit(session, action: str, target: str, detail: dict | None = None) -> None:
+    from app.db import auth_crud
+
+    auth_crud.audit(
+        session, actor=f"{_CLI_ACTOR}:{os.environ.get('USER', 'unknown')}", actor_kind="cli",
+        action=action, target=target, detail=detail,
+    )
+
+
+def _new_password() -> str:
+    import secrets
+
+    return secrets.token_urlsafe(12)
+
+
+@user_app.command("create")
+def user_create(
+    username: Annotated[str, typer.Argument(help="Login name")],
+    role: Annotated[str, typer.Option(help="viewer, engineer or admin")] = "viewer",
+    password: Annotated[
+        str | None,
+        typer.Option(help="Password (>= 10 characters); prompted when omitted, "
+                     "or generated and printed with --generate"),
+    ] = None,
+    generate: Annotated[bool, typer.Option(help="Generate a password and print it")] = False,
+) -> None:
+    """Create a browser user with a role."""
+    from app.db import auth_crud
+
+    if password is None:
+        password = _new_password() if generate else typer.prompt(
+            "password", hide_input=True, confirmation_prompt=True
+        )
+    db = _database()
+    try:
+        with db.write() as session:
+            auth_crud.create_user(session, username, password, role, created_by=_CLI_ACTOR)
+            _cli_audit(session, "user.create", username, {"role": role})
+    except auth_crud.AuthError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    finally:
+        db.dispose()
+    _echo(f"user {username} ({role}) created")
+    if generate:
+        _echo(f"password: {password}")
+
+
+@user_app.command("set-password")
+def user_set_password(
+    username: Annotated[str, typer.Argument(help="Login name")],
+    password: Annotated[str | None, typer.Option(help="New password; prompted when omitted")] = None,
+    generate: Annotated[bool, typer.Option(help="Generate a password and print it")] = False,
+) -> None:
+    """Set a user's password (ends its sessions; clears the demo-credentials mark)."""
+    from app.db import auth_crud
+
+    if password is None:
+        password = _new_password() if generate else typer.prompt(
+            "new password", hide_input=True, confirmation_prompt=True
+        )
+    db = _database()
+    try:
+        with db.write() as session:
+            if auth_crud.update_user(session, username, password=password) is None:
+                typer.echo(f"error: no user {username!r}", err=True)
+                raise typer.Exit(2)
+            _cli_audit(session, "user.update", username, {"password": "changed"})
+    except auth_crud.AuthError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    finally:
+        db.dispose()
+    _echo(f"password of {username} changed")
+    if generate:
+        _echo(f"password: {password}")
+
+
+@user_app.command("list")
+def user_list() -> None:
+    """List users: name, role, active, last login."""
+    from app.db import auth_crud
+
+    db = _database()
+    try:
+        with db.read() as session:
+            for u in auth_crud.list_users(session):
+                flags = ("" if u.active else " inactive") + (" demo-credentials" if u.demo_credentials else "")
+                _echo(f"{u.username}\t{u.role}\tlast login {u.last_login_at or '-'}{flags}")
+    finally:
+        db.dispose()
+
+
+@key_app.command("create")
+def key_create(
+    name: Annotated[str, typer.Argument(help="What the key is for (e.g. the data system)")],
+    role: Annotated[str, typer.Option(help="viewer, engineer or admin")] = "engineer",
+    expires_in_days: Annotated[int | None, typer.Option(help="Lifetime in days (default: none)")] = None,
+) -> None:
+    """Create an API key and print it once (only its hash is stored)."""
+    import datetime as dt
+
+    from app.db import auth_crud
+    from app.db.models import utcnow
+
+    expires = utcnow() + dt.timedelta(days=expires_in_days) if expires_in_days else None
+    db = _database()
+    try:
+        with db.write() as session:
+            row, key = auth_crud.create_api_key(
+                session, name, role, created_by=_CLI_ACTOR, expires_at=expires
+            )
+            _cli_audit(session, "key.create", str(row.id), {"name": name, "role": role, "prefix": row.prefix})
+            key_id = row.id
+    except auth_crud.AuthError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    finally:
+        db.dispose()
+    typer.echo(f"API key {key_id} ({name}, {role}); shown once, keep it safe:", err=True)
+    _echo(key)
+
+
+@key_app.command("revoke")
+def key_revoke(key_id: Annotated[int, typer.Argument(help="Key id (see `trackvkf key list`)")]) -> None:
+    """Revoke an API key."""
+    from app.db import auth_crud
+
+    db = _database()
+    try:
+        with db.write() as session:
+            row = auth_crud.revoke_api_key(session, key_id)
+            if row is None:
+                typer.echo(f"error: no API key {key_id}", err=True)
+                raise typer.Exit(2)
+            _cli_audit(session, "key.revoke", str(key_id), {"name": row.name})
+    finally:
+        db.dispose()
+    _echo(f"API key {key_id} revoked")
+
+
+@key_app.command("list")
+def key_list() -> None:
+    """List API keys: id, prefix, name, role, last use, revocation."""
+    from app.db import auth_crud
+
+    db = _database()
+    try:
+        with db.read() as session:
+            for k in auth_crud.list_api_keys(session):
+                state = f"revoked {k.revoked_at}" if k.revoked_at else "active"
+                _echo(f"{k.id}\ttvk_{k.prefix}_…\t{k.name}\t{k.role}\tlast used {k.last_used_at or '-'}\t{state}")
+    finally:
+        db.dispose()
+
+
+def _demo_credentials(settings) -> tuple[str | None, str, int]:
+    """Create the demo admin on first start; a short-lived upload key every start.
+
+    Returns the admin password when it was created now (else None) and the key.
+    """
+    import datetime as dt
+
+    from app.db import auth_crud
+    from app.db.models import utcnow
+
+    db = _database()
+    password = None
+    try:
+        with db.write() as session:
+            if auth_crud.count_users(session) == 0:
+                password = _new_password()
+                auth_crud.create_user(
+                    session, "admin", password, "admin", created_by="demo", demo_credentials=True
+                )
+                _cli_audit(session, "user.create", "admin", {"role": "admin", "by": "demo"})
+            row, key = auth_crud.create_api_key(
+                session, "demo-upload", "engineer", created_by="demo",
+                expires_at=utcnow() + dt.timedelta(hours=1),
+            )
+            _cli_audit(session, "key.create", str(row.id), {"name": row.name, "role": row.role, "by": "demo"})
+            key_id = row.id
+    finally:
+        db.dispose()
+    return password, key, key_id
+
+
+def _revoke_demo_key(key_id: int) -> None:
+    from app.db import auth_crud
+
+    db = _database()
+    try:
+        with db.write() as session:
+            auth_crud.revoke_api_key(session, key_id)
+            _cli_audit(session, "key.revoke", str(key_id), {"name": "demo-upload", "by": "demo"})
+    finally:
+        db.dispose()
+
+
 # --- demo ---------------------------------------------------------------------------
 def _port_free(host: str, port: int) -> bool:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
@@ -289,8 +539,12 @@ def demo(
     from app.db import migrate as db_migrate
 
     settings = get_settings()
+    if settings.is_production:
+        typer.echo("error: the demo does not run with TRACKVKF_ENV=production", err=True)
+        raise typer.Exit(2)
     db_migrate.upgrade(settings.database_url)
     _echo(f"database ready: {settings.database_url}")
+    admin_password, upload_key, upload_key_id = _demo_credentials(settings)
 
     demo_dir = Path(settings.run_store).resolve().parent / "demo"
     run_file = demo_dir / f"demo-run-{length_km:g}km-{fs:g}Hz.h5"
@@ -324,7 +578,8 @@ def demo(
     try:
         _wait_healthy(base, procs)
         _echo(f"API up at {base}; uploading the demo run ...")
-        with open(run_file, "rb") as fh, httpx.Client(timeout=600) as client:
+        headers = {"Authorization": f"Bearer {upload_key}"}
+        with open(run_file, "rb") as fh, httpx.Client(timeout=600, headers=headers) as client:
             resp = client.post(
                 f"{base}/api/v1/runs",
                 files={"file": (run_file.name, fh, "application/x-hdf5")},
@@ -348,7 +603,20 @@ def demo(
                         raise RuntimeError(f"process {p.args} exited with {p.returncode}")
                 job = client.get(f"{base}/api/v1/jobs/{job['id']}").json()
             _echo(f"  job {job['id']} {job['status']}" + (f": {job['error']}" if job["error"] else ""))
+        _revoke_demo_key(upload_key_id)
         runs = f"{base}/api/v1/runs/{run_id}"
+        if admin_password is not None:
+            login = (
+                "Log in (first start: these credentials are printed once and stored hashed;\n"
+                "change the password with `trackvkf user set-password admin`):\n"
+                f"  user admin\n  password {admin_password}\n"
+            )
+        else:
+            login = (
+                "Log in as admin with the password printed at the first demo start\n"
+                "(forgotten: `trackvkf user set-password admin --generate`).\n"
+            )
+        _echo(f"\n{login}  login page               {base}/login")
         _echo(
             "\nWhere to look:\n"
             f"  API docs (OpenAPI)       {base}/docs\n"

@@ -11,16 +11,19 @@ from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
 
-from app.api import build_api_router
+from app.api import API_PREFIX, build_api_router
 from app.api.errors import install_error_handlers
 from app.api.health import software_version
-from app.core.config import Settings, get_settings
+from app.api.login_page import install_protected_docs
+from app.api.login_page import router as login_page_router
+from app.core.config import ProductionConfigError, Settings, get_settings
 from app.core.logging import configure_logging
+from app.core.ratelimit import RateLimiter
 from app.core.runstore import RunStore
 from app.db.session import Database
 from app.web import install_pages
 
-__all__ = ["create_app"]
+__all__ = ["create_app", "check_production_database"]
 
 log = logging.getLogger(__name__)
 
@@ -36,7 +39,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """
     settings = settings or get_settings()
     configure_logging(settings.log_level)
+    settings.check_production()
     db = Database(settings.database_url)
+    if settings.is_production:
+        check_production_database(db)
     store = RunStore(settings.run_store)
     store.root.mkdir(parents=True, exist_ok=True)
 
@@ -65,12 +71,45 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             "Upload a run, follow its processing job, read indicator profiles and wheel OOR."
         ),
         lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
+        openapi_url=None,
     )
     app.state.settings = settings
     app.state.db = db
     app.state.store = store
+    app.state.login_limiter = RateLimiter(settings.login_rate_limit, settings.login_rate_window_s)
+    app.state.upload_limiter = RateLimiter(settings.upload_rate_limit, settings.upload_rate_window_s)
     install_error_handlers(app)
     app.include_router(build_api_router())
+    app.include_router(login_page_router)
+    install_protected_docs(app, {f"{API_PREFIX}/health", f"{API_PREFIX}/auth/login"})
     install_pages(app)  # dashboard: HTML pages at /, /runs/{id}, ..., /static, Plotly.js
 
     return app
+
+
+def check_production_database(db: Database) -> None:
+    """Refuse production mode while a user with printed demo credentials is active.
+
+    Raises
+    ------
+    ProductionConfigError
+        Naming the users (change their password or deactivate them first).
+    """
+    from app.db import auth_crud
+
+    try:
+        with db.read() as session:
+            demo_users = auth_crud.active_demo_users(session)
+    except Exception as exc:  # noqa: BLE001 - an unmigrated database is refused too
+        raise ProductionConfigError(
+            f"cannot check the users of {db.url}: {exc}; run `trackvkf migrate`"
+        ) from None
+    if demo_users:
+        raise ProductionConfigError(
+            "default credentials: user(s) "
+            + ", ".join(repr(u) for u in demo_users)
+            + " still have the password printed by `trackvkf demo`; change it "
+            "(`trackvkf user set-password NAME`) or deactivate them before production use"
+        )

@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 
 from app.core.config import Settings
-from tests.api.support import make_settings
+from tests.api.support import auth_headers, create_api_key, make_settings
 
 
 @pytest.fixture
@@ -29,7 +29,10 @@ def service_settings(tmp_path: Path) -> Settings:
 @pytest.fixture
 def make_client(tmp_path: Path) -> Iterator[Callable[..., Any]]:
     """Factory of API test clients on a migrated database; keyword arguments
-    override settings (e.g. ``max_upload_bytes``). Clients are closed at teardown."""
+    override settings (e.g. ``max_upload_bytes``). Clients are closed at teardown.
+
+    Each client authenticates with an admin API key of its database (real
+    authentication: ``client.api_key``; ``role=`` picks another role)."""
     from fastapi.testclient import TestClient
 
     from app.db import migrate
@@ -37,12 +40,14 @@ def make_client(tmp_path: Path) -> Iterator[Callable[..., Any]]:
 
     clients: list[TestClient] = []
 
-    def factory(**overrides: Any) -> TestClient:
+    def factory(role: str = "admin", **overrides: Any) -> TestClient:
         settings = make_settings(tmp_path, **overrides)
         migrate.upgrade(settings.database_url)
-        client = TestClient(create_app(settings))
+        key = create_api_key(settings.database_url, role)
+        client = TestClient(create_app(settings), headers=auth_headers(key))
         client.__enter__()
         client.settings = settings  # type: ignore[attr-defined]
+        client.api_key = key  # type: ignore[attr-defined]
         clients.append(client)
         return client
 

@@ -34,6 +34,7 @@ import pandas as pd
 
 from app.analysis.binning import BinSums, position_to_bin
 from app.analysis.chunking import Chunk, plan_chunk_layout
+from app.analysis.order_residual import railway_residual
 from app.analysis.orders import OrderTrack, railway_multipliers
 from app.analysis.settings import ProcessingSettings
 from app.analysis.vkf import vkf, vkf_overlap
@@ -160,35 +161,57 @@ def _residual_sums(
 ) -> BinSums:
     """Crossfade-weighted Σ residual² per bin at the full rate, block by block.
 
-    The orders are ``mult[n] × speed`` with wheel orders ``l × mult[1]``, so
-    their phasors are powers of one phasor: the waveform sum is evaluated by
-    Horner's scheme (one complex exponential per sample for the wheel orders
-    and one for the sleeper order). Envelopes are interpolated linearly from
-    the output grid (spacing ≤ 5 cm, ≥ 100x the filter bandwidth).
+    Parameters
+    ----------
+    y : ndarray, shape (N_chunk,)
+        Measured acceleration of one wheel over the chunk, m/s².
+    env : ndarray, complex, shape (s, m)
+        Envelopes (peak phasors) of the orders on the output grid ``out_idx``.
+    out_idx : ndarray of int, shape (m,)
+        Regular output grid ``out_lo, out_lo + step, …`` (global samples).
+    psi : ndarray, shape (N_chunk,)
+        Phase per unit multiplier (order phase = ``mult[n] × psi``), rad.
+
+    Notes
+    -----
+    The waveforms are evaluated by :func:`app.analysis.order_residual.railway_residual`
+    (envelopes linear between grid points: spacing ≤ 5 cm, ≥ 100x the filter
+    bandwidth), one block of grid intervals at a time.
     """
-    n_wheel = mult.size - 1
+    step = int(out_idx[1] - out_idx[0]) if out_idx.size > 1 else 1
+    base = int(out_idx[0])
+    rows_per_block = max(1, _BLOCK // step)
+    n_rows = -(-(chunk.out_hi - base) // step)
     parts = []
-    for a in range(chunk.out_lo, chunk.out_hi, _BLOCK):
+    for r0 in range(0, n_rows, rows_per_block):
         if should_cancel():
             raise PipelineCancelled(f"cancelled in chunk {chunk.index}")
-        b = min(a + _BLOCK, chunk.out_hi)
+        r1 = min(r0 + rows_per_block, n_rows)
+        a = base + r0 * step
+        b = min(base + r1 * step, chunk.out_hi)
+        r = railway_residual(y[a - lo : b - lo], psi[a - lo : b - lo], env[:, r0 : r1 + 1], step, mult)
         idx = np.arange(a, b)
-        ph = psi[a - lo : b - lo]
-        e1 = np.exp(1j * mult[1] * ph)
-        es = np.exp(1j * mult[0] * ph)
-
-        def at(n: int, idx: np.ndarray = idx) -> np.ndarray:
-            e = env[0, n]
-            return np.interp(idx, out_idx, e.real) + 1j * np.interp(idx, out_idx, e.imag)
-
-        acc = at(n_wheel)
-        for n in range(n_wheel - 1, 0, -1):
-            acc = acc * e1 + at(n)
-        x = (acc * e1 + at(0) * es).real
-        r = y[0, a - lo : b - lo] - x
         w = chunk.weight(idx) * keep(idx)
         parts.append(BinSums.from_samples(bins_of(idx), w, {"residual": r}, squares=("residual",)))
     return BinSums.merge_all(parts)
+
+
+def _wheel_groups(run: Any, settings: ProcessingSettings) -> list[tuple[list[str], np.ndarray, float]]:
+    """Wheels present in the run, grouped by diameter: (wheels, multipliers, d_w).
+
+    Wheels with equal diameters have the same orders, so their channels share
+    one factorisation of the VKF system.
+    """
+    groups: dict[float, list[str]] = {}
+    for wheel in WHEELS:
+        if run.has(f"Z{wheel}"):
+            d_w = float(run.metadata.wheel_diameters.get(wheel, 0.92))
+            groups.setdefault(d_w, []).append(wheel)
+    out = []
+    for d_w, wheels in groups.items():
+        mult, _ = _wheel_orders(run, wheels[0], settings)
+        out.append((wheels, mult, d_w))
+    return out
 
 
 def process_chunk(
@@ -209,12 +232,17 @@ def process_chunk(
     out_path : Path
         Target ``.npz``; written via a temporary file and ``os.replace``.
     should_cancel : callable
-        Polled between wheels and residual blocks.
+        Polled between wheel groups and residual blocks.
 
     Raises
     ------
     PipelineCancelled
         If ``should_cancel()`` returned True.
+
+    Notes
+    -----
+    Wheels of equal diameter share their orders: their Z (and Q) channels are
+    solved together, one factorisation for all of them.
     """
     arrays: dict[str, np.ndarray] = {"chunk_index": np.array(chunk.index)}
     with open_run(run_path) as run:
@@ -229,60 +257,68 @@ def process_chunk(
         out_idx = np.arange(chunk.out_lo, chunk.out_hi, step)
         w_out = chunk.weight(out_idx)
         moving = v_abs[out_idx - lo] >= min_v
+        # wheel angle θ = 2 s / d_w referred to the run start; psi × mult = phase
+        psi = 2.0 * np.pi * (float(position[0]) + np.cumsum(v_abs) / fs)
+        orders = np.arange(1, settings.n_wheel_orders + 1)
+        win = np.floor(position[out_idx - lo] / OOR_WINDOW_M).astype(np.int64)
 
         def keep(idx: np.ndarray) -> np.ndarray:
             return (v_abs[idx - lo] >= min_v).astype(float)
 
-        for wheel in WHEELS:
-            z_name, q_name = f"Z{wheel}", f"Q{wheel}"
-            if not run.has(z_name):
-                continue
+        for wheels, mult, d_w in _wheel_groups(run, settings):
             if should_cancel():
                 raise PipelineCancelled(f"cancelled in chunk {chunk.index}")
-            channels = [z_name] + ([q_name] if run.has(q_name) else [])
+            channels: list[str] = []
+            rows: dict[str, tuple[int, int | None]] = {}
+            for wheel in wheels:
+                iz = len(channels)
+                channels.append(f"Z{wheel}")
+                iq = None
+                if run.has(f"Q{wheel}"):
+                    iq = len(channels)
+                    channels.append(f"Q{wheel}")
+                rows[wheel] = (iz, iq)
             y = np.vstack([run.read(c, lo, hi) for c in channels])
-            mult, d_w = _wheel_orders(run, wheel, settings)
             per_speed, floor = _bandwidth_per_speed(settings, d_w)
             freqs = OrderTrack(v_abs, mult)
             bandwidth = OrderTrack(v_abs, np.full(mult.size, per_speed), floor=floor)
-            # phases referred to the run start (wheel angle θ = 2 s / d_w)
             phase0 = 2.0 * np.pi * mult * float(position[0])
             res = vkf(y, fs, freqs, bandwidth, settings.filter_order, chunk_duration=np.inf, phase0=phase0)
-            env = res.envelope_at(out_idx - lo)  # (channels, s, m)
-            psi = 2.0 * np.pi * (float(position[0]) + np.cumsum(v_abs) / fs)
-            amp = np.abs(env)
-            track_m = run.track_m(lo, hi, axle=wheel[0])
+            env_all = res.envelope_at(out_idx - lo)  # (channels, s, m)
+            del res
+            for wheel in wheels:
+                iz, iq = rows[wheel]
+                env = env_all[iz]
+                amp = np.abs(env)
+                track_m = run.track_m(lo, hi, axle=wheel[0])
 
-            def bins_of(idx: np.ndarray, track_m: np.ndarray = track_m) -> np.ndarray:
-                return position_to_bin(track_m[idx - lo], settings.bin_length_m)
+                def bins_of(idx: np.ndarray, track_m: np.ndarray = track_m) -> np.ndarray:
+                    return position_to_bin(track_m[idx - lo], settings.bin_length_m)
 
-            values = {"speed": v_abs[out_idx - lo], "sleeper_amp": amp[0, 0]}
-            for lvl in range(1, settings.n_wheel_orders + 1):
-                values[f"order_amp_{lvl:02d}"] = amp[0, lvl]
-            if len(channels) > 1:
-                values["sleeper_force_amp"] = amp[1, 0]
-            w = w_out * moving
-            sums = BinSums.from_samples(bins_of(out_idx), w, values)
-            resid = _residual_sums(y, env, out_idx, psi, mult, chunk, lo, bins_of, keep, should_cancel)
-            for key, val in sums.to_arrays().items():
-                arrays[f"bins_{wheel}__{key}"] = val
-            for key, val in resid.to_arrays().items():
-                arrays[f"resid_{wheel}__{key}"] = val
+                values = {"speed": v_abs[out_idx - lo], "sleeper_amp": amp[0]}
+                for lvl in orders:
+                    values[f"order_amp_{lvl:02d}"] = amp[lvl]
+                if iq is not None:
+                    values["sleeper_force_amp"] = np.abs(env_all[iq, 0])
+                sums = BinSums.from_samples(bins_of(out_idx), w_out * moving, values)
+                resid = _residual_sums(y[iz], env, out_idx, psi, mult, chunk, lo, bins_of, keep, should_cancel)
+                for key, val in sums.to_arrays().items():
+                    arrays[f"bins_{wheel}__{key}"] = val
+                for key, val in resid.to_arrays().items():
+                    arrays[f"resid_{wheel}__{key}"] = val
 
-            # wheel OOR: radius phasors of the wheel orders, summed per window
-            orders = np.arange(1, settings.n_wheel_orders + 1)
-            rho = radius_phasor(env[0, 1:], v_abs[out_idx - lo], d_w, orders)
-            ok = moving & np.all(np.isfinite(rho), axis=0)
-            win = np.floor(position[out_idx - lo] / OOR_WINDOW_M).astype(np.int64)
-            oor_vals = {}
-            for i, lvl in enumerate(orders):
-                oor_vals[f"re_{lvl:02d}"] = np.where(ok, rho[i].real, np.nan)
-                oor_vals[f"im_{lvl:02d}"] = np.where(ok, rho[i].imag, np.nan)
-                oor_vals[f"acc_{lvl:02d}"] = np.where(ok, amp[0, i + 1], np.nan)
-            oor = BinSums.from_samples(win, w_out * ok, oor_vals)
-            for key, val in oor.to_arrays().items():
-                arrays[f"oor_{wheel}__{key}"] = val
-            arrays[f"diameter_{wheel}"] = np.array(d_w)
+                # wheel OOR: radius phasors of the wheel orders, summed per window
+                rho = radius_phasor(env[1:], v_abs[out_idx - lo], d_w, orders)
+                ok = moving & np.all(np.isfinite(rho), axis=0)
+                oor_vals = {}
+                for i, lvl in enumerate(orders):
+                    oor_vals[f"re_{lvl:02d}"] = np.where(ok, rho[i].real, np.nan)
+                    oor_vals[f"im_{lvl:02d}"] = np.where(ok, rho[i].imag, np.nan)
+                    oor_vals[f"acc_{lvl:02d}"] = np.where(ok, amp[i + 1], np.nan)
+                oor = BinSums.from_samples(win, w_out * ok, oor_vals)
+                for key, val in oor.to_arrays().items():
+                    arrays[f"oor_{wheel}__{key}"] = val
+                arrays[f"diameter_{wheel}"] = np.array(d_w)
     _atomic_savez(out_path, arrays)
 
 

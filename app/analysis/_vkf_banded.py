@@ -18,11 +18,13 @@ is therefore only used as a preconditioner of *iterative refinement* whose
 residual is computed from the structure, never from the assembled matrix:
 ``Cᴴ (y − C a)`` and ``Sᵀ (r² ⊙ (S a))`` with exact finite differences of the
 current iterate. Each step removes the factorisation error by a factor of
-about ``eps·r²·4^q``; the loop stops at a relative correction of 1e-13.
+about ``eps·r²·4^q``; the loop stops when the estimated error left (last correction times the
+observed convergence rate) is below 1e-13.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,7 +51,8 @@ class BandedSolution:
     iterations : int
         Refinement steps taken after the first solve.
     correction : float
-        Relative size of the last refinement correction.
+        Estimated relative error left after the last refinement step
+        (last correction times the observed convergence rate).
     shifted : bool
         True if the factorisation needed a diagonal shift to stay positive
         definite (refinement then removes the shift's effect).
@@ -93,12 +96,19 @@ def _assemble(expo: np.ndarray, w: np.ndarray, q: int) -> np.ndarray:
     """
     s, n = expo.shape
     kd = q * s
-    ab = np.zeros((kd + 1, n * s), dtype=np.complex128)
+    # Fortran order, as LAPACK wants it: zpbtrf then factorises in place
+    # instead of copying the largest array of the solve.
+    ab = np.zeros((n * s, kd + 1), dtype=np.complex128).T
+
+    def diagonal(d: int) -> np.ndarray:
+        view = ab[d].reshape(n, s)
+        assert np.shares_memory(view, ab)
+        return view
+
     # Cᴴ C: within one sample, M[(k, n+d), (k, n)] = conj(c_{n+d}) c_n.
     conj = expo.conj()
     for d in range(s):
-        view = ab[d].reshape(n, s)
-        view[:, : s - d] = (conj[d:] * expo[: s - d]).T
+        diagonal(d)[:, : s - d] = (conj[d:] * expo[: s - d]).T
     # (R S)ᵀ (R S): lag-δ products of the stencil, weighted by the rows that
     # contain both samples. Row i covers samples i-q..i; wpad[k + q - j2] is
     # the weight of the row in which sample k sits at stencil position j2.
@@ -109,8 +119,7 @@ def _assemble(expo: np.ndarray, w: np.ndarray, q: int) -> np.ndarray:
         acc = np.zeros((s, n - lag))
         for j2 in range(q - lag + 1):
             acc += (c[j2 + lag] * c[j2]) * wpad[:, q - j2 : q - j2 + n - lag]
-        view = ab[lag * s].reshape(n, s)
-        view[: n - lag, :] += acc.T
+        diagonal(lag * s)[: n - lag, :] += acc.T
     return ab
 
 
@@ -141,22 +150,25 @@ def _from_band(x: np.ndarray, s: int) -> np.ndarray:
     return np.ascontiguousarray(x.reshape(ns // s, s, c).transpose(2, 1, 0))
 
 
-def _factor(ab: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Banded Cholesky (LAPACK zpbtrf); on breakdown retry with a diagonal shift.
+def _factor(assemble: Callable[[], np.ndarray]) -> tuple[np.ndarray, bool]:
+    """Banded Cholesky (LAPACK zpbtrf) in place; on breakdown retry with a diagonal shift.
 
+    ``assemble()`` returns the band matrix; it is factorised in place (the
+    band is the largest array of a solve) and rebuilt for each retry.
     The shift only changes the preconditioner: refinement still converges to
     the solution of the unshifted equations while the shift stays below ~1.
     """
-    chol, info = zpbtrf(ab, lower=1)
+    chol, info = zpbtrf(assemble(), lower=1, overwrite_ab=1)
     if info == 0:
         return chol, False
-    scale = float(np.max(ab[0].real))
+    del chol
     for factor in (1e2, 1e4, 1e6, 1e8):
-        shifted = ab.copy()
-        shifted[0] += factor * _EPS * scale
-        chol, info = zpbtrf(shifted, lower=1)
+        shifted = assemble()
+        shifted[0] += factor * _EPS * float(np.max(shifted[0].real))
+        chol, info = zpbtrf(shifted, lower=1, overwrite_ab=1)
         if info == 0:
             return chol, True
+        del chol, shifted
     raise LinAlgError("VKF normal matrix is not positive definite even with a diagonal shift")
 
 
@@ -168,7 +180,9 @@ def _cho_solve(chol: np.ndarray, rhs: np.ndarray, s: int) -> np.ndarray:
     return _from_band(x, s)
 
 
-def solve_orders(y: np.ndarray, phi: np.ndarray, r2: np.ndarray, q: int) -> BandedSolution:
+def solve_orders(
+    y: np.ndarray, phi: np.ndarray, r2: np.ndarray, q: int, data_mask: np.ndarray | None = None
+) -> BandedSolution:
     """Solve the coupled VKF least-squares problem for every channel.
 
     Parameters
@@ -181,6 +195,10 @@ def solve_orders(y: np.ndarray, phi: np.ndarray, r2: np.ndarray, q: int) -> Band
         Squared weight of every row of the difference operator.
     q : int
         Difference order, 1–3.
+    data_mask : ndarray of bool, shape (N,), optional
+        Samples whose data equation is used (default all). Samples left out
+        (e.g. where a decimation filter ran over the segment ends) get their
+        envelopes from the structural equation alone.
 
     Returns
     -------
@@ -189,34 +207,43 @@ def solve_orders(y: np.ndarray, phi: np.ndarray, r2: np.ndarray, q: int) -> Band
     # Banded LAPACK kernels are memory bound with tiny inner loops: extra BLAS
     # threads only add synchronisation (10x slower on 2 cores), so use one.
     with threadpool_limits(limits=1, user_api="blas"):
-        return _solve(y, phi, r2, q)
+        return _solve(y, phi, r2, q, data_mask)
 
 
-def _solve(y: np.ndarray, phi: np.ndarray, r2: np.ndarray, q: int) -> BandedSolution:
+def _solve(
+    y: np.ndarray, phi: np.ndarray, r2: np.ndarray, q: int, data_mask: np.ndarray | None
+) -> BandedSolution:
     s, n = phi.shape
     if n <= q:
         raise ValueError(f"need more than filter_order={q} samples, got {n}")
+    # C enters only the data term: a zero column removes that sample's data
+    # equation from Cᴴ C, from Cᴴ y and from the refinement residual.
     expo = np.exp(1j * phi)
+    if data_mask is not None:
+        expo[:, ~np.asarray(data_mask, dtype=bool)] = 0.0
     w = np.ascontiguousarray(r2, dtype=np.float64)
     yc = np.asarray(y, dtype=np.complex128)
-    ab = _assemble(expo, w, q)
-    chol, shifted = _factor(ab)
-    del ab
+    chol, shifted = _factor(lambda: _assemble(expo, w, q))
 
     rhs = expo.conj()[None, :, :] * yc[:, None, :]
     a = _cho_solve(chol, rhs, s)
     norm_a = max(float(np.linalg.norm(a)), np.finfo(float).tiny)
+    # Refinement converges linearly: each correction is the previous one times
+    # a rate rho ~ eps * cond.  The first solve counts as a correction of
+    # relative size 1, so after a correction c_k the error left is about
+    # c_k * (c_k / c_{k-1}); stop as soon as that estimate is below tolerance.
     correction = np.inf
-    prev = np.inf
+    prev = 1.0
     it = 0
     for it in range(1, _REFINE_MAX_ITER + 1):  # noqa: B007 - used after loop
         res = _residual(yc, expo, w, q, a)
         delta = _cho_solve(chol, res, s)
         a += delta
-        correction = float(np.linalg.norm(delta)) / norm_a
+        step = float(np.linalg.norm(delta)) / norm_a
+        correction = step * min(step / prev, 1.0)
         if correction <= _REFINE_TOL:
             break
-        if correction > prev * 0.999 and correction < 1e-9:
+        if step > prev * 0.999 and step < 1e-9:
             break  # stagnated at rounding level
-        prev = correction
+        prev = step
     return BandedSolution(envelope=a, iterations=it, correction=correction, shifted=shifted)

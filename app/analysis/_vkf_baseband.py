@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import make_interp_spline
 from scipy.signal import firwin, kaiserord, upfirdn
 
 __all__ = ["BasebandPlan", "plan_baseband", "to_baseband", "EnvelopeSpline"]
@@ -214,7 +214,7 @@ class EnvelopeSpline:
         else:
             grid = np.arange(self.grid_size, dtype=np.float64)
             self._values = None
-            self._spline = CubicSpline(grid, envelope, axis=-1, bc_type="not-a-knot")
+            self._spline = make_interp_spline(grid, envelope, k=3, axis=-1)  # not-a-knot cubic
 
     def __call__(self, index: np.ndarray) -> np.ndarray:
         """Envelopes at global sample indices (channels, s, len(index))."""

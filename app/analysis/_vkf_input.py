@@ -14,6 +14,8 @@ __all__ = ["VKFInput", "prepare_input", "check_mode"]
 
 #: samples per validation / statistics block
 STAT_BLOCK = 1 << 16
+#: most orders one solve takes (the band of the system grows with the order count)
+_MAX_CONST_ORDERS = 256
 
 
 def _shape(a: Any) -> tuple[int, ...]:
@@ -165,6 +167,13 @@ def prepare_input(
         freqs = np.asarray(freqs, dtype=np.float64)
     fshape = _shape(freqs)
     if len(fshape) == 1:
+        if fshape[0] == n and n > _MAX_CONST_ORDERS:
+            raise ValueError(
+                f"freqs has shape ({n},), one value per sample of y: a (s,) array means s constant "
+                f"orders; pass one time-varying order as shape (1, N), e.g. freqs[None, :]"
+            )
+        if fshape[0] > _MAX_CONST_ORDERS:
+            raise ValueError(f"freqs has {fshape[0]} orders; at most {_MAX_CONST_ORDERS} are supported")
         freqs_const = np.asarray(freqs, dtype=np.float64)
         s = fshape[0]
     elif len(fshape) == 2:
@@ -255,6 +264,17 @@ def _extremes(src: Any, const: np.ndarray | None, slicer: Any, a: int, e: int) -
     return slicer(a, e)
 
 
+def extremes_over(inp: VKFInput, a: int, b: int) -> tuple[float, float, float, float]:
+    """(f_min, f_max, bw_min, bw_max) over samples [a, b), exact.
+
+    Order tracks are reduced through their speed extremes, without evaluating
+    every order at every sample.
+    """
+    fb = _extremes(inp.freqs, inp.freqs_const, inp.f_slice, a, b)
+    bb = _extremes(inp.bandwidth, inp.bw_const, inp.bw_slice, a, b)
+    return float(np.min(fb)), float(np.max(fb)), float(np.min(bb)), float(np.max(bb))
+
+
 def scan_input(inp: VKFInput) -> InputStats:
     """Check every value of y, freqs and bandwidth; collect per-block extremes.
 
@@ -267,7 +287,9 @@ def scan_input(inp: VKFInput) -> InputStats:
     for b in range(nb):
         a, e = b * STAT_BLOCK, min((b + 1) * STAT_BLOCK, inp.n)
         yb = inp.y_slice(a, e)
-        if not np.all(np.isfinite(yb)):
+        # A finite sum proves every sample finite (NaN and inf propagate); only a
+        # non-finite sum, or an overflow of huge finite values, needs the exact test.
+        if not np.isfinite(np.sum(yb)) and not np.all(np.isfinite(yb)):
             ch, k = np.argwhere(~np.isfinite(yb))[0]
             where = f"sample {int(k) + a}" if inp.y_is_1d else f"channel {int(ch)}, sample {int(k) + a}"
             raise ValueError(f"y contains NaN or inf (first at {where})")

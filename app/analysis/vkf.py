@@ -41,8 +41,8 @@ from typing import Any
 import numpy as np
 
 from ._vkf_banded import solve_orders
-from ._vkf_baseband import EnvelopeSpline, mixing_phase, plan_baseband, to_baseband
-from ._vkf_input import InputStats, VKFInput, check_mode, prepare_input, scan_input
+from ._vkf_baseband import BasebandPlan, EnvelopeSpline, mixing_phase, plan_baseband, to_baseband
+from ._vkf_input import InputStats, VKFInput, check_mode, extremes_over, prepare_input, scan_input
 from ._vkf_weights import bandwidth_from_weight, impulse_length, weight_squared
 from .chunking import Chunk, plan_chunk_layout
 from .orders import OrderTrack, sleeper_passage, wheel_orders
@@ -125,15 +125,22 @@ def _plan_segments(
 
 def _segment_extremes(inp: VKFInput, lo: int, hi: int) -> tuple[float, float, float, float]:
     """(f_min, f_max, bw_min, bw_max) over [lo, hi), exact (not block-rounded)."""
-    idx = np.arange(hi - lo)
-    if inp.freqs_const is None and not isinstance(inp.freqs, OrderTrack):
-        f = inp.f_slice(lo, hi)
-        f_lo, f_hi = float(f.min()), float(f.max())
-    else:
-        f = inp.at("freqs", lo, hi, idx) if inp.freqs_const is None else inp.freqs_const
-        f_lo, f_hi = float(np.min(f)), float(np.max(f))
-    bw = inp.bw_const if inp.bw_const is not None else inp.at("bandwidth", lo, hi, idx)
-    return f_lo, f_hi, float(np.min(bw)), float(np.max(bw))
+    return extremes_over(inp, lo, hi)
+
+
+def _filtered_inside(plan: BasebandPlan, length: int, idx: np.ndarray) -> np.ndarray:
+    """Decimated samples whose anti-alias filter window lies inside the segment.
+
+    Within ``plan.delay`` input samples of a segment end the FIR reads zeros
+    beyond it and biases the baseband samples low. Those samples are left out
+    of the data equation; their envelopes follow from the structural equation,
+    which for a steady component extrapolates it exactly. Keeps at least half
+    of the samples.
+    """
+    inside = (idx >= plan.delay) & (idx < length - plan.delay)
+    if np.count_nonzero(inside) < idx.size // 2:
+        return np.ones(idx.size, dtype=bool)
+    return inside
 
 
 def _close_pairs(f: np.ndarray, bw: np.ndarray) -> set[tuple[int, int]]:
@@ -177,7 +184,7 @@ def _solve_segment(inp: VKFInput, seg: _Segment, cum_lo: np.ndarray, decimation:
     widened = bool(np.any(r2 > r2_max))
     if widened:
         np.minimum(r2, r2_max, out=r2)
-    sol = solve_orders(ys, phi, r2, q)
+    sol = solve_orders(ys, phi, r2, q, None if plan is None else _filtered_inside(plan, hi - lo, idx))
     seg.spline = EnvelopeSpline(2.0 * sol.envelope, lo, factor)
     seg.info = {
         "decimation": factor,
@@ -331,9 +338,8 @@ class VKFResult:
         if index.size == 0:
             return np.ones((self._inp.s, 0), dtype=bool)
         lo, hi = int(index.min()), int(index.max()) + 1
-        f = self._inp.f_slice(lo, hi)[:, index - lo]
-        bw = self._inp.bw_slice(lo, hi)[:, index - lo]
-        return f >= bw
+        local = index - lo
+        return self._inp.at("freqs", lo, hi, local) >= self._inp.at("bandwidth", lo, hi, local)
 
     def envelope_at(self, index: Any) -> np.ndarray:
         """Envelopes at sample indices relative to ``start`` (e.g. a reduced rate).

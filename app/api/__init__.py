@@ -1,16 +1,30 @@
 """REST API of trackvkf under ``/api/v1``.
 
-Routers by resource: runs, jobs, profiles, wheels, health. Every router except
-health depends on :func:`app.api.deps.get_principal`, the hook through which
-authentication is added.
+Routers by resource: runs, jobs, profiles, wheels, reference data, analytics,
+health, auth, audit. Every
+route declares its access policy through a dependency (see
+:func:`app.api.deps.route_policy`): ``public`` (health, login), or
+``require_role(role)`` — the resource routers below get ``viewer`` for all their
+routes, and the state-changing routes add ``engineer`` or ``admin`` themselves.
 """
 
 from __future__ import annotations
 
 from fastapi import APIRouter, Depends
 
-from app.api import health, jobs, profiles, runs, spectrogram, wheels
-from app.api.deps import get_principal
+from app.api import (
+    analytics,
+    audit,
+    auth,
+    health,
+    jobs,
+    profiles,
+    reference,
+    runs,
+    spectrogram,
+    wheels,
+)
+from app.api.deps import public, require_role
 
 __all__ = ["build_api_router", "API_PREFIX"]
 
@@ -20,9 +34,10 @@ API_PREFIX = "/api/v1"
 def build_api_router() -> APIRouter:
     """The ``/api/v1`` router with all resource routers."""
     api = APIRouter(prefix=API_PREFIX)
-    api.include_router(health.router)
-    protected = APIRouter(dependencies=[Depends(get_principal)])
-    for module in (runs, jobs, profiles, wheels, spectrogram):
+    api.include_router(health.router, dependencies=[Depends(public)])
+    api.include_router(auth.login_router)
+    protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
+    for module in (runs, jobs, profiles, wheels, spectrogram, reference, analytics, auth, audit):
         protected.include_router(module.router)
     api.include_router(protected)
     return api

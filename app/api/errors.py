@@ -20,13 +20,18 @@ class ApiError(Exception):
         ``format``, ``file`` ...
     message : str
         Human-readable explanation.
+    headers : dict, optional
+        Extra response headers (``WWW-Authenticate``, ``Retry-After``).
     """
 
-    def __init__(self, status_code: int, field: str, message: str) -> None:
+    def __init__(
+        self, status_code: int, field: str, message: str, headers: dict[str, str] | None = None
+    ) -> None:
         super().__init__(f"{field}: {message}")
         self.status_code = status_code
         self.field = field
         self.message = message
+        self.headers = headers
 
 
 def not_found(what: str, ident: object) -> ApiError:
@@ -39,6 +44,7 @@ async def _api_error_handler(request: Request, exc: Exception) -> JSONResponse:
     return JSONResponse(
         status_code=exc.status_code,
         content={"detail": f"{exc.field}: {exc.message}", "field": exc.field},
+        headers=exc.headers,
     )
 
 

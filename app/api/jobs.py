@@ -5,10 +5,11 @@ from __future__ import annotations
 import dataclasses
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Query, status
+from fastapi import APIRouter, Body, Depends, Query, Request, status
 
 from app.analysis.settings import ProcessingSettings
-from app.api.deps import DbDep, JobId, PrincipalDep, RunId, SettingsDep
+from app.api.audit import record
+from app.api.deps import DbDep, EngineerDep, JobId, RunId, SettingsDep, require_role
 from app.api.errors import ApiError, not_found
 from app.api.schemas.jobs import JobList, JobOut, ProcessingSettingsIn
 from app.api.views import job_out
@@ -80,13 +81,15 @@ def run_jobs(
     "/runs/{run_id}/jobs",
     response_model=JobOut,
     status_code=status.HTTP_201_CREATED,
-    summary="Reprocess a run with other settings",
+    summary="Reprocess a run with other settings (engineer)",
+    dependencies=[Depends(require_role("engineer"))],
     responses={409: {"description": "The run already has a queued or running job"}},
 )
 def reprocess(
     run_id: RunId,
+    request: Request,
     db: DbDep,
-    principal: PrincipalDep,
+    principal: EngineerDep,
     body: Annotated[ProcessingSettingsIn | None, Body()] = None,
 ) -> JobOut:
     """Queue a new processing job for a run.
@@ -108,6 +111,8 @@ def reprocess(
                 f"run {run_id} already has job {active.id} {active.status}; cancel it first",
             )
         job = crud.create_job(session, run_id, settings.to_dict(), principal.name)
+        record(session, request, principal, "job.create", target=run_id,
+               detail={"job_id": job.id, "settings": changes})
     return job_out(job)
 
 
@@ -145,10 +150,11 @@ def get_job(job_id: JobId, db: DbDep) -> JobOut:
 @router.post(
     "/jobs/{job_id}/cancel",
     response_model=JobOut,
-    summary="Cancel a job",
+    summary="Cancel a job (engineer)",
+    dependencies=[Depends(require_role("engineer"))],
     responses={409: {"description": "The job is already done, failed or cancelled"}},
 )
-def cancel_job(job_id: JobId, db: DbDep) -> JobOut:
+def cancel_job(job_id: JobId, request: Request, db: DbDep, principal: EngineerDep) -> JobOut:
     """Cancel a queued job at once, a running one at its next chunk boundary.
 
     The response shows ``cancel_requested`` true; the job's status becomes
@@ -162,6 +168,7 @@ def cancel_job(job_id: JobId, db: DbDep) -> JobOut:
         assert job is not None
         if outcome == "final":
             raise ApiError(409, "job", f"job {job_id} is already {job.status}")
+        record(session, request, principal, "job.cancel", target=job_id, detail={"run_id": job.run_id})
         session.refresh(job)
         counts = crud.chunk_counts(session, [job_id])
         return job_out(job, counts.get(job_id))

@@ -6,10 +6,11 @@ import datetime as dt
 import logging
 from typing import Annotated
 
-from fastapi import APIRouter, Query, Request, Response, status
+from fastapi import APIRouter, Depends, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import DbDep, PrincipalDep, RunId, SettingsDep, StoreDep
+from app.api.audit import record
+from app.api.deps import AdminDep, DbDep, EngineerDep, RunId, SettingsDep, StoreDep, require_role
 from app.api.errors import ApiError, not_found
 from app.api.schemas.runs import RunDetail, RunList
 from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
@@ -66,19 +67,25 @@ def _parse_date(value: str | None, name: str, end_of_day: bool) -> dt.datetime |
         ) from None
     if parsed.tzinfo is None:
         parsed = parsed.replace(tzinfo=dt.UTC)
-    return parsed
+    try:
+        return parsed.astimezone(dt.UTC)
+    except OverflowError:
+        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
 
 
 @router.post(
     "",
     response_model=RunDetail,
     status_code=status.HTTP_201_CREATED,
-    summary="Upload a run file (streamed); queues its processing",
+    summary="Upload a run file (streamed); queues its processing (engineer)",
     openapi_extra={"requestBody": _UPLOAD_BODY},
+    dependencies=[Depends(require_role("engineer"))],
     responses={
         200: {"description": "The same file was uploaded before: the existing run"},
         413: {"description": "The upload is larger than TRACKVKF_MAX_UPLOAD_BYTES"},
+        415: {"description": "The content type is not one of a run file"},
         422: {"description": "The file or its metadata is invalid; `detail` names the problem"},
+        429: {"description": "Too many uploads by this key or user (TRACKVKF_UPLOAD_RATE_LIMIT)"},
     },
 )
 async def upload_run(
@@ -87,7 +94,7 @@ async def upload_run(
     settings: SettingsDep,
     db: DbDep,
     store: StoreDep,
-    principal: PrincipalDep,
+    principal: EngineerDep,
     format: Annotated[
         str | None, Query(description="hdf5, csv or parquet (raw body uploads)", max_length=16)
     ] = None,
@@ -110,7 +117,7 @@ async def upload_run(
         settings=settings,
         db=db,
         store=store,
-        principal_name=principal.name,
+        principal=principal,
         query_format=format,
         query_metadata=metadata,
         query_filename=filename,
@@ -183,9 +190,12 @@ def get_run(run_id: RunId, db: DbDep) -> RunDetail:
 @router.delete(
     "/{run_id}",
     status_code=status.HTTP_204_NO_CONTENT,
-    summary="Delete a run with its jobs, results and files",
+    summary="Delete a run with its jobs, results and files (admin)",
+    dependencies=[Depends(require_role("admin"))],
 )
-async def delete_run(run_id: RunId, db: DbDep, store: StoreDep) -> Response:
+async def delete_run(
+    run_id: RunId, request: Request, db: DbDep, store: StoreDep, principal: AdminDep
+) -> Response:
     """Delete the run's rows (jobs, chunks, profiles, wheels) and its files.
 
     A worker processing the run notices that its job is gone and stops.
@@ -193,7 +203,11 @@ async def delete_run(run_id: RunId, db: DbDep, store: StoreDep) -> Response:
 
     def _delete() -> bool:
         with db.write() as session:
+            run = crud.get_run(session, run_id)
+            detail = {"sha256": run.sha256, "original_filename": run.original_filename} if run else None
             deleted = crud.delete_run(session, run_id)
+            if deleted:
+                record(session, request, principal, "run.delete", target=run_id, detail=detail)
         if deleted:
             store.remove_run(run_id)
         return deleted

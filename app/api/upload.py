@@ -37,6 +37,8 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect, Request
 
 from app.analysis.settings import ProcessingSettings
+from app.api.audit import record, record_now
+from app.api.deps import Principal
 from app.api.errors import ApiError
 from app.core.config import Settings
 from app.core.runstore import RunStore
@@ -63,6 +65,11 @@ _CONTENT_TYPES = {
     "application/vnd.apache.parquet": "parquet", "application/x-parquet": "parquet",
     "application/parquet": "parquet",
 }
+#: Content types accepted for a raw body or a multipart file part (besides none at all).
+ACCEPTED_CONTENT_TYPES: frozenset[str] = frozenset(
+    {*_CONTENT_TYPES, "application/octet-stream", "application/gzip", "application/x-gzip",
+     "text/plain", "text/tab-separated-values"}
+)
 _FORM_FIELDS = ("file", "metadata", "format")
 _UPLOAD_NAME = "upload"
 
@@ -120,6 +127,15 @@ class _Sink:
 def _too_large(cap: int) -> ApiError:
     return ApiError(
         413, "file", f"upload exceeds the size limit of {cap} bytes (TRACKVKF_MAX_UPLOAD_BYTES)"
+    )
+
+
+def _unsupported_type(ctype: str) -> ApiError:
+    return ApiError(
+        415,
+        "content_type",
+        f"unsupported content type {ctype[:80]!r}; send a run file as "
+        "application/octet-stream, application/x-hdf5, text/csv or application/vnd.apache.parquet",
     )
 
 
@@ -214,6 +230,8 @@ class _MultipartState:
             self.filename = _safe_filename(raw.decode("utf-8", "replace")) if raw else None
             ctype = self.headers.get("content-type")
             self.file_content_type = ctype.split(";")[0].strip().lower() if ctype else None
+            if self.file_content_type and self.file_content_type not in ACCEPTED_CONTENT_TYPES:
+                self.error = self.error or _unsupported_type(self.file_content_type)
 
     def on_part_data(self, data: bytes, start: int, end: int) -> None:
         if self.error is not None:
@@ -400,9 +418,10 @@ def _create_run(
     summary: Any,
     received: _Received,
     fmt: str | None,
-    principal_name: str,
+    principal: Principal,
+    request: Request | None = None,
 ) -> int:
-    """Insert the run and its queued job and move the upload to the run's directory.
+    """Insert the run, its queued job and the audit entry; move the upload to the run's directory.
 
     The directory is moved inside the transaction; if the commit fails the
     moved directory is removed again.
@@ -410,11 +429,15 @@ def _create_run(
     installed: int | None = None
     try:
         with db.write() as session:
-            run = _run_row(summary, received, fmt, principal_name)
+            run = _run_row(summary, received, fmt, principal.name)
             session.add(run)
             session.flush()
             run.file_path = store.relative_run_file(run.id)
-            crud.create_job(session, run.id, ProcessingSettings().to_dict(), principal_name)
+            job = crud.create_job(session, run.id, ProcessingSettings().to_dict(), principal.name)
+            record(session, request, principal, "run.upload", target=run.id, detail={
+                "sha256": received.sha256, "size_bytes": received.size,
+                "filename": received.filename, "format": run.source_format, "job_id": job.id,
+            })
             store.install_run_dir(upload_dir, run.id)
             installed = run.id
         return installed
@@ -430,7 +453,7 @@ async def receive_and_create_run(
     settings: Settings,
     db: Database,
     store: RunStore,
-    principal_name: str,
+    principal: Principal,
     query_format: str | None = None,
     query_metadata: str | None = None,
     query_filename: str | None = None,
@@ -446,14 +469,61 @@ async def receive_and_create_run(
     Raises
     ------
     ApiError
-        413 for a body over the cap, 400 for a malformed body, 422 naming the
-        field for invalid content (format, metadata, channels, ...). Nothing
-        is left behind.
+        429 over the upload rate of the principal, 413 for a body over the
+        cap, 415 for a content type that is not a run file's, 400 for a
+        malformed body, 422 naming the field for invalid content (format,
+        metadata, channels, ...). Nothing is left behind but the audit entry
+        of the rejection.
     """
+    wait = request.app.state.upload_limiter.hit(
+        f"key:{principal.key_id}" if principal.key_id is not None else f"user:{principal.name}"
+    )
+    if wait is not None:
+        seconds = max(1, int(wait + 0.999))
+        error = ApiError(
+            429, "rate_limit", f"too many uploads; retry in {seconds} s", {"Retry-After": str(seconds)}
+        )
+        await run_in_threadpool(_record_rejection, db, request, principal, error, "denied")
+        raise error
+    try:
+        return await _receive_and_create(
+            request, settings=settings, db=db, store=store, principal=principal,
+            query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
+        )
+    except ApiError as exc:
+        await run_in_threadpool(_record_rejection, db, request, principal, exc, "rejected")
+        raise
+
+
+def _record_rejection(
+    db: Database, request: Request, principal: Principal, exc: ApiError, outcome: str
+) -> None:
+    try:
+        record_now(db, request, principal, "run.upload", outcome=outcome, detail={
+            "status": exc.status_code, "field": exc.field, "message": exc.message[:500],
+        })
+    except Exception:  # noqa: BLE001 - the client gets the rejection; the failure is logged
+        log.exception("could not write the audit entry of a rejected upload")
+
+
+async def _receive_and_create(
+    request: Request,
+    *,
+    settings: Settings,
+    db: Database,
+    store: RunStore,
+    principal: Principal,
+    query_format: str | None,
+    query_metadata: str | None,
+    query_filename: str | None,
+) -> UploadOutcome:
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > settings.max_upload_bytes:
         raise _too_large(settings.max_upload_bytes)
     content_type = request.headers.get("content-type", "")
+    bare_type = content_type.split(";")[0].strip().lower()
+    if bare_type and bare_type != "multipart/form-data" and bare_type not in ACCEPTED_CONTENT_TYPES:
+        raise _unsupported_type(bare_type)
     upload_dir = await run_in_threadpool(store.new_upload_dir)
     try:
         path = upload_dir / _UPLOAD_NAME
@@ -492,7 +562,7 @@ async def receive_and_create_run(
 
         try:
             run_id = await run_in_threadpool(
-                _create_run, db, store, upload_dir, summary, received, fmt, principal_name
+                _create_run, db, store, upload_dir, summary, received, fmt, principal, request
             )
         except IntegrityError:
             # The same file was uploaded concurrently and committed first.

@@ -13,9 +13,16 @@ from pathlib import Path
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "get_settings"]
+__all__ = ["Settings", "get_settings", "DEFAULT_SECRET_KEY", "ProductionConfigError"]
 
 _GIB = 1024**3
+
+#: The development secret key; production mode refuses to start with it.
+DEFAULT_SECRET_KEY = "trackvkf-insecure-development-key-change-me"
+
+
+class ProductionConfigError(RuntimeError):
+    """The settings are not safe for ``TRACKVKF_ENV=production``."""
 
 
 class Settings(BaseSettings):
@@ -60,6 +67,37 @@ class Settings(BaseSettings):
     max_profile_rows : int
         Largest number of rows a JSON profile query returns (exports stream
         and are not limited).
+    env : str
+        ``development`` (default) or ``production``. Production refuses to
+        start with the default secret key, with ``auth_disabled`` or while a
+        user with printed demo credentials is active.
+    secret_key : str
+        Server secret (>= 32 characters in production): keys the CSRF tokens.
+    auth_disabled : bool
+        Every request runs as the anonymous principal (``anonymous_principal``,
+        ``anonymous_role``) without authentication. Development and tests
+        only; refused in production.
+    session_ttl_s : float
+        Lifetime of a browser session after login, s (default 12 h).
+    cookie_secure : bool
+        Send the session cookies with the ``Secure`` flag (HTTPS only);
+        always on in production.
+    login_rate_limit, login_rate_window_s : int, float
+        At most ``login_rate_limit`` login attempts per client address and per
+        user name within ``login_rate_window_s`` seconds (per API process).
+    upload_rate_limit, upload_rate_window_s : int, float
+        At most ``upload_rate_limit`` uploads per principal (API key or user)
+        within ``upload_rate_window_s`` seconds (per API process).
+    max_reference_bytes : int
+        Largest accepted reference data file (subsidence, maintenance,
+        superstructure), bytes.
+    analytics_min_speed_kmh : float
+        Profile bins slower than this (km/h) are left out of the analytics.
+    analytics_reference_speed_kmh : float
+        Default reference speed of the speed-normalised indicator, km/h.
+    analytics_edge_trim_m : float
+        The first and last metres of every run's profile left out of the
+        analytics (filter end transients).
     """
 
     model_config = SettingsConfigDict(
@@ -81,12 +119,33 @@ class Settings(BaseSettings):
     log_level: str = "INFO"
     max_page_size: int = Field(default=500, ge=1)
     max_profile_rows: int = Field(default=200_000, ge=1)
+    env: str = "development"
+    secret_key: str = DEFAULT_SECRET_KEY
+    auth_disabled: bool = False
+    session_ttl_s: float = Field(default=12 * 3600.0, gt=0)
+    cookie_secure: bool = False
+    login_rate_limit: int = Field(default=10, ge=1)
+    login_rate_window_s: float = Field(default=60.0, gt=0)
+    upload_rate_limit: int = Field(default=60, ge=1)
+    upload_rate_window_s: float = Field(default=3600.0, gt=0)
+    max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
+    analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
+    analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
+    analytics_edge_trim_m: float = Field(default=50.0, ge=0)
 
     @field_validator("anonymous_role")
     @classmethod
     def _check_role(cls, value: str) -> str:
         if value not in ("viewer", "engineer", "admin"):
             raise ValueError(f"anonymous_role must be viewer, engineer or admin, got {value!r}")
+        return value
+
+    @field_validator("env")
+    @classmethod
+    def _check_env(cls, value: str) -> str:
+        value = value.strip().lower()
+        if value not in ("development", "production"):
+            raise ValueError(f"env must be development or production, got {value!r}")
         return value
 
     @field_validator("worker_stale_after_s")
@@ -98,6 +157,33 @@ class Settings(BaseSettings):
                 f"worker_stale_after_s ({value}) must exceed twice worker_heartbeat_s ({heartbeat})"
             )
         return value
+
+    @property
+    def is_production(self) -> bool:
+        """Whether ``TRACKVKF_ENV=production``."""
+        return self.env == "production"
+
+    def check_production(self) -> None:
+        """Refuse unsafe settings in production mode (no-op in development).
+
+        Raises
+        ------
+        ProductionConfigError
+            Naming the setting: the default or a short ``secret_key``, or
+            ``auth_disabled``.
+        """
+        if not self.is_production:
+            return
+        if self.secret_key == DEFAULT_SECRET_KEY or len(self.secret_key) < 32:
+            raise ProductionConfigError(
+                "TRACKVKF_SECRET_KEY: production mode needs a secret key of at least 32 "
+                "characters other than the development default "
+                "(e.g. python -c 'import secrets; print(secrets.token_urlsafe(48))')"
+            )
+        if self.auth_disabled:
+            raise ProductionConfigError(
+                "TRACKVKF_AUTH_DISABLED: authentication cannot be disabled in production mode"
+            )
 
     @property
     def is_sqlite(self) -> bool:

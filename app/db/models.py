@@ -265,3 +265,6 @@ class WheelOOR(Base):
     profile_p05_um: Mapped[list[float] | None] = mapped_column(JSONType)
     profile_p95_um: Mapped[list[float] | None] = mapped_column(JSONType)
     extra: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
+
+from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessions, api_keys, audit_log)
+from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)

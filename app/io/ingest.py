@@ -72,7 +72,7 @@ def ingest(
     dest: Path,
     limits: IngestLimits = DEFAULT_LIMITS,
     *,
-    compression: Compression = "lzf",
+    compression: Compression = "auto",
 ) -> RunSummary:
     """Validate a run file and write it as a canonical HDF5 file.
 
@@ -92,8 +92,8 @@ def ingest(
         :func:`os.replace`). Its directory must exist.
     limits : IngestLimits
         Acceptance limits.
-    compression : {"lzf", "gzip", None}
-        Compression of the output datasets.
+    compression : {"auto", "lzf", "gzip", None}
+        Compression of the output datasets (see :class:`~app.io.canonical.CanonicalWriter`).
 
     Returns
     -------
@@ -118,7 +118,7 @@ def ingest(
             "metadata", f"metadata must be a JSON object, got {type(metadata).__name__}"
         )
     fmt_name, comp = resolve_format(src, fmt)
-    with open_source(src, fmt_name, comp) as source:
+    with open_source(src, fmt_name, comp, limits) as source:
         return _ingest(source, fmt_name, metadata, dest, limits, compression)
 
 

@@ -35,6 +35,21 @@ class IngestLimits:
         ``position`` within this relative tolerance (default 0.1).
     block_samples : int
         Samples per block when streaming the input (memory bound), default 2**19.
+    max_columns : int
+        Largest number of columns (CSV, Parquet) or root members (HDF5) of an
+        input file, default 64 (a run has at most 15 channels and a time column).
+    max_header_bytes : int
+        Longest accepted CSV header line, bytes (default 64 KiB).
+    max_expansion_ratio : float
+        Decompression-bomb guard: the decoded size of the data (samples ×
+        channels × bytes per value for HDF5 and Parquet, decompressed text for
+        gzip CSV) may exceed the file size at most this many times (default
+        100; measured run files expand 1–3 times) ...
+    expansion_floor_bytes : int
+        ... plus this many bytes (default 64 MiB), so small files are never refused.
+    max_parquet_footer_bytes : int
+        Largest Parquet footer (file metadata), bytes (default 16 MiB); read
+        from the file's last 8 bytes before the footer is parsed.
     """
 
     max_nan_fraction: float = 0.01
@@ -45,6 +60,15 @@ class IngestLimits:
     speed_tolerance_mps: float = 0.1
     speed_position_tolerance: float = 0.1
     block_samples: int = 2**19
+    max_columns: int = 64
+    max_header_bytes: int = 65_536
+    max_expansion_ratio: float = 100.0
+    expansion_floor_bytes: int = 64 * 1024 * 1024
+    max_parquet_footer_bytes: int = 16 * 1024 * 1024
+
+    def max_decoded_bytes(self, file_bytes: int) -> int:
+        """Largest decoded size accepted for a file of ``file_bytes`` bytes."""
+        return int(self.max_expansion_ratio * max(int(file_bytes), 0)) + self.expansion_floor_bytes
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.max_nan_fraction < 1.0):
@@ -66,6 +90,12 @@ class IngestLimits:
             raise ValueError(
                 f"speed_position_tolerance must be > 0, got {self.speed_position_tolerance!r}"
             )
+        for name in ("max_columns", "max_header_bytes", "expansion_floor_bytes", "max_parquet_footer_bytes"):
+            value = getattr(self, name)
+            if int(value) != value or value < 1:
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        if not (math.isfinite(self.max_expansion_ratio) and self.max_expansion_ratio >= 1):
+            raise ValueError(f"max_expansion_ratio must be >= 1, got {self.max_expansion_ratio!r}")
         if int(self.block_samples) != self.block_samples or not 1024 <= self.block_samples <= 2**24:
             raise ValueError(
                 f"block_samples must be an integer in [1024, 2**24], got {self.block_samples!r}"

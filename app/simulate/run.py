@@ -87,6 +87,7 @@ def simulate_run(
     sleeper_spacing: float = 0.6,
     axle_positions: Mapping[str, float] | None = None,
     km_start: float = 12.0,
+    km_error_m: float = 0.0,
     km_increasing: bool = True,
     start_time: datetime | str = "2024-05-01T08:00:00+02:00",
     vehicle_id: str = "SIM-1",
@@ -95,7 +96,7 @@ def simulate_run(
     direction: str = "up",
     calibration: Mapping[str, Calibration | Mapping[str, float]] | None = None,
     block_samples: int = 2**18,
-    compression: Compression = "lzf",
+    compression: Compression = "auto",
 ) -> SimulationTruth:
     """Write a synthetic run (canonical HDF5) and its truth file ``<stem>.truth.h5``.
 
@@ -146,6 +147,10 @@ def simulate_run(
         ``{"1": 0.0, "4": -17.5}``).
     km_start : float
         Line km of the position reference at the start.
+    km_error_m : float
+        Odometry error, m: the metadata states ``km_start + km_error_m / 1000``
+        while the train really starts at ``km_start`` (truth positions are the
+        real ones), so run alignment can be tested against a known shift.
     km_increasing : bool
         Direction of the km axis along the run.
     start_time, vehicle_id, line_id, track, direction : metadata
@@ -154,8 +159,8 @@ def simulate_run(
         Channel → ``{"gain", "offset"}``: the file stores ``(physical - offset) / gain``.
     block_samples : int
         Samples generated per block (memory bound).
-    compression : {"lzf", "gzip", None}
-        Dataset compression of the run file.
+    compression : {"auto", "lzf", "gzip", None}
+        Dataset compression of the run file (see :class:`~app.io.canonical.CanonicalWriter`).
 
     Returns
     -------
@@ -209,7 +214,7 @@ def simulate_run(
             "line_id": line_id,
             "track": track,
             "direction": direction,
-            "km_start": km_start,
+            "km_start": km_start + float(km_error_m) / 1000.0,
             "km_increasing": km_increasing,
             "sleeper_spacing": sleeper_spacing,
             "axle_positions": dict(axle_positions or {}),
@@ -345,6 +350,7 @@ def simulate_run(
             with_forces=bool(with_forces),
             km_start=float(km_start),
             km_increasing=bool(km_increasing),
+            km_error_m=float(km_error_m),
             axle_positions=dict(axles),
             line=line,
             speed_profile=speed_profile,

@@ -6,7 +6,7 @@ Truth file layout (``truth_format_version`` 1)::
                distance_m, alpha, v_ref_mps, sleeper_spacing_m, bin_length_m,
                noise_std_mps2, noise_band_hz (2,), force_noise_std_kn,
                unsprung_mass_kg, static_load_kn, with_forces, km_start,
-               km_increasing, axle_positions (JSON)
+               km_increasing, km_error_m, axle_positions (JSON)
     /line      attrs first_bin, bin_length, amplitude_vref (JSON)
                type_code int8 (nb,), factor (2, nb)
     /line/sections   track_from_m, track_to_m, type (strings)
@@ -152,6 +152,9 @@ class SimulationTruth:
         Wheel diameters written to the run metadata, m.
     bins : dict[str, WheelBins]
         Truth per 25 cm bin per wheel.
+    km_error_m : float
+        Odometry error of the metadata's ``km_start``, m (the metadata states
+        ``km_start + km_error_m / 1000``; everything here is in real positions).
     """
 
     run_path: Path
@@ -179,6 +182,7 @@ class SimulationTruth:
     wheels: dict[str, WheelOOR]
     reported_diameters: dict[str, float]
     bins: dict[str, WheelBins]
+    km_error_m: float = 0.0
 
     @property
     def path(self) -> Path:
@@ -232,6 +236,7 @@ def save_truth(truth: SimulationTruth, h5: h5py.File) -> None:
         "with_forces",
         "km_start",
         "km_increasing",
+        "km_error_m",
     ):
         a[key] = getattr(truth, key)
     a["noise_band_hz"] = np.asarray(truth.noise_band_hz, dtype=np.float64)
@@ -362,4 +367,5 @@ def load_truth(path: Path | str) -> SimulationTruth:
             wheels=wheels,
             reported_diameters=reported,
             bins=bins,
+            km_error_m=float(a.get("km_error_m", 0.0)),
         )

@@ -6,13 +6,13 @@ import json
 from pathlib import Path
 from typing import Any
 
-from fastapi import APIRouter, FastAPI, Request
+from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from app.api import API_PREFIX
-from app.api.deps import RunId
+from app.api.deps import RunId, iter_routes, require_page_login
 
 __all__ = ["FRONTEND_DIR", "PLOTLY_JS", "build_pages_router", "install_pages", "plotly_js_path"]
 
@@ -52,13 +52,18 @@ def plotly_js_path() -> Path:
 
 
 def _features(request: Request) -> dict[str, bool]:
-    paths = {getattr(route, "path", "") for route in request.app.routes}
+    paths = {getattr(route, "path", "") for route in iter_routes(request.app)}
     return {name: path in paths for name, path in _FEATURES.items()}
 
 
 def build_pages_router(templates: Jinja2Templates) -> APIRouter:
-    """Router of the HTML pages (not in the OpenAPI schema)."""
-    router = APIRouter(include_in_schema=False)
+    """Router of the HTML pages (not in the OpenAPI schema).
+
+    Every page needs a logged-in browser (viewer or higher; else 303 to
+    ``/login?next=...``); the API calls of the pages are authorised by the
+    same session cookie.
+    """
+    router = APIRouter(include_in_schema=False, dependencies=[Depends(require_page_login("viewer"))])
 
     def page(request: Request, template: str, key: str, title: str, **context: Any) -> HTMLResponse:
         boot = {"api": API_PREFIX, "page": key, "features": _features(request), **context}

@@ -7,7 +7,7 @@ from typing import Any
 
 from app.core.config import Settings
 
-__all__ = ["make_settings", "store_files"]
+__all__ = ["make_settings", "store_files", "create_api_key", "auth_headers"]
 
 
 def make_settings(tmp_path: Path, **overrides: Any) -> Settings:
@@ -33,3 +33,22 @@ def store_files(root: Path) -> list[Path]:
     if not root.exists():
         return []
     return sorted(p for p in root.rglob("*") if p.is_file())
+
+
+def create_api_key(database_url: str, role: str = "admin", name: str | None = None) -> str:
+    """Create an API key with ``role`` in a migrated database; returns the key."""
+    from app.db import auth_crud
+    from app.db.session import Database
+
+    db = Database(database_url)
+    try:
+        with db.write() as session:
+            _, key = auth_crud.create_api_key(session, name or f"test-{role}", role, created_by="tests")
+    finally:
+        db.dispose()
+    return key
+
+
+def auth_headers(key: str) -> dict[str, str]:
+    """Request headers authenticating with the API key ``key``."""
+    return {"Authorization": f"Bearer {key}"}

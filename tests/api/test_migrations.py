@@ -10,7 +10,11 @@ from app.db import migrate
 from app.db.models import Base
 from app.db.session import make_engine
 
-TABLES = {"runs", "jobs", "job_chunks", "profile_bins", "wheel_oor"}
+TABLES = {
+    "runs", "jobs", "job_chunks", "profile_bins", "wheel_oor",
+    "users", "sessions", "api_keys", "audit_log",
+    "ref_subsidence", "ref_maintenance", "ref_superstructure",
+}
 
 
 def _tables(url: str) -> set[str]:

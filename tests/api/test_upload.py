@@ -253,6 +253,7 @@ def test_concurrent_duplicate_commit_leaves_no_directory(client, tmp_path):
     sha256 and its upload directory is not installed as a run directory."""
     from sqlalchemy.exc import IntegrityError
 
+    from app.api.deps import Principal
     from app.api.upload import _create_run, _Received
     from app.core.runstore import RunStore
     from app.io import ingest
@@ -266,7 +267,9 @@ def test_concurrent_duplicate_commit_leaves_no_directory(client, tmp_path):
     db = Database(client.settings.database_url)
     try:
         with pytest.raises(IntegrityError):
-            _create_run(db, store, upload_dir, summary, received, "hdf5", "test")
+            _create_run(
+                    db, store, upload_dir, summary, received, "hdf5", Principal("test", "admin")
+                )
     finally:
         db.dispose()
     assert store.run_ids_on_disk() == [first["id"]]

@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import urlsplit
 
-import httpx
 import pytest
 
 from tests.e2e.conftest import Service, running_service
@@ -31,6 +30,8 @@ RUN_DATES = ("2024-05-01T08:00:00+02:00", "2024-09-01T08:00:00+02:00")
 RUN_LENGTH_KM = 1.2
 RUN_FS = 10_000.0
 LINE_SEED = 7
+#: the browser's user: an engineer (uploads, reprocesses, cancels)
+USER, PASSWORD = "dash-engineer", "dashboard tests password"
 
 
 def _install_chromium() -> None:
@@ -82,10 +83,17 @@ def dashboard(tmp_path_factory) -> Iterator[Dashboard]:
     bad = work / "broken-run.csv"
     bad.write_text("time,Z11,speed\n0.0,1.0,20\n0.0001,oops,20\n")
     with running_service(work / "service") as svc:
+        from app.db import auth_crud
+        from app.db.session import Database
+
+        db = Database(svc.database_url)
+        with db.write() as session:
+            auth_crud.create_user(session, USER, PASSWORD, "engineer")
+        db.dispose()
         svc.start_worker()
         svc.start_worker()
         run_ids, jobs = [], []
-        with httpx.Client(base_url=svc.base_url, timeout=120) as client:
+        with svc.client(timeout=120) as client:
             for path in files:
                 with open(path, "rb") as fh:
                     r = client.post("/api/v1/runs", files={"file": (path.name, fh, "application/x-hdf5")})
@@ -112,11 +120,24 @@ def browser() -> Iterator[object]:
             b.close()
 
 
+@pytest.fixture(scope="session")
+def login_state(browser, dashboard) -> dict:
+    """Cookies of a browser session logged in as the engineer (one login for all tests)."""
+    ctx = browser.new_context(base_url=dashboard.base_url)
+    try:
+        r = ctx.request.post("/api/v1/auth/login", data={"username": USER, "password": PASSWORD})
+        assert r.status == 200, r.text()
+        return ctx.storage_state()
+    finally:
+        ctx.close()
+
+
 @pytest.fixture
-def context(browser, dashboard) -> Iterator[object]:
-    """THE place where browser contexts are made (a login step belongs here)."""
+def context(browser, dashboard, login_state) -> Iterator[object]:
+    """THE place where browser contexts are made: logged in as the engineer."""
     ctx = browser.new_context(
-        base_url=dashboard.base_url, viewport={"width": 1400, "height": 900}, accept_downloads=True
+        base_url=dashboard.base_url, viewport={"width": 1400, "height": 900}, accept_downloads=True,
+        storage_state=login_state,
     )
     ctx.set_default_timeout(60_000)
     try:

@@ -49,10 +49,19 @@ def test_page_loads_clean_with_data(open_page, dashboard, name):
     page, log = open_page(path)
     plots = _plots(page)
     if name == "correlations":
-        # no analytics / reference data on this server yet: a helpful empty state
-        assert plots and all(p["state"] == "empty" for p in plots)
-        text = page.inner_text("#corr-empty")
-        assert "reference data" in text and "/api/v1/reference/subsidence" in text
+        # no reference data on this server: subsidence and maintenance show how to import them;
+        # the simulated runs have force channels, so the unsprung-mass fit has data
+        state = {p["id"]: p for p in plots}
+        for plot_id in ("subsidence-plot", "maintenance-plot"):
+            assert state[plot_id]["state"] == "empty"
+            assert "/api/v1/reference/subsidence" in page.inner_text(f"#{plot_id}")
+        assert "No fit" in page.inner_text("#fit-table")
+        mass = state["mass-plot"]
+        assert mass["state"] == "ready" and mass["points"] > 0 and mass["modebarPng"] and mass["csvEnabled"]
+        names = page.evaluate("document.getElementById('mass-plot').data.map(t => t.name)")
+        masses = [float(n.split(": ")[1].split(" kg")[0]) for n in names if n and " kg" in n]
+        assert len(masses) == 4
+        assert all(abs(m - 300.0) < 45.0 for m in masses), masses  # simulator: 300 kg
     elif name != "runs":
         assert plots, f"{name}: no plot"
         for p in plots:
@@ -131,7 +140,8 @@ def test_upload_shows_job_finishing(open_page, dashboard):
 
 def test_bad_file_shows_the_api_error(open_page, dashboard):
     with open(dashboard.bad_file, "rb") as fh:
-        api = httpx.post(f"{dashboard.base_url}/api/v1/runs", files={"file": (dashboard.bad_file.name, fh)})
+        api = httpx.post(f"{dashboard.base_url}/api/v1/runs", files={"file": (dashboard.bad_file.name, fh)},
+                         headers=dashboard.service.headers)
     assert api.status_code == 422
     detail = api.json()["detail"]
     page, log = open_page("/")
@@ -163,12 +173,12 @@ def test_reprocess_and_cancel_from_the_runs_page(open_page, dashboard):
         "document.getElementById('banner').textContent.includes('Cancel requested') || "
         "document.getElementById('banner').textContent.includes('already')"
     )
-    job = httpx.get(f"{dashboard.base_url}/api/v1/jobs/{job_id}").json()
+    job = httpx.get(f"{dashboard.base_url}/api/v1/jobs/{job_id}", headers=dashboard.service.headers).json()
     deadline = 120
     while job["status"] in ("queued", "running") and deadline > 0:
         page.wait_for_timeout(500)
         deadline -= 0.5
-        job = httpx.get(f"{dashboard.base_url}/api/v1/jobs/{job_id}").json()
+        job = httpx.get(f"{dashboard.base_url}/api/v1/jobs/{job_id}", headers=dashboard.service.headers).json()
     assert job["status"] in ("cancelled", "done") and job["cancel_requested"] in (True, job["status"] == "done")
     badge = page.locator(f"#runs-body tr[data-run='{run_id}'] .job-status .badge")
     page.wait_for_function(
@@ -179,3 +189,19 @@ def test_reprocess_and_cancel_from_the_runs_page(open_page, dashboard):
         assert all("/cancel" in f and "409" in f for f in log.failed), log.failed
     else:
         log.assert_clean()
+
+
+def test_pages_need_a_login(browser, dashboard):
+    """Without a session every page goes to the login form, which comes back to the page."""
+    ctx = browser.new_context(base_url=dashboard.base_url)
+    try:
+        page = ctx.new_page()
+        page.goto("/wheels")
+        assert page.url.startswith(f"{dashboard.base_url}/login?next=")
+        page.fill("#username", "dash-engineer")
+        page.fill("#password", "dashboard tests password")
+        page.click("button[type=submit]")
+        page.wait_for_url(f"{dashboard.base_url}/wheels")
+        page.wait_for_selector("body[data-ready='1']")
+    finally:
+        ctx.close()

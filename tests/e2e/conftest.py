@@ -18,6 +18,7 @@ import httpx
 import pytest
 
 from app.db import migrate
+from tests.api.support import create_api_key
 
 SIM_LENGTH_KM = 1.5
 SIM_FS = 10_000.0
@@ -59,6 +60,7 @@ class Service:
     workdir: Path
     database_url: str
     run_store: Path
+    api_key: str = ""
     api: subprocess.Popen | None = None
     workers: list[subprocess.Popen] = field(default_factory=list)
     logs: list[Path] = field(default_factory=list)
@@ -90,6 +92,15 @@ class Service:
                 pass
             time.sleep(0.2)
         raise RuntimeError(f"uvicorn did not come up:\n{self.log_text()}")
+
+    @property
+    def headers(self) -> dict[str, str]:
+        """Headers authenticating as the fixture's admin API key."""
+        return {"Authorization": f"Bearer {self.api_key}"}
+
+    def client(self, **kwargs) -> httpx.Client:
+        """An httpx client on the service, authenticated with the admin API key."""
+        return httpx.Client(base_url=self.base_url, headers=self.headers, **kwargs)
 
     def start_worker(self) -> subprocess.Popen:
         proc = self._spawn(["-m", "worker"], "worker")
@@ -125,9 +136,11 @@ class Service:
 @contextmanager
 def running_service(workdir: Path) -> Iterator[Service]:
     """The real service (API started, workers on demand) on a fresh SQLite database in
-    ``workdir``; stopped on exit. Shared by the ``service`` fixture and the browser tests."""
+    ``workdir`` with an admin API key (``api_key``); stopped on exit. Shared by the
+    ``service`` fixture and the browser tests."""
     db_url = f"sqlite:///{workdir / 'service.sqlite'}"
     migrate.upgrade(db_url)
+    api_key = create_api_key(db_url, "admin", "e2e")
     env = {
         k: v for k, v in os.environ.items() if not k.startswith("TRACKVKF_")
     }
@@ -148,6 +161,7 @@ def running_service(workdir: Path) -> Iterator[Service]:
         workdir=workdir,
         database_url=db_url,
         run_store=workdir / "runs",
+        api_key=api_key,
     )
     try:
         svc.start_api()
@@ -158,6 +172,9 @@ def running_service(workdir: Path) -> Iterator[Service]:
 
 @pytest.fixture
 def service(tmp_path) -> Iterator[Service]:
-    """The real service on a fresh SQLite database; the API is started, workers on demand."""
+    """The real service on a fresh SQLite database; the API is started, workers on demand.
+
+    ``service.client()`` is an httpx client authenticated with an admin API key
+    created in the database (``service.api_key``)."""
     with running_service(tmp_path) as svc:
         yield svc

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import io
 
-import httpx
 import numpy as np
 import pandas as pd
 import pytest
@@ -26,7 +25,7 @@ def _interior(df: pd.DataFrame) -> pd.DataFrame:
 def test_upload_process_and_query_against_truth(service, sim_run):
     path, truth = sim_run
     service.start_worker()
-    with httpx.Client(base_url=service.base_url, timeout=120) as client:
+    with service.client(timeout=120) as client:
         with open(path, "rb") as fh:
             r = client.post("/api/v1/runs", files={"file": (path.name, fh, "application/x-hdf5")})
         assert r.status_code == 201, r.text
@@ -102,7 +101,7 @@ def test_upload_process_and_query_against_truth(service, sim_run):
 def test_bad_upload_over_http_leaves_nothing(service, tmp_path):
     bad = tmp_path / "bad.csv"
     bad.write_text("Z11,speed\n1,2\n3,4\n")
-    with httpx.Client(base_url=service.base_url, timeout=60) as client:
+    with service.client(timeout=60) as client:
         with open(bad, "rb") as fh:
             r = client.post(
                 "/api/v1/runs",

@@ -37,7 +37,7 @@ def _wait(predicate, timeout_s: float, what: str, service) -> None:
 
 def test_sigkill_mid_job_then_restart_completes_once_with_same_result(service, short_sim_run):
     path, _ = short_sim_run
-    with httpx.Client(base_url=service.base_url, timeout=120) as client:
+    with service.client(timeout=120) as client:
         with open(path, "rb") as fh:
             run = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()
         run_id, first_job = run["id"], run["latest_job"]["id"]
@@ -95,7 +95,7 @@ def test_sigkill_mid_job_then_restart_completes_once_with_same_result(service, s
 
 def test_cancel_running_job(service, short_sim_run):
     path, _ = short_sim_run
-    with httpx.Client(base_url=service.base_url, timeout=120) as client:
+    with service.client(timeout=120) as client:
         with open(path, "rb") as fh:
             run = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()
         client.post(f"/api/v1/jobs/{run['latest_job']['id']}/cancel")

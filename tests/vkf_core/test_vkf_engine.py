@@ -181,3 +181,20 @@ def test_bad_input_names_the_argument(kwargs: dict, name: str) -> None:
     args.update(kwargs)
     with pytest.raises(ValueError, match=name):
         vkf(args.pop("y"), **args)
+
+
+@pytest.mark.parametrize("q", [1, 2, 3])
+def test_unit_tone_exact_to_the_very_ends(q):
+    """Decimated solve: no edge transient (FIR edge samples leave the data equation)."""
+    fs = 12_000.0
+    t = np.arange(int(20 * fs)) / fs
+    res = vkf(np.cos(2 * np.pi * 50.0 * t + 0.3), fs, [50.0], 1.5, q)
+    assert res.info["chunks"][0]["decimation"] > 1
+    np.testing.assert_allclose(res.amplitude[0], 1.0, atol=1e-5)
+
+
+def test_one_dimensional_per_sample_freqs_are_refused_with_a_hint():
+    fs, n = 1000.0, 5000
+    y = np.zeros(n)
+    with pytest.raises(ValueError, match=r"freqs has shape \(5000,\).*\(1, N\)"):
+        vkf(y, fs, np.full(n, 50.0), 2.0)

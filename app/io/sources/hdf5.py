@@ -14,9 +14,34 @@ import numpy as np
 from app.io.canonical import check_hdf5_tree
 from app.io.channels import TIME_COLUMN, UNIT_SYNONYMS, UNITS
 from app.io.errors import RunFileError
+from app.io.limits import DEFAULT_LIMITS, IngestLimits
 from app.io.sources.base import Source, SourceInfo, map_channel_names
 
-__all__ = ["Hdf5Source"]
+__all__ = ["Hdf5Source", "ALLOWED_FILTERS"]
+
+#: HDF5 filters a dataset may use: built into the HDF5 library or h5py (LZF).
+#: Anything else would load a plugin library from HDF5_PLUGIN_PATH.
+ALLOWED_FILTERS: dict[int, str] = {
+    1: "deflate (gzip)",
+    2: "shuffle",
+    3: "fletcher32",
+    4: "szip",
+    5: "nbit",
+    6: "scaleoffset",
+    32000: "lzf",
+}
+
+
+def _check_filters(name: str, ds: h5py.Dataset) -> None:
+    plist = ds.id.get_create_plist()
+    for i in range(plist.get_nfilters()):
+        filter_id = int(plist.get_filter(i)[0])
+        if filter_id not in ALLOWED_FILTERS:
+            raise RunFileError(
+                name,
+                f"HDF5 filter {filter_id} is not allowed (allowed: "
+                f"{', '.join(ALLOWED_FILTERS.values())})",
+            )
 
 
 def _attr_text(value: Any) -> str:
@@ -40,17 +65,25 @@ def _attr_float(value: Any, field: str) -> float:
 class Hdf5Source(Source):
     """Read an HDF5 run file.
 
-    The tree is checked before any data are read: external links, soft links
-    that do not resolve to a dataset inside the file, groups, virtual datasets
-    and datasets with external storage are rejected.
+    The tree is checked before any data are read: more root members than
+    ``limits.max_columns``, external links, soft links that do not resolve to a
+    dataset inside the file, groups, virtual datasets, datasets with external
+    storage and filters other than :data:`ALLOWED_FILTERS` are rejected, and so
+    is a file whose datasets would decode to more than
+    ``limits.max_decoded_bytes(file size)`` (compression or sparse-allocation
+    bomb).
 
     Parameters
     ----------
     path : Path
         Input file.
+    limits : IngestLimits
+        Acceptance limits.
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, limits: IngestLimits = DEFAULT_LIMITS) -> None:
+        self._limits = limits
+        self._file_bytes = Path(path).stat().st_size
         try:
             self._h5 = h5py.File(path, "r")
         except (OSError, ValueError) as exc:
@@ -62,6 +95,13 @@ class Hdf5Source(Source):
             raise
 
     def _setup(self) -> None:
+        n_members = len(self._h5)
+        if n_members > self._limits.max_columns:
+            raise RunFileError(
+                "file",
+                f"{n_members} root members exceed the limit of {self._limits.max_columns} "
+                "(one dataset per channel)",
+            )
         members = check_hdf5_tree(self._h5)
         names = map_channel_names(members)
         self._ds: dict[str, h5py.Dataset] = {}
@@ -72,6 +112,7 @@ class Hdf5Source(Source):
                 raise RunFileError(orig, f"must be a 1-D dataset, got shape {ds.shape}")
             if ds.dtype.kind not in "iuf":
                 raise RunFileError(orig, f"wrong dtype {ds.dtype}: channels must be numeric")
+            _check_filters(orig, ds)
             units = ds.attrs.get("units")
             if units is not None:
                 text = _attr_text(units).strip()
@@ -90,6 +131,14 @@ class Hdf5Source(Source):
             bad = next(c for c in lengths if lengths[c] != lengths[ref])
             listing = ", ".join(f"{c}={n}" for c, n in lengths.items())
             raise RunFileError(bad, f"channels of unequal length ({listing})")
+        decoded = sum(int(d.shape[0]) * d.dtype.itemsize for d in self._ds.values())
+        allowed = self._limits.max_decoded_bytes(self._file_bytes)
+        if decoded > allowed:
+            raise RunFileError(
+                "file",
+                f"the datasets decode to {decoded} bytes, more than {allowed} bytes allowed for a "
+                f"{self._file_bytes}-byte file (compression bomb or unallocated storage)",
+            )
         attrs = self._h5.attrs
         file_meta: dict[str, Any] = {}
         if "metadata" in attrs:

@@ -11,27 +11,83 @@ import pyarrow.parquet as pq
 
 from app.io.channels import TIME_COLUMN
 from app.io.errors import RunFileError
+from app.io.limits import DEFAULT_LIMITS, IngestLimits
 from app.io.sources.base import Source, SourceInfo, map_channel_names
 
 __all__ = ["ParquetSource"]
 
 _PANDAS_INDEX = "__index_level_0__"
+_MAGIC = b"PAR1"
+
+
+def _check_footer(path: Path, file_bytes: int, limits: IngestLimits) -> None:
+    """Check the footer length stored in the last 8 bytes before the footer is parsed."""
+    if file_bytes < 12:
+        raise RunFileError("file", "not a Parquet file: too short")
+    with open(path, "rb") as fh:
+        fh.seek(file_bytes - 8)
+        tail = fh.read(8)
+    if tail[4:] != _MAGIC:
+        raise RunFileError("file", "not a Parquet file: no PAR1 magic at the end (truncated?)")
+    footer = int.from_bytes(tail[:4], "little")
+    if footer > file_bytes - 12:
+        raise RunFileError("file", f"Parquet footer of {footer} bytes does not fit the file (truncated?)")
+    if footer > limits.max_parquet_footer_bytes:
+        raise RunFileError(
+            "file", f"Parquet footer of {footer} bytes exceeds {limits.max_parquet_footer_bytes} bytes"
+        )
 
 
 class ParquetSource(Source):
     """Read a Parquet file batch by batch (bounded memory).
 
+    Before any column is read, the footer size (``limits.max_parquet_footer_bytes``),
+    the column count (``limits.max_columns``) and the decoded size (rows ×
+    columns × 8 bytes, and the uncompressed size of the column chunks) against
+    ``limits.max_decoded_bytes(file size)`` are checked: a decompression or
+    encoding bomb is refused from its metadata.
+
     Parameters
     ----------
     path : Path
         Input file.
+    limits : IngestLimits
+        Acceptance limits.
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, limits: IngestLimits = DEFAULT_LIMITS) -> None:
+        path = Path(path)
+        file_bytes = path.stat().st_size
+        _check_footer(path, file_bytes, limits)
         try:
             self._pf = pq.ParquetFile(path)
         except (pa.ArrowException, OSError) as exc:
             raise RunFileError("file", f"cannot open Parquet file: {exc}") from None
+        try:
+            self._setup(file_bytes, limits)
+        except BaseException:
+            self._pf.close()
+            raise
+
+    def _setup(self, file_bytes: int, limits: IngestLimits) -> None:
+        meta = self._pf.metadata
+        if meta.num_columns > limits.max_columns:
+            raise RunFileError(
+                "file", f"{meta.num_columns} columns exceed the limit of {limits.max_columns}"
+            )
+        allowed = limits.max_decoded_bytes(file_bytes)
+        decoded = int(meta.num_rows) * 8 * meta.num_columns
+        uncompressed = sum(
+            max(int(meta.row_group(i).column(j).total_uncompressed_size), 0)
+            for i in range(meta.num_row_groups)
+            for j in range(meta.num_columns)
+        )
+        if max(decoded, uncompressed) > allowed:
+            raise RunFileError(
+                "file",
+                f"the Parquet data decode to {max(decoded, uncompressed)} bytes, more than "
+                f"{allowed} bytes allowed for a {file_bytes}-byte file (decompression bomb limit)",
+            )
         schema = self._pf.schema_arrow
         names = [n for n in schema.names if n != _PANDAS_INDEX]
         self._names = map_channel_names(names)

@@ -97,6 +97,15 @@
     });
   }
 
+  document.addEventListener("DOMContentLoaded", () => {
+    const out = document.getElementById("logout");
+    if (!out) return;
+    out.addEventListener("click", async () => {
+      try { await request("POST", "/auth/logout"); } catch (_) { /* already logged out */ }
+      window.location.assign("/login");
+    });
+  });
+
   window.trackvkf = Object.assign(window.trackvkf || {}, {
     boot,
     ApiError,

@@ -25,13 +25,13 @@
 
   function fitTable() {
     const table = document.getElementById("fit-table");
-    const ws = (fit && fit.wheels) || [];
+    const ws = ((fit && fit.wheels) || []).filter((w) => (w.n_samples || 0) > 0);
     if (!ws.length) {
       table.innerHTML = `<tbody><tr><td class="muted">No fit: no subsidence data yet.</td></tr></tbody>`;
       document.getElementById("fit-csv").disabled = true;
       return;
     }
-    const ci = (v) => (v ? ` <span class="muted">[${T.fmt(v[0], 3)}, ${T.fmt(v[1], 3)}]</span>` : "");
+    const ci = (v) => (v && Number.isFinite(v[0]) && Number.isFinite(v[1]) ? ` <span class="muted">[${T.fmt(v[0], 3)}, ${T.fmt(v[1], 3)}]</span>` : "");
     const row = (label, f) => `<tr><th>${label}</th>${ws.map((w) => `<td class="num">${f(w)}</td>`).join("")}</tr>`;
     table.innerHTML = `<thead><tr><th>Regressor</th>${ws.map((w) => `<th class="num">Wheel ${T.esc(T.wheelId(w.wheel))}</th>`).join("")}</tr></thead><tbody>` +
       row("Intercept b (mm)", (w) => T.fmt(w.intercept, 3) + ci(w.intercept_ci)) +
@@ -45,7 +45,7 @@
   }
 
   document.getElementById("fit-csv").addEventListener("click", () => {
-    const ws = fit.wheels;
+    const ws = fit.wheels.filter((w) => (w.n_samples || 0) > 0);
     T.downloadCSV("subsidence-fit.csv", ["wheel", "intercept_mm", "intercept_ci_lo", "intercept_ci_hi", "slope_mm", "slope_ci_lo", "slope_ci_hi", "rmse_mm", "r2", "n_samples", "log_base"],
       ws.map((w) => [w.wheel, w.intercept, (w.intercept_ci || [])[0], (w.intercept_ci || [])[1], w.slope, (w.slope_ci || [])[0], (w.slope_ci || [])[1], w.rmse, w.r2, w.n_samples, fit.log_base]));
   });

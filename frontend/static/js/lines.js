@@ -144,7 +144,7 @@
       .sort((a, b) => String(a.start_time).localeCompare(String(b.start_time)));
     seg = null;
     if (F.analytics_segments) {
-      try { seg = await T.api.optional("/analytics/segments", { line_id, track, segment_m: SEG_M, align: true }); }
+      try { seg = await T.api.optional("/analytics/segments", { line_id, track, wheel, segment_m: SEG_M, align: true }); }
       catch (e) { T.banner(`Segments not available (HTTP ${e.status}): ${e.detail}`); }
       if (seg) seg.source = "analytics";
     }

@@ -1,0 +1,209 @@
+"""Data of the analytics endpoints: run selection, profile frames, reference frames.
+
+Kept apart from the routes so each route reads like its analysis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from sqlalchemy import func, select
+
+from app.analysis.stiffness.speed_norm import SpeedFit, fit_speed_exponent, normalise_amplitude
+from app.analysis.stiffness.superstructure import assign_sections
+from app.api.errors import ApiError
+from app.core.config import Settings
+from app.db import crud, reference_crud
+from app.db.models import ProfileBin, Run
+from app.db.session import Database
+
+__all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
+           "speed_exponents", "normalised", "section_types", "num", "nums"]
+
+_COLS = ["run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
+
+
+@dataclass
+class Selection:
+    """Runs of one line and track with stored results, ordered by start time."""
+
+    line_id: str | None
+    track: str | None
+    runs: list[Run]
+    bin_length: float
+
+    @property
+    def run_ids(self) -> list[int]:
+        return [r.id for r in self.runs]
+
+
+def num(value) -> float | None:
+    """JSON number or None (NaN, inf)."""
+    if value is None:
+        return None
+    v = float(value)
+    return v if math.isfinite(v) else None
+
+
+def nums(values) -> list[float | None]:
+    return [num(v) for v in np.asarray(values, dtype=np.float64).tolist()]
+
+
+def parse_run_ids(value: str | None) -> list[int] | None:
+    """``"3,5,8"`` → [3, 5, 8] (422 naming ``run_ids`` otherwise)."""
+    if value is None or not value.strip():
+        return None
+    try:
+        ids = [int(p) for p in value.split(",") if p.strip()]
+    except ValueError:
+        raise ApiError(422, "run_ids", f"must be comma-separated integers, got {value!r}") from None
+    if not ids or any(i < 1 or i > 2**31 - 1 for i in ids):
+        raise ApiError(422, "run_ids", "must be positive integers")
+    return ids
+
+
+def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: list[int] | None) -> Selection:
+    """Explicit runs (all must exist and have results, on one line/track) or all runs of line/track with results."""
+    with db.read() as session:
+        if run_ids:
+            runs = []
+            for rid in run_ids:
+                run = crud.get_run(session, rid)
+                if run is None:
+                    raise ApiError(404, "run_ids", f"run {rid} not found")
+                if crud.results_job(session, rid) is None:
+                    raise ApiError(409, "run_ids", f"run {rid} has no results yet")
+                runs.append(run)
+            lines = {(r.line_id, r.track) for r in runs}
+            if len(lines) > 1:
+                raise ApiError(422, "run_ids", f"runs are on different lines/tracks: {sorted(map(str, lines))}")
+            lid, trk = next(iter(lines))
+            if line_id is not None and line_id != lid:
+                raise ApiError(422, "line_id", f"runs {run_ids} are on line {lid!r}, not {line_id!r}")
+            if track is not None and track != trk:
+                raise ApiError(422, "track", f"runs {run_ids} are on track {trk!r}, not {track!r}")
+            line_id, track = lid, trk
+        else:
+            if line_id is None:
+                raise ApiError(422, "line_id", "is required unless run_ids are given")
+            with_results = select(ProfileBin.run_id).distinct()
+            stmt = select(Run).where(Run.line_id == line_id, Run.id.in_(with_results))
+            if track is not None:
+                stmt = stmt.where(Run.track == track)
+            runs = list(session.scalars(stmt).all())
+            tracks = {r.track for r in runs}
+            if track is None and len(tracks) > 1:
+                raise ApiError(422, "track", f"line {line_id!r} has runs on tracks {sorted(map(str, tracks))}: choose one")
+            if track is None and tracks:
+                track = next(iter(tracks))
+        bin_length = 0.25
+        for r in runs:
+            job = crud.results_job(session, r.id)
+            if job is not None:
+                bin_length = float((job.settings or {}).get("bin_length_m", 0.25))
+    runs.sort(key=lambda r: (r.start_time is None, r.start_time, r.id))
+    return Selection(line_id, track, runs, bin_length)
+
+
+def load_profiles(
+    db: Database, settings: Settings, sel: Selection, *, km_from: float | None = None,
+    km_to: float | None = None, wheel: str | None = None, min_speed_kmh: float | None = None,
+) -> pd.DataFrame:
+    """Profile rows of the selected runs (columns ``_COLS``), without the run ends
+    (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude."""
+    min_v = (settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh) / 3.6
+    trim = settings.analytics_edge_trim_m
+    frames = []
+    with db.read() as session:
+        for run in sel.runs:
+            ext = session.execute(
+                select(ProfileBin.wheel, func.min(ProfileBin.bin), func.max(ProfileBin.bin))
+                .where(ProfileBin.run_id == run.id).group_by(ProfileBin.wheel)
+            ).all()
+            df = _rows(session, run.id, wheel, km_from, km_to)
+            if df.empty:
+                continue
+            lo = df["wheel"].map({w: b0 for w, b0, _ in ext})
+            hi = df["wheel"].map({w: b1 for w, _, b1 in ext})
+            k = trim / sel.bin_length
+            keep = (df["bin"] >= lo + k) & (df["bin"] <= hi - k)
+            keep &= (df["speed_mean"] >= min_v) & (df["sleeper_amp"] > 0)
+            df = df[keep]
+            df.insert(0, "run_id", run.id)
+            frames.append(df[_COLS])
+    if not frames:
+        return pd.DataFrame({c: pd.Series(dtype=object if c == "wheel" else float) for c in _COLS})
+    return pd.concat(frames, ignore_index=True)
+
+
+def _rows(session, run_id: int, wheel: str | None, km_from: float | None, km_to: float | None) -> pd.DataFrame:
+    """The analytics' columns of a run's profile rows (ordered by wheel and bin)."""
+    cols = [ProfileBin.wheel, ProfileBin.bin, ProfileBin.km, ProfileBin.speed_mean,
+            ProfileBin.sleeper_amp, ProfileBin.sleeper_force_amp]
+    cond = [ProfileBin.run_id == run_id]
+    if wheel is not None:
+        cond.append(ProfileBin.wheel == wheel)
+    if km_from is not None:
+        cond.append(ProfileBin.km >= km_from)
+    if km_to is not None:
+        cond.append(ProfileBin.km <= km_to)
+    rows = session.connection().execute(
+        select(*cols).where(*cond).order_by(ProfileBin.wheel, ProfileBin.bin)).all()
+    names = ["wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
+    if not rows:
+        return pd.DataFrame(columns=names)
+    w, b, *rest = zip(*rows, strict=True)
+    out = {"wheel": np.array(w, dtype=object), "bin": np.array(b, dtype=np.int64)}
+    for name, vals in zip(names[2:], rest, strict=True):
+        out[name] = np.array(vals, dtype=np.float64)  # None -> NaN
+    return pd.DataFrame(out)
+
+
+def reference(db: Database, kind: str, sel: Selection, **kw) -> pd.DataFrame:
+    """Reference rows of the selection's line and track."""
+    with db.read() as session:
+        return reference_crud.reference_frame(session, kind, line_id=sel.line_id, track=sel.track, **kw)
+
+
+def section_types(sections: pd.DataFrame, position_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Section index (-1 none) and type label ('' none) per position (m)."""
+    if sections.empty:
+        return np.full(len(position_m), -1), np.full(len(position_m), "", dtype=object)
+    idx = assign_sections(position_m, sections["km_from"].to_numpy() * 1000, sections["km_to"].to_numpy() * 1000)
+    types = np.where(idx >= 0, sections["type"].to_numpy(dtype=object)[np.maximum(idx, 0)], "")
+    return idx, types.astype(object)
+
+
+def speed_exponents(df: pd.DataFrame, sections: pd.DataFrame, bin_length: float,
+                    ref_speed_kmh: float, min_speed_kmh: float) -> dict[str, SpeedFit]:
+    """Speed exponent per superstructure type ('' = bins outside sections) and over all bins ('*')."""
+    out: dict[str, SpeedFit] = {}
+    if df.empty:
+        return out
+    pos = (df["bin"].to_numpy() + 0.5) * bin_length
+    _, types = section_types(sections, pos)
+    amp, v = df["sleeper_amp"].to_numpy(), df["speed_mean"].to_numpy()
+    loc = df["wheel"].astype(str).to_numpy() + ":" + df["bin"].astype(str).to_numpy()
+    kw = {"reference_speed_mps": ref_speed_kmh / 3.6, "min_speed_mps": min_speed_kmh / 3.6,
+          "hac_lag": int(round(100.0 / bin_length))}
+    out["*"] = fit_speed_exponent(amp, v, loc, **kw)
+    for t in sorted(set(types)):
+        m = types == t
+        out[t] = fit_speed_exponent(amp[m], v[m], loc[m], **kw)
+    return out
+
+
+def normalised(df: pd.DataFrame, sections: pd.DataFrame, fits: dict[str, SpeedFit], bin_length: float,
+               ref_speed_kmh: float, min_speed_kmh: float) -> tuple[np.ndarray, np.ndarray]:
+    """Speed-normalised sleeper amplitude per row (type's exponent, else the pooled one) and the type per row."""
+    pos = (df["bin"].to_numpy() + 0.5) * bin_length
+    _, types = section_types(sections, pos)
+    pooled = fits["*"].exponent if "*" in fits else float("nan")
+    alpha = np.array([fits[t].exponent if t in fits and np.isfinite(fits[t].exponent) else pooled
+                      for t in types], dtype=np.float64)
+    amp = normalise_amplitude(df["sleeper_amp"].to_numpy(), df["speed_mean"].to_numpy(), alpha,
+                              reference_speed_mps=ref_speed_kmh / 3.6, min_speed_mps=min_speed_kmh / 3.6)
+    return amp, types

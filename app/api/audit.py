@@ -1,0 +1,134 @@
+"""The audit log: the helper routes use to append to it, and its read endpoint (admin).
+
+Routes record what they change with :func:`record` inside their own write
+transaction, so an action and its audit entry are committed together::
+
+    with db.write() as session:
+        ...change...
+        record(session, request, principal, "reference.import", target="maintenance",
+               detail={"imported": n})
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, Query, Request
+from sqlalchemy.orm import Session
+
+from app.api.deps import DbDep, Principal, SettingsDep, client_ip, require_role
+from app.api.errors import ApiError
+from app.api.schemas.auth import AuditList, AuditOut
+from app.db import auth_crud
+from app.db.session import Database
+
+__all__ = ["router", "record", "record_now", "ACTIONS"]
+
+#: Actions written to the audit log.
+ACTIONS: tuple[str, ...] = (
+    "auth.login",
+    "auth.logout",
+    "auth.password",
+    "user.create",
+    "user.update",
+    "user.delete",
+    "key.create",
+    "key.revoke",
+    "run.upload",
+    "run.delete",
+    "job.create",
+    "job.cancel",
+    "reference.import",
+    "reference.delete",
+)
+
+router = APIRouter(tags=["audit"], dependencies=[Depends(require_role("admin"))])
+
+
+def record(
+    session: Session,
+    request: Request | None,
+    principal: Principal | None,
+    action: str,
+    *,
+    target: Any = None,
+    outcome: str = "ok",
+    detail: dict[str, Any] | None = None,
+    actor: str | None = None,
+) -> None:
+    """Append an audit entry in the caller's transaction.
+
+    Parameters
+    ----------
+    session : Session
+        Open write session.
+    request : Request or None
+        The request (for the client address).
+    principal : Principal or None
+        Who acts; ``actor`` names someone not authenticated (a failed login).
+    action : str
+        One of :data:`ACTIONS` (e.g. ``"run.upload"``).
+    target : object
+        What is acted on (run id, user name, key id ...).
+    outcome : str
+        ``ok``, ``denied`` or ``rejected``.
+    detail : dict
+        Further facts (JSON).
+    """
+    auth_crud.audit(
+        session,
+        actor=actor if actor is not None else (principal.name if principal else "unknown"),
+        actor_kind=principal.kind if principal else "none",
+        action=action,
+        target=None if target is None else str(target),
+        outcome=outcome,
+        client_ip=client_ip(request) if request is not None else None,
+        detail=detail,
+    )
+
+
+def record_now(db: Database, request: Request | None, principal: Principal | None, action: str, **kwargs: Any) -> None:
+    """Append an audit entry in its own transaction (for outcomes without other writes)."""
+    with db.write() as session:
+        record(session, request, principal, action, **kwargs)
+
+
+def _parse_time(value: str | None, name: str) -> dt.datetime | None:
+    if value is None or value == "":
+        return None
+    try:
+        parsed = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
+    except ValueError:
+        raise ApiError(422, name, f"not an ISO 8601 date or datetime: {value!r}") from None
+    if parsed.tzinfo is None:
+        parsed = parsed.replace(tzinfo=dt.UTC)
+    try:
+        return parsed.astimezone(dt.UTC)
+    except OverflowError:
+        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
+
+
+@router.get("/audit", response_model=AuditList, summary="Read the audit log (admin)")
+def read_audit(
+    db: DbDep,
+    settings: SettingsDep,
+    action: Annotated[str | None, Query(max_length=64, description="e.g. run.upload")] = None,
+    actor: Annotated[str | None, Query(max_length=128, description="User or key:<name>")] = None,
+    since: Annotated[str | None, Query(max_length=40, description="ISO date or datetime")] = None,
+    until: Annotated[str | None, Query(max_length=40, description="ISO date or datetime")] = None,
+    limit: Annotated[int, Query(ge=1, le=10_000)] = 100,
+    offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+) -> AuditList:
+    """Audit entries (who, when, what), newest first; append-only, nothing can change them."""
+    if limit > settings.max_page_size:
+        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
+    start, end = _parse_time(since, "since"), _parse_time(until, "until")
+    if start and end and start > end:
+        raise ApiError(422, "since", "is after until")
+    with db.read() as session:
+        rows, total = auth_crud.list_audit(
+            session, action=action, actor=actor, since=start, until=end, limit=limit, offset=offset
+        )
+        items = [AuditOut.model_validate(r, from_attributes=True) for r in rows]
+    return AuditList(items=items, total=total, limit=limit, offset=offset)

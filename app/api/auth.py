@@ -1,0 +1,297 @@
+"""Authentication and its administration: login/logout/me, users, API keys.
+
+Browser users log in with ``POST /auth/login``; the answer sets the HttpOnly
+session cookie ``trackvkf_session`` and the readable CSRF cookie
+``trackvkf_csrf`` (both ``SameSite=Strict``). Data systems send an API key.
+Users and keys are administered by admins; every change and every login is
+written to the audit log.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import functools
+import logging
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Depends, Path, Request, Response, status
+
+from app.api.audit import record
+from app.api.deps import (
+    CSRF_COOKIE,
+    SESSION_COOKIE,
+    AdminDep,
+    DbDep,
+    Principal,
+    PrincipalDep,
+    SettingsDep,
+    ViewerDep,
+    client_ip,
+    public,
+    require_role,
+)
+from app.api.errors import ApiError
+from app.api.schemas.auth import (
+    KeyCreated,
+    KeyIn,
+    KeyList,
+    KeyOut,
+    LoginIn,
+    MeOut,
+    PasswordChangeIn,
+    UserIn,
+    UserList,
+    UserOut,
+    UserPatch,
+)
+from app.core.config import Settings
+from app.core.security import csrf_token, hash_password, verify_password
+from app.db import auth_crud
+from app.db.models import utcnow
+
+__all__ = ["router", "login_router", "set_session_cookies"]
+
+log = logging.getLogger(__name__)
+
+router = APIRouter(prefix="/auth", tags=["auth"])
+#: The public part (login), included without an authentication dependency.
+login_router = APIRouter(prefix="/auth", tags=["auth"], dependencies=[Depends(public)])
+
+UsernamePath = Annotated[
+    str, Path(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9._@-]+$", description="User name")
+]
+KeyIdPath = Annotated[int, Path(ge=1, le=2**31 - 1, description="API key id")]
+
+
+@functools.lru_cache(maxsize=1)
+def _dummy_hash() -> str:
+    """A hash to verify against for unknown users (same time as for known ones)."""
+    return hash_password("not-a-password-of-anyone")
+
+
+def _too_many(retry_after: float) -> ApiError:
+    seconds = max(1, int(retry_after + 0.999))
+    return ApiError(
+        429, "rate_limit", f"too many attempts; retry in {seconds} s", {"Retry-After": str(seconds)}
+    )
+
+
+def set_session_cookies(response: Response, settings: Settings, token: str) -> None:
+    """Set the session cookie (HttpOnly) and the CSRF cookie (readable by the page's JS)."""
+    secure = settings.cookie_secure or settings.is_production
+    max_age = int(settings.session_ttl_s)
+    response.set_cookie(
+        SESSION_COOKIE, token, max_age=max_age, path="/", secure=secure, httponly=True,
+        samesite="strict",
+    )
+    response.set_cookie(
+        CSRF_COOKIE, csrf_token(settings.secret_key, token), max_age=max_age, path="/",
+        secure=secure, httponly=False, samesite="strict",
+    )
+
+
+def _clear_cookies(response: Response) -> None:
+    response.delete_cookie(SESSION_COOKIE, path="/", httponly=True, samesite="strict")
+    response.delete_cookie(CSRF_COOKIE, path="/", samesite="strict")
+
+
+def _me(principal: Principal) -> MeOut:
+    return MeOut(name=principal.name, role=principal.role, kind=principal.kind)
+
+
+@login_router.post(
+    "/login",
+    response_model=MeOut,
+    summary="Log in (browser): sets the session and CSRF cookies",
+    responses={401: {"description": "Wrong user name or password"}, 429: {"description": "Too many attempts"}},
+)
+def login(body: LoginIn, request: Request, response: Response, db: DbDep, settings: SettingsDep) -> MeOut:
+    """Check the password and start a session.
+
+    At most ``TRACKVKF_LOGIN_RATE_LIMIT`` attempts per client address and per
+    user name within ``TRACKVKF_LOGIN_RATE_WINDOW_S`` (per API process).
+    """
+    limiter = request.app.state.login_limiter
+    for key in (f"ip:{client_ip(request)}", f"user:{body.username.lower()}"):
+        wait = limiter.hit(key)
+        if wait is not None:
+            # not audited: a flood must not grow the append-only log; the service log has it
+            log.warning("login rate limit hit by %s for user %r", client_ip(request), body.username[:64])
+            raise _too_many(wait)
+    with db.write() as session:
+        user = auth_crud.get_user(session, body.username)
+        ok = verify_password(user.password_hash if user else _dummy_hash(), body.password)
+        if user is None or not ok or not user.active:
+            record(session, request, None, "auth.login", target=body.username, outcome="denied",
+                   actor=body.username)
+            failed = True
+        else:
+            token = auth_crud.create_session(
+                session, user, dt.timedelta(seconds=settings.session_ttl_s), client_ip(request)
+            )
+            principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+            record(session, request, principal, "auth.login", target=user.username)
+            failed = False
+    if failed:
+        raise ApiError(401, "credentials", "wrong user name or password")
+    set_session_cookies(response, settings, token)
+    return _me(principal)
+
+
+@router.post(
+    "/logout",
+    status_code=status.HTTP_204_NO_CONTENT,
+    summary="Log out: end the session and clear its cookies",
+    dependencies=[Depends(require_role("viewer"))],
+)
+def logout(request: Request, db: DbDep, principal: PrincipalDep) -> Response:
+    """End the browser session (an API key request only gets its cookies cleared)."""
+    response = Response(status_code=status.HTTP_204_NO_CONTENT)
+    token = getattr(request.state, "session_token", None)
+    with db.write() as session:
+        if principal.kind == "user" and token:
+            auth_crud.delete_session(session, token)
+        record(session, request, principal, "auth.logout", target=principal.name)
+    _clear_cookies(response)
+    return response
+
+
+@router.get("/me", response_model=MeOut, summary="Who am I")
+def me(principal: ViewerDep) -> MeOut:
+    """Name, role and kind (user, api_key) of the authenticated principal."""
+    return _me(principal)
+
+
+@router.post(
+    "/password",
+    status_code=status.HTTP_204_NO_CONTENT,
+    summary="Change one's own password (users)",
+    responses={401: {"description": "Wrong current password"}},
+)
+def change_password(body: PasswordChangeIn, request: Request, db: DbDep, principal: ViewerDep) -> Response:
+    """Change the logged-in user's password; all the user's sessions end (log in again)."""
+    if principal.kind != "user":
+        raise ApiError(409, "principal", "only users have passwords (this is an API key)")
+    with db.write() as session:
+        user = auth_crud.get_user(session, principal.name)
+        if user is None or not verify_password(user.password_hash, body.current_password):
+            raise ApiError(401, "current_password", "wrong password")
+        try:
+            auth_crud.update_user(session, principal.name, password=body.new_password)
+        except auth_crud.AuthError as exc:
+            raise ApiError(422, "new_password", exc.message) from None
+        record(session, request, principal, "auth.password", target=principal.name)
+    response = Response(status_code=status.HTTP_204_NO_CONTENT)
+    _clear_cookies(response)
+    return response
+
+
+# --- users (admin) -------------------------------------------------------------------
+def _user_out(user) -> UserOut:
+    return UserOut.model_validate(user, from_attributes=True)
+
+
+@router.get("/users", response_model=UserList, summary="List users (admin)")
+def list_users(db: DbDep, principal: AdminDep) -> UserList:
+    """All users by name."""
+    with db.read() as session:
+        return UserList(items=[_user_out(u) for u in auth_crud.list_users(session)])
+
+
+@router.post(
+    "/users", response_model=UserOut, status_code=status.HTTP_201_CREATED,
+    summary="Create a user (admin)", responses={409: {"description": "The user exists"}},
+)
+def create_user(body: UserIn, request: Request, db: DbDep, principal: AdminDep) -> UserOut:
+    """Create a browser user with a role; the password is stored as an Argon2id hash."""
+    with db.write() as session:
+        if auth_crud.get_user(session, body.username) is not None:
+            raise ApiError(409, "username", f"user {body.username!r} exists")
+        try:
+            user = auth_crud.create_user(
+                session, body.username, body.password, body.role, created_by=principal.name
+            )
+        except auth_crud.AuthError as exc:
+            raise ApiError(422, exc.field, exc.message) from None
+        record(session, request, principal, "user.create", target=user.username, detail={"role": user.role})
+        return _user_out(user)
+
+
+@router.patch("/users/{username}", response_model=UserOut, summary="Change a user (admin)")
+def update_user(
+    username: UsernamePath, request: Request, db: DbDep, principal: AdminDep,
+    body: Annotated[UserPatch, Body()],
+) -> UserOut:
+    """Change password, role or active flag; the user's sessions end."""
+    if principal.kind == "user" and principal.name == username and (
+        body.active is False or (body.role is not None and body.role != "admin")
+    ):
+        raise ApiError(409, "username", "an admin cannot deactivate or demote itself")
+    with db.write() as session:
+        try:
+            user = auth_crud.update_user(
+                session, username, password=body.password, role=body.role, active=body.active
+            )
+        except auth_crud.AuthError as exc:
+            raise ApiError(422, exc.field, exc.message) from None
+        if user is None:
+            raise ApiError(404, "username", f"user {username!r} not found")
+        changed = {k: v for k, v in body.model_dump(exclude_none=True).items() if k != "password"}
+        if body.password is not None:
+            changed["password"] = "changed"
+        record(session, request, principal, "user.update", target=username, detail=changed)
+        return _user_out(user)
+
+
+@router.delete("/users/{username}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete a user (admin)")
+def delete_user(username: UsernamePath, request: Request, db: DbDep, principal: AdminDep) -> Response:
+    """Delete a user and end its sessions (its audit entries stay)."""
+    if principal.kind == "user" and principal.name == username:
+        raise ApiError(409, "username", "an admin cannot delete itself")
+    with db.write() as session:
+        if not auth_crud.delete_user(session, username):
+            raise ApiError(404, "username", f"user {username!r} not found")
+        record(session, request, principal, "user.delete", target=username)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+# --- API keys (admin) -------------------------------------------------------------------
+def _key_out(row) -> KeyOut:
+    return KeyOut.model_validate(row, from_attributes=True)
+
+
+@router.get("/keys", response_model=KeyList, summary="List API keys (admin)")
+def list_keys(db: DbDep, principal: AdminDep) -> KeyList:
+    """All API keys, newest first, with last use and revocation; never the keys themselves."""
+    with db.read() as session:
+        return KeyList(items=[_key_out(k) for k in auth_crud.list_api_keys(session)])
+
+
+@router.post(
+    "/keys", response_model=KeyCreated, status_code=status.HTTP_201_CREATED,
+    summary="Create an API key (admin): shown once",
+)
+def create_key(body: KeyIn, request: Request, db: DbDep, principal: AdminDep) -> KeyCreated:
+    """Create a key scoped to a role. The answer's ``key`` is shown this once; only its hash is kept."""
+    expires = utcnow() + dt.timedelta(days=body.expires_in_days) if body.expires_in_days else None
+    with db.write() as session:
+        try:
+            row, key = auth_crud.create_api_key(
+                session, body.name, body.role, created_by=principal.name, expires_at=expires
+            )
+        except auth_crud.AuthError as exc:
+            raise ApiError(422, exc.field, exc.message) from None
+        record(session, request, principal, "key.create", target=row.id,
+               detail={"name": row.name, "role": row.role, "prefix": row.prefix})
+        return KeyCreated(**_key_out(row).model_dump(), key=key)
+
+
+@router.delete("/keys/{key_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Revoke an API key (admin)")
+def revoke_key(key_id: KeyIdPath, request: Request, db: DbDep, principal: AdminDep) -> Response:
+    """Revoke a key: requests with it get 401 from now on. It stays listed as revoked."""
+    with db.write() as session:
+        row = auth_crud.revoke_api_key(session, key_id)
+        if row is None:
+            raise ApiError(404, "key_id", f"API key {key_id} not found")
+        record(session, request, principal, "key.revoke", target=key_id, detail={"name": row.name})
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

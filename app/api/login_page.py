@@ -1,0 +1,131 @@
+"""The login page (``GET /login``, public) and the access-protected API docs.
+
+``/docs`` (Swagger UI) needs a logged-in browser (else 303 to the login page)
+and ``/openapi.json`` an authenticated principal: the description of the API
+is not public either. The schema declares the API-key schemes so that the
+docs' "Authorize" button and API clients know how to authenticate.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import jinja2
+from fastapi import APIRouter, Depends, FastAPI, Query, Request
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import HTMLResponse, JSONResponse
+
+from app.api.deps import API_KEY_HEADER, public, require_page_login, require_role
+
+__all__ = ["router", "safe_next", "install_protected_docs", "TEMPLATES_DIR"]
+
+TEMPLATES_DIR = Path(__file__).resolve().parents[2] / "frontend" / "templates"
+_PAGE_HEADERS = {
+    "Cache-Control": "no-store",
+    "X-Frame-Options": "DENY",
+    "Content-Security-Policy": "frame-ancestors 'none'",
+    "X-Content-Type-Options": "nosniff",
+}
+
+router = APIRouter(include_in_schema=False, dependencies=[Depends(public)])
+
+
+def _environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(TEMPLATES_DIR)), autoescape=True, auto_reload=False
+    )
+
+
+_ENV = _environment()
+
+
+def safe_next(value: str | None) -> str:
+    """A local path to go to after login; anything else (other sites, odd text) gives ``/``."""
+    if not value or len(value) > 2000 or not value.startswith("/"):
+        return "/"
+    if value.startswith("//") or value.startswith("/\\") or not value.isprintable():
+        return "/"
+    return value
+
+
+@router.get("/login", response_class=HTMLResponse)
+def login_page(next: Annotated[str | None, Query(max_length=2000)] = None) -> HTMLResponse:  # noqa: A002
+    """The login form; after login the browser goes to ``next`` (a local path)."""
+    html = _ENV.get_template("login.html").render(next_path=safe_next(next))
+    return HTMLResponse(html, headers=_PAGE_HEADERS)
+
+
+def _security_schemes(schema: dict[str, Any], public_paths: set[str]) -> dict[str, Any]:
+    components = schema.setdefault("components", {})
+    components["securitySchemes"] = {
+        "bearerKey": {"type": "http", "scheme": "bearer", "description": "API key"},
+        "headerKey": {"type": "apiKey", "in": "header", "name": API_KEY_HEADER},
+    }
+    schema["security"] = [{"bearerKey": []}, {"headerKey": []}]
+    for path, operations in schema.get("paths", {}).items():
+        if path in public_paths:
+            for operation in operations.values():
+                if isinstance(operation, dict):
+                    operation["security"] = []
+    return schema
+
+
+_API_ERROR_SCHEMA = {
+    "title": "ApiError",
+    "type": "object",
+    "required": ["detail", "field"],
+    "properties": {
+        "detail": {"type": "string", "description": "<field>: <message>"},
+        "field": {"type": "string", "description": "The field, parameter or part at fault"},
+    },
+}
+
+
+def _document_api_errors(schema: dict[str, Any]) -> dict[str, Any]:
+    """A 422 is either FastAPI's validation error or an :class:`ApiError` body."""
+    schema.setdefault("components", {}).setdefault("schemas", {})["ApiError"] = _API_ERROR_SCHEMA
+    either = {
+        "anyOf": [
+            {"$ref": "#/components/schemas/HTTPValidationError"},
+            {"$ref": "#/components/schemas/ApiError"},
+        ]
+    }
+    for operations in schema.get("paths", {}).values():
+        for operation in operations.values():
+            if not isinstance(operation, dict):
+                continue
+            response = operation.get("responses", {}).get("422")
+            if response is None:
+                continue
+            content = response.setdefault("content", {}).setdefault("application/json", {})
+            if "HTTPValidationError" in str(content.get("schema", "")):
+                content["schema"] = either
+            else:
+                content["schema"] = {"$ref": "#/components/schemas/ApiError"}
+    return schema
+
+
+def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
+    """Serve ``/openapi.json`` (viewer) and ``/docs`` (logged-in page) with access control.
+
+    Build the app with ``docs_url=None, redoc_url=None, openapi_url=None``.
+    ``public_paths`` are the schema paths that need no authentication.
+    """
+    original = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            app.openapi_schema = _document_api_errors(_security_schemes(original(), public_paths))
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+    @app.get("/openapi.json", include_in_schema=False, dependencies=[Depends(require_role("viewer"))])
+    def openapi_json() -> JSONResponse:
+        return JSONResponse(app.openapi())
+
+    @app.get("/docs", include_in_schema=False, dependencies=[Depends(require_page_login("viewer"))])
+    def docs(request: Request) -> HTMLResponse:
+        page = get_swagger_ui_html(openapi_url="/openapi.json", title=f"{app.title} API")
+        return HTMLResponse(page.body, headers=_PAGE_HEADERS)

@@ -1,0 +1,164 @@
+"""Reference data: import (CSV/Parquet, validated, one transaction) and queries.
+
+``POST /reference/{kind}`` (multipart ``file``; ``mode=append|replace``) —
+writes: to be restricted to the engineer role by the access control.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from typing import Annotated, Literal
+
+import numpy as np
+import pandas as pd
+from fastapi import APIRouter, File, Query, Request, UploadFile
+from starlette.concurrency import run_in_threadpool
+
+from app.api.audit import record
+from app.api.deps import DbDep, EngineerDep, SettingsDep
+from app.api.errors import ApiError
+from app.api.schemas.reference import (
+    DeleteOut,
+    ImportOut,
+    MaintenanceList,
+    SubsidenceList,
+    SuperstructureList,
+)
+from app.db import reference_crud
+from app.io import RunFileError
+from app.io.reference import MAINTENANCE_TYPES, read_reference
+
+__all__ = ["router", "check_km"]
+
+router = APIRouter(prefix="/reference", tags=["reference data"])
+
+Kind = Literal["subsidence", "maintenance", "superstructure"]
+_KM = 100_000.0
+LineQ = Annotated[str | None, Query(max_length=128, description="Line id")]
+TrackQ = Annotated[str | None, Query(max_length=64, description="Track")]
+KmFromQ = Annotated[float | None, Query(ge=-_KM, le=_KM, description="Lower km bound")]
+KmToQ = Annotated[float | None, Query(ge=-_KM, le=_KM, description="Upper km bound")]
+
+
+def check_km(km_from: float | None, km_to: float | None) -> None:
+    """422 unless the km bounds are finite and ordered."""
+    for name, value in (("km_from", km_from), ("km_to", km_to)):
+        if value is not None and not math.isfinite(value):
+            raise ApiError(422, name, "must be a finite number")
+    if km_from is not None and km_to is not None and km_from > km_to:
+        raise ApiError(422, "km_from", f"({km_from}) is greater than km_to ({km_to})")
+
+
+def _records(df: pd.DataFrame) -> list[dict]:
+    out = df.replace({np.nan: None}).to_dict(orient="records")
+    for r in out:
+        if "rail" in r and r["rail"] is not None:
+            r["rail"] = int(r["rail"])
+    return out
+
+
+@router.post("/{kind}", response_model=ImportOut, status_code=201,
+             summary="Import reference data (CSV or Parquet)")
+async def import_reference(
+    kind: Kind,
+    request: Request,
+    principal: EngineerDep,
+    db: DbDep,
+    settings: SettingsDep,
+    file: Annotated[UploadFile, File(description="CSV or Parquet file")],
+    format: Annotated[Literal["csv", "parquet"] | None, Query(description="default: from the file name")] = None,
+    mode: Annotated[Literal["append", "replace"], Query(
+        description="replace: first delete the stored rows of the lines/tracks in the file")] = "append",
+) -> ImportOut:
+    """Validate the whole file, then insert all rows in one transaction.
+
+    Any bad value answers 422 naming the row (1 = first data row) and the
+    column; nothing is imported then.
+    """
+    cap = settings.max_reference_bytes
+    data = await file.read(cap + 1)
+    if len(data) > cap:
+        raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
+    try:
+        rows = await run_in_threadpool(read_reference, data, kind, format, file.filename)
+    except RunFileError as exc:
+        raise ApiError(422, exc.field, exc.message) from None
+
+    def write() -> tuple[int, int]:
+        with db.write() as session:
+            replaced = 0
+            if mode == "replace":
+                for line_id, track in sorted({(r["line_id"], r["track"]) for r in rows}):
+                    replaced += reference_crud.delete_reference(session, kind, line_id, track)
+            imported = reference_crud.insert_reference(session, kind, rows)
+            record(session, request, principal, "reference.import", target=kind,
+                   detail={"imported": imported, "replaced": replaced, "mode": mode,
+                           "filename": file.filename})
+            return imported, replaced
+
+    imported, replaced = await run_in_threadpool(write)
+    return ImportOut(kind=kind, imported=imported, replaced=replaced)
+
+
+@router.delete("/{kind}", response_model=DeleteOut, summary="Delete reference data of a line")
+def delete_reference(kind: Kind, request: Request, principal: EngineerDep, db: DbDep,
+                     line_id: Annotated[str, Query(max_length=128)], track: TrackQ = None) -> DeleteOut:
+    """Delete the rows of ``kind`` of a line (and track)."""
+    with db.write() as session:
+        n = reference_crud.delete_reference(session, kind, line_id, track)
+        record(session, request, principal, "reference.delete", target=kind,
+               detail={"line_id": line_id, "track": track, "deleted": n})
+    return DeleteOut(kind=kind, deleted=n)
+
+
+def _query(db, settings, kind, **kw) -> tuple[list[dict], bool]:
+    check_km(kw.get("km_from"), kw.get("km_to"))
+    limit = settings.max_profile_rows
+    with db.read() as session:
+        df = reference_crud.reference_frame(session, kind, limit=limit + 1, **kw)
+    return _records(df.iloc[:limit]), len(df) > limit
+
+
+@router.get("/subsidence", response_model=SubsidenceList, summary="Subsidence measurements")
+def list_subsidence(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
+                    km_from: KmFromQ = None, km_to: KmToQ = None) -> SubsidenceList:
+    """Subsidence (mm) along km; at most ``TRACKVKF_MAX_PROFILE_ROWS`` rows (``truncated``)."""
+    items, truncated = _query(db, settings, "subsidence", line_id=line_id, track=track,
+                              km_from=km_from, km_to=km_to)
+    return SubsidenceList(items=items, truncated=truncated)
+
+
+@router.get("/maintenance", response_model=MaintenanceList, summary="Maintenance actions")
+def list_maintenance(
+    db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
+    km_from: KmFromQ = None, km_to: KmToQ = None,
+    type: Annotated[str | None, Query(description="comma-separated types")] = None,
+    since: Annotated[dt.date | None, Query(description="actions on or after this date")] = None,
+) -> MaintenanceList:
+    """Maintenance actions overlapping the km range."""
+    items, truncated = _query(db, settings, "maintenance", line_id=line_id, track=track,
+                              km_from=km_from, km_to=km_to, types=parse_types(type), since=since)
+    return MaintenanceList(items=items, truncated=truncated)
+
+
+@router.get("/superstructure", response_model=SuperstructureList, summary="Superstructure sections")
+def list_superstructure(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
+                        km_from: KmFromQ = None, km_to: KmToQ = None) -> SuperstructureList:
+    """Superstructure sections overlapping the km range."""
+    items, truncated = _query(db, settings, "superstructure", line_id=line_id, track=track,
+                              km_from=km_from, km_to=km_to)
+    return SuperstructureList(items=items, truncated=truncated)
+
+
+def parse_types(value: str | None) -> list[str] | None:
+    """Comma-separated maintenance types → list (422 naming an unknown one)."""
+    if value is None or not value.strip():
+        return None
+    out = []
+    for part in value.split(","):
+        t = part.strip().lower().replace(" ", "_").replace("-", "_")
+        if t not in MAINTENANCE_TYPES:
+            raise ApiError(422, "type", f"{part.strip()!r} is not one of {', '.join(MAINTENANCE_TYPES)}")
+        out.append(t)
+    return out

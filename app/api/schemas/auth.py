@@ -1,0 +1,153 @@
+"""Schemas of authentication, users, API keys and the audit log."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+__all__ = [
+    "LoginIn",
+    "MeOut",
+    "UserIn",
+    "UserPatch",
+    "UserOut",
+    "UserList",
+    "KeyIn",
+    "KeyOut",
+    "KeyCreated",
+    "KeyList",
+    "AuditOut",
+    "AuditList",
+    "PasswordChangeIn",
+]
+
+RoleName = Literal["viewer", "engineer", "admin"]
+Username = str
+
+
+class LoginIn(BaseModel):
+    """Credentials of a browser login."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    username: str = Field(min_length=1, max_length=64)
+    password: str = Field(min_length=1, max_length=1024)
+
+
+class MeOut(BaseModel):
+    """The authenticated principal."""
+
+    name: str
+    role: RoleName
+    kind: Literal["anonymous", "user", "api_key"]
+
+
+class PasswordChangeIn(BaseModel):
+    """A user's own password change."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    current_password: str = Field(min_length=1, max_length=1024)
+    new_password: str = Field(min_length=10, max_length=1024)
+
+
+class UserIn(BaseModel):
+    """A new user."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    username: str = Field(
+        min_length=1, max_length=64, pattern=r"^[A-Za-z0-9._@-]+$", description="Login name"
+    )
+    password: str = Field(min_length=10, max_length=1024)
+    role: RoleName
+
+
+class UserPatch(BaseModel):
+    """Changes to a user; omitted fields stay."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    password: str | None = Field(None, min_length=10, max_length=1024)
+    role: RoleName | None = None
+    active: bool | None = None
+
+
+class UserOut(BaseModel):
+    """A user (never its password hash)."""
+
+    username: str
+    role: RoleName
+    active: bool
+    demo_credentials: bool = Field(description="Password printed by `trackvkf demo`, never changed")
+    created_by: str | None = None
+    created_at: dt.datetime
+    updated_at: dt.datetime | None = None
+    last_login_at: dt.datetime | None = None
+
+
+class UserList(BaseModel):
+    """All users."""
+
+    items: list[UserOut]
+
+
+class KeyIn(BaseModel):
+    """A new API key."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(min_length=1, max_length=64, description="What the key is for")
+    role: RoleName
+    expires_in_days: int | None = Field(None, ge=1, le=3650, description="Lifetime, days")
+
+
+class KeyOut(BaseModel):
+    """An API key as listed (never the key itself)."""
+
+    id: int
+    name: str
+    prefix: str = Field(description="First characters after `tvk_`: recognise the key")
+    role: RoleName
+    created_by: str | None = None
+    created_at: dt.datetime
+    expires_at: dt.datetime | None = None
+    last_used_at: dt.datetime | None = Field(None, description="Last use, to the minute")
+    revoked_at: dt.datetime | None = None
+
+
+class KeyCreated(KeyOut):
+    """A new key: ``key`` is shown this once and stored only as a hash."""
+
+    key: str
+
+
+class KeyList(BaseModel):
+    """All API keys, newest first."""
+
+    items: list[KeyOut]
+
+
+class AuditOut(BaseModel):
+    """One audit log entry."""
+
+    id: int
+    at: dt.datetime
+    actor: str
+    actor_kind: str
+    action: str
+    target: str | None = None
+    outcome: str
+    client_ip: str | None = None
+    detail: dict[str, Any] | None = None
+
+
+class AuditList(BaseModel):
+    """A page of the audit log, newest first."""
+
+    items: list[AuditOut]
+    total: int
+    limit: int
+    offset: int

@@ -1,0 +1,175 @@
+"""Security primitives: password hashing, session tokens, API keys, CSRF tokens.
+
+Nothing here touches the database or the web framework; :mod:`app.db.auth_crud`
+stores what these functions produce and :mod:`app.api.deps` checks requests
+with them.
+
+* Passwords are hashed with Argon2id (``argon2-cffi``, its default
+  parameters); only the hash is stored.
+* Session tokens and API keys are 256-bit random strings (:mod:`secrets`).
+  They are stored as their SHA-256 digest: a leaked database does not reveal
+  a usable token, and the high entropy of the token makes a salt or a slow
+  hash unnecessary.
+* API keys look like ``tvk_<prefix>_<secret>``; the 8-character prefix is
+  stored in clear so that a key can be recognised in listings and logs.
+* CSRF tokens are bound to the session: ``HMAC-SHA256(secret_key, session
+  token)``. The browser gets it in a readable cookie and sends it back in the
+  ``X-CSRF-Token`` header (double submit); the server recomputes it, so a
+  cookie planted by another site cannot be paired with a forged header.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import secrets
+from dataclasses import dataclass
+from typing import Literal
+
+from argon2 import PasswordHasher
+from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
+
+__all__ = [
+    "ROLES",
+    "Role",
+    "role_rank",
+    "role_allows",
+    "hash_password",
+    "verify_password",
+    "password_needs_rehash",
+    "check_password_strength",
+    "new_session_token",
+    "token_digest",
+    "NewApiKey",
+    "new_api_key",
+    "api_key_prefix",
+    "csrf_token",
+    "csrf_matches",
+    "MIN_PASSWORD_LENGTH",
+    "API_KEY_PREFIX",
+]
+
+Role = Literal["viewer", "engineer", "admin"]
+#: Roles from least to most privileged; each role may do what the ones before it may.
+ROLES: tuple[str, ...] = ("viewer", "engineer", "admin")
+MIN_PASSWORD_LENGTH = 10
+API_KEY_PREFIX = "tvk"
+
+_hasher = PasswordHasher()
+
+
+def role_rank(role: str) -> int:
+    """Position of ``role`` in :data:`ROLES` (0 = viewer).
+
+    Raises
+    ------
+    ValueError
+        If ``role`` is not a known role.
+    """
+    try:
+        return ROLES.index(role)
+    except ValueError:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
+
+
+def role_allows(role: str, required: str) -> bool:
+    """Whether a principal with ``role`` may do what needs ``required``."""
+    return role_rank(role) >= role_rank(required)
+
+
+def check_password_strength(password: str) -> None:
+    """Reject passwords that are too short or too long.
+
+    Raises
+    ------
+    ValueError
+        Naming ``password``.
+    """
+    if not isinstance(password, str):
+        raise ValueError("password must be a string")
+    if len(password) < MIN_PASSWORD_LENGTH:
+        raise ValueError(f"password must have at least {MIN_PASSWORD_LENGTH} characters")
+    if len(password) > 1024:
+        raise ValueError("password must have at most 1024 characters")
+
+
+def hash_password(password: str) -> str:
+    """Argon2id hash of ``password`` (encoded string with salt and parameters)."""
+    check_password_strength(password)
+    return _hasher.hash(password)
+
+
+def verify_password(password_hash: str, password: str) -> bool:
+    """Whether ``password`` matches ``password_hash`` (constant-time in the library)."""
+    if not password_hash or not isinstance(password, str) or len(password) > 1024:
+        return False
+    try:
+        return _hasher.verify(password_hash, password)
+    except (VerifyMismatchError, VerificationError, InvalidHashError):
+        return False
+
+
+def password_needs_rehash(password_hash: str) -> bool:
+    """Whether the hash was made with older parameters than the current ones."""
+    try:
+        return _hasher.check_needs_rehash(password_hash)
+    except InvalidHashError:
+        return True
+
+
+def new_session_token() -> str:
+    """A fresh random session token (256 bits, URL-safe text)."""
+    return secrets.token_urlsafe(32)
+
+
+def token_digest(token: str) -> str:
+    """SHA-256 hex digest of a session token or API key: what the database stores."""
+    return hashlib.sha256(token.encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
+class NewApiKey:
+    """A freshly generated API key.
+
+    Attributes
+    ----------
+    key : str
+        The full key, ``tvk_<prefix>_<secret>``: shown to its owner once.
+    prefix : str
+        8 characters stored in clear to recognise the key.
+    digest : str
+        SHA-256 hex digest of ``key``, stored.
+    """
+
+    key: str
+    prefix: str
+    digest: str
+
+
+def new_api_key() -> NewApiKey:
+    """Generate an API key."""
+    prefix = secrets.token_hex(4)
+    key = f"{API_KEY_PREFIX}_{prefix}_{secrets.token_urlsafe(32)}"
+    return NewApiKey(key=key, prefix=prefix, digest=token_digest(key))
+
+
+def api_key_prefix(key: str) -> str | None:
+    """The prefix of a well-formed API key, else None."""
+    parts = key.split("_", 2)
+    if len(parts) != 3 or parts[0] != API_KEY_PREFIX or len(parts[1]) != 8:
+        return None
+    return parts[1]
+
+
+def csrf_token(secret_key: str, session_token: str) -> str:
+    """CSRF token bound to a session: ``HMAC-SHA256(secret_key, session_token)``, hex."""
+    return hmac.new(
+        secret_key.encode("utf-8"), b"csrf:" + session_token.encode("utf-8"), hashlib.sha256
+    ).hexdigest()
+
+
+def csrf_matches(secret_key: str, session_token: str, header: str | None) -> bool:
+    """Whether ``header`` is the CSRF token of the session (constant-time compare)."""
+    if not header:
+        return False
+    return hmac.compare_digest(csrf_token(secret_key, session_token), header.strip())

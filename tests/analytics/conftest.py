@@ -1,0 +1,59 @@
+"""A simulated line with reference data and three processed runs over it (session scope).
+
+Runs (1.5 km at 2 kHz, constant speed, processed by the real pipeline):
+A at 100 km/h (= v_ref of the simulator), B at 100 km/h with a known odometry
+error of +13.4 m, C at 140 km/h.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+KM_ERROR_M = 13.4
+LINE_ID, TRACK = "SIM", "1"
+
+
+@dataclass
+class SimRun:
+    name: str
+    path: Path
+    truth: object
+    results: object
+    speed_kmh: float
+
+
+@dataclass
+class SimSet:
+    line: object
+    reference: object
+    runs: dict[str, SimRun]
+
+
+@pytest.fixture(scope="session")
+def sim_set(tmp_path_factory) -> SimSet:
+    from app.analysis.settings import ProcessingSettings
+    from app.simulate.reference import simulate_reference
+    from app.simulate.run import simulate_run
+    from app.simulate.speed import SpeedProfile
+    from app.simulate.track import generate_line
+    from worker.pipeline import run_pipeline
+
+    root = tmp_path_factory.mktemp("analytics")
+    line = generate_line(11_900.0, 13_700.0, np.random.default_rng([4, 7]),
+                         anomaly_range_m=(12_050.0, 13_450.0), n_anomalies=2)
+    reference = simulate_reference(line, root / "reference", line_id=LINE_ID, track=TRACK, seed=1)
+    runs = {}
+    for name, speed, err, seed, start in (("A", 100.0, 0.0, 1, "2024-05-01T08:00:00+02:00"),
+                                          ("B", 100.0, KM_ERROR_M, 2, "2024-06-01T08:00:00+02:00"),
+                                          ("C", 140.0, 0.0, 3, "2024-07-01T08:00:00+02:00")):
+        path = root / f"run-{name}.h5"
+        truth = simulate_run(path, length_km=1.5, fs=2000.0, seed=seed, line=line, noise_std=1.0,
+                             speed_profile=SpeedProfile.constant(speed / 3.6), km_error_m=err,
+                             start_time=start, line_id=LINE_ID, track=TRACK)
+        results = run_pipeline(path, ProcessingSettings(), root / f"work-{name}")
+        runs[name] = SimRun(name, path, truth, results, speed)
+    return SimSet(line, reference, runs)
