@@ -1,5 +1,11 @@
 """End-to-end fixtures: a simulated run, and the real service (uvicorn + worker
-subprocesses on a free loopback port) on a temporary database and run store."""
+subprocesses on a free loopback port) on a temporary database and run store.
+
+The ``service`` fixture runs every test twice: on SQLite (embedded mode, local
+worker) and on PostgreSQL (production mode, Procrastinate workers) in a
+throw-away cluster on 127.0.0.1 (:mod:`tests.pg_cluster`; the server package is
+installed with apt-get if missing). The PostgreSQL variant is skipped, with
+the reason, only where the server cannot be installed."""
 
 from __future__ import annotations
 
@@ -17,6 +23,7 @@ import httpx
 import pytest
 
 from app.db import migrate
+from tests.pg_cluster import PgCluster, PgUnavailable
 
 SIM_LENGTH_KM = 1.5
 SIM_FS = 10_000.0
@@ -55,12 +62,14 @@ class Service:
 
     base_url: str
     env: dict[str, str]
+    backend: str
     workdir: Path
     database_url: str
     run_store: Path
     api: subprocess.Popen | None = None
     workers: list[subprocess.Popen] = field(default_factory=list)
     logs: list[Path] = field(default_factory=list)
+    pg: PgCluster | None = None
 
     def _spawn(self, args: list[str], name: str) -> subprocess.Popen:
         log = self.workdir / f"{name}-{len(self.logs)}.log"
@@ -121,10 +130,54 @@ class Service:
         raise AssertionError(f"job {job_id} not final after {timeout_s} s:\n{self.log_text()}")
 
 
-@pytest.fixture
-def service(tmp_path) -> Iterator[Service]:
-    """The real service on a fresh SQLite database; the API is started, workers on demand."""
-    db_url = f"sqlite:///{tmp_path / 'service.sqlite'}"
+@pytest.fixture(scope="session")
+def pg_cluster() -> Iterator[PgCluster | str]:
+    """A PostgreSQL cluster for the session, or the reason why there is none."""
+    try:
+        cluster = PgCluster().init()
+    except (PgUnavailable, RuntimeError, OSError) as exc:
+        yield f"PostgreSQL unavailable: {exc}"
+        return
+    try:
+        yield cluster
+    finally:
+        cluster.destroy()
+
+
+_db_counter = iter(range(1, 1_000_000))
+
+
+def _fresh_pg_database(cluster: PgCluster) -> str:
+    """Create an empty database in the cluster; returns its SQLAlchemy URL."""
+    import sqlalchemy as sa
+
+    name = f"svc_{os.getpid()}_{next(_db_counter)}"
+    admin = sa.create_engine(cluster.url, isolation_level="AUTOCOMMIT")
+    try:
+        with admin.connect() as conn:
+            conn.execute(sa.text(f'CREATE DATABASE "{name}"'))
+    finally:
+        admin.dispose()
+    return cluster.url.rsplit("/", 1)[0] + "/" + name
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def service(request, tmp_path) -> Iterator[Service]:
+    """The real service on a fresh database; the API is started, workers on demand.
+
+    ``sqlite``: embedded mode (local worker). ``postgresql``: production mode
+    (``python -m worker`` runs a Procrastinate worker).
+    """
+    backend = request.param
+    pg = None
+    if backend == "postgresql":
+        cluster = request.getfixturevalue("pg_cluster")
+        if isinstance(cluster, str):
+            pytest.skip(cluster)
+        pg = cluster
+        db_url = _fresh_pg_database(cluster)
+    else:
+        db_url = f"sqlite:///{tmp_path / 'service.sqlite'}"
     migrate.upgrade(db_url)
     env = {
         k: v for k, v in os.environ.items() if not k.startswith("TRACKVKF_")
@@ -143,9 +196,11 @@ def service(tmp_path) -> Iterator[Service]:
     svc = Service(
         base_url=f"http://127.0.0.1:{_free_port()}",
         env=env,
+        backend=backend,
         workdir=tmp_path,
         database_url=db_url,
         run_store=tmp_path / "runs",
+        pg=pg,
     )
     try:
         svc.start_api()
