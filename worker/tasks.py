@@ -294,6 +294,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
                             relative_to_store(rt.store, out)) is None:
             return "job not running"
         done, total = queue.chunk_progress(rt.db, job_id)
+        log.info("job %s chunk %s done in %.2f s (%d/%d)", job_id, index, compute_s, done, total)
         if done == total:
             _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
         return f"chunk {index} done in {compute_s:.2f} s ({done}/{total})"
@@ -331,6 +332,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             "run_sha256": run.sha256,
         }
         stored = queue.complete_job(rt.db, job_id, None, run.id, results.profiles, results.wheels, meta)
+        log.info("job %s assembled (%s)", job_id, "stored" if stored else "not running any more")
         return "stored" if stored else "not running any more"
 
     return app

@@ -99,6 +99,12 @@ class Service:
             time.sleep(0.2)
         raise RuntimeError(f"uvicorn did not come up:\n{self.log_text()}")
 
+    def kill_api(self) -> None:
+        """SIGKILL the API (a crash: no clean-up of requests in flight)."""
+        if self.api is not None and self.api.poll() is None:
+            self.api.kill()
+            self.api.wait()
+
     def start_worker(self) -> subprocess.Popen:
         proc = self._spawn(["-m", "worker"], "worker")
         self.workers.append(proc)
@@ -207,3 +213,22 @@ def service(request, tmp_path) -> Iterator[Service]:
         yield svc
     finally:
         svc.stop()
+
+
+@pytest.fixture(scope="session")
+def clean_reference(short_sim_run, tmp_path_factory):
+    """Profile rows of a clean in-process run of the short simulation with the fault
+    tests' settings (same pure pipeline the workers run), in export form."""
+    import numpy as np
+
+    from app.analysis.settings import ProcessingSettings
+    from tests.e2e.support import FAULT_SETTINGS
+    from worker.pipeline import run_pipeline
+
+    path, _ = short_sim_run
+    settings = ProcessingSettings.from_dict(FAULT_SETTINGS)
+    results = run_pipeline(path, settings, tmp_path_factory.mktemp("clean-chunks"))
+    prof = results.profiles.copy()
+    prof["wheel"] = prof["wheel"].astype(str)
+    prof["bin"] = prof["bin"].astype(np.int64)
+    return prof.sort_values(["wheel", "bin"], ignore_index=True)
