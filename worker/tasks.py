@@ -60,6 +60,7 @@ from app.core.config import Settings, get_settings
 from app.db import crud, queue
 from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
+from worker.health import alive_file
 from worker.store import RunStore, chunk_done, discard_partial_files, relative_to_store
 
 __all__ = [
@@ -432,6 +433,30 @@ async def _supervise(settings: Settings, wait: bool) -> int:
         "fetch_job_polling_interval": max(settings.worker_poll_interval_s, 0.1),
         "name": f"trackvkf-{os.getpid()}",
     }
+    alive = asyncio.create_task(_touch_alive(settings.worker_heartbeat_s), name="alive file")
+    try:
+        return await _serve(settings, options, stopping, current, runtimes, wait)
+    finally:
+        alive.cancel()
+        alive_file(os.getpid()).unlink(missing_ok=True)
+
+
+async def _touch_alive(interval_s: float) -> None:
+    """Touch this process's liveness file (``python -m worker.health``) periodically."""
+    path = alive_file(os.getpid())
+    while True:
+        path.touch()
+        await asyncio.sleep(interval_s)
+
+
+async def _serve(
+    settings: Settings,
+    options: dict[str, Any],
+    stopping: asyncio.Event,
+    current: list[asyncio.Task],
+    runtimes: list[_Runtime],
+    wait: bool,
+) -> int:
     while not stopping.is_set():
         app = make_app(settings)
         runtimes[:] = [app.trackvkf_runtime]  # type: ignore[attr-defined]
@@ -470,7 +495,7 @@ def run_workers(settings: Settings | None = None, processes: int = 1) -> int:
     """
     if processes < 0:
         raise ValueError(f"processes must be >= 0, got {processes}")
-    n = processes or os.cpu_count() or 1
+    n = processes or len(os.sched_getaffinity(0)) or 1
     if n == 1:
         return run_worker_process(settings)
     children = [subprocess.Popen([sys.executable, "-m", "worker", "--processes", "1"]) for _ in range(n)]
