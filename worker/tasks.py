@@ -60,8 +60,9 @@ from app.core.config import Settings, get_settings
 from app.db import crud, queue
 from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
+from worker.chunkstore import ChunkStore
 from worker.health import alive_file
-from worker.store import RunStore, chunk_done, discard_partial_files, relative_to_store
+from worker.store import RunStore, discard_partial_files
 
 __all__ = [
     "TASK_PLAN",
@@ -137,10 +138,12 @@ class _Runtime:
     settings: Settings
     _db: Database | None = None
     store: RunStore = field(init=False)
+    chunks: ChunkStore = field(init=False)
     stopping: threading.Event = field(default_factory=threading.Event)
 
     def __post_init__(self) -> None:
         self.store = RunStore(self.settings.run_store)
+        self.chunks = ChunkStore(self.store, self.settings.chunk_store)
 
     @property
     def db(self) -> Database:
@@ -231,7 +234,8 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             chunks = plan_chunks(run_path, ProcessingSettings.from_dict(job.settings))
             if not queue.record_chunks(rt.db, job_id, owner, [(c.index, c.to_dict()) for c in chunks]):
                 return "lost"
-            discard_partial_files(rt.store.job_dir(run.id, job_id))
+            if rt.chunks.is_local:
+                discard_partial_files(rt.store.job_dir(run.id, job_id))
         except Exception as exc:
             if _is_transient(exc):
                 raise
@@ -239,9 +243,9 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             return "failed"
         pending = 0
         for chunk in chunks:
-            if chunk_done(rt.store.chunk_path(run.id, job_id, chunk.index)):
+            if rt.chunks.exists(run.id, job_id, chunk.index):
                 queue.mark_chunk(rt.db, job_id, None, chunk.index, ChunkStatus.DONE,
-                                 relative_to_store(rt.store, rt.store.chunk_path(run.id, job_id, chunk.index)))
+                                 rt.chunks.location(run.id, job_id, chunk.index))
                 continue
             pending += 1
             _defer(context.app, TASK_CHUNK, f"chunk:{job_id}:{chunk.index}", _PRIO_CHUNK,
@@ -264,21 +268,21 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             return "lost"
         if job.status != JobStatus.RUNNING or job.cancel_requested:
             return f"job {job.status}"
-        out = rt.store.chunk_path(run.id, job_id, index)
         t0 = time.perf_counter()
-        if not chunk_done(out):
+        if not rt.chunks.exists(run.id, job_id, index):
             spec = queue.job_chunk_specs(rt.db, job_id).get(index)
             if spec is None:
                 return "unknown chunk"
             if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.RUNNING) is None:
                 return "job not running"
+            run_path = rt.store.resolve(run.file_path)
+            settings_ = ProcessingSettings.from_dict(job.settings)
+            chunk = ChunkSpec.from_dict(spec)
+            watch = _CancelWatch(rt, job_id, context)
             try:
-                compute_chunk(
-                    rt.store.resolve(run.file_path),
-                    ProcessingSettings.from_dict(job.settings),
-                    ChunkSpec.from_dict(spec),
-                    out,
-                    should_cancel=_CancelWatch(rt, job_id, context),
+                rt.chunks.write(
+                    run.id, job_id, index,
+                    lambda out: compute_chunk(run_path, settings_, chunk, out, should_cancel=watch),
                 )
             except PipelineCancelled:
                 if rt.stopping.is_set():
@@ -292,7 +296,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
                 return "failed"
         compute_s = time.perf_counter() - t0
         if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.DONE,
-                            relative_to_store(rt.store, out)) is None:
+                            rt.chunks.location(run.id, job_id, index)) is None:
             return "job not running"
         done, total = queue.chunk_progress(rt.db, job_id)
         log.info("job %s chunk %s done in %.2f s (%d/%d)", job_id, index, compute_s, done, total)
@@ -312,13 +316,15 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             return "lost"
         if job.status != JobStatus.RUNNING or job.cancel_requested:
             return f"job {job.status}"
-        specs = queue.job_chunk_specs(rt.db, job_id)
-        paths = [rt.store.chunk_path(run.id, job_id, i) for i in sorted(specs)]
-        if not specs or not all(chunk_done(p) for p in paths):
+        indices = sorted(queue.job_chunk_specs(rt.db, job_id))
+        if not indices or not all(rt.chunks.exists(run.id, job_id, i) for i in indices):
             return "chunks missing"
         t0 = time.perf_counter()
         try:
-            results = assemble(rt.store.resolve(run.file_path), ProcessingSettings.from_dict(job.settings), paths)
+            with rt.chunks.local_copies(run.id, job_id, indices) as paths:
+                results = assemble(
+                    rt.store.resolve(run.file_path), ProcessingSettings.from_dict(job.settings), paths
+                )
         except Exception as exc:
             if _is_transient(exc):
                 raise
@@ -328,7 +334,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
         meta["worker"] = {
             "worker_id": job.worker_id,
             "mode": "procrastinate",
-            "n_chunks": len(paths),
+            "n_chunks": len(indices),
             "assemble_s": round(time.perf_counter() - t0, 3),
             "run_sha256": run.sha256,
         }
@@ -379,6 +385,7 @@ def _remove_orphans(rt: _Runtime, run_id: int | None) -> None:
     with rt.db.read() as session:
         if crud.get_run(session, run_id) is None:
             rt.store.remove_run(run_id)
+            rt.chunks.remove_run(run_id)
 
 
 # --- worker processes ----------------------------------------------------------

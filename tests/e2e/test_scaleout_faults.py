@@ -86,6 +86,9 @@ def test_same_chunk_delivered_twice(service, short_sim_run, clean_reference):
     from worker.tasks import TASK_ASSEMBLE, TASK_CHUNK, make_app
 
     path, _ = short_sim_run
+    # chunk results on an fsspec URL (shared by the workers) instead of the run store
+    chunk_root = service.workdir / "chunk-store"
+    service.env["TRACKVKF_CHUNK_STORE"] = f"file://{chunk_root}"
     app = make_app(Settings(database_url=service.database_url, run_store=service.run_store))
     with httpx.Client(base_url=service.base_url, timeout=120) as client, app.open():
         run_id, job_id = upload_with_job(client, path)
@@ -106,6 +109,9 @@ def test_same_chunk_delivered_twice(service, short_sim_run, clean_reference):
         again = _finish_and_check(client, service, run_id, job_id, clean_reference)
         assert again["finished_at"] == first["finished_at"]
         assert again["meta"] == first["meta"]
+    results = sorted(p.name for p in chunk_root.rglob("*") if p.is_file())
+    assert results == [f"chunk-{i:05d}.npz" for i in range(first["n_chunks"])]
+    assert not list(service.run_store.rglob("*.npz"))
 
 
 def test_api_killed_during_upload_leaves_nothing(service, short_sim_run, clean_reference):
