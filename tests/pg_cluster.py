@@ -160,6 +160,17 @@ class PgCluster:
         )
         return self
 
+    def create_database(self) -> str:
+        """Create a new empty database in the cluster; returns its SQLAlchemy URL."""
+        self._n_databases = getattr(self, "_n_databases", 0) + 1
+        name = f"db_{os.getpid()}_{self._n_databases}"
+        env = dict(os.environ, PGPASSWORD=DB_PASSWORD)
+        subprocess.run(
+            [str(self.bindir / "createdb"), "-h", "127.0.0.1", "-p", str(self.port), "-U", DB_USER, name],
+            check=True, env=env, capture_output=True, timeout=60,
+        )
+        return self.url.rsplit("/", 1)[0] + "/" + name
+
     def start(self) -> None:
         """Start the server and wait until it accepts connections."""
         self._run("pg_ctl", "-D", str(self.data), "-l", str(self.log), "-w", "-t", "60", "start")

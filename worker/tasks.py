@@ -287,6 +287,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             except PipelineCancelled:
                 if rt.stopping.is_set():
                     raise WorkerShutdown(f"chunk {index} of job {job_id} interrupted by shutdown") from None
+                queue.finalize_cancel_requests(rt.db)
                 return "cancelled"
             except Exception as exc:
                 if _is_transient(exc):

@@ -69,6 +69,8 @@ def _claimable(cutoff: dt.datetime):
         and_(
             Job.status == JobStatus.RUNNING,
             or_(Job.heartbeat_at.is_(None), Job.heartbeat_at < cutoff),
+            # jobs fanned out to Procrastinate tasks recover through their tasks
+            or_(Job.worker_id.is_(None), ~Job.worker_id.startswith(FANOUT_OWNER_PREFIX)),
         ),
     )
 

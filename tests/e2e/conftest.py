@@ -23,7 +23,7 @@ import httpx
 import pytest
 
 from app.db import migrate
-from tests.pg_cluster import PgCluster, PgUnavailable
+from tests.pg_cluster import PgCluster
 
 SIM_LENGTH_KM = 1.5
 SIM_FS = 10_000.0
@@ -136,37 +136,6 @@ class Service:
         raise AssertionError(f"job {job_id} not final after {timeout_s} s:\n{self.log_text()}")
 
 
-@pytest.fixture(scope="session")
-def pg_cluster() -> Iterator[PgCluster | str]:
-    """A PostgreSQL cluster for the session, or the reason why there is none."""
-    try:
-        cluster = PgCluster().init()
-    except (PgUnavailable, RuntimeError, OSError) as exc:
-        yield f"PostgreSQL unavailable: {exc}"
-        return
-    try:
-        yield cluster
-    finally:
-        cluster.destroy()
-
-
-_db_counter = iter(range(1, 1_000_000))
-
-
-def _fresh_pg_database(cluster: PgCluster) -> str:
-    """Create an empty database in the cluster; returns its SQLAlchemy URL."""
-    import sqlalchemy as sa
-
-    name = f"svc_{os.getpid()}_{next(_db_counter)}"
-    admin = sa.create_engine(cluster.url, isolation_level="AUTOCOMMIT")
-    try:
-        with admin.connect() as conn:
-            conn.execute(sa.text(f'CREATE DATABASE "{name}"'))
-    finally:
-        admin.dispose()
-    return cluster.url.rsplit("/", 1)[0] + "/" + name
-
-
 @pytest.fixture(params=["sqlite", "postgresql"])
 def service(request, tmp_path) -> Iterator[Service]:
     """The real service on a fresh database; the API is started, workers on demand.
@@ -181,7 +150,7 @@ def service(request, tmp_path) -> Iterator[Service]:
         if isinstance(cluster, str):
             pytest.skip(cluster)
         pg = cluster
-        db_url = _fresh_pg_database(cluster)
+        db_url = cluster.create_database()
     else:
         db_url = f"sqlite:///{tmp_path / 'service.sqlite'}"
     migrate.upgrade(db_url)
