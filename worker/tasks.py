@@ -409,6 +409,8 @@ def run_worker_process(settings: Settings | None = None, *, wait: bool = True) -
         Exit status (0 after a graceful stop, 130 after a second signal).
     """
     settings = settings or get_settings()
+    import worker.pipeline  # noqa: F401 - load numerics before the first task, not during it
+
     return asyncio.run(_supervise(settings, wait))
 
 
