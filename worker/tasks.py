@@ -267,6 +267,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             _remove_orphans(rt, job.run_id if job is not None else None)
             return "lost"
         if job.status != JobStatus.RUNNING or job.cancel_requested:
+            queue.finalize_cancel_requests(rt.db)
             return f"job {job.status}"
         t0 = time.perf_counter()
         if not rt.chunks.exists(run.id, job_id, index):
