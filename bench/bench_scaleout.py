@@ -19,7 +19,8 @@ Usage::
 
 Without ``--database-url`` a throw-away PostgreSQL cluster is started on
 127.0.0.1 (tests/pg_cluster.py; the Debian package is installed if missing).
-Prints a Markdown table for BENCHMARKS.md.
+Prints a Markdown table for BENCHMARKS.md. Worker logs are kept in the printed work
+directory (``BENCH_WORKER_LOG_LEVEL=INFO`` for per-chunk and assemble timings).
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ def _env(database_url: str, store: Path) -> dict[str, str]:
         TRACKVKF_WORKER_HEARTBEAT_S="1",
         TRACKVKF_WORKER_STALE_AFTER_S="10",
         TRACKVKF_WORKER_POLL_INTERVAL_S="0.5",
-        TRACKVKF_LOG_LEVEL="WARNING",
+        TRACKVKF_LOG_LEVEL=os.environ.get("BENCH_WORKER_LOG_LEVEL", "WARNING"),
         PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
         OMP_NUM_THREADS="1",
         OPENBLAS_NUM_THREADS="1",
@@ -138,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     from app.simulate.run import simulate_run
 
     work = Path(tempfile.mkdtemp(prefix="trackvkf-bench-scaleout-"))
+    print(f"work directory (worker logs): {work}", file=sys.stderr)
     cluster = None
     if args.database_url is None:
         from tests.pg_cluster import PgCluster

@@ -340,8 +340,10 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             "assemble_s": round(time.perf_counter() - t0, 3),
             "run_sha256": run.sha256,
         }
+        t1 = time.perf_counter()
         stored = queue.complete_job(rt.db, job_id, None, run.id, results.profiles, results.wheels, meta)
-        log.info("job %s assembled (%s)", job_id, "stored" if stored else "not running any more")
+        log.info("job %s assembled in %.2f s, %d rows %s in %.2f s", job_id, t1 - t0, len(results.profiles),
+                 "stored" if stored else "not stored (job not running)", time.perf_counter() - t1)
         return "stored" if stored else "not running any more"
 
     return app
