@@ -78,16 +78,32 @@ def serve(
 
 @app.command()
 def worker(
-    once: Annotated[bool, typer.Option(help="Exit after one job")] = False,
+    once: Annotated[bool, typer.Option(help="Exit after one job (local mode)")] = False,
     exit_when_idle: Annotated[bool, typer.Option(help="Exit when no job is queued")] = False,
+    processes: Annotated[
+        int, typer.Option(help="PostgreSQL mode: worker processes (0 = one per core)")
+    ] = 1,
+    local: Annotated[bool, typer.Option(help="Local job loop even on PostgreSQL")] = False,
 ) -> None:
-    """Run the local worker: claim queued jobs and process them until Ctrl-C."""
+    """Process queued jobs until Ctrl-C: the local worker on SQLite, Procrastinate
+    workers on PostgreSQL (mode from TRACKVKF_DATABASE_URL)."""
     from worker.runner import run_worker
 
     settings = get_settings()
     configure_logging(settings.log_level)
     try:
-        run_worker(settings, once=once, exit_when_idle=exit_when_idle)
+        if settings.is_sqlite or local:
+            run_worker(settings, once=once, exit_when_idle=exit_when_idle)
+        else:
+            from worker.tasks import run_worker_process, run_workers
+
+            code = (
+                run_worker_process(settings, wait=False)
+                if exit_when_idle
+                else run_workers(settings, processes)
+            )
+            if code:
+                raise typer.Exit(code)
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
 

@@ -62,6 +62,23 @@ def client(make_client):
     return make_client()
 
 
+@pytest.fixture(scope="session")
+def pg_cluster():
+    """A throw-away PostgreSQL cluster on 127.0.0.1 for the session (tests/pg_cluster.py),
+    or, where the server cannot be installed, the reason as a string (tests skip with it)."""
+    from tests.pg_cluster import PgCluster, PgUnavailable
+
+    try:
+        cluster = PgCluster().init()
+    except (PgUnavailable, RuntimeError, OSError) as exc:
+        yield f"PostgreSQL unavailable: {exc}"
+        return
+    try:
+        yield cluster
+    finally:
+        cluster.destroy()
+
+
 def pytest_configure(config: pytest.Config) -> None:
     # fastapi.testclient works with httpx; the suggestion to use httpx2 is noise here
     config.addinivalue_line(

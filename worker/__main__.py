@@ -1,4 +1,9 @@
-"""``python -m worker``: run the local worker (same as ``trackvkf worker``)."""
+"""``python -m worker``: run the worker (same as ``trackvkf worker``).
+
+The database URL picks the mode: SQLite → the local job loop
+(:mod:`worker.runner`); PostgreSQL → Procrastinate workers
+(:mod:`worker.tasks`), unless ``--local`` asks for the local loop.
+"""
 
 from __future__ import annotations
 
@@ -16,16 +21,31 @@ def main(argv: list[str] | None = None) -> int:
         prog="python -m worker",
         description="Process queued trackvkf jobs (settings from TRACKVKF_* variables).",
     )
-    parser.add_argument("--once", action="store_true", help="exit after one job")
+    parser.add_argument("--once", action="store_true", help="exit after one job (local mode)")
     parser.add_argument(
         "--exit-when-idle", action="store_true", help="exit when no job is queued"
+    )
+    parser.add_argument(
+        "--processes", type=int, default=1,
+        help="PostgreSQL mode: worker processes to run (0 = one per core; default 1)",
+    )
+    parser.add_argument(
+        "--local", action="store_true",
+        help="use the local job loop even on PostgreSQL (one machine)",
     )
     parser.add_argument("--log-level", default=None, help="logging level (default: settings)")
     args = parser.parse_args(argv)
     settings = get_settings()
     configure_logging(args.log_level or settings.log_level)
     try:
-        run_worker(settings, once=args.once, exit_when_idle=args.exit_when_idle)
+        if settings.is_sqlite or args.local:
+            run_worker(settings, once=args.once, exit_when_idle=args.exit_when_idle)
+        else:
+            from worker.tasks import run_worker_process, run_workers
+
+            if args.exit_when_idle:
+                return run_worker_process(settings, wait=False)
+            return run_workers(settings, args.processes)
     except KeyboardInterrupt:
         return 130
     return 0

@@ -56,6 +56,10 @@ class Settings(BaseSettings):
         Processes a worker uses to run the chunks of one job in parallel
         (default 1: in the worker process itself). Set it to the number of
         cores to process a single long run faster.
+    chunk_store : str, optional
+        Production mode: fsspec URL where chunk results are kept (``file:///…``,
+        ``s3://bucket/prefix`` with s3fs installed, …), shared by all worker
+        hosts. Default: inside the run store directory.
     anonymous_principal : str
         Name of the principal every request runs as until authentication is on.
     anonymous_role : str
@@ -114,6 +118,7 @@ class Settings(BaseSettings):
     worker_heartbeat_s: float = Field(default=2.0, gt=0)
     worker_stale_after_s: float = Field(default=30.0, gt=0)
     worker_chunk_processes: int = Field(default=1, ge=1, le=64)
+    chunk_store: str | None = None
     anonymous_principal: str = "local"
     anonymous_role: str = "admin"
     log_level: str = "INFO"

@@ -300,9 +300,19 @@ def _profile_columns(profiles: pd.DataFrame, run_id: int, job_id: int) -> dict[s
 
 
 def _insert_profiles(session: Session, data: dict[str, list[Any]]) -> None:
-    """Bulk insert: plain ``executemany`` on SQLite (3-4x faster than Core), Core elsewhere."""
+    """Bulk insert: plain ``executemany`` on SQLite (3-4x faster than Core), ``COPY`` on
+    PostgreSQL with psycopg 3 (about 10x faster than multi-row INSERT), Core elsewhere."""
     names = list(data)
     rows = zip(*data.values(), strict=True)
+    if session.get_bind().dialect.name == "postgresql":
+        dbapi = session.connection().connection.dbapi_connection
+        with dbapi.cursor() as cursor:
+            if hasattr(cursor, "copy"):  # psycopg 3; same connection and transaction
+                sql = f"COPY {ProfileBin.__tablename__} ({', '.join(names)}) FROM STDIN"
+                with cursor.copy(sql) as copy:
+                    for row in rows:
+                        copy.write_row(row)
+                return
     if session.get_bind().dialect.name == "sqlite":
         sql = (
             f"INSERT INTO {ProfileBin.__tablename__} ({', '.join(names)}) "

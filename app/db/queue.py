@@ -1,6 +1,8 @@
 """The job queue in SQL: claiming, heartbeats, chunk bookkeeping, completion.
 
-Used by the local worker (embedded mode). Every change that a worker makes to
+Used by the local worker (embedded mode) and, with ``worker_id=None`` (any
+owner) plus the fan-out functions at the end, by the Procrastinate tasks of
+the production mode (:mod:`worker.tasks`). Every change that a worker makes to
 a job is guarded by ``worker_id = <me> AND status = 'running'``: a worker that
 lost its job (cancelled, run deleted, or claimed by another worker after the
 heartbeat went stale) changes nothing and learns so from the return value.
@@ -32,6 +34,12 @@ __all__ = [
     "mark_chunk",
     "finish_job",
     "complete_job",
+    "FANOUT_OWNER_PREFIX",
+    "queued_job_ids",
+    "claim_for_fanout",
+    "finalize_cancel_requests",
+    "chunk_progress",
+    "job_chunk_specs",
 ]
 
 
@@ -61,6 +69,8 @@ def _claimable(cutoff: dt.datetime):
         and_(
             Job.status == JobStatus.RUNNING,
             or_(Job.heartbeat_at.is_(None), Job.heartbeat_at < cutoff),
+            # jobs fanned out to Procrastinate tasks recover through their tasks
+            or_(Job.worker_id.is_(None), ~Job.worker_id.startswith(FANOUT_OWNER_PREFIX)),
         ),
     )
 
@@ -103,7 +113,15 @@ def claim_next_job(db: Database, worker_id: str, stale_after_s: float) -> int | 
     return None
 
 
-def _owned(job_id: int, worker_id: str):
+def _owned(job_id: int, worker_id: str | None):
+    """The job is running under ``worker_id``; ``None`` = under any owner.
+
+    The local worker owns a whole job (its ``worker_id``). In the fan-out mode
+    (Procrastinate, :mod:`worker.tasks`) many workers run the chunks of one
+    job at once: they pass ``None`` and are guarded by the job's status only.
+    """
+    if worker_id is None:
+        return and_(Job.id == job_id, Job.status == JobStatus.RUNNING)
     return and_(Job.id == job_id, Job.worker_id == worker_id, Job.status == JobStatus.RUNNING)
 
 
@@ -169,7 +187,7 @@ def record_chunks(
 def mark_chunk(
     db: Database,
     job_id: int,
-    worker_id: str,
+    worker_id: str | None,
     index: int,
     status: str,
     result_path: str | None = None,
@@ -217,7 +235,7 @@ def mark_chunk(
 
 
 def finish_job(
-    db: Database, job_id: int, worker_id: str, status: str, error: str | None = None
+    db: Database, job_id: int, worker_id: str | None, status: str, error: str | None = None
 ) -> bool:
     """Mark a job this worker runs as failed or cancelled (with its error text)."""
     if status not in (JobStatus.FAILED, JobStatus.CANCELLED):
@@ -234,7 +252,7 @@ def finish_job(
 def complete_job(
     db: Database,
     job_id: int,
-    worker_id: str,
+    worker_id: str | None,
     run_id: int,
     profiles: pd.DataFrame,
     wheels: Sequence[dict[str, Any]],
@@ -273,3 +291,95 @@ def complete_job(
             )
         )
         return True
+
+
+# --- fan-out mode (Procrastinate tasks, worker/tasks.py) ----------------------
+#: prefix of ``jobs.worker_id`` for jobs run by the fan-out tasks
+FANOUT_OWNER_PREFIX = "procrastinate:"
+
+
+def queued_job_ids(db: Database, limit: int = 100) -> list[int]:
+    """Ids of queued jobs, oldest first (at most ``limit``)."""
+    if limit < 1:
+        raise ValueError(f"limit must be >= 1, got {limit}")
+    with db.read() as session:
+        rows = session.scalars(
+            select(Job.id)
+            .where(Job.status == JobStatus.QUEUED)
+            .order_by(Job.created_at, Job.id)
+            .limit(limit)
+        ).all()
+    return [int(r) for r in rows]
+
+
+def claim_for_fanout(db: Database, job_id: int, owner: str) -> bool:
+    """Start a queued job under ``owner`` (the planning task); idempotent for that owner.
+
+    Returns True if the job was queued and is now running under ``owner``, or
+    was already running under ``owner`` (a retry of the same planning task);
+    False otherwise (another planner won, or the job was cancelled/deleted).
+    """
+    if not owner.startswith(FANOUT_OWNER_PREFIX):
+        raise ValueError(f"owner must start with {FANOUT_OWNER_PREFIX!r}, got {owner!r}")
+    now = utcnow()
+    with db.write() as session:
+        result = session.execute(
+            update(Job)
+            .where(Job.id == job_id, Job.status == JobStatus.QUEUED)
+            .values(
+                status=JobStatus.RUNNING,
+                worker_id=owner,
+                heartbeat_at=now,
+                started_at=func.coalesce(Job.started_at, _now_literal(now)),
+                attempts=Job.attempts + 1,
+            )
+        )
+        if result.rowcount == 1:
+            return True
+        row = session.execute(select(Job.status, Job.worker_id).where(Job.id == job_id)).one_or_none()
+        return row is not None and row[0] == JobStatus.RUNNING and row[1] == owner
+
+
+def finalize_cancel_requests(db: Database) -> int:
+    """Mark running fan-out jobs with a cancel request as cancelled.
+
+    Their chunk tasks see the job is no longer running at their next check
+    (between sub-blocks) and stop. Returns the number of jobs cancelled.
+    """
+    with db.write() as session:
+        result = session.execute(
+            update(Job)
+            .where(
+                Job.status == JobStatus.RUNNING,
+                Job.cancel_requested.is_(True),
+                Job.worker_id.startswith(FANOUT_OWNER_PREFIX),
+            )
+            .values(
+                status=JobStatus.CANCELLED,
+                error="cancelled by request",
+                finished_at=utcnow(),
+                heartbeat_at=None,
+            )
+        )
+        return int(result.rowcount)
+
+
+def chunk_progress(db: Database, job_id: int) -> tuple[int, int]:
+    """(done chunks, all chunks) of a job, counted from its chunk rows."""
+    with db.read() as session:
+        total, done = session.execute(
+            select(
+                func.count(),
+                func.coalesce(func.sum(case((JobChunk.status == ChunkStatus.DONE, 1), else_=0)), 0),
+            ).where(JobChunk.job_id == job_id)
+        ).one()
+    return int(done), int(total)
+
+
+def job_chunk_specs(db: Database, job_id: int) -> dict[int, dict[str, Any]]:
+    """Planned chunks of a job: ``{chunk_index: spec}``."""
+    with db.read() as session:
+        rows = session.execute(
+            select(JobChunk.chunk_index, JobChunk.spec).where(JobChunk.job_id == job_id)
+        ).all()
+    return {int(i): dict(spec) for i, spec in rows}

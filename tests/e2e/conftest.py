@@ -1,5 +1,11 @@
 """End-to-end fixtures: a simulated run, and the real service (uvicorn + worker
-subprocesses on a free loopback port) on a temporary database and run store."""
+subprocesses on a free loopback port) on a temporary database and run store.
+
+The ``service`` fixture runs every test twice: on SQLite (embedded mode, local
+worker) and on PostgreSQL (production mode, Procrastinate workers) in a
+throw-away cluster on 127.0.0.1 (:mod:`tests.pg_cluster`; the server package is
+installed with apt-get if missing). The PostgreSQL variant is skipped, with
+the reason, only where the server cannot be installed."""
 
 from __future__ import annotations
 
@@ -19,6 +25,7 @@ import pytest
 
 from app.db import migrate
 from tests.api.support import create_api_key
+from tests.pg_cluster import PgCluster
 
 SIM_LENGTH_KM = 1.5
 SIM_FS = 10_000.0
@@ -57,6 +64,7 @@ class Service:
 
     base_url: str
     env: dict[str, str]
+    backend: str
     workdir: Path
     database_url: str
     run_store: Path
@@ -64,6 +72,7 @@ class Service:
     api: subprocess.Popen | None = None
     workers: list[subprocess.Popen] = field(default_factory=list)
     logs: list[Path] = field(default_factory=list)
+    pg: PgCluster | None = None
 
     def _spawn(self, args: list[str], name: str) -> subprocess.Popen:
         log = self.workdir / f"{name}-{len(self.logs)}.log"
@@ -102,6 +111,12 @@ class Service:
         """An httpx client on the service, authenticated with the admin API key."""
         return httpx.Client(base_url=self.base_url, headers=self.headers, **kwargs)
 
+    def kill_api(self) -> None:
+        """SIGKILL the API (a crash: no clean-up of requests in flight)."""
+        if self.api is not None and self.api.poll() is None:
+            self.api.kill()
+            self.api.wait()
+
     def start_worker(self) -> subprocess.Popen:
         proc = self._spawn(["-m", "worker"], "worker")
         self.workers.append(proc)
@@ -134,11 +149,24 @@ class Service:
 
 
 @contextmanager
-def running_service(workdir: Path) -> Iterator[Service]:
-    """The real service (API started, workers on demand) on a fresh SQLite database in
-    ``workdir`` with an admin API key (``api_key``); stopped on exit. Shared by the
-    ``service`` fixture and the browser tests."""
-    db_url = f"sqlite:///{workdir / 'service.sqlite'}"
+def running_service(
+    workdir: Path, database_url: str | None = None, *, backend: str = "sqlite", pg: PgCluster | None = None
+) -> Iterator[Service]:
+    """The real service (API started, workers on demand) on a fresh database with an
+    admin API key (``api_key``); stopped on exit. Shared by the ``service`` fixture
+    and the browser tests.
+
+    Parameters
+    ----------
+    workdir : Path
+        Working directory (logs, run store; the SQLite file unless ``database_url``).
+    database_url : str, optional
+        Database to use (default: a new SQLite file in ``workdir``).
+    backend : {"sqlite", "postgresql"}
+    pg : PgCluster, optional
+        The PostgreSQL cluster of ``database_url`` (for restart tests).
+    """
+    db_url = database_url or f"sqlite:///{workdir / 'service.sqlite'}"
     migrate.upgrade(db_url)
     api_key = create_api_key(db_url, "admin", "e2e")
     env = {
@@ -158,10 +186,12 @@ def running_service(workdir: Path) -> Iterator[Service]:
     svc = Service(
         base_url=f"http://127.0.0.1:{_free_port()}",
         env=env,
+        backend=backend,
         workdir=workdir,
         database_url=db_url,
         run_store=workdir / "runs",
         api_key=api_key,
+        pg=pg,
     )
     try:
         svc.start_api()
@@ -170,11 +200,41 @@ def running_service(workdir: Path) -> Iterator[Service]:
         svc.stop()
 
 
-@pytest.fixture
-def service(tmp_path) -> Iterator[Service]:
-    """The real service on a fresh SQLite database; the API is started, workers on demand.
+@pytest.fixture(params=["sqlite", "postgresql"])
+def service(request, tmp_path) -> Iterator[Service]:
+    """The real service on a fresh database; the API is started, workers on demand.
 
-    ``service.client()`` is an httpx client authenticated with an admin API key
-    created in the database (``service.api_key``)."""
-    with running_service(tmp_path) as svc:
+    ``sqlite``: embedded mode (local worker). ``postgresql``: production mode
+    (``python -m worker`` runs a Procrastinate worker). ``service.client()`` is an
+    httpx client authenticated with an admin API key (``service.api_key``).
+    """
+    backend = request.param
+    pg = None
+    db_url = None
+    if backend == "postgresql":
+        cluster = request.getfixturevalue("pg_cluster")
+        if isinstance(cluster, str):
+            pytest.skip(cluster)
+        pg = cluster
+        db_url = cluster.create_database()
+    with running_service(tmp_path, db_url, backend=backend, pg=pg) as svc:
         yield svc
+
+
+@pytest.fixture(scope="session")
+def clean_reference(short_sim_run, tmp_path_factory):
+    """Profile rows of a clean in-process run of the short simulation with the fault
+    tests' settings (same pure pipeline the workers run), in export form."""
+    import numpy as np
+
+    from app.analysis.settings import ProcessingSettings
+    from tests.e2e.support import FAULT_SETTINGS
+    from worker.pipeline import run_pipeline
+
+    path, _ = short_sim_run
+    settings = ProcessingSettings.from_dict(FAULT_SETTINGS)
+    results = run_pipeline(path, settings, tmp_path_factory.mktemp("clean-chunks"))
+    prof = results.profiles.copy()
+    prof["wheel"] = prof["wheel"].astype(str)
+    prof["bin"] = prof["bin"].astype(np.int64)
+    return prof.sort_values(["wheel", "bin"], ignore_index=True)

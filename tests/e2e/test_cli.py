@@ -67,7 +67,7 @@ def test_migrate_command(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     from alembic.script import ScriptDirectory
 
-    from app.db.migrate import alembic_config
+    from app.db import migrate
 
-    head = ScriptDirectory.from_config(alembic_config(url)).get_current_head()
-    assert head and head in result.output
+    head = ScriptDirectory.from_config(migrate.alembic_config(url)).get_current_head()
+    assert result.output.strip().endswith(f"at {head}")

@@ -1,6 +1,7 @@
-"""Fault tolerance of the local worker over the real service: a worker killed with
-SIGKILL in the middle of a job is replaced; the run completes once, with the same
-result as a clean run; cancelling a running job stops it."""
+"""Fault tolerance of the workers over the real service (SQLite + local worker and
+PostgreSQL + Procrastinate workers): a worker killed with SIGKILL in the middle of
+a job is replaced; the run completes once, with the same result as a clean run;
+cancelling a running job stops it."""
 
 from __future__ import annotations
 
@@ -63,7 +64,9 @@ def test_sigkill_mid_job_then_restart_completes_once_with_same_result(service, s
         service.start_worker()
         recovered = service.wait_job(client, job_id)
         assert recovered["status"] == "done", recovered["error"]
-        assert recovered["attempts"] == 2
+        # local worker: the job is claimed again; Procrastinate: the job stays
+        # claimed, the killed chunk task is retried (stalled-jobs task)
+        assert recovered["attempts"] == (2 if service.backend == "sqlite" else 1)
         assert recovered["chunks_done"] == recovered["n_chunks"] > done_before
         after_crash = _profile(client, run_id)
 

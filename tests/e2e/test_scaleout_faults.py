@@ -1,0 +1,163 @@
+"""Real faults on both modes (SQLite + local worker, PostgreSQL + Procrastinate):
+two workers competing for one run, the database restarted while chunks run, the
+same chunk delivered twice, the API killed during an upload. Each ends with the
+run's profile identical to a clean run's and every row stored once."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import httpx
+import pytest
+from sqlalchemy import text
+
+from app.core.config import Settings
+from app.db.session import Database
+from tests.api.support import store_files
+from tests.e2e.support import (
+    assert_rows_once,
+    assert_same_as_clean,
+    job,
+    profile,
+    upload_with_job,
+    wait_final,
+    wait_for,
+)
+
+pytestmark = pytest.mark.timeout(600)
+
+
+def _finish_and_check(client, service, run_id, job_id, clean_reference) -> dict:
+    final = wait_final(client, job_id, service)
+    assert final["status"] == "done", f"{final['error']}\n{service.log_text()}"
+    assert final["progress"] == 1.0 and final["chunks_done"] == final["n_chunks"] >= 5
+    got = profile(client, run_id)
+    assert_same_as_clean(got, clean_reference)
+    assert_rows_once(service.database_url, job_id, len(got), final["n_chunks"])
+    return final
+
+
+def test_two_workers_compete_for_the_same_run(service, short_sim_run, clean_reference):
+    path, _ = short_sim_run
+    with service.client(timeout=120) as client:
+        run_id, job_id = upload_with_job(client, path)
+        workers = [service.start_worker(), service.start_worker()]
+        _finish_and_check(client, service, run_id, job_id, clean_reference)
+    service.stop()
+    logs = [log.read_text(errors="replace") for log in service.logs if log.name.startswith("worker")]
+    assert len(logs) == len(workers) == 2
+    if service.backend == "postgresql":
+        # the chunks of the one run were shared between both workers
+        for text_ in logs:
+            assert f"job {job_id} chunk" in text_, service.log_text()
+
+
+def test_database_restart_while_chunks_run(service, short_sim_run, clean_reference):
+    if service.backend != "postgresql":
+        pytest.skip("the embedded SQLite database is a file: no server to restart")
+    path, _ = short_sim_run
+    with service.client(timeout=120) as client:
+        run_id, job_id = upload_with_job(client, path)
+        service.start_worker()
+        service.start_worker()
+        wait_for(lambda: job(client, job_id)["chunks_done"] >= 1, 180, "a chunk done", service)
+        before = job(client, job_id)
+        assert before["status"] == "running" and before["chunks_done"] < before["n_chunks"]
+        service.pg.restart(down_s=2.0)  # clients lose their connections mid-chunk
+        _finish_and_check(client, service, run_id, job_id, clean_reference)
+
+
+def _procrastinate_pending(database_url: str) -> int:
+    db = Database(database_url)
+    try:
+        with db.read() as s:
+            return int(s.scalar(text(
+                "SELECT count(*) FROM procrastinate_jobs WHERE status IN ('todo', 'doing') "
+                "AND task_name IN ('trackvkf.process_chunk', 'trackvkf.assemble_job')"
+            )))
+    finally:
+        db.dispose()
+
+
+def test_same_chunk_delivered_twice(service, short_sim_run, clean_reference):
+    if service.backend != "postgresql":
+        pytest.skip("task delivery is Procrastinate's (the local worker owns whole jobs)")
+    from worker.tasks import TASK_ASSEMBLE, TASK_CHUNK, make_app
+
+    path, _ = short_sim_run
+    # chunk results on an fsspec URL (shared by the workers) instead of the run store
+    chunk_root = service.workdir / "chunk-store"
+    service.env["TRACKVKF_CHUNK_STORE"] = f"file://{chunk_root}"
+    app = make_app(Settings(database_url=service.database_url, run_store=service.run_store))
+    with service.client(timeout=120) as client, app.open():
+        run_id, job_id = upload_with_job(client, path)
+        service.start_worker()
+        wait_for(lambda: job(client, job_id)["n_chunks"] is not None, 120, "chunks planned", service)
+        n_chunks = job(client, job_id)["n_chunks"]
+        # every chunk and the assembly delivered a second time, without queueing locks
+        for index in range(n_chunks):
+            app.configure_task(TASK_CHUNK).defer(job_id=job_id, index=index)
+        app.configure_task(TASK_ASSEMBLE).defer(job_id=job_id)
+        service.start_worker()
+        first = _finish_and_check(client, service, run_id, job_id, clean_reference)
+        # ... and once more after the job is done: nothing changes
+        app.configure_task(TASK_CHUNK).defer(job_id=job_id, index=0)
+        app.configure_task(TASK_ASSEMBLE).defer(job_id=job_id)
+        wait_for(lambda: _procrastinate_pending(service.database_url) == 0, 120,
+                 "duplicate deliveries processed", service)
+        again = _finish_and_check(client, service, run_id, job_id, clean_reference)
+        assert again["finished_at"] == first["finished_at"]
+        assert again["meta"] == first["meta"]
+    results = sorted(p.name for p in chunk_root.rglob("*") if p.is_file())
+    assert results == [f"chunk-{i:05d}.npz" for i in range(first["n_chunks"])]
+    assert not list(service.run_store.rglob("*.npz"))
+
+
+def test_api_killed_during_upload_leaves_nothing(service, short_sim_run, clean_reference):
+    path, _ = short_sim_run
+    data = path.read_bytes()
+    sent = threading.Event()
+    release = threading.Event()
+
+    def slow_body():
+        block = 256 * 1024
+        for i in range(0, len(data), block):
+            yield data[i : i + block]
+            if i >= len(data) // 3:
+                sent.set()
+                release.wait(30)  # hold the upload open until the API is gone
+
+    errors: list[BaseException] = []
+
+    def upload() -> None:
+        try:
+            with service.client(timeout=60) as c:
+                c.post("/api/v1/runs", params={"filename": path.name, "format": "hdf5"},
+                       content=slow_body(), headers={"content-type": "application/octet-stream"})
+        except httpx.HTTPError as exc:
+            errors.append(exc)
+
+    uploader = threading.Thread(target=upload)
+    uploader.start()
+    assert sent.wait(60), service.log_text()
+    wait_for(lambda: any(p.stat().st_size > 0 for p in store_files(service.run_store / ".uploads")),
+             30, "upload data in the run store", service)
+    service.kill_api()  # SIGKILL mid-upload
+    release.set()
+    uploader.join(60)
+    assert errors, "the upload should have failed with the API gone"
+    assert store_files(service.run_store / ".uploads"), "expected a partial upload on disk"
+
+    # restarted API: uploads older than the stale age belong to the dead API and go
+    time.sleep(1.5)
+    service.env["TRACKVKF_UPLOAD_STALE_AFTER_S"] = "1"
+    service.start_api()
+    assert store_files(service.run_store) == []
+    with service.client(timeout=120) as client:
+        assert client.get("/api/v1/runs").json()["total"] == 0
+        assert client.get("/api/v1/jobs").json()["total"] == 0
+        # the same file uploaded again in full is processed like a clean run
+        run_id, job_id = upload_with_job(client, path)
+        service.start_worker()
+        _finish_and_check(client, service, run_id, job_id, clean_reference)

@@ -1,0 +1,525 @@
+"""Production mode: Procrastinate tasks on PostgreSQL, workers on any number of hosts.
+
+A job is fanned out into tasks that run the same pure functions as the local
+worker (:func:`worker.pipeline.plan_chunks`, :func:`~worker.pipeline.process_chunk`,
+:func:`~worker.pipeline.assemble`)::
+
+    jobs row 'queued' ──dispatch_jobs (periodic, 1 s)──▶ plan_job(job_id)
+        plan_job:      claim the job, plan chunks, record chunk rows,
+                       defer process_chunk(job_id, index) for every chunk not done
+        process_chunk: chunk result file (atomic: temp + rename) → chunk row 'done';
+                       the task that sees all chunks done defers assemble_job
+        assemble_job:  merge the chunk files → profile and wheel rows of the run,
+                       replaced in one transaction together with job 'done'
+
+Delivery is at-least-once (Procrastinate's retries, and the documented
+stalled-jobs periodic task :func:`retry_stalled_jobs` for workers that died),
+and every step is idempotent:
+
+* a chunk result is a file written atomically; computing it twice writes the
+  same file, and a file that exists is not computed again;
+* chunk rows are unique per (job, chunk) and only change status; progress is
+  done rows / all rows, never a counter;
+* assembling replaces the run's rows (primary key run, wheel, bin) in one
+  transaction that also marks the job done, guarded by ``status = 'running'``:
+  a second assemble of a done job changes nothing;
+* deferrals use queueing locks (one waiting copy per chunk / job), and a
+  duplicate that slips through is harmless by the rules above.
+
+Cancel (API ``POST /jobs/{id}/cancel``) sets ``cancel_requested``; the
+dispatcher marks the job cancelled within a second and running chunks stop at
+their next sub-block (``should_cancel`` polls the job row).
+
+Run a worker with ``trackvkf worker`` (or ``python -m worker``) when
+``TRACKVKF_DATABASE_URL`` is a PostgreSQL URL; ``--processes N`` starts N
+worker processes (one per core).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field
+from typing import Any
+
+import procrastinate
+import psycopg
+import sqlalchemy.exc
+from procrastinate import exceptions as pexc
+from sqlalchemy.engine import make_url
+
+from app.analysis.settings import ProcessingSettings
+from app.core.config import Settings, get_settings
+from app.db import crud, queue
+from app.db.models import ChunkStatus, JobStatus
+from app.db.session import Database
+from worker.chunkstore import ChunkStore
+from worker.health import alive_file
+from worker.store import RunStore, discard_partial_files
+
+__all__ = [
+    "TASK_PLAN",
+    "TASK_CHUNK",
+    "TASK_ASSEMBLE",
+    "TASK_DISPATCH",
+    "TASK_RETRY_STALLED",
+    "libpq_url",
+    "make_app",
+    "run_worker_process",
+    "run_workers",
+]
+
+log = logging.getLogger(__name__)
+
+TASK_PLAN = "trackvkf.plan_job"
+TASK_CHUNK = "trackvkf.process_chunk"
+TASK_ASSEMBLE = "trackvkf.assemble_job"
+TASK_DISPATCH = "trackvkf.dispatch_jobs"
+TASK_RETRY_STALLED = "trackvkf.retry_stalled_jobs"
+
+#: priorities (higher first): bookkeeping before chunks, so results land early
+_PRIO_HIGH = 10
+_PRIO_CHUNK = 0
+#: seconds between two looks of a running chunk at its job row (cancel)
+_CANCEL_POLL_S = 0.5
+
+
+class WorkerShutdown(RuntimeError):
+    """A chunk was interrupted because its worker is shutting down (retried elsewhere)."""
+
+
+#: database and connection errors: the task is retried (database restart, network)
+TRANSIENT_ERRORS: tuple[type[BaseException], ...] = (
+    sqlalchemy.exc.OperationalError,
+    sqlalchemy.exc.InterfaceError,
+    sqlalchemy.exc.DisconnectionError,
+    psycopg.OperationalError,
+    psycopg.InterfaceError,
+    pexc.ConnectorException,
+    WorkerShutdown,
+)
+
+_RETRY = procrastinate.RetryStrategy(
+    max_attempts=20, wait=1, linear_wait=1, retry_exceptions=set(TRANSIENT_ERRORS)
+)
+
+
+def libpq_url(database_url: str) -> str:
+    """The libpq URI (for psycopg/Procrastinate) of a SQLAlchemy PostgreSQL URL.
+
+    Parameters
+    ----------
+    database_url : str
+        ``postgresql+psycopg://user:password@host:port/db`` (any ``postgresql``
+        driver suffix).
+
+    Raises
+    ------
+    ValueError
+        If ``database_url`` is not a PostgreSQL URL.
+    """
+    url = make_url(database_url)
+    if url.get_backend_name() != "postgresql":
+        raise ValueError(f"database_url: the production mode needs PostgreSQL, got {url.drivername!r}")
+    return url.set(drivername="postgresql").render_as_string(hide_password=False)
+
+
+@dataclass
+class _Runtime:
+    """What the tasks of one worker process share: settings, database, run store."""
+
+    settings: Settings
+    _db: Database | None = None
+    store: RunStore = field(init=False)
+    chunks: ChunkStore = field(init=False)
+    stopping: threading.Event = field(default_factory=threading.Event)
+
+    def __post_init__(self) -> None:
+        self.store = RunStore(self.settings.run_store)
+        self.chunks = ChunkStore(self.store, self.settings.chunk_store)
+
+    @property
+    def db(self) -> Database:
+        if self._db is None:
+            self._db = Database(self.settings.database_url)
+        return self._db
+
+
+def _is_transient(exc: BaseException) -> bool:
+    return isinstance(exc, TRANSIENT_ERRORS)
+
+
+def _defer(app: procrastinate.App, name: str, lock: str | None, priority: int, **kwargs: Any) -> bool:
+    """Defer a task; False if an identical one is already waiting (queueing lock)."""
+    try:
+        app.configure_task(name, queueing_lock=lock, priority=priority).defer(**kwargs)
+        return True
+    except pexc.AlreadyEnqueued:
+        return False
+
+
+def make_app(settings: Settings | None = None) -> procrastinate.App:
+    """The Procrastinate app of trackvkf with its tasks, for ``settings``' database.
+
+    Parameters
+    ----------
+    settings : Settings, optional
+        Service settings (default: from the environment). ``database_url`` must
+        be a PostgreSQL URL; ``worker_stale_after_s`` is the heartbeat age after
+        which a worker counts as dead and its jobs are retried.
+    """
+    settings = settings or get_settings()
+    rt = _Runtime(settings)
+    connector = procrastinate.PsycopgConnector(
+        conninfo=libpq_url(settings.database_url),
+        kwargs={"application_name": "trackvkf-worker"},
+        min_size=1,
+        max_size=4,
+    )
+    app = procrastinate.App(connector=connector)
+    app.trackvkf_runtime = rt  # type: ignore[attr-defined]
+    stalled_every = max(1, min(59, int(settings.worker_stale_after_s / 3)))
+
+    # --- periodic bookkeeping ----------------------------------------------
+    @app.periodic(cron="* * * * * *")
+    @app.task(name=TASK_DISPATCH, queueing_lock=TASK_DISPATCH, priority=_PRIO_HIGH, pass_context=True)
+    def dispatch_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
+        """Fan queued jobs out to :func:`plan_job`; finish cancel requests."""
+        queue.finalize_cancel_requests(rt.db)
+        n = 0
+        for job_id in queue.queued_job_ids(rt.db):
+            n += _defer(context.app, TASK_PLAN, f"plan:{job_id}", _PRIO_HIGH, job_id=job_id)
+        return n
+
+    @app.periodic(cron=f"* * * * * */{stalled_every}")
+    @app.task(name=TASK_RETRY_STALLED, queueing_lock=TASK_RETRY_STALLED, priority=_PRIO_HIGH,
+              pass_context=True)
+    async def retry_stalled_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
+        """Retry the jobs of workers whose heartbeat is older than ``worker_stale_after_s``."""
+        stalled = await context.app.job_manager.get_stalled_jobs(
+            seconds_since_heartbeat=settings.worker_stale_after_s
+        )
+        n = 0
+        for job in stalled:
+            log.warning("retrying stalled job %s %s%s", job.id, job.task_name, job.task_kwargs)
+            await context.app.job_manager.retry_job(job)
+            n += 1
+        return n
+
+    # --- the fan-out ---------------------------------------------------------
+    @app.task(name=TASK_PLAN, retry=_RETRY, pass_context=True)
+    def plan_job(context: procrastinate.JobContext, job_id: int) -> str:
+        """Claim a queued job, record its chunks and defer one task per chunk."""
+        from worker.pipeline import plan_chunks
+
+        owner = f"{queue.FANOUT_OWNER_PREFIX}{context.job.id}"
+        if not queue.claim_for_fanout(rt.db, job_id, owner):
+            return "skipped"
+        try:
+            with rt.db.read() as session:
+                job = crud.get_job(session, job_id)
+                run = crud.get_run(session, job.run_id) if job is not None else None
+            if job is None or run is None:
+                return "lost"
+            run_path = rt.store.resolve(run.file_path)
+            if not run_path.is_file():
+                raise FileNotFoundError(f"run file {run.file_path} is missing from the run store")
+            chunks = plan_chunks(run_path, ProcessingSettings.from_dict(job.settings))
+            if not queue.record_chunks(rt.db, job_id, owner, [(c.index, c.to_dict()) for c in chunks]):
+                return "lost"
+            if rt.chunks.is_local:
+                discard_partial_files(rt.store.job_dir(run.id, job_id))
+        except Exception as exc:
+            if _is_transient(exc):
+                raise
+            _fail(rt, job_id, exc)
+            return "failed"
+        pending = 0
+        for chunk in chunks:
+            if rt.chunks.exists(run.id, job_id, chunk.index):
+                queue.mark_chunk(rt.db, job_id, None, chunk.index, ChunkStatus.DONE,
+                                 rt.chunks.location(run.id, job_id, chunk.index))
+                continue
+            pending += 1
+            _defer(context.app, TASK_CHUNK, f"chunk:{job_id}:{chunk.index}", _PRIO_CHUNK,
+                   job_id=job_id, index=chunk.index)
+        if pending == 0:
+            _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
+        return f"{len(chunks)} chunks, {pending} deferred"
+
+    @app.task(name=TASK_CHUNK, retry=_RETRY, pass_context=True)
+    def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) -> str:
+        """Compute one chunk's result file (unless it exists) and mark the chunk done."""
+        from worker.pipeline import ChunkSpec, PipelineCancelled
+        from worker.pipeline import process_chunk as compute_chunk
+
+        with rt.db.read() as session:
+            job = crud.get_job(session, job_id)
+            run = crud.get_run(session, job.run_id) if job is not None else None
+        if job is None or run is None:
+            _remove_orphans(rt, job.run_id if job is not None else None)
+            return "lost"
+        if job.status != JobStatus.RUNNING or job.cancel_requested:
+            queue.finalize_cancel_requests(rt.db)
+            return f"job {job.status}"
+        t0 = time.perf_counter()
+        if not rt.chunks.exists(run.id, job_id, index):
+            spec = queue.job_chunk_specs(rt.db, job_id).get(index)
+            if spec is None:
+                return "unknown chunk"
+            if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.RUNNING) is None:
+                return "job not running"
+            run_path = rt.store.resolve(run.file_path)
+            settings_ = ProcessingSettings.from_dict(job.settings)
+            chunk = ChunkSpec.from_dict(spec)
+            watch = _CancelWatch(rt, job_id, context)
+            try:
+                rt.chunks.write(
+                    run.id, job_id, index,
+                    lambda out: compute_chunk(run_path, settings_, chunk, out, should_cancel=watch),
+                )
+            except PipelineCancelled:
+                if rt.stopping.is_set():
+                    raise WorkerShutdown(f"chunk {index} of job {job_id} interrupted by shutdown") from None
+                queue.finalize_cancel_requests(rt.db)
+                return "cancelled"
+            except Exception as exc:
+                if _is_transient(exc):
+                    raise
+                queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.FAILED)
+                _fail(rt, job_id, exc)
+                return "failed"
+        compute_s = time.perf_counter() - t0
+        if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.DONE,
+                            rt.chunks.location(run.id, job_id, index)) is None:
+            return "job not running"
+        done, total = queue.chunk_progress(rt.db, job_id)
+        log.info("job %s chunk %s done in %.2f s (%d/%d)", job_id, index, compute_s, done, total)
+        if done == total:
+            _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
+        return f"chunk {index} done in {compute_s:.2f} s ({done}/{total})"
+
+    @app.task(name=TASK_ASSEMBLE, retry=_RETRY, pass_context=True)
+    def assemble_job(context: procrastinate.JobContext, job_id: int) -> str:  # noqa: ARG001
+        """Merge the chunk files of a job and store the run's rows (one transaction)."""
+        from worker.pipeline import assemble
+
+        with rt.db.read() as session:
+            job = crud.get_job(session, job_id)
+            run = crud.get_run(session, job.run_id) if job is not None else None
+        if job is None or run is None:
+            return "lost"
+        if job.status != JobStatus.RUNNING or job.cancel_requested:
+            return f"job {job.status}"
+        indices = sorted(queue.job_chunk_specs(rt.db, job_id))
+        if not indices or not all(rt.chunks.exists(run.id, job_id, i) for i in indices):
+            return "chunks missing"
+        t0 = time.perf_counter()
+        try:
+            with rt.chunks.local_copies(run.id, job_id, indices) as paths:
+                results = assemble(
+                    rt.store.resolve(run.file_path), ProcessingSettings.from_dict(job.settings), paths
+                )
+        except Exception as exc:
+            if _is_transient(exc):
+                raise
+            _fail(rt, job_id, exc)
+            return "failed"
+        meta = dict(results.meta or {})
+        meta["worker"] = {
+            "worker_id": job.worker_id,
+            "mode": "procrastinate",
+            "n_chunks": len(indices),
+            "assemble_s": round(time.perf_counter() - t0, 3),
+            "run_sha256": run.sha256,
+        }
+        t1 = time.perf_counter()
+        stored = queue.complete_job(rt.db, job_id, None, run.id, results.profiles, results.wheels, meta)
+        log.info("job %s assembled in %.2f s, %d rows %s in %.2f s", job_id, t1 - t0, len(results.profiles),
+                 "stored" if stored else "not stored (job not running)", time.perf_counter() - t1)
+        return "stored" if stored else "not running any more"
+
+    return app
+
+
+class _CancelWatch:
+    """``should_cancel`` of a running chunk: job cancelled/finished/deleted, or shutdown.
+
+    Polls the job row at most every ``_CANCEL_POLL_S`` seconds; a failed poll
+    (database restarting) does not stop the chunk.
+    """
+
+    def __init__(self, rt: _Runtime, job_id: int, context: procrastinate.JobContext) -> None:
+        self.rt, self.job_id, self.context = rt, job_id, context
+        self._next = 0.0
+        self._stop = False
+
+    def __call__(self) -> bool:
+        if self.rt.stopping.is_set():
+            return True
+        now = time.monotonic()
+        if not self._stop and now >= self._next:
+            self._next = now + _CANCEL_POLL_S
+            try:
+                with self.rt.db.read() as session:
+                    job = crud.get_job(session, self.job_id)
+                self._stop = job is None or job.status != JobStatus.RUNNING or bool(job.cancel_requested)
+            except Exception as exc:  # noqa: BLE001 - database away: keep computing
+                log.warning("cannot check job %s for cancel: %s", self.job_id, exc)
+        return self._stop
+
+
+def _fail(rt: _Runtime, job_id: int, exc: BaseException) -> None:
+    log.error("job %s failed:\n%s", job_id, "".join(traceback.format_exception(exc)))
+    error = f"{type(exc).__name__}: {exc}"
+    queue.finish_job(rt.db, job_id, None, JobStatus.FAILED, error[:4000])
+
+
+def _remove_orphans(rt: _Runtime, run_id: int | None) -> None:
+    """Remove the files of a deleted run that a late task may have written."""
+    if run_id is None:
+        return
+    with rt.db.read() as session:
+        if crud.get_run(session, run_id) is None:
+            rt.store.remove_run(run_id)
+            rt.chunks.remove_run(run_id)
+
+
+# --- worker processes ----------------------------------------------------------
+def run_worker_process(settings: Settings | None = None, *, wait: bool = True) -> int:
+    """Run one Procrastinate worker (concurrency 1) in this process until SIGTERM/SIGINT.
+
+    The worker is restarted after a pause when it stops on its own (database
+    restarted: its connections and heartbeat fail); jobs it had running are
+    retried by :func:`retry_stalled_jobs` if they did not finish.
+
+    Parameters
+    ----------
+    settings : Settings, optional
+    wait : bool
+        False: return once the queue is empty (tests, benchmarks).
+
+    Returns
+    -------
+    int
+        Exit status (0 after a graceful stop, 130 after a second signal).
+    """
+    settings = settings or get_settings()
+    import worker.pipeline  # noqa: F401 - load numerics before the first task, not during it
+
+    return asyncio.run(_supervise(settings, wait))
+
+
+async def _supervise(settings: Settings, wait: bool) -> int:
+    loop = asyncio.get_running_loop()
+    stopping = asyncio.Event()
+    current: list[asyncio.Task] = []
+    runtimes: list[_Runtime] = []
+
+    def on_signal(signum: int) -> None:
+        if stopping.is_set():
+            log.warning("second signal %s: exiting now", signum)
+            os._exit(130)
+        log.info("signal %s: stopping after the running chunk is interrupted", signum)
+        stopping.set()
+        for rt in runtimes:
+            rt.stopping.set()
+        for task in current:
+            task.cancel()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, on_signal, sig)
+    options = {
+        "concurrency": 1,
+        "wait": wait,
+        "install_signal_handlers": False,
+        "delete_jobs": "successful",
+        "update_heartbeat_interval": settings.worker_heartbeat_s,
+        "stalled_worker_timeout": settings.worker_stale_after_s,
+        "fetch_job_polling_interval": max(settings.worker_poll_interval_s, 0.1),
+        "name": f"trackvkf-{os.getpid()}",
+    }
+    alive = asyncio.create_task(_touch_alive(settings.worker_heartbeat_s), name="alive file")
+    try:
+        return await _serve(settings, options, stopping, current, runtimes, wait)
+    finally:
+        alive.cancel()
+        alive_file(os.getpid()).unlink(missing_ok=True)
+
+
+async def _touch_alive(interval_s: float) -> None:
+    """Touch this process's liveness file (``python -m worker.health``) periodically."""
+    path = alive_file(os.getpid())
+    while True:
+        path.touch()
+        await asyncio.sleep(interval_s)
+
+
+async def _serve(
+    settings: Settings,
+    options: dict[str, Any],
+    stopping: asyncio.Event,
+    current: list[asyncio.Task],
+    runtimes: list[_Runtime],
+    wait: bool,
+) -> int:
+    while not stopping.is_set():
+        app = make_app(settings)
+        runtimes[:] = [app.trackvkf_runtime]  # type: ignore[attr-defined]
+        try:
+            async with app.open_async():
+                task = asyncio.create_task(app.run_worker_async(**options))
+                current[:] = [task]
+                await task
+            if not wait:
+                break
+            log.warning("procrastinate worker stopped on its own; restarting in 1 s")
+        except asyncio.CancelledError:
+            if stopping.is_set():
+                break
+            raise
+        except (*TRANSIENT_ERRORS, OSError) as exc:  # database away: try again shortly
+            log.warning("procrastinate worker failed (%s: %s); restarting in 1 s", type(exc).__name__, exc)
+        finally:
+            current.clear()
+            rt = app.trackvkf_runtime  # type: ignore[attr-defined]
+            if rt._db is not None:
+                rt._db.dispose()
+        try:
+            await asyncio.wait_for(stopping.wait(), timeout=1.0)
+        except TimeoutError:
+            pass
+    return 0
+
+
+def run_workers(settings: Settings | None = None, processes: int = 1) -> int:
+    """Run ``processes`` worker processes (0 = one per core) until SIGTERM/SIGINT.
+
+    With one process the worker runs in this process; otherwise this process
+    starts ``python -m worker`` children, forwards SIGTERM/SIGINT to them and
+    waits for them.
+    """
+    if processes < 0:
+        raise ValueError(f"processes must be >= 0, got {processes}")
+    n = processes or len(os.sched_getaffinity(0)) or 1
+    if n == 1:
+        return run_worker_process(settings)
+    children = [subprocess.Popen([sys.executable, "-m", "worker", "--processes", "1"]) for _ in range(n)]
+
+    def forward(signum: int, frame: object) -> None:  # noqa: ARG001
+        for child in children:
+            if child.poll() is None:
+                child.send_signal(signum)
+
+    signal.signal(signal.SIGTERM, forward)
+    signal.signal(signal.SIGINT, forward)
+    codes = [child.wait() for child in children]
+    return max(codes, default=0)
+
