@@ -1,13 +1,11 @@
 """The audit log's append-only trigger and the auth tables on PostgreSQL.
 
-Runs when ``TRACKVKF_TEST_POSTGRES_URL`` names an empty scratch database
-(e.g. ``postgresql+psycopg://postgres@127.0.0.1:5432/scratch``); the test
-migrates it up and back down to base.
+Runs on a fresh database of the session's throw-away PostgreSQL cluster
+(``pg_cluster`` in tests/conftest.py); the test migrates it up and back down to
+base.
 """
 
 from __future__ import annotations
-
-import os
 
 import pytest
 from sqlalchemy import text
@@ -16,11 +14,11 @@ from sqlalchemy.exc import DatabaseError
 from app.db import auth_crud, migrate
 from app.db.session import Database
 
-URL = os.environ.get("TRACKVKF_TEST_POSTGRES_URL")
-pytestmark = pytest.mark.skipif(not URL, reason="TRACKVKF_TEST_POSTGRES_URL not set")
 
-
-def test_postgres_audit_log_is_append_only_and_keys_resolve():
+def test_postgres_audit_log_is_append_only_and_keys_resolve(pg_cluster):
+    if isinstance(pg_cluster, str):
+        pytest.skip(pg_cluster)
+    URL = pg_cluster.create_database()  # noqa: N806 - one URL per test
     migrate.upgrade(URL)
     db = Database(URL)
     try:
