@@ -39,8 +39,8 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
-def _tree_rss_mb(pid: int) -> float:
-    """Resident memory of a process and its descendants, MB (Linux /proc)."""
+def _tree_rss_mb(pid: int, tree: bool = True) -> float:
+    """Proportional set size of a process (and its descendants), MB (Linux /proc)."""
     children: dict[int, list[int]] = {}
     for entry in os.listdir("/proc"):
         if not entry.isdigit():
@@ -54,11 +54,14 @@ def _tree_rss_mb(pid: int) -> float:
     total, todo = 0.0, [pid]
     while todo:
         p = todo.pop()
-        todo.extend(children.get(p, []))
+        if tree:
+            todo.extend(children.get(p, []))
         try:
-            with open(f"/proc/{p}/status") as fh:
+            # PSS: shared pages (forkserver children share the imported modules)
+            # are split between the processes that map them, so the sum is real use
+            with open(f"/proc/{p}/smaps_rollup") as fh:
                 for line in fh:
-                    if line.startswith("VmRSS:"):
+                    if line.startswith("Pss:"):
                         total += int(line.split()[1]) / 1024
         except OSError:
             pass
@@ -71,13 +74,14 @@ class PeakSampler(threading.Thread):
     def __init__(self, pids: dict[str, int], interval: float = 0.2) -> None:
         super().__init__(daemon=True)
         self.pids, self.interval = pids, interval
-        self.peak = dict.fromkeys(pids, 0.0)
+        self.peak = dict.fromkeys(pids, 0.0) | {f"{name}_main": 0.0 for name in pids}
         self._stop_event = threading.Event()
 
     def run(self) -> None:
         while not self._stop_event.is_set():
             for name, pid in self.pids.items():
                 self.peak[name] = max(self.peak[name], _tree_rss_mb(pid))
+                self.peak[f"{name}_main"] = max(self.peak[f"{name}_main"], _tree_rss_mb(pid, tree=False))
             self._stop_event.wait(self.interval)
 
     def stop(self) -> dict[str, float]:
@@ -112,6 +116,13 @@ def main() -> None:
     from app.db import migrate
 
     migrate.upgrade(db_url)
+    from app.db import auth_crud
+    from app.db.session import Database
+
+    db = Database(db_url)
+    with db.write() as session:
+        _, api_key = auth_crud.create_api_key(session, "bench", "engineer", created_by="bench")
+    db.dispose()
     env = {k: v for k, v in os.environ.items() if not k.startswith("TRACKVKF_")}
     env.update(
         TRACKVKF_DATABASE_URL=db_url,
@@ -144,7 +155,8 @@ def main() -> None:
             time.sleep(0.2)
         sampler = PeakSampler({"api": api.pid, "worker": worker.pid})
         sampler.start()
-        with httpx.Client(base_url=base, timeout=None) as client:
+        headers = {"Authorization": f"Bearer {api_key}"}
+        with httpx.Client(base_url=base, timeout=None, headers=headers) as client:
             t0 = time.perf_counter()
             with open(run_file, "rb") as fh:
                 resp = client.post("/api/v1/runs", files={"file": (run_file.name, fh, "application/x-hdf5")})
@@ -173,6 +185,7 @@ def main() -> None:
             "n_chunks": job["n_chunks"],
             "api_peak_mb": round(peak["api"]),
             "worker_peak_mb": round(peak["worker"]),
+            "worker_main_process_peak_mb": round(peak["worker_main"]),
         }
         print(json.dumps(result))
         print(

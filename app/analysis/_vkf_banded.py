@@ -134,8 +134,13 @@ def _residual(y: np.ndarray, expo: np.ndarray, w: np.ndarray, q: int, a: np.ndar
     ``Cᴴ (y − C a) − (R S)ᵀ (R S) a`` for a of shape (channels, s, N) and y of
     shape (channels, N).
     """
-    fit = np.einsum("sn,csn->cn", expo, a)
-    return expo.conj() * (y - fit)[:, None, :] - _apply_normal(expo, w, q, a)
+    out = np.empty_like(a)
+    conj = expo.conj()
+    for ch in range(a.shape[0]):  # one channel at a time: temporaries of (s, N) only
+        fit = np.einsum("sn,sn->n", expo, a[ch])
+        np.multiply(conj, y[ch] - fit, out=out[ch])
+        out[ch] -= _apply_normal(expo, w, q, a[ch : ch + 1])[0]
+    return out
 
 
 def _to_band(x: np.ndarray) -> np.ndarray:

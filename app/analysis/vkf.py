@@ -437,7 +437,7 @@ def _warn_close(pairs: set[tuple[int, int]]) -> list[tuple[int, int]]:
 
 
 def vkf_overlap(fs: float, f_min: float, f_max: float, bw_min: float, bw_max: float, filter_order: int = 2,
-                decimation: str | int = "auto") -> int:
+                decimation: str | int = "auto", tol: float = _OVERLAP_TOL) -> int:
     """Input samples of overlap a chunk needs on each side for exact joining.
 
     Parameters
@@ -450,16 +450,21 @@ def vkf_overlap(fs: float, f_min: float, f_max: float, bw_min: float, bw_max: fl
         Range of the bandwidths, Hz (> 0).
     filter_order : {1, 2, 3}
     decimation : {"auto", "off"} or int
+    tol : float
+        Neglected tail of the impulse response, relative (default 1e-8, what
+        :func:`vkf` itself uses). The overlap grows like ``ln(1/tol)``.
 
     Returns
     -------
     int
         Overlap in samples: the impulse-response length of the narrowest
-        filter (tail below 1e-8) plus the anti-alias filter's half length.
+        filter (tail below ``tol``) plus the anti-alias filter's half length.
         Chunks solved over ``[start - overlap, stop + overlap)`` agree with
-        the unchunked solution to ~1e-8 of the signal level inside
+        the unchunked solution to ~``tol`` of the signal level inside
         ``[start, stop)``.
     """
+    if not 0.0 < tol < 1.0:
+        raise ValueError(f"tol must lie in (0, 1), got {tol!r}")
     decimation, _ = check_mode(decimation, None)
     if filter_order not in (1, 2, 3):
         raise ValueError(f"filter_order must be 1, 2 or 3, got {filter_order!r}")
@@ -468,7 +473,7 @@ def vkf_overlap(fs: float, f_min: float, f_max: float, bw_min: float, bw_max: fl
     plan = plan_baseband(f_min, f_max, bw_max, fs, decimation)
     factor = 1 if plan is None else plan.factor
     delay = 0 if plan is None else plan.delay
-    return impulse_length(bw_min, fs / factor, filter_order, _OVERLAP_TOL) * factor + delay + factor
+    return impulse_length(bw_min, fs / factor, filter_order, tol) * factor + delay + factor
 
 
 def vkf(

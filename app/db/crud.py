@@ -358,9 +358,10 @@ def replace_results(
     """
     session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
     session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
-    data = _profile_columns(profiles, run_id, job_id)
-    if data["wheel"]:
-        _insert_profiles(session, data)
+    _profile_columns(profiles.iloc[:0], run_id, job_id)  # checks the columns
+    # batch by batch: Python row objects of a whole long run would take ~1 KB a row
+    for a in range(0, len(profiles), _INSERT_BATCH):
+        _insert_profiles(session, _profile_columns(profiles.iloc[a : a + _INSERT_BATCH], run_id, job_id))
     known = {
         "wheel", "wheel_diameter_m", "n_windows", "orders", "angles_deg",
         "profile_um", "profile_p05_um", "profile_p95_um",
@@ -386,7 +387,7 @@ def replace_results(
         )
     if wheel_rows:
         session.execute(insert(WheelOOR), wheel_rows)
-    return len(data["wheel"])
+    return len(profiles)
 
 
 def jsonable(value: Any) -> Any:
