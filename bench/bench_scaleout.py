@@ -160,7 +160,12 @@ def main(argv: list[str] | None = None) -> int:
         db = Database(database_url)
         env = _env(database_url, store)
         job_settings = {"chunk_seconds": args.chunk_seconds}
-        with TestClient(create_app(settings)) as client:
+        from app.db import auth_crud
+
+        with db.write() as session:
+            _, api_key = auth_crud.create_api_key(session, "bench", "engineer", created_by="bench")
+        headers = {"Authorization": f"Bearer {api_key}"}
+        with TestClient(create_app(settings), headers=headers) as client:
             with open(path, "rb") as fh:
                 run = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()
             client.post(f"/api/v1/jobs/{run['latest_job']['id']}/cancel")

@@ -308,10 +308,14 @@ def _insert_profiles(session: Session, data: dict[str, list[Any]]) -> None:
         dbapi = session.connection().connection.dbapi_connection
         with dbapi.cursor() as cursor:
             if hasattr(cursor, "copy"):  # psycopg 3; same connection and transaction
+                # one text block per batch (tab-separated, \N for NULL, floats in their
+                # shortest round-trip form): ~10x faster than write_row per row
+                text_block = pd.DataFrame(data).to_csv(
+                    sep="\t", header=False, index=False, na_rep="\\N", lineterminator="\n"
+                )
                 sql = f"COPY {ProfileBin.__tablename__} ({', '.join(names)}) FROM STDIN"
                 with cursor.copy(sql) as copy:
-                    for row in rows:
-                        copy.write_row(row)
+                    copy.write(text_block)
                 return
     if session.get_bind().dialect.name == "sqlite":
         sql = (
