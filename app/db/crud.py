@@ -271,52 +271,66 @@ def _none_if_nan(value: Any) -> Any:
     return value
 
 
-def _profile_columns(profiles: pd.DataFrame, run_id: int, job_id: int) -> dict[str, list[Any]]:
-    """Column lists of the rows to insert (NaN and infinities as None)."""
+def _profile_frame(profiles: pd.DataFrame, run_id: int, job_id: int) -> pd.DataFrame:
+    """The rows to insert as a numeric frame in column order (NaN where no value)."""
     required = ("wheel", "bin", "km", "n_samples")
     missing = [c for c in required if c not in profiles.columns]
     if missing:
         raise ValueError(f"profiles: missing column(s) {', '.join(missing)}")
     n = len(profiles)
-    data: dict[str, list[Any]] = {
-        "run_id": [run_id] * n,
-        "job_id": [job_id] * n,
-        "wheel": profiles["wheel"].astype(str).tolist(),
-        "bin": profiles["bin"].to_numpy(dtype=np.int64).tolist(),
-        "km": profiles["km"].to_numpy(dtype=np.float64).tolist(),
-        "n_samples": profiles["n_samples"].to_numpy(dtype=np.int64).tolist(),
+    out: dict[str, np.ndarray] = {
+        "run_id": np.full(n, run_id, dtype=np.int64),
+        "job_id": np.full(n, job_id, dtype=np.int64),
+        "wheel": profiles["wheel"].astype(str).to_numpy(),
+        "bin": profiles["bin"].to_numpy(dtype=np.int64),
+        "km": profiles["km"].to_numpy(dtype=np.float64),
+        "n_samples": profiles["n_samples"].to_numpy(dtype=np.int64),
     }
     for col in PROFILE_VALUE_COLUMNS:
         if col == "n_samples":
             continue
         if col in profiles.columns:
-            values = profiles[col].to_numpy(dtype=np.float64, na_value=np.nan)
+            values = profiles[col].to_numpy(dtype=np.float64, na_value=np.nan).copy()
+            values[~np.isfinite(values)] = np.nan
+        else:
+            values = np.full(n, np.nan)
+        out[col] = values
+    return pd.DataFrame(out)
+
+
+def _profile_columns(frame: pd.DataFrame) -> dict[str, list[Any]]:
+    """Column lists of a :func:`_profile_frame` (NaN as None)."""
+    data: dict[str, list[Any]] = {}
+    for col in frame.columns:
+        values = frame[col].to_numpy()
+        if values.dtype.kind == "f":
             column = values.astype(object)
-            column[~np.isfinite(values)] = None
+            column[np.isnan(values)] = None
             data[col] = column.tolist()
         else:
-            data[col] = [None] * n
+            data[col] = values.tolist()
     return data
 
 
-def _insert_profiles(session: Session, data: dict[str, list[Any]]) -> None:
+def _insert_profiles(session: Session, frame: pd.DataFrame) -> None:
     """Bulk insert: plain ``executemany`` on SQLite (3-4x faster than Core), ``COPY`` on
     PostgreSQL with psycopg 3 (about 10x faster than multi-row INSERT), Core elsewhere."""
-    names = list(data)
-    rows = zip(*data.values(), strict=True)
+    names = list(frame.columns)
     if session.get_bind().dialect.name == "postgresql":
         dbapi = session.connection().connection.dbapi_connection
         with dbapi.cursor() as cursor:
             if hasattr(cursor, "copy"):  # psycopg 3; same connection and transaction
-                # one text block per batch (tab-separated, \N for NULL, floats in their
-                # shortest round-trip form): ~10x faster than write_row per row
-                text_block = pd.DataFrame(data).to_csv(
+                # one text block per batch, formatted column-wise by pandas (tab-separated,
+                # \N for NULL, floats in their shortest round-trip form)
+                text_block = frame.to_csv(
                     sep="\t", header=False, index=False, na_rep="\\N", lineterminator="\n"
                 )
                 sql = f"COPY {ProfileBin.__tablename__} ({', '.join(names)}) FROM STDIN"
                 with cursor.copy(sql) as copy:
                     copy.write(text_block)
                 return
+    data = _profile_columns(frame)
+    rows = zip(*data.values(), strict=True)
     if session.get_bind().dialect.name == "sqlite":
         sql = (
             f"INSERT INTO {ProfileBin.__tablename__} ({', '.join(names)}) "
@@ -362,10 +376,10 @@ def replace_results(
     """
     session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
     session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
-    _profile_columns(profiles.iloc[:0], run_id, job_id)  # checks the columns
+    _profile_frame(profiles.iloc[:0], run_id, job_id)  # checks the columns
     # batch by batch: Python row objects of a whole long run would take ~1 KB a row
     for a in range(0, len(profiles), _INSERT_BATCH):
-        _insert_profiles(session, _profile_columns(profiles.iloc[a : a + _INSERT_BATCH], run_id, job_id))
+        _insert_profiles(session, _profile_frame(profiles.iloc[a : a + _INSERT_BATCH], run_id, job_id))
     known = {
         "wheel", "wheel_diameter_m", "n_windows", "orders", "angles_deg",
         "profile_um", "profile_p05_um", "profile_p95_um",
