@@ -12,13 +12,18 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import jinja2
+import swagger_ui_bundle
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
 
 from app.api.deps import API_KEY_HEADER, public, require_page_login, require_role
 
-__all__ = ["router", "safe_next", "install_protected_docs", "TEMPLATES_DIR"]
+__all__ = ["router", "safe_next", "install_protected_docs", "TEMPLATES_DIR", "SWAGGER_ASSETS"]
+
+#: URL prefix of the locally served Swagger UI assets (public static files)
+SWAGGER_ASSETS = "/docs-assets"
 
 TEMPLATES_DIR = Path(__file__).resolve().parents[2] / "frontend" / "templates"
 _PAGE_HEADERS = {
@@ -125,7 +130,17 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
     def openapi_json() -> JSONResponse:
         return JSONResponse(app.openapi())
 
+    # Swagger UI's assets from the installed swagger-ui-bundle package, not a CDN:
+    # the docs page must work on a closed network like every other page
+    app.mount(SWAGGER_ASSETS, StaticFiles(directory=swagger_ui_bundle.swagger_ui_path), name="swagger-ui")
+
     @app.get("/docs", include_in_schema=False, dependencies=[Depends(require_page_login("viewer"))])
     def docs(request: Request) -> HTMLResponse:
-        page = get_swagger_ui_html(openapi_url="/openapi.json", title=f"{app.title} API")
+        page = get_swagger_ui_html(
+            openapi_url="/openapi.json",
+            title=f"{app.title} API",
+            swagger_js_url=f"{SWAGGER_ASSETS}/swagger-ui-bundle.js",
+            swagger_css_url=f"{SWAGGER_ASSETS}/swagger-ui.css",
+            swagger_favicon_url=f"{SWAGGER_ASSETS}/favicon-32x32.png",
+        )
         return HTMLResponse(page.body, headers=_PAGE_HEADERS)

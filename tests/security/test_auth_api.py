@@ -289,3 +289,16 @@ def test_login_page_and_docs(secured):
 def test_out_of_range_query_parameters_are_422_not_500(secured, url):
     r = secured.client.get(url, headers=secured.headers("admin"))
     assert r.status_code == 422, r.text
+
+
+def test_docs_page_serves_swagger_ui_locally(secured):
+    """Swagger UI's script and style come from the app itself (closed network), not a CDN."""
+    import re
+
+    page = secured.client.get("/docs", headers=secured.headers("viewer"))
+    assert page.status_code == 200, page.text
+    urls = re.findall(r"""(?:src|href|url)\s*[=:]\s*['"]([^'"]+)['"]""", page.text)
+    assert any(u.endswith("swagger-ui-bundle.js") for u in urls), urls
+    assert not [u for u in urls if "://" in u or u.startswith("//")], urls
+    for asset in [u for u in urls if u.startswith("/docs-assets/")]:
+        assert secured.client.get(asset).status_code == 200, asset
