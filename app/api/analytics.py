@@ -27,9 +27,10 @@ from app.analysis.stiffness.subsidence import (
 from app.analysis.stiffness.superstructure import flag_segments, type_distributions
 from app.analysis.stiffness.unsprung_mass import fit_unsprung_mass
 from app.api import analytics_data as data
-from app.api.deps import DbDep, RunId, SettingsDep
+from app.api.deps import DbDep, RunId, SettingsDep, check_km
 from app.api.errors import ApiError, not_found
-from app.api.reference import KmFromQ, KmToQ, LineQ, TrackQ, check_km, parse_types
+from app.api.profiles import run_with_results
+from app.api.reference import KmFromQ, KmToQ, LineQ, TrackQ, parse_types
 from app.api.schemas.analytics import (
     AlignmentOut,
     MaintenanceOut,
@@ -148,11 +149,7 @@ def predicted_subsidence(run_id: RunId, db: DbDep, settings: SettingsDep,
     check_km(km_from, km_to)
     w = _wheel(wheel)
     with db.read() as session:
-        run = crud.get_run(session, run_id)
-        if run is None:
-            raise not_found("run", run_id)
-        if crud.results_job(session, run_id) is None:
-            raise ApiError(409, "profile", f"run {run_id} has no results yet")
+        run, _ = run_with_results(session, run_id)
     fit_sel = data.select_runs(db, run.line_id, run.track, data.parse_run_ids(fit_run_ids)) \
         if (fit_run_ids or run.line_id is not None) else data.select_runs(db, None, None, [run_id])
     fdf = data.load_profiles(db, settings, fit_sel, wheel=w)
@@ -315,11 +312,7 @@ def speed_normalised_profile(run_id: RunId, db: DbDep, settings: SettingsDep,
     check_km(km_from, km_to)
     w = _wheel(wheel)
     with db.read() as session:
-        run = crud.get_run(session, run_id)
-        if run is None:
-            raise not_found("run", run_id)
-        if crud.results_job(session, run_id) is None:
-            raise ApiError(409, "profile", f"run {run_id} has no results yet")
+        run, _ = run_with_results(session, run_id)
     ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
     ids = data.parse_run_ids(fit_run_ids)

@@ -7,6 +7,7 @@ and database.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
@@ -47,6 +48,7 @@ __all__ = [
     "EngineerDep",
     "AdminDep",
     "RunId",
+    "check_km",
     "JobId",
 ]
 
@@ -340,3 +342,12 @@ AdminDep = Annotated[Principal, Depends(require_role("admin"))]
 _MAX_ID = 2**31 - 1
 RunId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Run id")]
 JobId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Job id")]
+
+
+def check_km(km_from: float | None, km_to: float | None) -> None:
+    """422 unless the km bounds are finite and ordered."""
+    for name, value in (("km_from", km_from), ("km_to", km_to)):
+        if value is not None and not math.isfinite(value):
+            raise ApiError(422, name, "must be a finite number")
+    if km_from is not None and km_to is not None and km_from > km_to:
+        raise ApiError(422, "km_from", f"({km_from}) is greater than km_to ({km_to})")

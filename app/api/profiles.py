@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
 import tempfile
 from collections.abc import Iterator
@@ -17,14 +16,15 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import StreamingResponse
+from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import aggregate_profile, display_indices
-from app.api.deps import DbDep, RunId, SettingsDep
+from app.api.deps import DbDep, RunId, SettingsDep, check_km
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
 from app.db import crud
 from app.db.display import profile_column_arrays, profile_rows_of_bins
-from app.db.models import PROFILE_VALUE_COLUMNS
+from app.db.models import PROFILE_VALUE_COLUMNS, Job, Run
 from app.db.session import Database
 
 __all__ = ["router", "AGGREGATED_COLUMNS"]
@@ -72,24 +72,23 @@ MaxPoints = Annotated[
 ]
 
 
-def _check_km(km_from: float | None, km_to: float | None) -> None:
-    for name, value in (("km_from", km_from), ("km_to", km_to)):
-        if value is not None and not math.isfinite(value):
-            raise ApiError(422, name, "must be a finite number")
-    if km_from is not None and km_to is not None and km_from > km_to:
-        raise ApiError(422, "km_from", f"({km_from}) is greater than km_to ({km_to})")
+def run_with_results(session: Session, run_id: int) -> tuple[Run, Job]:
+    """The run and the job whose results are stored; 404 without the run, 409 without results."""
+    run = crud.get_run(session, run_id)
+    if run is None:
+        raise not_found("run", run_id)
+    job = crud.results_job(session, run_id)
+    if job is None:
+        latest = crud.latest_job(session, run_id)
+        state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
+        raise ApiError(409, "profile", f"run {run_id} has no results yet ({state})")
+    return run, job
 
 
 def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int, float, list[str]]:
     """Job id and bin length of the stored results and the wheels; 404/409 if none."""
     with db.read() as session:
-        if crud.get_run(session, run_id) is None:
-            raise not_found("run", run_id)
-        job = crud.results_job(session, run_id)
-        if job is None:
-            latest = crud.latest_job(session, run_id)
-            state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
-            raise ApiError(409, "profile", f"run {run_id} has no results yet ({state})")
+        _, job = run_with_results(session, run_id)
         wheels = crud.profile_wheels(session, run_id)
     if wheel is not None and wheel not in wheels:
         raise ApiError(
@@ -159,7 +158,7 @@ def get_profile(
     100 km run asks for a few thousand rows that keep every peak, and asks again
     with a narrower km range when the user zooms in.
     """
-    _check_km(km_from, km_to)
+    check_km(km_from, km_to)
     job_id, bin_length, _ = _results_context(db, run_id, wheel)
     k = _level_ratio(level, bin_length)
     if max_points is not None and max_points > settings.max_profile_rows:
@@ -238,7 +237,7 @@ def _frames(
 def _export_prelude(
     db: Database, run_id: int, wheel: str | None, km_from, km_to, level: float
 ) -> tuple[list[str], float]:
-    _check_km(km_from, km_to)
+    check_km(km_from, km_to)
     _, bin_length, wheels = _results_context(db, run_id, wheel)
     _level_ratio(level, bin_length)
     return ([wheel] if wheel else wheels), bin_length

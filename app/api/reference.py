@@ -7,7 +7,6 @@ writes: to be restricted to the engineer role by the access control.
 from __future__ import annotations
 
 import datetime as dt
-import math
 from typing import Annotated, Literal
 
 import numpy as np
@@ -16,7 +15,7 @@ from fastapi import APIRouter, File, Query, Request, UploadFile
 from starlette.concurrency import run_in_threadpool
 
 from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, SettingsDep
+from app.api.deps import DbDep, EngineerDep, SettingsDep, check_km
 from app.api.errors import ApiError
 from app.api.schemas.reference import (
     DeleteOut,
@@ -29,7 +28,7 @@ from app.db import reference_crud
 from app.io import RunFileError
 from app.io.reference import MAINTENANCE_TYPES, read_reference
 
-__all__ = ["router", "check_km"]
+__all__ = ["router"]
 
 router = APIRouter(prefix="/reference", tags=["reference data"])
 
@@ -39,15 +38,6 @@ LineQ = Annotated[str | None, Query(max_length=128, description="Line id")]
 TrackQ = Annotated[str | None, Query(max_length=64, description="Track")]
 KmFromQ = Annotated[float | None, Query(ge=-_KM, le=_KM, description="Lower km bound")]
 KmToQ = Annotated[float | None, Query(ge=-_KM, le=_KM, description="Upper km bound")]
-
-
-def check_km(km_from: float | None, km_to: float | None) -> None:
-    """422 unless the km bounds are finite and ordered."""
-    for name, value in (("km_from", km_from), ("km_to", km_to)):
-        if value is not None and not math.isfinite(value):
-            raise ApiError(422, name, "must be a finite number")
-    if km_from is not None and km_to is not None and km_from > km_to:
-        raise ApiError(422, "km_from", f"({km_from}) is greater than km_to ({km_to})")
 
 
 def _records(df: pd.DataFrame) -> list[dict]:
