@@ -123,11 +123,6 @@ def _plan_segments(
 # --------------------------------------------------------------------------
 
 
-def _segment_extremes(inp: VKFInput, lo: int, hi: int) -> tuple[float, float, float, float]:
-    """(f_min, f_max, bw_min, bw_max) over [lo, hi), exact (not block-rounded)."""
-    return extremes_over(inp, lo, hi)
-
-
 def _filtered_inside(plan: BasebandPlan, length: int, idx: np.ndarray) -> np.ndarray:
     """Decimated samples whose anti-alias filter window lies inside the segment.
 
@@ -161,7 +156,7 @@ def _solve_segment(inp: VKFInput, seg: _Segment, cum_lo: np.ndarray, decimation:
     ``cum_lo`` is Σ_{l<lo} f_n[l] (Hz·samples) for the global phase.
     """
     lo, hi, fs, q = seg.lo, seg.hi, inp.fs, inp.q
-    f_lo, f_hi, _, bw_max = _segment_extremes(inp, lo, hi)
+    f_lo, f_hi, _, bw_max = extremes_over(inp, lo, hi)  # exact, not block-rounded
     plan = plan_baseband(f_lo, f_hi, bw_max, fs, decimation)
     y = inp.y_slice(lo, hi)
     if plan is None:
