@@ -28,7 +28,7 @@ def main() -> None:
     from fastapi.testclient import TestClient
 
     from app.core.config import Settings
-    from app.db import crud, migrate
+    from app.db import auth_crud, crud, migrate
     from app.db.models import Run
     from app.db.session import Database
     from app.main import create_app
@@ -61,22 +61,30 @@ def main() -> None:
         job.status = "done"
         crud.replace_results(session, run.id, job.id, profiles, [])
         run_id = run.id
+    with db.write() as session:
+        _, api_key = auth_crud.create_api_key(session, "bench", "viewer", created_by="bench")
     db.dispose()
     print(f"stored {len(profiles)} rows in {time.perf_counter() - t0:.1f} s")
 
-    with TestClient(create_app(settings)) as client:
-        cases = [("whole run", 0.0, args.km), ("10 km", 40.0, 50.0), ("1 km", 45.0, 46.0)]
+    with TestClient(create_app(settings), headers={"Authorization": f"Bearer {api_key}"}) as client:
+        cases = [("whole run", None, None, {}), ("10 km", 40.0, 50.0, {}), ("1 km", 45.0, 46.0, {}),
+                 ("100 m", 45.0, 45.1, {}),
+                 ("line view: whole run in 100 m segments", None, None, {"level": 100, "max_points": None}),
+                 ("line view: whole run in 10 m segments", None, None, {"level": 10})]
         print("| view | rows per wheel in range | rows returned per wheel | median s per wheel | bytes per wheel |")
         print("|---|---|---|---|---|")
-        for name, a, b in cases:
+        for name, a, b, extra in cases:
             times = []
             for _ in range(args.repeat):
                 t = time.perf_counter()
-                r = client.get(f"/api/v1/runs/{run_id}/profile",
-                               params={"wheel": "12", "km_from": a, "km_to": b, "max_points": 3000})
+                params = {k: v for k, v in {"wheel": "12", "max_points": 3000, **extra}.items() if v is not None}
+                if a is not None:
+                    params.update(km_from=a, km_to=b)
+                r = client.get(f"/api/v1/runs/{run_id}/profile", params=params)
                 times.append(time.perf_counter() - t)
+            r.raise_for_status()
             body = r.json()
-            print(f"| {name} | {int((b - a) * 4000)} | {body['n_rows']} | {statistics.median(times):.3f} | {len(r.content)} |")
+            print(f"| {name} | {int(((b or args.km) - (a or 0.0)) * 4000)} | {body['n_rows']} | {statistics.median(times):.3f} | {len(r.content)} |")
 
 
 if __name__ == "__main__":

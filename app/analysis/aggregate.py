@@ -7,6 +7,9 @@
 * :func:`decimate_for_display` reduces a long curve to at most ``max_points``
   points for plotting while keeping the local minima and maxima (peaks
   survive), and always the global minimum and maximum.
+* :func:`display_levels` ranks the bins of a profile once, when it is stored,
+  so that a display of any km range at any zoom can read only the few rows
+  that carry its peaks (a min–max pyramid).
 """
 
 from __future__ import annotations
@@ -16,7 +19,10 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["aggregate_profile", "decimate_for_display", "display_indices"]
+__all__ = ["aggregate_profile", "decimate_for_display", "display_indices", "display_levels", "DISPLAY_LEVEL_BASE"]
+
+#: bins per bucket grow by this factor from one display level to the next
+DISPLAY_LEVEL_BASE = 4
 
 
 def _level_ratio(level_m: float, bin_length: float) -> int:
@@ -305,3 +311,91 @@ def display_indices(
         idx = _minmax_indices(y, budget // 2) if budget >= 2 else np.empty(0, dtype=np.int64)
     idx = np.unique(np.concatenate([idx, np.asarray(extremes, dtype=np.int64)]))
     return order[idx]
+
+
+def _bucket_extremes(bins: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Positions of the first minimum of ``lo`` and first maximum of ``hi`` per run of equal ``bins``."""
+    starts = np.flatnonzero(np.r_[True, bins[1:] != bins[:-1]])
+    group = np.cumsum(np.r_[False, bins[1:] != bins[:-1]])
+    out = []
+    for vals, reduce in ((lo, np.minimum), (hi, np.maximum)):
+        best = reduce.reduceat(vals, starts)
+        hit = np.flatnonzero(vals == best[group])
+        # the first hit of every group (hits are in position order)
+        out.append(hit[np.r_[True, group[hit][1:] != group[hit][:-1]]])
+    return np.union1d(out[0], out[1])
+
+
+def display_levels(bins: np.ndarray, values: np.ndarray, *, base: int = DISPLAY_LEVEL_BASE) -> np.ndarray:
+    """Display level of every bin of a profile: a min–max pyramid over the bin index.
+
+    Level ``k`` groups the bins into buckets of ``base**k`` consecutive bin
+    indices (bucket ``floor(bin / base**k)``). A bin has level ``>= k`` if it
+    is the (first) minimum or maximum of ``values`` in its level-``k`` bucket.
+    Reading the rows of level ``>= k`` of any km range therefore gives at most
+    two rows per bucket and keeps every peak that a min–max decimation to
+    buckets of ``base**k`` bins would keep. The first and last bin of the
+    profile get the top level (the first whose one bucket holds the whole
+    profile), so every level spans the whole profile.
+
+    Parameters
+    ----------
+    bins : array_like of int
+        (n,) bin indices of one wheel's profile (unique, any order).
+    values : array_like of float
+        (n,) values that rank the bins (e.g. the sleeper-passage amplitude,
+        m/s²). NaN or inf counts as missing: a bucket with no finite value
+        keeps its first bin, so gaps stay visible.
+    base : int, optional
+        Bucket growth factor between levels (>= 2).
+
+    Returns
+    -------
+    numpy.ndarray of int16
+        (n,) level of every bin, in the input order; 0 for bins that only
+        the full-resolution level holds.
+
+    Raises
+    ------
+    ValueError
+        If the arrays are not 1-D of one shape, ``bins`` are not unique
+        integers, or ``base`` < 2.
+
+    Notes
+    -----
+    The levels are nested: the minimum (maximum) of a bucket is the minimum
+    (maximum) of its sub-bucket too, so level ``k`` is computed from the bins of
+    level ``k − 1`` only, and the whole pyramid costs O(n log n) for the sort.
+    """
+    if isinstance(base, bool) or int(base) != base or base < 2:
+        raise ValueError(f"base must be an integer >= 2, got {base!r}")
+    b = np.asarray(bins)
+    y = np.asarray(values, dtype=np.float64)
+    if b.ndim != 1:
+        raise ValueError(f"bins must be 1-D, got shape {b.shape}")
+    if y.shape != b.shape:
+        raise ValueError(f"values must have the shape of bins {b.shape}, got {y.shape}")
+    if b.size and b.dtype.kind not in "iu":
+        raise ValueError(f"bins must be integers, got dtype {b.dtype}")
+    levels = np.zeros(b.size, dtype=np.int16)
+    if b.size == 0:
+        return levels
+    b = b.astype(np.int64)
+    order = np.argsort(b, kind="stable")
+    sb, sy = b[order], y[order]
+    if np.any(sb[1:] == sb[:-1]):
+        raise ValueError("bins must be unique")
+    finite = np.isfinite(sy)
+    lo = np.where(finite, sy, np.inf)
+    hi = np.where(finite, sy, -np.inf)
+    # missing values tie at ±inf: the bucket's first bin wins both
+    keep = np.arange(sb.size)
+    first, last = int(sb[0]), int(sb[-1])
+    k, span = 0, 1
+    # up to the first level whose single bucket holds the whole profile
+    while k == 0 or first // span != last // span:
+        k, span = k + 1, span * int(base)
+        keep = keep[_bucket_extremes(sb[keep] // span, lo[keep], hi[keep])]
+        levels[order[keep]] = k
+    levels[order[[0, -1]]] = k
+    return levels

@@ -23,7 +23,7 @@ from app.api.deps import DbDep, RunId, SettingsDep, check_km
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
 from app.db import crud
-from app.db.display import profile_column_arrays, profile_rows_of_bins
+from app.db.display import display_rows, km_extent
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, Run
 from app.db.session import Database
 
@@ -163,17 +163,12 @@ def get_profile(
     k = _level_ratio(level, bin_length)
     if max_points is not None and max_points > settings.max_profile_rows:
         raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
+    with db.read() as session:
+        extent = km_extent(session, run_id, wheel)
     if max_points is not None and k == 1:
-        # choose the rows from two columns, then read only those rows whole
+        # a few thousand rows of the stored display pyramid, whatever the range
         with db.read() as session:
-            cols = profile_column_arrays(
-                session, run_id, wheel, ["km", "sleeper_amp"], km_from=km_from, km_to=km_to
-            )
-            if cols["bin"].size > max_points:
-                keep = display_indices(cols["km"], cols["sleeper_amp"], max_points)
-                df = profile_rows_of_bins(session, run_id, wheel, cols["bin"][keep])
-            else:
-                df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
+            df = display_rows(session, run_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to)
         truncated = False
     elif max_points is not None:
         with db.read() as session:
@@ -202,6 +197,7 @@ def get_profile(
         bin_length_m=bin_length,
         km_from=km_from,
         km_to=km_to,
+        km_extent=list(extent) if extent is not None else None,
         max_points=max_points,
         n_rows=len(df),
         truncated=truncated,

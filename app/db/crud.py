@@ -16,6 +16,7 @@ import pandas as pd
 from sqlalchemy import and_, delete, func, insert, select, update
 from sqlalchemy.orm import Session
 
+from app.analysis.aggregate import display_levels
 from app.db.models import (
     PROFILE_VALUE_COLUMNS,
     Job,
@@ -26,6 +27,7 @@ from app.db.models import (
     WheelOOR,
     utcnow,
 )
+from app.db.pg_copy import binary_copy_stream
 
 __all__ = [
     "get_run",
@@ -41,8 +43,10 @@ __all__ = [
     "request_cancel",
     "chunk_counts",
     "replace_results",
+    "lock_run_for_results",
     "profile_rows",
     "profile_frame",
+    "profile_where",
     "profile_wheels",
     "iter_profile_pages",
     "get_wheels",
@@ -56,6 +60,12 @@ __all__ = [
 PROFILE_COLUMNS: tuple[str, ...] = ("wheel", "bin", "km", *PROFILE_VALUE_COLUMNS)
 
 _INSERT_BATCH = 20_000
+#: PostgreSQL binary type of every column of a stored profile row (see _profile_frame)
+_PG_COPY_TYPES: dict[str, str] = {
+    "run_id": "int4", "job_id": "int4", "wheel": "text", "bin": "int8", "km": "float8",
+    "display_level": "int2", "n_samples": "int4",
+    **{c: "float8" for c in PROFILE_VALUE_COLUMNS if c != "n_samples"},
+}
 
 
 # --- runs -------------------------------------------------------------------
@@ -121,9 +131,13 @@ def list_runs(
 def delete_run(session: Session, run_id: int) -> bool:
     """Delete a run and everything that belongs to it; False if there was none.
 
-    Children are deleted explicitly (not only through ``ON DELETE CASCADE``),
-    so the result does not depend on foreign-key enforcement.
+    Children are deleted explicitly (``profile_bins`` has no foreign keys, and
+    the result must not depend on foreign-key enforcement elsewhere either).
     """
+    # lock the run first (as writers of results do, see lock_run_for_results): rows of a
+    # job being stored now are committed before they are deleted, never left behind
+    if session.scalar(select(Run.id).where(Run.id == run_id).with_for_update()) is None:
+        return False
     job_ids = select(Job.id).where(Job.run_id == run_id).scalar_subquery()
     session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
     session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
@@ -284,6 +298,8 @@ def _profile_frame(profiles: pd.DataFrame, run_id: int, job_id: int) -> pd.DataF
         "wheel": profiles["wheel"].astype(str).to_numpy(),
         "bin": profiles["bin"].to_numpy(dtype=np.int64),
         "km": profiles["km"].to_numpy(dtype=np.float64),
+        "display_level": profiles["display_level"].to_numpy(dtype=np.int16)
+        if "display_level" in profiles.columns else np.zeros(n, dtype=np.int16),
         "n_samples": profiles["n_samples"].to_numpy(dtype=np.int64),
     }
     for col in PROFILE_VALUE_COLUMNS:
@@ -313,21 +329,18 @@ def _profile_columns(frame: pd.DataFrame) -> dict[str, list[Any]]:
 
 
 def _insert_profiles(session: Session, frame: pd.DataFrame) -> None:
-    """Bulk insert: plain ``executemany`` on SQLite (3-4x faster than Core), ``COPY`` on
-    PostgreSQL with psycopg 3 (about 10x faster than multi-row INSERT), Core elsewhere."""
+    """Bulk insert: binary ``COPY`` on PostgreSQL with psycopg 3 (the stream laid out by
+    numpy, :mod:`app.db.pg_copy`), plain ``executemany`` on SQLite (3-4x faster than
+    Core), Core elsewhere."""
     names = list(frame.columns)
     if session.get_bind().dialect.name == "postgresql":
         dbapi = session.connection().connection.dbapi_connection
         with dbapi.cursor() as cursor:
             if hasattr(cursor, "copy"):  # psycopg 3; same connection and transaction
-                # one text block per batch, formatted column-wise by pandas (tab-separated,
-                # \N for NULL, floats in their shortest round-trip form)
-                text_block = frame.to_csv(
-                    sep="\t", header=False, index=False, na_rep="\\N", lineterminator="\n"
-                )
-                sql = f"COPY {ProfileBin.__tablename__} ({', '.join(names)}) FROM STDIN"
+                stream = binary_copy_stream([(frame[c].to_numpy(), _PG_COPY_TYPES[c]) for c in names])
+                sql = f"COPY {ProfileBin.__tablename__} ({', '.join(names)}) FROM STDIN (FORMAT BINARY)"
                 with cursor.copy(sql) as copy:
-                    copy.write(text_block)
+                    copy.write(stream)
                 return
     data = _profile_columns(frame)
     rows = zip(*data.values(), strict=True)
@@ -348,6 +361,31 @@ def _insert_profiles(session: Session, frame: pd.DataFrame) -> None:
         session.execute(insert(ProfileBin), batch)
 
 
+def lock_run_for_results(session: Session, run_id: int) -> bool:
+    """Lock run ``run_id`` against deletion until the transaction ends; False if it is gone.
+
+    Writers of a run's results take this lock (``FOR KEY SHARE`` on PostgreSQL,
+    the database write lock on SQLite) before anything else, and
+    :func:`delete_run` locks the run for update first, so a run is never deleted
+    halfway through storing its rows, and the two never deadlock.
+    """
+    stmt = select(Run.id).where(Run.id == run_id).with_for_update(read=True, key_share=True)
+    return session.scalar(stmt) is not None
+
+
+def _with_display_levels(profiles: pd.DataFrame) -> pd.DataFrame:
+    """``profiles`` with the column ``display_level`` ranked per wheel by the sleeper amplitude."""
+    levels = np.zeros(len(profiles), dtype=np.int16)
+    if len(profiles) and "sleeper_amp" in profiles.columns:
+        wheel = profiles["wheel"].astype(str).to_numpy()
+        bins = profiles["bin"].to_numpy(dtype=np.int64)
+        amp = profiles["sleeper_amp"].to_numpy(dtype=np.float64, na_value=np.nan)
+        for w in np.unique(wheel):
+            rows = np.flatnonzero(wheel == w)
+            levels[rows] = display_levels(bins[rows], amp[rows])
+    return profiles.assign(display_level=levels)
+
+
 def replace_results(
     session: Session,
     run_id: int,
@@ -359,7 +397,9 @@ def replace_results(
 
     Run it inside one write transaction: the old rows are deleted and the new
     ones inserted together, so a retried job never duplicates rows and readers
-    see either the old or the new results.
+    see either the old or the new results. The run is locked against deletion
+    first (:func:`lock_run_for_results`), and every bin is ranked for display
+    (``display_level``, per wheel by the sleeper-passage amplitude).
 
     Parameters
     ----------
@@ -373,10 +413,20 @@ def replace_results(
     -------
     int
         Number of profile rows written.
+
+    Raises
+    ------
+    LookupError
+        If the run does not exist (deleted meanwhile).
+    ValueError
+        If ``profiles`` lacks a required column or a wheel result has no ``wheel``.
     """
+    if not lock_run_for_results(session, run_id):
+        raise LookupError(f"run {run_id} does not exist (deleted?)")
     session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
     session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
     _profile_frame(profiles.iloc[:0], run_id, job_id)  # checks the columns
+    profiles = _with_display_levels(profiles)
     # batch by batch: Python row objects of a whole long run would take ~1 KB a row
     for a in range(0, len(profiles), _INSERT_BATCH):
         _insert_profiles(session, _profile_frame(profiles.iloc[a : a + _INSERT_BATCH], run_id, job_id))
@@ -421,7 +471,8 @@ def jsonable(value: Any) -> Any:
     return _none_if_nan(value)
 
 
-def _profile_where(run_id: int, wheel: str | None, km_from: float | None, km_to: float | None):
+def profile_where(run_id: int, wheel: str | None, km_from: float | None, km_to: float | None):
+    """SQL condition for the profile rows of a run, optionally one wheel and a km range (inclusive)."""
     conditions = [ProfileBin.run_id == run_id]
     if wheel is not None:
         conditions.append(ProfileBin.wheel == wheel)
@@ -447,7 +498,7 @@ def profile_rows(
     ``km_to`` bound the bin centres (km, inclusive) whatever the run direction.
     """
     cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
-    stmt = select(*cols).where(_profile_where(run_id, wheel, km_from, km_to))
+    stmt = select(*cols).where(profile_where(run_id, wheel, km_from, km_to))
     stmt = stmt.order_by(ProfileBin.bin) if wheel is not None else stmt.order_by(
         ProfileBin.wheel, ProfileBin.bin
     )
@@ -472,14 +523,20 @@ def profile_frame(rows: Sequence[Any]) -> pd.DataFrame:
 
 
 def profile_wheels(session: Session, run_id: int) -> list[str]:
-    """Wheels that have profile rows in run ``run_id``, sorted."""
-    return list(
-        session.scalars(
-            select(ProfileBin.wheel).where(ProfileBin.run_id == run_id).distinct().order_by(
-                ProfileBin.wheel
-            )
-        ).all()
-    )
+    """Wheels that have profile rows in run ``run_id``, sorted.
+
+    One primary-key lookup per wheel (the next wheel after the last one found),
+    not a DISTINCT over the run's ~10⁶ rows.
+    """
+    wheels: list[str] = []
+    while True:
+        stmt = select(ProfileBin.wheel).where(ProfileBin.run_id == run_id)
+        if wheels:
+            stmt = stmt.where(ProfileBin.wheel > wheels[-1])
+        wheel = session.scalar(stmt.order_by(ProfileBin.wheel).limit(1))
+        if wheel is None:
+            return wheels
+        wheels.append(wheel)
 
 
 def iter_profile_pages(
@@ -500,7 +557,7 @@ def iter_profile_pages(
         page is read in its own short transaction (keyset pagination on the
         bin), so a long export never holds the database.
     """
-    where = _profile_where(run_id, wheel, km_from, km_to)
+    where = profile_where(run_id, wheel, km_from, km_to)
     cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
     last_bin: int | None = None
     while True:

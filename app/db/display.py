@@ -1,69 +1,114 @@
-"""Reads for display: a few columns of a long profile, then whole rows of chosen bins."""
+"""Reads for display: the rows of a km range that a plot of a few thousand points needs.
+
+:func:`display_rows` reads one display level of the stored min–max pyramid
+(``profile_bins.display_level``, ranked when the rows are stored): for any km
+range and zoom a few thousand rows through the index on (run, wheel, level,
+km), never the 400 000 rows per wheel of a 100 km run.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 import pandas as pd
-from sqlalchemy import and_, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.db.crud import PROFILE_COLUMNS, profile_frame
+from app.analysis.aggregate import DISPLAY_LEVEL_BASE, display_indices
+from app.db.crud import PROFILE_COLUMNS, profile_frame, profile_where
 from app.db.models import ProfileBin
 
-__all__ = ["profile_column_arrays", "profile_rows_of_bins"]
+__all__ = ["display_rows", "km_extent"]
 
-_IN_BATCH = 900  # bins per IN (...) list: below SQLite's oldest variable limit
-
-
-def _where(run_id: int, wheel: str, km_from: float | None, km_to: float | None):
-    conditions = [ProfileBin.run_id == run_id, ProfileBin.wheel == wheel]
-    if km_from is not None:
-        conditions.append(ProfileBin.km >= km_from)
-    if km_to is not None:
-        conditions.append(ProfileBin.km <= km_to)
-    return and_(*conditions)
+#: a level is read when it holds at most this many times ``max_points`` rows in the range;
+#: the final decimation to ``max_points`` then chooses among the peaks of buckets
+#: ``DISPLAY_LEVEL_BASE`` times finer than the plot's
+_OVERSAMPLE = DISPLAY_LEVEL_BASE
 
 
-def profile_column_arrays(
+def km_extent(session: Session, run_id: int, wheel: str) -> tuple[float, float] | None:
+    """(smallest, largest) km of one wheel's stored profile, or None; two index lookups."""
+    where = profile_where(run_id, wheel, None, None)
+    lo = session.scalar(select(ProfileBin.km).where(where).order_by(ProfileBin.km).limit(1))
+    if lo is None:
+        return None
+    hi = session.scalar(select(ProfileBin.km).where(where).order_by(ProfileBin.km.desc()).limit(1))
+    return float(lo), float(hi)
+
+
+def _display_level(n_bins: float, max_points: int) -> int:
+    """Coarsest-needed level: at most ``_OVERSAMPLE × max_points`` rows for ``n_bins`` bins."""
+    k = 0
+    # level k holds <= 2 rows per bucket of BASE**k bins (+ the partial buckets at both ends)
+    while min(n_bins, 2 * (n_bins / DISPLAY_LEVEL_BASE**k + 2)) > _OVERSAMPLE * max_points and k < 30:
+        k += 1
+    return k
+
+
+def display_rows(
     session: Session,
     run_id: int,
     wheel: str,
-    columns: Sequence[str],
+    max_points: int,
+    bin_length_m: float,
     *,
     km_from: float | None = None,
     km_to: float | None = None,
-) -> dict[str, np.ndarray]:
-    """``bin`` (int64) and ``columns`` (float64, NULL -> NaN) of one wheel's profile, by km.
+) -> pd.DataFrame:
+    """At most ``max_points`` whole rows of one wheel's profile in a km range, peaks kept.
 
-    Reading a few columns of a long run is several times faster than whole rows,
-    which is what display decimation needs to choose its rows.
+    Parameters
+    ----------
+    max_points : int
+        Rows wanted (>= 4).
+    bin_length_m : float
+        Bin length of the stored profile, m (to count the bins of the range).
+    km_from, km_to : float, optional
+        Range, km (default: the whole profile).
+
+    Returns
+    -------
+    pandas.DataFrame
+        :data:`~app.db.crud.PROFILE_COLUMNS`, ordered by km.
+
+    Notes
+    -----
+    The level is chosen from the number of bins in the range (km span /
+    bin length). Its rows in the range (at most ``4 × max_points``) and all rows
+    of the two buckets cut by the range's ends are read, then decimated to
+    ``max_points`` by :func:`~app.analysis.aggregate.display_indices`: the first
+    and last row of the range and its extremes are always kept.
     """
-    unknown = [c for c in columns if c not in PROFILE_COLUMNS or c in ("wheel", "bin")]
-    if unknown:
-        raise ValueError(f"columns: unknown or non-numeric profile column(s) {unknown}")
-    cols = [ProfileBin.bin, *(getattr(ProfileBin, c) for c in columns)]
-    # ordered by km along the (run_id, wheel, km) index: no sort; km grows with the bin
-    stmt = select(*cols).where(_where(run_id, wheel, km_from, km_to)).order_by(ProfileBin.km)
-    rows = session.connection().execute(stmt).all()
-    data = list(zip(*rows, strict=True)) if rows else [()] * len(cols)
-    out: dict[str, np.ndarray] = {"bin": np.array(data[0], dtype=np.int64)}
-    for i, name in enumerate(columns, start=1):
-        out[name] = np.array(data[i], dtype=np.float64)  # None -> NaN
-    return out
-
-
-def profile_rows_of_bins(session: Session, run_id: int, wheel: str, bins: np.ndarray) -> pd.DataFrame:
-    """Whole stored rows (:data:`~app.db.crud.PROFILE_COLUMNS`) of the given bins of one wheel, by bin."""
-    wanted = np.unique(np.asarray(bins, dtype=np.int64))
+    extent = km_extent(session, run_id, wheel)
+    if extent is None:
+        return profile_frame([])
+    lo = extent[0] if km_from is None else max(extent[0], km_from)
+    hi = extent[1] if km_to is None else min(extent[1], km_to)
+    n_bins = max(hi - lo, 0.0) * 1000.0 / bin_length_m + 1.0
+    level = _display_level(n_bins, max_points)
     cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
-    rows: list = []
-    for start in range(0, wanted.size, _IN_BATCH):
-        part = [int(b) for b in wanted[start : start + _IN_BATCH]]
-        stmt = select(*cols).where(
-            ProfileBin.run_id == run_id, ProfileBin.wheel == wheel, ProfileBin.bin.in_(part)
+    where = profile_where(run_id, wheel, km_from, km_to)
+    conn = session.connection()
+    if level == 0:
+        rows = conn.execute(select(*cols).where(where)).all()
+    else:
+        # the level's rows (index on run, wheel, level, km), and every row of the
+        # (partial) buckets at the range's two ends (primary key): their stored
+        # extremes may lie outside the range
+        rows = conn.execute(select(*cols).where(where, ProfileBin.display_level >= level)).all()
+        span = DISPLAY_LEVEL_BASE**level
+        for km_order in (ProfileBin.km, ProfileBin.km.desc()):
+            edge = session.scalar(select(ProfileBin.bin).where(where).order_by(km_order).limit(1))
+            if edge is not None:
+                start = (int(edge) // span) * span
+                rows += conn.execute(
+                    select(*cols).where(where, ProfileBin.bin.between(start, start + span - 1))
+                ).all()
+    df = profile_frame(rows).drop_duplicates("bin").sort_values("km", kind="stable").reset_index(drop=True)
+    if len(df) > max_points:
+        keep = display_indices(
+            df["km"].to_numpy(dtype=np.float64),
+            df["sleeper_amp"].to_numpy(dtype=np.float64, na_value=np.nan),
+            max_points,
         )
-        rows.extend(session.connection().execute(stmt).all())
-    df = profile_frame(rows)
-    return df.sort_values("bin", kind="stable").reset_index(drop=True)
+        df = df.iloc[keep].reset_index(drop=True)
+    return df

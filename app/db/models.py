@@ -30,6 +30,7 @@ from sqlalchemy import (
     Index,
     Integer,
     MetaData,
+    SmallInteger,
     String,
     Text,
     TypeDecorator,
@@ -217,18 +218,34 @@ class JobChunk(Base):
 
 
 class ProfileBin(Base):
-    """Indicators of one wheel in one track bin (default 25 cm) of a run."""
+    """Indicators of one wheel in one track bin (default 25 cm) of a run.
+
+    The largest table by far (about a million rows per 30-minute run), written
+    in bulk by one transaction per job. It has no foreign-key constraints:
+    PostgreSQL checks a foreign key row by row, which tripled the time to store
+    a run. Its rows are tied to their run by the code instead: they are written
+    only by :func:`app.db.crud.replace_results` while the run row is locked
+    against deletion (``FOR KEY SHARE``), and :func:`app.db.crud.delete_run`
+    locks the run, then deletes them explicitly.
+
+    ``display_level`` ranks every bin for display (a min–max pyramid of the
+    sleeper-passage amplitude, :func:`app.analysis.aggregate.display_levels`):
+    a plot of any km range reads only rows of a level with a few thousand bins
+    in that range, through the index on (run, wheel, level, km).
+    """
 
     __tablename__ = "profile_bins"
-    __table_args__ = (Index("ix_profile_bins_run_id_wheel_km", "run_id", "wheel", "km"),)
-
-    run_id: Mapped[int] = mapped_column(
-        ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True
+    __table_args__ = (
+        Index("ix_profile_bins_run_id_wheel_km", "run_id", "wheel", "km"),
+        Index("ix_profile_bins_display", "run_id", "wheel", "display_level", "km"),
     )
+
+    run_id: Mapped[int] = mapped_column(Integer, primary_key=True)
     wheel: Mapped[str] = mapped_column(String(8), primary_key=True)
     bin: Mapped[int] = mapped_column(BigInteger, primary_key=True, autoincrement=False)
-    job_id: Mapped[int | None] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), index=True)
+    job_id: Mapped[int | None] = mapped_column(Integer)
     km: Mapped[float] = mapped_column(Float)
+    display_level: Mapped[int] = mapped_column(SmallInteger, default=0, server_default="0")
     n_samples: Mapped[int] = mapped_column(Integer)
     speed_mean: Mapped[float | None] = mapped_column(Float)
     sleeper_amp: Mapped[float | None] = mapped_column(Float)

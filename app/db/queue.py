@@ -261,8 +261,8 @@ def complete_job(
     """Store a job's results and mark it done, all in one transaction.
 
     The profile and wheel rows of the run are replaced (never duplicated).
-    Nothing is written if the job is no longer owned by this worker or a
-    cancel was requested meanwhile.
+    Nothing is written if the job is no longer owned by this worker, a cancel
+    was requested meanwhile, or the run was deleted.
 
     Returns
     -------
@@ -270,6 +270,9 @@ def complete_job(
         True if the results were stored.
     """
     with db.write() as session:
+        # the run first, then the job: the order delete_run locks them in (no deadlock)
+        if not crud.lock_run_for_results(session, run_id):
+            return False
         result = session.execute(
             update(Job)
             .where(_owned(job_id, worker_id), Job.cancel_requested.is_(False))

@@ -131,3 +131,78 @@ def test_decimation_short_input_and_validation() -> None:
         decimate_for_display(np.arange(10.0), np.arange(9.0), 5)
     with pytest.raises(ValueError, match="km"):
         decimate_for_display(np.array([0.0, np.nan]), np.arange(2.0), 5)
+
+
+# --- display levels (min–max pyramid) ----------------------------------------
+def _levels_by_brute_force(bins: np.ndarray, values: np.ndarray, base: int) -> np.ndarray:
+    """Slow reference: for every level and bucket, the first min and max by a Python loop."""
+    order = np.argsort(bins, kind="stable")
+    b, y = bins[order], values[order]
+    levels = np.zeros(b.size, dtype=int)
+    k = 0
+    while True:
+        k += 1
+        span = base**k
+        kept = set()
+        for g in np.unique(b // span):
+            members = np.flatnonzero(b // span == g)
+            vals = [y[i] if np.isfinite(y[i]) else None for i in members]
+            finite = [(v, i) for v, i in zip(vals, members, strict=True) if v is not None]
+            if not finite:
+                kept.add(int(members[0]))
+                continue
+            kept.add(min(finite, key=lambda t: (t[0], t[1]))[1])
+            kept.add(min(finite, key=lambda t: (-t[0], t[1]))[1])
+        for i in kept:
+            levels[i] = k
+        if len(np.unique(b // span)) == 1:
+            break
+    top = levels.max()
+    levels[[0, -1]] = max(top, 1)
+    out = np.empty_like(levels)
+    out[order] = levels
+    return out
+
+
+@pytest.mark.parametrize(("n", "base", "seed"), [(1, 4, 0), (2, 4, 1), (3, 2, 2), (1000, 4, 3), (777, 3, 4)])
+def test_display_levels_match_brute_force(n: int, base: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    bins = rng.permutation(np.arange(n) * 3 + 17)  # gaps in the bin numbers, any order
+    values = rng.lognormal(0, 0.5, n).round(1)  # ties
+    values[rng.random(n) < 0.1] = np.nan
+    values[rng.random(n) < 0.02] = np.inf
+    if n > 300:
+        values[100:300] = np.nan  # whole buckets without a value
+    got = aggregate.display_levels(bins, values, base=base)
+    assert got.dtype == np.int16
+    np.testing.assert_array_equal(got, _levels_by_brute_force(bins, values, base))
+
+
+def test_display_levels_keep_two_rows_per_bucket_and_the_peaks() -> None:
+    rng = np.random.default_rng(5)
+    n = 100_000
+    bins = np.arange(n)
+    values = rng.lognormal(0, 0.4, n)
+    levels = aggregate.display_levels(bins, values)
+    for k in range(1, int(levels.max()) + 1):
+        kept = bins[levels >= k]
+        buckets, per_bucket = np.unique(kept // 4**k, return_counts=True)
+        inner = (buckets != 0) & (buckets != (n - 1) // 4**k)  # the ends are kept besides min and max
+        assert per_bucket[inner].max(initial=0) <= 2 and per_bucket.max() <= 4
+        assert {0, n - 1, int(np.argmax(values)), int(np.argmin(values))} <= set(kept.tolist())
+    # nested: each level is half the bins of the level below or fewer (plus the ends)
+    counts = [int(np.sum(levels >= k)) for k in range(int(levels.max()) + 1)]
+    assert all(c1 <= c0 for c0, c1 in zip(counts, counts[1:], strict=False))
+    assert counts[1] <= n // 2 + 2
+
+
+def test_display_levels_validation() -> None:
+    with pytest.raises(ValueError, match="base"):
+        aggregate.display_levels([1, 2], [1.0, 2.0], base=1)
+    with pytest.raises(ValueError, match="shape"):
+        aggregate.display_levels([1, 2], [1.0])
+    with pytest.raises(ValueError, match="unique"):
+        aggregate.display_levels([1, 1], [1.0, 2.0])
+    with pytest.raises(ValueError, match="integers"):
+        aggregate.display_levels([1.5, 2.0], [1.0, 2.0])
+    assert aggregate.display_levels(np.array([], dtype=int), []).size == 0

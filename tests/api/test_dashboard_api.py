@@ -27,6 +27,7 @@ def test_profile_max_points_keeps_peaks_and_rows(processed):  # noqa: F811
     assert got["sleeper_amp"].max() == pytest.approx(want["sleeper_amp"].max())
     assert got["sleeper_amp"].min() == pytest.approx(want["sleeper_amp"].min())
     assert got["bin"].iloc[0] == want.index.min() and got["bin"].iloc[-1] == want.index.max()
+    assert body["km_extent"] == pytest.approx([want["km"].min(), want["km"].max()])
     # every bucket's maximum is kept: the top 1 % of the values are all there
     top = want["sleeper_amp"].nlargest(N_BINS // 100)
     assert top.index.isin(got["bin"]).mean() > 0.5
@@ -43,6 +44,21 @@ def test_profile_max_points_in_a_km_range_and_aggregated(processed):  # noqa: F8
     assert 4 <= body["n_rows"] <= 10 and "sleeper_amp_max_mean" not in body["columns"]
     seg_max = df[df.wheel == "41"]["sleeper_amp"].max()
     assert max(row["sleeper_amp_max"] for row in body["rows"]) == pytest.approx(seg_max)
+
+
+def test_profile_max_points_zoomed_reads_the_range_with_its_peaks(processed):  # noqa: F811
+    client, run_id, df = processed
+    want = df[df.wheel == "42"].set_index("bin")
+    a, b = want["km"].quantile(0.3), want["km"].quantile(0.6)
+    body = client.get(f"/api/v1/runs/{run_id}/profile",
+                      params={"wheel": "42", "km_from": a, "km_to": b, "max_points": 60}).json()
+    got = pd.DataFrame(body["rows"])
+    inside = want[(want["km"] >= a) & (want["km"] <= b)]
+    assert 30 <= body["n_rows"] <= 60 and got["km"].between(a, b).all()
+    assert got["sleeper_amp"].max() == pytest.approx(inside["sleeper_amp"].max())
+    assert got["sleeper_amp"].min() == pytest.approx(inside["sleeper_amp"].min())
+    # the whole profile's extent, not the range's
+    assert body["km_extent"] == pytest.approx([want["km"].min(), want["km"].max()])
 
 
 @pytest.mark.parametrize("value", [3, 0, -5])

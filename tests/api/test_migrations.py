@@ -69,3 +69,40 @@ def test_profile_bins_unique_and_indexed(tmp_path):
         assert fks["runs"].get("ondelete") == "CASCADE"
     finally:
         engine.dispose()
+
+
+def test_display_levels_of_rows_stored_before_they_existed(tmp_path):
+    """0005 ranks the rows already stored, as the service ranks new rows; down and up again."""
+    import numpy as np
+    import sqlalchemy as sa
+
+    from app.analysis.aggregate import display_levels
+
+    url = f"sqlite:///{tmp_path / 'm.sqlite'}"
+    migrate.upgrade(url, "0004_procrastinate")
+    rng = np.random.default_rng(1)
+    amp = rng.lognormal(0, 0.4, 3000)
+    amp[::97] = np.nan
+    engine = sa.create_engine(url)  # no foreign-key enforcement: profile rows alone suffice here
+    try:
+        with engine.begin() as conn:
+            conn.execute(
+                sa.text("INSERT INTO profile_bins (run_id, wheel, bin, km, n_samples, sleeper_amp) "
+                        "VALUES (:r, :w, :b, :km, 10, :a)"),
+                [{"r": r, "w": w, "b": b, "km": 3 + b / 4000, "a": None if np.isnan(a) else float(a)}
+                 for r in (1, 2) for w in ("11", "42") for b, a in enumerate(amp)],
+            )
+        migrate.upgrade(url)
+        with engine.connect() as conn:
+            for r, w in ((1, "11"), (2, "42")):
+                got = conn.execute(
+                    sa.text("SELECT display_level FROM profile_bins WHERE run_id = :r AND wheel = :w ORDER BY bin"),
+                    {"r": r, "w": w},
+                ).scalars().all()
+                np.testing.assert_array_equal(got, display_levels(np.arange(amp.size), amp))
+        migrate.downgrade(url, "0004_procrastinate")
+        migrate.upgrade(url)
+        with engine.connect() as conn:
+            assert conn.execute(sa.text("SELECT max(display_level) FROM profile_bins")).scalar() >= 5
+    finally:
+        engine.dispose()

@@ -27,6 +27,11 @@ class ProfileOut(BaseModel):
     bin_length_m: float
     km_from: float | None = None
     km_to: float | None = None
+    km_extent: list[float] | None = Field(
+        None,
+        description="[smallest, largest] km of the wheel's whole stored profile (the full range "
+        "of a zoomable plot), whatever km_from/km_to asked for",
+    )
     max_points: int | None = Field(None, description="Display decimation asked for (rows kept)")
     n_rows: int
     truncated: bool = Field(False, description="True if more rows matched than returned")

@@ -172,9 +172,9 @@
         // results of an earlier job may still exist: the profile answers 409 when there are none
       }
       wheels = T.WHEELS.filter((w) => run.summary.channels.includes("Z" + w));
-      const first = await T.api.get(`/runs/${runId}/profile`, { wheel: wheels[0], level: 100 });
-      const rows = first.rows;
-      full = rows.length ? [rows[0].km_from, rows[rows.length - 1].km_to] : runKm(run);
+      // the km extent of the stored profile comes with any profile answer (four rows here)
+      const first = await T.api.get(`/runs/${runId}/profile`, { wheel: wheels[0], max_points: 4 });
+      full = first.km_extent || runKm(run);
       const ka = T.param("km_from"), kb = T.param("km_to");
       await show(ka ? +ka : full[0], kb ? +kb : full[1]);
       el.on("plotly_relayout", onRelayout);
