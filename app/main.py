@@ -43,7 +43,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     db = Database(settings.database_url)
     if settings.is_production:
         check_production_database(db)
-    store = RunStore(settings.run_store)
+    store = RunStore(settings.run_store, settings.shared_store)
     store.root.mkdir(parents=True, exist_ok=True)
 
     @asynccontextmanager

@@ -53,6 +53,8 @@ __all__ = [
     "plan_chunks",
     "process_chunk",
     "assemble",
+    "assemble_wheel",
+    "results_meta",
     "run_pipeline",
     "ENGINE_VERSION",
 ]
@@ -331,13 +333,72 @@ def _load_group(npz: Any, prefix: str) -> BinSums | None:
     return BinSums.from_arrays(keys) if keys else None
 
 
+def _profile_columns(settings: ProcessingSettings) -> list[str]:
+    orders = [f"order_amp_{lvl:02d}" for lvl in range(1, settings.n_wheel_orders + 1)]
+    return ["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *orders,
+            "residual_rms", "sleeper_force_amp"]
+
+
+def assemble_wheel(
+    settings: ProcessingSettings, chunk_paths: Sequence[Path], wheel: str
+) -> tuple[pd.DataFrame, dict[str, Any]] | None:
+    """Merge one wheel's sums from the chunk files into its profile rows and OOR result.
+
+    Parameters
+    ----------
+    settings : ProcessingSettings
+    chunk_paths : sequence of Path
+        One file per chunk (any order).
+    wheel : str
+        ``"11"``, ``"12"``, ``"41"`` or ``"42"``.
+
+    Returns
+    -------
+    (pandas.DataFrame, dict) or None
+        Profile rows of the wheel sorted by bin (columns of ``RunResults.profiles``)
+        and its entry of ``RunResults.wheels``; None if the chunks hold no data
+        of the wheel. Deterministic: the same files give the same result.
+    """
+    g: dict[str, list[BinSums]] = {}
+    d_w = 0.92
+    for path in sorted(chunk_paths, key=lambda p: str(p)):
+        with np.load(path) as npz:
+            for kind in ("bins", "resid", "oor"):
+                part = _load_group(npz, f"{kind}_{wheel}__")
+                if part is not None:
+                    g.setdefault(kind, []).append(part)
+            if f"diameter_{wheel}" in npz.files:
+                d_w = float(npz[f"diameter_{wheel}"])
+    if not g:
+        return None
+    prof = BinSums.merge_all(g["bins"]).finalize(settings.bin_length_m)
+    resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
+    prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
+    prof = prof[prof["n_samples"] > 0]
+    if "sleeper_force_amp" not in prof:
+        prof["sleeper_force_amp"] = np.nan
+    prof = prof.rename(columns={"speed": "speed_mean"})
+    prof.insert(0, "wheel", wheel)
+    prof = prof[_profile_columns(settings)].sort_values("bin").reset_index(drop=True)
+    prof["bin"] = prof["bin"].astype(np.int64)
+    prof["n_samples"] = prof["n_samples"].astype(np.int64)
+    return prof, _wheel_result(wheel, g.get("oor", []), d_w, settings)
+
+
+def results_meta(settings: ProcessingSettings, n_chunks: int) -> dict[str, Any]:
+    """Provenance stored with a job's results (engine version, settings)."""
+    return {"engine": ENGINE_VERSION, "settings": settings.to_dict(), "oor_window_m": OOR_WINDOW_M,
+            "n_chunks": n_chunks}
+
+
 def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence[Path]) -> RunResults:
-    """Merge chunk files into profile rows and wheel results.
+    """Merge chunk files into profile rows and wheel results (:func:`assemble_wheel` per wheel).
 
     Parameters
     ----------
     run_path : Path
-        Canonical run file (only its metadata is read).
+        Canonical run file (unused: the chunk files hold everything; kept so
+        that every pipeline step takes the run).
     settings : ProcessingSettings
     chunk_paths : sequence of Path
         One file per chunk (any order).
@@ -346,47 +407,16 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
     -------
     RunResults
     """
-    paths = sorted(chunk_paths, key=lambda p: str(p))
-    order_cols = [f"order_amp_{lvl:02d}" for lvl in range(1, settings.n_wheel_orders + 1)]
     frames, wheels = [], []
     for wheel in WHEELS:
         # one wheel at a time: only its partial sums are in memory
-        g: dict[str, list[BinSums]] = {}
-        d_w = 0.92
-        for path in paths:
-            with np.load(path) as npz:
-                for kind in ("bins", "resid", "oor"):
-                    part = _load_group(npz, f"{kind}_{wheel}__")
-                    if part is not None:
-                        g.setdefault(kind, []).append(part)
-                if f"diameter_{wheel}" in npz.files:
-                    d_w = float(npz[f"diameter_{wheel}"])
-        if not g:
-            continue
-        prof = BinSums.merge_all(g["bins"]).finalize(settings.bin_length_m)
-        resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
-        prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
-        prof = prof[prof["n_samples"] > 0]
-        if "sleeper_force_amp" not in prof:
-            prof["sleeper_force_amp"] = np.nan
-        prof = prof.rename(columns={"speed": "speed_mean"})
-        prof.insert(0, "wheel", wheel)
-        cols = ["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *order_cols,
-                "residual_rms", "sleeper_force_amp"]
-        frames.append(prof[cols])
-        wheels.append(_wheel_result(wheel, g.get("oor", []), d_w, settings))
-        del g
-    profiles = (
-        pd.concat(frames, ignore_index=True) if frames
-        else pd.DataFrame(columns=["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *order_cols,
-                                   "residual_rms", "sleeper_force_amp"])
-    )
-    profiles = profiles.sort_values(["wheel", "bin"]).reset_index(drop=True)
-    profiles["bin"] = profiles["bin"].astype(np.int64)
-    profiles["n_samples"] = profiles["n_samples"].astype(np.int64)
-    meta = {"engine": ENGINE_VERSION, "settings": settings.to_dict(), "oor_window_m": OOR_WINDOW_M,
-            "n_chunks": len(chunk_paths)}
-    return RunResults(profiles=profiles, wheels=wheels, meta=meta)
+        done = assemble_wheel(settings, chunk_paths, wheel)
+        if done is not None:
+            frames.append(done[0])
+            wheels.append(done[1])
+    cols = _profile_columns(settings)
+    profiles = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
+    return RunResults(profiles=profiles, wheels=wheels, meta=results_meta(settings, len(chunk_paths)))
 
 
 def _wheel_result(wheel: str, parts: list[BinSums], d_w: float, settings: ProcessingSettings) -> dict[str, Any]:

@@ -139,7 +139,7 @@ class LocalWorker:
     ) -> None:
         self.settings = settings
         self.db = db or Database(settings.database_url)
-        self.store = RunStore(settings.run_store)
+        self.store = RunStore(settings.run_store, settings.shared_store)
         self.worker_id = worker_id or new_worker_id()
         self._stop = threading.Event()
         self._pool: ProcessPoolExecutor | None = None
@@ -220,9 +220,7 @@ class LocalWorker:
             if should_cancel():
                 raise PipelineCancelled("cancelled before start")
             settings = ProcessingSettings.from_dict(job.settings)
-            run_path = self.store.resolve(run.file_path)
-            if not run_path.is_file():
-                raise FileNotFoundError(f"run file {run.file_path} is missing from the run store")
+            run_path = self.store.local_file(run.file_path)
             chunks = plan_chunks(run_path, settings)
             if not queue.record_chunks(
                 self.db, job_id, self.worker_id, [(c.index, c.to_dict()) for c in chunks]

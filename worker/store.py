@@ -23,7 +23,8 @@ __all__ = [
     "discard_partial_files",
 ]
 
-_CHUNK_NAME = re.compile(r"^chunk-\d{5}\.npz$")
+#: finished files of a job: chunk results and assembled wheel results
+_JOB_FILE_NAME = re.compile(r"^(chunk-\d{5}\.npz|wheel-\w+\.json)$")
 
 
 def chunk_done(path: Path) -> bool:
@@ -37,7 +38,7 @@ def relative_to_store(store: RunStore, path: Path) -> str:
 
 
 def discard_partial_files(job_dir: Path) -> int:
-    """Remove files in a job directory that are not finished chunk results.
+    """Remove files in a job directory that are not finished chunk or wheel results.
 
     Temporary files of a writer killed mid-write (SIGKILL) are left behind by
     design; they are removed when the job is (re)started.
@@ -52,7 +53,7 @@ def discard_partial_files(job_dir: Path) -> int:
         return 0
     removed = 0
     for entry in job_dir.iterdir():
-        if entry.is_file() and not _CHUNK_NAME.match(entry.name):
+        if entry.is_file() and not _JOB_FILE_NAME.match(entry.name):
             with contextlib.suppress(FileNotFoundError):
                 entry.unlink()
                 removed += 1

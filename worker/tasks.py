@@ -2,15 +2,25 @@
 
 A job is fanned out into tasks that run the same pure functions as the local
 worker (:func:`worker.pipeline.plan_chunks`, :func:`~worker.pipeline.process_chunk`,
-:func:`~worker.pipeline.assemble`)::
+:func:`~worker.pipeline.assemble_wheel`)::
 
     jobs row 'queued' ──dispatch_jobs (periodic, 1 s)──▶ plan_job(job_id)
         plan_job:      claim the job, plan chunks, record chunk rows,
                        defer process_chunk(job_id, index) for every chunk not done
         process_chunk: chunk result file (atomic: temp + rename) → chunk row 'done';
                        the task that sees all chunks done defers assemble_job
-        assemble_job:  merge the chunk files → profile and wheel rows of the run,
-                       replaced in one transaction together with job 'done'
+        assemble_job:  defer store_wheel(job_id, wheel) for every wheel
+        store_wheel:   merge the wheel's sums from the chunk files → its profile
+                       rows (one transaction, keyed by the job: not yet visible),
+                       then its OOR result file; the task that sees every wheel
+                       stored defers publish_job
+        publish_job:   in one transaction: the run's wheel rows replaced, the
+                       older jobs' profile rows deleted, the job marked 'done'
+                       (readers show a run's latest done job: they switch from
+                       the old to the new results at this commit)
+
+The wheels are stored in parallel by as many workers as are free, so the
+tail after the last chunk shrinks with the number of workers too.
 
 Delivery is at-least-once (Procrastinate's retries, and the documented
 stalled-jobs periodic task :func:`retry_stalled_jobs` for workers that died),
@@ -20,11 +30,14 @@ and every step is idempotent:
   same file, and a file that exists is not computed again;
 * chunk rows are unique per (job, chunk) and only change status; progress is
   done rows / all rows, never a counter;
-* assembling replaces the run's rows (primary key run, wheel, bin) in one
-  transaction that also marks the job done, guarded by ``status = 'running'``:
-  a second assemble of a done job changes nothing;
-* deferrals use queueing locks (one waiting copy per chunk / job), and a
-  duplicate that slips through is harmless by the rules above.
+* a wheel's rows (primary key job, wheel, bin) are replaced in one
+  transaction, only while the job is running; its result file is written
+  after the commit, and a stored wheel is not stored again;
+* publishing is guarded by ``status = 'running'``: a second publish of a done
+  job changes nothing; a job that fails or is cancelled drops its unpublished
+  rows in the transaction that marks it so;
+* deferrals use queueing locks (one waiting copy per chunk / wheel / job), and
+  a duplicate that slips through is harmless by the rules above.
 
 Cancel (API ``POST /jobs/{id}/cancel``) sets ``cancel_requested``; the
 dispatcher marks the job cancelled within a second and running chunks stop at
@@ -38,6 +51,7 @@ worker processes (one per core).
 from __future__ import annotations
 
 import asyncio
+import json
 import logging
 import os
 import signal
@@ -60,6 +74,7 @@ from app.core.config import Settings, get_settings
 from app.db import crud, queue
 from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
+from app.io import WHEELS
 from worker.chunkstore import ChunkStore
 from worker.health import alive_file
 from worker.store import RunStore, discard_partial_files
@@ -68,6 +83,8 @@ __all__ = [
     "TASK_PLAN",
     "TASK_CHUNK",
     "TASK_ASSEMBLE",
+    "TASK_STORE_WHEEL",
+    "TASK_PUBLISH",
     "TASK_DISPATCH",
     "TASK_RETRY_STALLED",
     "libpq_url",
@@ -81,12 +98,16 @@ log = logging.getLogger(__name__)
 TASK_PLAN = "trackvkf.plan_job"
 TASK_CHUNK = "trackvkf.process_chunk"
 TASK_ASSEMBLE = "trackvkf.assemble_job"
+TASK_STORE_WHEEL = "trackvkf.store_wheel"
+TASK_PUBLISH = "trackvkf.publish_job"
 TASK_DISPATCH = "trackvkf.dispatch_jobs"
 TASK_RETRY_STALLED = "trackvkf.retry_stalled_jobs"
 
 #: priorities (higher first): bookkeeping before chunks, so results land early
 _PRIO_HIGH = 10
 _PRIO_CHUNK = 0
+#: job file holding a stored wheel's OOR result (its presence: the wheel is stored)
+_WHEEL_FILE = "wheel-{wheel}.json"
 #: seconds between two looks of a running chunk at its job row (cancel)
 _CANCEL_POLL_S = 0.5
 
@@ -142,8 +163,8 @@ class _Runtime:
     stopping: threading.Event = field(default_factory=threading.Event)
 
     def __post_init__(self) -> None:
-        self.store = RunStore(self.settings.run_store)
-        self.chunks = ChunkStore(self.store, self.settings.chunk_store)
+        self.store = RunStore(self.settings.run_store, self.settings.shared_store)
+        self.chunks = ChunkStore(self.store)
 
     @property
     def db(self) -> Database:
@@ -228,9 +249,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
                 run = crud.get_run(session, job.run_id) if job is not None else None
             if job is None or run is None:
                 return "lost"
-            run_path = rt.store.resolve(run.file_path)
-            if not run_path.is_file():
-                raise FileNotFoundError(f"run file {run.file_path} is missing from the run store")
+            run_path = rt.store.local_file(run.file_path)  # fetched from the shared store if need be
             chunks = plan_chunks(run_path, ProcessingSettings.from_dict(job.settings))
             if not queue.record_chunks(rt.db, job_id, owner, [(c.index, c.to_dict()) for c in chunks]):
                 return "lost"
@@ -276,7 +295,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
                 return "unknown chunk"
             if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.RUNNING) is None:
                 return "job not running"
-            run_path = rt.store.resolve(run.file_path)
+            run_path = rt.store.local_file(run.file_path)
             settings_ = ProcessingSettings.from_dict(job.settings)
             chunk = ChunkSpec.from_dict(spec)
             watch = _CancelWatch(rt, job_id, context)
@@ -306,45 +325,114 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
         return f"chunk {index} done in {compute_s:.2f} s ({done}/{total})"
 
-    @app.task(name=TASK_ASSEMBLE, retry=_RETRY, pass_context=True)
-    def assemble_job(context: procrastinate.JobContext, job_id: int) -> str:  # noqa: ARG001
-        """Merge the chunk files of a job and store the run's rows (one transaction)."""
-        from worker.pipeline import assemble
-
+    def _running(job_id: int) -> tuple[Any, Any, str | None]:
+        """(job, run, None) of a running job, or (job, run, why not)."""
         with rt.db.read() as session:
             job = crud.get_job(session, job_id)
             run = crud.get_run(session, job.run_id) if job is not None else None
         if job is None or run is None:
-            return "lost"
+            return job, run, "lost"
         if job.status != JobStatus.RUNNING or job.cancel_requested:
-            return f"job {job.status}"
+            return job, run, f"job {job.status}"
+        return job, run, None
+
+    def _wheels_of(run: Any) -> list[str]:
+        return [w for w in WHEELS if f"Z{w}" in (run.channels or [])]
+
+    @app.task(name=TASK_ASSEMBLE, retry=_RETRY, pass_context=True)
+    def assemble_job(context: procrastinate.JobContext, job_id: int) -> str:
+        """Fan the assembly of a job out: one :func:`store_wheel` task per wheel."""
+        job, run, why = _running(job_id)
+        if why is not None:
+            return why
         indices = sorted(queue.job_chunk_specs(rt.db, job_id))
         if not indices or not all(rt.chunks.exists(run.id, job_id, i) for i in indices):
             return "chunks missing"
-        t0 = time.perf_counter()
-        try:
-            with rt.chunks.local_copies(run.id, job_id, indices) as paths:
-                results = assemble(
-                    rt.store.resolve(run.file_path), ProcessingSettings.from_dict(job.settings), paths
-                )
-        except Exception as exc:
-            if _is_transient(exc):
-                raise
-            _fail(rt, job_id, exc)
-            return "failed"
-        meta = dict(results.meta or {})
+        wheels = _wheels_of(run)
+        for wheel in wheels:
+            _defer(context.app, TASK_STORE_WHEEL, f"store:{job_id}:{wheel}", _PRIO_HIGH,
+                   job_id=job_id, wheel=wheel)
+        if not wheels:
+            _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
+        return f"{len(wheels)} wheel(s) deferred"
+
+    @app.task(name=TASK_STORE_WHEEL, retry=_RETRY, pass_context=True)
+    def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> str:
+        """Assemble one wheel from the chunk files and store its rows (not yet published).
+
+        The rows are written in one transaction (replacing the job's earlier
+        rows of the wheel), then the wheel's OOR result as the job file
+        ``wheel-<wheel>.json``: its presence means the wheel is stored. The
+        task that finds every wheel stored defers :func:`publish_job`.
+        """
+        from worker.pipeline import assemble_wheel
+
+        job, run, why = _running(job_id)
+        if why is not None:
+            return why
+        if wheel not in _wheels_of(run):
+            return f"run {run.id} has no wheel {wheel!r}"
+        name = _WHEEL_FILE.format(wheel=wheel)
+        if not rt.chunks.exists_named(run.id, job_id, name):
+            indices = sorted(queue.job_chunk_specs(rt.db, job_id))
+            t0 = time.perf_counter()
+            try:
+                with rt.chunks.local_copies(run.id, job_id, indices) as paths:
+                    done = assemble_wheel(ProcessingSettings.from_dict(job.settings), paths, wheel)
+            except Exception as exc:
+                if _is_transient(exc):
+                    raise
+                _fail(rt, job_id, exc)
+                return "failed"
+            if done is None:
+                return f"no data of wheel {wheel}"
+            profiles, result = done
+            t1 = time.perf_counter()
+            if not queue.store_wheel_rows(rt.db, job_id, run.id, profiles):
+                return "job not running"
+            t2 = time.perf_counter()
+            record = {"result": result, "rows": len(profiles), "assemble_s": round(t1 - t0, 3),
+                      "store_s": round(t2 - t1, 3)}
+            rt.chunks.write_bytes(run.id, job_id, name, json.dumps(crud.jsonable(record)).encode())
+            log.info("job %s wheel %s: assembled in %.2f s, %d rows stored in %.2f s",
+                     job_id, wheel, t1 - t0, len(profiles), t2 - t1)
+        if all(rt.chunks.exists_named(run.id, job_id, _WHEEL_FILE.format(wheel=w)) for w in _wheels_of(run)):
+            _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
+        return f"wheel {wheel} stored"
+
+    @app.task(name=TASK_PUBLISH, retry=_RETRY, pass_context=True)
+    def publish_job(context: procrastinate.JobContext, job_id: int) -> str:  # noqa: ARG001
+        """Publish a job whose wheels are all stored: wheel rows, old rows dropped, job done.
+
+        One transaction (:func:`app.db.queue.complete_job`), guarded by the
+        job's state: a second publish of a done job changes nothing.
+        """
+        from worker.pipeline import results_meta
+
+        job, run, why = _running(job_id)
+        if why is not None:
+            return why
+        records = []
+        for wheel in _wheels_of(run):
+            name = _WHEEL_FILE.format(wheel=wheel)
+            if not rt.chunks.exists_named(run.id, job_id, name):
+                return f"wheel {wheel} not stored yet"
+            records.append(json.loads(rt.chunks.read_bytes(run.id, job_id, name)))
+        n_chunks = len(queue.job_chunk_specs(rt.db, job_id))
+        meta = results_meta(ProcessingSettings.from_dict(job.settings), n_chunks)
         meta["worker"] = {
             "worker_id": job.worker_id,
             "mode": "procrastinate",
-            "n_chunks": len(indices),
-            "assemble_s": round(time.perf_counter() - t0, 3),
+            "n_chunks": n_chunks,
+            "assemble_s": round(sum(r["assemble_s"] for r in records), 3),
+            "store_s": round(sum(r["store_s"] for r in records), 3),
             "run_sha256": run.sha256,
         }
-        t1 = time.perf_counter()
-        stored = queue.complete_job(rt.db, job_id, None, run.id, results.profiles, results.wheels, meta)
-        log.info("job %s assembled in %.2f s, %d rows %s in %.2f s", job_id, t1 - t0, len(results.profiles),
-                 "stored" if stored else "not stored (job not running)", time.perf_counter() - t1)
-        return "stored" if stored else "not running any more"
+        t0 = time.perf_counter()
+        stored = queue.complete_job(rt.db, job_id, None, run.id, None, [r["result"] for r in records], meta)
+        log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
+                 time.perf_counter() - t0, sum(r["rows"] for r in records))
+        return "published" if stored else "not running any more"
 
     return app
 
@@ -388,8 +476,7 @@ def _remove_orphans(rt: _Runtime, run_id: int | None) -> None:
         return
     with rt.db.read() as session:
         if crud.get_run(session, run_id) is None:
-            rt.store.remove_run(run_id)
-            rt.chunks.remove_run(run_id)
+            rt.store.remove_run(run_id)  # the shared store's objects too
 
 
 # --- worker processes ----------------------------------------------------------

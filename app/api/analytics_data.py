@@ -17,7 +17,7 @@ from app.analysis.stiffness.superstructure import assign_sections
 from app.api.errors import ApiError
 from app.core.config import Settings
 from app.db import crud, reference_crud
-from app.db.models import ProfileBin, Run
+from app.db.models import Job, JobStatus, ProfileBin, Run
 from app.db.session import Database
 
 __all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
@@ -89,7 +89,7 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
         else:
             if line_id is None:
                 raise ApiError(422, "line_id", "is required unless run_ids are given")
-            with_results = select(ProfileBin.run_id).distinct()
+            with_results = select(Job.run_id).where(Job.status == JobStatus.DONE)
             stmt = select(Run).where(Run.line_id == line_id, Run.id.in_(with_results))
             if track is not None:
                 stmt = stmt.where(Run.track == track)
@@ -119,11 +119,14 @@ def load_profiles(
     frames = []
     with db.read() as session:
         for run in sel.runs:
+            job_id = crud.results_job_id(session, run.id)
+            if job_id is None:
+                continue
             ext = session.execute(
                 select(ProfileBin.wheel, func.min(ProfileBin.bin), func.max(ProfileBin.bin))
-                .where(ProfileBin.run_id == run.id).group_by(ProfileBin.wheel)
+                .where(ProfileBin.job_id == job_id).group_by(ProfileBin.wheel)
             ).all()
-            df = _rows(session, run.id, wheel, km_from, km_to)
+            df = _rows(session, job_id, wheel, km_from, km_to)
             if df.empty:
                 continue
             lo = df["wheel"].map({w: b0 for w, b0, _ in ext})
@@ -139,19 +142,13 @@ def load_profiles(
     return pd.concat(frames, ignore_index=True)
 
 
-def _rows(session, run_id: int, wheel: str | None, km_from: float | None, km_to: float | None) -> pd.DataFrame:
-    """The analytics' columns of a run's profile rows (ordered by wheel and bin)."""
+def _rows(session, job_id: int, wheel: str | None, km_from: float | None, km_to: float | None) -> pd.DataFrame:
+    """The analytics' columns of a job's profile rows (ordered by wheel and bin)."""
     cols = [ProfileBin.wheel, ProfileBin.bin, ProfileBin.km, ProfileBin.speed_mean,
             ProfileBin.sleeper_amp, ProfileBin.sleeper_force_amp]
-    cond = [ProfileBin.run_id == run_id]
-    if wheel is not None:
-        cond.append(ProfileBin.wheel == wheel)
-    if km_from is not None:
-        cond.append(ProfileBin.km >= km_from)
-    if km_to is not None:
-        cond.append(ProfileBin.km <= km_to)
     rows = session.connection().execute(
-        select(*cols).where(*cond).order_by(ProfileBin.wheel, ProfileBin.bin)).all()
+        select(*cols).where(crud.profile_where(job_id, wheel, km_from, km_to))
+        .order_by(ProfileBin.wheel, ProfileBin.bin)).all()
     names = ["wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
     if not rows:
         return pd.DataFrame(columns=names)

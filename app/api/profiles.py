@@ -164,11 +164,11 @@ def get_profile(
     if max_points is not None and max_points > settings.max_profile_rows:
         raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
     with db.read() as session:
-        extent = km_extent(session, run_id, wheel)
+        extent = km_extent(session, job_id, wheel)
     if max_points is not None and k == 1:
         # a few thousand rows of the stored display pyramid, whatever the range
         with db.read() as session:
-            df = display_rows(session, run_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to)
+            df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to)
         truncated = False
     elif max_points is not None:
         with db.read() as session:

@@ -103,9 +103,8 @@ def get_spectrogram(
             422, "km_to", f"window is {length_m:.0f} m; at most {MAX_WINDOW_M:.0f} m per spectrogram"
         )
     settings, file_path = _settings_of(db, run_id)
-    path = store.resolve(file_path)
     try:
-        run = open_run(path)
+        run = open_run(store.local_file(file_path))
     except Exception as exc:  # noqa: BLE001 - the run file is missing or unreadable
         raise ApiError(409, "run", f"run {run_id}: run file not readable ({exc})") from None
     with run:

@@ -423,8 +423,9 @@ def _create_run(
 ) -> int:
     """Insert the run, its queued job and the audit entry; move the upload to the run's directory.
 
-    The directory is moved inside the transaction; if the commit fails the
-    moved directory is removed again.
+    The directory is moved (and the run file published to the shared store, if
+    any) inside the transaction; if that or the commit fails, both are removed
+    again.
     """
     installed: int | None = None
     try:
@@ -440,6 +441,7 @@ def _create_run(
             })
             store.install_run_dir(upload_dir, run.id)
             installed = run.id
+            store.publish_run_file(run.id)  # to the shared store, if any, before the job is visible
         return installed
     except BaseException:
         if installed is not None:

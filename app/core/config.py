@@ -56,10 +56,14 @@ class Settings(BaseSettings):
         Processes a worker uses to run the chunks of one job in parallel
         (default 1: in the worker process itself). Set it to the number of
         cores to process a single long run faster.
-    chunk_store : str, optional
-        Production mode: fsspec URL where chunk results are kept (``file:///…``,
-        ``s3://bucket/prefix`` with s3fs installed, …), shared by all worker
-        hosts. Default: inside the run store directory.
+    shared_store : str, optional
+        Production mode on hosts without a common file system: fsspec URL
+        (``s3://bucket/prefix`` with s3fs installed, ``file:///mnt/shared/…``)
+        shared by the API and worker hosts. The API publishes run files there;
+        workers fetch run files from there into their own run store and keep
+        chunk results there (:mod:`app.core.sharedstore`). Default: none (the
+        run store directory is the only store; share it between hosts by a
+        network file system, or run on one host).
     anonymous_principal : str
         Name of the principal every request runs as until authentication is on.
     anonymous_role : str
@@ -118,7 +122,7 @@ class Settings(BaseSettings):
     worker_heartbeat_s: float = Field(default=2.0, gt=0)
     worker_stale_after_s: float = Field(default=30.0, gt=0)
     worker_chunk_processes: int = Field(default=1, ge=1, le=64)
-    chunk_store: str | None = None
+    shared_store: str | None = None
     anonymous_principal: str = "local"
     anonymous_role: str = "admin"
     log_level: str = "INFO"

@@ -6,6 +6,9 @@ The run store is a directory (``Settings.run_store``)::
     <root>/<run_id>/run.h5            the canonical HDF5 file of a run
     <root>/<run_id>/jobs/<job_id>/chunk-00000.npz   chunk results of a job
 
+In the production mode on hosts without a common file system the same layout
+is mirrored in a shared fsspec store (:mod:`app.core.sharedstore`).
+
 Every path is generated here from integer ids and random tokens: a client's
 file name never becomes a path. Files are written through :func:`atomic_path`
 (temporary name in the same directory, fsync, ``os.replace``), so a reader
@@ -23,6 +26,10 @@ import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from app.core.sharedstore import SharedStore
 
 __all__ = ["RunStore", "atomic_path", "RUN_FILE_NAME"]
 
@@ -67,10 +74,20 @@ class RunStore:
     ----------
     root : Path
         Directory of the run store; created on first use.
+    shared_url : str, optional
+        fsspec URL of the production mode's shared store
+        (:class:`app.core.sharedstore.SharedStore`): run files are published
+        there on upload and fetched from there by hosts that lack them; a
+        run's objects there are removed with the run.
     """
 
-    def __init__(self, root: Path | str) -> None:
+    def __init__(self, root: Path | str, shared_url: str | None = None) -> None:
         self.root = Path(root).resolve()
+        self.shared: SharedStore | None = None
+        if shared_url:
+            from app.core.sharedstore import SharedStore
+
+            self.shared = SharedStore(shared_url)
 
     # --- layout -----------------------------------------------------------
     @property
@@ -128,8 +145,32 @@ class RunStore:
         return target
 
     def remove_run(self, run_id: int) -> None:
-        """Delete everything stored for run ``run_id`` (no error if absent)."""
+        """Delete everything stored for run ``run_id``, in the shared store too (no error if absent)."""
         shutil.rmtree(self.run_dir(run_id), ignore_errors=True)
+        if self.shared is not None:
+            self.shared.remove_run(run_id)
+
+    # --- shared store (production mode on hosts without a common file system) ---
+    def publish_run_file(self, run_id: int) -> None:
+        """Upload the run's canonical file to the shared store (nothing without one)."""
+        if self.shared is not None:
+            self.shared.put(self.run_file(run_id), self.relative_run_file(run_id))
+
+    def local_file(self, relative: str) -> Path:
+        """Local path of a store-relative file, fetched from the shared store if missing here.
+
+        Raises
+        ------
+        FileNotFoundError
+            If the file is neither here nor in the shared store.
+        """
+        path = self.resolve(relative)
+        if path.is_file():
+            return path
+        if self.shared is None:
+            raise FileNotFoundError(f"{relative} is missing from the run store {self.root}")
+        log.info("fetching %s from the shared store", self.shared.location(relative))
+        return self.shared.get(relative, path)
 
     def remove_tree(self, path: Path) -> None:
         """Delete a directory inside the store (no error if absent)."""

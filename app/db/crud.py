@@ -43,6 +43,10 @@ __all__ = [
     "request_cancel",
     "chunk_counts",
     "replace_results",
+    "store_profile_rows",
+    "stored_profile_wheels",
+    "publish_results",
+    "discard_profile_rows",
     "lock_run_for_results",
     "profile_rows",
     "profile_frame",
@@ -51,6 +55,7 @@ __all__ = [
     "iter_profile_pages",
     "get_wheels",
     "results_job",
+    "results_job_id",
     "queue_counts",
     "jsonable",
     "PROFILE_COLUMNS",
@@ -139,7 +144,7 @@ def delete_run(session: Session, run_id: int) -> bool:
     if session.scalar(select(Run.id).where(Run.id == run_id).with_for_update()) is None:
         return False
     job_ids = select(Job.id).where(Job.run_id == run_id).scalar_subquery()
-    session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
+    session.execute(delete(ProfileBin).where(ProfileBin.job_id.in_(job_ids)))
     session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
     session.execute(delete(JobChunk).where(JobChunk.job_id.in_(job_ids)))
     session.execute(delete(Job).where(Job.run_id == run_id))
@@ -386,28 +391,21 @@ def _with_display_levels(profiles: pd.DataFrame) -> pd.DataFrame:
     return profiles.assign(display_level=levels)
 
 
-def replace_results(
-    session: Session,
-    run_id: int,
-    job_id: int,
-    profiles: pd.DataFrame,
-    wheels: Sequence[dict[str, Any]],
-) -> int:
-    """Replace all profile and wheel rows of a run by a job's results.
+def store_profile_rows(session: Session, run_id: int, job_id: int, profiles: pd.DataFrame) -> int:
+    """Write a job's profile rows of the wheels in ``profiles`` (not yet published).
 
-    Run it inside one write transaction: the old rows are deleted and the new
-    ones inserted together, so a retried job never duplicates rows and readers
-    see either the old or the new results. The run is locked against deletion
-    first (:func:`lock_run_for_results`), and every bin is ranked for display
-    (``display_level``, per wheel by the sleeper-passage amplitude).
+    The job's earlier rows of those wheels are deleted first, so a retried
+    write never duplicates rows. The run is locked against deletion first
+    (:func:`lock_run_for_results`), and every bin is ranked for display
+    (``display_level``, per wheel by the sleeper-passage amplitude). Readers
+    see the rows once the job is done (:func:`publish_results` in the same
+    transaction as the job's state).
 
     Parameters
     ----------
     profiles : pandas.DataFrame
         One row per (wheel, bin) with the columns of ``RunResults.profiles``;
         order columns beyond ``order_amp_11`` are not stored in SQL.
-    wheels : sequence of dict
-        ``RunResults.wheels``.
 
     Returns
     -------
@@ -419,17 +417,55 @@ def replace_results(
     LookupError
         If the run does not exist (deleted meanwhile).
     ValueError
-        If ``profiles`` lacks a required column or a wheel result has no ``wheel``.
+        If ``profiles`` lacks a required column.
     """
     if not lock_run_for_results(session, run_id):
         raise LookupError(f"run {run_id} does not exist (deleted?)")
-    session.execute(delete(ProfileBin).where(ProfileBin.run_id == run_id))
-    session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
     _profile_frame(profiles.iloc[:0], run_id, job_id)  # checks the columns
+    wheels = sorted({str(w) for w in profiles["wheel"].unique()})
+    if wheels:
+        session.execute(delete(ProfileBin).where(ProfileBin.job_id == job_id, ProfileBin.wheel.in_(wheels)))
     profiles = _with_display_levels(profiles)
     # batch by batch: Python row objects of a whole long run would take ~1 KB a row
     for a in range(0, len(profiles), _INSERT_BATCH):
         _insert_profiles(session, _profile_frame(profiles.iloc[a : a + _INSERT_BATCH], run_id, job_id))
+    return len(profiles)
+
+
+def stored_profile_wheels(session: Session, job_id: int) -> list[str]:
+    """Wheels with profile rows of job ``job_id`` (published or not), sorted.
+
+    One primary-key lookup per wheel (the next wheel after the last one found),
+    not a DISTINCT over the job's ~10⁶ rows.
+    """
+    wheels: list[str] = []
+    while True:
+        stmt = select(ProfileBin.wheel).where(ProfileBin.job_id == job_id)
+        if wheels:
+            stmt = stmt.where(ProfileBin.wheel > wheels[-1])
+        wheel = session.scalar(stmt.order_by(ProfileBin.wheel).limit(1))
+        if wheel is None:
+            return wheels
+        wheels.append(wheel)
+
+
+def publish_results(session: Session, run_id: int, job_id: int, wheels: Sequence[dict[str, Any]]) -> None:
+    """Make a job's results the run's: wheel rows replaced, other jobs' profile rows deleted.
+
+    Run it in the transaction that marks the job done (that is what readers
+    go by, :func:`results_job_id`), with the run locked
+    (:func:`lock_run_for_results`).
+
+    Parameters
+    ----------
+    wheels : sequence of dict
+        ``RunResults.wheels`` (one dict per wheel with a ``wheel`` key).
+
+    Raises
+    ------
+    ValueError
+        If a wheel result has no ``wheel``.
+    """
     known = {
         "wheel", "wheel_diameter_m", "n_windows", "orders", "angles_deg",
         "profile_um", "profile_p05_um", "profile_p95_um",
@@ -453,9 +489,45 @@ def replace_results(
                 "extra": jsonable({k: v for k, v in w.items() if k not in known}) or None,
             }
         )
+    session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
     if wheel_rows:
         session.execute(insert(WheelOOR), wheel_rows)
-    return len(profiles)
+    other_jobs = select(Job.id).where(Job.run_id == run_id, Job.id != job_id).scalar_subquery()
+    session.execute(delete(ProfileBin).where(ProfileBin.job_id.in_(other_jobs)))
+
+
+def discard_profile_rows(session: Session, job_id: int) -> None:
+    """Delete the unpublished profile rows of a job that failed or was cancelled."""
+    session.execute(delete(ProfileBin).where(ProfileBin.job_id == job_id))
+
+
+def replace_results(
+    session: Session,
+    run_id: int,
+    job_id: int,
+    profiles: pd.DataFrame,
+    wheels: Sequence[dict[str, Any]],
+) -> int:
+    """Store and publish a job's results in one go (:func:`store_profile_rows` + :func:`publish_results`).
+
+    Run it inside the write transaction that marks the job done: readers see
+    either the old or the new results, and a retried job never duplicates rows.
+
+    Returns
+    -------
+    int
+        Number of profile rows written.
+
+    Raises
+    ------
+    LookupError
+        If the run does not exist (deleted meanwhile).
+    ValueError
+        If ``profiles`` lacks a required column or a wheel result has no ``wheel``.
+    """
+    n = store_profile_rows(session, run_id, job_id, profiles)
+    publish_results(session, run_id, job_id, wheels)
+    return n
 
 
 def jsonable(value: Any) -> Any:
@@ -471,9 +543,9 @@ def jsonable(value: Any) -> Any:
     return _none_if_nan(value)
 
 
-def profile_where(run_id: int, wheel: str | None, km_from: float | None, km_to: float | None):
-    """SQL condition for the profile rows of a run, optionally one wheel and a km range (inclusive)."""
-    conditions = [ProfileBin.run_id == run_id]
+def profile_where(job_id: int, wheel: str | None, km_from: float | None, km_to: float | None):
+    """SQL condition for the profile rows of a job, optionally one wheel and a km range (inclusive)."""
+    conditions = [ProfileBin.job_id == job_id]
     if wheel is not None:
         conditions.append(ProfileBin.wheel == wheel)
     if km_from is not None:
@@ -492,13 +564,16 @@ def profile_rows(
     km_to: float | None = None,
     limit: int | None = None,
 ) -> pd.DataFrame:
-    """Stored profile rows of a run as a DataFrame with :data:`PROFILE_COLUMNS`.
+    """Published profile rows of a run as a DataFrame with :data:`PROFILE_COLUMNS`.
 
     Rows are ordered by wheel and bin (along the km axis). ``km_from`` and
     ``km_to`` bound the bin centres (km, inclusive) whatever the run direction.
     """
+    job_id = results_job_id(session, run_id)
+    if job_id is None:
+        return profile_frame([])
     cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
-    stmt = select(*cols).where(profile_where(run_id, wheel, km_from, km_to))
+    stmt = select(*cols).where(profile_where(job_id, wheel, km_from, km_to))
     stmt = stmt.order_by(ProfileBin.bin) if wheel is not None else stmt.order_by(
         ProfileBin.wheel, ProfileBin.bin
     )
@@ -523,20 +598,9 @@ def profile_frame(rows: Sequence[Any]) -> pd.DataFrame:
 
 
 def profile_wheels(session: Session, run_id: int) -> list[str]:
-    """Wheels that have profile rows in run ``run_id``, sorted.
-
-    One primary-key lookup per wheel (the next wheel after the last one found),
-    not a DISTINCT over the run's ~10⁶ rows.
-    """
-    wheels: list[str] = []
-    while True:
-        stmt = select(ProfileBin.wheel).where(ProfileBin.run_id == run_id)
-        if wheels:
-            stmt = stmt.where(ProfileBin.wheel > wheels[-1])
-        wheel = session.scalar(stmt.order_by(ProfileBin.wheel).limit(1))
-        if wheel is None:
-            return wheels
-        wheels.append(wheel)
+    """Wheels that have published profile rows in run ``run_id``, sorted."""
+    job_id = results_job_id(session, run_id)
+    return [] if job_id is None else stored_profile_wheels(session, job_id)
 
 
 def iter_profile_pages(
@@ -557,7 +621,11 @@ def iter_profile_pages(
         page is read in its own short transaction (keyset pagination on the
         bin), so a long export never holds the database.
     """
-    where = profile_where(run_id, wheel, km_from, km_to)
+    with read_session() as session:
+        job_id = results_job_id(session, run_id)
+    if job_id is None:
+        return
+    where = profile_where(job_id, wheel, km_from, km_to)
     cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
     last_bin: int | None = None
     while True:
@@ -575,13 +643,24 @@ def iter_profile_pages(
         last_bin = int(rows[-1][1])
 
 
-def results_job(session: Session, run_id: int) -> Job | None:
-    """The job whose results (profile and wheel rows) are stored for a run, or None."""
-    job_id = session.scalar(
-        select(ProfileBin.job_id).where(ProfileBin.run_id == run_id).limit(1)
+def results_job_id(session: Session, run_id: int) -> int | None:
+    """Id of the job whose results a run shows (its latest done job), or None.
+
+    A job's profile rows are written before it is marked done and the older
+    jobs' rows are deleted in the transaction that marks it done, so this job
+    is the one with rows.
+    """
+    return session.scalar(
+        select(Job.id)
+        .where(Job.run_id == run_id, Job.status == JobStatus.DONE)
+        .order_by(Job.id.desc())
+        .limit(1)
     )
-    if job_id is None:
-        job_id = session.scalar(select(WheelOOR.job_id).where(WheelOOR.run_id == run_id).limit(1))
+
+
+def results_job(session: Session, run_id: int) -> Job | None:
+    """The job whose results (profile and wheel rows) a run shows, or None."""
+    job_id = results_job_id(session, run_id)
     return session.get(Job, job_id) if job_id is not None else None
 
 

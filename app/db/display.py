@@ -2,8 +2,8 @@
 
 :func:`display_rows` reads one display level of the stored min–max pyramid
 (``profile_bins.display_level``, ranked when the rows are stored): for any km
-range and zoom a few thousand rows through the index on (run, wheel, level,
-km), never the 400 000 rows per wheel of a 100 km run.
+range and zoom a few thousand rows, the level filtered inside the index on
+(job, wheel, km, level), never the 400 000 rows per wheel of a 100 km run.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ __all__ = ["display_rows", "km_extent"]
 _OVERSAMPLE = DISPLAY_LEVEL_BASE
 
 
-def km_extent(session: Session, run_id: int, wheel: str) -> tuple[float, float] | None:
-    """(smallest, largest) km of one wheel's stored profile, or None; two index lookups."""
-    where = profile_where(run_id, wheel, None, None)
+def km_extent(session: Session, job_id: int, wheel: str) -> tuple[float, float] | None:
+    """(smallest, largest) km of one wheel's profile by job ``job_id``, or None; two index lookups."""
+    where = profile_where(job_id, wheel, None, None)
     lo = session.scalar(select(ProfileBin.km).where(where).order_by(ProfileBin.km).limit(1))
     if lo is None:
         return None
@@ -46,7 +46,7 @@ def _display_level(n_bins: float, max_points: int) -> int:
 
 def display_rows(
     session: Session,
-    run_id: int,
+    job_id: int,
     wheel: str,
     max_points: int,
     bin_length_m: float,
@@ -58,6 +58,8 @@ def display_rows(
 
     Parameters
     ----------
+    job_id : int
+        Job whose rows are read (the run's :func:`~app.db.crud.results_job_id`).
     max_points : int
         Rows wanted (>= 4).
     bin_length_m : float
@@ -78,7 +80,7 @@ def display_rows(
     ``max_points`` by :func:`~app.analysis.aggregate.display_indices`: the first
     and last row of the range and its extremes are always kept.
     """
-    extent = km_extent(session, run_id, wheel)
+    extent = km_extent(session, job_id, wheel)
     if extent is None:
         return profile_frame([])
     lo = extent[0] if km_from is None else max(extent[0], km_from)
@@ -86,7 +88,7 @@ def display_rows(
     n_bins = max(hi - lo, 0.0) * 1000.0 / bin_length_m + 1.0
     level = _display_level(n_bins, max_points)
     cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
-    where = profile_where(run_id, wheel, km_from, km_to)
+    where = profile_where(job_id, wheel, km_from, km_to)
     conn = session.connection()
     if level == 0:
         rows = conn.execute(select(*cols).where(where)).all()

@@ -218,32 +218,36 @@ class JobChunk(Base):
 
 
 class ProfileBin(Base):
-    """Indicators of one wheel in one track bin (default 25 cm) of a run.
+    """Indicators of one wheel in one track bin (default 25 cm), as computed by one job.
 
-    The largest table by far (about a million rows per 30-minute run), written
-    in bulk by one transaction per job. It has no foreign-key constraints:
-    PostgreSQL checks a foreign key row by row, which tripled the time to store
-    a run. Its rows are tied to their run by the code instead: they are written
-    only by :func:`app.db.crud.replace_results` while the run row is locked
-    against deletion (``FOR KEY SHARE``), and :func:`app.db.crud.delete_run`
-    locks the run, then deletes them explicitly.
+    The largest table by far (about a million rows per 30-minute run). Rows are
+    keyed by the job that computed them: the rows of a run that readers see are
+    those of its latest done job (:func:`app.db.crud.results_job_id`), so a new
+    job's rows can be written wheel by wheel, in parallel, while readers keep
+    seeing the previous results; marking the job done publishes them and drops
+    the older job's rows in one transaction.
+
+    No foreign-key constraints: PostgreSQL checks a foreign key row by row,
+    which tripled the time to store a run. The rows are tied to their run by
+    the code: they are written while the run row is locked against deletion
+    (:func:`app.db.crud.lock_run_for_results`), and
+    :func:`app.db.crud.delete_run` locks the run, then deletes them.
 
     ``display_level`` ranks every bin for display (a min–max pyramid of the
     sleeper-passage amplitude, :func:`app.analysis.aggregate.display_levels`):
-    a plot of any km range reads only rows of a level with a few thousand bins
-    in that range, through the index on (run, wheel, level, km).
+    the index (job, wheel, km, level) serves km ranges and, filtering the level
+    inside the index, plots of any range that read only a few thousand rows.
     """
 
     __tablename__ = "profile_bins"
     __table_args__ = (
-        Index("ix_profile_bins_run_id_wheel_km", "run_id", "wheel", "km"),
-        Index("ix_profile_bins_display", "run_id", "wheel", "display_level", "km"),
+        Index("ix_profile_bins_job_id_wheel_km_level", "job_id", "wheel", "km", "display_level"),
     )
 
-    run_id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    job_id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
     wheel: Mapped[str] = mapped_column(String(8), primary_key=True)
     bin: Mapped[int] = mapped_column(BigInteger, primary_key=True, autoincrement=False)
-    job_id: Mapped[int | None] = mapped_column(Integer)
+    run_id: Mapped[int] = mapped_column(Integer)
     km: Mapped[float] = mapped_column(Float)
     display_level: Mapped[int] = mapped_column(SmallInteger, default=0, server_default="0")
     n_samples: Mapped[int] = mapped_column(Integer)

@@ -34,6 +34,7 @@ __all__ = [
     "mark_chunk",
     "finish_job",
     "complete_job",
+    "store_wheel_rows",
     "FANOUT_OWNER_PREFIX",
     "queued_job_ids",
     "claim_for_fanout",
@@ -246,7 +247,10 @@ def finish_job(
             .where(_owned(job_id, worker_id))
             .values(status=status, error=error, finished_at=utcnow(), heartbeat_at=None)
         )
-        return result.rowcount == 1
+        if result.rowcount != 1:
+            return False
+        crud.discard_profile_rows(session, job_id)  # rows of wheels stored before it ended
+        return True
 
 
 def complete_job(
@@ -254,20 +258,28 @@ def complete_job(
     job_id: int,
     worker_id: str | None,
     run_id: int,
-    profiles: pd.DataFrame,
+    profiles: pd.DataFrame | None,
     wheels: Sequence[dict[str, Any]],
     meta: dict[str, Any],
 ) -> bool:
-    """Store a job's results and mark it done, all in one transaction.
+    """Store (unless already stored) and publish a job's results and mark it done, in one transaction.
 
-    The profile and wheel rows of the run are replaced (never duplicated).
-    Nothing is written if the job is no longer owned by this worker, a cancel
-    was requested meanwhile, or the run was deleted.
+    The run's wheel rows are replaced and its other jobs' profile rows deleted
+    (:func:`app.db.crud.publish_results`): readers switch from the old to the
+    new results at the commit. Nothing is written if the job is no longer
+    owned by this worker, a cancel was requested meanwhile, or the run was
+    deleted.
+
+    Parameters
+    ----------
+    profiles : pandas.DataFrame or None
+        The job's profile rows, or None when they were stored wheel by wheel
+        already (:func:`store_wheel_rows`, fan-out mode).
 
     Returns
     -------
     bool
-        True if the results were stored.
+        True if the results were published.
     """
     with db.write() as session:
         # the run first, then the job: the order delete_run locks them in (no deadlock)
@@ -280,7 +292,9 @@ def complete_job(
         )
         if result.rowcount != 1:
             return False
-        crud.replace_results(session, run_id, job_id, profiles, wheels)
+        if profiles is not None:
+            crud.store_profile_rows(session, run_id, job_id, profiles)
+        crud.publish_results(session, run_id, job_id, wheels)
         session.execute(
             update(Job)
             .where(Job.id == job_id)
@@ -293,6 +307,34 @@ def complete_job(
                 heartbeat_at=None,
             )
         )
+        return True
+
+
+def store_wheel_rows(db: Database, job_id: int, run_id: int, profiles: pd.DataFrame) -> bool:
+    """Write the profile rows of some wheels of a running fan-out job (not yet published).
+
+    One transaction; the job's earlier rows of these wheels are replaced, so
+    a retried task never duplicates rows. The job row is share-locked while
+    the rows are written: a cancel or failure that marks the job final waits
+    for the commit and then discards them (:func:`finish_job`,
+    :func:`finalize_cancel_requests`), and a job already final gets none.
+
+    Returns
+    -------
+    bool
+        True if the rows were written (the job is running, no cancel requested).
+    """
+    with db.write() as session:
+        if not crud.lock_run_for_results(session, run_id):
+            return False
+        running = session.scalar(
+            select(Job.id)
+            .where(_owned(job_id, None), Job.cancel_requested.is_(False))
+            .with_for_update(read=True)
+        )
+        if running is None:
+            return False
+        crud.store_profile_rows(session, run_id, job_id, profiles)
         return True
 
 
@@ -350,7 +392,7 @@ def finalize_cancel_requests(db: Database) -> int:
     (between sub-blocks) and stop. Returns the number of jobs cancelled.
     """
     with db.write() as session:
-        result = session.execute(
+        ids = session.scalars(
             update(Job)
             .where(
                 Job.status == JobStatus.RUNNING,
@@ -363,8 +405,11 @@ def finalize_cancel_requests(db: Database) -> int:
                 finished_at=utcnow(),
                 heartbeat_at=None,
             )
-        )
-        return int(result.rowcount)
+            .returning(Job.id)
+        ).all()
+        for job_id in ids:
+            crud.discard_profile_rows(session, job_id)  # rows of wheels stored before the cancel
+        return len(ids)
 
 
 def chunk_progress(db: Database, job_id: int) -> tuple[int, int]:

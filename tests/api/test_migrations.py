@@ -60,9 +60,10 @@ def test_profile_bins_unique_and_indexed(tmp_path):
     try:
         insp = inspect(engine)
         pk = insp.get_pk_constraint("profile_bins")["constrained_columns"]
-        assert pk == ["run_id", "wheel", "bin"]
+        assert pk == ["job_id", "wheel", "bin"]  # rows by job: written beside the published ones
         indexes = {tuple(ix["column_names"]) for ix in insp.get_indexes("profile_bins")}
-        assert ("run_id", "wheel", "km") in indexes
+        assert indexes == {("job_id", "wheel", "km", "display_level")}
+        assert insp.get_foreign_keys("profile_bins") == []  # checked row by row: too slow for 10⁶ rows
         uniques = {tuple(u["column_names"]) for u in insp.get_unique_constraints("job_chunks")}
         assert ("job_id", "chunk_index") in uniques
         fks = {fk["referred_table"]: fk["options"] for fk in insp.get_foreign_keys("jobs")}
@@ -87,20 +88,22 @@ def test_display_levels_of_rows_stored_before_they_existed(tmp_path):
     try:
         with engine.begin() as conn:
             conn.execute(
-                sa.text("INSERT INTO profile_bins (run_id, wheel, bin, km, n_samples, sleeper_amp) "
-                        "VALUES (:r, :w, :b, :km, 10, :a)"),
-                [{"r": r, "w": w, "b": b, "km": 3 + b / 4000, "a": None if np.isnan(a) else float(a)}
+                sa.text("INSERT INTO profile_bins (run_id, job_id, wheel, bin, km, n_samples, sleeper_amp) "
+                        "VALUES (:r, :j, :w, :b, :km, 10, :a)"),
+                [{"r": r, "j": 10 + r, "w": w, "b": b, "km": 3 + b / 4000, "a": None if np.isnan(a) else float(a)}
                  for r in (1, 2) for w in ("11", "42") for b, a in enumerate(amp)],
             )
         migrate.upgrade(url)
         with engine.connect() as conn:
-            for r, w in ((1, "11"), (2, "42")):
+            for j, w in ((11, "11"), (12, "42")):
                 got = conn.execute(
-                    sa.text("SELECT display_level FROM profile_bins WHERE run_id = :r AND wheel = :w ORDER BY bin"),
-                    {"r": r, "w": w},
+                    sa.text("SELECT display_level FROM profile_bins WHERE job_id = :j AND wheel = :w ORDER BY bin"),
+                    {"j": j, "w": w},
                 ).scalars().all()
                 np.testing.assert_array_equal(got, display_levels(np.arange(amp.size), amp))
         migrate.downgrade(url, "0004_procrastinate")
+        with engine.connect() as conn:
+            assert conn.execute(sa.text("SELECT count(*) FROM profile_bins")).scalar() == 4 * amp.size
         migrate.upgrade(url)
         with engine.connect() as conn:
             assert conn.execute(sa.text("SELECT max(display_level) FROM profile_bins")).scalar() >= 5

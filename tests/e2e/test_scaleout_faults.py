@@ -73,45 +73,66 @@ def _procrastinate_pending(database_url: str) -> int:
     try:
         with db.read() as s:
             return int(s.scalar(text(
-                "SELECT count(*) FROM procrastinate_jobs WHERE status IN ('todo', 'doing') "
-                "AND task_name IN ('trackvkf.process_chunk', 'trackvkf.assemble_job')"
+                "SELECT count(*) FROM procrastinate_jobs WHERE status IN ('todo', 'doing') AND task_name IN "
+                "('trackvkf.process_chunk', 'trackvkf.assemble_job', 'trackvkf.store_wheel', 'trackvkf.publish_job')"
             )))
     finally:
         db.dispose()
 
 
-def test_same_chunk_delivered_twice(service, short_sim_run, clean_reference):
+def test_same_chunk_delivered_twice_on_hosts_sharing_only_an_object_store(
+    service, short_sim_run, clean_reference
+):
     if service.backend != "postgresql":
         pytest.skip("task delivery is Procrastinate's (the local worker owns whole jobs)")
-    from worker.tasks import TASK_ASSEMBLE, TASK_CHUNK, make_app
+    from worker.tasks import TASK_ASSEMBLE, TASK_CHUNK, TASK_PUBLISH, TASK_STORE_WHEEL, make_app
 
     path, _ = short_sim_run
-    # chunk results on an fsspec URL (shared by the workers) instead of the run store
-    chunk_root = service.workdir / "chunk-store"
-    service.env["TRACKVKF_CHUNK_STORE"] = f"file://{chunk_root}"
-    app = make_app(Settings(database_url=service.database_url, run_store=service.run_store))
+    # two "hosts" without a common file system: the API's run store, the workers' own
+    # run store, and a shared fsspec store (file:// here, s3:// in production)
+    shared = service.workdir / "shared-store"
+    worker_store = service.workdir / "worker-host-runs"
+    service.env["TRACKVKF_SHARED_STORE"] = f"file://{shared}"
+    service.kill_api()
+    service.start_api()
+    app = make_app(Settings(database_url=service.database_url, run_store=worker_store,
+                            shared_store=f"file://{shared}"))
     with service.client(timeout=120) as client, app.open():
         run_id, job_id = upload_with_job(client, path)
+        assert (shared / str(run_id) / "run.h5").read_bytes() == (service.run_store / str(run_id) / "run.h5").read_bytes()
+        service.env["TRACKVKF_RUN_STORE"] = str(worker_store)
         service.start_worker()
         wait_for(lambda: job(client, job_id)["n_chunks"] is not None, 120, "chunks planned", service)
         n_chunks = job(client, job_id)["n_chunks"]
-        # every chunk and the assembly delivered a second time, without queueing locks
+        # every chunk, the assembly and every wheel delivered a second time, without queueing locks
         for index in range(n_chunks):
             app.configure_task(TASK_CHUNK).defer(job_id=job_id, index=index)
         app.configure_task(TASK_ASSEMBLE).defer(job_id=job_id)
+        for wheel in ("11", "12", "41", "42"):
+            app.configure_task(TASK_STORE_WHEEL).defer(job_id=job_id, wheel=wheel)
         service.start_worker()
         first = _finish_and_check(client, service, run_id, job_id, clean_reference)
         # ... and once more after the job is done: nothing changes
         app.configure_task(TASK_CHUNK).defer(job_id=job_id, index=0)
         app.configure_task(TASK_ASSEMBLE).defer(job_id=job_id)
+        app.configure_task(TASK_STORE_WHEEL).defer(job_id=job_id, wheel="41")
+        app.configure_task(TASK_PUBLISH).defer(job_id=job_id)
         wait_for(lambda: _procrastinate_pending(service.database_url) == 0, 120,
                  "duplicate deliveries processed", service)
         again = _finish_and_check(client, service, run_id, job_id, clean_reference)
         assert again["finished_at"] == first["finished_at"]
         assert again["meta"] == first["meta"]
-    results = sorted(p.name for p in chunk_root.rglob("*") if p.is_file())
-    assert results == [f"chunk-{i:05d}.npz" for i in range(first["n_chunks"])]
-    assert not list(service.run_store.rglob("*.npz"))
+        # the worker host fetched the run file once from the shared store; results live there
+        assert (worker_store / str(run_id) / "run.h5").is_file()
+        results = sorted(p.name for p in (shared / str(run_id)).rglob("*") if p.is_file())
+        assert results == sorted(
+            [f"chunk-{i:05d}.npz" for i in range(first["n_chunks"])]
+            + [f"wheel-{w}.json" for w in ("11", "12", "41", "42")] + ["run.h5"]
+        )
+        assert not list(worker_store.rglob("*.npz")) and not list(service.run_store.rglob("*.npz"))
+        # deleting the run removes its objects from the shared store too
+        assert client.delete(f"/api/v1/runs/{run_id}").status_code == 204
+        assert not (shared / str(run_id)).exists()
 
 
 def test_api_killed_during_upload_leaves_nothing(service, short_sim_run, clean_reference):

@@ -1,5 +1,6 @@
-"""Chunk results on an fsspec store (memory://) give the same profile as in the run
-store directory; a failed chunk leaves no result; helpers of the production mode."""
+"""Chunk results on a shared fsspec store (memory://) give the same profile as in the
+run store directory; a failed chunk leaves no result; run files published to and fetched
+from the shared store; helpers of the production mode."""
 
 from __future__ import annotations
 
@@ -34,7 +35,8 @@ def test_memory_fsspec_store_matches_local_pipeline(tiny_run, tmp_path):
     import fsspec
 
     url = f"memory://trackvkf-test-{os.getpid()}-{time.monotonic_ns()}"
-    store = ChunkStore(RunStore(tmp_path / "runs"), url)
+    runs = RunStore(tmp_path / "runs", url)
+    store = ChunkStore(runs)
     assert not store.is_local
     chunks = plan_chunks(tiny_run, SETTINGS)
     assert len(chunks) >= 2
@@ -46,7 +48,7 @@ def test_memory_fsspec_store_matches_local_pipeline(tiny_run, tmp_path):
         assert where.startswith("memory://") and url.split("://")[1] in where
         assert where.endswith(f"/7/jobs/3/chunk-{chunk.index:05d}.npz")
     fs = fsspec.filesystem("memory")
-    keys = fs.find(store.root)
+    keys = fs.find(runs.shared.root)
     assert len(keys) == len(chunks) and not any(k.endswith(".tmp") for k in keys)
     # nothing in the run store directory
     assert not (tmp_path / "runs").exists() or not any((tmp_path / "runs").rglob("*.npz"))
@@ -57,13 +59,20 @@ def test_memory_fsspec_store_matches_local_pipeline(tiny_run, tmp_path):
     assert len(remote.profiles) > 100
     pd.testing.assert_frame_equal(remote.profiles, local.profiles)
 
-    store.remove_run(7)
+    # named job files (the assembled wheel results) go to the same place, atomically
+    store.write_bytes(7, 3, "wheel-11.json", b'{"a": 1}')
+    assert store.exists_named(7, 3, "wheel-11.json") and store.read_bytes(7, 3, "wheel-11.json") == b'{"a": 1}'
+    with pytest.raises(ValueError, match="plain file name"):
+        store.write_bytes(7, 3, "../escape.json", b"")
+
+    runs.remove_run(7)  # the run's objects in the shared store go with it
     assert not any(store.exists(7, 3, c.index) for c in chunks)
+    assert not store.exists_named(7, 3, "wheel-11.json")
 
 
 def test_failed_chunk_leaves_no_result(tiny_run, tmp_path):
     url = f"memory://trackvkf-fail-{os.getpid()}-{time.monotonic_ns()}"
-    store = ChunkStore(RunStore(tmp_path / "runs"), url)
+    store = ChunkStore(RunStore(tmp_path / "runs", url))
     chunk = plan_chunks(tiny_run, SETTINGS)[0]
 
     def broken(out):
@@ -77,7 +86,7 @@ def test_failed_chunk_leaves_no_result(tiny_run, tmp_path):
 
 def test_default_store_is_the_run_store_directory(tiny_run, tmp_path):
     runs = RunStore(tmp_path / "runs")
-    store = ChunkStore(runs, None)
+    store = ChunkStore(runs)
     chunk = plan_chunks(tiny_run, SETTINGS)[0]
     store.write(2, 5, chunk.index, lambda out: process_chunk(tiny_run, SETTINGS, chunk, out))
     assert runs.chunk_path(2, 5, chunk.index).is_file()
@@ -109,3 +118,29 @@ def test_worker_health_file(tmp_path):
         path.unlink(missing_ok=True)
     with pytest.raises(ValueError, match="max_age_s"):
         check(0)
+
+
+def test_run_file_published_and_fetched_through_the_shared_store(tiny_run, tmp_path):
+    import shutil
+
+    url = f"memory://trackvkf-runs-{os.getpid()}-{time.monotonic_ns()}"
+    api_host = RunStore(tmp_path / "api", url)
+    run_file = api_host.run_file(5)
+    run_file.parent.mkdir(parents=True)
+    shutil.copyfile(tiny_run, run_file)
+    api_host.publish_run_file(5)
+
+    worker_host = RunStore(tmp_path / "worker", url)
+    local = worker_host.local_file("5/run.h5")  # fetched once ...
+    assert local == worker_host.run_file(5) and local.read_bytes() == tiny_run.read_bytes()
+    assert worker_host.local_file("5/run.h5") == local  # ... then used from the host's own store
+    assert not list(local.parent.glob("*.tmp"))
+    with pytest.raises(FileNotFoundError, match="shared store"):
+        worker_host.local_file("6/run.h5")
+    with pytest.raises(FileNotFoundError, match="missing from the run store"):
+        RunStore(tmp_path / "alone").local_file("5/run.h5")
+    with pytest.raises(ValueError, match="leaves the run store"):
+        worker_host.local_file("../5/run.h5")
+
+    api_host.remove_run(5)
+    assert not worker_host.shared.exists("5/run.h5") and not run_file.exists()
