@@ -323,7 +323,9 @@ def _bucket_extremes(bins: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.nda
         hit = np.flatnonzero(vals == best[group])
         # the first hit of every group (hits are in position order)
         out.append(hit[np.r_[True, group[hit][1:] != group[hit][:-1]]])
-    return np.union1d(out[0], out[1])
+    chosen = np.zeros(bins.size, dtype=bool)
+    chosen[out[0]] = chosen[out[1]] = True
+    return np.flatnonzero(chosen)
 
 
 def display_levels(bins: np.ndarray, values: np.ndarray, *, base: int = DISPLAY_LEVEL_BASE) -> np.ndarray:

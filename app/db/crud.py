@@ -382,11 +382,9 @@ def _with_display_levels(profiles: pd.DataFrame) -> pd.DataFrame:
     """``profiles`` with the column ``display_level`` ranked per wheel by the sleeper amplitude."""
     levels = np.zeros(len(profiles), dtype=np.int16)
     if len(profiles) and "sleeper_amp" in profiles.columns:
-        wheel = profiles["wheel"].astype(str).to_numpy()
         bins = profiles["bin"].to_numpy(dtype=np.int64)
         amp = profiles["sleeper_amp"].to_numpy(dtype=np.float64, na_value=np.nan)
-        for w in np.unique(wheel):
-            rows = np.flatnonzero(wheel == w)
+        for rows in profiles.groupby(profiles["wheel"].astype(str), sort=False).indices.values():
             levels[rows] = display_levels(bins[rows], amp[rows])
     return profiles.assign(display_level=levels)
 
