@@ -69,8 +69,13 @@ def main() -> None:
     with TestClient(create_app(settings), headers={"Authorization": f"Bearer {api_key}"}) as client:
         cases = [("whole run", None, None, {}), ("10 km", 40.0, 50.0, {}), ("1 km", 45.0, 46.0, {}),
                  ("100 m", 45.0, 45.1, {}),
-                 ("line view: whole run in 100 m segments", None, None, {"level": 100, "max_points": None}),
-                 ("line view: whole run in 10 m segments", None, None, {"level": 10})]
+                 ("whole run, the map's columns", None, None, {"columns": "sleeper_amp,speed_mean,sleeper_force_amp"}),
+                 ("line view: whole run in 100 m segments, all columns", None, None, {"level": 100, "max_points": None}),
+                 ("line view: whole run in 100 m segments, sleeper_amp", None, None,
+                  {"level": 100, "max_points": None, "columns": "sleeper_amp"}),
+                 ("line view: whole run in 10 m segments, all columns", None, None, {"level": 10}),
+                 ("line view: whole run in 10 m segments, sleeper_amp", None, None,
+                  {"level": 10, "columns": "sleeper_amp"})]
         print("| view | rows per wheel in range | rows returned per wheel | median s per wheel | bytes per wheel |")
         print("|---|---|---|---|---|")
         for name, a, b, extra in cases:

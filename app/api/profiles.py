@@ -6,7 +6,7 @@ import io
 import json
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import Annotated
 
 import numpy as np
@@ -72,6 +72,32 @@ MaxPoints = Annotated[
 ]
 
 
+Columns = Annotated[
+    str | None,
+    Query(
+        max_length=400,
+        description="Comma-separated indicator columns to return besides wheel, bin and km "
+        "(e.g. sleeper_amp,speed_mean); default all. Fewer columns read several times faster "
+        "(a line view of long runs asks only for what it draws)",
+    ),
+]
+
+
+def _columns(value: str | None, max_points: int | None) -> tuple[str, ...] | None:
+    """The asked indicator columns (422 naming the unknown ones); sleeper_amp added for decimation."""
+    if value is None:
+        return None
+    names = [c.strip() for c in value.split(",") if c.strip()]
+    if not names:
+        raise ApiError(422, "columns", "names no column")
+    if max_points is not None and "sleeper_amp" not in names:
+        names.append("sleeper_amp")  # decimation keeps the peaks of the sleeper amplitude
+    try:
+        return crud.profile_columns(names)[3:]
+    except ValueError as exc:
+        raise ApiError(422, "columns", str(exc).removeprefix("columns: ")) from None
+
+
 def run_with_results(session: Session, run_id: int) -> tuple[Run, Job]:
     """The run and the job whose results are stored; 404 without the run, 409 without results."""
     run = crud.get_run(session, run_id)
@@ -108,8 +134,11 @@ def _level_ratio(level_m: float, bin_length: float) -> int:
     return int(k)
 
 
-def _aggregate(df: pd.DataFrame, level_m: float, bin_length: float) -> pd.DataFrame:
-    out = aggregate_profile(df, level_m, list(AGGREGATED_COLUMNS), bin_length)
+def _aggregate(
+    df: pd.DataFrame, level_m: float, bin_length: float, columns: Sequence[str] | None = None
+) -> pd.DataFrame:
+    wanted = AGGREGATED_COLUMNS if columns is None else [c for c in columns if c in AGGREGATED_COLUMNS]
+    out = aggregate_profile(df, level_m, list(wanted), bin_length)
     out.insert(0, "wheel", df["wheel"].iloc[0] if len(df) else "")
     return out
 
@@ -151,6 +180,7 @@ def get_profile(
     km_to: KmTo = None,
     level: Level = 0.25,
     max_points: MaxPoints = None,
+    columns: Columns = None,
 ) -> Response:
     """Per-bin indicators of one wheel in a km range, or their aggregates per segment.
 
@@ -159,8 +189,10 @@ def get_profile(
     with a narrower km range when the user zooms in.
     """
     check_km(km_from, km_to)
+    values = _columns(columns, max_points)
     job_id, bin_length, _ = _results_context(db, run_id, wheel)
     k = _level_ratio(level, bin_length)
+    read = {"wheel": wheel, "km_from": km_from, "km_to": km_to, "columns": values}
     if max_points is not None and max_points > settings.max_profile_rows:
         raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
     with db.read() as session:
@@ -168,25 +200,24 @@ def get_profile(
     if max_points is not None and k == 1:
         # a few thousand rows of the stored display pyramid, whatever the range
         with db.read() as session:
-            df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to)
+            df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,
+                              columns=crud.profile_columns(values))
         truncated = False
     elif max_points is not None:
         with db.read() as session:
-            df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
-        df = _decimate(_aggregate(df, level, bin_length), max_points, "sleeper_amp_max")
+            df = crud.profile_rows(session, run_id, **read)
+        df = _decimate(_aggregate(df, level, bin_length, values), max_points, "sleeper_amp_max")
         truncated = False
     elif k == 1:
         limit = settings.max_profile_rows
         with db.read() as session:
-            df = crud.profile_rows(
-                session, run_id, wheel=wheel, km_from=km_from, km_to=km_to, limit=limit + 1
-            )
+            df = crud.profile_rows(session, run_id, limit=limit + 1, **read)
         truncated = len(df) > limit
         df = df.iloc[:limit]
     else:
         with db.read() as session:
-            df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
-        df = _aggregate(df, level, bin_length)
+            df = crud.profile_rows(session, run_id, **read)
+        df = _aggregate(df, level, bin_length, values)
         truncated = len(df) > settings.max_profile_rows
         df = df.iloc[: settings.max_profile_rows]
     meta = ProfileOut(

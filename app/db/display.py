@@ -8,6 +8,8 @@ range and zoom a few thousand rows, the level filtered inside the index on
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import pandas as pd
 from sqlalchemy import select
@@ -53,6 +55,7 @@ def display_rows(
     *,
     km_from: float | None = None,
     km_to: float | None = None,
+    columns: Sequence[str] = PROFILE_COLUMNS,
 ) -> pd.DataFrame:
     """At most ``max_points`` whole rows of one wheel's profile in a km range, peaks kept.
 
@@ -66,6 +69,9 @@ def display_rows(
         Bin length of the stored profile, m (to count the bins of the range).
     km_from, km_to : float, optional
         Range, km (default: the whole profile).
+    columns : sequence of str, optional
+        Columns to read (:func:`~app.db.crud.profile_columns`; must hold
+        ``sleeper_amp``, which chooses the rows). Default: all.
 
     Returns
     -------
@@ -82,12 +88,12 @@ def display_rows(
     """
     extent = km_extent(session, job_id, wheel)
     if extent is None:
-        return profile_frame([])
+        return profile_frame([], columns)
     lo = extent[0] if km_from is None else max(extent[0], km_from)
     hi = extent[1] if km_to is None else min(extent[1], km_to)
     n_bins = max(hi - lo, 0.0) * 1000.0 / bin_length_m + 1.0
     level = _display_level(n_bins, max_points)
-    cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
+    cols = [getattr(ProfileBin, c) for c in columns]
     where = profile_where(job_id, wheel, km_from, km_to)
     conn = session.connection()
     if level == 0:
@@ -105,7 +111,7 @@ def display_rows(
                 rows += conn.execute(
                     select(*cols).where(where, ProfileBin.bin.between(start, start + span - 1))
                 ).all()
-    df = profile_frame(rows).drop_duplicates("bin").sort_values("km", kind="stable").reset_index(drop=True)
+    df = profile_frame(rows, columns).drop_duplicates("bin").sort_values("km", kind="stable").reset_index(drop=True)
     if len(df) > max_points:
         keep = display_indices(
             df["km"].to_numpy(dtype=np.float64),

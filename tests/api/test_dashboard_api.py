@@ -61,6 +61,25 @@ def test_profile_max_points_zoomed_reads_the_range_with_its_peaks(processed):  #
     assert body["km_extent"] == pytest.approx([want["km"].min(), want["km"].max()])
 
 
+def test_profile_columns_read_only_what_is_asked(processed):  # noqa: F811
+    client, run_id, df = processed
+    url = f"/api/v1/runs/{run_id}/profile"
+    full = client.get(url, params={"wheel": "11", "max_points": 80}).json()
+    some = client.get(url, params={"wheel": "11", "max_points": 80, "columns": "speed_mean"}).json()
+    # sleeper_amp comes along: it chooses the rows; the same rows as with every column
+    assert some["columns"] == ["wheel", "bin", "km", "speed_mean", "sleeper_amp"]
+    assert [r["bin"] for r in some["rows"]] == [r["bin"] for r in full["rows"]]
+    assert [r["speed_mean"] for r in some["rows"]] == [r["speed_mean"] for r in full["rows"]]
+    agg_full = client.get(url, params={"wheel": "11", "level": 10}).json()
+    agg = client.get(url, params={"wheel": "11", "level": 10, "columns": "sleeper_amp"}).json()
+    assert [c for c in agg["columns"] if c.startswith("sleeper_amp")] == agg["columns"][-3:]
+    assert not any(c.startswith(("order_amp", "speed")) for c in agg["columns"])
+    assert [r["sleeper_amp_p95"] for r in agg["rows"]] == [r["sleeper_amp_p95"] for r in agg_full["rows"]]
+    r = client.get(url, params={"wheel": "11", "columns": "sleeper_amp,bogus"})
+    assert r.status_code == 422 and "columns" in r.text and "bogus" in r.text
+    assert client.get(url, params={"wheel": "11", "columns": " , "}).status_code == 422
+
+
 @pytest.mark.parametrize("value", [3, 0, -5])
 def test_profile_max_points_is_checked(processed, value):  # noqa: F811
     client, run_id, _ = processed

@@ -13,7 +13,7 @@
 
   /* runs × km matrix from the runs' own 100 m profiles */
   async function segmentsFromProfiles(doneRuns, wheel) {
-    const per = await Promise.all(doneRuns.map((r) => T.api.get(`/runs/${r.id}/profile`, { wheel, level: SEG_M }).catch(() => null)));
+    const per = await Promise.all(doneRuns.map((r) => T.api.get(`/runs/${r.id}/profile`, { wheel, level: SEG_M, columns: "sleeper_amp" }).catch(() => null)));
     const keys = new Set();
     per.forEach((p) => p && p.rows.forEach((row) => keys.add(Math.round(row.km_from * 1e4))));
     const km = [...keys].sort((a, b) => a - b).map((k) => k / 1e4);
@@ -72,7 +72,7 @@
   async function drawProfiles(doneRuns, wheel) {
     const el = document.getElementById("profiles-plot");
     profiles = await Promise.all(doneRuns.map(async (r) => {
-      try { return { run: r, rows: (await T.api.get(`/runs/${r.id}/profile`, { wheel, level: 10, max_points: 3000 })).rows }; }
+      try { return { run: r, rows: (await T.api.get(`/runs/${r.id}/profile`, { wheel, level: 10, max_points: 3000, columns: "sleeper_amp" })).rows }; }
       catch (_) { return { run: r, rows: [] }; }
     }));
     profiles = profiles.filter((p) => p.rows.length);

@@ -9,6 +9,7 @@
   const SECTION_COLORS = ["rgba(31,95,168,0.07)", "rgba(224,123,0,0.08)", "rgba(46,139,87,0.08)", "rgba(142,68,173,0.07)"];
   let run = null, wheels = [], full = null, current = null, data = {}, shapes = [], annotations = [];
   let busy = false, pending = null, seq = 0;
+  const COLUMNS = "sleeper_amp,speed_mean,sleeper_force_amp"; // what the map draws and exports
 
   function maxPoints() { return Math.max(600, Math.min(4000, Math.round(2 * (el.clientWidth || 1200)))); }
 
@@ -67,7 +68,7 @@
     const mp = maxPoints();
     const out = {};
     await Promise.all(wheels.map(async (w) => {
-      out[w] = await T.api.get(`/runs/${runId}/profile`, { wheel: w, km_from: a, km_to: b, max_points: mp });
+      out[w] = await T.api.get(`/runs/${runId}/profile`, { wheel: w, km_from: a, km_to: b, max_points: mp, columns: COLUMNS });
     }));
     return out;
   }
