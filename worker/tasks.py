@@ -384,18 +384,17 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
                     raise
                 _fail(rt, job_id, exc)
                 return "failed"
-            if done is None:
-                return f"no data of wheel {wheel}"
-            profiles, result = done
+            profiles, result = done if done is not None else (None, None)  # None: no data of the wheel
             t1 = time.perf_counter()
-            if not queue.store_wheel_rows(rt.db, job_id, run.id, profiles):
+            if profiles is not None and not queue.store_wheel_rows(rt.db, job_id, run.id, profiles):
                 return "job not running"
             t2 = time.perf_counter()
-            record = {"result": result, "rows": len(profiles), "assemble_s": round(t1 - t0, 3),
+            record = {"result": result, "rows": 0 if profiles is None else len(profiles),
+                      "assemble_s": round(t1 - t0, 3),
                       "store_s": round(t2 - t1, 3)}
             rt.chunks.write_bytes(run.id, job_id, name, json.dumps(crud.jsonable(record)).encode())
             log.info("job %s wheel %s: assembled in %.2f s, %d rows stored in %.2f s",
-                     job_id, wheel, t1 - t0, len(profiles), t2 - t1)
+                     job_id, wheel, t1 - t0, record["rows"], t2 - t1)
         if all(rt.chunks.exists_named(run.id, job_id, _WHEEL_FILE.format(wheel=w)) for w in _wheels_of(run)):
             _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
         return f"wheel {wheel} stored"
@@ -429,7 +428,8 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             "run_sha256": run.sha256,
         }
         t0 = time.perf_counter()
-        stored = queue.complete_job(rt.db, job_id, None, run.id, None, [r["result"] for r in records], meta)
+        wheels = [r["result"] for r in records if r["result"] is not None]
+        stored = queue.complete_job(rt.db, job_id, None, run.id, None, wheels, meta)
         log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
                  time.perf_counter() - t0, sum(r["rows"] for r in records))
         return "published" if stored else "not running any more"
