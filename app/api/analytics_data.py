@@ -144,19 +144,10 @@ def load_profiles(
 
 def _rows(session, job_id: int, wheel: str | None, km_from: float | None, km_to: float | None) -> pd.DataFrame:
     """The analytics' columns of a job's profile rows (ordered by wheel and bin)."""
-    cols = [ProfileBin.wheel, ProfileBin.bin, ProfileBin.km, ProfileBin.speed_mean,
-            ProfileBin.sleeper_amp, ProfileBin.sleeper_force_amp]
-    rows = session.connection().execute(
-        select(*cols).where(crud.profile_where(job_id, wheel, km_from, km_to))
-        .order_by(ProfileBin.wheel, ProfileBin.bin)).all()
-    names = ["wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
-    if not rows:
-        return pd.DataFrame(columns=names)
-    w, b, *rest = zip(*rows, strict=True)
-    out = {"wheel": np.array(w, dtype=object), "bin": np.array(b, dtype=np.int64)}
-    for name, vals in zip(names[2:], rest, strict=True):
-        out[name] = np.array(vals, dtype=np.float64)  # None -> NaN
-    return pd.DataFrame(out)
+    return crud.job_profile_frame(
+        session, job_id, wheel=wheel, km_from=km_from, km_to=km_to,
+        columns=["speed_mean", "sleeper_amp", "sleeper_force_amp"],
+    )
 
 
 def reference(db: Database, kind: str, sel: Selection, **kw) -> pd.DataFrame:
