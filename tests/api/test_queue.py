@@ -160,3 +160,44 @@ def test_results_are_replaced_not_duplicated(db):
     with db.read() as s:
         for model in (ProfileBin, WheelOOR, Job, Run):
             assert s.scalar(select(func.count()).select_from(model)) == 0
+
+
+def test_wheels_stored_one_by_one_are_published_at_once(db):
+    """Fan-out mode: a new job's rows are written wheel by wheel beside the published ones;
+    readers switch at the publishing commit; a failed job leaves the published rows alone."""
+    run_id, job1 = _make_run(db)
+    queue.claim_next_job(db, "w", 30)
+    old, old_wheels = _results(4, 1.0)
+    assert queue.complete_job(db, job1, "w", run_id, old, old_wheels, {})
+
+    def amps() -> set[float]:
+        with db.read() as s:
+            return set(crud.profile_rows(s, run_id)["sleeper_amp"])
+
+    with db.write() as s:
+        job2 = crud.create_job(s, run_id, {"n_wheel_orders": 11}).id
+    assert queue.claim_next_job(db, "w", 30) == job2
+    new, new_wheels = _results(6, 2.0)
+    for wheel in ("11", "12"):
+        part = new[new["wheel"] == wheel]
+        assert queue.store_wheel_rows(db, job2, run_id, part)
+        assert queue.store_wheel_rows(db, job2, run_id, part)  # a retried task: replaced, not doubled
+        assert amps() == {1.0}  # readers still see the published job
+    with db.read() as s:
+        assert crud.stored_profile_wheels(s, job2) == ["11", "12"]
+        assert crud.results_job_id(s, run_id) == job1
+    assert queue.complete_job(db, job2, None, run_id, None, new_wheels, {"v": 2})
+    assert amps() == {2.0}
+    with db.read() as s:
+        assert s.scalar(select(func.count()).select_from(ProfileBin)) == 12  # job 1's rows dropped
+        assert crud.results_job_id(s, run_id) == job2
+    assert not queue.store_wheel_rows(db, job2, run_id, new)  # done: nothing more is written
+
+    with db.write() as s:
+        job3 = crud.create_job(s, run_id, {"n_wheel_orders": 11}).id
+    assert queue.claim_next_job(db, "w", 30) == job3
+    assert queue.store_wheel_rows(db, job3, run_id, _results(3, 5.0)[0])
+    assert queue.finish_job(db, job3, "w", JobStatus.FAILED, "boom")
+    assert amps() == {2.0}
+    with db.read() as s:
+        assert crud.stored_profile_wheels(s, job3) == []  # the failed job's rows are gone
