@@ -115,7 +115,7 @@ def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int,
     """Job id and bin length of the stored results and the wheels; 404/409 if none."""
     with db.read() as session:
         _, job = run_with_results(session, run_id)
-        wheels = crud.profile_wheels(session, run_id)
+        wheels = crud.stored_profile_wheels(session, job.id)
     if wheel is not None and wheel not in wheels:
         raise ApiError(
             404, "wheel", f"run {run_id} has no profile for wheel {wheel!r} (wheels: {', '.join(wheels)})"
@@ -195,29 +195,22 @@ def get_profile(
     read = {"wheel": wheel, "km_from": km_from, "km_to": km_to, "columns": values}
     if max_points is not None and max_points > settings.max_profile_rows:
         raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
-    with db.read() as session:
+    with db.read() as session:  # one snapshot: the extent and the rows of the same job
         extent = km_extent(session, job_id, wheel)
-    if max_points is not None and k == 1:
-        # a few thousand rows of the stored display pyramid, whatever the range
-        with db.read() as session:
+        if max_points is not None and k == 1:
+            # a few thousand rows of the stored display pyramid, whatever the range
             df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,
                               columns=crud.profile_columns(values))
-        truncated = False
-    elif max_points is not None:
-        with db.read() as session:
-            df = crud.profile_rows(session, run_id, **read)
+        elif max_points is None and k == 1:
+            df = crud.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
+        else:
+            df = crud.job_profile_frame(session, job_id, **read)
+    truncated = False
+    if max_points is not None and k > 1:
         df = _decimate(_aggregate(df, level, bin_length, values), max_points, "sleeper_amp_max")
-        truncated = False
-    elif k == 1:
-        limit = settings.max_profile_rows
-        with db.read() as session:
-            df = crud.profile_rows(session, run_id, limit=limit + 1, **read)
-        truncated = len(df) > limit
-        df = df.iloc[:limit]
-    else:
-        with db.read() as session:
-            df = crud.profile_rows(session, run_id, **read)
-        df = _aggregate(df, level, bin_length, values)
+    elif max_points is None:
+        if k > 1:
+            df = _aggregate(df, level, bin_length, values)
         truncated = len(df) > settings.max_profile_rows
         df = df.iloc[: settings.max_profile_rows]
     meta = ProfileOut(
@@ -240,7 +233,7 @@ def get_profile(
 
 def _frames(
     db: Database,
-    run_id: int,
+    job_id: int,
     wheels: list[str],
     km_from: float | None,
     km_to: float | None,
@@ -251,23 +244,23 @@ def _frames(
     if _level_ratio(level, bin_length) == 1:
         for wheel in wheels:
             yield from crud.iter_profile_pages(
-                db.read, run_id, wheel, km_from=km_from, km_to=km_to, page_size=_EXPORT_PAGE
+                db.read, job_id, wheel, km_from=km_from, km_to=km_to, page_size=_EXPORT_PAGE
             )
         return
     for wheel in wheels:
         with db.read() as session:
-            df = crud.profile_rows(session, run_id, wheel=wheel, km_from=km_from, km_to=km_to)
+            df = crud.job_profile_frame(session, job_id, wheel=wheel, km_from=km_from, km_to=km_to)
         if len(df):
             yield _aggregate(df, level, bin_length)
 
 
 def _export_prelude(
     db: Database, run_id: int, wheel: str | None, km_from, km_to, level: float
-) -> tuple[list[str], float]:
+) -> tuple[int, list[str], float]:
     check_km(km_from, km_to)
-    _, bin_length, wheels = _results_context(db, run_id, wheel)
+    job_id, bin_length, wheels = _results_context(db, run_id, wheel)
     _level_ratio(level, bin_length)
-    return ([wheel] if wheel else wheels), bin_length
+    return job_id, ([wheel] if wheel else wheels), bin_length
 
 
 def _filename(run_id: int, wheel: str | None, level: float, ext: str) -> str:
@@ -293,11 +286,11 @@ def export_csv(
     level: Level = 0.25,
 ) -> StreamingResponse:
     """All profile rows of a run (or one wheel) as CSV, in pages, never whole in memory."""
-    wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
+    job_id, wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
 
     def generate() -> Iterator[bytes]:
         header = True
-        for df in _frames(db, run_id, wheels, km_from, km_to, level, bin_length):
+        for df in _frames(db, job_id, wheels, km_from, km_to, level, bin_length):
             buffer = io.BytesIO()
             pa_csv.write_csv(
                 pa.Table.from_pandas(df, preserve_index=False),
@@ -339,7 +332,7 @@ def export_parquet(
     The file is written page by page to a temporary file, streamed out in
     blocks, and removed.
     """
-    wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
+    job_id, wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
 
     def generate() -> Iterator[bytes]:
         fd, tmp = tempfile.mkstemp(suffix=".parquet", prefix="trackvkf-export-")
@@ -347,7 +340,7 @@ def export_parquet(
         try:
             writer: pq.ParquetWriter | None = None
             try:
-                for df in _frames(db, run_id, wheels, km_from, km_to, level, bin_length):
+                for df in _frames(db, job_id, wheels, km_from, km_to, level, bin_length):
                     table = pa.Table.from_pandas(df, preserve_index=False)
                     if writer is None:
                         writer = pq.ParquetWriter(tmp, table.schema)

@@ -53,7 +53,6 @@ __all__ = [
     "profile_frame",
     "profile_columns",
     "profile_where",
-    "profile_wheels",
     "iter_profile_pages",
     "get_wheels",
     "results_job",
@@ -589,8 +588,11 @@ def job_profile_frame(
     km_to: float | None = None,
     limit: int | None = None,
     columns: Sequence[str] | None = None,
+    after_bin: int | None = None,
 ) -> pd.DataFrame:
     """Profile rows of a job (published or not), like :func:`profile_rows`.
+
+    ``after_bin`` keeps only bins after it (keyset pagination of one wheel).
 
     Reads each wheel's numeric columns straight from the database cursor into
     one float array (NULL -> NaN), without a Python row object per row: 3x
@@ -607,6 +609,8 @@ def job_profile_frame(
             .where(profile_where(job_id, w, km_from, km_to))
             .order_by(ProfileBin.bin)
         )
+        if after_bin is not None:
+            stmt = stmt.where(ProfileBin.bin > after_bin)
         if remaining is not None:
             stmt = stmt.limit(remaining)
         result = session.connection().execute(stmt)
@@ -663,22 +667,16 @@ def profile_frame(rows: Sequence[Any], columns: Sequence[str] = PROFILE_COLUMNS)
     return pd.DataFrame(data)
 
 
-def profile_wheels(session: Session, run_id: int) -> list[str]:
-    """Wheels that have published profile rows in run ``run_id``, sorted."""
-    job_id = results_job_id(session, run_id)
-    return [] if job_id is None else stored_profile_wheels(session, job_id)
-
-
 def iter_profile_pages(
     read_session,
-    run_id: int,
+    job_id: int,
     wheel: str,
     *,
     km_from: float | None = None,
     km_to: float | None = None,
     page_size: int = 50_000,
 ):
-    """Yield the profile rows of one wheel of a run as DataFrames of at most ``page_size`` rows.
+    """Yield the profile rows of one wheel of a job as DataFrames of at most ``page_size`` rows.
 
     Parameters
     ----------
@@ -686,27 +684,22 @@ def iter_profile_pages(
         Context manager factory of read sessions (``Database.read``); every
         page is read in its own short transaction (keyset pagination on the
         bin), so a long export never holds the database.
+    job_id : int
+        The job whose rows are read (resolved once by the caller, so that an
+        export never mixes two jobs' results).
     """
-    with read_session() as session:
-        job_id = results_job_id(session, run_id)
-    if job_id is None:
-        return
-    where = profile_where(job_id, wheel, km_from, km_to)
-    cols = [getattr(ProfileBin, c) for c in PROFILE_COLUMNS]
     last_bin: int | None = None
     while True:
-        stmt = select(*cols).where(where)
-        if last_bin is not None:
-            stmt = stmt.where(ProfileBin.bin > last_bin)
-        stmt = stmt.order_by(ProfileBin.bin).limit(page_size)
         with read_session() as session:
-            rows = session.connection().execute(stmt).all()  # Core: no ORM row overhead
-        if not rows:
+            page = job_profile_frame(
+                session, job_id, wheel=wheel, km_from=km_from, km_to=km_to, limit=page_size, after_bin=last_bin
+            )
+        if page.empty:
             return
-        yield profile_frame(rows)
-        if len(rows) < page_size:
+        yield page
+        if len(page) < page_size:
             return
-        last_bin = int(rows[-1][1])
+        last_bin = int(page["bin"].iloc[-1])
 
 
 def results_job_id(session: Session, run_id: int) -> int | None:
