@@ -338,7 +338,9 @@ def display_levels(bins: np.ndarray, values: np.ndarray, *, base: int = DISPLAY_
     two rows per bucket and keeps every peak that a min–max decimation to
     buckets of ``base**k`` bins would keep. The first and last bin of the
     profile get the top level (the first whose one bucket holds the whole
-    profile), so every level spans the whole profile.
+    profile; for a profile with bins on both sides of 0, which no bucket
+    holds, the first with one bucket on either side), so every level spans
+    the whole profile.
 
     Parameters
     ----------
@@ -394,8 +396,9 @@ def display_levels(bins: np.ndarray, values: np.ndarray, *, base: int = DISPLAY_
     keep = np.arange(sb.size)
     first, last = int(sb[0]), int(sb[-1])
     k, span = 0, 1
-    # up to the first level whose single bucket holds the whole profile
-    while k == 0 or first // span != last // span:
+    # up to the first level whose single bucket holds the whole profile; bins on
+    # both sides of 0 never share a bucket: there, up to the first of two buckets
+    while k == 0 or (first // span != last // span and not (first < 0 <= last and span > last - first)):
         k, span = k + 1, span * int(base)
         keep = keep[_bucket_extremes(sb[keep] // span, lo[keep], hi[keep])]
         levels[order[keep]] = k

@@ -157,6 +157,8 @@ def _levels_by_brute_force(bins: np.ndarray, values: np.ndarray, base: int) -> n
             levels[i] = k
         if len(np.unique(b // span)) == 1:
             break
+        if b[0] < 0 <= b[-1] and span > b[-1] - b[0]:  # across 0: two buckets at the top
+            break
     top = levels.max()
     levels[[0, -1]] = max(top, 1)
     out = np.empty_like(levels)
@@ -164,10 +166,15 @@ def _levels_by_brute_force(bins: np.ndarray, values: np.ndarray, base: int) -> n
     return out
 
 
-@pytest.mark.parametrize(("n", "base", "seed"), [(1, 4, 0), (2, 4, 1), (3, 2, 2), (1000, 4, 3), (777, 3, 4)])
-def test_display_levels_match_brute_force(n: int, base: int, seed: int) -> None:
+@pytest.mark.parametrize(
+    ("n", "base", "seed", "first"),
+    [(1, 4, 0, 17), (2, 4, 1, 17), (3, 2, 2, 17), (1000, 4, 3, 17), (777, 3, 4, 17),
+     (1000, 4, 6, -1200), (2, 4, 7, -1), (500, 2, 8, -1500)],
+)
+def test_display_levels_match_brute_force(n: int, base: int, seed: int, first: int) -> None:
+    """Bins anywhere on the axis, negative ones (track km < 0) and across 0 included."""
     rng = np.random.default_rng(seed)
-    bins = rng.permutation(np.arange(n) * 3 + 17)  # gaps in the bin numbers, any order
+    bins = rng.permutation(np.arange(n) * 3 + first)  # gaps in the bin numbers, any order
     values = rng.lognormal(0, 0.5, n).round(1)  # ties
     values[rng.random(n) < 0.1] = np.nan
     values[rng.random(n) < 0.02] = np.inf

@@ -201,3 +201,48 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
     assert amps() == {2.0}
     with db.read() as s:
         assert crud.stored_profile_wheels(s, job3) == []  # the failed job's rows are gone
+
+
+def test_chunk_rows_stored_once_then_seams_and_levels(db):
+    """Fan-out mode, rows stored chunk by chunk: a chunk found done writes nothing again,
+    a cancel request stops the writes, seam rows are replaced on retry, levels updated."""
+    run_id, job_id = _make_run(db)
+    queue.claim_next_job(db, "w", 30)
+    assert queue.record_chunks(db, job_id, "w", [(0, {"index": 0}), (1, {"index": 1})])
+    rows, _ = _results(8, 1.0)
+    rows = rows.assign(display_level=1)
+    first, second = rows[rows["bin"] < 40_004], rows[rows["bin"] >= 40_004]
+
+    def stored() -> pd.DataFrame:
+        with db.read() as s:
+            return pd.DataFrame(s.execute(select(ProfileBin.wheel, ProfileBin.bin, ProfileBin.display_level)
+                                          .where(ProfileBin.job_id == job_id)
+                                          .order_by(ProfileBin.wheel, ProfileBin.bin)).all())
+
+    assert queue.store_chunk_rows(db, job_id, run_id, 0, first, "loc-0")
+    assert queue.store_chunk_rows(db, job_id, run_id, 0, first, "loc-0")  # delivered twice: done already
+    assert len(stored()) == len(first)
+    assert queue.chunk_progress(db, job_id) == (1, 2)
+    with pytest.raises(LookupError, match="no chunk 7"):
+        queue.store_chunk_rows(db, job_id, run_id, 7, None)
+    with db.write() as s:
+        s.execute(update(Job).where(Job.id == job_id).values(cancel_requested=True))
+    assert not queue.store_chunk_rows(db, job_id, run_id, 1, second)
+    assert not queue.store_wheel_seams(db, job_id, run_id, "11", second, np.array([]), np.array([]))
+    assert len(stored()) == len(first) and queue.chunk_progress(db, job_id) == (1, 2)
+    with db.write() as s:
+        s.execute(update(Job).where(Job.id == job_id).values(cancel_requested=False))
+    seams = second[second["wheel"] == "11"]
+    for _ in range(2):  # a retried wheel task replaces its rows
+        assert queue.store_wheel_seams(db, job_id, run_id, "11", seams, np.array([40_000, 40_002]),
+                                       np.array([3, 0]))
+    got = stored()
+    assert len(got) == len(first) + len(seams)
+    levels = dict(zip(zip(got["wheel"], got["bin"], strict=True), got["display_level"], strict=True))
+    assert levels[("11", 40_000)] == 3 and levels[("11", 40_002)] == 0 and levels[("12", 40_000)] == 1
+    with pytest.raises(ValueError, match="one value per bin"):
+        with db.write() as s:
+            crud.set_display_levels(s, job_id, "11", np.array([1, 2]), np.array([1]))
+    with pytest.raises(ValueError, match="display_level"):
+        with db.write() as s:
+            crud.insert_ranked_profile_rows(s, run_id, job_id, seams.drop(columns="display_level"))

@@ -79,12 +79,24 @@ def assert_same_as_clean(got: pd.DataFrame, reference: pd.DataFrame) -> None:
 
 
 def assert_rows_once(database_url: str, job_id: int, n_profile_rows: int, n_chunks: int) -> None:
-    """One profile row per (wheel, bin), all from ``job_id``; one chunk row per chunk."""
+    """One profile row per (wheel, bin), all from ``job_id``; one chunk row per chunk; every
+    row's display level that of the pyramid over its whole wheel (however the rows were
+    written: at once, or chunk by chunk with the levels corrected at the end)."""
+    from app.analysis.aggregate import display_levels
+
     db = Database(database_url)
     try:
         with db.read() as s:
             assert s.scalar(select(func.count()).select_from(ProfileBin)) == n_profile_rows
             assert set(s.scalars(select(ProfileBin.job_id).distinct())) == {job_id}
+            rows = pd.DataFrame(
+                s.execute(select(ProfileBin.wheel, ProfileBin.bin, ProfileBin.sleeper_amp,
+                                 ProfileBin.display_level)).all(),
+                columns=["wheel", "bin", "amp", "level"],
+            )
+            for wheel, w in rows.groupby("wheel"):
+                expected = display_levels(w["bin"].to_numpy(), w["amp"].to_numpy(dtype=float))
+                assert (w["level"].to_numpy() == expected).all(), f"display levels of wheel {wheel}"
             n_chunk_rows = s.scalar(
                 select(func.count()).select_from(JobChunk).where(JobChunk.job_id == job_id)
             )
