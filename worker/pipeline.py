@@ -381,19 +381,22 @@ def _profile_columns(settings: ProcessingSettings) -> list[str]:
             "residual_rms", "sleeper_force_amp"]
 
 
-def _wheel_parts(chunk_paths: Sequence[Path], wheel: str) -> tuple[dict[str, list[BinSums]], float]:
-    """One wheel's partial sums from chunk files: ``({"bins"|"resid"|"oor": parts}, d_w)``."""
-    g: dict[str, list[BinSums]] = {}
-    d_w = 0.92
+def _wheel_parts(
+    chunk_paths: Sequence[Path], wheels: Sequence[str]
+) -> dict[str, tuple[dict[str, list[BinSums]], float]]:
+    """Wheels' partial sums from chunk files: ``{wheel: ({"bins"|"resid"|"oor": parts}, d_w)}``."""
+    out: dict[str, tuple[dict[str, list[BinSums]], float]] = {w: ({}, 0.92) for w in wheels}
     for path in sorted(chunk_paths, key=lambda p: str(p)):
         with np.load(path) as npz:
-            for kind in ("bins", "resid", "oor"):
-                part = _load_group(npz, f"{kind}_{wheel}__")
-                if part is not None:
-                    g.setdefault(kind, []).append(part)
-            if f"diameter_{wheel}" in npz.files:
-                d_w = float(npz[f"diameter_{wheel}"])
-    return g, d_w
+            for wheel in wheels:
+                g, d_w = out[wheel]
+                for kind in ("bins", "resid", "oor"):
+                    part = _load_group(npz, f"{kind}_{wheel}__")
+                    if part is not None:
+                        g.setdefault(kind, []).append(part)
+                if f"diameter_{wheel}" in npz.files:
+                    out[wheel] = (g, float(npz[f"diameter_{wheel}"]))
+    return out
 
 
 def _profile_rows(settings: ProcessingSettings, g: dict[str, list[BinSums]], wheel: str) -> pd.DataFrame:
@@ -432,7 +435,7 @@ def assemble_wheel(
         and its entry of ``RunResults.wheels``; None if the chunks hold no data
         of the wheel. Deterministic: the same files give the same result.
     """
-    g, d_w = _wheel_parts(chunk_paths, wheel)
+    g, d_w = _wheel_parts(chunk_paths, [wheel])[wheel]
     if not g:
         return None
     return _profile_rows(settings, g, wheel), _wheel_result(wheel, g.get("oor", []), d_w, settings)
@@ -504,50 +507,55 @@ def bin_coverage(bins: np.ndarray, spans: np.ndarray) -> np.ndarray:
 
 
 def chunk_final_rows(
-    settings: ProcessingSettings, chunk_path: Path, wheel: str, spans: np.ndarray, own: int
+    settings: ProcessingSettings, chunk_path: Path, spans: dict[str, np.ndarray], own: int
 ) -> pd.DataFrame | None:
-    """The profile rows of a wheel that one chunk alone determines, with their chunk-local display levels.
+    """The profile rows that one chunk alone determines, with their chunk-local display levels.
 
     A bin that no other chunk's span holds (:func:`bin_coverage` = 1) has its
     final value as soon as this chunk is done: the rows are those
     :func:`assemble_wheel` would give for these bins, bit for bit. The rows
-    are ranked for display over the chunk's rows only; :func:`seam_rows`
-    gives the few levels that change over the whole wheel.
+    are ranked for display over the chunk's rows of each wheel only;
+    :func:`seam_rows` gives the few levels that change over the whole wheel.
 
     Parameters
     ----------
     settings : ProcessingSettings
     chunk_path : Path
         The chunk's result file.
-    wheel : str
-    spans : array_like of int
-        (c, 2) bin spans of all chunks of the job for this wheel, by chunk index.
+    spans : dict of str to array_like of int
+        Per wheel, the ``(c, 2)`` bin spans of all chunks of the job, by chunk
+        index (:func:`chunk_bin_spans`).
     own : int
-        Row of ``spans`` that is this chunk's.
+        Row of the spans that is this chunk's.
 
     Returns
     -------
     pandas.DataFrame or None
-        Columns of :func:`assemble_wheel`'s rows plus ``display_level``; None if
-        the chunk holds no data of the wheel.
+        Columns of :func:`assemble_wheel`'s rows plus ``display_level``, the
+        wheels one after the other; None if the chunk holds no data of them.
 
     Raises
     ------
     ValueError
         If the chunk has sums outside its own span (the spans do not match the chunk).
     """
-    g, _ = _wheel_parts([chunk_path], wheel)
-    if not g:
-        return None
-    sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
-    lo, hi = sp[own]
-    for kind in ("bins", "resid"):
-        b = g[kind][0].bins
-        if b.size and (b[0] < lo or b[-1] > hi):
-            raise ValueError(f"chunk file {Path(chunk_path).name}: wheel {wheel} has bins outside its span [{lo}, {hi}]")
-    prof = _profile_rows(settings, g, wheel)
-    prof = prof[bin_coverage(prof["bin"].to_numpy(), sp) == 1].reset_index(drop=True)
-    return prof.assign(display_level=display_levels(prof["bin"].to_numpy(), prof["sleeper_amp"].to_numpy()))
+    frames = []
+    for wheel, (g, _) in _wheel_parts([chunk_path], list(spans)).items():
+        if not g:
+            continue
+        sp = np.asarray(spans[wheel], dtype=np.int64).reshape(-1, 2)
+        lo, hi = sp[own]
+        for kind in ("bins", "resid"):
+            b = g[kind][0].bins
+            if b.size and (b[0] < lo or b[-1] > hi):
+                raise ValueError(
+                    f"chunk file {Path(chunk_path).name}: wheel {wheel} has bins outside its span [{lo}, {hi}]"
+                )
+        prof = _profile_rows(settings, g, wheel)
+        prof = prof[bin_coverage(prof["bin"].to_numpy(), sp) == 1].reset_index(drop=True)
+        levels = display_levels(prof["bin"].to_numpy(), prof["sleeper_amp"].to_numpy())
+        frames.append(prof.assign(display_level=levels))
+    return pd.concat(frames, ignore_index=True) if frames else None
 
 
 def seam_rows(profile: pd.DataFrame, spans: np.ndarray) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:

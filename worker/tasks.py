@@ -72,7 +72,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import pandas as pd
 import procrastinate
 import psycopg
 import sqlalchemy.exc
@@ -393,9 +392,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             own = sorted(specs).index(index)
             settings_ = ProcessingSettings.from_dict(job.settings)
             with rt.chunks.local_copies(run.id, job.id, [index]) as paths:
-                parts = [chunk_final_rows(settings_, paths[0], w, sp, own) for w, sp in spans.items()]
-            parts = [p for p in parts if p is not None]
-            rows = pd.concat(parts, ignore_index=True) if parts else None
+                rows = chunk_final_rows(settings_, paths[0], spans, own)
             stored = queue.store_chunk_rows(rt.db, job.id, run.id, index, rows, location)
         except Exception as exc:
             if _is_transient(exc):

@@ -23,7 +23,7 @@ import pandas as pd
 from sqlalchemy import and_, case, func, literal, or_, select, update
 
 from app.db import crud
-from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
+from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, ProfileBin, UTCDateTime, utcnow
 from app.db.session import Database
 
 __all__ = [
@@ -428,7 +428,12 @@ def store_wheel_seams(
     with db.write() as session:
         if not crud.lock_run_for_results(session, run_id) or not _lock_running_job(session, job_id):
             return False
-        crud.insert_ranked_profile_rows(session, run_id, job_id, profiles, replace=True)
+        # the rows are written all or none (this transaction): if the first is there, a
+        # retry replaces them all; if not (the usual case), there is nothing to delete
+        retry = len(profiles) > 0 and session.get(
+            ProfileBin, (job_id, wheel, int(profiles["bin"].iloc[0]))
+        ) is not None
+        crud.insert_ranked_profile_rows(session, run_id, job_id, profiles, replace=retry)
         crud.set_display_levels(session, job_id, wheel, level_bins, levels)
         return True
 

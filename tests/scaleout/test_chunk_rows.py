@@ -50,7 +50,7 @@ def forward_run(tmp_path_factory):
 def _store_chunkwise(files, spans_by_chunk, wheel, settings=SETTINGS):
     """Emulate the fan-out tasks: chunk rows, then seam rows and level updates."""
     spans = np.array([s[wheel] for s in spans_by_chunk])
-    parts = [chunk_final_rows(settings, f, wheel, spans, i) for i, f in enumerate(files)]
+    parts = [chunk_final_rows(settings, f, {wheel: spans}, i) for i, f in enumerate(files)]
     stored = pd.concat([p for p in parts if p is not None], ignore_index=True)
     whole, _ = assemble_wheel(settings, files, wheel)
     seams, bins, levels = seam_rows(whole, spans)
@@ -95,7 +95,17 @@ def test_chunk_with_bins_outside_its_span_is_refused(forward_run):
     spans = np.array([s["11"] for s in spans_by_chunk])
     spans[1, 1] = spans[1, 0] + 3
     with pytest.raises(ValueError, match="outside its span"):
-        chunk_final_rows(SETTINGS, files[1], "11", spans, 1)
+        chunk_final_rows(SETTINGS, files[1], {"11": spans}, 1)
+
+
+def test_chunk_rows_of_all_wheels_at_once(forward_run):
+    _, _, files, spans_by_chunk = forward_run
+    spans = {w: np.array([s[w] for s in spans_by_chunk]) for w in ("11", "12", "41", "42")}
+    together = chunk_final_rows(SETTINGS, files[2], spans, 2)
+    one_by_one = pd.concat([chunk_final_rows(SETTINGS, files[2], {w: sp}, 2) for w, sp in spans.items()],
+                           ignore_index=True)
+    pd.testing.assert_frame_equal(together, one_by_one)
+    assert list(together["wheel"].unique()) == ["11", "12", "41", "42"]
 
 
 def test_descending_km_run(tmp_path):
