@@ -32,7 +32,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from app.analysis.aggregate import display_levels
 from app.analysis.binning import BinSums, position_to_bin
 from app.analysis.chunking import Chunk, plan_chunk_layout
 from app.analysis.order_residual import railway_residual
@@ -55,10 +54,6 @@ __all__ = [
     "process_chunk",
     "assemble",
     "assemble_wheel",
-    "bin_coverage",
-    "chunk_bin_spans",
-    "chunk_final_rows",
-    "seam_rows",
     "results_meta",
     "run_pipeline",
     "ENGINE_VERSION",
@@ -381,22 +376,19 @@ def _profile_columns(settings: ProcessingSettings) -> list[str]:
             "residual_rms", "sleeper_force_amp"]
 
 
-def _wheel_parts(
-    chunk_paths: Sequence[Path], wheels: Sequence[str]
-) -> dict[str, tuple[dict[str, list[BinSums]], float]]:
-    """Wheels' partial sums from chunk files: ``{wheel: ({"bins"|"resid"|"oor": parts}, d_w)}``."""
-    out: dict[str, tuple[dict[str, list[BinSums]], float]] = {w: ({}, 0.92) for w in wheels}
+def _wheel_parts(chunk_paths: Sequence[Path], wheel: str) -> tuple[dict[str, list[BinSums]], float]:
+    """One wheel's partial sums from chunk files: ``({"bins"|"resid"|"oor": parts}, d_w)``."""
+    g: dict[str, list[BinSums]] = {}
+    d_w = 0.92
     for path in sorted(chunk_paths, key=lambda p: str(p)):
         with np.load(path) as npz:
-            for wheel in wheels:
-                g, d_w = out[wheel]
-                for kind in ("bins", "resid", "oor"):
-                    part = _load_group(npz, f"{kind}_{wheel}__")
-                    if part is not None:
-                        g.setdefault(kind, []).append(part)
-                if f"diameter_{wheel}" in npz.files:
-                    out[wheel] = (g, float(npz[f"diameter_{wheel}"]))
-    return out
+            for kind in ("bins", "resid", "oor"):
+                part = _load_group(npz, f"{kind}_{wheel}__")
+                if part is not None:
+                    g.setdefault(kind, []).append(part)
+            if f"diameter_{wheel}" in npz.files:
+                d_w = float(npz[f"diameter_{wheel}"])
+    return g, d_w
 
 
 def _profile_rows(settings: ProcessingSettings, g: dict[str, list[BinSums]], wheel: str) -> pd.DataFrame:
@@ -435,172 +427,10 @@ def assemble_wheel(
         and its entry of ``RunResults.wheels``; None if the chunks hold no data
         of the wheel. Deterministic: the same files give the same result.
     """
-    g, d_w = _wheel_parts(chunk_paths, [wheel])[wheel]
+    g, d_w = _wheel_parts(chunk_paths, wheel)
     if not g:
         return None
     return _profile_rows(settings, g, wheel), _wheel_result(wheel, g.get("oor", []), d_w, settings)
-
-
-def chunk_bin_spans(run_path: Path, settings: ProcessingSettings, chunks: Sequence[ChunkSpec]) -> list[dict[str, list[int]]]:
-    """Range of profile bins each chunk's sums can touch, per wheel.
-
-    A chunk adds to the bins its samples ``[out_lo, out_hi)`` pass over (the
-    crossfades included), which are the bins between the lowest and highest
-    track position of the wheel's axle over those samples.
-
-    Parameters
-    ----------
-    run_path : Path
-        Canonical run file.
-    settings : ProcessingSettings
-    chunks : sequence of ChunkSpec
-        The chunks of :func:`plan_chunks`.
-
-    Returns
-    -------
-    list of dict
-        Per chunk (same order): ``{wheel: [first_bin, last_bin]}`` (inclusive)
-        for every wheel whose Z channel the run has.
-    """
-    out: list[dict[str, list[int]]] = []
-    with open_run(run_path) as run:
-        wheels = [w for w in WHEELS if run.has(f"Z{w}")]
-        if not wheels:
-            return [{} for _ in chunks]
-        ref = wheels[0][0]
-        # the other axles run the same positions shifted by their distance to the reference axle
-        sign = 1.0 if run.metadata.km_increasing else -1.0
-        shift = {w: sign * (run.axle_offset(w[0]) - run.axle_offset(ref)) for w in wheels}
-        for chunk in chunks:
-            track_m = run.track_m(chunk.out_lo, chunk.out_hi, axle=ref)  # one read per chunk
-            lo, hi = float(track_m.min()), float(track_m.max())
-            spans: dict[str, list[int]] = {}
-            for w in wheels:
-                b = position_to_bin(np.array([lo + shift[w], hi + shift[w]]), settings.bin_length_m)
-                spans[w] = [int(b[0]), int(b[1])]
-            out.append(spans)
-    return out
-
-
-def bin_coverage(bins: np.ndarray, spans: np.ndarray) -> np.ndarray:
-    """Number of chunk bin spans that hold each bin.
-
-    Parameters
-    ----------
-    bins : array_like of int
-        (n,) bin indices.
-    spans : array_like of int
-        (c, 2) inclusive ``[first, last]`` bin of each chunk (:func:`chunk_bin_spans`).
-
-    Returns
-    -------
-    numpy.ndarray of int64
-        (n,) count; a bin held by one span only gets its final value from that
-        chunk alone.
-    """
-    b = np.asarray(bins, dtype=np.int64)
-    sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
-    if sp.size and np.any(sp[:, 1] < sp[:, 0]):
-        raise ValueError("spans: last bin before first bin")
-    starts, ends = np.sort(sp[:, 0]), np.sort(sp[:, 1])
-    return (np.searchsorted(starts, b, side="right") - np.searchsorted(ends, b, side="left")).astype(np.int64)
-
-
-def chunk_final_rows(
-    settings: ProcessingSettings, chunk_path: Path, spans: dict[str, np.ndarray], own: int
-) -> pd.DataFrame | None:
-    """The profile rows that one chunk alone determines, with their chunk-local display levels.
-
-    A bin that no other chunk's span holds (:func:`bin_coverage` = 1) has its
-    final value as soon as this chunk is done: the rows are those
-    :func:`assemble_wheel` would give for these bins, bit for bit. The rows
-    are ranked for display over the chunk's rows of each wheel only;
-    :func:`seam_rows` gives the few levels that change over the whole wheel.
-
-    Parameters
-    ----------
-    settings : ProcessingSettings
-    chunk_path : Path
-        The chunk's result file.
-    spans : dict of str to array_like of int
-        Per wheel, the ``(c, 2)`` bin spans of all chunks of the job, by chunk
-        index (:func:`chunk_bin_spans`).
-    own : int
-        Row of the spans that is this chunk's.
-
-    Returns
-    -------
-    pandas.DataFrame or None
-        Columns of :func:`assemble_wheel`'s rows plus ``display_level``, the
-        wheels one after the other; None if the chunk holds no data of them.
-
-    Raises
-    ------
-    ValueError
-        If the chunk has sums outside its own span (the spans do not match the chunk).
-    """
-    frames = []
-    for wheel, (g, _) in _wheel_parts([chunk_path], list(spans)).items():
-        if not g:
-            continue
-        sp = np.asarray(spans[wheel], dtype=np.int64).reshape(-1, 2)
-        lo, hi = sp[own]
-        for kind in ("bins", "resid"):
-            b = g[kind][0].bins
-            if b.size and (b[0] < lo or b[-1] > hi):
-                raise ValueError(
-                    f"chunk file {Path(chunk_path).name}: wheel {wheel} has bins outside its span [{lo}, {hi}]"
-                )
-        prof = _profile_rows(settings, g, wheel)
-        prof = prof[bin_coverage(prof["bin"].to_numpy(), sp) == 1].reset_index(drop=True)
-        levels = display_levels(prof["bin"].to_numpy(), prof["sleeper_amp"].to_numpy())
-        frames.append(prof.assign(display_level=levels))
-    return pd.concat(frames, ignore_index=True) if frames else None
-
-
-def seam_rows(profile: pd.DataFrame, spans: np.ndarray) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
-    """What remains to store of a wheel whose chunks stored their own rows (:func:`chunk_final_rows`).
-
-    Parameters
-    ----------
-    profile : pandas.DataFrame
-        The wheel's whole profile (:func:`assemble_wheel`), sorted by bin.
-    spans : array_like of int
-        (c, 2) bin spans of all chunks for this wheel, by chunk index.
-
-    Returns
-    -------
-    rows : pandas.DataFrame
-        The rows of bins that two or more chunks add to, with ``display_level``
-        ranked over the whole wheel.
-    bins, levels : numpy.ndarray
-        Bins stored by the chunks whose display level over the whole wheel
-        differs from their chunk-local level, and that level.
-
-    Notes
-    -----
-    A bin's level over the whole wheel never exceeds its chunk-local one
-    (an extreme of a bucket is an extreme of any part of it that holds it)
-    unless that is the chunk's top level, where its pyramid stops; so only
-    bins near the chunk ends and the chunk-local top levels change, a few
-    dozen per chunk.
-    """
-    bins = profile["bin"].to_numpy(dtype=np.int64)
-    amp = profile["sleeper_amp"].to_numpy(dtype=np.float64)
-    sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
-    cover = bin_coverage(bins, sp)
-    levels = display_levels(bins, amp)
-    local = np.full(bins.size, -1, dtype=np.int16)
-    for lo, hi in sp:
-        a, b = np.searchsorted(bins, lo, side="left"), np.searchsorted(bins, hi, side="right")
-        own = a + np.flatnonzero(cover[a:b] == 1)
-        local[own] = display_levels(bins[own], amp[own])
-    alone = cover == 1
-    if np.any(local[alone] < 0):
-        raise ValueError("spans: a bin held by one span was not found in it")
-    changed = alone & (local != levels)
-    rows = profile[~alone].assign(display_level=levels[~alone]).reset_index(drop=True)
-    return rows, bins[changed], levels[changed]
 
 
 def results_meta(settings: ProcessingSettings, n_chunks: int) -> dict[str, Any]:

@@ -5,28 +5,22 @@ worker (:func:`worker.pipeline.plan_chunks`, :func:`~worker.pipeline.process_chu
 :func:`~worker.pipeline.assemble_wheel`)::
 
     jobs row 'queued' ──dispatch_jobs (periodic, 1 s)──▶ plan_job(job_id)
-        plan_job:      claim the job, plan chunks and the profile bins each can
-                       touch, record chunk rows, defer process_chunk(job_id, index)
-                       for every chunk not done
-        process_chunk: chunk result file (atomic: temp + rename); then, in one
-                       transaction, the rows of the bins no other chunk touches
-                       (most of a wheel's rows) and chunk row 'done'; the task that
-                       sees all chunks done defers assemble_job
+        plan_job:      claim the job, plan chunks, record chunk rows,
+                       defer process_chunk(job_id, index) for every chunk not done
+        process_chunk: chunk result file (atomic: temp + rename) → chunk row 'done';
+                       the task that sees all chunks done defers assemble_job
         assemble_job:  defer store_wheel(job_id, wheel) for every wheel
-        store_wheel:   merge the wheel's sums from the chunk files; in one
-                       transaction, the rows of the bins between chunks and the
-                       display levels that change over the whole wheel; then its
-                       OOR result file; the task that sees every wheel stored
-                       defers publish_job
+        store_wheel:   merge the wheel's sums from the chunk files → its profile
+                       rows (one transaction, keyed by the job: not yet visible),
+                       then its OOR result file; the task that sees every wheel
+                       stored defers publish_job
         publish_job:   in one transaction: the run's wheel rows replaced, the
                        older jobs' profile rows deleted, the job marked 'done'
                        (readers show a run's latest done job: they switch from
                        the old to the new results at this commit)
 
-Rows are keyed by the job and stay invisible until it is published. Most rows
-are written while other chunks still compute, so little is left after the
-last chunk, and the wheels are finished in parallel by as many workers as are
-free.
+The wheels are stored in parallel by as many workers as are free, so the
+tail after the last chunk shrinks with the number of workers too.
 
 Delivery is at-least-once (Procrastinate's retries, and the documented
 stalled-jobs periodic task :func:`retry_stalled_jobs` for workers that died),
@@ -36,9 +30,7 @@ and every step is idempotent:
   same file, and a file that exists is not computed again;
 * chunk rows are unique per (job, chunk) and only change status; progress is
   done rows / all rows, never a counter;
-* a chunk's profile rows are written in the transaction that marks it done,
-  with its chunk row locked: a chunk found done writes nothing again;
-* a wheel's remaining rows (primary key job, wheel, bin) are replaced in one
+* a wheel's rows (primary key job, wheel, bin) are replaced in one
   transaction, only while the job is running; its result file is written
   after the commit, and a stored wheel is not stored again;
 * publishing is guarded by ``status = 'running'``: a second publish of a done
@@ -71,7 +63,6 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 import procrastinate
 import psycopg
 import sqlalchemy.exc
@@ -195,28 +186,6 @@ def _defer(app: procrastinate.App, name: str, lock: str | None, priority: int, *
         return False
 
 
-#: key of a chunk's recorded spec holding its profile-bin span per wheel
-#: (:func:`worker.pipeline.chunk_bin_spans`): with it, chunks store their own rows
-_SPANS_KEY = "bin_spans"
-
-
-def _chunk_of(spec: dict[str, Any]) -> Any:
-    """The :class:`~worker.pipeline.ChunkSpec` of a recorded chunk spec."""
-    from worker.pipeline import ChunkSpec
-
-    return ChunkSpec.from_dict({k: v for k, v in spec.items() if k != _SPANS_KEY})
-
-
-def _wheel_spans(specs: dict[int, dict[str, Any]]) -> dict[str, np.ndarray] | None:
-    """Per wheel, the ``(n_chunks, 2)`` bin spans by chunk index; None if the job was
-    planned without them (then the wheel tasks store every row)."""
-    ordered = [specs[i] for i in sorted(specs)]
-    if not ordered or any(_SPANS_KEY not in spec for spec in ordered):
-        return None
-    return {w: np.array([spec[_SPANS_KEY][w] for spec in ordered], dtype=np.int64).reshape(-1, 2)
-            for w in ordered[0][_SPANS_KEY]}
-
-
 def make_app(settings: Settings | None = None) -> procrastinate.App:
     """The Procrastinate app of trackvkf with its tasks, for ``settings``' database.
 
@@ -269,7 +238,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
     @app.task(name=TASK_PLAN, retry=_RETRY, pass_context=True)
     def plan_job(context: procrastinate.JobContext, job_id: int) -> str:
         """Claim a queued job, record its chunks and defer one task per chunk."""
-        from worker.pipeline import chunk_bin_spans, plan_chunks
+        from worker.pipeline import plan_chunks
 
         owner = f"{queue.FANOUT_OWNER_PREFIX}{context.job.id}"
         if not queue.claim_for_fanout(rt.db, job_id, owner):
@@ -281,11 +250,8 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             if job is None or run is None:
                 return "lost"
             run_path = rt.store.local_file(run.file_path)  # fetched from the shared store if need be
-            settings_ = ProcessingSettings.from_dict(job.settings)
-            chunks = plan_chunks(run_path, settings_)
-            spans = chunk_bin_spans(run_path, settings_, chunks)
-            specs = [(c.index, {**c.to_dict(), _SPANS_KEY: s}) for c, s in zip(chunks, spans, strict=True)]
-            if not queue.record_chunks(rt.db, job_id, owner, specs):
+            chunks = plan_chunks(run_path, ProcessingSettings.from_dict(job.settings))
+            if not queue.record_chunks(rt.db, job_id, owner, [(c.index, c.to_dict()) for c in chunks]):
                 return "lost"
             if rt.chunks.is_local:
                 discard_partial_files(rt.store.job_dir(run.id, job_id))
@@ -295,12 +261,10 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             _fail(rt, job_id, exc)
             return "failed"
         pending = 0
-        recorded = queue.job_chunk_specs(rt.db, job_id)  # a retried plan keeps the first plan
         for chunk in chunks:
-            if rt.chunks.exists(run.id, job_id, chunk.index):  # computed by an earlier attempt
-                outcome = _complete_chunk(job, run, chunk.index, recorded)
-                if outcome != "done":
-                    return outcome
+            if rt.chunks.exists(run.id, job_id, chunk.index):
+                queue.mark_chunk(rt.db, job_id, None, chunk.index, ChunkStatus.DONE,
+                                 rt.chunks.location(run.id, job_id, chunk.index))
                 continue
             pending += 1
             _defer(context.app, TASK_CHUNK, f"chunk:{job_id}:{chunk.index}", _PRIO_CHUNK,
@@ -312,7 +276,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
     @app.task(name=TASK_CHUNK, retry=_RETRY, pass_context=True)
     def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) -> str:
         """Compute one chunk's result file (unless it exists) and mark the chunk done."""
-        from worker.pipeline import PipelineCancelled
+        from worker.pipeline import ChunkSpec, PipelineCancelled
         from worker.pipeline import process_chunk as compute_chunk
 
         with rt.db.read() as session:
@@ -325,15 +289,15 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             queue.finalize_cancel_requests(rt.db)
             return f"job {job.status}"
         t0 = time.perf_counter()
-        specs = queue.job_chunk_specs(rt.db, job_id)
-        if index not in specs:
-            return "unknown chunk"
         if not rt.chunks.exists(run.id, job_id, index):
+            spec = queue.job_chunk_specs(rt.db, job_id).get(index)
+            if spec is None:
+                return "unknown chunk"
             if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.RUNNING) is None:
                 return "job not running"
             run_path = rt.store.local_file(run.file_path)
             settings_ = ProcessingSettings.from_dict(job.settings)
-            chunk = _chunk_of(specs[index])
+            chunk = ChunkSpec.from_dict(spec)
             watch = _CancelWatch(rt, job_id, context)
             try:
                 rt.chunks.write(
@@ -352,9 +316,9 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
                 _fail(rt, job_id, exc)
                 return "failed"
         compute_s = time.perf_counter() - t0
-        outcome = _complete_chunk(job, run, index, specs)
-        if outcome != "done":
-            return outcome
+        if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.DONE,
+                            rt.chunks.location(run.id, job_id, index)) is None:
+            return "job not running"
         done, total = queue.chunk_progress(rt.db, job_id)
         log.info("job %s chunk %s done in %.2f s (%d/%d)", job_id, index, compute_s, done, total)
         if done == total:
@@ -374,37 +338,6 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
 
     def _wheels_of(run: Any) -> list[str]:
         return [w for w in WHEELS if f"Z{w}" in (run.channels or [])]
-
-    def _complete_chunk(job: Any, run: Any, index: int, specs: dict[int, dict[str, Any]]) -> str:
-        """Store the rows a computed chunk alone determines and mark it done (one transaction).
-
-        Returns ``"done"``, ``"not running"`` (job final, cancel requested or run
-        gone: nothing written) or ``"failed"`` (the job was failed).
-        """
-        from worker.pipeline import chunk_final_rows
-
-        location = rt.chunks.location(run.id, job.id, index)
-        spans = _wheel_spans(specs)
-        if spans is None:  # planned without spans: the wheel tasks store every row
-            done = queue.mark_chunk(rt.db, job.id, None, index, ChunkStatus.DONE, location)
-            return "not running" if done is None else "done"
-        try:
-            own = sorted(specs).index(index)
-            settings_ = ProcessingSettings.from_dict(job.settings)
-            with rt.chunks.local_copies(run.id, job.id, [index]) as paths:
-                rows = chunk_final_rows(settings_, paths[0], spans, own)
-            stored = queue.store_chunk_rows(rt.db, job.id, run.id, index, rows, location)
-        except Exception as exc:
-            if _is_transient(exc):
-                raise
-            queue.mark_chunk(rt.db, job.id, None, index, ChunkStatus.FAILED)
-            _fail(rt, job.id, exc)
-            return "failed"
-        if not stored:
-            return "not running"
-        # the job's progress (the chunk row is done already)
-        queue.mark_chunk(rt.db, job.id, None, index, ChunkStatus.DONE, location)
-        return "done"
 
     @app.task(name=TASK_ASSEMBLE, retry=_RETRY, pass_context=True)
     def assemble_job(context: procrastinate.JobContext, job_id: int) -> str:
@@ -432,7 +365,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
         ``wheel-<wheel>.json``: its presence means the wheel is stored. The
         task that finds every wheel stored defers :func:`publish_job`.
         """
-        from worker.pipeline import assemble_wheel, seam_rows
+        from worker.pipeline import assemble_wheel
 
         job, run, why = _running(job_id)
         if why is not None:
@@ -441,9 +374,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             return f"run {run.id} has no wheel {wheel!r}"
         name = _WHEEL_FILE.format(wheel=wheel)
         if not rt.chunks.exists_named(run.id, job_id, name):
-            specs = queue.job_chunk_specs(rt.db, job_id)
-            indices = sorted(specs)
-            spans = _wheel_spans(specs)
+            indices = sorted(queue.job_chunk_specs(rt.db, job_id))
             t0 = time.perf_counter()
             try:
                 with rt.chunks.local_copies(run.id, job_id, indices) as paths:
@@ -455,25 +386,15 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
                 return "failed"
             profiles, result = done if done is not None else (None, None)  # None: no data of the wheel
             t1 = time.perf_counter()
-            n_written = 0
-            if profiles is not None:
-                if spans is None:  # planned without spans: every row is written here
-                    stored = queue.store_wheel_rows(rt.db, job_id, run.id, profiles)
-                    n_written = len(profiles)
-                else:  # the chunks stored their own rows: the seams and changed levels are left
-                    seams, level_bins, levels = seam_rows(profiles, spans[wheel])
-                    stored = queue.store_wheel_seams(rt.db, job_id, run.id, wheel, seams, level_bins, levels)
-                    n_written = len(seams)
-                if not stored:
-                    return "job not running"
+            if profiles is not None and not queue.store_wheel_rows(rt.db, job_id, run.id, profiles):
+                return "job not running"
             t2 = time.perf_counter()
             record = {"result": result, "rows": 0 if profiles is None else len(profiles),
-                      "rows_written": n_written,
                       "assemble_s": round(t1 - t0, 3),
                       "store_s": round(t2 - t1, 3)}
             rt.chunks.write_bytes(run.id, job_id, name, json.dumps(crud.jsonable(record)).encode())
-            log.info("job %s wheel %s: assembled in %.2f s, %d of %d rows written in %.2f s",
-                     job_id, wheel, t1 - t0, n_written, record["rows"], t2 - t1)
+            log.info("job %s wheel %s: assembled in %.2f s, %d rows stored in %.2f s",
+                     job_id, wheel, t1 - t0, record["rows"], t2 - t1)
         if all(rt.chunks.exists_named(run.id, job_id, _WHEEL_FILE.format(wheel=w)) for w in _wheels_of(run)):
             _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
         return f"wheel {wheel} stored"

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import and_, bindparam, delete, func, insert, select, update
+from sqlalchemy import and_, delete, func, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import display_levels
@@ -66,8 +66,6 @@ __all__ = [
 PROFILE_COLUMNS: tuple[str, ...] = ("wheel", "bin", "km", *PROFILE_VALUE_COLUMNS)
 
 _INSERT_BATCH = 20_000
-#: bins per ``DELETE … IN (…)`` (SQLite allows 32 766 parameters a statement)
-_DELETE_BATCH = 5_000
 #: PostgreSQL binary type of every column of a stored profile row (see _profile_frame)
 _PG_COPY_TYPES: dict[str, str] = {
     "run_id": "int4", "job_id": "int4", "wheel": "text", "bin": "int8", "km": "float8",
@@ -431,69 +429,6 @@ def store_profile_rows(session: Session, run_id: int, job_id: int, profiles: pd.
     for a in range(0, len(profiles), _INSERT_BATCH):
         _insert_profiles(session, _profile_frame(profiles.iloc[a : a + _INSERT_BATCH], run_id, job_id))
     return len(profiles)
-
-
-def insert_ranked_profile_rows(
-    session: Session, run_id: int, job_id: int, profiles: pd.DataFrame, *, replace: bool = True
-) -> int:
-    """Write some of a job's profile rows that carry their ``display_level`` (not yet published).
-
-    For rows stored piece by piece (fan-out mode: each chunk's own bins, then
-    the bins between chunks, :mod:`worker.tasks`). With ``replace`` the job's
-    rows of the same (wheel, bin) are deleted first, so a retried write never
-    duplicates rows; the caller locks the run (:func:`lock_run_for_results`).
-
-    Returns
-    -------
-    int
-        Number of profile rows written.
-
-    Raises
-    ------
-    ValueError
-        If ``profiles`` lacks a required column or ``display_level``.
-    """
-    if "display_level" not in profiles.columns:
-        raise ValueError("profiles: missing column display_level")
-    _profile_frame(profiles.iloc[:0], run_id, job_id)  # checks the columns
-    if replace and len(profiles):
-        for wheel, rows in profiles.groupby(profiles["wheel"].astype(str), sort=True):
-            bins = rows["bin"].to_numpy(dtype=np.int64).tolist()
-            for a in range(0, len(bins), _DELETE_BATCH):
-                session.execute(
-                    delete(ProfileBin).where(
-                        ProfileBin.job_id == job_id,
-                        ProfileBin.wheel == wheel,
-                        ProfileBin.bin.in_(bins[a : a + _DELETE_BATCH]),
-                    )
-                )
-    for a in range(0, len(profiles), _INSERT_BATCH):
-        _insert_profiles(session, _profile_frame(profiles.iloc[a : a + _INSERT_BATCH], run_id, job_id))
-    return len(profiles)
-
-
-def set_display_levels(session: Session, job_id: int, wheel: str, bins: np.ndarray, levels: np.ndarray) -> None:
-    """Set the ``display_level`` of some of a job's stored bins of one wheel.
-
-    Raises
-    ------
-    ValueError
-        If ``bins`` and ``levels`` differ in length.
-    """
-    b = np.asarray(bins, dtype=np.int64).ravel()
-    lv = np.asarray(levels, dtype=np.int64).ravel()
-    if b.shape != lv.shape:
-        raise ValueError(f"levels must have one value per bin ({b.size}), got {lv.size}")
-    if not b.size:
-        return
-    stmt = (
-        update(ProfileBin)
-        .where(ProfileBin.job_id == job_id, ProfileBin.wheel == wheel, ProfileBin.bin == bindparam("b_bin"))
-        .values(display_level=bindparam("b_level"))
-    )
-    session.connection().execute(
-        stmt, [{"b_bin": int(x), "b_level": int(y)} for x, y in zip(b, lv, strict=True)]
-    )
 
 
 def stored_profile_wheels(session: Session, job_id: int) -> list[str]:

@@ -18,12 +18,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 import pandas as pd
 from sqlalchemy import and_, case, func, literal, or_, select, update
 
 from app.db import crud
-from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, ProfileBin, UTCDateTime, utcnow
+from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
 from app.db.session import Database
 
 __all__ = [
@@ -36,8 +35,6 @@ __all__ = [
     "finish_job",
     "complete_job",
     "store_wheel_rows",
-    "store_chunk_rows",
-    "store_wheel_seams",
     "FANOUT_OWNER_PREFIX",
     "queued_job_ids",
     "claim_for_fanout",
@@ -328,113 +325,16 @@ def store_wheel_rows(db: Database, job_id: int, run_id: int, profiles: pd.DataFr
         True if the rows were written (the job is running, no cancel requested).
     """
     with db.write() as session:
-        if not crud.lock_run_for_results(session, run_id) or not _lock_running_job(session, job_id):
+        if not crud.lock_run_for_results(session, run_id):
+            return False
+        running = session.scalar(
+            select(Job.id)
+            .where(_owned(job_id, None), Job.cancel_requested.is_(False))
+            .with_for_update(read=True)
+        )
+        if running is None:
             return False
         crud.store_profile_rows(session, run_id, job_id, profiles)
-        return True
-
-
-def _lock_running_job(session: Any, job_id: int) -> bool:
-    """Share-lock a running fan-out job without a cancel request; False if it is not one.
-
-    A cancel or failure that marks the job final (an ``UPDATE`` of its row)
-    waits for the caller's commit and then discards the rows it wrote
-    (:func:`finish_job`, :func:`finalize_cancel_requests`); a job already
-    final gets none.
-    """
-    running = session.scalar(
-        select(Job.id)
-        .where(_owned(job_id, None), Job.cancel_requested.is_(False))
-        .with_for_update(read=True)
-    )
-    return running is not None
-
-
-def store_chunk_rows(
-    db: Database,
-    job_id: int,
-    run_id: int,
-    index: int,
-    profiles: pd.DataFrame | None,
-    result_path: str | None = None,
-) -> bool:
-    """Write the profile rows one chunk alone determines and mark the chunk done, in one transaction.
-
-    Fan-out mode: each chunk task stores its own bins as soon as it is done
-    (:func:`worker.pipeline.chunk_final_rows`), so that little is left to
-    write after the last chunk. The chunk row is locked first: a chunk found
-    done already (a task delivered twice, or resumed) writes nothing, so its
-    rows are never written twice. The rows stay invisible until the job is
-    published (:func:`complete_job`).
-
-    Parameters
-    ----------
-    profiles : pandas.DataFrame or None
-        The chunk's rows of all wheels, with ``display_level`` (None: none).
-    result_path : str, optional
-        Where the chunk's result file is, recorded on the chunk row.
-
-    Returns
-    -------
-    bool
-        True if the chunk is done (now or before), False if the job is not
-        running, has a cancel request or the run is gone.
-    """
-    with db.write() as session:
-        if not crud.lock_run_for_results(session, run_id) or not _lock_running_job(session, job_id):
-            return False
-        status = session.scalar(
-            select(JobChunk.status)
-            .where(JobChunk.job_id == job_id, JobChunk.chunk_index == index)
-            .with_for_update()
-        )
-        if status is None:
-            raise LookupError(f"job {job_id} has no chunk {index}")
-        if status == ChunkStatus.DONE:
-            return True
-        if profiles is not None and len(profiles):
-            crud.insert_ranked_profile_rows(session, run_id, job_id, profiles, replace=False)
-        values: dict[str, Any] = {"status": ChunkStatus.DONE, "finished_at": utcnow()}
-        if result_path is not None:
-            values["result_path"] = result_path
-        session.execute(
-            update(JobChunk).where(JobChunk.job_id == job_id, JobChunk.chunk_index == index).values(**values)
-        )
-        return True
-
-
-def store_wheel_seams(
-    db: Database,
-    job_id: int,
-    run_id: int,
-    wheel: str,
-    profiles: pd.DataFrame,
-    level_bins: np.ndarray,
-    levels: np.ndarray,
-) -> bool:
-    """Write what is left of a wheel after its chunks stored their rows (:func:`store_chunk_rows`).
-
-    One transaction: the rows of bins between chunks (replacing the job's
-    earlier rows of those bins, so a retry never duplicates them) and the
-    display levels over the whole wheel of the chunk-stored bins whose level
-    changes (:func:`worker.pipeline.seam_rows`). Guarded like
-    :func:`store_wheel_rows`.
-
-    Returns
-    -------
-    bool
-        True if written (the job is running, no cancel requested).
-    """
-    with db.write() as session:
-        if not crud.lock_run_for_results(session, run_id) or not _lock_running_job(session, job_id):
-            return False
-        # the rows are written all or none (this transaction): if the first is there, a
-        # retry replaces them all; if not (the usual case), there is nothing to delete
-        retry = len(profiles) > 0 and session.get(
-            ProfileBin, (job_id, wheel, int(profiles["bin"].iloc[0]))
-        ) is not None
-        crud.insert_ranked_profile_rows(session, run_id, job_id, profiles, replace=retry)
-        crud.set_display_levels(session, job_id, wheel, level_bins, levels)
         return True
 
 
