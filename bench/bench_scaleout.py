@@ -45,7 +45,6 @@ def _env(database_url: str, store: Path) -> dict[str, str]:
         TRACKVKF_RUN_STORE=str(store),
         TRACKVKF_WORKER_HEARTBEAT_S="1",
         TRACKVKF_WORKER_STALE_AFTER_S="10",
-        TRACKVKF_WORKER_POLL_INTERVAL_S="0.5",
         TRACKVKF_LOG_LEVEL=os.environ.get("BENCH_WORKER_LOG_LEVEL", "WARNING"),
         PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
         OMP_NUM_THREADS="1",

@@ -4,7 +4,7 @@ A job is fanned out into tasks that run the same pure functions as the local
 worker (:func:`worker.pipeline.plan_chunks`, :func:`~worker.pipeline.process_chunk`,
 :func:`~worker.pipeline.assemble_wheel`)::
 
-    jobs row 'queued' ──dispatch_jobs (periodic, 1 s)──▶ plan_job(job_id)
+    jobs row 'queued' ──NOTIFY at commit (fallback: dispatch_jobs, every 5 s)──▶ plan_job(job_id)
         plan_job:      claim the job, plan chunks, record chunk rows,
                        defer process_chunk(job_id, index) for every chunk not done
         process_chunk: chunk result file (atomic: temp + rename) → chunk row 'done';
@@ -39,9 +39,10 @@ and every step is idempotent:
 * deferrals use queueing locks (one waiting copy per chunk / wheel / job), and
   a duplicate that slips through is harmless by the rules above.
 
-Cancel (API ``POST /jobs/{id}/cancel``) sets ``cancel_requested``; the
-dispatcher marks the job cancelled within a second and running chunks stop at
-their next sub-block (``should_cancel`` polls the job row).
+Cancel (API ``POST /jobs/{id}/cancel``) sets ``cancel_requested``; running
+chunks stop at their next sub-block (``should_cancel`` polls the job row) and
+mark the job cancelled, and the dispatcher does so within 5 s for a job with
+no chunk running.
 
 Run a worker with ``trackvkf worker`` (or ``python -m worker``) when
 ``TRACKVKF_DATABASE_URL`` is a PostgreSQL URL; ``--processes N`` starts N
@@ -108,6 +109,8 @@ _PRIO_HIGH = 10
 _PRIO_CHUNK = 0
 #: job file holding a stored wheel's OOR result (its presence: the wheel is stored)
 _WHEEL_FILE = "wheel-{wheel}.json"
+#: seconds between two runs of the periodic dispatcher (a fallback: jobs are planned on NOTIFY)
+_DISPATCH_EVERY_S = 5
 #: seconds between two looks of a running chunk at its job row (cancel)
 _CANCEL_POLL_S = 0.5
 
@@ -209,7 +212,9 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
     stalled_every = max(1, min(59, int(settings.worker_stale_after_s / 3)))
 
     # --- periodic bookkeeping ----------------------------------------------
-    @app.periodic(cron="* * * * * *")
+    # new jobs are planned at once on their NOTIFY (_plan_on_notify); this is the
+    # fallback and finishes cancel requests of jobs without a running chunk
+    @app.periodic(cron=f"* * * * * */{_DISPATCH_EVERY_S}")
     @app.task(name=TASK_DISPATCH, queueing_lock=TASK_DISPATCH, priority=_PRIO_HIGH, pass_context=True)
     def dispatch_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
         """Fan queued jobs out to :func:`plan_job`; finish cancel requests."""
@@ -564,7 +569,11 @@ async def _serve(
             async with app.open_async():
                 task = asyncio.create_task(app.run_worker_async(**options))
                 current[:] = [task]
-                await task
+                listener = asyncio.create_task(_plan_on_notify(app, settings), name="job notifications")
+                try:
+                    await task
+                finally:
+                    listener.cancel()
             if not wait:
                 break
             log.warning("procrastinate worker stopped on its own; restarting in 1 s")
@@ -584,6 +593,36 @@ async def _serve(
         except TimeoutError:
             pass
     return 0
+
+
+async def _plan_on_notify(app: procrastinate.App, settings: Settings) -> None:
+    """Defer :func:`plan_job` as soon as a job is queued (PostgreSQL ``NOTIFY``
+    :data:`app.db.crud.JOBS_CHANNEL`, sent by the job's commit).
+
+    Every worker process listens; the queueing lock keeps one waiting plan task
+    per job and a second planner finds the job claimed. The periodic
+    dispatcher stays the fallback (a notification missed while a listener
+    reconnects), so a lost notification delays a job by seconds, never loses it.
+    """
+    while True:
+        try:
+            conn = await psycopg.AsyncConnection.connect(libpq_url(settings.database_url), autocommit=True)
+            async with conn:
+                await conn.execute(f"LISTEN {crud.JOBS_CHANNEL}")
+                async for note in conn.notifies():
+                    if not note.payload.isdigit():
+                        continue
+                    try:
+                        await app.configure_task(
+                            TASK_PLAN, queueing_lock=f"plan:{note.payload}", priority=_PRIO_HIGH
+                        ).defer_async(job_id=int(note.payload))
+                    except pexc.AlreadyEnqueued:
+                        pass
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:  # database away: listen again shortly; the dispatcher covers the gap
+            log.warning("job notifications: %s: %s; listening again in 1 s", type(exc).__name__, exc)
+            await asyncio.sleep(1.0)
 
 
 def run_workers(settings: Settings | None = None, processes: int = 1) -> int:

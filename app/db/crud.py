@@ -66,6 +66,8 @@ __all__ = [
 PROFILE_COLUMNS: tuple[str, ...] = ("wheel", "bin", "km", *PROFILE_VALUE_COLUMNS)
 
 _INSERT_BATCH = 20_000
+#: PostgreSQL notification channel of newly queued jobs (payload: the job id)
+JOBS_CHANNEL = "trackvkf_jobs"
 #: PostgreSQL binary type of every column of a stored profile row (see _profile_frame)
 _PG_COPY_TYPES: dict[str, str] = {
     "run_id": "int4", "job_id": "int4", "wheel": "text", "bin": "int8", "km": "float8",
@@ -157,7 +159,11 @@ def delete_run(session: Session, run_id: int) -> bool:
 def create_job(
     session: Session, run_id: int, settings: dict[str, Any], created_by: str | None = None
 ) -> Job:
-    """Queue a processing job for run ``run_id`` with ``settings`` (a settings dict)."""
+    """Queue a processing job for run ``run_id`` with ``settings`` (a settings dict).
+
+    On PostgreSQL the commit also notifies :data:`JOBS_CHANNEL` with the job id,
+    so that the production workers plan it at once (:mod:`worker.tasks`).
+    """
     job = Job(
         run_id=run_id,
         status=JobStatus.QUEUED,
@@ -170,6 +176,9 @@ def create_job(
     )
     session.add(job)
     session.flush()
+    if session.get_bind().dialect.name == "postgresql":
+        # delivered at commit, and only if the job is committed
+        session.execute(select(func.pg_notify(JOBS_CHANNEL, str(job.id))))
     return job
 
 
