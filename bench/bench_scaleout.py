@@ -98,6 +98,16 @@ def _clear_results(db, run_id: int) -> None:
         conn.execute(text("VACUUM ANALYZE profile_bins"))
 
 
+def _cpu_steal_s() -> float:
+    """CPU time the hypervisor gave to other guests so far, s (all cores; 0 off Linux)."""
+    try:
+        with open("/proc/stat") as fh:
+            fields = fh.readline().split()
+        return int(fields[8]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
 def _measure(client, db, run_id: int, settings: dict, n_workers: int, env, logdir) -> dict:
     from sqlalchemy import select
 
@@ -105,6 +115,7 @@ def _measure(client, db, run_id: int, settings: dict, n_workers: int, env, logdi
 
     _clear_results(db, run_id)
     procs = _start_workers(n_workers, env, logdir)
+    steal0 = _cpu_steal_s()
     try:
         job_id = client.post(f"/api/v1/runs/{run_id}/jobs", json=settings).json()["id"]
         while True:
@@ -114,6 +125,7 @@ def _measure(client, db, run_id: int, settings: dict, n_workers: int, env, logdi
                     break
             time.sleep(0.2)
     finally:
+        steal = _cpu_steal_s() - steal0
         _stop(procs)
     if job.status != "done":
         raise RuntimeError(f"job {job_id} {job.status}: {job.error}")
@@ -136,6 +148,7 @@ def _measure(client, db, run_id: int, settings: dict, n_workers: int, env, logdi
         "chunk_compute_s": sum(compute),
         "mean_chunk_s": sum(compute) / len(compute),
         "assemble_s": float((job.meta or {}).get("worker", {}).get("assemble_s", 0.0)),
+        "steal_s": steal,
     }
 
 
@@ -195,11 +208,11 @@ def main(argv: list[str] | None = None) -> int:
     overhead = (one["wall_s"] - one["chunk_compute_s"] - one["assemble_s"]) / one["n_chunks"]
     print(f"\nRun: {args.minutes:g} min simulated at {args.fs:g} Hz, chunk_seconds {args.chunk_seconds:g}, "
           f"{one['n_chunks']} chunks; cores available: {len(os.sched_getaffinity(0))}\n")
-    print("| workers | wall time (s) | Σ chunk compute (s) | mean chunk (s) | assemble (s) |")
-    print("|--:|--:|--:|--:|--:|")
+    print("| workers | wall time (s) | Σ chunk compute (s) | mean chunk (s) | assemble (s) | CPU stolen by other guests (s) |")
+    print("|--:|--:|--:|--:|--:|--:|")
     for r in results:
         print(f"| {r['workers']} | {r['wall_s']:.1f} | {r['chunk_compute_s']:.1f} | "
-              f"{r['mean_chunk_s']:.2f} | {r['assemble_s']:.2f} |")
+              f"{r['mean_chunk_s']:.2f} | {r['assemble_s']:.2f} | {r['steal_s']:.1f} |")
     print(f"\nspeed-up 2 vs 1 worker: {one['wall_s'] / two['wall_s']:.2f}x (target >= 1.8x)")
     print(f"queue overhead per chunk (1 worker, all non-compute time / chunks): {overhead * 1000:.0f} ms = "
           f"{100 * overhead / one['mean_chunk_s']:.1f} % of the mean chunk compute (target < 5 %)")
