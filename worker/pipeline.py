@@ -376,37 +376,6 @@ def _profile_columns(settings: ProcessingSettings) -> list[str]:
             "residual_rms", "sleeper_force_amp"]
 
 
-def _wheel_parts(chunk_paths: Sequence[Path], wheel: str) -> tuple[dict[str, list[BinSums]], float]:
-    """One wheel's partial sums from chunk files: ``({"bins"|"resid"|"oor": parts}, d_w)``."""
-    g: dict[str, list[BinSums]] = {}
-    d_w = 0.92
-    for path in sorted(chunk_paths, key=lambda p: str(p)):
-        with np.load(path) as npz:
-            for kind in ("bins", "resid", "oor"):
-                part = _load_group(npz, f"{kind}_{wheel}__")
-                if part is not None:
-                    g.setdefault(kind, []).append(part)
-            if f"diameter_{wheel}" in npz.files:
-                d_w = float(npz[f"diameter_{wheel}"])
-    return g, d_w
-
-
-def _profile_rows(settings: ProcessingSettings, g: dict[str, list[BinSums]], wheel: str) -> pd.DataFrame:
-    """Profile rows of a wheel (sorted by bin) from its merged bin and residual sums."""
-    prof = BinSums.merge_all(g["bins"]).finalize(settings.bin_length_m)
-    resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
-    prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
-    prof = prof[prof["n_samples"] > 0]
-    if "sleeper_force_amp" not in prof:
-        prof["sleeper_force_amp"] = np.nan
-    prof = prof.rename(columns={"speed": "speed_mean"})
-    prof.insert(0, "wheel", wheel)
-    prof = prof[_profile_columns(settings)].sort_values("bin").reset_index(drop=True)
-    prof["bin"] = prof["bin"].astype(np.int64)
-    prof["n_samples"] = prof["n_samples"].astype(np.int64)
-    return prof
-
-
 def assemble_wheel(
     settings: ProcessingSettings, chunk_paths: Sequence[Path], wheel: str
 ) -> tuple[pd.DataFrame, dict[str, Any]] | None:
@@ -427,10 +396,30 @@ def assemble_wheel(
         and its entry of ``RunResults.wheels``; None if the chunks hold no data
         of the wheel. Deterministic: the same files give the same result.
     """
-    g, d_w = _wheel_parts(chunk_paths, wheel)
+    g: dict[str, list[BinSums]] = {}
+    d_w = 0.92
+    for path in sorted(chunk_paths, key=lambda p: str(p)):
+        with np.load(path) as npz:
+            for kind in ("bins", "resid", "oor"):
+                part = _load_group(npz, f"{kind}_{wheel}__")
+                if part is not None:
+                    g.setdefault(kind, []).append(part)
+            if f"diameter_{wheel}" in npz.files:
+                d_w = float(npz[f"diameter_{wheel}"])
     if not g:
         return None
-    return _profile_rows(settings, g, wheel), _wheel_result(wheel, g.get("oor", []), d_w, settings)
+    prof = BinSums.merge_all(g["bins"]).finalize(settings.bin_length_m)
+    resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
+    prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
+    prof = prof[prof["n_samples"] > 0]
+    if "sleeper_force_amp" not in prof:
+        prof["sleeper_force_amp"] = np.nan
+    prof = prof.rename(columns={"speed": "speed_mean"})
+    prof.insert(0, "wheel", wheel)
+    prof = prof[_profile_columns(settings)].sort_values("bin").reset_index(drop=True)
+    prof["bin"] = prof["bin"].astype(np.int64)
+    prof["n_samples"] = prof["n_samples"].astype(np.int64)
+    return prof, _wheel_result(wheel, g.get("oor", []), d_w, settings)
 
 
 def results_meta(settings: ProcessingSettings, n_chunks: int) -> dict[str, Any]:
