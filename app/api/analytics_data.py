@@ -103,7 +103,7 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
         for r in runs:
             job = crud.results_job(session, r.id)
             if job is not None:
-                bin_length = float((job.settings or {}).get("bin_length_m", 0.25))
+                bin_length = crud.bin_length_of(job)
     runs.sort(key=lambda r: (r.start_time is None, r.start_time, r.id))
     return Selection(line_id, track, runs, bin_length)
 

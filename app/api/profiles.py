@@ -120,8 +120,7 @@ def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int,
         raise ApiError(
             404, "wheel", f"run {run_id} has no profile for wheel {wheel!r} (wheels: {', '.join(wheels)})"
         )
-    bin_length = float((job.settings or {}).get("bin_length_m", 0.25))
-    return job.id, bin_length, wheels
+    return job.id, crud.bin_length_of(job), wheels
 
 
 def _level_ratio(level_m: float, bin_length: float) -> int:

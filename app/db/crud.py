@@ -53,6 +53,8 @@ __all__ = [
     "profile_frame",
     "profile_columns",
     "profile_where",
+    "bin_length_of",
+    "job_bin_length",
     "iter_profile_pages",
     "get_wheels",
     "results_job",
@@ -551,15 +553,41 @@ def jsonable(value: Any) -> Any:
     return _none_if_nan(value)
 
 
-def profile_where(job_id: int, wheel: str | None, km_from: float | None, km_to: float | None):
-    """SQL condition for the profile rows of a job, optionally one wheel and a km range (inclusive)."""
+def bin_length_of(job: Job | None) -> float:
+    """Bin length of a job's profile, m (from its settings; 0.25 m by default)."""
+    return float(((job.settings if job is not None else None) or {}).get("bin_length_m", 0.25))
+
+
+def job_bin_length(session: Session, job_id: int) -> float:
+    """Bin length of job ``job_id``'s profile, m (:func:`bin_length_of`)."""
+    return bin_length_of(session.get(Job, job_id))
+
+
+def profile_where(
+    job_id: int,
+    wheel: str | None,
+    km_from: float | None,
+    km_to: float | None,
+    bin_length_m: float | None = None,
+):
+    """SQL condition for the profile rows of a job, optionally one wheel and a km range (inclusive).
+
+    With ``bin_length_m`` (the job's bin length, m) the km range is also put as
+    the range of bins whose centres ``(bin + 0.5) × bin_length_m`` may lie in
+    it (one bin of margin either side; the km terms stay exact), so the primary
+    key ``(job_id, wheel, bin)`` serves it.
+    """
     conditions = [ProfileBin.job_id == job_id]
     if wheel is not None:
         conditions.append(ProfileBin.wheel == wheel)
     if km_from is not None:
         conditions.append(ProfileBin.km >= km_from)
+        if bin_length_m is not None:
+            conditions.append(ProfileBin.bin >= math.floor(km_from * 1000.0 / bin_length_m - 0.5) - 1)
     if km_to is not None:
         conditions.append(ProfileBin.km <= km_to)
+        if bin_length_m is not None:
+            conditions.append(ProfileBin.bin <= math.ceil(km_to * 1000.0 / bin_length_m - 0.5) + 1)
     return and_(*conditions)
 
 
@@ -609,13 +637,14 @@ def job_profile_frame(
     """
     names = profile_columns(columns)
     numeric = [c for c in names if c != "wheel"]
+    bin_length = job_bin_length(session, job_id) if km_from is not None or km_to is not None else None
     frames = []
     wheels = [wheel] if wheel is not None else stored_profile_wheels(session, job_id)
     remaining = limit
     for w in wheels:
         stmt = (
             select(*(getattr(ProfileBin, c) for c in numeric))
-            .where(profile_where(job_id, w, km_from, km_to))
+            .where(profile_where(job_id, w, km_from, km_to, bin_length))
             .order_by(ProfileBin.bin)
         )
         if after_bin is not None:

@@ -2,8 +2,9 @@
 
 :func:`display_rows` reads one display level of the stored min–max pyramid
 (``profile_bins.display_level``, ranked when the rows are stored): for any km
-range and zoom a few thousand rows, the level filtered inside the index on
-(job, wheel, km, level), never the 400 000 rows per wheel of a 100 km run.
+range and zoom a few thousand rows, never the 400 000 rows per wheel of a 100 km
+run: coarse levels through the partial index on (job, wheel, km, level) with the
+level filtered inside it, short ranges as bin ranges of the primary key.
 """
 
 from __future__ import annotations
@@ -12,12 +13,12 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import select
+from sqlalchemy import literal_column, select
 from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import DISPLAY_LEVEL_BASE, display_indices
 from app.db.crud import PROFILE_COLUMNS, profile_frame, profile_where
-from app.db.models import ProfileBin
+from app.db.models import COARSE_DISPLAY_LEVEL, ProfileBin
 
 __all__ = ["display_rows", "km_extent"]
 
@@ -28,12 +29,15 @@ _OVERSAMPLE = DISPLAY_LEVEL_BASE
 
 
 def km_extent(session: Session, job_id: int, wheel: str) -> tuple[float, float] | None:
-    """(smallest, largest) km of one wheel's profile by job ``job_id``, or None; two index lookups."""
+    """(smallest, largest) km of one wheel's profile by job ``job_id``, or None.
+
+    Two primary-key lookups: the first and the last bin (km grows with the bin).
+    """
     where = profile_where(job_id, wheel, None, None)
-    lo = session.scalar(select(ProfileBin.km).where(where).order_by(ProfileBin.km).limit(1))
+    lo = session.scalar(select(ProfileBin.km).where(where).order_by(ProfileBin.bin).limit(1))
     if lo is None:
         return None
-    hi = session.scalar(select(ProfileBin.km).where(where).order_by(ProfileBin.km.desc()).limit(1))
+    hi = session.scalar(select(ProfileBin.km).where(where).order_by(ProfileBin.bin.desc()).limit(1))
     return float(lo), float(hi)
 
 
@@ -94,22 +98,29 @@ def display_rows(
     n_bins = max(hi - lo, 0.0) * 1000.0 / bin_length_m + 1.0
     level = _display_level(n_bins, max_points)
     cols = [getattr(ProfileBin, c) for c in columns]
-    where = profile_where(job_id, wheel, km_from, km_to)
+    by_bin = profile_where(job_id, wheel, km_from, km_to, bin_length_m)  # primary key
     conn = session.connection()
     if level == 0:
-        rows = conn.execute(select(*cols).where(where)).all()
+        rows = conn.execute(select(*cols).where(by_bin)).all()
     else:
-        # the level's rows (index on run, wheel, level, km), and every row of the
-        # (partial) buckets at the range's two ends (primary key): their stored
-        # extremes may lie outside the range
-        rows = conn.execute(select(*cols).where(where, ProfileBin.display_level >= level)).all()
+        if level < COARSE_DISPLAY_LEVEL:  # a range of a few 4 × max_points bins: primary key
+            stmt = select(*cols).where(by_bin, ProfileBin.display_level >= level)
+        else:
+            # the partial index over the coarse levels; its predicate written out
+            # literally (SQLite uses a partial index only for a query repeating it)
+            coarse = ProfileBin.display_level >= literal_column(str(int(COARSE_DISPLAY_LEVEL)))
+            where = profile_where(job_id, wheel, km_from, km_to)
+            stmt = select(*cols).where(where, coarse, ProfileBin.display_level >= level)
+        rows = conn.execute(stmt).all()
+        # and every row of the (partial) buckets at the range's two ends (primary
+        # key): their stored extremes may lie outside the range
         span = DISPLAY_LEVEL_BASE**level
-        for km_order in (ProfileBin.km, ProfileBin.km.desc()):
-            edge = session.scalar(select(ProfileBin.bin).where(where).order_by(km_order).limit(1))
+        for bin_order in (ProfileBin.bin, ProfileBin.bin.desc()):
+            edge = session.scalar(select(ProfileBin.bin).where(by_bin).order_by(bin_order).limit(1))
             if edge is not None:
                 start = (int(edge) // span) * span
                 rows += conn.execute(
-                    select(*cols).where(where, ProfileBin.bin.between(start, start + span - 1))
+                    select(*cols).where(by_bin, ProfileBin.bin.between(start, start + span - 1))
                 ).all()
     df = profile_frame(rows, columns).drop_duplicates("bin").sort_values("km", kind="stable").reset_index(drop=True)
     if len(df) > max_points:
