@@ -199,7 +199,7 @@ def get_profile(
         if max_points is not None and k == 1:
             # a few thousand rows of the stored display pyramid, whatever the range
             df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,
-                              columns=crud.profile_columns(values))
+                              columns=crud.profile_columns(values), extent=extent)
         elif max_points is None and k == 1:
             df = crud.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
         else:

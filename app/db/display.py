@@ -60,6 +60,7 @@ def display_rows(
     km_from: float | None = None,
     km_to: float | None = None,
     columns: Sequence[str] = PROFILE_COLUMNS,
+    extent: tuple[float, float] | None = None,
 ) -> pd.DataFrame:
     """At most ``max_points`` whole rows of one wheel's profile in a km range, peaks kept.
 
@@ -76,6 +77,9 @@ def display_rows(
     columns : sequence of str, optional
         Columns to read (:func:`~app.db.crud.profile_columns`; must hold
         ``sleeper_amp``, which chooses the rows). Default: all.
+    extent : (float, float), optional
+        The profile's :func:`km_extent` if the caller already read it in the
+        same transaction (default: read here).
 
     Returns
     -------
@@ -90,7 +94,8 @@ def display_rows(
     ``max_points`` by :func:`~app.analysis.aggregate.display_indices`: the first
     and last row of the range and its extremes are always kept.
     """
-    extent = km_extent(session, job_id, wheel)
+    if extent is None:
+        extent = km_extent(session, job_id, wheel)
     if extent is None:
         return profile_frame([], columns)
     lo = extent[0] if km_from is None else max(extent[0], km_from)

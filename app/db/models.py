@@ -60,6 +60,7 @@ N_ORDER_COLUMNS = 11
 #: Lowest display level in the partial display index of ``profile_bins``
 #: (level k keeps at most two rows per 4**k bins: levels >= 2 hold 1/8 of the rows).
 COARSE_DISPLAY_LEVEL = 2
+_COARSE_ROWS = text(f"display_level >= {COARSE_DISPLAY_LEVEL}")  # that index's predicate
 ORDER_COLUMNS: tuple[str, ...] = tuple(f"order_amp_{i:02d}" for i in range(1, N_ORDER_COLUMNS + 1))
 #: Indicator columns of a profile bin, in the order of the export files.
 PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
@@ -253,8 +254,8 @@ class ProfileBin(Base):
     __table_args__ = (
         Index(
             "ix_profile_bins_coarse_display", "job_id", "wheel", "km", "display_level",
-            postgresql_where=text(f"display_level >= {COARSE_DISPLAY_LEVEL}"),
-            sqlite_where=text(f"display_level >= {COARSE_DISPLAY_LEVEL}"),
+            postgresql_where=_COARSE_ROWS,
+            sqlite_where=_COARSE_ROWS,
         ),
     )
 
