@@ -22,7 +22,7 @@ from app.analysis.aggregate import aggregate_profile, display_indices
 from app.api.deps import DbDep, RunId, SettingsDep, check_km
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
-from app.db import crud
+from app.db import crud, results_reader
 from app.db.display import display_rows, km_extent
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, Run
 from app.db.session import Database
@@ -93,7 +93,7 @@ def _columns(value: str | None, max_points: int | None) -> tuple[str, ...] | Non
     if max_points is not None and "sleeper_amp" not in names:
         names.append("sleeper_amp")  # decimation keeps the peaks of the sleeper amplitude
     try:
-        return crud.profile_columns(names)[3:]
+        return results_reader.profile_columns(names)[3:]
     except ValueError as exc:
         raise ApiError(422, "columns", str(exc).removeprefix("columns: ")) from None
 
@@ -103,7 +103,7 @@ def run_with_results(session: Session, run_id: int) -> tuple[Run, Job]:
     run = crud.get_run(session, run_id)
     if run is None:
         raise not_found("run", run_id)
-    job = crud.results_job(session, run_id)
+    job = results_reader.results_job(session, run_id)
     if job is None:
         latest = crud.latest_job(session, run_id)
         state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
@@ -115,12 +115,12 @@ def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int,
     """Job id and bin length of the stored results and the wheels; 404/409 if none."""
     with db.read() as session:
         _, job = run_with_results(session, run_id)
-        wheels = crud.stored_profile_wheels(session, job.id)
+        wheels = results_reader.stored_profile_wheels(session, job.id)
     if wheel is not None and wheel not in wheels:
         raise ApiError(
             404, "wheel", f"run {run_id} has no profile for wheel {wheel!r} (wheels: {', '.join(wheels)})"
         )
-    return job.id, crud.bin_length_of(job), wheels
+    return job.id, results_reader.bin_length_of(job), wheels
 
 
 def _level_ratio(level_m: float, bin_length: float) -> int:
@@ -199,11 +199,11 @@ def get_profile(
         if max_points is not None and k == 1:
             # a few thousand rows of the stored display pyramid, whatever the range
             df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,
-                              columns=crud.profile_columns(values), extent=extent)
+                              columns=results_reader.profile_columns(values), extent=extent)
         elif max_points is None and k == 1:
-            df = crud.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
+            df = results_reader.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
         else:
-            df = crud.job_profile_frame(session, job_id, **read)
+            df = results_reader.job_profile_frame(session, job_id, **read)
     truncated = False
     if max_points is not None and k > 1:
         df = _decimate(_aggregate(df, level, bin_length, values), max_points, "sleeper_amp_max")
@@ -242,13 +242,13 @@ def _frames(
     """Pages of the export: stored rows, or aggregated segments wheel by wheel."""
     if _level_ratio(level, bin_length) == 1:
         for wheel in wheels:
-            yield from crud.iter_profile_pages(
+            yield from results_reader.iter_profile_pages(
                 db.read, job_id, wheel, km_from=km_from, km_to=km_to, page_size=_EXPORT_PAGE
             )
         return
     for wheel in wheels:
         with db.read() as session:
-            df = crud.job_profile_frame(session, job_id, wheel=wheel, km_from=km_from, km_to=km_to)
+            df = results_reader.job_profile_frame(session, job_id, wheel=wheel, km_from=km_from, km_to=km_to)
         if len(df):
             yield _aggregate(df, level, bin_length)
 
@@ -345,7 +345,7 @@ def export_parquet(
                         writer = pq.ParquetWriter(tmp, table.schema)
                     writer.write_table(table.cast(writer.schema))
                 if writer is None:
-                    empty = crud.profile_frame([])
+                    empty = results_reader.profile_frame([])
                     pq.write_table(pa.Table.from_pandas(empty, preserve_index=False), tmp)
             finally:
                 if writer is not None:
