@@ -15,6 +15,7 @@ from app.api.schemas.jobs import JobList, JobOut, ProcessingSettingsIn
 from app.api.views import job_out
 from app.db import crud
 from app.db.models import N_ORDER_COLUMNS, JobStatus
+from app.db.session import Database
 
 __all__ = ["router", "settings_from_request"]
 
@@ -49,7 +50,14 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
     return settings
 
 
-def _job_page(db, *, run_id=None, status_=None, limit=50, offset=0) -> JobList:
+def _job_page(
+    db: Database,
+    *,
+    run_id: int | None = None,
+    status_: str | None = None,
+    limit: int = 50,
+    offset: int = 0,
+) -> JobList:
     with db.read() as session:
         jobs, total = crud.list_jobs(
             session, run_id=run_id, status=status_, limit=limit, offset=offset

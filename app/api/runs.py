@@ -16,6 +16,7 @@ from app.api.schemas.runs import RunDetail, RunList
 from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
 from app.api.views import API_PREFIX, run_detail, run_out
 from app.db import crud
+from app.db.session import Database
 
 __all__ = ["router"]
 
@@ -128,7 +129,7 @@ async def upload_run(
     return await run_in_threadpool(_detail, db, outcome.run_id)
 
 
-def _detail(db, run_id: int) -> RunDetail:
+def _detail(db: Database, run_id: int) -> RunDetail:
     with db.read() as session:
         run = crud.get_run(session, run_id)
         if run is None:
