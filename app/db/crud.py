@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
-from sqlalchemy import and_, delete, func, select, update
+from sqlalchemy import ColumnElement, and_, delete, func, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import Job, JobChunk, JobStatus, ProfileBin, Run, WheelOOR, utcnow
@@ -37,6 +37,27 @@ __all__ = [
 
 #: PostgreSQL notification channel of newly queued jobs (payload: the job id)
 JOBS_CHANNEL = "trackvkf_jobs"
+
+_Row = TypeVar("_Row", Run, Job)
+
+
+def _page(
+    session: Session,
+    entity: type[_Row],
+    conditions: Sequence[ColumnElement[bool]],
+    order_by: Sequence[ColumnElement[Any]],
+    limit: int,
+    offset: int,
+) -> tuple[list[_Row], int]:
+    """One page of the rows of ``entity`` meeting all ``conditions``, and their total count."""
+    if limit < 1:
+        raise ValueError(f"limit must be >= 1, got {limit}")
+    if offset < 0:
+        raise ValueError(f"offset must be >= 0, got {offset}")
+    where = and_(True, *conditions)
+    total = session.scalar(select(func.count()).select_from(entity).where(where)) or 0
+    rows = session.scalars(select(entity).where(where).order_by(*order_by).limit(limit).offset(offset)).all()
+    return list(rows), int(total)
 
 
 # --- runs -------------------------------------------------------------------
@@ -72,31 +93,16 @@ def list_runs(
     limit, offset : int
         Page size (> 0) and offset (>= 0).
     """
-    if limit < 1:
-        raise ValueError(f"limit must be >= 1, got {limit}")
-    if offset < 0:
-        raise ValueError(f"offset must be >= 0, got {offset}")
-    conditions = []
-    if line_id is not None:
-        conditions.append(Run.line_id == line_id)
-    if vehicle_id is not None:
-        conditions.append(Run.vehicle_id == vehicle_id)
-    if track is not None:
-        conditions.append(Run.track == track)
+    conditions = [
+        column == value
+        for column, value in ((Run.line_id, line_id), (Run.vehicle_id, vehicle_id), (Run.track, track))
+        if value is not None
+    ]
     if start_from is not None:
         conditions.append(Run.start_time >= start_from)
     if start_to is not None:
         conditions.append(Run.start_time <= start_to)
-    where = and_(True, *conditions)
-    total = session.scalar(select(func.count()).select_from(Run).where(where)) or 0
-    rows = session.scalars(
-        select(Run)
-        .where(where)
-        .order_by(Run.start_time.desc(), Run.id.desc())
-        .limit(limit)
-        .offset(offset)
-    ).all()
-    return list(rows), int(total)
+    return _page(session, Run, conditions, (Run.start_time.desc(), Run.id.desc()), limit, offset)
 
 
 def delete_run(session: Session, run_id: int) -> bool:
@@ -158,20 +164,23 @@ def list_jobs(
     limit: int = 50,
     offset: int = 0,
 ) -> tuple[list[Job], int]:
-    """Jobs, newest first, optionally of one run and/or one status, and the total."""
+    """Jobs, newest first, optionally of one run and/or one status, and the total.
+
+    Parameters
+    ----------
+    run_id : int, optional
+        Jobs of this run only.
+    status : str, optional
+        One of :attr:`JobStatus.ALL`.
+    limit, offset : int
+        Page size (> 0) and offset (>= 0).
+    """
     if status is not None and status not in JobStatus.ALL:
         raise ValueError(f"status must be one of {', '.join(JobStatus.ALL)}, got {status!r}")
-    conditions = []
-    if run_id is not None:
-        conditions.append(Job.run_id == run_id)
-    if status is not None:
-        conditions.append(Job.status == status)
-    where = and_(True, *conditions)
-    total = session.scalar(select(func.count()).select_from(Job).where(where)) or 0
-    jobs = session.scalars(
-        select(Job).where(where).order_by(Job.id.desc()).limit(limit).offset(offset)
-    ).all()
-    return list(jobs), int(total)
+    conditions = [
+        column == value for column, value in ((Job.run_id, run_id), (Job.status, status)) if value is not None
+    ]
+    return _page(session, Job, conditions, (Job.id.desc(),), limit, offset)
 
 
 def latest_job(session: Session, run_id: int) -> Job | None:
