@@ -16,13 +16,6 @@ from app.db.models import Job, JobStatus, ProfileBin, Run, WheelOOR, utcnow
 from app.db.session import Database
 
 
-@pytest.fixture
-def db(service_settings):
-    database = Database(service_settings.database_url)
-    yield database
-    database.dispose()
-
-
 def _make_run(db: Database, sha: str = "a" * 64) -> tuple[int, int]:
     with db.write() as s:
         run = Run(
