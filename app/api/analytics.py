@@ -225,7 +225,7 @@ def maintenance(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: 
     counts = count_actions(pos, acts["km_from"].to_numpy() * 1000, acts["km_to"].to_numpy() * 1000)
     res = maintenance_correlation(pb.to_numpy(), counts, hac_lag=_lag(sel))
     f = res.regression
-    return {**empty, "groups": [g.__dict__ for g in res.groups],
+    return {**empty, "groups": res.groups,
             "regression": {"slope": data.num(f.slope), "intercept": data.num(f.intercept), "r": data.num(f.r),
                            "p_value": data.num(f.p_value), "n": int(f.n)}}
 
@@ -270,7 +270,7 @@ def superstructure(db: DbDep, settings: SettingsDep, line_id: LineQ = None, trac
     pos = (pb.index.to_numpy() + 0.5) * sel.bin_length
     idx, types = data.section_types(sections, pos)
     inside = idx >= 0
-    out["types"] = [d.__dict__ for d in type_distributions(pb.to_numpy()[inside], types[inside])]
+    out["types"] = type_distributions(pb.to_numpy()[inside], types[inside])
     flags = flag_segments(pos, pb.to_numpy(), idx, list(sections["type"]), segment_m=segment_m,
                           bin_length_m=sel.bin_length, z_threshold=z_threshold)
     ids = sections["id"].to_numpy()
