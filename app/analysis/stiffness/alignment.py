@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, signal
 
-from app.analysis.stiffness._checks import check_positive
+from app.analysis._checks import check_positive
 
 __all__ = ["Alignment", "signature", "align_runs", "SegmentTable", "segment_table"]
 

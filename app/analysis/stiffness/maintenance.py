@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.analysis.stiffness._checks import paired_1d
+from app.analysis._checks import paired_1d
 from app.analysis.stiffness.regression import LinearFit, linear_fit
 
 __all__ = ["BoxStats", "MaintenanceCorrelation", "count_actions", "box_stats", "maintenance_correlation"]

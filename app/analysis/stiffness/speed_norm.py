@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.analysis.stiffness._checks import check_positive, paired_1d
+from app.analysis._checks import check_positive, paired_1d
 from app.analysis.stiffness.regression import LinearFit, linear_fit
 
 __all__ = ["SpeedFit", "fit_speed_exponent", "normalise_amplitude"]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.analysis.stiffness._checks import check_positive, paired_1d
+from app.analysis._checks import check_positive, paired_1d
 from app.analysis.stiffness.regression import LinearFit, linear_fit
 
 __all__ = ["LOG_BASE", "bin_means", "fit_subsidence", "predict_subsidence"]

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.analysis.stiffness._checks import check_positive, paired_1d
+from app.analysis._checks import check_positive, paired_1d
 
 __all__ = ["TypeDistribution", "SegmentFlag", "assign_sections", "type_distributions", "flag_segments"]
 
