@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 from urllib.parse import quote
 
 from fastapi import Depends, HTTPException, Path, Request
@@ -192,29 +192,47 @@ def get_principal(request: Request) -> Principal:
     return principal
 
 
-class RoleRequirement:
-    """Dependency: the request's principal must have at least ``role``.
-
-    Use through :func:`require_role`. 401 without authentication, 403 for a
-    role below ``role``.
-    """
+class _RoleGate:
+    """What both access dependencies share: a role, and 403 for a principal below it."""
 
     def __init__(self, role: str) -> None:
         role_rank(role)  # validates
         self.role = role
 
-    def __call__(self, principal: Annotated[Principal, Depends(get_principal)]) -> Principal:
+    def _admit(self, principal: Principal) -> Principal:
         if not role_allows(principal.role, self.role):
             raise ApiError(
                 403, "role", f"needs role {self.role} or higher; {principal.name} is {principal.role}"
             )
         return principal
 
+
+_Gate = TypeVar("_Gate", bound=_RoleGate)
+
+
+def _gate_of(gates: dict[str, _Gate], role: str) -> _Gate:
+    """The dependency of ``role`` (one object per role); ValueError for an unknown role."""
+    try:
+        return gates[role]
+    except KeyError:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
+
+
+class RoleRequirement(_RoleGate):
+    """Dependency: the request's principal must have at least ``role``.
+
+    Use through :func:`require_role`. 401 without authentication, 403 for a
+    role below ``role``.
+    """
+
+    def __call__(self, principal: Annotated[Principal, Depends(get_principal)]) -> Principal:
+        return self._admit(principal)
+
     def __repr__(self) -> str:
         return f"require_role({self.role!r})"
 
 
-_REQUIREMENTS = {role: RoleRequirement(role) for role in ROLES}
+_REQUIREMENTS: dict[str, RoleRequirement] = {role: RoleRequirement(role) for role in ROLES}
 
 
 def require_role(role: str) -> RoleRequirement:
@@ -229,22 +247,15 @@ def require_role(role: str) -> RoleRequirement:
     or take the principal from it: ``principal: Annotated[Principal,
     Depends(require_role("admin"))]``.
     """
-    try:
-        return _REQUIREMENTS[role]
-    except KeyError:
-        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
+    return _gate_of(_REQUIREMENTS, role)
 
 
-class PageLogin:
+class PageLogin(_RoleGate):
     """Dependency of HTML pages: the principal, else a 303 redirect to the login page.
 
     Use through :func:`require_page_login`. A logged-in principal whose role
     is below ``role`` gets 403.
     """
-
-    def __init__(self, role: str) -> None:
-        role_rank(role)
-        self.role = role
 
     def __call__(self, request: Request) -> Principal:
         principal = _authenticate(request)
@@ -254,25 +265,18 @@ class PageLogin:
             raise HTTPException(
                 status_code=303, detail="log in first", headers={"Location": location}
             )
-        if not role_allows(principal.role, self.role):
-            raise ApiError(
-                403, "role", f"needs role {self.role} or higher; {principal.name} is {principal.role}"
-            )
-        return principal
+        return self._admit(principal)
 
     def __repr__(self) -> str:
         return f"require_page_login({self.role!r})"
 
 
-_PAGE_LOGINS = {role: PageLogin(role) for role in ROLES}
+_PAGE_LOGINS: dict[str, PageLogin] = {role: PageLogin(role) for role in ROLES}
 
 
 def require_page_login(role: str = "viewer") -> PageLogin:
     """Dependency of HTML pages: logged in (any role >= ``role``) or 303 → ``/login?next=``."""
-    try:
-        return _PAGE_LOGINS[role]
-    except KeyError:
-        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
+    return _gate_of(_PAGE_LOGINS, role)
 
 
 def public() -> None:
