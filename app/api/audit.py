@@ -119,5 +119,5 @@ def read_audit(
         rows, total = auth_crud.list_audit(
             session, action=action, actor=actor, since=start, until=end, limit=limit, offset=offset
         )
-        items = [AuditOut.model_validate(r, from_attributes=True) for r in rows]
+        items = [AuditOut.model_validate(r) for r in rows]
     return AuditList(items=items, total=total, limit=limit, offset=offset)
