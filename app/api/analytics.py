@@ -28,7 +28,7 @@ from app.analysis.stiffness.subsidence import (
 from app.analysis.stiffness.superstructure import flag_segments, type_distributions
 from app.analysis.stiffness.unsprung_mass import fit_unsprung_mass
 from app.api import analytics_data as data
-from app.api.deps import DbDep, RunId, SettingsDep, check_km
+from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.profiles import run_with_results
 from app.api.reference import KmFromQ, KmToQ, LineQ, TrackQ, parse_types
@@ -427,7 +427,7 @@ def segments(db: DbDep, settings: SettingsDep, runs: RunsQuery,
 
 @router.get("/analytics/segment-trend", response_model=SegmentTrendOut,
             summary="Amplitude of one segment over runs (dates)")
-def segment_trend(db: DbDep, settings: SettingsDep, km: Annotated[float, Query(ge=-100_000, le=100_000)],
+def segment_trend(db: DbDep, settings: SettingsDep, km: Annotated[float, km_query()],
                   line_id: LineQ = None, track: TrackQ = None, run_ids: RunIdsQ = None, wheel: WheelQ = None,
                   segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0, align: bool = True,
                   max_shift_m: MaxShiftQ = 50.0) -> dict:

@@ -50,6 +50,8 @@ __all__ = [
     "AdminDep",
     "RunId",
     "check_km",
+    "KM_BOUND",
+    "km_query",
     "JobId",
     "PageOffset",
     "check_page_size",
@@ -352,6 +354,18 @@ _MAX_ID = 2**31 - 1
 RunId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Run id")]
 JobId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Job id")]
 PageOffset = Annotated[int, Query(ge=0, le=10**9)]
+
+
+#: Largest |km| a query accepts.
+KM_BOUND = 100_000.0
+
+
+def km_query(description: str | None = None) -> Any:
+    """The ``Query`` of a km parameter: within ±:data:`KM_BOUND`.
+
+    Use as ``Annotated[float | None, km_query("Lower km bound")]``.
+    """
+    return Query(ge=-KM_BOUND, le=KM_BOUND, description=description)
 
 
 def check_km(km_from: float | None, km_to: float | None) -> None:

@@ -20,7 +20,7 @@ from fastapi.responses import StreamingResponse
 from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import aggregate_profile, display_indices
-from app.api.deps import DbDep, RunId, SettingsDep, check_km
+from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
 from app.db import crud
@@ -35,7 +35,6 @@ router = APIRouter(tags=["profiles"])
 #: Columns aggregated to 1 / 10 / 100 m segments (mean, max, p95 of each).
 AGGREGATED_COLUMNS: tuple[str, ...] = tuple(c for c in PROFILE_VALUE_COLUMNS if c != "n_samples")
 _MAX_LEVEL_M = 10_000.0
-_KM_BOUND = 100_000.0
 _EXPORT_PAGE = 50_000
 _STREAM_BLOCK = 1024 * 1024
 
@@ -46,12 +45,8 @@ OptionalWheel = Annotated[
     str | None,
     Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="Wheel; all wheels when omitted"),
 ]
-KmFrom = Annotated[
-    float | None, Query(ge=-_KM_BOUND, le=_KM_BOUND, description="Lower km bound of the bin centres")
-]
-KmTo = Annotated[
-    float | None, Query(ge=-_KM_BOUND, le=_KM_BOUND, description="Upper km bound of the bin centres")
-]
+KmFrom = Annotated[float | None, km_query("Lower km bound of the bin centres")]
+KmTo = Annotated[float | None, km_query("Upper km bound of the bin centres")]
 Level = Annotated[
     float,
     Query(

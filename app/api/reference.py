@@ -16,7 +16,7 @@ from fastapi import APIRouter, Depends, File, Query, Request, UploadFile
 from starlette.concurrency import run_in_threadpool
 
 from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, SettingsDep, check_km
+from app.api.deps import DbDep, EngineerDep, SettingsDep, check_km, km_query
 from app.api.errors import ApiError
 from app.api.schemas.reference import (
     DeleteOut,
@@ -34,11 +34,10 @@ __all__ = ["router"]
 router = APIRouter(prefix="/reference", tags=["reference data"])
 
 Kind = Literal["subsidence", "maintenance", "superstructure"]
-_KM = 100_000.0
 LineQ = Annotated[str | None, Query(max_length=128, description="Line id")]
 TrackQ = Annotated[str | None, Query(max_length=64, description="Track")]
-KmFromQ = Annotated[float | None, Query(ge=-_KM, le=_KM, description="Lower km bound")]
-KmToQ = Annotated[float | None, Query(ge=-_KM, le=_KM, description="Upper km bound")]
+KmFromQ = Annotated[float | None, km_query("Lower km bound")]
+KmToQ = Annotated[float | None, km_query("Upper km bound")]
 
 
 def _records(df: pd.DataFrame) -> list[dict]:
