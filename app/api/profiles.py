@@ -7,6 +7,7 @@ import json
 import os
 import tempfile
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
@@ -14,12 +15,12 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, Depends, Query, Response
 from fastapi.responses import StreamingResponse
 from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import aggregate_profile, display_indices
-from app.api.deps import DbDep, RunId, SettingsDep, check_km
+from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
 from app.db import crud, results_reader
@@ -34,7 +35,6 @@ router = APIRouter(tags=["profiles"])
 #: Columns aggregated to 1 / 10 / 100 m segments (mean, max, p95 of each).
 AGGREGATED_COLUMNS: tuple[str, ...] = tuple(c for c in PROFILE_VALUE_COLUMNS if c != "n_samples")
 _MAX_LEVEL_M = 10_000.0
-_KM_BOUND = 100_000.0
 _EXPORT_PAGE = 50_000
 _STREAM_BLOCK = 1024 * 1024
 
@@ -45,12 +45,8 @@ OptionalWheel = Annotated[
     str | None,
     Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="Wheel; all wheels when omitted"),
 ]
-KmFrom = Annotated[
-    float | None, Query(ge=-_KM_BOUND, le=_KM_BOUND, description="Lower km bound of the bin centres")
-]
-KmTo = Annotated[
-    float | None, Query(ge=-_KM_BOUND, le=_KM_BOUND, description="Upper km bound of the bin centres")
-]
+KmFrom = Annotated[float | None, km_query("Lower km bound of the bin centres")]
+KmTo = Annotated[float | None, km_query("Upper km bound of the bin centres")]
 Level = Annotated[
     float,
     Query(
@@ -253,13 +249,45 @@ def _frames(
             yield _aggregate(df, level, bin_length)
 
 
-def _export_prelude(
-    db: Database, run_id: int, wheel: str | None, km_from, km_to, level: float
-) -> tuple[int, list[str], float]:
+@dataclass(frozen=True)
+class _Export:
+    """What an export streams: a run's stored results (one wheel or all) in a km range, at a level."""
+
+    run_id: int
+    job_id: int
+    wheel: str | None
+    wheels: list[str]
+    km_from: float | None
+    km_to: float | None
+    level: float
+    bin_length: float
+
+    def frames(self, db: Database) -> Iterator[pd.DataFrame]:
+        """The pages to write (:func:`_frames`)."""
+        return _frames(db, self.job_id, self.wheels, self.km_from, self.km_to, self.level, self.bin_length)
+
+    def content_disposition(self, ext: str) -> dict[str, str]:
+        """The attachment header naming the file ``run-<id>-profile[_wheel-<w>]_<level>m.<ext>``."""
+        name = _filename(self.run_id, self.wheel, self.level, ext)
+        return {"Content-Disposition": f'attachment; filename="{name}"'}
+
+
+def _export_query(
+    run_id: RunId,
+    db: DbDep,
+    wheel: OptionalWheel = None,
+    km_from: KmFrom = None,
+    km_to: KmTo = None,
+    level: Level = 0.25,
+) -> _Export:
+    """The query of both export routes, checked: km bounds, results of the wheel, level."""
     check_km(km_from, km_to)
     job_id, bin_length, wheels = _results_context(db, run_id, wheel)
     _level_ratio(level, bin_length)
-    return job_id, ([wheel] if wheel else wheels), bin_length
+    return _Export(run_id, job_id, wheel, [wheel] if wheel else wheels, km_from, km_to, level, bin_length)
+
+
+ExportQuery = Annotated[_Export, Depends(_export_query)]
 
 
 def _filename(run_id: int, wheel: str | None, level: float, ext: str) -> str:
@@ -276,20 +304,12 @@ def _filename(run_id: int, wheel: str | None, level: float, ext: str) -> str:
     response_class=StreamingResponse,
     responses={200: {"content": {"text/csv": {}}}, 409: {"description": "No results yet"}},
 )
-def export_csv(
-    run_id: RunId,
-    db: DbDep,
-    wheel: OptionalWheel = None,
-    km_from: KmFrom = None,
-    km_to: KmTo = None,
-    level: Level = 0.25,
-) -> StreamingResponse:
+def export_csv(export: ExportQuery, db: DbDep) -> StreamingResponse:
     """All profile rows of a run (or one wheel) as CSV, in pages, never whole in memory."""
-    job_id, wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
 
     def generate() -> Iterator[bytes]:
         header = True
-        for df in _frames(db, job_id, wheels, km_from, km_to, level, bin_length):
+        for df in export.frames(db):
             buffer = io.BytesIO()
             pa_csv.write_csv(
                 pa.Table.from_pandas(df, preserve_index=False),
@@ -302,11 +322,7 @@ def export_csv(
             cols = ["wheel", "bin", "km", *PROFILE_VALUE_COLUMNS]
             yield (",".join(cols) + "\n").encode()
 
-    return StreamingResponse(
-        generate(),
-        media_type="text/csv",
-        headers={"Content-Disposition": f'attachment; filename="{_filename(run_id, wheel, level, "csv")}"'},
-    )
+    return StreamingResponse(generate(), media_type="text/csv", headers=export.content_disposition("csv"))
 
 
 @router.get(
@@ -318,20 +334,12 @@ def export_csv(
         409: {"description": "No results yet"},
     },
 )
-def export_parquet(
-    run_id: RunId,
-    db: DbDep,
-    wheel: OptionalWheel = None,
-    km_from: KmFrom = None,
-    km_to: KmTo = None,
-    level: Level = 0.25,
-) -> StreamingResponse:
+def export_parquet(export: ExportQuery, db: DbDep) -> StreamingResponse:
     """All profile rows of a run (or one wheel) as Parquet.
 
     The file is written page by page to a temporary file, streamed out in
     blocks, and removed.
     """
-    job_id, wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
 
     def generate() -> Iterator[bytes]:
         fd, tmp = tempfile.mkstemp(suffix=".parquet", prefix="trackvkf-export-")
@@ -339,7 +347,7 @@ def export_parquet(
         try:
             writer: pq.ParquetWriter | None = None
             try:
-                for df in _frames(db, job_id, wheels, km_from, km_to, level, bin_length):
+                for df in export.frames(db):
                     table = pa.Table.from_pandas(df, preserve_index=False)
                     if writer is None:
                         writer = pq.ParquetWriter(tmp, table.schema)
@@ -357,9 +365,5 @@ def export_parquet(
             os.unlink(tmp)
 
     return StreamingResponse(
-        generate(),
-        media_type="application/vnd.apache.parquet",
-        headers={
-            "Content-Disposition": f'attachment; filename="{_filename(run_id, wheel, level, "parquet")}"'
-        },
+        generate(), media_type="application/vnd.apache.parquet", headers=export.content_disposition("parquet")
     )
