@@ -322,9 +322,8 @@ class VKFResult:
         local = index - lo
         return self._inp.at("freqs", lo, hi, local) >= self._inp.at("bandwidth", lo, hi, local)
 
-    def _masked_envelope(self, index: np.ndarray, valid: np.ndarray) -> np.ndarray:
-        """Envelopes at global indices, NaN where ``valid`` (s, len(index)) is False."""
-        env = self._raw_envelope(index)
+    def _masked(self, env: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """Raw envelopes (channels, s, m) set to NaN where ``valid`` (s, m) is False, in place."""
         env[:, ~valid] = np.nan
         return self._squeeze(env)
 
@@ -346,7 +345,7 @@ class VKFResult:
         if index.size and (index.min() < 0 or index.max() >= len(self)):
             raise ValueError(f"index must lie in [0, {len(self)}), got {index.min()}..{index.max()}")
         g = index + self.start
-        return self._masked_envelope(g, self._valid_at(g))
+        return self._masked(self._raw_envelope(g), self._valid_at(g))
 
     @cached_property
     def valid(self) -> np.ndarray:
@@ -354,7 +353,7 @@ class VKFResult:
 
     @cached_property
     def envelope(self) -> np.ndarray:
-        return self._masked_envelope(np.arange(self.start, self.stop), self.valid)
+        return self._masked(self._raw_envelope(np.arange(self.start, self.stop)), self.valid)
 
     @cached_property
     def phi(self) -> np.ndarray:
