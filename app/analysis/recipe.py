@@ -42,13 +42,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from app.analysis.orders import OrderTrack, railway_multipliers
 from app.analysis.settings import ProcessingSettings
-from app.analysis.vkf import VKFResult, vkf, vkf_overlap
+from app.analysis.vkf import vkf, vkf_overlap
+
+if TYPE_CHECKING:
+    from app.analysis.vkf import VKFResult
 
 __all__ = [
     "SLEEPER",

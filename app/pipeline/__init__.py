@@ -25,7 +25,7 @@ spectrogram of a km window uses too).
 """
 
 from app.pipeline.assemble import ENGINE_VERSION, RunResults, assemble, assemble_wheel, results_meta
-from app.pipeline.chunk import OOR_WINDOW_M, PipelineCancelled, process_chunk
+from app.pipeline.chunk import PipelineCancelled, process_chunk
 from app.pipeline.plan import ChunkSpec, plan_chunks
 from app.pipeline.workdir import run_pipeline
 
@@ -40,5 +40,4 @@ __all__ = [
     "results_meta",
     "run_pipeline",
     "ENGINE_VERSION",
-    "OOR_WINDOW_M",
 ]
