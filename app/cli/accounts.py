@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+import contextlib
+from collections.abc import Iterator
+from typing import Annotated, Any
 
 import typer
 
@@ -12,6 +14,30 @@ __all__ = ["user_app", "key_app"]
 
 user_app = typer.Typer(no_args_is_help=True, help="Browser users (stored with Argon2id password hashes).")
 key_app = typer.Typer(no_args_is_help=True, help="API keys of data systems (stored hashed, shown once).")
+
+
+@contextlib.contextmanager
+def _session(*, write: bool = False) -> Iterator[Any]:
+    """A transaction on TRACKVKF_DATABASE_URL, its connections closed after; a refused
+    account change (``AuthError``) ends the command with its message (exit status 2)."""
+    from app.db import auth_crud
+
+    db = database()
+    try:
+        with db.write() if write else db.read() as session:
+            yield session
+    except auth_crud.AuthError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    finally:
+        db.dispose()
+
+
+def _password(password: str | None, generate: bool, prompt: str) -> str:
+    """``password``, else a generated one (``generate``), else one asked for twice."""
+    if password is not None:
+        return password
+    return new_password() if generate else typer.prompt(prompt, hide_input=True, confirmation_prompt=True)
 
 
 @user_app.command("create")
@@ -28,20 +54,10 @@ def user_create(
     """Create a browser user with a role."""
     from app.db import auth_crud
 
-    if password is None:
-        password = new_password() if generate else typer.prompt(
-            "password", hide_input=True, confirmation_prompt=True
-        )
-    db = database()
-    try:
-        with db.write() as session:
-            auth_crud.create_user(session, username, password, role, created_by=CLI_ACTOR)
-            cli_audit(session, "user.create", username, {"role": role})
-    except auth_crud.AuthError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from None
-    finally:
-        db.dispose()
+    password = _password(password, generate, "password")
+    with _session(write=True) as session:
+        auth_crud.create_user(session, username, password, role, created_by=CLI_ACTOR)
+        cli_audit(session, "user.create", username, {"role": role})
     echo(f"user {username} ({role}) created")
     if generate:
         echo(f"password: {password}")
@@ -56,22 +72,12 @@ def user_set_password(
     """Set a user's password (ends its sessions; clears the demo-credentials mark)."""
     from app.db import auth_crud
 
-    if password is None:
-        password = new_password() if generate else typer.prompt(
-            "new password", hide_input=True, confirmation_prompt=True
-        )
-    db = database()
-    try:
-        with db.write() as session:
-            if auth_crud.update_user(session, username, password=password) is None:
-                typer.echo(f"error: no user {username!r}", err=True)
-                raise typer.Exit(2)
-            cli_audit(session, "user.update", username, {"password": "changed"})
-    except auth_crud.AuthError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from None
-    finally:
-        db.dispose()
+    password = _password(password, generate, "new password")
+    with _session(write=True) as session:
+        if auth_crud.update_user(session, username, password=password) is None:
+            typer.echo(f"error: no user {username!r}", err=True)
+            raise typer.Exit(2)
+        cli_audit(session, "user.update", username, {"password": "changed"})
     echo(f"password of {username} changed")
     if generate:
         echo(f"password: {password}")
@@ -82,14 +88,10 @@ def user_list() -> None:
     """List users: name, role, active, last login."""
     from app.db import auth_crud
 
-    db = database()
-    try:
-        with db.read() as session:
-            for u in auth_crud.list_users(session):
-                flags = ("" if u.active else " inactive") + (" demo-credentials" if u.demo_credentials else "")
-                echo(f"{u.username}\t{u.role}\tlast login {u.last_login_at or '-'}{flags}")
-    finally:
-        db.dispose()
+    with _session() as session:
+        for u in auth_crud.list_users(session):
+            flags = ("" if u.active else " inactive") + (" demo-credentials" if u.demo_credentials else "")
+            echo(f"{u.username}\t{u.role}\tlast login {u.last_login_at or '-'}{flags}")
 
 
 @key_app.command("create")
@@ -105,19 +107,10 @@ def key_create(
     from app.db.models import utcnow
 
     expires = utcnow() + dt.timedelta(days=expires_in_days) if expires_in_days else None
-    db = database()
-    try:
-        with db.write() as session:
-            row, key = auth_crud.create_api_key(
-                session, name, role, created_by=CLI_ACTOR, expires_at=expires
-            )
-            cli_audit(session, "key.create", str(row.id), {"name": name, "role": role, "prefix": row.prefix})
-            key_id = row.id
-    except auth_crud.AuthError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from None
-    finally:
-        db.dispose()
+    with _session(write=True) as session:
+        row, key = auth_crud.create_api_key(session, name, role, created_by=CLI_ACTOR, expires_at=expires)
+        cli_audit(session, "key.create", str(row.id), {"name": name, "role": role, "prefix": row.prefix})
+        key_id = row.id
     typer.echo(f"API key {key_id} ({name}, {role}); shown once, keep it safe:", err=True)
     echo(key)
 
@@ -127,16 +120,12 @@ def key_revoke(key_id: Annotated[int, typer.Argument(help="Key id (see `trackvkf
     """Revoke an API key."""
     from app.db import auth_crud
 
-    db = database()
-    try:
-        with db.write() as session:
-            row = auth_crud.revoke_api_key(session, key_id)
-            if row is None:
-                typer.echo(f"error: no API key {key_id}", err=True)
-                raise typer.Exit(2)
-            cli_audit(session, "key.revoke", str(key_id), {"name": row.name})
-    finally:
-        db.dispose()
+    with _session(write=True) as session:
+        row = auth_crud.revoke_api_key(session, key_id)
+        if row is None:
+            typer.echo(f"error: no API key {key_id}", err=True)
+            raise typer.Exit(2)
+        cli_audit(session, "key.revoke", str(key_id), {"name": row.name})
     echo(f"API key {key_id} revoked")
 
 
@@ -145,11 +134,7 @@ def key_list() -> None:
     """List API keys: id, prefix, name, role, last use, revocation."""
     from app.db import auth_crud
 
-    db = database()
-    try:
-        with db.read() as session:
-            for k in auth_crud.list_api_keys(session):
-                state = f"revoked {k.revoked_at}" if k.revoked_at else "active"
-                echo(f"{k.id}\ttvk_{k.prefix}_…\t{k.name}\t{k.role}\tlast used {k.last_used_at or '-'}\t{state}")
-    finally:
-        db.dispose()
+    with _session() as session:
+        for k in auth_crud.list_api_keys(session):
+            state = f"revoked {k.revoked_at}" if k.revoked_at else "active"
+            echo(f"{k.id}\ttvk_{k.prefix}_…\t{k.name}\t{k.role}\tlast used {k.last_used_at or '-'}\t{state}")
