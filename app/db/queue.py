@@ -2,10 +2,12 @@
 
 Used by the local worker (embedded mode) and, with ``worker_id=None`` (any
 owner) plus the fan-out functions at the end, by the Procrastinate tasks of
-the production mode (:mod:`worker.tasks`). Every change that a worker makes to
-a job is guarded by ``worker_id = <me> AND status = 'running'``: a worker that
-lost its job (cancelled, run deleted, or claimed by another worker after the
-heartbeat went stale) changes nothing and learns so from the return value.
+the production mode (:mod:`worker.tasks`); both go through the job steps of
+:mod:`worker.steps`. Every change that a worker makes to a job is guarded by
+``worker_id = <me> AND status = 'running'``: a worker that lost its job
+(cancelled, run deleted, or claimed by another worker after the heartbeat went
+stale) changes nothing and learns so from the return value. The functions
+both modes call take the owner as the keyword-only ``worker_id``.
 
 Progress is derived from the chunk rows (done / all), never from a counter,
 so a repeated chunk cannot count twice.
@@ -151,7 +153,7 @@ def release_job(db: Database, job_id: int, worker_id: str) -> bool:
 
 
 def record_chunks(
-    db: Database, job_id: int, worker_id: str, specs: Sequence[tuple[int, dict[str, Any]]]
+    db: Database, job_id: int, specs: Sequence[tuple[int, dict[str, Any]]], *, worker_id: str
 ) -> bool:
     """Record the planned chunks of a job (idempotent: existing rows are kept).
 
@@ -159,6 +161,8 @@ def record_chunks(
     ----------
     specs : sequence of (int, dict)
         Chunk index and its JSON-serialisable spec (``ChunkSpec.to_dict()``).
+    worker_id : str
+        Owner of the job (the local worker, or the fan-out planner).
 
     Returns
     -------
@@ -189,12 +193,20 @@ def record_chunks(
 def mark_chunk(
     db: Database,
     job_id: int,
-    worker_id: str | None,
     index: int,
     status: str,
     result_path: str | None = None,
+    *,
+    worker_id: str | None,
 ) -> float | None:
     """Set the status of a chunk and update the job's progress.
+
+    Parameters
+    ----------
+    result_path : str, optional
+        Where the chunk's result is (store-relative path or URL).
+    worker_id : str or None
+        Owner of the job; None: any owner (fan-out mode).
 
     Returns
     -------
@@ -237,9 +249,12 @@ def mark_chunk(
 
 
 def finish_job(
-    db: Database, job_id: int, worker_id: str | None, status: str, error: str | None = None
+    db: Database, job_id: int, status: str, error: str | None = None, *, worker_id: str | None
 ) -> bool:
-    """Mark a job this worker runs as failed or cancelled (with its error text)."""
+    """Mark a job this worker runs as failed or cancelled (with its error text).
+
+    ``worker_id``: owner of the job; None: any owner (fan-out mode).
+    """
     if status not in (JobStatus.FAILED, JobStatus.CANCELLED):
         raise ValueError(f"status must be failed or cancelled, got {status!r}")
     with db.write() as session:
@@ -257,11 +272,12 @@ def finish_job(
 def complete_job(
     db: Database,
     job_id: int,
-    worker_id: str | None,
     run_id: int,
     profiles: pd.DataFrame | None,
     wheels: Sequence[dict[str, Any]],
     meta: dict[str, Any],
+    *,
+    worker_id: str | None,
 ) -> bool:
     """Store (unless already stored) and publish a job's results and mark it done, in one transaction.
 
@@ -276,6 +292,8 @@ def complete_job(
     profiles : pandas.DataFrame or None
         The job's profile rows, or None when they were stored wheel by wheel
         already (:func:`store_wheel_rows`, fan-out mode).
+    worker_id : str or None
+        Owner of the job; None: any owner (fan-out mode).
 
     Returns
     -------
