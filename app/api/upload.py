@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import json
 import logging
 import shutil
 from dataclasses import dataclass, field
@@ -45,7 +44,7 @@ from app.core.runstore import RunStore
 from app.db import crud
 from app.db.models import Run, utcnow
 from app.db.session import Database
-from app.io import RunFileError, RunSummary, ingest
+from app.io import RunFileError, RunSummary, ingest, load_metadata_json
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
 
@@ -355,12 +354,9 @@ def _parse_metadata(text: str | None) -> dict[str, Any] | None:
     if text is None or not text.strip():
         return None
     try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ApiError(422, "metadata", f"not valid JSON: {exc.msg} at position {exc.pos}") from None
-    if not isinstance(value, dict):
-        raise ApiError(422, "metadata", f"must be a JSON object, got {type(value).__name__}")
-    return value
+        return load_metadata_json(text, field="metadata")
+    except RunFileError as exc:
+        raise ApiError(422, exc.field, exc.message) from None
 
 
 def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
@@ -493,6 +489,11 @@ async def receive_and_create_run(
         )
     except ApiError as exc:
         await run_in_threadpool(_record_rejection, db, request, principal, exc, "rejected")
+        raise
+    except Exception as exc:
+        # not the client's fault (a bug, the database away): answered 500, audited all the same
+        error = ApiError(500, "server", f"{type(exc).__name__}: {exc}")
+        await run_in_threadpool(_record_rejection, db, request, principal, error, "error")
         raise
 
 

@@ -14,7 +14,14 @@ import pydantic
 from pydantic import ConfigDict
 
 from app.io.canonical import CanonicalWriter, Compression, atomic_output
-from app.io.channels import ACCEL_CHANNELS, ALL_CHANNELS, TIME_COLUMN
+from app.io.channels import (
+    ACCEL_CHANNELS,
+    ALL_CHANNELS,
+    FORCE_CHANNELS,
+    TIME_COLUMN,
+    UNITS,
+    storage_dtype,
+)
 from app.io.detect import resolve_format
 from app.io.errors import RunFileError
 from app.io.gapfill import GapFiller
@@ -187,6 +194,9 @@ def _fs_from_time(t: np.ndarray | None) -> float | None:
     return float(rounded) if abs(fs - rounded) <= 1e-6 * fs else fs
 
 
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 class _Checks:
     """Per-block checks on physical values of speed, position and time."""
 
@@ -197,7 +207,51 @@ class _Checks:
 
     def physical(self, name: str, x: np.ndarray) -> np.ndarray:
         gain, offset = self.meta.gain_offset(name)
-        return x * gain + offset if (gain, offset) != (1.0, 0.0) else x
+        if (gain, offset) == (1.0, 0.0):
+            return x
+        with np.errstate(over="ignore", invalid="ignore"):
+            return x * gain + offset
+
+    def _bound(self, name: str) -> float | None:
+        if name in ACCEL_CHANNELS:
+            return self.limits.max_abs_accel_mps2
+        if name in FORCE_CHANNELS:
+            return self.limits.max_abs_force_kn
+        if name == "position":
+            return self.limits.max_abs_position_m
+        return None  # speed: checked by speed()
+
+    def magnitude(self, name: str, offset: int, raw: np.ndarray) -> None:
+        """Raw values must fit their storage type and calibrated values a plausible range."""
+        if storage_dtype(name) == np.float32:
+            big = np.flatnonzero(np.abs(raw) > _FLOAT32_MAX)
+            if big.size:
+                i = int(big[0])
+                raise RunFileError(
+                    name,
+                    f"value {raw[i]:.6g} at sample {offset + i} does not fit the float32 storage of the "
+                    f"channel (|x| <= {_FLOAT32_MAX:.3g})",
+                )
+        bound = self._bound(name)
+        if bound is None:
+            return
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(~(np.abs(self.physical(name, raw)) <= bound) & ~np.isnan(raw))
+        if not bad.size:
+            return
+        i = int(bad[0])
+        value = float(self.physical(name, raw[i : i + 1])[0])
+        gain, off = self.meta.gain_offset(name)
+        unit = UNITS[name]
+        if (gain, off) != (1.0, 0.0) and abs(raw[i]) <= bound:
+            raise RunFileError(
+                f"calibration.{name}",
+                f"gain {gain:.6g} and offset {off:.6g} make sample {offset + i} ({raw[i]:.6g}) "
+                f"{value:.6g} {unit}, beyond ±{bound:g} {unit}; check the calibration",
+            )
+        raise RunFileError(
+            name, f"value {value:.6g} {unit} at sample {offset + i} is beyond ±{bound:g} {unit}"
+        )
 
     def position(self, offset: int, raw: np.ndarray) -> None:
         p = self.physical("position", raw)
@@ -287,6 +341,8 @@ def _ingest(
         )
     meta = meta.model_copy(update={"sample_rate_hz": fs})
     checks = _Checks(meta, fs, limits, from_time)
+    if n_known is not None:
+        _check_duration(n_known, fs, limits)
 
     with atomic_output(dest) as tmp, h5py.File(tmp, "w") as h5:
         writer = CanonicalWriter(
@@ -316,6 +372,7 @@ def _ingest(
                 if np.isinf(x).any():
                     i = int(np.flatnonzero(np.isinf(x))[0])
                     raise RunFileError(c, f"infinite value at sample {offset + i}")
+                checks.magnitude(c, offset, x)
                 fillers[c].process(offset, x)
                 if n_known is not None and fillers[c].n_nan > limits.max_nan_fraction * n_known:
                     _too_many_nan(c, fillers[c].n_nan, n_known, limits)
@@ -328,6 +385,7 @@ def _ingest(
         n = offset
         if n_known is not None and n != n_known:
             raise RunFileError("file", f"read {n} samples but the file declares {n_known}")
+        _check_duration(n, fs, limits)
         for c in stored:
             if fillers[c].n_nan > limits.max_nan_fraction * n:
                 _too_many_nan(c, fillers[c].n_nan, n, limits)
@@ -349,6 +407,15 @@ def _ingest(
         source_format=fmt,
         nan_filled={c: f.n_nan for c, f in fillers.items() if f.n_nan},
     )
+
+
+def _check_duration(n: int, fs: float, limits: IngestLimits) -> None:
+    if n < limits.min_duration_s * fs:
+        raise RunFileError(
+            "file",
+            f"the run lasts {n / fs:.3g} s ({n} samples at {fs:g} Hz); at least "
+            f"{limits.min_duration_s:g} s are needed to process it",
+        )
 
 
 def _too_many_nan(channel: str, count: int, n: int, limits: IngestLimits) -> None:
