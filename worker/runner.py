@@ -205,7 +205,16 @@ class LocalWorker:
                     break
                 self.runtime.stopping.wait(self.settings.worker_poll_interval_s)
                 continue
-            outcome = self.process(job_id)
+            try:
+                outcome = self.process(job_id)
+            except Exception:  # noqa: BLE001 - e.g. the database full or away: the worker lives on
+                # the job could not even be marked failed; it is claimed again once its heartbeat is stale
+                log.exception("job %s: cannot record its outcome; retrying later", job_id)
+                processed += 1
+                self.runtime.stopping.wait(self.settings.worker_poll_interval_s)
+                if once:
+                    break
+                continue
             log.info("job %s %s", outcome.job_id, outcome.status)
             processed += 1
             if once:

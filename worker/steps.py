@@ -31,6 +31,7 @@ from typing import Any
 
 from app.analysis.settings import ProcessingSettings
 from app.core.config import Settings
+from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
 from app.db.models import ChunkStatus, Job, JobStatus, Run
@@ -203,6 +204,8 @@ def fail_job(db: Database, job_id: int, exc: BaseException, *, worker_id: str | 
     """
     log.error("job %s failed:\n%s", job_id, "".join(traceback.format_exception(exc)))
     error = f"{type(exc).__name__}: {exc}"
+    if is_disk_full(exc):
+        error = f"disk full: the results could not be written ({error}); free space and reprocess"
     return queue.finish_job(db, job_id, JobStatus.FAILED, error[:_MAX_ERROR_CHARS], worker_id=worker_id)
 
 

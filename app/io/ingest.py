@@ -8,12 +8,11 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 import pydantic
 from pydantic import ConfigDict
 
-from app.io.canonical import CanonicalWriter, Compression, atomic_output
+from app.io.canonical import CanonicalWriter, Compression, canonical_output
 from app.io.channels import (
     ACCEL_CHANNELS,
     ALL_CHANNELS,
@@ -80,6 +79,7 @@ def ingest(
     limits: IngestLimits = DEFAULT_LIMITS,
     *,
     compression: Compression = "auto",
+    reserve_bytes: int = 0,
 ) -> RunSummary:
     """Validate a run file and write it as a canonical HDF5 file.
 
@@ -101,6 +101,10 @@ def ingest(
         Acceptance limits.
     compression : {"auto", "lzf", "gzip", None}
         Compression of the output datasets (see :class:`~app.io.canonical.CanonicalWriter`).
+    reserve_bytes : int
+        Free space that must remain on the file system of ``dest``
+        (``TRACKVKF_MIN_FREE_BYTES``): checked against the expected size before
+        writing when the sample count is known, and while writing.
 
     Returns
     -------
@@ -112,6 +116,10 @@ def ingest(
         On any problem with the file or the metadata; nothing is left at
         ``dest`` (an existing file there is not touched) and no temporary file
         remains.
+    DiskFullError
+        When ``dest``'s file system has not enough space (before or while
+        writing); nothing is left behind either, and libhdf5 never saw a
+        failed write (:func:`app.io.canonical.canonical_output`).
     """
     src, dest = Path(src), Path(dest)
     if not isinstance(limits, IngestLimits):
@@ -126,7 +134,7 @@ def ingest(
         )
     fmt_name, comp = resolve_format(src, fmt)
     with open_source(src, fmt_name, comp, limits) as source:
-        return _ingest(source, fmt_name, metadata, dest, limits, compression)
+        return _ingest(source, fmt_name, metadata, dest, limits, compression, reserve_bytes)
 
 
 def _merge_metadata(source: Source, given: Mapping[str, Any] | None) -> RunMetadata:
@@ -316,6 +324,7 @@ def _ingest(
     dest: Path,
     limits: IngestLimits,
     compression: Compression,
+    reserve_bytes: int,
 ) -> RunSummary:
     info = source.info
     meta = _merge_metadata(source, given)
@@ -344,7 +353,8 @@ def _ingest(
     if n_known is not None:
         _check_duration(n_known, fs, limits)
 
-    with atomic_output(dest) as tmp, h5py.File(tmp, "w") as h5:
+    expected = 0 if n_known is None else n_known * _canonical_bytes_per_sample(stored)
+    with canonical_output(dest, reserve_bytes=reserve_bytes, expected_bytes=expected) as (h5, check_io):
         writer = CanonicalWriter(
             h5,
             fs=fs,
@@ -381,6 +391,7 @@ def _ingest(
                 elif c == "speed":
                     checks.speed(offset, x)
                 writer.write(c, offset, x)
+            check_io()
             offset += m
         n = offset
         if n_known is not None and n != n_known:
@@ -407,6 +418,12 @@ def _ingest(
         source_format=fmt,
         nan_filled={c: f.n_nan for c, f in fillers.items() if f.n_nan},
     )
+
+
+def _canonical_bytes_per_sample(stored: list[str]) -> int:
+    """Bytes per sample of the canonical file: the stored channels plus speed and position."""
+    names = set(stored) | {"speed", "position"}
+    return sum(storage_dtype(c).itemsize for c in names)
 
 
 def _check_duration(n: int, fs: float, limits: IngestLimits) -> None:
