@@ -46,7 +46,7 @@ class FusionSettings:
     knot_spacing_m : float
         Odometry distance between the knots of the correction, m (default 25).
     smoothing_m : float
-        Half-power wavelength of the correction, m (default 1500): shorter
+        Half-power wavelength of the correction, m (default 2000): shorter
         GNSS errors are averaged away, longer odometry drifts followed.
     min_fixes : int
         Fewest usable fixes (default 20).
@@ -62,7 +62,7 @@ class FusionSettings:
     """
 
     knot_spacing_m: float = 25.0
-    smoothing_m: float = 1500.0
+    smoothing_m: float = 2000.0
     min_fixes: int = 20
     max_scale_error: float = 0.05
     noise_floor_m: float = 0.5

@@ -93,6 +93,13 @@ class LineGeometry:
         x, y = self._transformer().transform(np.asarray(lon, float), np.asarray(lat, float))
         return np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
 
+    def from_local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """WGS84 points (degrees) of local metric coordinates (m); inverse of :meth:`to_local`."""
+        lon, lat = self._transformer().transform(
+            np.asarray(x, float), np.asarray(y, float), direction="INVERSE"
+        )
+        return np.asarray(lon, dtype=np.float64), np.asarray(lat, dtype=np.float64)
+
     def polyline(self) -> Polyline:
         """The geometry in the local projection with chainage m (for map matching)."""
         if self._polyline is None:
@@ -109,10 +116,8 @@ class LineGeometry:
 
     def lonlat_at_km(self, km: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """WGS84 points of the line at the given km (clamped to the line's ends)."""
-        pl = self.polyline()
-        x, y = pl.point_at(1000.0 * np.asarray(km, dtype=np.float64))
-        lon, lat = self._transformer().transform(x, y, direction="INVERSE")
-        return np.asarray(lon, dtype=np.float64), np.asarray(lat, dtype=np.float64)
+        x, y = self.polyline().point_at(1000.0 * np.asarray(km, dtype=np.float64))
+        return self.from_local(x, y)
 
     def to_feature(self) -> dict[str, Any]:
         """The geometry as a WGS84 GeoJSON feature."""
