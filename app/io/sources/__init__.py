@@ -10,9 +10,10 @@ from app.io.limits import DEFAULT_LIMITS, IngestLimits
 from app.io.sources.base import Source, SourceInfo
 from app.io.sources.csv import CsvSource
 from app.io.sources.hdf5 import Hdf5Source
-from app.io.sources.mdf4 import Mdf4Source
+from app.io.sources.mdf4 import Mdf4Reader
 from app.io.sources.parquet import ParquetSource
-from app.io.sources.tdms import TdmsSource
+from app.io.sources.recorder import RecorderSource
+from app.io.sources.tdms import TdmsReader
 
 __all__ = ["Source", "SourceInfo", "RECORDER_FORMATS", "open_source"]
 
@@ -48,10 +49,9 @@ def open_source(
     RunFileError
         ``field == "channel_map"`` for a channel map with another format.
     """
-    if fmt == "mdf4":
-        return Mdf4Source(path, limits, channel_map)
-    if fmt == "tdms":
-        return TdmsSource(path, limits, channel_map)
+    if fmt in RECORDER_FORMATS:
+        reader = Mdf4Reader(path, limits) if fmt == "mdf4" else TdmsReader(path, limits)
+        return RecorderSource(reader, channel_map, limits)
     if channel_map is not None:
         raise RunFileError(
             "channel_map",

@@ -10,15 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
-from app.io.channel_map import ChannelMap, RecorderChannel
+from app.io.channel_map import RecorderChannel
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
-from app.io.sources.recorder import RecorderReader, RecorderSource
+from app.io.sources.recorder import RecorderReader
 
-__all__ = ["Mdf4Reader", "Mdf4Source", "MDF_SIGNATURE"]
+__all__ = ["Mdf4Reader"]
 
-#: File identification of every MDF file (``"MDF     "``, then the version).
-MDF_SIGNATURE = b"MDF     "
 #: MDF4 channel types that hold time stamps (master, virtual master).
 _MASTER_TYPES = (2, 3)
 #: MDF4 DZ block types (asammdf ``DataBlockInfo.block_type``) of deflate-compressed data.
@@ -192,21 +190,3 @@ class Mdf4Reader(RecorderReader):
             mdf.close()
             self._mdf = None
 
-
-class Mdf4Source(RecorderSource):
-    """Blocks of trackvkf channels from an MDF file (see :class:`RecorderSource`).
-
-    Parameters
-    ----------
-    path : Path
-        Input file.
-    limits : IngestLimits
-        Acceptance limits.
-    channel_map : ChannelMap or None
-        Recorder channel → trackvkf channel.
-    """
-
-    def __init__(
-        self, path: Path, limits: IngestLimits = DEFAULT_LIMITS, channel_map: ChannelMap | None = None
-    ) -> None:
-        super().__init__(Mdf4Reader(path, limits), channel_map, limits)

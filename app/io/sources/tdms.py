@@ -9,15 +9,13 @@ from typing import Any
 
 import numpy as np
 
-from app.io.channel_map import ChannelMap, RecorderChannel
+from app.io.channel_map import RecorderChannel
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
-from app.io.sources.recorder import RecorderReader, RecorderSource
+from app.io.sources.recorder import RecorderReader
 
-__all__ = ["TdmsReader", "TdmsSource", "TDMS_SIGNATURE", "TIME_CHANNEL_NAMES"]
+__all__ = ["TdmsReader", "TIME_CHANNEL_NAMES"]
 
-#: Lead-in tag of every TDMS segment.
-TDMS_SIGNATURE = b"TDSm"
 #: Channel names (lower case) taken as the time stamps (s) of the other channels of their group.
 TIME_CHANNEL_NAMES = frozenset({"time", "t", "timestamp", "zeit"})
 
@@ -190,21 +188,3 @@ class TdmsReader(RecorderReader):
             tdms.close()
             self._tdms = None
 
-
-class TdmsSource(RecorderSource):
-    """Blocks of trackvkf channels from a TDMS file (see :class:`RecorderSource`).
-
-    Parameters
-    ----------
-    path : Path
-        Input file.
-    limits : IngestLimits
-        Acceptance limits.
-    channel_map : ChannelMap or None
-        Recorder channel → trackvkf channel.
-    """
-
-    def __init__(
-        self, path: Path, limits: IngestLimits = DEFAULT_LIMITS, channel_map: ChannelMap | None = None
-    ) -> None:
-        super().__init__(TdmsReader(path, limits), channel_map, limits)
