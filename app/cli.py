@@ -199,7 +199,7 @@ def _wheel_tables(wheels: list[dict[str, Any]]):
 
 
 def _jsonable(value: Any) -> Any:
-    from app.db.crud import jsonable
+    from app.core.jsonable import jsonable
 
     return jsonable(value)
 

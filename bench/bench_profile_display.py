@@ -28,7 +28,7 @@ def main() -> None:
     from fastapi.testclient import TestClient
 
     from app.core.config import Settings
-    from app.db import auth_crud, crud, migrate
+    from app.db import auth_crud, crud, migrate, results_writer
     from app.db.models import Run
     from app.db.session import Database
     from app.main import create_app
@@ -59,7 +59,9 @@ def main() -> None:
         session.flush()
         job = crud.create_job(session, run.id, {"bin_length_m": 0.25})
         job.status = "done"
-        crud.replace_results(session, run.id, job.id, profiles, [])
+        # as the worker does (app.db.queue.complete_job): store, then publish with the job done
+        results_writer.store_profile_rows(session, run.id, job.id, profiles)
+        results_writer.publish_results(session, run.id, job.id, [])
         run_id = run.id
     with db.write() as session:
         _, api_key = auth_crud.create_api_key(session, "bench", "viewer", created_by="bench")

@@ -72,6 +72,7 @@ from sqlalchemy.engine import make_url
 
 from app.analysis.settings import ProcessingSettings
 from app.core.config import Settings, get_settings
+from app.core.jsonable import jsonable
 from app.db import crud, queue
 from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
@@ -397,7 +398,7 @@ def make_app(settings: Settings | None = None) -> procrastinate.App:
             record = {"result": result, "rows": 0 if profiles is None else len(profiles),
                       "assemble_s": round(t1 - t0, 3),
                       "store_s": round(t2 - t1, 3)}
-            rt.chunks.write_bytes(run.id, job_id, name, json.dumps(crud.jsonable(record)).encode())
+            rt.chunks.write_bytes(run.id, job_id, name, json.dumps(jsonable(record)).encode())
             log.info("job %s wheel %s: assembled in %.2f s, %d rows stored in %.2f s",
                      job_id, wheel, t1 - t0, record["rows"], t2 - t1)
         if all(rt.chunks.exists_named(run.id, job_id, _WHEEL_FILE.format(wheel=w)) for w in _wheels_of(run)):

@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from app.analysis._checks import positive_float
+
 __all__ = ["BinSums", "position_to_bin"]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_]+$")
@@ -64,13 +66,7 @@ def position_to_bin(track_m: np.ndarray, bin_length: float = 0.25) -> np.ndarray
 
 
 def _check_bin_length(bin_length: float) -> float:
-    try:
-        value = float(bin_length)
-    except (TypeError, ValueError):
-        raise ValueError(f"bin_length must be a number, got {bin_length!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise ValueError(f"bin_length must be a finite number > 0 m, got {bin_length!r}")
-    return value
+    return positive_float(bin_length, "bin_length", positive="a finite number > 0 m")
 
 
 def _check_name(name: object, what: str) -> str:

@@ -41,6 +41,8 @@ import warnings
 
 import numpy as np
 
+from app.analysis._checks import positive_float
+
 __all__ = [
     "apply_diameter_correction",
     "radius_phasor",
@@ -69,13 +71,30 @@ def _check_orders(orders: object, n_rows: int | None = None, name: str = "orders
 
 
 def _check_diameter(d: object, name: str) -> float:
-    try:
-        value = float(d)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number (m), got {d!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a finite diameter > 0 m, got {d!r}")
-    return value
+    return positive_float(d, name, number="a number (m)", positive="a finite diameter > 0 m")
+
+
+def _orders_by(values: object, name: str, columns: str) -> np.ndarray:
+    """``values`` as a complex (orders, ``columns``) array; ValueError unless 2-D."""
+    x = np.asarray(values)
+    if x.ndim != 2:
+        raise ValueError(f"{name} must be 2-D (orders, {columns}), got shape {x.shape}")
+    return x.astype(np.complex128, copy=False)
+
+
+def _along(values: object, name: str, n: int, like: str | None = None) -> np.ndarray:
+    """``values`` as a float64 (n,) array (one value per column of the array named ``like``)."""
+    x = np.asarray(values, dtype=np.float64)
+    if x.shape != (n,):
+        ref = f" like {like}" if like else ""
+        raise ValueError(f"{name} must have shape {(n,)}{ref}, got {x.shape}")
+    return x
+
+
+def _check_n_angles(n_angles: int) -> int:
+    if isinstance(n_angles, bool) or int(n_angles) != n_angles or n_angles < 1:
+        raise ValueError(f"n_angles must be a positive integer, got {n_angles!r}")
+    return int(n_angles)
 
 
 def radius_phasor(
@@ -110,13 +129,8 @@ def radius_phasor(
         If shapes disagree, ``wheel_diameter`` is not positive or ``orders`` are
         not positive integers.
     """
-    e = np.asarray(envelope)
-    if e.ndim != 2:
-        raise ValueError(f"envelope must be 2-D (orders, samples), got shape {e.shape}")
-    e = e.astype(np.complex128, copy=False)
-    v = np.asarray(speed, dtype=np.float64)
-    if v.shape != (e.shape[1],):
-        raise ValueError(f"speed must have shape {(e.shape[1],)} like envelope, got {v.shape}")
+    e = _orders_by(envelope, "envelope", "samples")
+    v = _along(speed, "speed", e.shape[1], like="envelope")
     d = _check_diameter(wheel_diameter, "wheel_diameter")
     ords = _check_orders(orders, e.shape[0])
     moving = np.isfinite(v) & (v > 0)
@@ -165,28 +179,16 @@ def window_means(
         If shapes disagree, ``distance_m`` or ``weight`` is not finite, ``weight``
         is negative or ``window_m`` is not positive.
     """
-    x = np.asarray(values)
-    if x.ndim != 2:
-        raise ValueError(f"values must be 2-D (orders, samples), got shape {x.shape}")
-    x = x.astype(np.complex128, copy=False)
+    x = _orders_by(values, "values", "samples")
     n = x.shape[1]
-    s = np.asarray(distance_m, dtype=np.float64)
-    if s.shape != (n,):
-        raise ValueError(f"distance_m must have shape {(n,)} like values, got {s.shape}")
+    s = _along(distance_m, "distance_m", n, like="values")
     if not np.all(np.isfinite(s)):
         raise ValueError("distance_m must be finite (found NaN or inf)")
-    try:
-        wm = float(window_m)
-    except (TypeError, ValueError):
-        raise ValueError(f"window_m must be a number (m), got {window_m!r}") from None
-    if not np.isfinite(wm) or wm <= 0:
-        raise ValueError(f"window_m must be a finite length > 0 m, got {window_m!r}")
+    wm = positive_float(window_m, "window_m", number="a number (m)", positive="a finite length > 0 m")
     if weight is None:
         w = np.ones(n)
     else:
-        w = np.asarray(weight, dtype=np.float64)
-        if w.shape != (n,):
-            raise ValueError(f"weight must have shape {(n,)} like values, got {w.shape}")
+        w = _along(weight, "weight", n, like="values")
         if not np.all(np.isfinite(w)) or np.any(w < 0):
             raise ValueError("weight must be finite and >= 0")
 
@@ -335,9 +337,7 @@ def refine_diameter(
         raise ValueError(f"window_phasors must be 1-D or 2-D, got shape {p.shape}")
     p = p.astype(np.complex128, copy=False)
     n_rows, n_win = p.shape
-    s = np.asarray(window_centres_m, dtype=np.float64)
-    if s.shape != (n_win,):
-        raise ValueError(f"window_centres_m must have shape {(n_win,)}, got {s.shape}")
+    s = _along(window_centres_m, "window_centres_m", n_win)
     if not np.all(np.isfinite(s)):
         raise ValueError("window_centres_m must be finite")
     d0 = _check_diameter(nominal_diameter, "nominal_diameter")
@@ -417,13 +417,8 @@ def apply_diameter_correction(
     numpy.ndarray
         (L, W) complex radius phasors referred to the wheel angle ``2 s / d``, µm.
     """
-    p = np.asarray(window_phasors)
-    if p.ndim != 2:
-        raise ValueError(f"window_phasors must be 2-D (orders, windows), got shape {p.shape}")
-    p = p.astype(np.complex128, copy=False)
-    s = np.asarray(window_centres_m, dtype=np.float64)
-    if s.shape != (p.shape[1],):
-        raise ValueError(f"window_centres_m must have shape {(p.shape[1],)}, got {s.shape}")
+    p = _orders_by(window_phasors, "window_phasors", "windows")
+    s = _along(window_centres_m, "window_centres_m", p.shape[1])
     ords = _check_orders(orders, p.shape[0])
     d0 = _check_diameter(nominal_diameter, "nominal_diameter")
     d1 = _check_diameter(corrected_diameter, "corrected_diameter")
@@ -455,9 +450,8 @@ def reconstruct_profile(phasors: np.ndarray, orders: np.ndarray, n_angles: int =
         raise ValueError("phasors must have at least 1 dimension (orders first)")
     p = p.astype(np.complex128, copy=False)
     ords = _check_orders(orders, p.shape[0])
-    if isinstance(n_angles, bool) or int(n_angles) != n_angles or n_angles < 1:
-        raise ValueError(f"n_angles must be a positive integer, got {n_angles!r}")
-    theta = 2.0 * np.pi * np.arange(int(n_angles)) / int(n_angles)
+    n_angles = _check_n_angles(n_angles)
+    theta = 2.0 * np.pi * np.arange(n_angles) / n_angles
     basis = np.exp(1j * ords[:, None] * theta[None, :])  # (L, A)
     return np.real(np.tensordot(p, basis, axes=([0], [0])))
 
@@ -486,14 +480,9 @@ def summarize_oor(window_phasors: np.ndarray, orders: np.ndarray, n_angles: int 
         ``profile_p05_um`` / ``profile_p95_um`` (per-angle 5th / 95th percentile of
         the per-window profiles, µm). Values are NaN when there is no usable window.
     """
-    p = np.asarray(window_phasors)
-    if p.ndim != 2:
-        raise ValueError(f"window_phasors must be 2-D (orders, windows), got shape {p.shape}")
-    p = p.astype(np.complex128, copy=False)
+    p = _orders_by(window_phasors, "window_phasors", "windows")
     ords = _check_orders(orders, p.shape[0])
-    if isinstance(n_angles, bool) or int(n_angles) != n_angles or n_angles < 1:
-        raise ValueError(f"n_angles must be a positive integer, got {n_angles!r}")
-    n_angles = int(n_angles)
+    n_angles = _check_n_angles(n_angles)
     usable = np.all(np.isfinite(p), axis=0)
     q = p[:, usable]
     n_w = int(q.shape[1])

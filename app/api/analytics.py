@@ -9,11 +9,12 @@ sleeper-passage acceleration amplitudes in m/s², the logarithm is natural.
 from __future__ import annotations
 
 import datetime as dt
+from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
 import pandas as pd
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Depends, Query
 
 from app.analysis.stiffness.alignment import align_runs, segment_table
 from app.analysis.stiffness.maintenance import count_actions, maintenance_correlation
@@ -27,7 +28,7 @@ from app.analysis.stiffness.subsidence import (
 from app.analysis.stiffness.superstructure import flag_segments, type_distributions
 from app.analysis.stiffness.unsprung_mass import fit_unsprung_mass
 from app.api import analytics_data as data
-from app.api.deps import DbDep, RunId, SettingsDep, check_km
+from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.profiles import run_with_results
 from app.api.reference import KmFromQ, KmToQ, LineQ, TrackQ, parse_types
@@ -44,6 +45,7 @@ from app.api.schemas.analytics import (
     UnsprungMassOut,
 )
 from app.db import crud
+from app.db.session import Database
 
 __all__ = ["router"]
 
@@ -69,6 +71,30 @@ def _wheel(w: str | None) -> str | None:
 def _sel(db, line_id, track, run_ids, km_from, km_to):
     check_km(km_from, km_to)
     return data.select_runs(db, line_id, track, data.parse_run_ids(run_ids))
+
+
+@dataclass(frozen=True)
+class _Runs:
+    """The common query of the analytics over runs (module docstring), as given."""
+
+    line_id: str | None
+    track: str | None
+    run_ids: str | None
+    km_from: float | None
+    km_to: float | None
+    wheel: str | None
+
+    def select(self, db: Database) -> data.Selection:
+        """The selected runs; 422 for bad km bounds or run ids."""
+        return _sel(db, self.line_id, self.track, self.run_ids, self.km_from, self.km_to)
+
+
+def _runs_query(line_id: LineQ = None, track: TrackQ = None, run_ids: RunIdsQ = None,
+                km_from: KmFromQ = None, km_to: KmToQ = None, wheel: WheelQ = None) -> _Runs:
+    return _Runs(line_id, track, run_ids, km_from, km_to, wheel)
+
+
+RunsQuery = Annotated[_Runs, Depends(_runs_query)]
 
 
 def _lag(sel) -> int:
@@ -108,9 +134,7 @@ def _subsidence_wheel(wheel, amp, u, groups, lag, confidence=0.95):
 
 @router.get("/analytics/subsidence-fit", response_model=SubsidenceFitOut,
             summary="Subsidence model u = a ln(Z) + b per wheel")
-def subsidence_fit(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-                   run_ids: RunIdsQ = None, km_from: KmFromQ = None, km_to: KmToQ = None,
-                   wheel: WheelQ = None,
+def subsidence_fit(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                    confidence: Annotated[float, Query(gt=0.5, lt=1)] = 0.95,
                    normalise: Annotated[bool, Query(
                        description="fit on the amplitude normalised to reference_speed_kmh")] = False,
@@ -119,9 +143,9 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, line_id: LineQ = None, trac
     sleeper-passage amplitude Z and a subsidence value of the wheel's rail (or of
     both rails). Intervals: ``confidence`` (default 95 %), Newey–West over 100 m.
     With ``normalise`` Z is the speed-normalised amplitude (runs of different speeds pool)."""
-    sel = _sel(db, line_id, track, run_ids, km_from, km_to)
-    w = _wheel(wheel)
-    df = data.load_profiles(db, settings, sel, km_from=km_from, km_to=km_to, wheel=w)
+    sel = runs.select(db)
+    w = _wheel(runs.wheel)
+    df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=w)
     if normalise and not df.empty:
         ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
         min_v = settings.analytics_min_speed_kmh
@@ -130,7 +154,7 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, line_id: LineQ = None, trac
                                   ref_v, min_v)
         df = df.assign(sleeper_amp=namp)
         df = df[np.isfinite(df["sleeper_amp"].to_numpy())]
-    sub = data.reference(db, "subsidence", sel, km_from=km_from, km_to=km_to)
+    sub = data.reference(db, "subsidence", sel, km_from=runs.km_from, km_to=runs.km_to)
     wheels = []
     for wh in ([w] if w else sorted(set(df["wheel"]))):
         amp, u, g, _ = _subsidence_pairs(df, sub, wh, sel.bin_length)
@@ -174,18 +198,16 @@ def predicted_subsidence(run_id: RunId, db: DbDep, settings: SettingsDep,
 
 @router.get("/analytics/unsprung-mass", response_model=UnsprungMassOut,
             summary="Unsprung mass from force vs acceleration amplitude per wheel")
-def unsprung_mass(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-                  run_ids: RunIdsQ = None, km_from: KmFromQ = None, km_to: KmToQ = None,
-                  wheel: WheelQ = None,
+def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                   mass_min_kg: Annotated[float, Query(ge=0)] = 150.0,
                   mass_max_kg: Annotated[float, Query(gt=0)] = 600.0) -> dict:
     """Slope of the sleeper-passage force amplitude (kN) on the acceleration amplitude
     (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``."""
     if mass_min_kg >= mass_max_kg:
         raise ApiError(422, "mass_min_kg", "must be below mass_max_kg")
-    sel = _sel(db, line_id, track, run_ids, km_from, km_to)
-    w = _wheel(wheel)
-    df = data.load_profiles(db, settings, sel, km_from=km_from, km_to=km_to, wheel=w)
+    sel = runs.select(db)
+    w = _wheel(runs.wheel)
+    df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=w)
     df = df[np.isfinite(df["sleeper_force_amp"].to_numpy(dtype=np.float64))]
     out = []
     for wh in ([w] if w else sorted(set(df["wheel"]))):
@@ -204,18 +226,16 @@ def unsprung_mass(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track
 
 @router.get("/analytics/maintenance", response_model=MaintenanceOut,
             summary="Amplitude against the number of maintenance actions per bin")
-def maintenance(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-                run_ids: RunIdsQ = None, km_from: KmFromQ = None, km_to: KmToQ = None,
-                wheel: WheelQ = None,
+def maintenance(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                 type: Annotated[str | None, Query(description="comma-separated types (default all)")] = None,
                 since: Annotated[dt.date | None, Query(description="actions on or after")] = None) -> dict:
     """Per 25 cm bin: the mean amplitude over the runs (and wheels) and the number of
     actions covering it; box plots per count and the regression amplitude = slope · n + intercept
     (p-value: Newey–West over 100 m)."""
-    sel = _sel(db, line_id, track, run_ids, km_from, km_to)
+    sel = runs.select(db)
     types = parse_types(type)
-    df = data.load_profiles(db, settings, sel, km_from=km_from, km_to=km_to, wheel=_wheel(wheel))
-    acts = data.reference(db, "maintenance", sel, km_from=km_from, km_to=km_to, types=types, since=since)
+    df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=_wheel(runs.wheel))
+    acts = data.reference(db, "maintenance", sel, km_from=runs.km_from, km_to=runs.km_to, types=types, since=since)
     empty = {"types": types or [], "since": since.isoformat() if since else None, "run_ids": sel.run_ids,
              "groups": [], "regression": {"slope": None, "intercept": None, "r": None, "p_value": None, "n": 0}}
     if acts.empty or df.empty:
@@ -225,7 +245,7 @@ def maintenance(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: 
     counts = count_actions(pos, acts["km_from"].to_numpy() * 1000, acts["km_to"].to_numpy() * 1000)
     res = maintenance_correlation(pb.to_numpy(), counts, hac_lag=_lag(sel))
     f = res.regression
-    return {**empty, "groups": [g.__dict__ for g in res.groups],
+    return {**empty, "groups": res.groups,
             "regression": {"slope": data.num(f.slope), "intercept": data.num(f.intercept), "r": data.num(f.r),
                            "p_value": data.num(f.p_value), "n": int(f.n)}}
 
@@ -238,9 +258,7 @@ def _norm_context(db, settings, sel, df, ref_speed, min_speed):
 
 @router.get("/analytics/superstructure", response_model=SuperstructureOut,
             summary="Amplitude per superstructure type and outlying segments")
-def superstructure(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-                   run_ids: RunIdsQ = None, km_from: KmFromQ = None, km_to: KmToQ = None,
-                   wheel: WheelQ = None,
+def superstructure(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                    segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0,
                    z_threshold: Annotated[float, Query(gt=0, le=100)] = 3.5,
                    normalise: Annotated[bool, Query(description="use the speed-normalised amplitude")] = True,
@@ -248,10 +266,10 @@ def superstructure(db: DbDep, settings: SettingsDep, line_id: LineQ = None, trac
     """Distribution of the amplitude per type (the paper's clusters); segments of
     ``segment_m`` whose median departs from their type by more than ``z_threshold``
     robust standard deviations are flagged for inspection."""
-    sel = _sel(db, line_id, track, run_ids, km_from, km_to)
+    sel = runs.select(db)
     ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
-    df = data.load_profiles(db, settings, sel, km_from=km_from, km_to=km_to, wheel=_wheel(wheel),
+    df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=_wheel(runs.wheel),
                             min_speed_kmh=min_v)
     sections = data.reference(db, "superstructure", sel)
     out = {"normalised": False, "reference_speed_kmh": ref_v, "run_ids": sel.run_ids,
@@ -270,7 +288,7 @@ def superstructure(db: DbDep, settings: SettingsDep, line_id: LineQ = None, trac
     pos = (pb.index.to_numpy() + 0.5) * sel.bin_length
     idx, types = data.section_types(sections, pos)
     inside = idx >= 0
-    out["types"] = [d.__dict__ for d in type_distributions(pb.to_numpy()[inside], types[inside])]
+    out["types"] = type_distributions(pb.to_numpy()[inside], types[inside])
     flags = flag_segments(pos, pb.to_numpy(), idx, list(sections["type"]), segment_m=segment_m,
                           bin_length_m=sel.bin_length, z_threshold=z_threshold)
     ids = sections["id"].to_numpy()
@@ -283,16 +301,15 @@ def superstructure(db: DbDep, settings: SettingsDep, line_id: LineQ = None, trac
 
 @router.get("/analytics/speed-normalisation", response_model=SpeedNormOut,
             summary="Speed exponent of the amplitude per superstructure type")
-def speed_normalisation(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-                        run_ids: RunIdsQ = None, km_from: KmFromQ = None, km_to: KmToQ = None,
-                        wheel: WheelQ = None, reference_speed_kmh: RefSpeedQ = None,
+def speed_normalisation(db: DbDep, settings: SettingsDep, runs: RunsQuery,
+                        reference_speed_kmh: RefSpeedQ = None,
                         min_speed_kmh: MinSpeedQ = None) -> dict:
     """ln A = exponent · ln(v / v_ref) + c per type ('*' = all bins, '' = outside any
     section), estimated within bins passed at several speeds where possible."""
-    sel = _sel(db, line_id, track, run_ids, km_from, km_to)
+    sel = runs.select(db)
     ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
-    df = data.load_profiles(db, settings, sel, km_from=km_from, km_to=km_to, wheel=_wheel(wheel),
+    df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=_wheel(runs.wheel),
                             min_speed_kmh=min_v)
     _, fits = _norm_context(db, settings, sel, df, ref_v, min_v)
     types = [{"type": t, "exponent": data.num(f.exponent), "exponent_ci": data.nums(f.exponent_ci),
@@ -396,14 +413,13 @@ def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_sh
 
 @router.get("/analytics/segments", response_model=SegmentsOut,
             summary="Per-segment mean amplitude per run, mean, spread and change over runs")
-def segments(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-             run_ids: RunIdsQ = None, km_from: KmFromQ = None, km_to: KmToQ = None, wheel: WheelQ = None,
+def segments(db: DbDep, settings: SettingsDep, runs: RunsQuery,
              segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0,
              align: bool = True, max_shift_m: MaxShiftQ = 50.0) -> dict:
     """Runs (by start time) are aligned to the first one (``align``), then averaged per
     segment; ``spread`` is the standard deviation over runs, ``change`` last minus first."""
-    sel = _sel(db, line_id, track, run_ids, km_from, km_to)
-    ref_id, info, t = _segments(db, settings, sel, km_from, km_to, _wheel(wheel), segment_m, align, max_shift_m)
+    sel = runs.select(db)
+    ref_id, info, t = _segments(db, settings, sel, runs.km_from, runs.km_to, _wheel(runs.wheel), segment_m, align, max_shift_m)
     return {"segment_m": segment_m, "reference_run_id": ref_id, "km": (t.start_m / 1000).tolist(),
             "runs": info, "matrix": [data.nums(row) for row in t.matrix], "mean": data.nums(t.mean),
             "spread": data.nums(t.spread), "change": data.nums(t.change)}
@@ -411,7 +427,7 @@ def segments(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: Tra
 
 @router.get("/analytics/segment-trend", response_model=SegmentTrendOut,
             summary="Amplitude of one segment over runs (dates)")
-def segment_trend(db: DbDep, settings: SettingsDep, km: Annotated[float, Query(ge=-100_000, le=100_000)],
+def segment_trend(db: DbDep, settings: SettingsDep, km: Annotated[float, km_query()],
                   line_id: LineQ = None, track: TrackQ = None, run_ids: RunIdsQ = None, wheel: WheelQ = None,
                   segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0, align: bool = True,
                   max_shift_m: MaxShiftQ = 50.0) -> dict:

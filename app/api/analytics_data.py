@@ -16,7 +16,7 @@ from app.analysis.stiffness.speed_norm import SpeedFit, fit_speed_exponent, norm
 from app.analysis.stiffness.superstructure import assign_sections
 from app.api.errors import ApiError
 from app.core.config import Settings
-from app.db import crud, reference_crud
+from app.db import crud, reference_crud, results_reader
 from app.db.models import Job, JobStatus, ProfileBin, Run
 from app.db.session import Database
 
@@ -74,7 +74,7 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
                 run = crud.get_run(session, rid)
                 if run is None:
                     raise ApiError(404, "run_ids", f"run {rid} not found")
-                if crud.results_job(session, rid) is None:
+                if results_reader.results_job(session, rid) is None:
                     raise ApiError(409, "run_ids", f"run {rid} has no results yet")
                 runs.append(run)
             lines = {(r.line_id, r.track) for r in runs}
@@ -101,9 +101,9 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
                 track = next(iter(tracks))
         bin_length = 0.25
         for r in runs:
-            job = crud.results_job(session, r.id)
+            job = results_reader.results_job(session, r.id)
             if job is not None:
-                bin_length = crud.bin_length_of(job)
+                bin_length = results_reader.bin_length_of(job)
     runs.sort(key=lambda r: (r.start_time is None, r.start_time, r.id))
     return Selection(line_id, track, runs, bin_length)
 
@@ -119,7 +119,7 @@ def load_profiles(
     frames = []
     with db.read() as session:
         for run in sel.runs:
-            job_id = crud.results_job_id(session, run.id)
+            job_id = results_reader.results_job_id(session, run.id)
             if job_id is None:
                 continue
             ext = session.execute(
@@ -144,7 +144,7 @@ def load_profiles(
 
 def _rows(session, job_id: int, wheel: str | None, km_from: float | None, km_to: float | None) -> pd.DataFrame:
     """The analytics' columns of a job's profile rows (ordered by wheel and bin)."""
-    return crud.job_profile_frame(
+    return results_reader.job_profile_frame(
         session, job_id, wheel=wheel, km_from=km_from, km_to=km_to,
         columns=["speed_mean", "sleeper_amp", "sleeper_force_amp"],
     )

@@ -11,14 +11,21 @@ transaction, so an action and its audit entry are committed together::
 
 from __future__ import annotations
 
-import datetime as dt
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Query, Request
 from sqlalchemy.orm import Session
 
-from app.api.deps import DbDep, Principal, SettingsDep, client_ip, require_role
-from app.api.errors import ApiError
+from app.api.deps import (
+    DbDep,
+    PageOffset,
+    Principal,
+    SettingsDep,
+    check_page_size,
+    client_ip,
+    parse_time_range,
+    require_role,
+)
 from app.api.schemas.auth import AuditList, AuditOut
 from app.db import auth_crud
 from app.db.session import Database
@@ -94,21 +101,6 @@ def record_now(db: Database, request: Request | None, principal: Principal | Non
         record(session, request, principal, action, **kwargs)
 
 
-def _parse_time(value: str | None, name: str) -> dt.datetime | None:
-    if value is None or value == "":
-        return None
-    try:
-        parsed = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
-    except ValueError:
-        raise ApiError(422, name, f"not an ISO 8601 date or datetime: {value!r}") from None
-    if parsed.tzinfo is None:
-        parsed = parsed.replace(tzinfo=dt.UTC)
-    try:
-        return parsed.astimezone(dt.UTC)
-    except OverflowError:
-        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
-
-
 @router.get("/audit", response_model=AuditList, summary="Read the audit log (admin)")
 def read_audit(
     db: DbDep,
@@ -118,17 +110,14 @@ def read_audit(
     since: Annotated[str | None, Query(max_length=40, description="ISO date or datetime")] = None,
     until: Annotated[str | None, Query(max_length=40, description="ISO date or datetime")] = None,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 100,
-    offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+    offset: PageOffset = 0,
 ) -> AuditList:
     """Audit entries (who, when, what), newest first; append-only, nothing can change them."""
-    if limit > settings.max_page_size:
-        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
-    start, end = _parse_time(since, "since"), _parse_time(until, "until")
-    if start and end and start > end:
-        raise ApiError(422, "since", "is after until")
+    check_page_size(limit, settings)
+    start, end = parse_time_range(since, until, ("since", "until"))
     with db.read() as session:
         rows, total = auth_crud.list_audit(
             session, action=action, actor=actor, since=start, until=end, limit=limit, offset=offset
         )
-        items = [AuditOut.model_validate(r, from_attributes=True) for r in rows]
+        items = [AuditOut.model_validate(r) for r in rows]
     return AuditList(items=items, total=total, limit=limit, offset=offset)

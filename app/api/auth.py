@@ -9,9 +9,11 @@ written to the audit log.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import functools
 import logging
+from collections.abc import Iterator
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Depends, Path, Request, Response, status
@@ -95,6 +97,15 @@ def _clear_cookies(response: Response) -> None:
     response.delete_cookie(CSRF_COOKIE, path="/", samesite="strict")
 
 
+@contextlib.contextmanager
+def _auth_errors_as_422(field: str | None = None) -> Iterator[None]:
+    """Answer an :class:`auth_crud.AuthError` with 422 naming its field (or ``field``)."""
+    try:
+        yield
+    except auth_crud.AuthError as exc:
+        raise ApiError(422, field or exc.field, exc.message) from None
+
+
 def _me(principal: Principal) -> MeOut:
     return MeOut(name=principal.name, role=principal.role, kind=principal.kind)
 
@@ -176,10 +187,8 @@ def change_password(body: PasswordChangeIn, request: Request, db: DbDep, princip
         user = auth_crud.get_user(session, principal.name)
         if user is None or not verify_password(user.password_hash, body.current_password):
             raise ApiError(401, "current_password", "wrong password")
-        try:
+        with _auth_errors_as_422(field="new_password"):
             auth_crud.update_user(session, principal.name, password=body.new_password)
-        except auth_crud.AuthError as exc:
-            raise ApiError(422, "new_password", exc.message) from None
         record(session, request, principal, "auth.password", target=principal.name)
     response = Response(status_code=status.HTTP_204_NO_CONTENT)
     _clear_cookies(response)
@@ -187,15 +196,11 @@ def change_password(body: PasswordChangeIn, request: Request, db: DbDep, princip
 
 
 # --- users (admin) -------------------------------------------------------------------
-def _user_out(user) -> UserOut:
-    return UserOut.model_validate(user, from_attributes=True)
-
-
 @router.get("/users", response_model=UserList, summary="List users (admin)")
 def list_users(db: DbDep, principal: AdminDep) -> UserList:
     """All users by name."""
     with db.read() as session:
-        return UserList(items=[_user_out(u) for u in auth_crud.list_users(session)])
+        return UserList(items=[UserOut.model_validate(u) for u in auth_crud.list_users(session)])
 
 
 @router.post(
@@ -207,14 +212,12 @@ def create_user(body: UserIn, request: Request, db: DbDep, principal: AdminDep) 
     with db.write() as session:
         if auth_crud.get_user(session, body.username) is not None:
             raise ApiError(409, "username", f"user {body.username!r} exists")
-        try:
+        with _auth_errors_as_422():
             user = auth_crud.create_user(
                 session, body.username, body.password, body.role, created_by=principal.name
             )
-        except auth_crud.AuthError as exc:
-            raise ApiError(422, exc.field, exc.message) from None
         record(session, request, principal, "user.create", target=user.username, detail={"role": user.role})
-        return _user_out(user)
+        return UserOut.model_validate(user)
 
 
 @router.patch("/users/{username}", response_model=UserOut, summary="Change a user (admin)")
@@ -228,19 +231,17 @@ def update_user(
     ):
         raise ApiError(409, "username", "an admin cannot deactivate or demote itself")
     with db.write() as session:
-        try:
+        with _auth_errors_as_422():
             user = auth_crud.update_user(
                 session, username, password=body.password, role=body.role, active=body.active
             )
-        except auth_crud.AuthError as exc:
-            raise ApiError(422, exc.field, exc.message) from None
         if user is None:
             raise ApiError(404, "username", f"user {username!r} not found")
         changed = {k: v for k, v in body.model_dump(exclude_none=True).items() if k != "password"}
         if body.password is not None:
             changed["password"] = "changed"
         record(session, request, principal, "user.update", target=username, detail=changed)
-        return _user_out(user)
+        return UserOut.model_validate(user)
 
 
 @router.delete("/users/{username}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete a user (admin)")
@@ -256,15 +257,11 @@ def delete_user(username: UsernamePath, request: Request, db: DbDep, principal: 
 
 
 # --- API keys (admin) -------------------------------------------------------------------
-def _key_out(row) -> KeyOut:
-    return KeyOut.model_validate(row, from_attributes=True)
-
-
 @router.get("/keys", response_model=KeyList, summary="List API keys (admin)")
 def list_keys(db: DbDep, principal: AdminDep) -> KeyList:
     """All API keys, newest first, with last use and revocation; never the keys themselves."""
     with db.read() as session:
-        return KeyList(items=[_key_out(k) for k in auth_crud.list_api_keys(session)])
+        return KeyList(items=[KeyOut.model_validate(k) for k in auth_crud.list_api_keys(session)])
 
 
 @router.post(
@@ -275,15 +272,13 @@ def create_key(body: KeyIn, request: Request, db: DbDep, principal: AdminDep) ->
     """Create a key scoped to a role. The answer's ``key`` is shown this once; only its hash is kept."""
     expires = utcnow() + dt.timedelta(days=body.expires_in_days) if body.expires_in_days else None
     with db.write() as session:
-        try:
+        with _auth_errors_as_422():
             row, key = auth_crud.create_api_key(
                 session, body.name, body.role, created_by=principal.name, expires_at=expires
             )
-        except auth_crud.AuthError as exc:
-            raise ApiError(422, exc.field, exc.message) from None
         record(session, request, principal, "key.create", target=row.id,
                detail={"name": row.name, "role": row.role, "prefix": row.prefix})
-        return KeyCreated(**_key_out(row).model_dump(), key=key)
+        return KeyCreated(**KeyOut.model_validate(row).model_dump(), key=key)
 
 
 @router.delete("/keys/{key_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Revoke an API key (admin)")

@@ -7,13 +7,14 @@ and database.
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 from urllib.parse import quote
 
-from fastapi import Depends, HTTPException, Path, Request
+from fastapi import Depends, HTTPException, Path, Query, Request
 
 from app.api.errors import ApiError
 from app.core.config import Settings
@@ -49,7 +50,13 @@ __all__ = [
     "AdminDep",
     "RunId",
     "check_km",
+    "KM_BOUND",
+    "km_query",
     "JobId",
+    "PageOffset",
+    "check_page_size",
+    "parse_time",
+    "parse_time_range",
 ]
 
 
@@ -192,29 +199,47 @@ def get_principal(request: Request) -> Principal:
     return principal
 
 
-class RoleRequirement:
-    """Dependency: the request's principal must have at least ``role``.
-
-    Use through :func:`require_role`. 401 without authentication, 403 for a
-    role below ``role``.
-    """
+class _RoleGate:
+    """What both access dependencies share: a role, and 403 for a principal below it."""
 
     def __init__(self, role: str) -> None:
         role_rank(role)  # validates
         self.role = role
 
-    def __call__(self, principal: Annotated[Principal, Depends(get_principal)]) -> Principal:
+    def _admit(self, principal: Principal) -> Principal:
         if not role_allows(principal.role, self.role):
             raise ApiError(
                 403, "role", f"needs role {self.role} or higher; {principal.name} is {principal.role}"
             )
         return principal
 
+
+_Gate = TypeVar("_Gate", bound=_RoleGate)
+
+
+def _gate_of(gates: dict[str, _Gate], role: str) -> _Gate:
+    """The dependency of ``role`` (one object per role); ValueError for an unknown role."""
+    try:
+        return gates[role]
+    except KeyError:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
+
+
+class RoleRequirement(_RoleGate):
+    """Dependency: the request's principal must have at least ``role``.
+
+    Use through :func:`require_role`. 401 without authentication, 403 for a
+    role below ``role``.
+    """
+
+    def __call__(self, principal: Annotated[Principal, Depends(get_principal)]) -> Principal:
+        return self._admit(principal)
+
     def __repr__(self) -> str:
         return f"require_role({self.role!r})"
 
 
-_REQUIREMENTS = {role: RoleRequirement(role) for role in ROLES}
+_REQUIREMENTS: dict[str, RoleRequirement] = {role: RoleRequirement(role) for role in ROLES}
 
 
 def require_role(role: str) -> RoleRequirement:
@@ -229,22 +254,15 @@ def require_role(role: str) -> RoleRequirement:
     or take the principal from it: ``principal: Annotated[Principal,
     Depends(require_role("admin"))]``.
     """
-    try:
-        return _REQUIREMENTS[role]
-    except KeyError:
-        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
+    return _gate_of(_REQUIREMENTS, role)
 
 
-class PageLogin:
+class PageLogin(_RoleGate):
     """Dependency of HTML pages: the principal, else a 303 redirect to the login page.
 
     Use through :func:`require_page_login`. A logged-in principal whose role
     is below ``role`` gets 403.
     """
-
-    def __init__(self, role: str) -> None:
-        role_rank(role)
-        self.role = role
 
     def __call__(self, request: Request) -> Principal:
         principal = _authenticate(request)
@@ -254,25 +272,18 @@ class PageLogin:
             raise HTTPException(
                 status_code=303, detail="log in first", headers={"Location": location}
             )
-        if not role_allows(principal.role, self.role):
-            raise ApiError(
-                403, "role", f"needs role {self.role} or higher; {principal.name} is {principal.role}"
-            )
-        return principal
+        return self._admit(principal)
 
     def __repr__(self) -> str:
         return f"require_page_login({self.role!r})"
 
 
-_PAGE_LOGINS = {role: PageLogin(role) for role in ROLES}
+_PAGE_LOGINS: dict[str, PageLogin] = {role: PageLogin(role) for role in ROLES}
 
 
 def require_page_login(role: str = "viewer") -> PageLogin:
     """Dependency of HTML pages: logged in (any role >= ``role``) or 303 → ``/login?next=``."""
-    try:
-        return _PAGE_LOGINS[role]
-    except KeyError:
-        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
+    return _gate_of(_PAGE_LOGINS, role)
 
 
 def public() -> None:
@@ -342,6 +353,19 @@ AdminDep = Annotated[Principal, Depends(require_role("admin"))]
 _MAX_ID = 2**31 - 1
 RunId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Run id")]
 JobId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Job id")]
+PageOffset = Annotated[int, Query(ge=0, le=10**9)]
+
+
+#: Largest |km| a query accepts.
+KM_BOUND = 100_000.0
+
+
+def km_query(description: str | None = None) -> Any:
+    """The ``Query`` of a km parameter: within ±:data:`KM_BOUND`.
+
+    Use as ``Annotated[float | None, km_query("Lower km bound")]``.
+    """
+    return Query(ge=-KM_BOUND, le=KM_BOUND, description=description)
 
 
 def check_km(km_from: float | None, km_to: float | None) -> None:
@@ -351,3 +375,61 @@ def check_km(km_from: float | None, km_to: float | None) -> None:
             raise ApiError(422, name, "must be a finite number")
     if km_from is not None and km_to is not None and km_from > km_to:
         raise ApiError(422, "km_from", f"({km_from}) is greater than km_to ({km_to})")
+
+
+def check_page_size(limit: int, settings: Settings) -> None:
+    """422 for a page larger than ``settings.max_page_size``."""
+    if limit > settings.max_page_size:
+        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
+
+
+def parse_time(
+    value: str | None, name: str, *, day: Literal["start", "end"] | None = None
+) -> dt.datetime | None:
+    """An ISO 8601 date or datetime query parameter as an aware UTC datetime.
+
+    Parameters
+    ----------
+    value : str or None
+        The parameter; None or ``""`` give None. A datetime without offset is UTC.
+    name : str
+        Its name, for the 422 message.
+    day : {"start", "end"}, optional
+        What a bare date (``YYYY-MM-DD``) means: the first or the last instant
+        of that day (UTC). Without it a date is read as a datetime (midnight).
+
+    Raises
+    ------
+    ApiError
+        422 for a value that is not ISO 8601 or out of the representable range.
+    """
+    if value is None or value == "":
+        return None
+    try:
+        if day is not None and len(value) == 10:
+            t = dt.time.max if day == "end" else dt.time.min
+            return dt.datetime.combine(dt.date.fromisoformat(value), t, tzinfo=dt.UTC)
+        parsed = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
+    except ValueError:
+        raise ApiError(422, name, f"not an ISO 8601 date or datetime: {value!r}") from None
+    if parsed.tzinfo is None:
+        parsed = parsed.replace(tzinfo=dt.UTC)
+    try:
+        return parsed.astimezone(dt.UTC)
+    except OverflowError:
+        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
+
+
+def parse_time_range(
+    since: str | None, until: str | None, names: tuple[str, str], *, whole_days: bool = False
+) -> tuple[dt.datetime | None, dt.datetime | None]:
+    """Both ends of a time filter (:func:`parse_time`); 422 on the first name if they are reversed.
+
+    With ``whole_days`` a bare date as ``since`` starts at the beginning of the
+    day and one as ``until`` ends at its end.
+    """
+    start = parse_time(since, names[0], day="start" if whole_days else None)
+    end = parse_time(until, names[1], day="end" if whole_days else None)
+    if start and end and start > end:
+        raise ApiError(422, names[0], f"is after {names[1]}")
+    return start, end

@@ -19,7 +19,7 @@ from app.api.schemas.recorder import (
     IndicatorOut,
     IndicatorSegment,
 )
-from app.db import crud, recorder_crud
+from app.db import crud, recorder_crud, results_reader
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.recorder_models import LineGeometryRow
 from app.io import RunFileError
@@ -142,7 +142,7 @@ def geometry_indicator(
                 raise not_found("run", run_id)
             if (run.line_id, run.track) != (row.line_id, row.track):
                 raise ApiError(422, "run_id", f"run {run_id} is on line {run.line_id} track {run.track}")
-        frame = crud.profile_rows(session, run.id, columns=[quantity]) if run is not None else None
+        frame = results_reader.profile_rows(session, run.id, columns=[quantity]) if run is not None else None
     lo, hi = sorted((float(geom.km[0]), float(geom.km[-1])))
     edges = np.arange(lo * 1000.0, hi * 1000.0 + segment_m, segment_m) / 1000.0
     edges = edges[edges <= hi + 1e-9]

@@ -9,12 +9,22 @@ from fastapi import APIRouter, Body, Depends, Query, Request, status
 
 from app.analysis.settings import ProcessingSettings
 from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, JobId, RunId, SettingsDep, require_role
+from app.api.deps import (
+    DbDep,
+    EngineerDep,
+    JobId,
+    PageOffset,
+    RunId,
+    SettingsDep,
+    check_page_size,
+    require_role,
+)
 from app.api.errors import ApiError, not_found
 from app.api.schemas.jobs import JobList, JobOut, ProcessingSettingsIn
 from app.api.views import job_out
 from app.db import crud
 from app.db.models import N_ORDER_COLUMNS, JobStatus
+from app.db.session import Database
 
 __all__ = ["router", "settings_from_request"]
 
@@ -49,7 +59,14 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
     return settings
 
 
-def _job_page(db, *, run_id=None, status_=None, limit=50, offset=0) -> JobList:
+def _job_page(
+    db: Database,
+    *,
+    run_id: int | None = None,
+    status_: str | None = None,
+    limit: int = 50,
+    offset: int = 0,
+) -> JobList:
     with db.read() as session:
         jobs, total = crud.list_jobs(
             session, run_id=run_id, status=status_, limit=limit, offset=offset
@@ -66,11 +83,10 @@ def run_jobs(
     db: DbDep,
     settings: SettingsDep,
     limit: Annotated[int, Query(ge=1)] = 50,
-    offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+    offset: PageOffset = 0,
 ) -> JobList:
     """The processing jobs of a run, newest first."""
-    if limit > settings.max_page_size:
-        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
+    check_page_size(limit, settings)
     with db.read() as session:
         if crud.get_run(session, run_id) is None:
             raise not_found("run", run_id)
@@ -126,11 +142,10 @@ def list_jobs(
     ] = None,
     run_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
     limit: Annotated[int, Query(ge=1)] = 50,
-    offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+    offset: PageOffset = 0,
 ) -> JobList:
     """All jobs, newest first, optionally by status and run."""
-    if limit > settings.max_page_size:
-        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
+    check_page_size(limit, settings)
     if status_ is not None and status_ not in JobStatus.ALL:
         raise ApiError(422, "status", f"must be one of {', '.join(JobStatus.ALL)}")
     return _job_page(db, run_id=run_id, status_=status_, limit=limit, offset=offset)

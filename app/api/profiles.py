@@ -7,6 +7,7 @@ import json
 import os
 import tempfile
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
@@ -14,15 +15,15 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, Depends, Query, Response
 from fastapi.responses import StreamingResponse
 from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import aggregate_profile, display_indices
-from app.api.deps import DbDep, RunId, SettingsDep, check_km
+from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
-from app.db import crud
+from app.db import crud, results_reader
 from app.db.display import display_rows, km_extent
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, Run
 from app.db.session import Database
@@ -34,7 +35,6 @@ router = APIRouter(tags=["profiles"])
 #: Columns aggregated to 1 / 10 / 100 m segments (mean, max, p95 of each).
 AGGREGATED_COLUMNS: tuple[str, ...] = tuple(c for c in PROFILE_VALUE_COLUMNS if c != "n_samples")
 _MAX_LEVEL_M = 10_000.0
-_KM_BOUND = 100_000.0
 _EXPORT_PAGE = 50_000
 _STREAM_BLOCK = 1024 * 1024
 
@@ -45,12 +45,8 @@ OptionalWheel = Annotated[
     str | None,
     Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="Wheel; all wheels when omitted"),
 ]
-KmFrom = Annotated[
-    float | None, Query(ge=-_KM_BOUND, le=_KM_BOUND, description="Lower km bound of the bin centres")
-]
-KmTo = Annotated[
-    float | None, Query(ge=-_KM_BOUND, le=_KM_BOUND, description="Upper km bound of the bin centres")
-]
+KmFrom = Annotated[float | None, km_query("Lower km bound of the bin centres")]
+KmTo = Annotated[float | None, km_query("Upper km bound of the bin centres")]
 Level = Annotated[
     float,
     Query(
@@ -93,7 +89,7 @@ def _columns(value: str | None, max_points: int | None) -> tuple[str, ...] | Non
     if max_points is not None and "sleeper_amp" not in names:
         names.append("sleeper_amp")  # decimation keeps the peaks of the sleeper amplitude
     try:
-        return crud.profile_columns(names)[3:]
+        return results_reader.profile_columns(names)[3:]
     except ValueError as exc:
         raise ApiError(422, "columns", str(exc).removeprefix("columns: ")) from None
 
@@ -103,7 +99,7 @@ def run_with_results(session: Session, run_id: int) -> tuple[Run, Job]:
     run = crud.get_run(session, run_id)
     if run is None:
         raise not_found("run", run_id)
-    job = crud.results_job(session, run_id)
+    job = results_reader.results_job(session, run_id)
     if job is None:
         latest = crud.latest_job(session, run_id)
         state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
@@ -115,12 +111,12 @@ def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int,
     """Job id and bin length of the stored results and the wheels; 404/409 if none."""
     with db.read() as session:
         _, job = run_with_results(session, run_id)
-        wheels = crud.stored_profile_wheels(session, job.id)
+        wheels = results_reader.stored_profile_wheels(session, job.id)
     if wheel is not None and wheel not in wheels:
         raise ApiError(
             404, "wheel", f"run {run_id} has no profile for wheel {wheel!r} (wheels: {', '.join(wheels)})"
         )
-    return job.id, crud.bin_length_of(job), wheels
+    return job.id, results_reader.bin_length_of(job), wheels
 
 
 def _level_ratio(level_m: float, bin_length: float) -> int:
@@ -199,11 +195,11 @@ def get_profile(
         if max_points is not None and k == 1:
             # a few thousand rows of the stored display pyramid, whatever the range
             df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,
-                              columns=crud.profile_columns(values), extent=extent)
+                              columns=results_reader.profile_columns(values), extent=extent)
         elif max_points is None and k == 1:
-            df = crud.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
+            df = results_reader.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
         else:
-            df = crud.job_profile_frame(session, job_id, **read)
+            df = results_reader.job_profile_frame(session, job_id, **read)
     truncated = False
     if max_points is not None and k > 1:
         df = _decimate(_aggregate(df, level, bin_length, values), max_points, "sleeper_amp_max")
@@ -242,24 +238,56 @@ def _frames(
     """Pages of the export: stored rows, or aggregated segments wheel by wheel."""
     if _level_ratio(level, bin_length) == 1:
         for wheel in wheels:
-            yield from crud.iter_profile_pages(
+            yield from results_reader.iter_profile_pages(
                 db.read, job_id, wheel, km_from=km_from, km_to=km_to, page_size=_EXPORT_PAGE
             )
         return
     for wheel in wheels:
         with db.read() as session:
-            df = crud.job_profile_frame(session, job_id, wheel=wheel, km_from=km_from, km_to=km_to)
+            df = results_reader.job_profile_frame(session, job_id, wheel=wheel, km_from=km_from, km_to=km_to)
         if len(df):
             yield _aggregate(df, level, bin_length)
 
 
-def _export_prelude(
-    db: Database, run_id: int, wheel: str | None, km_from, km_to, level: float
-) -> tuple[int, list[str], float]:
+@dataclass(frozen=True)
+class _Export:
+    """What an export streams: a run's stored results (one wheel or all) in a km range, at a level."""
+
+    run_id: int
+    job_id: int
+    wheel: str | None
+    wheels: list[str]
+    km_from: float | None
+    km_to: float | None
+    level: float
+    bin_length: float
+
+    def frames(self, db: Database) -> Iterator[pd.DataFrame]:
+        """The pages to write (:func:`_frames`)."""
+        return _frames(db, self.job_id, self.wheels, self.km_from, self.km_to, self.level, self.bin_length)
+
+    def content_disposition(self, ext: str) -> dict[str, str]:
+        """The attachment header naming the file ``run-<id>-profile[_wheel-<w>]_<level>m.<ext>``."""
+        name = _filename(self.run_id, self.wheel, self.level, ext)
+        return {"Content-Disposition": f'attachment; filename="{name}"'}
+
+
+def _export_query(
+    run_id: RunId,
+    db: DbDep,
+    wheel: OptionalWheel = None,
+    km_from: KmFrom = None,
+    km_to: KmTo = None,
+    level: Level = 0.25,
+) -> _Export:
+    """The query of both export routes, checked: km bounds, results of the wheel, level."""
     check_km(km_from, km_to)
     job_id, bin_length, wheels = _results_context(db, run_id, wheel)
     _level_ratio(level, bin_length)
-    return job_id, ([wheel] if wheel else wheels), bin_length
+    return _Export(run_id, job_id, wheel, [wheel] if wheel else wheels, km_from, km_to, level, bin_length)
+
+
+ExportQuery = Annotated[_Export, Depends(_export_query)]
 
 
 def _filename(run_id: int, wheel: str | None, level: float, ext: str) -> str:
@@ -276,20 +304,12 @@ def _filename(run_id: int, wheel: str | None, level: float, ext: str) -> str:
     response_class=StreamingResponse,
     responses={200: {"content": {"text/csv": {}}}, 409: {"description": "No results yet"}},
 )
-def export_csv(
-    run_id: RunId,
-    db: DbDep,
-    wheel: OptionalWheel = None,
-    km_from: KmFrom = None,
-    km_to: KmTo = None,
-    level: Level = 0.25,
-) -> StreamingResponse:
+def export_csv(export: ExportQuery, db: DbDep) -> StreamingResponse:
     """All profile rows of a run (or one wheel) as CSV, in pages, never whole in memory."""
-    job_id, wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
 
     def generate() -> Iterator[bytes]:
         header = True
-        for df in _frames(db, job_id, wheels, km_from, km_to, level, bin_length):
+        for df in export.frames(db):
             buffer = io.BytesIO()
             pa_csv.write_csv(
                 pa.Table.from_pandas(df, preserve_index=False),
@@ -302,11 +322,7 @@ def export_csv(
             cols = ["wheel", "bin", "km", *PROFILE_VALUE_COLUMNS]
             yield (",".join(cols) + "\n").encode()
 
-    return StreamingResponse(
-        generate(),
-        media_type="text/csv",
-        headers={"Content-Disposition": f'attachment; filename="{_filename(run_id, wheel, level, "csv")}"'},
-    )
+    return StreamingResponse(generate(), media_type="text/csv", headers=export.content_disposition("csv"))
 
 
 @router.get(
@@ -318,20 +334,12 @@ def export_csv(
         409: {"description": "No results yet"},
     },
 )
-def export_parquet(
-    run_id: RunId,
-    db: DbDep,
-    wheel: OptionalWheel = None,
-    km_from: KmFrom = None,
-    km_to: KmTo = None,
-    level: Level = 0.25,
-) -> StreamingResponse:
+def export_parquet(export: ExportQuery, db: DbDep) -> StreamingResponse:
     """All profile rows of a run (or one wheel) as Parquet.
 
     The file is written page by page to a temporary file, streamed out in
     blocks, and removed.
     """
-    job_id, wheels, bin_length = _export_prelude(db, run_id, wheel, km_from, km_to, level)
 
     def generate() -> Iterator[bytes]:
         fd, tmp = tempfile.mkstemp(suffix=".parquet", prefix="trackvkf-export-")
@@ -339,13 +347,13 @@ def export_parquet(
         try:
             writer: pq.ParquetWriter | None = None
             try:
-                for df in _frames(db, job_id, wheels, km_from, km_to, level, bin_length):
+                for df in export.frames(db):
                     table = pa.Table.from_pandas(df, preserve_index=False)
                     if writer is None:
                         writer = pq.ParquetWriter(tmp, table.schema)
                     writer.write_table(table.cast(writer.schema))
                 if writer is None:
-                    empty = crud.profile_frame([])
+                    empty = results_reader.profile_frame([])
                     pq.write_table(pa.Table.from_pandas(empty, preserve_index=False), tmp)
             finally:
                 if writer is not None:
@@ -357,9 +365,5 @@ def export_parquet(
             os.unlink(tmp)
 
     return StreamingResponse(
-        generate(),
-        media_type="application/vnd.apache.parquet",
-        headers={
-            "Content-Disposition": f'attachment; filename="{_filename(run_id, wheel, level, "parquet")}"'
-        },
+        generate(), media_type="application/vnd.apache.parquet", headers=export.content_disposition("parquet")
     )

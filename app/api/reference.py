@@ -7,15 +7,16 @@ writes: to be restricted to the engineer role by the access control.
 from __future__ import annotations
 
 import datetime as dt
-from typing import Annotated, Literal
+from dataclasses import asdict, dataclass
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import pandas as pd
-from fastapi import APIRouter, File, Query, Request, UploadFile
+from fastapi import APIRouter, Depends, File, Query, Request, UploadFile
 from starlette.concurrency import run_in_threadpool
 
 from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, SettingsDep, check_km
+from app.api.deps import DbDep, EngineerDep, SettingsDep, check_km, km_query
 from app.api.errors import ApiError
 from app.api.schemas.reference import (
     DeleteOut,
@@ -33,11 +34,10 @@ __all__ = ["router"]
 router = APIRouter(prefix="/reference", tags=["reference data"])
 
 Kind = Literal["subsidence", "maintenance", "superstructure"]
-_KM = 100_000.0
 LineQ = Annotated[str | None, Query(max_length=128, description="Line id")]
 TrackQ = Annotated[str | None, Query(max_length=64, description="Track")]
-KmFromQ = Annotated[float | None, Query(ge=-_KM, le=_KM, description="Lower km bound")]
-KmToQ = Annotated[float | None, Query(ge=-_KM, le=_KM, description="Upper km bound")]
+KmFromQ = Annotated[float | None, km_query("Lower km bound")]
+KmToQ = Annotated[float | None, km_query("Upper km bound")]
 
 
 def _records(df: pd.DataFrame) -> list[dict]:
@@ -102,43 +102,54 @@ def delete_reference(kind: Kind, request: Request, principal: EngineerDep, db: D
     return DeleteOut(kind=kind, deleted=n)
 
 
-def _query(db, settings, kind, **kw) -> tuple[list[dict], bool]:
-    check_km(kw.get("km_from"), kw.get("km_to"))
+@dataclass(frozen=True)
+class _Window:
+    """The query of the reference lists: line, track and km range, as given."""
+
+    line_id: str | None
+    track: str | None
+    km_from: float | None
+    km_to: float | None
+
+
+def _window_query(line_id: LineQ = None, track: TrackQ = None,
+                  km_from: KmFromQ = None, km_to: KmToQ = None) -> _Window:
+    return _Window(line_id, track, km_from, km_to)
+
+
+WindowQuery = Annotated[_Window, Depends(_window_query)]
+
+
+def _query(db, settings, kind, window: _Window, **kw) -> dict[str, Any]:
+    """``items`` of ``kind`` in ``window`` (422 for bad km bounds), at most ``max_profile_rows``
+    of them, and whether there were more (``truncated``)."""
+    check_km(window.km_from, window.km_to)
     limit = settings.max_profile_rows
     with db.read() as session:
-        df = reference_crud.reference_frame(session, kind, limit=limit + 1, **kw)
-    return _records(df.iloc[:limit]), len(df) > limit
+        df = reference_crud.reference_frame(session, kind, limit=limit + 1, **asdict(window), **kw)
+    return {"items": _records(df.iloc[:limit]), "truncated": len(df) > limit}
 
 
 @router.get("/subsidence", response_model=SubsidenceList, summary="Subsidence measurements")
-def list_subsidence(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-                    km_from: KmFromQ = None, km_to: KmToQ = None) -> SubsidenceList:
+def list_subsidence(db: DbDep, settings: SettingsDep, window: WindowQuery) -> SubsidenceList:
     """Subsidence (mm) along km; at most ``TRACKVKF_MAX_PROFILE_ROWS`` rows (``truncated``)."""
-    items, truncated = _query(db, settings, "subsidence", line_id=line_id, track=track,
-                              km_from=km_from, km_to=km_to)
-    return SubsidenceList(items=items, truncated=truncated)
+    return SubsidenceList(**_query(db, settings, "subsidence", window))
 
 
 @router.get("/maintenance", response_model=MaintenanceList, summary="Maintenance actions")
 def list_maintenance(
-    db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-    km_from: KmFromQ = None, km_to: KmToQ = None,
+    db: DbDep, settings: SettingsDep, window: WindowQuery,
     type: Annotated[str | None, Query(description="comma-separated types")] = None,
     since: Annotated[dt.date | None, Query(description="actions on or after this date")] = None,
 ) -> MaintenanceList:
     """Maintenance actions overlapping the km range."""
-    items, truncated = _query(db, settings, "maintenance", line_id=line_id, track=track,
-                              km_from=km_from, km_to=km_to, types=parse_types(type), since=since)
-    return MaintenanceList(items=items, truncated=truncated)
+    return MaintenanceList(**_query(db, settings, "maintenance", window, types=parse_types(type), since=since))
 
 
 @router.get("/superstructure", response_model=SuperstructureList, summary="Superstructure sections")
-def list_superstructure(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None,
-                        km_from: KmFromQ = None, km_to: KmToQ = None) -> SuperstructureList:
+def list_superstructure(db: DbDep, settings: SettingsDep, window: WindowQuery) -> SuperstructureList:
     """Superstructure sections overlapping the km range."""
-    items, truncated = _query(db, settings, "superstructure", line_id=line_id, track=track,
-                              km_from=km_from, km_to=km_to)
-    return SuperstructureList(items=items, truncated=truncated)
+    return SuperstructureList(**_query(db, settings, "superstructure", window))
 
 
 def parse_types(value: str | None) -> list[str] | None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import datetime as dt
 import logging
 from typing import Annotated
 
@@ -10,12 +9,24 @@ from fastapi import APIRouter, Depends, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from app.api.audit import record
-from app.api.deps import AdminDep, DbDep, EngineerDep, RunId, SettingsDep, StoreDep, require_role
-from app.api.errors import ApiError, not_found
+from app.api.deps import (
+    AdminDep,
+    DbDep,
+    EngineerDep,
+    PageOffset,
+    RunId,
+    SettingsDep,
+    StoreDep,
+    check_page_size,
+    parse_time_range,
+    require_role,
+)
+from app.api.errors import not_found
 from app.api.schemas.runs import RunDetail, RunList
 from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
 from app.api.views import API_PREFIX, run_detail, run_out
 from app.db import crud
+from app.db.session import Database
 
 __all__ = ["router"]
 
@@ -54,28 +65,6 @@ _UPLOAD_BODY = {
         "application/vnd.apache.parquet": {"schema": {"type": "string", "format": "binary"}},
     },
 }
-
-
-def _parse_date(value: str | None, name: str, end_of_day: bool) -> dt.datetime | None:
-    """Parse an ISO date or datetime query parameter to an aware UTC datetime."""
-    if value is None or value == "":
-        return None
-    try:
-        if len(value) == 10:
-            day = dt.date.fromisoformat(value)
-            t = dt.time.max if end_of_day else dt.time.min
-            return dt.datetime.combine(day, t, tzinfo=dt.UTC)
-        parsed = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
-    except ValueError:
-        raise ApiError(
-            422, name, f"not an ISO 8601 date or datetime: {value!r}"
-        ) from None
-    if parsed.tzinfo is None:
-        parsed = parsed.replace(tzinfo=dt.UTC)
-    try:
-        return parsed.astimezone(dt.UTC)
-    except OverflowError:
-        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
 
 
 @router.post(
@@ -139,7 +128,7 @@ async def upload_run(
     return await run_in_threadpool(_detail, db, outcome.run_id)
 
 
-def _detail(db, run_id: int) -> RunDetail:
+def _detail(db: Database, run_id: int) -> RunDetail:
     with db.read() as session:
         run = crud.get_run(session, run_id)
         if run is None:
@@ -163,15 +152,11 @@ def list_runs(
         str | None, Query(max_length=40, description="Runs starting at/before (ISO date or datetime; a date includes the whole day)")
     ] = None,
     limit: Annotated[int, Query(ge=1, description="Page size")] = 50,
-    offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+    offset: PageOffset = 0,
 ) -> RunList:
     """Runs, newest start time first, filtered by line, vehicle, track and start date."""
-    if limit > settings.max_page_size:
-        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
-    start_from = _parse_date(date_from, "date_from", end_of_day=False)
-    start_to = _parse_date(date_to, "date_to", end_of_day=True)
-    if start_from and start_to and start_from > start_to:
-        raise ApiError(422, "date_from", "is after date_to")
+    check_page_size(limit, settings)
+    start_from, start_to = parse_time_range(date_from, date_to, ("date_from", "date_to"), whole_days=True)
     with db.read() as session:
         runs, total = crud.list_runs(
             session,

@@ -12,7 +12,7 @@ from app.analysis.settings import ProcessingSettings
 from app.analysis.spectrogram import component_padding, window_spectrograms
 from app.api.deps import DbDep, RunId, StoreDep
 from app.api.errors import ApiError, not_found
-from app.db import crud
+from app.db import crud, results_reader
 from app.io import WHEELS, RunFile, open_run
 
 __all__ = ["router", "MAX_WINDOW_M", "sample_range"]
@@ -55,7 +55,7 @@ def _settings_of(db, run_id: int) -> tuple[ProcessingSettings, str]:
         run = crud.get_run(session, run_id)
         if run is None:
             raise not_found("run", run_id)
-        job = crud.results_job(session, run_id) or crud.latest_job(session, run_id)
+        job = results_reader.results_job(session, run_id) or crud.latest_job(session, run_id)
         path = run.file_path
         raw = dict(job.settings or {}) if job is not None else {}
     try:

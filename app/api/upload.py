@@ -44,12 +44,12 @@ from app.api.channel_maps import load_channel_map
 from app.api.deps import Principal
 from app.api.errors import ApiError
 from app.core.config import Settings
+from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
 from app.db import crud, recorder_crud
-from app.db.crud import jsonable
 from app.db.models import Run, utcnow
 from app.db.session import Database
-from app.io import RunFileError, ingest
+from app.io import RunFileError, RunSummary, ingest
 from app.io.geometry import LineGeometry
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
@@ -386,30 +386,29 @@ def _one_of(name: str, form_value: str | None, query_value: str | None) -> str |
     return form_value if form_value is not None else query_value
 
 
-def _run_row(summary: Any, received: _Received, fmt: str | None, principal_name: str) -> Run:
+def _run_row(summary: RunSummary, received: _Received, fmt: str | None, principal_name: str) -> Run:
     md = summary.metadata
-    meta_json = md.model_dump(mode="json") if hasattr(md, "model_dump") else dict(md)
     return Run(
         sha256=received.sha256,
         file_path="",
-        source_format=getattr(summary, "source_format", "") or fmt or "unknown",
+        source_format=summary.source_format or fmt or "unknown",
         original_filename=received.filename,
         size_bytes=received.size,
-        vehicle_id=getattr(md, "vehicle_id", None),
-        line_id=getattr(md, "line_id", None),
-        track=getattr(md, "track", None),
-        direction=getattr(md, "direction", None),
-        start_time=getattr(md, "start_time", None),
-        km_start=getattr(md, "km_start", None),
-        km_increasing=getattr(md, "km_increasing", None),
+        vehicle_id=md.vehicle_id,
+        line_id=md.line_id,
+        track=md.track,
+        direction=md.direction,
+        start_time=md.start_time,
+        km_start=md.km_start,
+        km_increasing=md.km_increasing,
         fs=float(summary.fs),
         n_samples=int(summary.n_samples),
         duration_s=float(summary.duration_s),
-        distance_m=_float_or_none(getattr(summary, "distance_m", None)),
-        speed_min=_float_or_none(getattr(summary, "speed_min", None)),
-        speed_max=_float_or_none(getattr(summary, "speed_max", None)),
+        distance_m=_float_or_none(summary.distance_m),
+        speed_min=_float_or_none(summary.speed_min),
+        speed_max=_float_or_none(summary.speed_max),
         channels=list(summary.channels),
-        meta=meta_json,
+        meta=md.model_dump(mode="json"),
         ingest_report=jsonable({"warnings": list(summary.warnings), "report": dict(summary.report)}),
         created_by=principal_name,
         created_at=utcnow(),
@@ -433,7 +432,7 @@ def _create_run(
     db: Database,
     store: RunStore,
     upload_dir: Path,
-    summary: Any,
+    summary: RunSummary,
     received: _Received,
     fmt: str | None,
     principal: Principal,

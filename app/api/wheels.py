@@ -16,7 +16,7 @@ from app.api.schemas.wheels import (
     WheelTrend,
     WheelTrendPoint,
 )
-from app.db import crud
+from app.db import crud, results_reader
 from app.db.trends import wheel_history
 
 __all__ = ["router"]
@@ -35,7 +35,7 @@ def get_wheels(run_id: RunId, db: DbDep) -> WheelList:
     with db.read() as session:
         if crud.get_run(session, run_id) is None:
             raise not_found("run", run_id)
-        rows = crud.get_wheels(session, run_id)
+        rows = results_reader.get_wheels(session, run_id)
         if not rows:
             latest = crud.latest_job(session, run_id)
             state = f"latest job {latest.id} is {latest.status}" if latest else "no job"

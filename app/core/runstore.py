@@ -17,16 +17,16 @@ sees either the whole file or none.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import operator
 import os
 import shutil
 import time
 import uuid
-from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from app.core.atomic import atomic_path
 
 if TYPE_CHECKING:
     from app.core.sharedstore import SharedStore
@@ -37,34 +37,6 @@ log = logging.getLogger(__name__)
 
 RUN_FILE_NAME = "run.h5"
 _UPLOADS = ".uploads"
-
-
-@contextlib.contextmanager
-def atomic_path(path: Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success move it onto ``path``.
-
-    Parameters
-    ----------
-    path : Path
-        Final location. Its directory is created if missing.
-
-    The caller writes the temporary file; when the ``with`` block ends without
-    an exception the file is fsynced and renamed onto ``path`` atomically
-    (``os.replace``). On an exception the temporary file is removed and
-    ``path`` is left untouched.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
-    try:
-        yield tmp
-        if tmp.exists():
-            with open(tmp, "rb") as fh:
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
 
 
 class RunStore:

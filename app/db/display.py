@@ -17,8 +17,8 @@ from sqlalchemy import literal_column, select
 from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import DISPLAY_LEVEL_BASE, display_indices
-from app.db.crud import PROFILE_COLUMNS, profile_frame, profile_where
 from app.db.models import COARSE_DISPLAY_LEVEL, ProfileBin
+from app.db.results_reader import PROFILE_COLUMNS, profile_frame, profile_where
 
 __all__ = ["display_rows", "km_extent"]
 
@@ -67,7 +67,7 @@ def display_rows(
     Parameters
     ----------
     job_id : int
-        Job whose rows are read (the run's :func:`~app.db.crud.results_job_id`).
+        Job whose rows are read (the run's :func:`~app.db.results_reader.results_job_id`).
     max_points : int
         Rows wanted (>= 4).
     bin_length_m : float
@@ -75,7 +75,7 @@ def display_rows(
     km_from, km_to : float, optional
         Range, km (default: the whole profile).
     columns : sequence of str, optional
-        Columns to read (:func:`~app.db.crud.profile_columns`; must hold
+        Columns to read (:func:`~app.db.results_reader.profile_columns`; must hold
         ``sleeper_amp``, which chooses the rows). Default: all.
     extent : (float, float), optional
         The profile's :func:`km_extent` if the caller already read it in the
@@ -84,7 +84,7 @@ def display_rows(
     Returns
     -------
     pandas.DataFrame
-        :data:`~app.db.crud.PROFILE_COLUMNS`, ordered by km.
+        :data:`~app.db.results_reader.PROFILE_COLUMNS`, ordered by km.
 
     Notes
     -----

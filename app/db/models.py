@@ -230,7 +230,7 @@ class ProfileBin(Base):
 
     The largest table by far (about a million rows per 30-minute run). Rows are
     keyed by the job that computed them: the rows of a run that readers see are
-    those of its latest done job (:func:`app.db.crud.results_job_id`), so a new
+    those of its latest done job (:func:`app.db.results_reader.results_job_id`), so a new
     job's rows can be written wheel by wheel, in parallel, while readers keep
     seeing the previous results; marking the job done publishes them and drops
     the older job's rows in one transaction.
@@ -238,13 +238,13 @@ class ProfileBin(Base):
     No foreign-key constraints: PostgreSQL checks a foreign key row by row,
     which tripled the time to store a run. The rows are tied to their run by
     the code: they are written while the run row is locked against deletion
-    (:func:`app.db.crud.lock_run_for_results`), and
+    (:func:`app.db.results_writer.lock_run_for_results`), and
     :func:`app.db.crud.delete_run` locks the run, then deletes them.
 
     ``display_level`` ranks every bin for display (a min–max pyramid of the
     sleeper-passage amplitude, :func:`app.analysis.aggregate.display_levels`).
     Two indexes: the primary key serves km ranges as bin ranges (the bin centre
-    is ``(bin + 0.5) × bin length``, :func:`app.db.crud.profile_where`), and a
+    is ``(bin + 0.5) × bin length``, :func:`app.db.results_reader.profile_where`), and a
     partial index (job, wheel, km, level) over the rows of level
     ≥ :data:`COARSE_DISPLAY_LEVEL` (one row in eight) serves plots of long
     ranges, filtering the level inside the index. Being partial, it costs an

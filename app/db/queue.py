@@ -21,7 +21,8 @@ from typing import Any
 import pandas as pd
 from sqlalchemy import and_, case, func, literal, or_, select, update
 
-from app.db import crud
+from app.core.jsonable import jsonable
+from app.db import results_writer
 from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
 from app.db.session import Database
 
@@ -249,7 +250,7 @@ def finish_job(
         )
         if result.rowcount != 1:
             return False
-        crud.discard_profile_rows(session, job_id)  # rows of wheels stored before it ended
+        results_writer.discard_profile_rows(session, job_id)  # rows of wheels stored before it ended
         return True
 
 
@@ -265,7 +266,7 @@ def complete_job(
     """Store (unless already stored) and publish a job's results and mark it done, in one transaction.
 
     The run's wheel rows are replaced and its other jobs' profile rows deleted
-    (:func:`app.db.crud.publish_results`): readers switch from the old to the
+    (:func:`app.db.results_writer.publish_results`): readers switch from the old to the
     new results at the commit. Nothing is written if the job is no longer
     owned by this worker, a cancel was requested meanwhile, or the run was
     deleted.
@@ -283,7 +284,7 @@ def complete_job(
     """
     with db.write() as session:
         # the run first, then the job: the order delete_run locks them in (no deadlock)
-        if not crud.lock_run_for_results(session, run_id):
+        if not results_writer.lock_run_for_results(session, run_id):
             return False
         result = session.execute(
             update(Job)
@@ -293,8 +294,8 @@ def complete_job(
         if result.rowcount != 1:
             return False
         if profiles is not None:
-            crud.store_profile_rows(session, run_id, job_id, profiles)
-        crud.publish_results(session, run_id, job_id, wheels)
+            results_writer.store_profile_rows(session, run_id, job_id, profiles)
+        results_writer.publish_results(session, run_id, job_id, wheels)
         session.execute(
             update(Job)
             .where(Job.id == job_id)
@@ -302,7 +303,7 @@ def complete_job(
                 status=JobStatus.DONE,
                 progress=1.0,
                 error=None,
-                meta=crud.jsonable(meta),
+                meta=jsonable(meta),
                 finished_at=utcnow(),
                 heartbeat_at=None,
             )
@@ -325,7 +326,7 @@ def store_wheel_rows(db: Database, job_id: int, run_id: int, profiles: pd.DataFr
         True if the rows were written (the job is running, no cancel requested).
     """
     with db.write() as session:
-        if not crud.lock_run_for_results(session, run_id):
+        if not results_writer.lock_run_for_results(session, run_id):
             return False
         running = session.scalar(
             select(Job.id)
@@ -334,7 +335,7 @@ def store_wheel_rows(db: Database, job_id: int, run_id: int, profiles: pd.DataFr
         )
         if running is None:
             return False
-        crud.store_profile_rows(session, run_id, job_id, profiles)
+        results_writer.store_profile_rows(session, run_id, job_id, profiles)
         return True
 
 
@@ -408,7 +409,7 @@ def finalize_cancel_requests(db: Database) -> int:
             .returning(Job.id)
         ).all()
         for job_id in ids:
-            crud.discard_profile_rows(session, job_id)  # rows of wheels stored before the cancel
+            results_writer.discard_profile_rows(session, job_id)  # rows of wheels stored before the cancel
         return len(ids)
 
 

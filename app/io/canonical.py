@@ -23,8 +23,6 @@ default. Files written by :func:`app.io.ingest` always hold both ``speed`` and
 from __future__ import annotations
 
 import contextlib
-import os
-import uuid
 from collections.abc import Iterator, Mapping
 from importlib import metadata as _pkg_metadata
 from pathlib import Path
@@ -33,6 +31,7 @@ from typing import Any, Literal
 import h5py
 import numpy as np
 
+from app.core.atomic import atomic_path
 from app.io.channels import ALL_CHANNELS, UNITS, storage_dtype
 from app.io.errors import RunFileError
 from app.io.metadata import Calibration, RunMetadata, parse_metadata
@@ -72,22 +71,16 @@ def atomic_output(dest: Path) -> Iterator[Path]:
 
     Notes
     -----
-    The temporary file is fsynced and renamed with :func:`os.replace`. When the
-    ``with`` block raises, the temporary file is removed and ``dest`` is not
-    touched.
+    :func:`app.core.atomic.atomic_path` with the ``.part`` ending: the temporary
+    file must be written; it is fsynced and renamed with :func:`os.replace`.
+    When the ``with`` block raises, the temporary file is removed and ``dest``
+    is not touched.
     """
     dest = Path(dest)
     if not dest.parent.is_dir():
         raise FileNotFoundError(f"dest: directory {str(dest.parent)!r} does not exist")
-    tmp = dest.with_name(f".{dest.name}.{uuid.uuid4().hex[:12]}.part")
-    try:
+    with atomic_path(dest, suffix=".part", must_write=True) as tmp:
         yield tmp
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, dest)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
 
 
 def check_hdf5_tree(f: h5py.File) -> dict[str, h5py.Dataset]:

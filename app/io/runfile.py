@@ -5,11 +5,11 @@ from __future__ import annotations
 import json
 import operator
 from pathlib import Path
-from types import TracebackType
 
 import h5py
 import numpy as np
 
+from app.io._closing import Closing
 from app.io.canonical import FORMAT_VERSION, check_hdf5_tree
 from app.io.channels import ALL_CHANNELS, AXLES
 from app.io.errors import RunFileError
@@ -19,7 +19,7 @@ from app.io.metadata import RunMetadata, parse_metadata
 __all__ = ["RunFile", "open_run"]
 
 
-class RunFile:
+class RunFile(Closing):
     """An open canonical run file (see :mod:`app.io.canonical`).
 
     Use :func:`open_run`. Opening reads only attributes; channel data are read
@@ -45,11 +45,7 @@ class RunFile:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:
             raise RunFileError("format", f"cannot open {self.path.name} as HDF5: {exc}") from None
-        try:
-            self._init()
-        except BaseException:
-            self._h5.close()
-            raise
+        self._set_up_or_close(self._init)
         self._pos_table: np.ndarray | None = None
         self._pos_origin: float | None = None
 
@@ -84,18 +80,6 @@ class RunFile:
             )
             for c in self.channels
         }
-
-    # --- context manager -------------------------------------------------
-    def __enter__(self) -> RunFile:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def close(self) -> None:
         """Close the file (idempotent)."""

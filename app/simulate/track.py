@@ -53,13 +53,11 @@ SUPERSTRUCTURE_LABELS: dict[str, str] = {
 BIN_LENGTH_M = 0.25
 
 
-@dataclass(frozen=True)
-class TrackSection:
-    """A stretch of one superstructure type, ``[track_from_m, track_to_m)`` on the km axis (m)."""
+class _KmExtent:
+    """``km_from`` / ``km_to`` of a stretch ``[track_from_m, track_to_m]`` (m on the km axis)."""
 
     track_from_m: float
     track_to_m: float
-    type: str
 
     @property
     def km_from(self) -> float:
@@ -73,7 +71,16 @@ class TrackSection:
 
 
 @dataclass(frozen=True)
-class StiffnessAnomaly:
+class TrackSection(_KmExtent):
+    """A stretch of one superstructure type, ``[track_from_m, track_to_m)`` on the km axis (m)."""
+
+    track_from_m: float
+    track_to_m: float
+    type: str
+
+
+@dataclass(frozen=True)
+class StiffnessAnomaly(_KmExtent):
     """A short local stiffness anomaly (both rails).
 
     The stiffness factor is multiplied by ``1 + (factor - 1) * w(x)`` with
@@ -86,16 +93,6 @@ class StiffnessAnomaly:
     factor: float
     taper_m: float = 10.0
     kind: str = "soft spot"
-
-    @property
-    def km_from(self) -> float:
-        """Start, km."""
-        return self.track_from_m / 1000.0
-
-    @property
-    def km_to(self) -> float:
-        """End, km."""
-        return self.track_to_m / 1000.0
 
     def weight(self, x: np.ndarray) -> np.ndarray:
         """Shape ``w(x)`` in [0, 1] of the anomaly at track positions ``x`` (m)."""

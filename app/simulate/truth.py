@@ -41,6 +41,28 @@ __all__ = [
 ]
 
 TRUTH_FORMAT_VERSION = 1
+#: Scalar attributes of :class:`SimulationTruth` stored as root attributes, with their type.
+_SCALAR_ATTRS: dict[str, type] = {
+    "seed": int,
+    "fs": float,
+    "n_samples": int,
+    "duration_s": float,
+    "distance_m": float,
+    "alpha": float,
+    "v_ref_mps": float,
+    "sleeper_spacing_m": float,
+    "bin_length_m": float,
+    "noise_std_mps2": float,
+    "force_noise_std_kn": float,
+    "unsprung_mass_kg": float,
+    "static_load_kn": float,
+    "with_forces": bool,
+    "km_start": float,
+    "km_increasing": bool,
+    "km_error_m": float,
+}
+#: Those that files written before they existed lack, with the value to assume.
+_OPTIONAL_ATTRS: dict[str, float] = {"km_error_m": 0.0}
 _BIN_FIELDS = (
     "bin",
     "track_m",
@@ -214,30 +236,18 @@ def _strings(values: list[str]) -> np.ndarray:
     return np.array(values, dtype=h5py.string_dtype())
 
 
+def _scalar(attrs: h5py.AttributeManager, key: str, cast: type) -> object:
+    if key in _OPTIONAL_ATTRS:
+        return cast(attrs.get(key, _OPTIONAL_ATTRS[key]))
+    return cast(attrs[key])
+
+
 def save_truth(truth: SimulationTruth, h5: h5py.File) -> None:
     """Write ``truth`` into an open HDF5 file (layout in the module docstring)."""
     a = h5.attrs
     a["truth_format_version"] = TRUTH_FORMAT_VERSION
     a["run_file"] = truth.run_path.name
-    for key in (
-        "seed",
-        "fs",
-        "n_samples",
-        "duration_s",
-        "distance_m",
-        "alpha",
-        "v_ref_mps",
-        "sleeper_spacing_m",
-        "bin_length_m",
-        "noise_std_mps2",
-        "force_noise_std_kn",
-        "unsprung_mass_kg",
-        "static_load_kn",
-        "with_forces",
-        "km_start",
-        "km_increasing",
-        "km_error_m",
-    ):
+    for key in _SCALAR_ATTRS:
         a[key] = getattr(truth, key)
     a["noise_band_hz"] = np.asarray(truth.noise_band_hz, dtype=np.float64)
     a["axle_positions"] = json.dumps(truth.axle_positions)
@@ -344,28 +354,12 @@ def load_truth(path: Path | str) -> SimulationTruth:
         return SimulationTruth(
             run_path=path.with_name(str(a["run_file"])),
             truth_path=path,
-            seed=int(a["seed"]),
-            fs=float(a["fs"]),
-            n_samples=int(a["n_samples"]),
-            duration_s=float(a["duration_s"]),
-            distance_m=float(a["distance_m"]),
-            alpha=float(a["alpha"]),
-            v_ref_mps=float(a["v_ref_mps"]),
-            sleeper_spacing_m=float(a["sleeper_spacing_m"]),
-            bin_length_m=float(a["bin_length_m"]),
-            noise_std_mps2=float(a["noise_std_mps2"]),
+            **{key: _scalar(a, key, cast) for key, cast in _SCALAR_ATTRS.items()},
             noise_band_hz=tuple(float(x) for x in a["noise_band_hz"]),  # type: ignore[arg-type]
-            force_noise_std_kn=float(a["force_noise_std_kn"]),
-            unsprung_mass_kg=float(a["unsprung_mass_kg"]),
-            static_load_kn=float(a["static_load_kn"]),
-            with_forces=bool(a["with_forces"]),
-            km_start=float(a["km_start"]),
-            km_increasing=bool(a["km_increasing"]),
             axle_positions=json.loads(a["axle_positions"]),
             line=line,
             speed_profile=profile,
             wheels=wheels,
             reported_diameters=reported,
             bins=bins,
-            km_error_m=float(a.get("km_error_m", 0.0)),
         )

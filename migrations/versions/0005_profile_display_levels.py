@@ -12,7 +12,7 @@
 * The foreign keys of ``profile_bins`` (and the ``job_id`` index that only
   served one of them) are dropped: PostgreSQL checks them row by row, which
   tripled the time to store a run's ~10⁶ rows. The service keeps the rows
-  tied to their run (``app.db.crud.lock_run_for_results`` / ``delete_run``).
+  tied to their run (``app.db.results_writer.lock_run_for_results`` / ``delete_run``).
 
 Revision ID: 0005_profile_display_levels
 Revises: 0004_procrastinate

@@ -6,7 +6,7 @@ wheels at once contended on its pages. It is replaced by the same index over
 the rows of display level >= 2 (one row in eight): plots of long ranges read
 those; short km ranges (levels 0 and 1) and whole-profile reads go through the
 primary key ``(job_id, wheel, bin)`` as bin ranges
-(:func:`app.db.crud.profile_where`).
+(:func:`app.db.results_reader.profile_where`).
 
 Revision ID: 0006_partial_display_index
 Revises: 0005_profile_display_levels

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from sqlalchemy import func, select
 
-from app.db import crud
+from app.db import crud, results_reader
 from app.db.models import Job, JobStatus, ProfileBin
 from app.db.session import Database
 from tests.api.support import store_files
@@ -132,12 +132,12 @@ def test_parallel_chunks_give_the_sequential_result(queued):
         assert job.status == JobStatus.DONE, job.error
         assert _chunks_done(db, job_id) == job.n_chunks > 2
         with db.read() as s:
-            first = crud.profile_rows(s, run_id)
+            first = results_reader.profile_rows(s, run_id)
         again = client.post(f"/api/v1/runs/{run_id}/jobs", json=SETTINGS).json()["id"]
         assert LocalWorker(client.settings, db=db).run(exit_when_idle=True) == 1
         assert _job(db, again).status == JobStatus.DONE
         with db.read() as s:
-            second = crud.profile_rows(s, run_id)
+            second = results_reader.profile_rows(s, run_id)
     finally:
         db.dispose()
     assert len(first) > 1000

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, signal
 
+from app.analysis._checks import check_positive
+
 __all__ = ["Alignment", "signature", "align_runs", "SegmentTable", "segment_table"]
 
 
@@ -130,8 +132,7 @@ def align_runs(
     Alignment
         ``shift_m`` NaN and confidence 0 when no shift has enough overlap.
     """
-    if not max_shift_m > 0:
-        raise ValueError(f"max_shift_m: must be > 0, got {max_shift_m!r}")
+    check_positive(max_shift_m, "max_shift_m")
     ra0, ra = signature(ref_bins, ref_amplitude, bin_length_m=bin_length_m, detrend_m=detrend_m)
     rb0, rb = signature(bins, amplitude, bin_length_m=bin_length_m, detrend_m=detrend_m)
     k_max = int(np.ceil(max_shift_m / bin_length_m))

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.analysis._checks import paired_1d
 from app.analysis.stiffness.regression import LinearFit, linear_fit
 
 __all__ = ["BoxStats", "MaintenanceCorrelation", "count_actions", "box_stats", "maintenance_correlation"]
@@ -52,10 +53,7 @@ def count_actions(position_m: np.ndarray, start_m: np.ndarray, end_m: np.ndarray
         int64 counts per position.
     """
     x = np.asarray(position_m, dtype=np.float64)
-    a = np.asarray(start_m, dtype=np.float64)
-    b = np.asarray(end_m, dtype=np.float64)
-    if a.shape != b.shape or a.ndim != 1:
-        raise ValueError("start_m, end_m: must be 1-D of equal length")
+    a, b = paired_1d(start_m, end_m, "start_m, end_m")
     if np.any(a > b):
         raise ValueError("start_m, end_m: every action needs start_m <= end_m")
     started = np.searchsorted(np.sort(a), x, side="right")

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.analysis._checks import check_positive, paired_1d
 from app.analysis.stiffness.regression import LinearFit, linear_fit
 
 __all__ = ["SpeedFit", "fit_speed_exponent", "normalise_amplitude"]
@@ -53,12 +54,8 @@ class SpeedFit:
 
 
 def _check(amplitude, speed_mps, reference_speed_mps, min_speed_mps):
-    a = np.asarray(amplitude, dtype=np.float64)
-    v = np.asarray(speed_mps, dtype=np.float64)
-    if a.shape != v.shape or a.ndim != 1:
-        raise ValueError("amplitude, speed_mps: must be 1-D of equal length")
-    if not reference_speed_mps > 0:
-        raise ValueError(f"reference_speed_mps: must be > 0, got {reference_speed_mps!r}")
+    a, v = paired_1d(amplitude, speed_mps, "amplitude, speed_mps")
+    check_positive(reference_speed_mps, "reference_speed_mps")
     if not min_speed_mps >= 0:
         raise ValueError(f"min_speed_mps: must be >= 0, got {min_speed_mps!r}")
     return a, v

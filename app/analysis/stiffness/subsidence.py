@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.analysis._checks import check_positive, paired_1d
 from app.analysis.stiffness.regression import LinearFit, linear_fit
 
 __all__ = ["LOG_BASE", "bin_means", "fit_subsidence", "predict_subsidence"]
@@ -36,12 +37,8 @@ def bin_means(position_m: np.ndarray, values: np.ndarray, bin_length_m: float = 
     means : numpy.ndarray
         Mean value per bin.
     """
-    position_m = np.asarray(position_m, dtype=np.float64)
-    values = np.asarray(values, dtype=np.float64)
-    if position_m.shape != values.shape or position_m.ndim != 1:
-        raise ValueError("position_m, values: must be 1-D of equal length")
-    if not bin_length_m > 0:
-        raise ValueError(f"bin_length_m: must be > 0, got {bin_length_m!r}")
+    position_m, values = paired_1d(position_m, values, "position_m, values")
+    check_positive(bin_length_m, "bin_length_m")
     ok = np.isfinite(position_m) & np.isfinite(values)
     b = np.floor(position_m[ok] / bin_length_m).astype(np.int64)
     uniq, inv = np.unique(b, return_inverse=True)

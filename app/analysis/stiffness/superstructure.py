@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.analysis._checks import check_positive, paired_1d
+
 __all__ = ["TypeDistribution", "SegmentFlag", "assign_sections", "type_distributions", "flag_segments"]
 
 
@@ -51,10 +53,7 @@ def assign_sections(position_m: np.ndarray, start_m: np.ndarray, end_m: np.ndarr
     Where sections overlap, the one starting last wins.
     """
     x = np.asarray(position_m, dtype=np.float64)
-    a = np.asarray(start_m, dtype=np.float64)
-    b = np.asarray(end_m, dtype=np.float64)
-    if a.shape != b.shape or a.ndim != 1:
-        raise ValueError("start_m, end_m: must be 1-D of equal length")
+    a, b = paired_1d(start_m, end_m, "start_m, end_m")
     out = np.full(x.shape, -1, dtype=np.int64)
     for i in np.argsort(a, kind="stable"):
         out[(x >= a[i]) & (x < b[i])] = i
@@ -117,10 +116,8 @@ def flag_segments(
     sec = np.asarray(section, dtype=np.int64)
     if not (x.shape == amp.shape == sec.shape):
         raise ValueError("position_m, amplitude, section: must have equal shapes")
-    if not segment_m > 0:
-        raise ValueError(f"segment_m: must be > 0, got {segment_m!r}")
-    if not z_threshold > 0:
-        raise ValueError(f"z_threshold: must be > 0, got {z_threshold!r}")
+    check_positive(segment_m, "segment_m")
+    check_positive(z_threshold, "z_threshold")
     if np.any(~(amp[sec >= 0] > 0)):
         raise ValueError("amplitude: must be > 0 m/s²")
     need = min_coverage * segment_m / bin_length_m

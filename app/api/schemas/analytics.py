@@ -1,8 +1,16 @@
-"""Schemas of the analytics endpoints (amplitudes in m/s², km in km, subsidence in mm)."""
+"""Schemas of the analytics endpoints (amplitudes in m/s², km in km, subsidence in mm).
+
+Where an analysis returns a frozen dataclass that is answered as it is (box
+plots per action count, amplitude distribution per superstructure type), the
+schema uses that dataclass: its fields are declared once, in the analysis.
+"""
 
 from __future__ import annotations
 
 from pydantic import BaseModel, Field
+
+from app.analysis.stiffness.maintenance import BoxStats
+from app.analysis.stiffness.superstructure import TypeDistribution
 
 __all__ = ["SubsidenceFitOut", "UnsprungMassOut", "MaintenanceOut", "SegmentsOut", "SegmentTrendOut",
            "SuperstructureOut", "SpeedNormOut", "AlignmentOut", "PredictedSubsidenceOut",
@@ -56,17 +64,6 @@ class UnsprungMassOut(BaseModel):
     wheels: list[MassWheel]
 
 
-class BoxGroup(BaseModel):
-    n_actions: int
-    n_bins: int
-    q1: float
-    median: float
-    q3: float
-    whisker_low: float
-    whisker_high: float
-    mean: float
-
-
 class Regression(BaseModel):
     slope: float | None = Field(description="m/s² per action")
     intercept: float | None = Field(description="m/s²")
@@ -79,7 +76,7 @@ class MaintenanceOut(BaseModel):
     types: list[str]
     since: str | None
     run_ids: list[int]
-    groups: list[BoxGroup]
+    groups: list[BoxStats]
     regression: Regression
 
 
@@ -114,17 +111,6 @@ class SegmentTrendOut(BaseModel):
     points: list[TrendPoint]
 
 
-class TypeStats(BaseModel):
-    type: str
-    n_bins: int
-    mean: float
-    median: float
-    q05: float
-    q25: float
-    q75: float
-    q95: float
-
-
 class SegmentOut(BaseModel):
     section_id: int
     type: str
@@ -140,7 +126,7 @@ class SuperstructureOut(BaseModel):
     normalised: bool
     reference_speed_kmh: float
     run_ids: list[int]
-    types: list[TypeStats]
+    types: list[TypeDistribution]
     segments: list[SegmentOut]
     flagged: list[SegmentOut]
 

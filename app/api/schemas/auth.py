@@ -78,6 +78,8 @@ class UserPatch(BaseModel):
 class UserOut(BaseModel):
     """A user (never its password hash)."""
 
+    model_config = ConfigDict(from_attributes=True)  # validated from the database row
+
     username: str
     role: RoleName
     active: bool
@@ -107,6 +109,8 @@ class KeyIn(BaseModel):
 class KeyOut(BaseModel):
     """An API key as listed (never the key itself)."""
 
+    model_config = ConfigDict(from_attributes=True)  # validated from the database row
+
     id: int
     name: str
     prefix: str = Field(description="First characters after `tvk_`: recognise the key")
@@ -132,6 +136,8 @@ class KeyList(BaseModel):
 
 class AuditOut(BaseModel):
     """One audit log entry."""
+
+    model_config = ConfigDict(from_attributes=True)  # validated from the database row
 
     id: int
     at: dt.datetime

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from types import TracebackType
 from typing import Any
 
 import numpy as np
 
+from app.io._closing import Closing
 from app.io.channels import INPUT_CHANNELS, TIME_COLUMN, canonical_name
 from app.io.errors import RunFileError
 
@@ -43,28 +43,14 @@ class SourceInfo:
     calibration: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
-class Source:
-    """Base class of the block readers; a context manager."""
+class Source(Closing):
+    """Base class of the block readers; a context manager (``close`` releases the file)."""
 
     info: SourceInfo
 
     def blocks(self, size: int) -> Iterator[dict[str, np.ndarray]]:
         """Yield dicts canonical name → float64 array, all of equal length (≤ ``size``)."""
         raise NotImplementedError
-
-    def close(self) -> None:
-        """Release the file."""
-
-    def __enter__(self) -> Source:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def map_channel_names(names: Iterable[str]) -> dict[str, str]:

@@ -78,7 +78,8 @@ class Hdf5Source(Source):
     path : Path
         Input file.
     limits : IngestLimits
-        Acceptance limits.
+        Root member count (``max_columns``) and decoded size
+        (``max_decoded_bytes``) limits.
     """
 
     def __init__(self, path: Path, limits: IngestLimits = DEFAULT_LIMITS) -> None:
@@ -88,11 +89,7 @@ class Hdf5Source(Source):
             self._h5 = h5py.File(path, "r")
         except (OSError, ValueError) as exc:
             raise RunFileError("file", f"cannot open HDF5 file: {exc}") from None
-        try:
-            self._setup()
-        except BaseException:
-            self._h5.close()
-            raise
+        self._set_up_or_close(self._setup)
 
     def _setup(self) -> None:
         n_members = len(self._h5)

@@ -85,11 +85,7 @@ class Mdf4Reader(RecorderReader):
             self._mdf = MDF(path)
         except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad files
             raise RunFileError("file", f"cannot open MDF file: {str(exc)[:300]}") from None
-        try:
-            self._setup(path, file_bytes, limits)
-        except BaseException:
-            self.close()
-            raise
+        self._set_up_or_close(lambda: self._setup(path, file_bytes, limits))
 
     def _setup(self, path: Path, file_bytes: int, limits: IngestLimits) -> None:
         mdf = self._mdf

@@ -52,7 +52,7 @@ class ParquetSource(Source):
     path : Path
         Input file.
     limits : IngestLimits
-        Acceptance limits.
+        Footer size, column count and decoded size limits (see above).
     """
 
     def __init__(self, path: Path, limits: IngestLimits = DEFAULT_LIMITS) -> None:
@@ -63,11 +63,7 @@ class ParquetSource(Source):
             self._pf = pq.ParquetFile(path)
         except (pa.ArrowException, OSError) as exc:
             raise RunFileError("file", f"cannot open Parquet file: {exc}") from None
-        try:
-            self._setup(file_bytes, limits)
-        except BaseException:
-            self._pf.close()
-            raise
+        self._set_up_or_close(lambda: self._setup(file_bytes, limits))
 
     def _setup(self, file_bytes: int, limits: IngestLimits) -> None:
         meta = self._pf.metadata

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from app.io._closing import Closing
 from app.io.channel_map import ChannelMap, MappedChannel, RecorderChannel, resolve_channels
 from app.io.channels import ACCEL_CHANNELS, FORCE_CHANNELS, GNSS_CHANNELS, TIME_COLUMN
 from app.io.errors import RunFileError
@@ -44,7 +45,7 @@ GNSS_MIN_GAP_S = 1.0
 _SLOW_CHUNK = 65_536
 
 
-class RecorderReader(abc.ABC):
+class RecorderReader(Closing, abc.ABC):
     """A recorder file open for chunked reading.
 
     Attributes
@@ -167,11 +168,7 @@ class RecorderSource(Source):
         self, reader: RecorderReader, channel_map: ChannelMap | None, limits: IngestLimits
     ) -> None:
         self._reader = reader
-        try:
-            self._setup(channel_map, limits)
-        except BaseException:
-            reader.close()
-            raise
+        self._set_up_or_close(lambda: self._setup(channel_map, limits))
 
     def _setup(self, channel_map: ChannelMap | None, limits: IngestLimits) -> None:
         reader = self._reader

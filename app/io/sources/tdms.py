@@ -68,11 +68,7 @@ class TdmsReader(RecorderReader):
             self._tdms = TdmsFile.open(path)
         except Exception as exc:  # noqa: BLE001 - npTDMS raises many types on bad files
             raise RunFileError("file", f"cannot open TDMS file: {str(exc)[:300]}") from None
-        try:
-            self._setup(file_bytes, limits)
-        except BaseException:
-            self.close()
-            raise
+        self._set_up_or_close(lambda: self._setup(file_bytes, limits))
 
     def _setup(self, file_bytes: int, limits: IngestLimits) -> None:
         groups = self._tdms.groups()

@@ -11,16 +11,9 @@ import pandas as pd
 import pytest
 from sqlalchemy import func, select, update
 
-from app.db import crud, queue
+from app.db import crud, queue, results_reader
 from app.db.models import Job, JobStatus, ProfileBin, Run, WheelOOR, utcnow
 from app.db.session import Database
-
-
-@pytest.fixture
-def db(service_settings):
-    database = Database(service_settings.database_url)
-    yield database
-    database.dispose()
 
 
 def _make_run(db: Database, sha: str = "a" * 64) -> tuple[int, int]:
@@ -152,9 +145,9 @@ def test_results_are_replaced_not_duplicated(db):
         assert set(s.scalars(select(ProfileBin.sleeper_amp)).all()) == {2.0}
         assert s.scalar(select(func.count()).select_from(WheelOOR)) == 2
         assert s.scalar(select(ProfileBin.sleeper_force_amp).limit(1)) is None
-        df = crud.profile_rows(s, run_id, wheel="12")
+        df = results_reader.profile_rows(s, run_id, wheel="12")
         assert list(df["bin"]) == list(range(40_000, 40_006))
-        assert crud.results_job(s, run_id).id == job2
+        assert results_reader.results_job(s, run_id).id == job2
     with db.write() as s:
         assert crud.delete_run(s, run_id)
     with db.read() as s:
@@ -172,7 +165,7 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
 
     def amps() -> set[float]:
         with db.read() as s:
-            return set(crud.profile_rows(s, run_id)["sleeper_amp"])
+            return set(results_reader.profile_rows(s, run_id)["sleeper_amp"])
 
     with db.write() as s:
         job2 = crud.create_job(s, run_id, {"n_wheel_orders": 11}).id
@@ -184,13 +177,13 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
         assert queue.store_wheel_rows(db, job2, run_id, part)  # a retried task: replaced, not doubled
         assert amps() == {1.0}  # readers still see the published job
     with db.read() as s:
-        assert crud.stored_profile_wheels(s, job2) == ["11", "12"]
-        assert crud.results_job_id(s, run_id) == job1
+        assert results_reader.stored_profile_wheels(s, job2) == ["11", "12"]
+        assert results_reader.results_job_id(s, run_id) == job1
     assert queue.complete_job(db, job2, None, run_id, None, new_wheels, {"v": 2})
     assert amps() == {2.0}
     with db.read() as s:
         assert s.scalar(select(func.count()).select_from(ProfileBin)) == 12  # job 1's rows dropped
-        assert crud.results_job_id(s, run_id) == job2
+        assert results_reader.results_job_id(s, run_id) == job2
     assert not queue.store_wheel_rows(db, job2, run_id, new)  # done: nothing more is written
 
     with db.write() as s:
@@ -200,4 +193,4 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
     assert queue.finish_job(db, job3, "w", JobStatus.FAILED, "boom")
     assert amps() == {2.0}
     with db.read() as s:
-        assert crud.stored_profile_wheels(s, job3) == []  # the failed job's rows are gone
+        assert results_reader.stored_profile_wheels(s, job3) == []  # the failed job's rows are gone
