@@ -1,5 +1,6 @@
 """Shared fixtures: service settings on a temporary SQLite file and run store, an
-API test client on a migrated database, and a view of the run store's files.
+API test client on a migrated database, a view of the run store's files, and
+simulated runs (``sim_run``, ``short_sim_run``).
 
 The fixtures are opt-in (no autouse): numerical tests do not pay for them.
 """
@@ -60,6 +61,31 @@ def make_client(tmp_path: Path) -> Iterator[Callable[..., Any]]:
 def client(make_client):
     """API test client with default test settings."""
     return make_client()
+
+
+SIM_LENGTH_KM = 1.5
+SIM_FS = 10_000.0
+SIM_SEED = 1
+
+
+@pytest.fixture(scope="session")
+def sim_run(tmp_path_factory) -> tuple[Path, object]:
+    """A short simulated run (1.5 km at 10 kHz, with forces) and its truth."""
+    from app.simulate.run import simulate_run
+
+    path = tmp_path_factory.mktemp("sim") / "sim-run.h5"
+    truth = simulate_run(path, length_km=SIM_LENGTH_KM, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
+    return path, truth
+
+
+@pytest.fixture(scope="session")
+def short_sim_run(tmp_path_factory) -> tuple[Path, object]:
+    """A shorter simulated run (0.8 km, ~36 s at 10 kHz) for the fault tests."""
+    from app.simulate.run import simulate_run
+
+    path = tmp_path_factory.mktemp("sim-short") / "sim-short.h5"
+    truth = simulate_run(path, length_km=0.8, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
+    return path, truth
 
 
 @pytest.fixture(scope="session")

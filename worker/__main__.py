@@ -1,7 +1,7 @@
 """``python -m worker``: run the worker (same as ``trackvkf worker``).
 
-The database URL picks the mode: SQLite → the local job loop
-(:mod:`worker.runner`); PostgreSQL → Procrastinate workers
+The database URL picks the mode (:func:`worker.modes.run`): SQLite → the
+local job loop (:mod:`worker.runner`); PostgreSQL → Procrastinate workers
 (:mod:`worker.tasks`), unless ``--local`` asks for the local loop.
 """
 
@@ -12,7 +12,7 @@ import sys
 
 from app.core.config import get_settings
 from app.core.logging import configure_logging
-from worker.runner import run_worker
+from worker import modes
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,18 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     settings = get_settings()
     configure_logging(args.log_level or settings.log_level)
-    try:
-        if settings.is_sqlite or args.local:
-            run_worker(settings, once=args.once, exit_when_idle=args.exit_when_idle)
-        else:
-            from worker.tasks import run_worker_process, run_workers
-
-            if args.exit_when_idle:
-                return run_worker_process(settings, wait=False)
-            return run_workers(settings, args.processes)
-    except KeyboardInterrupt:
-        return 130
-    return 0
+    return modes.run(
+        settings, local=args.local, once=args.once, exit_when_idle=args.exit_when_idle,
+        processes=args.processes,
+    )
 
 
 if __name__ == "__main__":

@@ -1,9 +1,11 @@
-"""Chunk results of the fan-out mode: in the run store, or in the shared store.
+"""Where the chunk results of jobs live: in the run store, or in its shared store.
 
-By default chunk results live in the run store directory
+Both worker modes (the local job loop and the Procrastinate tasks) keep a
+job's chunk files (:mod:`app.pipeline.chunkfile`) through one
+:class:`ChunkStore`. By default they live in the run store directory
 (``<run_store>/<run_id>/jobs/<job_id>/chunk-00000.npz``, written atomically by
-:func:`worker.pipeline.process_chunk`: temporary file + ``os.replace``). With
-a shared store (``TRACKVKF_SHARED_STORE``, an fsspec URL such as
+:func:`app.pipeline.process_chunk`: temporary file + ``os.replace``). With a
+shared store (``TRACKVKF_SHARED_STORE``, an fsspec URL such as
 ``s3://bucket/trackvkf`` with ``s3fs``; see :mod:`app.core.sharedstore`) they
 go there instead, under the same relative layout: the chunk is computed into a
 local temporary file, uploaded under a temporary key and moved onto its final
@@ -19,12 +21,15 @@ import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
-from worker.store import RunStore, atomic_path, relative_to_store
+from app.core.runstore import RunStore, atomic_path
 
 __all__ = ["ChunkStore"]
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+#: finished files of a job: chunk results and assembled wheel results
+_JOB_FILE_NAME = re.compile(r"^(chunk-\d{5}\.npz|wheel-\w+\.json)$")
 
 
 class ChunkStore:
@@ -40,18 +45,27 @@ class ChunkStore:
         self.run_store = run_store
         self.shared = run_store.shared
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # pickled as its run store's root and shared URL (chunk-pool processes)
+        url = self.shared.url if self.shared is not None else None
+        return (_chunk_store, (str(self.run_store.root), url))
+
     @property
     def is_local(self) -> bool:
         """Whether results live in the run store directory (no shared store)."""
         return self.shared is None
 
     def _relative(self, run_id: int, job_id: int, index: int) -> str:
-        return relative_to_store(self.run_store, self.run_store.chunk_path(run_id, job_id, index))
+        return self._store_relative(self.run_store.chunk_path(run_id, job_id, index))
 
     def _relative_named(self, run_id: int, job_id: int, name: str) -> str:
         if not _NAME.match(name):
             raise ValueError(f"name: {name!r} is not a plain file name")
-        return relative_to_store(self.run_store, self.run_store.job_dir(run_id, job_id) / name)
+        return self._store_relative(self.run_store.job_dir(run_id, job_id) / name)
+
+    def _store_relative(self, path: Path) -> str:
+        """``path`` relative to the store root, with forward slashes (stored in SQL)."""
+        return Path(path).resolve().relative_to(self.run_store.root).as_posix()
 
     def location(self, run_id: int, job_id: int, index: int) -> str:
         """Where the result of a chunk is (store-relative path or URL; kept in SQL)."""
@@ -65,11 +79,34 @@ class ChunkStore:
     def write(self, run_id: int, job_id: int, index: int, produce: Callable[[Path], None]) -> None:
         """Store a chunk result made by ``produce(path)`` (which writes ``path``).
 
-        ``produce`` is :func:`worker.pipeline.process_chunk` with its arguments
+        ``produce`` is :func:`app.pipeline.process_chunk` with its arguments
         bound; it writes its file atomically. For a shared store the file is
         made in a local temporary directory and uploaded (temporary key, move).
         """
         self._write(self._relative(run_id, job_id, index), produce)
+
+    def discard_partial(self, run_id: int, job_id: int) -> int:
+        """Remove files in a job's directory that are not finished chunk or wheel results.
+
+        Temporary files of a writer killed mid-write (SIGKILL) are left behind
+        by design; they are removed when the job is (re)started. Nothing to do
+        with a shared store (objects are moved onto their keys whole).
+
+        Returns
+        -------
+        int
+            Number of files removed.
+        """
+        job_dir = self.run_store.job_dir(run_id, job_id)
+        if self.shared is not None or not job_dir.is_dir():
+            return 0
+        removed = 0
+        for entry in job_dir.iterdir():
+            if entry.is_file() and not _JOB_FILE_NAME.match(entry.name):
+                with contextlib.suppress(FileNotFoundError):
+                    entry.unlink()
+                    removed += 1
+        return removed
 
     # --- other files of a job (the assembled wheel results) --------------------
     def exists_named(self, run_id: int, job_id: int, name: str) -> bool:
@@ -101,8 +138,8 @@ class ChunkStore:
             return
         tmp = Path(tempfile.mkdtemp(prefix="trackvkf-assemble-"))
         try:
-            yield [self.shared.get(self._relative(run_id, job_id, i), tmp / f"chunk-{i:05d}.npz")
-                   for i in indices]
+            rels = [self._relative(run_id, job_id, i) for i in indices]
+            yield [self.shared.get(rel, tmp / Path(rel).name) for rel in rels]
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
@@ -120,3 +157,7 @@ class ChunkStore:
             local = Path(tmp) / Path(rel).name
             produce(local)
             self.shared.put(local, rel)
+
+
+def _chunk_store(root: str, shared_url: str | None) -> ChunkStore:
+    return ChunkStore(RunStore(root, shared_url))

@@ -11,6 +11,10 @@ rows are written once.
 Cancellation (user request), loss of the job (run deleted, job claimed by
 another worker) and worker shutdown are noticed by a heartbeat thread and
 checked between chunks and, through ``should_cancel``, inside a chunk.
+
+The job's steps (load, plan, mark, fail, metadata) and the chunk store are
+those of the Procrastinate tasks too (:mod:`worker.steps`,
+:class:`~worker.chunkstore.ChunkStore`).
 """
 
 from __future__ import annotations
@@ -22,7 +26,6 @@ import signal
 import socket
 import threading
 import time
-import traceback
 import uuid
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -33,10 +36,21 @@ from typing import Any
 
 from app.analysis.settings import ProcessingSettings
 from app.core.config import Settings
-from app.db import crud, queue
+from app.db import queue
 from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
-from worker.store import RunStore, chunk_done, discard_partial_files, relative_to_store
+from app.pipeline import ChunkSpec, PipelineCancelled, assemble, process_chunk
+from worker.chunkstore import ChunkStore
+from worker.steps import (
+    JobRecord,
+    WorkerRuntime,
+    fail_job,
+    job_meta,
+    load_job,
+    mark_chunk_done,
+    record_plan,
+    remove_files_if_deleted,
+)
 
 __all__ = ["LocalWorker", "JobOutcome", "new_worker_id", "run_worker"]
 
@@ -80,11 +94,14 @@ def _pool_init(cancel_event: Any) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _pool_process_chunk(run_path: Path, settings: ProcessingSettings, chunk: Any, out: Path) -> None:
+def _pool_process_chunk(
+    chunks: ChunkStore, run_id: int, job_id: int, run_path: Path, settings: ProcessingSettings, chunk: ChunkSpec
+) -> None:
     """Run one chunk in a pool process; stops when the shared cancel event is set."""
-    from worker.pipeline import process_chunk
-
-    process_chunk(run_path, settings, chunk, out, should_cancel=_POOL_CANCEL.is_set)
+    chunks.write(
+        run_id, job_id, chunk.index,
+        lambda out: process_chunk(run_path, settings, chunk, out, should_cancel=_POOL_CANCEL.is_set),
+    )
 
 
 class _Lease(threading.Thread):
@@ -138,22 +155,25 @@ class LocalWorker:
         self, settings: Settings, *, db: Database | None = None, worker_id: str | None = None
     ) -> None:
         self.settings = settings
-        self.db = db or Database(settings.database_url)
-        self.store = RunStore(settings.run_store, settings.shared_store)
+        self.runtime = WorkerRuntime(settings, db or Database(settings.database_url))
         self.worker_id = worker_id or new_worker_id()
-        self._stop = threading.Event()
         self._pool: ProcessPoolExecutor | None = None
         self._cancel_event: Any = None
+
+    @property
+    def db(self) -> Database:
+        """The worker's database."""
+        return self.runtime.db
 
     # --- control ----------------------------------------------------------
     def stop(self) -> None:
         """Ask the loop to stop; a running job is put back in the queue."""
-        self._stop.set()
+        self.runtime.stopping.set()
 
     @property
     def stopping(self) -> bool:
         """Whether :meth:`stop` was called."""
-        return self._stop.is_set()
+        return self.runtime.stopping.is_set()
 
     def run(self, *, once: bool = False, exit_when_idle: bool = False) -> int:
         """Process jobs until stopped.
@@ -172,7 +192,7 @@ class LocalWorker:
         """
         log.info("worker %s started (database %s)", self.worker_id, self.settings.database_url)
         processed = 0
-        while not self._stop.is_set():
+        while not self.stopping:
             try:
                 job_id = queue.claim_next_job(
                     self.db, self.worker_id, self.settings.worker_stale_after_s
@@ -183,7 +203,7 @@ class LocalWorker:
             if job_id is None:
                 if exit_when_idle:
                     break
-                self._stop.wait(self.settings.worker_poll_interval_s)
+                self.runtime.stopping.wait(self.settings.worker_poll_interval_s)
                 continue
             outcome = self.process(job_id)
             log.info("job %s %s", outcome.job_id, outcome.status)
@@ -197,14 +217,11 @@ class LocalWorker:
     # --- one job ------------------------------------------------------------
     def process(self, job_id: int) -> JobOutcome:
         """Run a job this worker has claimed to completion (or failure/cancel)."""
-        from worker.pipeline import PipelineCancelled, assemble, plan_chunks, process_chunk
-
-        with self.db.read() as session:
-            job = crud.get_job(session, job_id)
-            run = crud.get_run(session, job.run_id) if job is not None else None
-        if job is None or run is None:
+        rt = self.runtime
+        record = load_job(self.db, job_id)
+        if record.lost:
             return JobOutcome(job_id, "lost")
-        run_id = run.id
+        run_id = record.run.id
 
         lease = _Lease(self.db, job_id, self.worker_id, self.settings.worker_heartbeat_s)
         lease.beat()
@@ -213,54 +230,46 @@ class LocalWorker:
         lease.start()
 
         def should_cancel() -> bool:
-            return lease.lost or lease.cancel_requested or self._stop.is_set()
+            return lease.lost or lease.cancel_requested or self.stopping
 
         failed_chunk: list[int] = []
         try:
             if should_cancel():
                 raise PipelineCancelled("cancelled before start")
-            settings = ProcessingSettings.from_dict(job.settings)
-            run_path = self.store.local_file(run.file_path)
-            chunks = plan_chunks(run_path, settings)
-            if not queue.record_chunks(
-                self.db, job_id, self.worker_id, [(c.index, c.to_dict()) for c in chunks]
-            ):
+            settings = record.settings
+            run_path = record.run_path(rt.store)
+            chunks = record_plan(rt, record, run_path, worker_id=self.worker_id)
+            if chunks is None:
                 raise _JobLost
-            discard_partial_files(self.store.job_dir(run_id, job_id))
-            paths: list[Path] = []
-            pending: list[tuple[Any, Path]] = []
+            pending: list[ChunkSpec] = []
             t0 = time.perf_counter()
             for chunk in chunks:
-                out = self.store.chunk_path(run_id, job_id, chunk.index)
-                paths.append(out)
-                if chunk_done(out):
-                    self._mark(job_id, chunk.index, ChunkStatus.DONE, out)
+                if rt.chunks.exists(run_id, job_id, chunk.index):
+                    self._mark_done(record, chunk.index)
                 else:
-                    pending.append((chunk, out))
+                    pending.append(chunk)
             if self.settings.worker_chunk_processes > 1 and len(pending) > 1:
-                self._run_parallel(job_id, run_path, settings, pending, should_cancel, failed_chunk)
+                self._run_parallel(record, run_path, settings, pending, should_cancel, failed_chunk)
             else:
-                for chunk, out in pending:
+                for chunk in pending:
                     if should_cancel():
                         raise PipelineCancelled(f"cancelled before chunk {chunk.index}")
-                    self._mark(job_id, chunk.index, ChunkStatus.RUNNING)
+                    self._mark_running(job_id, chunk.index)
                     failed_chunk[:] = [chunk.index]
-                    process_chunk(run_path, settings, chunk, out, should_cancel=should_cancel)
+                    rt.chunks.write(
+                        run_id, job_id, chunk.index,
+                        lambda out, c=chunk: process_chunk(run_path, settings, c, out, should_cancel=should_cancel),
+                    )
                     failed_chunk.clear()
-                    self._mark(job_id, chunk.index, ChunkStatus.DONE, out)
+                    self._mark_done(record, chunk.index)
             if should_cancel():
                 raise PipelineCancelled("cancelled before assembling")
-            results = assemble(run_path, settings, paths)
-            t_chunks = time.perf_counter() - t0
-            meta = dict(results.meta or {})
-            meta["worker"] = {
-                "worker_id": self.worker_id,
-                "n_chunks": len(chunks),
-                "compute_s": round(t_chunks, 3),
-                "run_sha256": run.sha256,
-            }
+            with rt.chunks.local_copies(run_id, job_id, [c.index for c in chunks]) as paths:
+                results = assemble(run_path, settings, paths)
+            meta = job_meta(settings, len(chunks), worker_id=self.worker_id, run_sha256=record.run.sha256,
+                            compute_s=time.perf_counter() - t0)
             stored = queue.complete_job(
-                self.db, job_id, self.worker_id, run_id, results.profiles, results.wheels, meta
+                self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id
             )
             if stored:
                 return JobOutcome(job_id, JobStatus.DONE)
@@ -275,40 +284,38 @@ class LocalWorker:
         except Exception as exc:  # noqa: BLE001 - any error fails the job with its text
             if lease.lost:
                 return self._lost(job_id, run_id)
-            if self._stop.is_set() and not lease.cancel_requested:
+            if self.stopping and not lease.cancel_requested:
                 log.warning("job %s interrupted by shutdown (%s): back to the queue", job_id, exc)
                 queue.release_job(self.db, job_id, self.worker_id)
                 return JobOutcome(job_id, "requeued")
-            log.error("job %s failed:\n%s", job_id, traceback.format_exc())
             for index in failed_chunk:
                 try:
-                    queue.mark_chunk(self.db, job_id, self.worker_id, index, ChunkStatus.FAILED)
+                    queue.mark_chunk(self.db, job_id, index, ChunkStatus.FAILED, worker_id=self.worker_id)
                 except Exception:  # noqa: BLE001
                     log.exception("cannot mark chunk %s failed", index)
-            error = f"{type(exc).__name__}: {exc}"
-            queue.finish_job(self.db, job_id, self.worker_id, JobStatus.FAILED, error[:4000])
+            fail_job(self.db, job_id, exc, worker_id=self.worker_id)
             return JobOutcome(job_id, JobStatus.FAILED)
         finally:
             lease.stop()
 
-    def _mark(self, job_id: int, index: int, status: str, out: Path | None = None) -> float:
-        """Record a chunk's status; raises :class:`_JobLost` if the job is not ours any more."""
-        progress = queue.mark_chunk(
-            self.db, job_id, self.worker_id, index, status,
-            relative_to_store(self.store, out) if out is not None else None,
-        )
+    def _mark_running(self, job_id: int, index: int) -> None:
+        """Record a chunk as running; raises :class:`_JobLost` if the job is not ours any more."""
+        if queue.mark_chunk(self.db, job_id, index, ChunkStatus.RUNNING, worker_id=self.worker_id) is None:
+            raise _JobLost
+
+    def _mark_done(self, record: JobRecord, index: int) -> None:
+        """Record a chunk as done; raises :class:`_JobLost` if the job is not ours any more."""
+        progress = mark_chunk_done(self.runtime, record, index, worker_id=self.worker_id)
         if progress is None:
             raise _JobLost
-        if status == ChunkStatus.DONE:
-            log.debug("job %s chunk %s done (%.0f %%)", job_id, index, 100 * progress)
-        return progress
+        log.debug("job %s chunk %s done (%.0f %%)", record.job.id, index, 100 * progress)
 
     def _ensure_pool(self) -> tuple[ProcessPoolExecutor, Any]:
         if self._pool is None:
             if "forkserver" in multiprocessing.get_all_start_methods():
                 ctx = multiprocessing.get_context("forkserver")
                 # pool processes fork from a server that has the pipeline imported
-                ctx.set_forkserver_preload(["worker.runner", "worker.pipeline"])
+                ctx.set_forkserver_preload(["worker.runner", "app.pipeline"])
             else:
                 ctx = multiprocessing.get_context("spawn")
             self._cancel_event = ctx.Event()
@@ -328,10 +335,10 @@ class LocalWorker:
 
     def _run_parallel(
         self,
-        job_id: int,
+        record: JobRecord,
         run_path: Path,
         settings: ProcessingSettings,
-        pending: list[tuple[Any, Path]],
+        pending: list[ChunkSpec],
         should_cancel: Callable[[], bool],
         failed_chunk: list[int],
     ) -> None:
@@ -342,14 +349,16 @@ class LocalWorker:
         """
         pool, cancel = self._ensure_pool()
         cancel.clear()
+        job_id, run_id = record.job.id, record.run.id
         todo = list(pending)
-        running: dict[Future, Any] = {}
+        running: dict[Future, ChunkSpec] = {}
         error: BaseException | None = None
 
         def submit() -> None:
-            chunk, out = todo.pop(0)
-            self._mark(job_id, chunk.index, ChunkStatus.RUNNING)
-            running[pool.submit(_pool_process_chunk, run_path, settings, chunk, out)] = (chunk, out)
+            chunk = todo.pop(0)
+            self._mark_running(job_id, chunk.index)
+            future = pool.submit(_pool_process_chunk, self.runtime.chunks, run_id, job_id, run_path, settings, chunk)
+            running[future] = chunk
 
         try:
             while todo and len(running) < self.settings.worker_chunk_processes:
@@ -359,7 +368,7 @@ class LocalWorker:
                 if should_cancel():
                     cancel.set()
                 for future in done:
-                    chunk, out = running.pop(future)
+                    chunk = running.pop(future)
                     exc = future.exception()
                     if exc is not None:
                         if error is None:
@@ -367,7 +376,7 @@ class LocalWorker:
                             failed_chunk[:] = [chunk.index]
                         cancel.set()
                         continue
-                    self._mark(job_id, chunk.index, ChunkStatus.DONE, out)
+                    self._mark_done(record, chunk.index)
                 if error is None and not should_cancel():
                     while todo and len(running) < self.settings.worker_chunk_processes:
                         submit()
@@ -382,16 +391,14 @@ class LocalWorker:
                 self._close_pool()
             raise error
         if todo or should_cancel():
-            from worker.pipeline import PipelineCancelled
-
             raise PipelineCancelled("cancelled between chunks")
 
     def _cancelled(self, job_id: int, run_id: int, lease: _Lease) -> JobOutcome:
         if lease.lost:
             return self._lost(job_id, run_id)
-        if lease.cancel_requested or not self._stop.is_set():
+        if lease.cancel_requested or not self.stopping:
             queue.finish_job(
-                self.db, job_id, self.worker_id, JobStatus.CANCELLED, "cancelled by request"
+                self.db, job_id, JobStatus.CANCELLED, "cancelled by request", worker_id=self.worker_id
             )
             return JobOutcome(job_id, JobStatus.CANCELLED)
         queue.release_job(self.db, job_id, self.worker_id)
@@ -399,11 +406,8 @@ class LocalWorker:
 
     def _lost(self, job_id: int, run_id: int) -> JobOutcome:
         """The job is no longer ours; if its run was deleted, remove leftover files."""
-        with self.db.read() as session:
-            run_exists = crud.get_run(session, run_id) is not None
-        if not run_exists:
-            self.store.remove_run(run_id)
-        log.warning("job %s was lost (run %s %s)", job_id, run_id, "exists" if run_exists else "deleted")
+        deleted = remove_files_if_deleted(self.runtime, run_id)
+        log.warning("job %s was lost (run %s %s)", job_id, run_id, "deleted" if deleted else "exists")
         return JobOutcome(job_id, "lost")
 
 
@@ -438,4 +442,4 @@ def run_worker(
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        worker.db.dispose()
+        worker.runtime.close()

@@ -1,8 +1,9 @@
 """Production mode: Procrastinate tasks on PostgreSQL, workers on any number of hosts.
 
 A job is fanned out into tasks that run the same pure functions as the local
-worker (:func:`worker.pipeline.plan_chunks`, :func:`~worker.pipeline.process_chunk`,
-:func:`~worker.pipeline.assemble_wheel`)::
+worker (:func:`app.pipeline.plan_chunks`, :func:`~app.pipeline.process_chunk`,
+:func:`~app.pipeline.assemble_wheel`), through the same job steps
+(:mod:`worker.steps`) and chunk store (:class:`~worker.chunkstore.ChunkStore`)::
 
     jobs row 'queued' ──NOTIFY at commit (fallback: dispatch_jobs, every 5 s)──▶ plan_job(job_id)
         plan_job:      claim the job, plan chunks, record chunk rows,
@@ -44,6 +45,14 @@ chunks stop at their next sub-block (``should_cancel`` polls the job row) and
 mark the job cancelled, and the dispatcher does so within 5 s for a job with
 no chunk running.
 
+The tasks are declared at module level on the Procrastinate blueprint
+:data:`blueprint` (each importable and callable alone with a
+:class:`procrastinate.JobContext`); :func:`make_app` binds them to an app on
+a database, under their unchanged names (``trackvkf.plan_job`` …), so tasks
+queued by an earlier version still run. A worker process hands its
+:class:`~worker.steps.WorkerRuntime` (settings, database, stores, stop flag) to
+the tasks through Procrastinate's ``additional_context`` (:func:`runtime_of`).
+
 Run a worker with ``trackvkf worker`` (or ``python -m worker``) when
 ``TRACKVKF_DATABASE_URL`` is a PostgreSQL URL; ``--processes N`` starts N
 worker processes (one per core).
@@ -58,10 +67,7 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
-import traceback
-from dataclasses import dataclass, field
 from typing import Any
 
 import procrastinate
@@ -70,16 +76,22 @@ import sqlalchemy.exc
 from procrastinate import exceptions as pexc
 from sqlalchemy.engine import make_url
 
-from app.analysis.settings import ProcessingSettings
 from app.core.config import Settings, get_settings
 from app.core.jsonable import jsonable
 from app.db import crud, queue
-from app.db.models import ChunkStatus, JobStatus
-from app.db.session import Database
-from app.io import WHEELS
-from worker.chunkstore import ChunkStore
+from app.db.models import ChunkStatus
+from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel
+from app.pipeline import process_chunk as compute_chunk
 from worker.health import alive_file
-from worker.store import RunStore, discard_partial_files
+from worker.steps import (
+    WorkerRuntime,
+    fail_job,
+    job_meta,
+    load_job,
+    mark_chunk_done,
+    record_plan,
+    remove_files_if_deleted,
+)
 
 __all__ = [
     "TASK_PLAN",
@@ -89,6 +101,16 @@ __all__ = [
     "TASK_PUBLISH",
     "TASK_DISPATCH",
     "TASK_RETRY_STALLED",
+    "RUNTIME_KEY",
+    "blueprint",
+    "dispatch_jobs",
+    "retry_stalled_jobs",
+    "plan_job",
+    "process_chunk",
+    "assemble_job",
+    "store_wheel",
+    "publish_job",
+    "runtime_of",
     "libpq_url",
     "make_app",
     "run_worker_process",
@@ -104,6 +126,8 @@ TASK_STORE_WHEEL = "trackvkf.store_wheel"
 TASK_PUBLISH = "trackvkf.publish_job"
 TASK_DISPATCH = "trackvkf.dispatch_jobs"
 TASK_RETRY_STALLED = "trackvkf.retry_stalled_jobs"
+#: key of the worker process's WorkerRuntime in the tasks' ``context.additional_context``
+RUNTIME_KEY = "trackvkf_runtime"
 
 #: priorities (higher first): bookkeeping before chunks, so results land early
 _PRIO_HIGH = 10
@@ -114,6 +138,8 @@ _WHEEL_FILE = "wheel-{wheel}.json"
 _DISPATCH_EVERY_S = 5
 #: seconds between two looks of a running chunk at its job row (cancel)
 _CANCEL_POLL_S = 0.5
+#: value of ``meta["worker"]["mode"]`` of the jobs these tasks run
+_MODE = "procrastinate"
 
 
 class WorkerShutdown(RuntimeError):
@@ -134,6 +160,9 @@ TRANSIENT_ERRORS: tuple[type[BaseException], ...] = (
 _RETRY = procrastinate.RetryStrategy(
     max_attempts=20, wait=1, linear_wait=1, retry_exceptions=set(TRANSIENT_ERRORS)
 )
+
+#: the tasks of trackvkf, bound to an app by :func:`make_app`
+blueprint = procrastinate.Blueprint()
 
 
 def libpq_url(database_url: str) -> str:
@@ -156,25 +185,14 @@ def libpq_url(database_url: str) -> str:
     return url.set(drivername="postgresql").render_as_string(hide_password=False)
 
 
-@dataclass
-class _Runtime:
-    """What the tasks of one worker process share: settings, database, run store."""
-
-    settings: Settings
-    _db: Database | None = None
-    store: RunStore = field(init=False)
-    chunks: ChunkStore = field(init=False)
-    stopping: threading.Event = field(default_factory=threading.Event)
-
-    def __post_init__(self) -> None:
-        self.store = RunStore(self.settings.run_store, self.settings.shared_store)
-        self.chunks = ChunkStore(self.store)
-
-    @property
-    def db(self) -> Database:
-        if self._db is None:
-            self._db = Database(self.settings.database_url)
-        return self._db
+def runtime_of(context: procrastinate.JobContext) -> WorkerRuntime:
+    """The :class:`~worker.steps.WorkerRuntime` of the worker process running a task."""
+    try:
+        return context.additional_context[RUNTIME_KEY]
+    except KeyError:
+        raise RuntimeError(
+            f"the worker passes no {RUNTIME_KEY!r} in additional_context (see run_worker_process)"
+        ) from None
 
 
 def _is_transient(exc: BaseException) -> bool:
@@ -190,257 +208,213 @@ def _defer(app: procrastinate.App, name: str, lock: str | None, priority: int, *
         return False
 
 
-def make_app(settings: Settings | None = None) -> procrastinate.App:
-    """The Procrastinate app of trackvkf with its tasks, for ``settings``' database.
+# --- periodic bookkeeping ---------------------------------------------------------
+# new jobs are planned at once on their NOTIFY (_plan_on_notify); this is the
+# fallback and finishes cancel requests of jobs without a running chunk
+@blueprint.periodic(cron=f"* * * * * */{_DISPATCH_EVERY_S}")
+@blueprint.task(name=TASK_DISPATCH, queueing_lock=TASK_DISPATCH, priority=_PRIO_HIGH, pass_context=True)
+def dispatch_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
+    """Fan queued jobs out to :func:`plan_job`; finish cancel requests."""
+    rt = runtime_of(context)
+    queue.finalize_cancel_requests(rt.db)
+    n = 0
+    for job_id in queue.queued_job_ids(rt.db):
+        n += _defer(context.app, TASK_PLAN, f"plan:{job_id}", _PRIO_HIGH, job_id=job_id)
+    return n
 
-    Parameters
-    ----------
-    settings : Settings, optional
-        Service settings (default: from the environment). ``database_url`` must
-        be a PostgreSQL URL; ``worker_stale_after_s`` is the heartbeat age after
-        which a worker counts as dead and its jobs are retried.
-    """
-    settings = settings or get_settings()
-    rt = _Runtime(settings)
-    connector = procrastinate.PsycopgConnector(
-        conninfo=libpq_url(settings.database_url),
-        kwargs={"application_name": "trackvkf-worker"},
-        min_size=1,
-        max_size=4,
+
+# scheduled by make_app: its period follows the settings' worker_stale_after_s
+@blueprint.task(name=TASK_RETRY_STALLED, queueing_lock=TASK_RETRY_STALLED, priority=_PRIO_HIGH,
+                pass_context=True)
+async def retry_stalled_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
+    """Retry the jobs of workers whose heartbeat is older than ``worker_stale_after_s``."""
+    stalled = await context.app.job_manager.get_stalled_jobs(
+        seconds_since_heartbeat=runtime_of(context).settings.worker_stale_after_s
     )
-    app = procrastinate.App(connector=connector)
-    app.trackvkf_runtime = rt  # type: ignore[attr-defined]
-    stalled_every = max(1, min(59, int(settings.worker_stale_after_s / 3)))
+    n = 0
+    for job in stalled:
+        log.warning("retrying stalled job %s %s%s", job.id, job.task_name, job.task_kwargs)
+        await context.app.job_manager.retry_job(job)
+        n += 1
+    return n
 
-    # --- periodic bookkeeping ----------------------------------------------
-    # new jobs are planned at once on their NOTIFY (_plan_on_notify); this is the
-    # fallback and finishes cancel requests of jobs without a running chunk
-    @app.periodic(cron=f"* * * * * */{_DISPATCH_EVERY_S}")
-    @app.task(name=TASK_DISPATCH, queueing_lock=TASK_DISPATCH, priority=_PRIO_HIGH, pass_context=True)
-    def dispatch_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
-        """Fan queued jobs out to :func:`plan_job`; finish cancel requests."""
+
+# --- the fan-out -------------------------------------------------------------------
+@blueprint.task(name=TASK_PLAN, retry=_RETRY, pass_context=True)
+def plan_job(context: procrastinate.JobContext, job_id: int) -> str:
+    """Claim a queued job, record its chunks and defer one task per chunk."""
+    rt = runtime_of(context)
+    owner = f"{queue.FANOUT_OWNER_PREFIX}{context.job.id}"
+    if not queue.claim_for_fanout(rt.db, job_id, owner):
+        return "skipped"
+    try:
+        record = load_job(rt.db, job_id)
+        if record.lost:
+            return "lost"
+        run_path = record.run_path(rt.store)  # fetched from the shared store if need be
+        chunks = record_plan(rt, record, run_path, worker_id=owner)
+        if chunks is None:
+            return "lost"
+    except Exception as exc:
+        if _is_transient(exc):
+            raise
+        fail_job(rt.db, job_id, exc, worker_id=None)
+        return "failed"
+    pending = 0
+    for chunk in chunks:
+        if rt.chunks.exists(record.run.id, job_id, chunk.index):
+            mark_chunk_done(rt, record, chunk.index, worker_id=None)
+            continue
+        pending += 1
+        _defer(context.app, TASK_CHUNK, f"chunk:{job_id}:{chunk.index}", _PRIO_CHUNK,
+               job_id=job_id, index=chunk.index)
+    if pending == 0:
+        _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
+    return f"{len(chunks)} chunks, {pending} deferred"
+
+
+@blueprint.task(name=TASK_CHUNK, retry=_RETRY, pass_context=True)
+def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) -> str:
+    """Compute one chunk's result file (unless it exists) and mark the chunk done."""
+    rt = runtime_of(context)
+    record = load_job(rt.db, job_id)
+    if record.lost:
+        if record.job is not None:
+            remove_files_if_deleted(rt, record.job.run_id)
+        return "lost"
+    if (why := record.not_running()) is not None:
         queue.finalize_cancel_requests(rt.db)
-        n = 0
-        for job_id in queue.queued_job_ids(rt.db):
-            n += _defer(context.app, TASK_PLAN, f"plan:{job_id}", _PRIO_HIGH, job_id=job_id)
-        return n
-
-    @app.periodic(cron=f"* * * * * */{stalled_every}")
-    @app.task(name=TASK_RETRY_STALLED, queueing_lock=TASK_RETRY_STALLED, priority=_PRIO_HIGH,
-              pass_context=True)
-    async def retry_stalled_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
-        """Retry the jobs of workers whose heartbeat is older than ``worker_stale_after_s``."""
-        stalled = await context.app.job_manager.get_stalled_jobs(
-            seconds_since_heartbeat=settings.worker_stale_after_s
-        )
-        n = 0
-        for job in stalled:
-            log.warning("retrying stalled job %s %s%s", job.id, job.task_name, job.task_kwargs)
-            await context.app.job_manager.retry_job(job)
-            n += 1
-        return n
-
-    # --- the fan-out ---------------------------------------------------------
-    @app.task(name=TASK_PLAN, retry=_RETRY, pass_context=True)
-    def plan_job(context: procrastinate.JobContext, job_id: int) -> str:
-        """Claim a queued job, record its chunks and defer one task per chunk."""
-        from worker.pipeline import plan_chunks
-
-        owner = f"{queue.FANOUT_OWNER_PREFIX}{context.job.id}"
-        if not queue.claim_for_fanout(rt.db, job_id, owner):
-            return "skipped"
+        return why
+    run_id = record.run.id
+    t0 = time.perf_counter()
+    if not rt.chunks.exists(run_id, job_id, index):
+        spec = queue.job_chunk_specs(rt.db, job_id).get(index)
+        if spec is None:
+            return "unknown chunk"
+        if queue.mark_chunk(rt.db, job_id, index, ChunkStatus.RUNNING, worker_id=None) is None:
+            return "job not running"
+        run_path = record.run_path(rt.store)
+        settings = record.settings
+        chunk = ChunkSpec.from_dict(spec)
+        watch = _CancelWatch(rt, job_id)
         try:
-            with rt.db.read() as session:
-                job = crud.get_job(session, job_id)
-                run = crud.get_run(session, job.run_id) if job is not None else None
-            if job is None or run is None:
-                return "lost"
-            run_path = rt.store.local_file(run.file_path)  # fetched from the shared store if need be
-            chunks = plan_chunks(run_path, ProcessingSettings.from_dict(job.settings))
-            if not queue.record_chunks(rt.db, job_id, owner, [(c.index, c.to_dict()) for c in chunks]):
-                return "lost"
-            if rt.chunks.is_local:
-                discard_partial_files(rt.store.job_dir(run.id, job_id))
+            rt.chunks.write(
+                run_id, job_id, index,
+                lambda out: compute_chunk(run_path, settings, chunk, out, should_cancel=watch),
+            )
+        except PipelineCancelled:
+            if rt.stopping.is_set():
+                raise WorkerShutdown(f"chunk {index} of job {job_id} interrupted by shutdown") from None
+            queue.finalize_cancel_requests(rt.db)
+            return "cancelled"
         except Exception as exc:
             if _is_transient(exc):
                 raise
-            _fail(rt, job_id, exc)
+            queue.mark_chunk(rt.db, job_id, index, ChunkStatus.FAILED, worker_id=None)
+            fail_job(rt.db, job_id, exc, worker_id=None)
             return "failed"
-        pending = 0
-        for chunk in chunks:
-            if rt.chunks.exists(run.id, job_id, chunk.index):
-                queue.mark_chunk(rt.db, job_id, None, chunk.index, ChunkStatus.DONE,
-                                 rt.chunks.location(run.id, job_id, chunk.index))
-                continue
-            pending += 1
-            _defer(context.app, TASK_CHUNK, f"chunk:{job_id}:{chunk.index}", _PRIO_CHUNK,
-                   job_id=job_id, index=chunk.index)
-        if pending == 0:
-            _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
-        return f"{len(chunks)} chunks, {pending} deferred"
+    compute_s = time.perf_counter() - t0
+    if mark_chunk_done(rt, record, index, worker_id=None) is None:
+        return "job not running"
+    done, total = queue.chunk_progress(rt.db, job_id)
+    log.info("job %s chunk %s done in %.2f s (%d/%d)", job_id, index, compute_s, done, total)
+    if done == total:
+        _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
+    return f"chunk {index} done in {compute_s:.2f} s ({done}/{total})"
 
-    @app.task(name=TASK_CHUNK, retry=_RETRY, pass_context=True)
-    def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) -> str:
-        """Compute one chunk's result file (unless it exists) and mark the chunk done."""
-        from worker.pipeline import ChunkSpec, PipelineCancelled
-        from worker.pipeline import process_chunk as compute_chunk
 
-        with rt.db.read() as session:
-            job = crud.get_job(session, job_id)
-            run = crud.get_run(session, job.run_id) if job is not None else None
-        if job is None or run is None:
-            _remove_orphans(rt, job.run_id if job is not None else None)
-            return "lost"
-        if job.status != JobStatus.RUNNING or job.cancel_requested:
-            queue.finalize_cancel_requests(rt.db)
-            return f"job {job.status}"
-        t0 = time.perf_counter()
-        if not rt.chunks.exists(run.id, job_id, index):
-            spec = queue.job_chunk_specs(rt.db, job_id).get(index)
-            if spec is None:
-                return "unknown chunk"
-            if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.RUNNING) is None:
-                return "job not running"
-            run_path = rt.store.local_file(run.file_path)
-            settings_ = ProcessingSettings.from_dict(job.settings)
-            chunk = ChunkSpec.from_dict(spec)
-            watch = _CancelWatch(rt, job_id, context)
-            try:
-                rt.chunks.write(
-                    run.id, job_id, index,
-                    lambda out: compute_chunk(run_path, settings_, chunk, out, should_cancel=watch),
-                )
-            except PipelineCancelled:
-                if rt.stopping.is_set():
-                    raise WorkerShutdown(f"chunk {index} of job {job_id} interrupted by shutdown") from None
-                queue.finalize_cancel_requests(rt.db)
-                return "cancelled"
-            except Exception as exc:
-                if _is_transient(exc):
-                    raise
-                queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.FAILED)
-                _fail(rt, job_id, exc)
-                return "failed"
-        compute_s = time.perf_counter() - t0
-        if queue.mark_chunk(rt.db, job_id, None, index, ChunkStatus.DONE,
-                            rt.chunks.location(run.id, job_id, index)) is None:
-            return "job not running"
-        done, total = queue.chunk_progress(rt.db, job_id)
-        log.info("job %s chunk %s done in %.2f s (%d/%d)", job_id, index, compute_s, done, total)
-        if done == total:
-            _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
-        return f"chunk {index} done in {compute_s:.2f} s ({done}/{total})"
+@blueprint.task(name=TASK_ASSEMBLE, retry=_RETRY, pass_context=True)
+def assemble_job(context: procrastinate.JobContext, job_id: int) -> str:
+    """Fan the assembly of a job out: one :func:`store_wheel` task per wheel."""
+    rt = runtime_of(context)
+    record = load_job(rt.db, job_id)
+    if (why := record.not_running()) is not None:
+        return why
+    indices = sorted(queue.job_chunk_specs(rt.db, job_id))
+    if not indices or not all(rt.chunks.exists(record.run.id, job_id, i) for i in indices):
+        return "chunks missing"
+    wheels = record.wheels
+    for wheel in wheels:
+        _defer(context.app, TASK_STORE_WHEEL, f"store:{job_id}:{wheel}", _PRIO_HIGH,
+               job_id=job_id, wheel=wheel)
+    if not wheels:
+        _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
+    return f"{len(wheels)} wheel(s) deferred"
 
-    def _running(job_id: int) -> tuple[Any, Any, str | None]:
-        """(job, run, None) of a running job, or (job, run, why not)."""
-        with rt.db.read() as session:
-            job = crud.get_job(session, job_id)
-            run = crud.get_run(session, job.run_id) if job is not None else None
-        if job is None or run is None:
-            return job, run, "lost"
-        if job.status != JobStatus.RUNNING or job.cancel_requested:
-            return job, run, f"job {job.status}"
-        return job, run, None
 
-    def _wheels_of(run: Any) -> list[str]:
-        return [w for w in WHEELS if f"Z{w}" in (run.channels or [])]
+@blueprint.task(name=TASK_STORE_WHEEL, retry=_RETRY, pass_context=True)
+def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> str:
+    """Assemble one wheel from the chunk files and store its rows (not yet published).
 
-    @app.task(name=TASK_ASSEMBLE, retry=_RETRY, pass_context=True)
-    def assemble_job(context: procrastinate.JobContext, job_id: int) -> str:
-        """Fan the assembly of a job out: one :func:`store_wheel` task per wheel."""
-        job, run, why = _running(job_id)
-        if why is not None:
-            return why
+    The rows are written in one transaction (replacing the job's earlier
+    rows of the wheel), then the wheel's OOR result as the job file
+    ``wheel-<wheel>.json``: its presence means the wheel is stored. The
+    task that finds every wheel stored defers :func:`publish_job`.
+    """
+    rt = runtime_of(context)
+    record = load_job(rt.db, job_id)
+    if (why := record.not_running()) is not None:
+        return why
+    run_id = record.run.id
+    if wheel not in record.wheels:
+        return f"run {run_id} has no wheel {wheel!r}"
+    name = _WHEEL_FILE.format(wheel=wheel)
+    if not rt.chunks.exists_named(run_id, job_id, name):
         indices = sorted(queue.job_chunk_specs(rt.db, job_id))
-        if not indices or not all(rt.chunks.exists(run.id, job_id, i) for i in indices):
-            return "chunks missing"
-        wheels = _wheels_of(run)
-        for wheel in wheels:
-            _defer(context.app, TASK_STORE_WHEEL, f"store:{job_id}:{wheel}", _PRIO_HIGH,
-                   job_id=job_id, wheel=wheel)
-        if not wheels:
-            _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
-        return f"{len(wheels)} wheel(s) deferred"
-
-    @app.task(name=TASK_STORE_WHEEL, retry=_RETRY, pass_context=True)
-    def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> str:
-        """Assemble one wheel from the chunk files and store its rows (not yet published).
-
-        The rows are written in one transaction (replacing the job's earlier
-        rows of the wheel), then the wheel's OOR result as the job file
-        ``wheel-<wheel>.json``: its presence means the wheel is stored. The
-        task that finds every wheel stored defers :func:`publish_job`.
-        """
-        from worker.pipeline import assemble_wheel
-
-        job, run, why = _running(job_id)
-        if why is not None:
-            return why
-        if wheel not in _wheels_of(run):
-            return f"run {run.id} has no wheel {wheel!r}"
-        name = _WHEEL_FILE.format(wheel=wheel)
-        if not rt.chunks.exists_named(run.id, job_id, name):
-            indices = sorted(queue.job_chunk_specs(rt.db, job_id))
-            t0 = time.perf_counter()
-            try:
-                with rt.chunks.local_copies(run.id, job_id, indices) as paths:
-                    done = assemble_wheel(ProcessingSettings.from_dict(job.settings), paths, wheel)
-            except Exception as exc:
-                if _is_transient(exc):
-                    raise
-                _fail(rt, job_id, exc)
-                return "failed"
-            profiles, result = done if done is not None else (None, None)  # None: no data of the wheel
-            t1 = time.perf_counter()
-            if profiles is not None and not queue.store_wheel_rows(rt.db, job_id, run.id, profiles):
-                return "job not running"
-            t2 = time.perf_counter()
-            record = {"result": result, "rows": 0 if profiles is None else len(profiles),
-                      "assemble_s": round(t1 - t0, 3),
-                      "store_s": round(t2 - t1, 3)}
-            rt.chunks.write_bytes(run.id, job_id, name, json.dumps(jsonable(record)).encode())
-            log.info("job %s wheel %s: assembled in %.2f s, %d rows stored in %.2f s",
-                     job_id, wheel, t1 - t0, record["rows"], t2 - t1)
-        if all(rt.chunks.exists_named(run.id, job_id, _WHEEL_FILE.format(wheel=w)) for w in _wheels_of(run)):
-            _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
-        return f"wheel {wheel} stored"
-
-    @app.task(name=TASK_PUBLISH, retry=_RETRY, pass_context=True)
-    def publish_job(context: procrastinate.JobContext, job_id: int) -> str:  # noqa: ARG001
-        """Publish a job whose wheels are all stored: wheel rows, old rows dropped, job done.
-
-        One transaction (:func:`app.db.queue.complete_job`), guarded by the
-        job's state: a second publish of a done job changes nothing.
-        """
-        from worker.pipeline import results_meta
-
-        job, run, why = _running(job_id)
-        if why is not None:
-            return why
-        records = []
-        for wheel in _wheels_of(run):
-            name = _WHEEL_FILE.format(wheel=wheel)
-            if not rt.chunks.exists_named(run.id, job_id, name):
-                return f"wheel {wheel} not stored yet"
-            records.append(json.loads(rt.chunks.read_bytes(run.id, job_id, name)))
-        n_chunks = len(queue.job_chunk_specs(rt.db, job_id))
-        meta = results_meta(ProcessingSettings.from_dict(job.settings), n_chunks)
-        meta["worker"] = {
-            "worker_id": job.worker_id,
-            "mode": "procrastinate",
-            "n_chunks": n_chunks,
-            "assemble_s": round(sum(r["assemble_s"] for r in records), 3),
-            "store_s": round(sum(r["store_s"] for r in records), 3),
-            "run_sha256": run.sha256,
-        }
         t0 = time.perf_counter()
-        wheels = [r["result"] for r in records if r["result"] is not None]
-        stored = queue.complete_job(rt.db, job_id, None, run.id, None, wheels, meta)
-        log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
-                 time.perf_counter() - t0, sum(r["rows"] for r in records))
-        return "published" if stored else "not running any more"
+        try:
+            with rt.chunks.local_copies(run_id, job_id, indices) as paths:
+                done = assemble_wheel(record.settings, paths, wheel)
+        except Exception as exc:
+            if _is_transient(exc):
+                raise
+            fail_job(rt.db, job_id, exc, worker_id=None)
+            return "failed"
+        profiles, result = done if done is not None else (None, None)  # None: no data of the wheel
+        t1 = time.perf_counter()
+        if profiles is not None and not queue.store_wheel_rows(rt.db, job_id, run_id, profiles):
+            return "job not running"
+        t2 = time.perf_counter()
+        record_ = {"result": result, "rows": 0 if profiles is None else len(profiles),
+                   "assemble_s": round(t1 - t0, 3),
+                   "store_s": round(t2 - t1, 3)}
+        rt.chunks.write_bytes(run_id, job_id, name, json.dumps(jsonable(record_)).encode())
+        log.info("job %s wheel %s: assembled in %.2f s, %d rows stored in %.2f s",
+                 job_id, wheel, t1 - t0, record_["rows"], t2 - t1)
+    if all(rt.chunks.exists_named(run_id, job_id, _WHEEL_FILE.format(wheel=w)) for w in record.wheels):
+        _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
+    return f"wheel {wheel} stored"
 
-    return app
+
+@blueprint.task(name=TASK_PUBLISH, retry=_RETRY, pass_context=True)
+def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
+    """Publish a job whose wheels are all stored: wheel rows, old rows dropped, job done.
+
+    One transaction (:func:`app.db.queue.complete_job`), guarded by the
+    job's state: a second publish of a done job changes nothing.
+    """
+    rt = runtime_of(context)
+    record = load_job(rt.db, job_id)
+    if (why := record.not_running()) is not None:
+        return why
+    run_id = record.run.id
+    stored_wheels = []
+    for wheel in record.wheels:
+        name = _WHEEL_FILE.format(wheel=wheel)
+        if not rt.chunks.exists_named(run_id, job_id, name):
+            return f"wheel {wheel} not stored yet"
+        stored_wheels.append(json.loads(rt.chunks.read_bytes(run_id, job_id, name)))
+    n_chunks = len(queue.job_chunk_specs(rt.db, job_id))
+    meta = job_meta(
+        record.settings, n_chunks, worker_id=record.job.worker_id, run_sha256=record.run.sha256, mode=_MODE,
+        assemble_s=sum(r["assemble_s"] for r in stored_wheels), store_s=sum(r["store_s"] for r in stored_wheels),
+    )
+    t0 = time.perf_counter()
+    wheels = [r["result"] for r in stored_wheels if r["result"] is not None]
+    stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None)
+    log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
+             time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
+    return "published" if stored else "not running any more"
 
 
 class _CancelWatch:
@@ -450,8 +424,8 @@ class _CancelWatch:
     (database restarting) does not stop the chunk.
     """
 
-    def __init__(self, rt: _Runtime, job_id: int, context: procrastinate.JobContext) -> None:
-        self.rt, self.job_id, self.context = rt, job_id, context
+    def __init__(self, rt: WorkerRuntime, job_id: int) -> None:
+        self.rt, self.job_id = rt, job_id
         self._next = 0.0
         self._stop = False
 
@@ -462,27 +436,38 @@ class _CancelWatch:
         if not self._stop and now >= self._next:
             self._next = now + _CANCEL_POLL_S
             try:
-                with self.rt.db.read() as session:
-                    job = crud.get_job(session, self.job_id)
-                self._stop = job is None or job.status != JobStatus.RUNNING or bool(job.cancel_requested)
+                self._stop = load_job(self.rt.db, self.job_id).not_running() is not None
             except Exception as exc:  # noqa: BLE001 - database away: keep computing
                 log.warning("cannot check job %s for cancel: %s", self.job_id, exc)
         return self._stop
 
 
-def _fail(rt: _Runtime, job_id: int, exc: BaseException) -> None:
-    log.error("job %s failed:\n%s", job_id, "".join(traceback.format_exception(exc)))
-    error = f"{type(exc).__name__}: {exc}"
-    queue.finish_job(rt.db, job_id, None, JobStatus.FAILED, error[:4000])
+def make_app(settings: Settings | None = None) -> procrastinate.App:
+    """The Procrastinate app of trackvkf with its tasks, for ``settings``' database.
 
+    The tasks of :data:`blueprint` keep their names; :func:`dispatch_jobs`
+    runs every 5 s, :func:`retry_stalled_jobs` every third of
+    ``worker_stale_after_s`` (1–59 s).
 
-def _remove_orphans(rt: _Runtime, run_id: int | None) -> None:
-    """Remove the files of a deleted run that a late task may have written."""
-    if run_id is None:
-        return
-    with rt.db.read() as session:
-        if crud.get_run(session, run_id) is None:
-            rt.store.remove_run(run_id)  # the shared store's objects too
+    Parameters
+    ----------
+    settings : Settings, optional
+        Service settings (default: from the environment). ``database_url`` must
+        be a PostgreSQL URL; ``worker_stale_after_s`` is the heartbeat age after
+        which a worker counts as dead and its jobs are retried.
+    """
+    settings = settings or get_settings()
+    connector = procrastinate.PsycopgConnector(
+        conninfo=libpq_url(settings.database_url),
+        kwargs={"application_name": "trackvkf-worker"},
+        min_size=1,
+        max_size=4,
+    )
+    app = procrastinate.App(connector=connector)
+    app.add_tasks_from(blueprint, namespace="")  # no namespace: the names stay trackvkf.*
+    stalled_every = max(1, min(59, int(settings.worker_stale_after_s / 3)))
+    app.periodic(cron=f"* * * * * */{stalled_every}")(retry_stalled_jobs)
+    return app
 
 
 # --- worker processes ----------------------------------------------------------
@@ -505,8 +490,6 @@ def run_worker_process(settings: Settings | None = None, *, wait: bool = True) -
         Exit status (0 after a graceful stop, 130 after a second signal).
     """
     settings = settings or get_settings()
-    import worker.pipeline  # noqa: F401 - load numerics before the first task, not during it
-
     return asyncio.run(_supervise(settings, wait))
 
 
@@ -514,7 +497,7 @@ async def _supervise(settings: Settings, wait: bool) -> int:
     loop = asyncio.get_running_loop()
     stopping = asyncio.Event()
     current: list[asyncio.Task] = []
-    runtimes: list[_Runtime] = []
+    runtimes: list[WorkerRuntime] = []
 
     def on_signal(signum: int) -> None:
         if stopping.is_set():
@@ -560,15 +543,18 @@ async def _serve(
     options: dict[str, Any],
     stopping: asyncio.Event,
     current: list[asyncio.Task],
-    runtimes: list[_Runtime],
+    runtimes: list[WorkerRuntime],
     wait: bool,
 ) -> int:
     while not stopping.is_set():
         app = make_app(settings)
-        runtimes[:] = [app.trackvkf_runtime]  # type: ignore[attr-defined]
+        rt = WorkerRuntime(settings)
+        runtimes[:] = [rt]
         try:
             async with app.open_async():
-                task = asyncio.create_task(app.run_worker_async(**options))
+                task = asyncio.create_task(
+                    app.run_worker_async(**options, additional_context={RUNTIME_KEY: rt})
+                )
                 current[:] = [task]
                 listener = asyncio.create_task(_plan_on_notify(app, settings), name="job notifications")
                 try:
@@ -586,9 +572,7 @@ async def _serve(
             log.warning("procrastinate worker failed (%s: %s); restarting in 1 s", type(exc).__name__, exc)
         finally:
             current.clear()
-            rt = app.trackvkf_runtime  # type: ignore[attr-defined]
-            if rt._db is not None:
-                rt._db.dispose()
+            rt.close()
         try:
             await asyncio.wait_for(stopping.wait(), timeout=1.0)
         except TimeoutError:
@@ -649,4 +633,3 @@ def run_workers(settings: Settings | None = None, processes: int = 1) -> int:
     signal.signal(signal.SIGINT, forward)
     codes = [child.wait() for child in children]
     return max(codes, default=0)
-

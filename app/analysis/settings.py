@@ -1,15 +1,15 @@
-"""Processing settings of a run: the one place where orders and bandwidth are decided.
+"""Processing settings of a run: the parameters that decide orders, bandwidth and binning.
 
 A :class:`ProcessingSettings` object is stored with every processing job; the
 worker, the ``process`` command and the API all read the orders, bandwidth and
-binning from it, so every stored number can be traced back to the settings
-that produced it.
+binning from it (the railway order recipe, :mod:`app.analysis.recipe`, turns
+them into the orders and bandwidths of a wheel), so every stored number can be
+traced back to the settings that produced it.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -65,29 +65,6 @@ class ProcessingSettings:
             raise ValueError(f"min_speed_kmh must be in [0, 200] km/h, got {self.min_speed_kmh!r}")
         if not 1.0 <= float(self.chunk_seconds) <= 3600.0:
             raise ValueError(f"chunk_seconds must be in [1, 3600] s, got {self.chunk_seconds!r}")
-
-    def order_bandwidth(self, wheel_diameter: float) -> tuple[float, float]:
-        """Bandwidth rule of the order filters for a wheel of diameter ``wheel_diameter``.
-
-        Parameters
-        ----------
-        wheel_diameter : float
-            Wheel diameter d_w, m (> 0).
-
-        Returns
-        -------
-        per_speed : float
-            Full -3 dB bandwidth per unit speed, Hz per m/s:
-            ``bandwidth_orders / (pi d_w)`` (constant in wheel orders).
-        floor : float
-            Lowest bandwidth, Hz: its value at ``max(min_speed_kmh, 3.6)`` km/h,
-            so that a slow or standing train still gives a finite filter.
-        """
-        d_w = float(wheel_diameter)
-        if not d_w > 0:
-            raise ValueError(f"wheel_diameter must be > 0 m, got {wheel_diameter!r}")
-        per_speed = float(self.bandwidth_orders) / (math.pi * d_w)
-        return per_speed, per_speed * max(float(self.min_speed_kmh) / 3.6, 1.0)
 
     def to_dict(self) -> dict[str, Any]:
         """Return the settings as a JSON-serialisable dict."""

@@ -5,10 +5,9 @@ the tracked order frequencies drawn over it, (b) the spectrogram of the sum of
 the extracted components (sleeper passage and wheel orders 1..n), (c) the
 speed. :func:`window_spectrograms` computes all three for one wheel channel.
 
-The components are extracted with the same rule as the processing pipeline:
-orders ``railway_multipliers(d_w, d_s, n) × |v|`` and a bandwidth constant in
-wheel orders (:meth:`ProcessingSettings.order_bandwidth`), filter order q,
-phases referred to the first sample of the window.
+The components are extracted with the processing pipeline's railway order
+recipe (:mod:`app.analysis.recipe`: the same orders, bandwidths, filter order
+and phase convention), phases referred to the first sample of the window.
 
 Frequency resolution follows the speed: a window of ``revolutions`` wheel
 revolutions gives a resolution of ``f_1 / revolutions`` (``f_1`` the first
@@ -24,9 +23,8 @@ import numpy as np
 from scipy.signal import ShortTimeFFT, resample_poly
 from scipy.signal.windows import hann
 
-from app.analysis.orders import OrderTrack, railway_multipliers
+from app.analysis.recipe import order_overlap, order_recipe, travel_phase
 from app.analysis.settings import ProcessingSettings
-from app.analysis.vkf import vkf, vkf_overlap
 
 __all__ = [
     "Spectrogram",
@@ -189,15 +187,8 @@ def component_padding(
     int
         The filter's impulse-response length (see :func:`app.analysis.vkf.vkf_overlap`).
     """
-    v = np.abs(_check_signal(speed, "speed"))
-    if v.size == 0:
-        raise ValueError("speed must not be empty")
-    mult = railway_multipliers(wheel_diameter, sleeper_spacing, settings.n_wheel_orders)
-    per_speed, floor = settings.order_bandwidth(wheel_diameter)
-    f_max = min(float(mult.max()) * float(v.max()), 0.499 * fs)
-    bw_min = max(per_speed * float(v.min()), floor)
-    bw_max = max(per_speed * float(v.max()), floor)
-    return vkf_overlap(fs, 0.0, f_max, bw_min, bw_max, settings.filter_order)
+    v = _check_signal(speed, "speed")
+    return order_overlap(fs, v, [order_recipe(wheel_diameter, sleeper_spacing, settings)])
 
 
 def extract_components(
@@ -244,16 +235,10 @@ def extract_components(
     idx = np.arange(x.size) if out_index is None else np.asarray(out_index, dtype=np.int64)
     if idx.ndim != 1 or (idx.size and (idx.min() < 0 or idx.max() >= x.size)):
         raise ValueError(f"out_index must be 1-D indices in [0, {x.size})")
-    mult = railway_multipliers(wheel_diameter, sleeper_spacing, settings.n_wheel_orders)
-    per_speed, floor = settings.order_bandwidth(wheel_diameter)
-    freqs = OrderTrack(v, mult)
-    bandwidth = OrderTrack(v, np.full(mult.size, per_speed), floor=floor)
-    res = vkf(x, fs, freqs, bandwidth, settings.filter_order, chunk_duration=math.inf)
-    env = res.envelope_at(idx)  # (s, m), NaN where not trackable
-    # phase of order n: 2π mult[n] Σ|v|/fs (the VKF's own convention, phase0 = 0)
-    travel = np.cumsum(v) / fs
-    phase = 2.0 * np.pi * np.multiply.outer(mult, travel[idx])
-    wave = (env * np.exp(1j * phase)).real
+    recipe = order_recipe(wheel_diameter, sleeper_spacing, settings)
+    env = recipe.solve(x, fs, v).envelope_at(idx)  # (s, m), NaN where not trackable
+    # the recipe's phase convention, referred to the first sample
+    wave = (env * np.exp(1j * recipe.order_phases(travel_phase(v, fs)[idx]))).real
     moving = v[idx] >= settings.min_speed_kmh / 3.6
     wave[:, ~moving] = 0.0
     return np.nansum(wave, axis=0)
@@ -325,7 +310,8 @@ def window_spectrograms(
             f"speed: the mean speed in the window ({v_mean * 3.6:.1f} km/h) is below "
             f"min_speed_kmh = {settings.min_speed_kmh:g} km/h"
         )
-    mult = railway_multipliers(wheel_diameter, sleeper_spacing, settings.n_wheel_orders)
+    recipe = order_recipe(wheel_diameter, sleeper_spacing, settings)
+    mult = recipe.multipliers
     f_top = min(_BAND_MARGIN * float(mult.max()) * float(v.max()), 0.5 * fs)
     f1 = v_mean / (math.pi * wheel_diameter)
     resolution = f1 / revolutions
@@ -348,7 +334,6 @@ def window_spectrograms(
     speed_frames = np.array(
         [float(v[max(0, i - half) : i + half + 1].mean()) for i in frame_index]
     )
-    labels = ["sleeper", *[str(k) for k in range(1, settings.n_wheel_orders + 1)]]
     return WindowSpectrograms(
         time_s=times,
         frame_index=frame_index,
@@ -356,7 +341,7 @@ def window_spectrograms(
         raw_db=_to_db(raw_psd, floor_db),
         components_db=_to_db(comp_psd, floor_db),
         speed=speed_frames,
-        order_labels=labels,
+        order_labels=list(recipe.labels),
         order_freq_hz=np.multiply.outer(mult, speed_frames),
         resolution_hz=float(raw.freq_hz[1] - raw.freq_hz[0]) if raw.freq_hz.size > 1 else resolution,
     )

@@ -23,17 +23,18 @@ How it is solved (see docs/vkf.md):
 * long signals are cut into chunks whose overlap follows from the filter's
   own impulse response and which are joined with a raised-cosine crossfade.
 
-Public API
-----------
-vkf, vkf_stream, vkf_into, VKFResult, VKFWarning, wheel_orders,
-sleeper_passage, OrderTrack.
+Public API (documented with an example in docs/vkf.md)
+-----------------------------------------------------
+vkf, vkf_stream, vkf_overlap, VKFResult, VKFWarning. Order tracks of
+railway data (``OrderTrack``, ``wheel_orders``, ``sleeper_passage``) live
+in :mod:`app.analysis.orders`.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -45,19 +46,13 @@ from ._vkf_baseband import BasebandPlan, EnvelopeSpline, mixing_phase, plan_base
 from ._vkf_input import InputStats, VKFInput, check_mode, extremes_over, prepare_input, scan_input
 from ._vkf_weights import bandwidth_from_weight, impulse_length, weight_squared
 from .chunking import Chunk, plan_chunk_layout
-from .orders import OrderTrack, sleeper_passage, wheel_orders
 
 __all__ = [
     "vkf",
     "vkf_stream",
-    "vkf_into",
     "vkf_overlap",
-    "VKFBlock",
     "VKFResult",
     "VKFWarning",
-    "wheel_orders",
-    "sleeper_passage",
-    "OrderTrack",
 ]
 
 _EPS = np.finfo(np.float64).eps
@@ -232,15 +227,6 @@ def _iter_segments(
 # --------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class VKFBlock:
-    """One block of :func:`vkf_stream`: final results for input samples [start, stop)."""
-
-    start: int
-    stop: int
-    result: VKFResult
-
-
 class VKFResult:
     """Envelopes and components of a VKF run over input samples [start, stop).
 
@@ -336,6 +322,11 @@ class VKFResult:
         local = index - lo
         return self._inp.at("freqs", lo, hi, local) >= self._inp.at("bandwidth", lo, hi, local)
 
+    def _masked(self, env: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """Raw envelopes (channels, s, m) set to NaN where ``valid`` (s, m) is False, in place."""
+        env[:, ~valid] = np.nan
+        return self._squeeze(env)
+
     def envelope_at(self, index: Any) -> np.ndarray:
         """Envelopes at sample indices relative to ``start`` (e.g. a reduced rate).
 
@@ -354,40 +345,27 @@ class VKFResult:
         if index.size and (index.min() < 0 or index.max() >= len(self)):
             raise ValueError(f"index must lie in [0, {len(self)}), got {index.min()}..{index.max()}")
         g = index + self.start
-        env = self._raw_envelope(g)
-        env[:, ~self._valid_at(g)] = np.nan
-        return self._squeeze(env)
-
-    def sub(self, start: int, stop: int) -> VKFResult:
-        """The same result restricted to samples [start, stop) (relative to ``start``).
-
-        Full-rate arrays of the sub-result are computed for that range only,
-        which bounds memory when a long result is consumed block by block.
-        """
-        if not 0 <= start <= stop <= len(self):
-            raise ValueError(f"sub range must satisfy 0 <= start <= stop <= {len(self)}, got {start}, {stop}")
-        a, b = self.start + start, self.start + stop
-        cum = self._cum_start + self._inp.sum_freqs(self.start, a)
-        segs = [s for s in self._segments if s.out_lo < b and s.out_hi > a]
-        return VKFResult(self._inp, segs, a, b, cum, self.close_orders)
-
-    @cached_property
-    def _full_index(self) -> np.ndarray:
-        return np.arange(self.start, self.stop)
-
-    @cached_property
-    def _raw(self) -> np.ndarray:
-        return self._raw_envelope(self._full_index)
+        return self._masked(self._raw_envelope(g), self._valid_at(g))
 
     @cached_property
     def valid(self) -> np.ndarray:
-        return self._valid_at(self._full_index)
+        return self._valid_at(np.arange(self.start, self.stop))
 
     @cached_property
     def envelope(self) -> np.ndarray:
-        env = self._raw.copy()
-        env[:, ~self.valid] = np.nan
-        return self._squeeze(env)
+        return self._masked(self._raw_envelope(np.arange(self.start, self.stop)), self.valid)
+
+    @cached_property
+    def phi(self) -> np.ndarray:
+        cs = self._inp.cumsum_freqs(self.start, self.stop)
+        cs += self._cum_start[:, None]
+        return self._inp.phase0[:, None] + (2.0 * np.pi / self.fs) * cs
+
+    @cached_property
+    def waveform(self) -> np.ndarray:
+        wave = (self.envelope * np.exp(1j * self.phi)).real
+        wave[..., ~self.valid] = 0.0
+        return wave
 
     @cached_property
     def amplitude(self) -> np.ndarray:
@@ -398,20 +376,8 @@ class VKFResult:
         return np.angle(self.envelope)
 
     @cached_property
-    def phi(self) -> np.ndarray:
-        cs = self._inp.cumsum_freqs(self.start, self.stop)
-        cs += self._cum_start[:, None]
-        return self._inp.phase0[:, None] + (2.0 * np.pi / self.fs) * cs
-
-    @cached_property
     def bandwidth(self) -> np.ndarray:
         return np.array(self._inp.bw_slice(self.start, self.stop))
-
-    @cached_property
-    def waveform(self) -> np.ndarray:
-        wave = (self._raw * np.exp(1j * self.phi)).real
-        wave[:, ~self.valid] = 0.0
-        return self._squeeze(wave)
 
     @cached_property
     def residual(self) -> np.ndarray:
@@ -567,15 +533,37 @@ def vkf_stream(
     decimation: str | int = "auto",
     chunk_duration: float | None = None,
     phase0: Any = None,
-) -> Iterator[VKFBlock]:
+) -> Iterator[VKFResult]:
     """Run :func:`vkf` chunk by chunk with bounded memory.
 
-    Same parameters as :func:`vkf`. Yields :class:`VKFBlock` objects with the
-    final, crossfaded results for consecutive input ranges
+    Same parameters as :func:`vkf`. Yields one :class:`VKFResult` per chunk
+    with the final, crossfaded results for consecutive input ranges
     ``[block.start, block.stop)`` that cover the input exactly once, in
-    order (``block.result`` is a :class:`VKFResult` over that range). Only the current and the previous chunk are held in memory, so
-    inputs of any length (memory-mapped) can be processed. Values are checked
-    in a first pass before anything is yielded.
+    order; concatenated along the last axis they equal what :func:`vkf`
+    returns with the same ``chunk_duration``. Only the current and the
+    previous chunk are held in memory (as long as the caller lets go of
+    the blocks it has consumed), so inputs of any length (``np.memmap``,
+    h5py datasets) can be processed. Values are checked in a first pass
+    before anything is yielded.
+
+    Yields
+    ------
+    VKFResult
+        Results over input samples ``[block.start, block.stop)``. Its
+        ``close_orders`` are the pairs that come closer than their bandwidth
+        in this chunk; a :class:`VKFWarning` is issued when a pair is first
+        found.
+
+    Examples
+    --------
+    Amplitudes at every 24th sample, written into a preallocated array
+    (an ``np.memmap`` for records larger than memory)::
+
+        step = 24
+        out = np.empty((n_orders, -(-n_samples // step)))
+        for block in vkf_stream(y, fs, freqs, bandwidth):
+            k = np.arange(-(-block.start // step) * step, block.stop, step)
+            out[:, k // step] = np.abs(block.envelope_at(k - block.start))
     """
     decimation, chunk_duration = check_mode(decimation, chunk_duration)
     inp = prepare_input(y, fs, freqs, bandwidth, filter_order, phase0)
@@ -588,70 +576,6 @@ def vkf_stream(
         new = pairs - seen
         seen |= pairs
         close = _warn_close(new) if new else []
-        res = VKFResult(inp, segments[max(i - 1, 0) : i + 1], start, stop, start_cum, sorted(pairs) or close)
-        yield VKFBlock(start, stop, res)
+        yield VKFResult(inp, segments[max(i - 1, 0) : i + 1], start, stop, start_cum, sorted(pairs) or close)
         if i > 0:
             segments[i - 1] = None  # type: ignore[call-overload]  # only the yielded block keeps it
-
-
-def vkf_into(
-    sink: Mapping[str, Any],
-    y: Any,
-    fs: float,
-    freqs: Any,
-    bandwidth: Any,
-    filter_order: int = 2,
-    *,
-    step: int = 1,
-    decimation: str | int = "auto",
-    chunk_duration: float | None = None,
-    phase0: Any = None,
-) -> None:
-    """Run the VKF chunk by chunk and write results into caller-owned arrays.
-
-    Parameters
-    ----------
-    sink : mapping of str to array-like
-        Keys among ``"envelope"``, ``"amplitude"``, ``"phase"`` (shape
-        ``([channels,] s, ceil(N/step))``), ``"waveform"`` (same) and
-        ``"residual"`` (``([channels,] ceil(N/step))``); values are ndarrays,
-        ``np.memmap`` or h5py datasets, written slice by slice.
-    step : int
-        Output every ``step``-th input sample (``step=24`` at 24 kHz writes
-        1 kHz envelopes). Default 1.
-    y, fs, freqs, bandwidth, filter_order, decimation, chunk_duration, phase0
-        As for :func:`vkf`.
-    """
-    allowed = {"envelope", "amplitude", "phase", "waveform", "residual"}
-    unknown = set(sink) - allowed
-    if unknown:
-        raise ValueError(f"sink has unknown field(s) {sorted(unknown)}; allowed: {sorted(allowed)}")
-    if isinstance(step, bool) or int(step) != step or step < 1:
-        raise ValueError(f"step must be a positive integer, got {step!r}")
-    step = int(step)
-    for block in vkf_stream(
-        y, fs, freqs, bandwidth, filter_order, decimation=decimation, chunk_duration=chunk_duration, phase0=phase0
-    ):
-        blk = block.result
-        first = -(-blk.start // step) * step
-        local = np.arange(first, blk.stop, step) - blk.start
-        if local.size == 0:
-            continue
-        o0, o1 = first // step, first // step + local.size
-        if step == 1:
-            values = {name: getattr(blk, name) for name in sink}
-        else:
-            env = blk.envelope_at(local)
-            values = {}
-            if "envelope" in sink:
-                values["envelope"] = env
-            if "amplitude" in sink:
-                values["amplitude"] = np.abs(env)
-            if "phase" in sink:
-                values["phase"] = np.angle(env)
-            if "waveform" in sink or "residual" in sink:
-                wave = blk.waveform[..., local]
-                values["waveform"] = wave
-                values["residual"] = blk.residual[..., local]
-        for name, target in sink.items():
-            target[..., o0:o1] = values[name]

@@ -8,9 +8,10 @@ from typing import Annotated, Any
 import numpy as np
 from fastapi import APIRouter, Query
 
+from app.analysis.recipe import order_overlap, wheel_recipe
 from app.analysis.settings import ProcessingSettings
-from app.analysis.spectrogram import component_padding, window_spectrograms
-from app.api.deps import DbDep, RunId, StoreDep
+from app.analysis.spectrogram import window_spectrograms
+from app.api.deps import DbDep, RunId, StoreDep, km_query
 from app.api.errors import ApiError, not_found
 from app.db import crud, results_reader
 from app.io import WHEELS, RunFile, open_run
@@ -82,8 +83,8 @@ def get_spectrogram(
     db: DbDep,
     store: StoreDep,
     wheel: Annotated[str, Query(pattern=r"^Z?(11|12|41|42)$", description='Wheel: "11" … "42" (or "Z11")')],
-    km_from: Annotated[float, Query(ge=-100_000, le=100_000, description="Window start, km")],
-    km_to: Annotated[float, Query(ge=-100_000, le=100_000, description="Window end, km")],
+    km_from: Annotated[float, km_query("Window start, km")],
+    km_to: Annotated[float, km_query("Window end, km")],
     revolutions: Annotated[
         float, Query(ge=1, le=64, description="Wheel revolutions per STFT frame (resolution f1/revolutions)")
     ] = 8.0,
@@ -121,10 +122,9 @@ def get_spectrogram(
                 f"window {km_from}–{km_to} km holds no data of wheel {w} "
                 f"(the run covers {min(first, last):.3f}–{max(first, last):.3f} km)",
             )
-        d_w = float(run.metadata.wheel_diameters.get(w, 0.92))
-        d_s = float(run.metadata.sleeper_spacing)
-        speed_core = run.speed(start, stop)
-        pad = component_padding(run.fs, speed_core, d_w, d_s, settings)
+        recipe = wheel_recipe(run.metadata, w, settings)  # the orders the pipeline tracks
+        d_w, d_s = recipe.wheel_diameter, recipe.sleeper_spacing
+        pad = order_overlap(run.fs, run.speed(start, stop), [recipe])
         pad = min(pad, 4 * (stop - start))
         lo, hi = max(0, start - pad), min(run.n_samples, stop + pad)
         y = run.read(channel, lo, hi)

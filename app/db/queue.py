@@ -2,10 +2,12 @@
 
 Used by the local worker (embedded mode) and, with ``worker_id=None`` (any
 owner) plus the fan-out functions at the end, by the Procrastinate tasks of
-the production mode (:mod:`worker.tasks`). Every change that a worker makes to
-a job is guarded by ``worker_id = <me> AND status = 'running'``: a worker that
-lost its job (cancelled, run deleted, or claimed by another worker after the
-heartbeat went stale) changes nothing and learns so from the return value.
+the production mode (:mod:`worker.tasks`); both go through the job steps of
+:mod:`worker.steps`. Every change that a worker makes to a job is guarded by
+``worker_id = <me> AND status = 'running'``: a worker that lost its job
+(cancelled, run deleted, or claimed by another worker after the heartbeat went
+stale) changes nothing and learns so from the return value. The functions
+both modes call take the owner as the keyword-only ``worker_id``.
 
 Progress is derived from the chunk rows (done / all), never from a counter,
 so a repeated chunk cannot count twice.
@@ -65,6 +67,17 @@ def _now_literal(now: dt.datetime):
     return literal(now, UTCDateTime())
 
 
+def _start_values(worker_id: str, now: dt.datetime) -> dict[str, Any]:
+    """Column values of a job that ``worker_id`` starts (claims) at ``now``."""
+    return {
+        "status": JobStatus.RUNNING,
+        "worker_id": worker_id,
+        "heartbeat_at": now,
+        "started_at": func.coalesce(Job.started_at, _now_literal(now)),
+        "attempts": Job.attempts + 1,
+    }
+
+
 def _claimable(cutoff: dt.datetime):
     return or_(
         Job.status == JobStatus.QUEUED,
@@ -102,13 +115,7 @@ def claim_next_job(db: Database, worker_id: str, stale_after_s: float) -> int | 
             result = session.execute(
                 update(Job)
                 .where(Job.id == job_id, _claimable(cutoff))
-                .values(
-                    status=JobStatus.RUNNING,
-                    worker_id=worker_id,
-                    heartbeat_at=now,
-                    started_at=func.coalesce(Job.started_at, _now_literal(now)),
-                    attempts=Job.attempts + 1,
-                )
+                .values(**_start_values(worker_id, now))
             )
             if result.rowcount == 1:
                 return int(job_id)
@@ -151,7 +158,7 @@ def release_job(db: Database, job_id: int, worker_id: str) -> bool:
 
 
 def record_chunks(
-    db: Database, job_id: int, worker_id: str, specs: Sequence[tuple[int, dict[str, Any]]]
+    db: Database, job_id: int, specs: Sequence[tuple[int, dict[str, Any]]], *, worker_id: str
 ) -> bool:
     """Record the planned chunks of a job (idempotent: existing rows are kept).
 
@@ -159,6 +166,8 @@ def record_chunks(
     ----------
     specs : sequence of (int, dict)
         Chunk index and its JSON-serialisable spec (``ChunkSpec.to_dict()``).
+    worker_id : str
+        Owner of the job (the local worker, or the fan-out planner).
 
     Returns
     -------
@@ -189,12 +198,20 @@ def record_chunks(
 def mark_chunk(
     db: Database,
     job_id: int,
-    worker_id: str | None,
     index: int,
     status: str,
     result_path: str | None = None,
+    *,
+    worker_id: str | None,
 ) -> float | None:
     """Set the status of a chunk and update the job's progress.
+
+    Parameters
+    ----------
+    result_path : str, optional
+        Where the chunk's result is (store-relative path or URL).
+    worker_id : str or None
+        Owner of the job; None: any owner (fan-out mode).
 
     Returns
     -------
@@ -237,9 +254,12 @@ def mark_chunk(
 
 
 def finish_job(
-    db: Database, job_id: int, worker_id: str | None, status: str, error: str | None = None
+    db: Database, job_id: int, status: str, error: str | None = None, *, worker_id: str | None
 ) -> bool:
-    """Mark a job this worker runs as failed or cancelled (with its error text)."""
+    """Mark a job this worker runs as failed or cancelled (with its error text).
+
+    ``worker_id``: owner of the job; None: any owner (fan-out mode).
+    """
     if status not in (JobStatus.FAILED, JobStatus.CANCELLED):
         raise ValueError(f"status must be failed or cancelled, got {status!r}")
     with db.write() as session:
@@ -257,11 +277,12 @@ def finish_job(
 def complete_job(
     db: Database,
     job_id: int,
-    worker_id: str | None,
     run_id: int,
     profiles: pd.DataFrame | None,
     wheels: Sequence[dict[str, Any]],
     meta: dict[str, Any],
+    *,
+    worker_id: str | None,
 ) -> bool:
     """Store (unless already stored) and publish a job's results and mark it done, in one transaction.
 
@@ -276,6 +297,8 @@ def complete_job(
     profiles : pandas.DataFrame or None
         The job's profile rows, or None when they were stored wheel by wheel
         already (:func:`store_wheel_rows`, fan-out mode).
+    worker_id : str or None
+        Owner of the job; None: any owner (fan-out mode).
 
     Returns
     -------
@@ -372,13 +395,7 @@ def claim_for_fanout(db: Database, job_id: int, owner: str) -> bool:
         result = session.execute(
             update(Job)
             .where(Job.id == job_id, Job.status == JobStatus.QUEUED)
-            .values(
-                status=JobStatus.RUNNING,
-                worker_id=owner,
-                heartbeat_at=now,
-                started_at=func.coalesce(Job.started_at, _now_literal(now)),
-                attempts=Job.attempts + 1,
-            )
+            .values(**_start_values(owner, now))
         )
         if result.rowcount == 1:
             return True

@@ -36,11 +36,11 @@ class SimSet:
 @pytest.fixture(scope="session")
 def sim_set(tmp_path_factory) -> SimSet:
     from app.analysis.settings import ProcessingSettings
+    from app.pipeline import run_pipeline
     from app.simulate.reference import simulate_reference
     from app.simulate.run import simulate_run
     from app.simulate.speed import SpeedProfile
     from app.simulate.track import generate_line
-    from worker.pipeline import run_pipeline
 
     root = tmp_path_factory.mktemp("analytics")
     line = generate_line(11_900.0, 13_700.0, np.random.default_rng([4, 7]),

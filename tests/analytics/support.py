@@ -17,7 +17,7 @@ def store_run(client, run) -> int:
         job_id = queue.claim_next_job(db, "test", 30)
         assert job_id == body["latest_job"]["id"]
         res = run.results
-        assert queue.complete_job(db, job_id, "test", body["id"], res.profiles, res.wheels, res.meta)
+        assert queue.complete_job(db, job_id, body["id"], res.profiles, res.wheels, res.meta, worker_id="test")
     finally:
         db.dispose()
     return body["id"]

@@ -48,7 +48,7 @@ def processed(client, tmp_path):
         job_id = queue.claim_next_job(db, "test", 30)
         assert job_id == run["latest_job"]["id"]
         df, wheels = _synthetic()
-        assert queue.complete_job(db, job_id, "test", run["id"], df, wheels, {"software": "t"})
+        assert queue.complete_job(db, job_id, run["id"], df, wheels, {"software": "t"}, worker_id="test")
     finally:
         db.dispose()
     return client, run["id"], df

@@ -79,10 +79,10 @@ def test_stale_job_is_reclaimed_and_old_worker_loses_it(db):
         s.execute(update(Job).values(heartbeat_at=utcnow() - dt.timedelta(seconds=60)))
     assert queue.claim_next_job(db, "other", 30) == job_id
     assert queue.heartbeat(db, job_id, "dead").owned is False
-    assert queue.mark_chunk(db, job_id, "dead", 0, "done") is None
+    assert queue.mark_chunk(db, job_id, 0, "done", worker_id="dead") is None
     profiles, wheels = _results(4, 1.0)
-    assert not queue.complete_job(db, job_id, "dead", run_id, profiles, wheels, {})
-    assert queue.complete_job(db, job_id, "other", run_id, profiles, wheels, {"v": 1})
+    assert not queue.complete_job(db, job_id, run_id, profiles, wheels, {}, worker_id="dead")
+    assert queue.complete_job(db, job_id, run_id, profiles, wheels, {"v": 1}, worker_id="other")
     with db.read() as s:
         job = s.get(Job, job_id)
         assert job.status == JobStatus.DONE and job.attempts == 2 and job.progress == 1.0
@@ -92,11 +92,11 @@ def test_progress_counts_chunk_rows_not_events(db):
     _, job_id = _make_run(db)
     queue.claim_next_job(db, "w", 30)
     specs = [(i, {"index": i}) for i in range(4)]
-    assert queue.record_chunks(db, job_id, "w", specs)
-    assert queue.record_chunks(db, job_id, "w", specs)  # idempotent
-    assert queue.mark_chunk(db, job_id, "w", 0, "done") == pytest.approx(0.25)
-    assert queue.mark_chunk(db, job_id, "w", 0, "done") == pytest.approx(0.25)
-    assert queue.mark_chunk(db, job_id, "w", 1, "done") == pytest.approx(0.5)
+    assert queue.record_chunks(db, job_id, specs, worker_id="w")
+    assert queue.record_chunks(db, job_id, specs, worker_id="w")  # idempotent
+    assert queue.mark_chunk(db, job_id, 0, "done", worker_id="w") == pytest.approx(0.25)
+    assert queue.mark_chunk(db, job_id, 0, "done", worker_id="w") == pytest.approx(0.25)
+    assert queue.mark_chunk(db, job_id, 1, "done", worker_id="w") == pytest.approx(0.5)
     with db.read() as s:
         assert crud.chunk_counts(s, [job_id]) == {job_id: {"done": 2, "pending": 2}}
         assert s.get(Job, job_id).n_chunks == 4
@@ -113,7 +113,7 @@ def test_release_and_cancel(db):
         assert crud.request_cancel(s, job_id) == "requested"
     lease = queue.heartbeat(db, job_id, "w2")
     assert lease.owned and lease.cancel_requested
-    assert queue.finish_job(db, job_id, "w2", JobStatus.CANCELLED, "cancelled by request")
+    assert queue.finish_job(db, job_id, JobStatus.CANCELLED, "cancelled by request", worker_id="w2")
     with db.write() as s:
         assert crud.request_cancel(s, job_id) == "final"
         assert crud.request_cancel(s, 12345) is None
@@ -125,7 +125,7 @@ def test_cancel_requested_blocks_storing_results(db):
     with db.write() as s:
         crud.request_cancel(s, job_id)
     profiles, wheels = _results(2, 1.0)
-    assert not queue.complete_job(db, job_id, "w", run_id, profiles, wheels, {})
+    assert not queue.complete_job(db, job_id, run_id, profiles, wheels, {}, worker_id="w")
     with db.read() as s:
         assert s.scalar(select(func.count()).select_from(ProfileBin)) == 0
 
@@ -134,12 +134,12 @@ def test_results_are_replaced_not_duplicated(db):
     run_id, job_id = _make_run(db)
     queue.claim_next_job(db, "w", 30)
     profiles, wheels = _results(10, 1.0)
-    assert queue.complete_job(db, job_id, "w", run_id, profiles, wheels, {})
+    assert queue.complete_job(db, job_id, run_id, profiles, wheels, {}, worker_id="w")
     with db.write() as s:
         job2 = crud.create_job(s, run_id, {"n_wheel_orders": 11}).id
     assert queue.claim_next_job(db, "w", 30) == job2
     profiles2, wheels2 = _results(6, 2.0)
-    assert queue.complete_job(db, job2, "w", run_id, profiles2, wheels2, {})
+    assert queue.complete_job(db, job2, run_id, profiles2, wheels2, {}, worker_id="w")
     with db.read() as s:
         assert s.scalar(select(func.count()).select_from(ProfileBin)) == 12
         assert set(s.scalars(select(ProfileBin.sleeper_amp)).all()) == {2.0}
@@ -161,7 +161,7 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
     run_id, job1 = _make_run(db)
     queue.claim_next_job(db, "w", 30)
     old, old_wheels = _results(4, 1.0)
-    assert queue.complete_job(db, job1, "w", run_id, old, old_wheels, {})
+    assert queue.complete_job(db, job1, run_id, old, old_wheels, {}, worker_id="w")
 
     def amps() -> set[float]:
         with db.read() as s:
@@ -179,7 +179,7 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
     with db.read() as s:
         assert results_reader.stored_profile_wheels(s, job2) == ["11", "12"]
         assert results_reader.results_job_id(s, run_id) == job1
-    assert queue.complete_job(db, job2, None, run_id, None, new_wheels, {"v": 2})
+    assert queue.complete_job(db, job2, run_id, None, new_wheels, {"v": 2}, worker_id=None)
     assert amps() == {2.0}
     with db.read() as s:
         assert s.scalar(select(func.count()).select_from(ProfileBin)) == 12  # job 1's rows dropped
@@ -190,7 +190,7 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
         job3 = crud.create_job(s, run_id, {"n_wheel_orders": 11}).id
     assert queue.claim_next_job(db, "w", 30) == job3
     assert queue.store_wheel_rows(db, job3, run_id, _results(3, 5.0)[0])
-    assert queue.finish_job(db, job3, "w", JobStatus.FAILED, "boom")
+    assert queue.finish_job(db, job3, JobStatus.FAILED, "boom", worker_id="w")
     assert amps() == {2.0}
     with db.read() as s:
         assert results_reader.stored_profile_wheels(s, job3) == []  # the failed job's rows are gone

@@ -1,5 +1,6 @@
-"""End-to-end fixtures: a simulated run, and the real service (uvicorn + worker
-subprocesses on a free loopback port) on a temporary database and run store.
+"""End-to-end fixtures: the real service (uvicorn + worker subprocesses on a free
+loopback port) on a temporary database and run store (the simulated runs are
+shared fixtures, ``tests/conftest.py``).
 
 The ``service`` fixture runs every test twice: on SQLite (embedded mode, local
 worker) and on PostgreSQL (production mode, Procrastinate workers) in a
@@ -26,30 +27,6 @@ import pytest
 from app.db import migrate
 from tests.api.support import create_api_key
 from tests.pg_cluster import PgCluster
-
-SIM_LENGTH_KM = 1.5
-SIM_FS = 10_000.0
-SIM_SEED = 1
-
-
-@pytest.fixture(scope="session")
-def sim_run(tmp_path_factory) -> tuple[Path, object]:
-    """A short simulated run (1.5 km at 10 kHz, with forces) and its truth."""
-    from app.simulate.run import simulate_run
-
-    path = tmp_path_factory.mktemp("sim") / "sim-run.h5"
-    truth = simulate_run(path, length_km=SIM_LENGTH_KM, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
-    return path, truth
-
-
-@pytest.fixture(scope="session")
-def short_sim_run(tmp_path_factory) -> tuple[Path, object]:
-    """A shorter simulated run (0.8 km, ~36 s at 10 kHz) for the fault tests."""
-    from app.simulate.run import simulate_run
-
-    path = tmp_path_factory.mktemp("sim-short") / "sim-short.h5"
-    truth = simulate_run(path, length_km=0.8, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
-    return path, truth
 
 
 def _free_port() -> int:
@@ -228,8 +205,8 @@ def clean_reference(short_sim_run, tmp_path_factory):
     import numpy as np
 
     from app.analysis.settings import ProcessingSettings
+    from app.pipeline import run_pipeline
     from tests.e2e.support import FAULT_SETTINGS
-    from worker.pipeline import run_pipeline
 
     path, _ = short_sim_run
     settings = ProcessingSettings.from_dict(FAULT_SETTINGS)

@@ -6,7 +6,8 @@ import httpx
 import pytest
 from typer.testing import CliRunner
 
-from app.cli import _demo_credentials, app
+from app.cli import app
+from app.cli.demo import _demo_credentials
 from app.core.config import get_settings
 from app.db import auth_crud
 from app.db.session import Database

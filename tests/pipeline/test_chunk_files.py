@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from app.analysis.binning import BinSums
-from worker.pipeline import _load_group, _pack_group
+from app.pipeline.chunkfile import load_group, pack_group
 
 
 class _Npz(dict):
@@ -37,26 +37,26 @@ def _assert_same(a: BinSums, b: BinSums) -> None:
 
 def test_packed_group_round_trip(tmp_path):
     sums = _sums()
-    packed = _pack_group("bins_11__", sums.to_arrays())
+    packed = pack_group("bins_11__", sums.to_arrays())
     assert len(packed) == 4
     np.savez(tmp_path / "c.npz", **packed, other=np.zeros(3))
     with np.load(tmp_path / "c.npz") as npz:
-        _assert_same(_load_group(npz, "bins_11__"), sums)
-        assert _load_group(npz, "bins_12__") is None
+        _assert_same(load_group(npz, "bins_11__"), sums)
+        assert load_group(npz, "bins_12__") is None
 
 
 def test_earlier_layout_still_reads():
     sums = _sums()
     legacy = _Npz({f"resid_41__{k}": v for k, v in sums.to_arrays().items()})
-    _assert_same(_load_group(legacy, "resid_41__"), sums)
+    _assert_same(load_group(legacy, "resid_41__"), sums)
 
 
 def test_empty_group_and_refusals():
     empty = BinSums.merge_all([_sums()])
     empty = BinSums.from_arrays({k: (v[:0] if np.ndim(v) else v) for k, v in empty.to_arrays().items()})
-    back = _load_group(_Npz(_pack_group("g__", empty.to_arrays())), "g__")
+    back = load_group(_Npz(pack_group("g__", empty.to_arrays())), "g__")
     assert back.bins.size == 0 and set(back.sums) == {"x", "y"}
     with pytest.raises(ValueError, match="different lengths"):
-        _pack_group("g__", {"a": np.zeros(2), "b": np.zeros(3)})
+        pack_group("g__", {"a": np.zeros(2), "b": np.zeros(3)})
     with pytest.raises(ValueError, match="only 1-D"):
-        _pack_group("g__", {"a": np.zeros((2, 2))})
+        pack_group("g__", {"a": np.zeros((2, 2))})

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.analysis.vkf import VKFWarning, sleeper_passage, vkf, wheel_orders
+from app.analysis.orders import sleeper_passage, wheel_orders
+from app.analysis.vkf import VKFWarning, vkf
 from app.simulate.signals import paper_signal, phase_from_freqs, railway_signal
 
 

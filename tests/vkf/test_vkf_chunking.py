@@ -81,13 +81,13 @@ def _assert_blocks_cover(blocks, n: int) -> None:
     assert blocks[-1].stop == n
     for b in blocks:
         assert b.stop > b.start
-        assert b.result.envelope.shape[-1] == b.stop - b.start
-        assert b.result.waveform.shape[-1] == b.stop - b.start
-        assert b.result.phi.shape[-1] == b.stop - b.start
+        assert b.envelope.shape[-1] == b.stop - b.start
+        assert b.waveform.shape[-1] == b.stop - b.start
+        assert b.phi.shape[-1] == b.stop - b.start
 
 
 def _concat(blocks, field: str) -> np.ndarray:
-    return np.concatenate([getattr(b.result, field) for b in blocks], axis=-1)
+    return np.concatenate([getattr(b, field) for b in blocks], axis=-1)
 
 
 def test_stream_covers_input_once_and_equals_vkf(paper):

@@ -8,7 +8,8 @@ import warnings
 import numpy as np
 import pytest
 
-from app.analysis.vkf import VKFWarning, sleeper_passage, vkf, vkf_stream, wheel_orders
+from app.analysis.orders import sleeper_passage, wheel_orders
+from app.analysis.vkf import VKFWarning, vkf, vkf_stream
 from app.simulate.signals import railway_signal
 
 FS = 1000.0

@@ -84,14 +84,18 @@ def test_window_spectrograms_put_the_components_on_the_order_lines():
 
 
 def test_order_bandwidth_is_the_pipelines_rule():
-    from worker.pipeline import _bandwidth_per_speed
+    from app.analysis.recipe import order_recipe
 
     for kw in ({}, {"bandwidth_orders": 0.25, "min_speed_kmh": 40.0}, {"min_speed_kmh": 0.0}):
         s = ProcessingSettings(**kw)
         for d_w in (0.86, 0.92):
-            assert s.order_bandwidth(d_w) == pytest.approx(_bandwidth_per_speed(s, d_w), rel=1e-12)
+            recipe = order_recipe(d_w, 0.6, s)
+            per_speed = s.bandwidth_orders / (np.pi * d_w)
+            floor = per_speed * max(s.min_speed_kmh / 3.6, 1.0)
+            assert recipe.bandwidth_per_speed == pytest.approx(np.full(12, per_speed), rel=1e-12)
+            assert recipe.bandwidth_floor == pytest.approx(np.full(12, floor), rel=1e-12)
     with pytest.raises(ValueError, match="wheel_diameter"):
-        ProcessingSettings().order_bandwidth(0.0)
+        order_recipe(0.0, 0.6, ProcessingSettings())
 
 
 @pytest.mark.parametrize(

@@ -1,7 +1,7 @@
 """The engine's exact solve (decimation off, one chunk) equals the paper's Eq. 20 (reference).
 
 Settings are chosen so that the reference itself is well conditioned (B/fs large
-enough for q = 3), see tests/analysis/test_signals.py for the reference's own checks.
+enough for q = 3), see tests/vkf/test_reference_vkf.py for the reference's own checks.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from app.analysis.vkf import VKFResult, vkf
-from tests.analysis.reference_vkf import carrier_phase, reference_vkf, weight_from_bandwidth
+from tests.vkf.reference_vkf import carrier_phase, reference_vkf, weight_from_bandwidth
 
 RTOL = 1e-6  # issue: "agreement to 1e-6 relative where no decimation is involved"
 FS = 1000.0

@@ -13,10 +13,10 @@ import pytest
 
 from app.analysis.settings import ProcessingSettings
 from app.core.config import Settings
+from app.core.runstore import RunStore
+from app.pipeline import assemble, plan_chunks, process_chunk, run_pipeline
 from worker.chunkstore import ChunkStore
 from worker.health import alive_file, check
-from worker.pipeline import assemble, plan_chunks, process_chunk, run_pipeline
-from worker.store import RunStore
 from worker.tasks import libpq_url
 
 SETTINGS = ProcessingSettings.from_dict({"chunk_seconds": 4.0})

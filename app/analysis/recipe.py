@@ -1,0 +1,355 @@
+"""The railway order recipe: which orders the VKF tracks on a wheel, how wide, with what phase.
+
+Every consumer of the orders reads them from here, so that a change of the
+recipe changes the stored profiles, the chunk plan and the spectrogram's
+extracted components alike:
+
+* the processing pipeline (:mod:`app.pipeline`: chunk plan, chunk solve,
+  residual, wheel out-of-roundness),
+* the spectrogram of a km window (:mod:`app.analysis.spectrogram`, served by
+  ``GET /runs/{id}/spectrogram``),
+* the ``process`` command (through the pipeline).
+
+The recipe of one wheel (:class:`OrderRecipe`, built by :func:`order_recipe`
+from the wheel diameter d_w, the sleeper spacing d_s and the job's
+:class:`~app.analysis.settings.ProcessingSettings`) holds, per tracked order
+(row ``n`` of the VKF's order stack), as arrays:
+
+* ``labels[n]``: ``"sleeper"`` (row 0, the sleeper passage ``f_s = v/d_s``),
+  then ``"1"`` … ``"n"`` (wheel out-of-roundness orders ``f_l = l·v/(π d_w)``);
+* ``multipliers[n]``: frequency per unit speed, Hz per m/s;
+* ``bandwidth_per_speed[n]``: full -3 dB bandwidth per unit speed, Hz per
+  m/s (today ``bandwidth_orders / (π d_w)`` for every order: constant in
+  wheel orders);
+* below :attr:`OrderRecipe.floor_speed` the bandwidths keep their value at
+  that speed (a slow or standing train still gives a finite filter), so the
+  bandwidth floor of row ``n`` is ``bandwidth_per_speed[n] × floor_speed``.
+
+Phase convention (the VKF's own, referred to a start position ``s0``): at
+sample ``k`` order ``n`` has the phase ``multipliers[n] × psi[k]`` with
+``psi = 2π (s0 + Σ_{l≤k} |v_l| / fs)`` (:func:`travel_phase`), i.e. the VKF is
+started with ``phase0 = 2π multipliers s0`` (:meth:`OrderRecipe.phase0`). The
+pipeline refers phases to the run start (``s0`` = position of the chunk's
+first sample), the spectrogram to the window's first sample (``s0 = 0``).
+
+Overlap: a stretch solved on its own agrees with a longer solve inside it
+when it is padded by the impulse-response length of its narrowest filter
+(:func:`order_overlap`); chunk seams use :data:`CHUNK_JOIN_TOL`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+from app.analysis.orders import OrderTrack, railway_multipliers
+from app.analysis.settings import ProcessingSettings
+from app.analysis.vkf import vkf, vkf_overlap
+
+if TYPE_CHECKING:
+    from app.analysis.vkf import VKFResult
+
+__all__ = [
+    "SLEEPER",
+    "CHUNK_JOIN_TOL",
+    "OrderRecipe",
+    "WheelGeometry",
+    "order_bandwidths",
+    "order_recipe",
+    "wheel_recipe",
+    "travel_phase",
+    "order_overlap",
+]
+
+#: label of the sleeper-passage order (row 0 of the order stack)
+SLEEPER = "sleeper"
+#: neglected impulse-response tail at chunk seams: chunked profiles agree with an
+#: unchunked solve to ~1e-5 of the signal level (far below the indicators' noise),
+#: with 40 % less overlap than the engine's own 1e-8
+CHUNK_JOIN_TOL = 1e-5
+#: highest order frequency the overlap plans for, fraction of fs
+_F_MAX_OF_FS = 0.499
+
+
+class WheelGeometry(Protocol):
+    """What the recipe reads of a run's metadata (:class:`app.io.RunMetadata`).
+
+    ``wheel_diameters`` holds every wheel: the metadata's validation fills the
+    nominal diameter (``app.io.metadata.DEFAULT_WHEEL_DIAMETER_M``) for wheels
+    it was not given.
+    """
+
+    wheel_diameters: Mapping[str, float]
+    sleeper_spacing: float
+
+
+@dataclass(frozen=True, eq=False)
+class OrderRecipe:
+    """The orders the VKF tracks on one wheel, their bandwidths and phases.
+
+    Build it with :func:`order_recipe` or :func:`wheel_recipe`. Arrays have
+    one entry per tracked order (the rows of the VKF's order stack).
+
+    Attributes
+    ----------
+    wheel_diameter, sleeper_spacing : float
+        d_w and d_s, m.
+    labels : tuple of str
+        ``"sleeper"``, then the wheel orders ``"1"`` … ``"n"``.
+    multipliers : ndarray, shape (s,)
+        Order frequency per unit speed, Hz per m/s.
+    bandwidth_per_speed : ndarray, shape (s,)
+        Full -3 dB bandwidth per unit speed, Hz per m/s.
+    floor_speed : float
+        Speed below which the bandwidths stay at their value there, m/s (> 0).
+    filter_order : int
+        Order q of the VKF's structural equation.
+    min_speed : float
+        Samples slower than this do not count for indicators, m/s.
+    """
+
+    wheel_diameter: float
+    sleeper_spacing: float
+    labels: tuple[str, ...]
+    multipliers: np.ndarray
+    bandwidth_per_speed: np.ndarray
+    floor_speed: float
+    filter_order: int
+    min_speed: float
+
+    def __post_init__(self) -> None:
+        s = len(self.labels)
+        for name in ("multipliers", "bandwidth_per_speed"):
+            a = np.array(getattr(self, name), dtype=np.float64)
+            if a.shape != (s,):
+                raise ValueError(f"{name} must have one entry per label ({s}), got shape {a.shape}")
+            if not (np.all(np.isfinite(a)) and np.all(a > 0)):
+                raise ValueError(f"{name} must be finite and > 0")
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        if self.labels.count(SLEEPER) != 1:
+            raise ValueError(f"labels must hold {SLEEPER!r} once, got {self.labels!r}")
+        if not (math.isfinite(self.floor_speed) and self.floor_speed > 0):
+            raise ValueError(f"floor_speed must be > 0 m/s, got {self.floor_speed!r}")
+
+    # --- rows of the order stack ---------------------------------------------
+    @property
+    def sleeper_row(self) -> int:
+        """Row of the sleeper-passage order."""
+        return self.labels.index(SLEEPER)
+
+    @property
+    def wheel_orders(self) -> np.ndarray:
+        """Numbers ``l`` of the tracked wheel orders (1 … n), int."""
+        return np.array([int(x) for x in self.labels if x.isdigit()], dtype=np.int64)
+
+    @property
+    def wheel_rows(self) -> np.ndarray:
+        """Rows of the wheel orders, in the order of :attr:`wheel_orders`, int."""
+        return np.array([i for i, x in enumerate(self.labels) if x.isdigit()], dtype=np.int64)
+
+    # --- frequencies and bandwidths --------------------------------------------
+    @property
+    def bandwidth_floor(self) -> np.ndarray:
+        """Lowest bandwidth of every order, Hz (its value at :attr:`floor_speed`)."""
+        return self.bandwidth_per_speed * self.floor_speed
+
+    def frequencies(self, speed: np.ndarray) -> OrderTrack:
+        """Order frequencies over a speed signal, Hz (lazy ``(s, N)`` array).
+
+        Parameters
+        ----------
+        speed : ndarray, shape (N,)
+            Absolute speed, m/s.
+        """
+        return OrderTrack(speed, self.multipliers)
+
+    def bandwidths(self, speed: np.ndarray) -> OrderTrack:
+        """Order bandwidths over a speed signal, Hz (lazy ``(s, N)`` array).
+
+        ``bandwidth_per_speed[n] × max(speed, floor_speed)``.
+
+        Parameters
+        ----------
+        speed : ndarray, shape (N,)
+            Absolute speed, m/s.
+        """
+        return OrderTrack(np.maximum(np.asarray(speed, dtype=np.float64), self.floor_speed),
+                          self.bandwidth_per_speed)
+
+    def bandwidth_range(self, v_min: float, v_max: float) -> tuple[float, float]:
+        """(narrowest bandwidth at ``v_min``, widest at ``v_max``), Hz."""
+        lo = self.bandwidth_per_speed * max(float(v_min), self.floor_speed)
+        hi = self.bandwidth_per_speed * max(float(v_max), self.floor_speed)
+        return float(lo.min()), float(hi.max())
+
+    # --- phases and the solve ----------------------------------------------------
+    def phase0(self, start_m: float = 0.0) -> np.ndarray:
+        """Phase of every order at a start position ``start_m`` (m), rad."""
+        return 2.0 * np.pi * self.multipliers * float(start_m)
+
+    def solve(self, y: Any, fs: float, speed: np.ndarray, start_m: float = 0.0) -> VKFResult:
+        """Extract the orders of a signal with the VKF (one unchunked solve).
+
+        Parameters
+        ----------
+        y : array_like, shape (N,) or (channels, N)
+            Axle-box acceleration (or force) of this wheel, m/s² (kN).
+        fs : float
+            Sample rate, Hz.
+        speed : ndarray, shape (N,)
+            Absolute speed, m/s.
+        start_m : float
+            Position of the first sample, m: the phase reference (see the
+            module's phase convention).
+
+        Returns
+        -------
+        VKFResult
+            Envelopes of the orders (rows as :attr:`labels`).
+        """
+        return vkf(y, fs, self.frequencies(speed), self.bandwidths(speed), self.filter_order,
+                   chunk_duration=np.inf, phase0=self.phase0(start_m))
+
+    def order_phases(self, psi: np.ndarray) -> np.ndarray:
+        """Phases of the orders, ``multipliers ⊗ psi``, rad, shape (s, len(psi))."""
+        return np.multiply.outer(self.multipliers, psi)
+
+
+def order_bandwidths(
+    labels: Sequence[str], wheel_diameter: float, settings: ProcessingSettings
+) -> tuple[np.ndarray, float]:
+    """The bandwidth rule of the order filters.
+
+    Parameters
+    ----------
+    labels : sequence of str
+        The tracked orders (:attr:`OrderRecipe.labels`).
+    wheel_diameter : float
+        d_w, m (> 0).
+    settings : ProcessingSettings
+        ``bandwidth_orders``, ``min_speed_kmh``.
+
+    Returns
+    -------
+    bandwidth_per_speed : ndarray, shape (len(labels),)
+        Full -3 dB bandwidth per unit speed of every order, Hz per m/s:
+        ``bandwidth_orders / (π d_w)`` (constant in wheel orders) for all.
+    floor_speed : float
+        Speed below which the bandwidths keep their value, m/s:
+        ``max(min_speed_kmh, 3.6)`` km/h, so that a slow or standing train
+        still gives a finite filter.
+    """
+    per_speed = float(settings.bandwidth_orders) / (math.pi * float(wheel_diameter))
+    return np.full(len(labels), per_speed), max(float(settings.min_speed_kmh) / 3.6, 1.0)
+
+
+def order_recipe(wheel_diameter: float, sleeper_spacing: float, settings: ProcessingSettings) -> OrderRecipe:
+    """The recipe of a wheel of diameter d_w on sleepers spaced d_s.
+
+    Parameters
+    ----------
+    wheel_diameter : float
+        d_w, m (> 0).
+    sleeper_spacing : float
+        d_s, m (> 0).
+    settings : ProcessingSettings
+        ``n_wheel_orders``, ``bandwidth_orders``, ``filter_order``, ``min_speed_kmh``.
+
+    Returns
+    -------
+    OrderRecipe
+        Row 0 the sleeper passage, rows 1..n the wheel orders 1..n, the
+        bandwidths of :func:`order_bandwidths`.
+
+    Raises
+    ------
+    ValueError
+        If a length is not a finite number > 0.
+    """
+    d_w, d_s = float(wheel_diameter), float(sleeper_spacing)
+    for name, value in (("wheel_diameter", d_w), ("sleeper_spacing", d_s)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be > 0 m, got {value!r}")
+    n = int(settings.n_wheel_orders)
+    labels = (SLEEPER, *[str(lvl) for lvl in range(1, n + 1)])
+    per_speed, floor_speed = order_bandwidths(labels, d_w, settings)
+    return OrderRecipe(
+        wheel_diameter=d_w,
+        sleeper_spacing=d_s,
+        labels=labels,
+        multipliers=railway_multipliers(d_w, d_s, n),
+        bandwidth_per_speed=per_speed,
+        floor_speed=floor_speed,
+        filter_order=int(settings.filter_order),
+        min_speed=float(settings.min_speed_kmh) / 3.6,
+    )
+
+
+def wheel_recipe(metadata: WheelGeometry, wheel: str, settings: ProcessingSettings) -> OrderRecipe:
+    """The recipe of wheel ``wheel`` (``"11"`` … ``"42"``) of a run, from its metadata.
+
+    Raises
+    ------
+    KeyError
+        If the metadata hold no diameter of ``wheel``.
+    """
+    return order_recipe(float(metadata.wheel_diameters[wheel]), float(metadata.sleeper_spacing), settings)
+
+
+def travel_phase(speed: np.ndarray, fs: float, start_m: float = 0.0) -> np.ndarray:
+    """Phase per unit multiplier ``psi = 2π (start_m + Σ_{l≤k} |v_l| / fs)``, rad.
+
+    Order ``n`` has the phase ``multipliers[n] × psi`` (see the module notes).
+
+    Parameters
+    ----------
+    speed : ndarray, shape (N,)
+        Absolute speed, m/s.
+    fs : float
+        Sample rate, Hz.
+    start_m : float
+        Position of the phase reference, m.
+    """
+    return 2.0 * np.pi * (float(start_m) + np.cumsum(speed) / fs)
+
+
+def order_overlap(
+    fs: float, speed: np.ndarray, recipes: Sequence[OrderRecipe], *, tol: float | None = None
+) -> int:
+    """Samples of signal the VKF of these recipes needs on each side of a stretch.
+
+    Parameters
+    ----------
+    fs : float
+        Sample rate, Hz.
+    speed : array_like, shape (N,)
+        Speed over (roughly) the stretch, m/s (its absolute value counts).
+    recipes : sequence of OrderRecipe
+        The wheels solved over the stretch; the overlap covers the highest
+        order frequency of all of them and the bandwidths of the narrowest.
+    tol : float, optional
+        Neglected impulse-response tail (default: the engine's own, see
+        :func:`app.analysis.vkf.vkf_overlap`); chunk seams use
+        :data:`CHUNK_JOIN_TOL`.
+
+    Returns
+    -------
+    int
+        Overlap in samples.
+    """
+    if not recipes:
+        raise ValueError("recipes must not be empty")
+    v = np.abs(np.asarray(speed, dtype=np.float64))
+    if v.size == 0:
+        raise ValueError("speed must not be empty")
+    v_min, v_max = float(v.min()), float(v.max())
+    f_max = min(max(float(r.multipliers.max()) for r in recipes) * v_max, _F_MAX_OF_FS * fs)
+    narrow = min(recipes, key=lambda r: float(r.bandwidth_per_speed.min()))
+    bw_min, bw_max = narrow.bandwidth_range(v_min, v_max)
+    extra = {} if tol is None else {"tol": tol}
+    return vkf_overlap(fs, 0.0, f_max, bw_min, bw_max, narrow.filter_order, **extra)

@@ -1,0 +1,35 @@
+"""Command line of trackvkf: ``serve``, ``worker``, ``migrate``, ``demo``, ``simulate``,
+``process``, ``user`` (create, set-password, list) and ``key`` (create, revoke, list).
+
+Every command reads the service settings from ``TRACKVKF_*`` environment
+variables (see :class:`app.core.config.Settings`). The commands live by group:
+:mod:`app.cli.service` (serve, worker, migrate), :mod:`app.cli.processing`
+(simulate, process), :mod:`app.cli.accounts` (user, key), :mod:`app.cli.demo`.
+"""
+
+from __future__ import annotations
+
+import typer
+
+from app.cli import accounts, demo, processing, service
+
+__all__ = ["app", "main"]
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Track stiffness and wheel out-of-roundness from axle-box accelerations.",
+)
+app.command()(service.serve)
+app.command()(service.worker)
+app.command()(service.migrate)
+app.command()(processing.simulate)
+app.command()(processing.process)
+app.add_typer(accounts.user_app, name="user")
+app.add_typer(accounts.key_app, name="key")
+app.command()(demo.demo)
+
+
+def main() -> None:
+    """Entry point of the ``trackvkf`` console script."""
+    app()

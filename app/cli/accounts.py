@@ -1,0 +1,140 @@
+"""Commands ``user`` (browser users) and ``key`` (API keys of data systems)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from typing import Annotated, Any
+
+import typer
+
+from app.cli._common import CLI_ACTOR, cli_audit, database, echo, new_password
+
+__all__ = ["user_app", "key_app"]
+
+user_app = typer.Typer(no_args_is_help=True, help="Browser users (stored with Argon2id password hashes).")
+key_app = typer.Typer(no_args_is_help=True, help="API keys of data systems (stored hashed, shown once).")
+
+
+@contextlib.contextmanager
+def _session(*, write: bool = False) -> Iterator[Any]:
+    """A transaction on TRACKVKF_DATABASE_URL, its connections closed after; a refused
+    account change (``AuthError``) ends the command with its message (exit status 2)."""
+    from app.db import auth_crud
+
+    db = database()
+    try:
+        with db.write() if write else db.read() as session:
+            yield session
+    except auth_crud.AuthError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    finally:
+        db.dispose()
+
+
+def _password(password: str | None, generate: bool, prompt: str) -> str:
+    """``password``, else a generated one (``generate``), else one asked for twice."""
+    if password is not None:
+        return password
+    return new_password() if generate else typer.prompt(prompt, hide_input=True, confirmation_prompt=True)
+
+
+@user_app.command("create")
+def user_create(
+    username: Annotated[str, typer.Argument(help="Login name")],
+    role: Annotated[str, typer.Option(help="viewer, engineer or admin")] = "viewer",
+    password: Annotated[
+        str | None,
+        typer.Option(help="Password (>= 10 characters); prompted when omitted, "
+                     "or generated and printed with --generate"),
+    ] = None,
+    generate: Annotated[bool, typer.Option(help="Generate a password and print it")] = False,
+) -> None:
+    """Create a browser user with a role."""
+    from app.db import auth_crud
+
+    password = _password(password, generate, "password")
+    with _session(write=True) as session:
+        auth_crud.create_user(session, username, password, role, created_by=CLI_ACTOR)
+        cli_audit(session, "user.create", username, {"role": role})
+    echo(f"user {username} ({role}) created")
+    if generate:
+        echo(f"password: {password}")
+
+
+@user_app.command("set-password")
+def user_set_password(
+    username: Annotated[str, typer.Argument(help="Login name")],
+    password: Annotated[str | None, typer.Option(help="New password; prompted when omitted")] = None,
+    generate: Annotated[bool, typer.Option(help="Generate a password and print it")] = False,
+) -> None:
+    """Set a user's password (ends its sessions; clears the demo-credentials mark)."""
+    from app.db import auth_crud
+
+    password = _password(password, generate, "new password")
+    with _session(write=True) as session:
+        if auth_crud.update_user(session, username, password=password) is None:
+            typer.echo(f"error: no user {username!r}", err=True)
+            raise typer.Exit(2)
+        cli_audit(session, "user.update", username, {"password": "changed"})
+    echo(f"password of {username} changed")
+    if generate:
+        echo(f"password: {password}")
+
+
+@user_app.command("list")
+def user_list() -> None:
+    """List users: name, role, active, last login."""
+    from app.db import auth_crud
+
+    with _session() as session:
+        for u in auth_crud.list_users(session):
+            flags = ("" if u.active else " inactive") + (" demo-credentials" if u.demo_credentials else "")
+            echo(f"{u.username}\t{u.role}\tlast login {u.last_login_at or '-'}{flags}")
+
+
+@key_app.command("create")
+def key_create(
+    name: Annotated[str, typer.Argument(help="What the key is for (e.g. the data system)")],
+    role: Annotated[str, typer.Option(help="viewer, engineer or admin")] = "engineer",
+    expires_in_days: Annotated[int | None, typer.Option(help="Lifetime in days (default: none)")] = None,
+) -> None:
+    """Create an API key and print it once (only its hash is stored)."""
+    import datetime as dt
+
+    from app.db import auth_crud
+    from app.db.models import utcnow
+
+    expires = utcnow() + dt.timedelta(days=expires_in_days) if expires_in_days else None
+    with _session(write=True) as session:
+        row, key = auth_crud.create_api_key(session, name, role, created_by=CLI_ACTOR, expires_at=expires)
+        cli_audit(session, "key.create", str(row.id), {"name": name, "role": role, "prefix": row.prefix})
+        key_id = row.id
+    typer.echo(f"API key {key_id} ({name}, {role}); shown once, keep it safe:", err=True)
+    echo(key)
+
+
+@key_app.command("revoke")
+def key_revoke(key_id: Annotated[int, typer.Argument(help="Key id (see `trackvkf key list`)")]) -> None:
+    """Revoke an API key."""
+    from app.db import auth_crud
+
+    with _session(write=True) as session:
+        row = auth_crud.revoke_api_key(session, key_id)
+        if row is None:
+            typer.echo(f"error: no API key {key_id}", err=True)
+            raise typer.Exit(2)
+        cli_audit(session, "key.revoke", str(key_id), {"name": row.name})
+    echo(f"API key {key_id} revoked")
+
+
+@key_app.command("list")
+def key_list() -> None:
+    """List API keys: id, prefix, name, role, last use, revocation."""
+    from app.db import auth_crud
+
+    with _session() as session:
+        for k in auth_crud.list_api_keys(session):
+            state = f"revoked {k.revoked_at}" if k.revoked_at else "active"
+            echo(f"{k.id}\ttvk_{k.prefix}_…\t{k.name}\t{k.role}\tlast used {k.last_used_at or '-'}\t{state}")

@@ -1,0 +1,215 @@
+"""Commands without a server: ``simulate`` (synthetic runs) and ``process`` (a run file → profiles)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from app.cli._common import echo
+
+__all__ = ["simulate", "process"]
+
+
+def simulate(
+    out: Annotated[Path, typer.Argument(help="Output run file (.h5); truth is written beside it")],
+    length_km: Annotated[float, typer.Option(help="Length of the simulated line, km")] = 5.0,
+    fs: Annotated[float, typer.Option(help="Sample rate, Hz")] = 10_000.0,
+    seed: Annotated[int, typer.Option(help="Random seed")] = 0,
+    forces: Annotated[bool, typer.Option(help="Also simulate Q (force) channels")] = True,
+    reference: Annotated[bool, typer.Option(
+        help="Also write matching subsidence, maintenance and superstructure CSV files "
+        "(OUT stem + '-reference/')")] = False,
+    recorder: Annotated[str | None, typer.Option(
+        help="Write OUT as a recorder file (mdf4 or tdms) with drifting odometry, plus its channel "
+        "map and metadata JSON beside it")] = None,
+    gnss: Annotated[bool, typer.Option(
+        help="With --recorder: a GNSS group (3 m noise, 30 s outages) and the line geometry "
+        "(OUT stem + '.line.geojson')")] = False,
+) -> None:
+    """Write a synthetic run in the canonical format with its ground truth beside it."""
+    from app.simulate.run import simulate_run
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    if recorder is not None:
+        from app.simulate.recorder import GnssSimulation, simulate_recorder_run
+
+        if recorder not in ("mdf4", "tdms"):
+            raise typer.BadParameter("mdf4 or tdms", param_hint="--recorder")
+        rec = simulate_recorder_run(out, recorder, gnss=GnssSimulation() if gnss else None, seed=seed,
+                                    length_km=length_km, fs=fs, with_forces=forces)
+        echo(f"wrote {out} in {time.perf_counter() - t0:.1f} s; channel map {rec.channel_map_path}, "
+             f"metadata {rec.metadata_path}" + (f", geometry {rec.geometry_path}" if gnss else ""))
+        return
+    truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces)
+    echo(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
+    truth_path = getattr(truth, "path", None)
+    if truth_path:
+        echo(f"ground truth: {truth_path}")
+    if reference:
+        from app.simulate.reference import simulate_reference
+
+        meta_line = "SIM"  # simulate_run's default line_id and track
+        ref = simulate_reference(truth.line, out.with_name(f"{out.stem}-reference"), line_id=meta_line,
+                                 track="1", seed=seed)
+        echo("reference data: " + ", ".join(ref.files[k] for k in ("subsidence", "maintenance", "superstructure")))
+
+
+def _file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(1 << 20):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _wheel_tables(wheels: list[dict[str, Any]]):
+    import pandas as pd
+
+    order_rows, profile_rows = [], []
+    for w in wheels:
+        for o in w.get("orders", []):
+            order_rows.append(
+                {"wheel": str(w["wheel"]), "wheel_diameter_m": w.get("wheel_diameter_m"), **o}
+            )
+        angles = w.get("angles_deg") or []
+        for i, angle in enumerate(angles):
+            profile_rows.append(
+                {
+                    "wheel": str(w["wheel"]),
+                    "angle_deg": angle,
+                    "profile_um": (w.get("profile_um") or [None] * len(angles))[i],
+                    "profile_p05_um": (w.get("profile_p05_um") or [None] * len(angles))[i],
+                    "profile_p95_um": (w.get("profile_p95_um") or [None] * len(angles))[i],
+                }
+            )
+    return pd.DataFrame(order_rows), pd.DataFrame(profile_rows)
+
+
+def _jsonable(value: Any) -> Any:
+    from app.core.jsonable import jsonable
+
+    return jsonable(value)
+
+
+def process(
+    run_file: Annotated[Path, typer.Argument(help="Run file: HDF5, CSV, Parquet, MDF4 or TDMS")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output directory")] = Path("trackvkf-out"),
+    format: Annotated[
+        str | None, typer.Option("--format", help="hdf5, csv, parquet, mdf4 or tdms (default: detect)")
+    ] = None,
+    metadata: Annotated[
+        Path | None, typer.Option(help="Metadata JSON file (required for CSV/Parquet)")
+    ] = None,
+    n_wheel_orders: Annotated[int | None, typer.Option(help="Wheel orders (default 11)")] = None,
+    bandwidth_orders: Annotated[
+        float | None, typer.Option(help="Bandwidth in wheel orders (default 0.1)")
+    ] = None,
+    filter_order: Annotated[int | None, typer.Option(help="VKF filter order q (default 2)")] = None,
+    channel_map: Annotated[
+        Path | None, typer.Option(help="Channel map JSON file (MDF4/TDMS recorder files)")
+    ] = None,
+    geometry: Annotated[
+        Path | None, typer.Option(help="Line geometry GeoJSON (runs placed by GNSS)")
+    ] = None,
+) -> None:
+    """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
+
+    Intermediate chunk results are kept in ``OUT/.work`` so an interrupted run
+    resumes where it stopped.
+    """
+    from tqdm import tqdm
+
+    from app.analysis.settings import ProcessingSettings
+    from app.io import RunFileError, ingest
+    from app.io.geometry import parse_geojson
+    from app.pipeline import run_pipeline
+
+    if not run_file.is_file():
+        raise typer.BadParameter(f"{run_file} is not a file", param_hint="RUN_FILE")
+    changes = {
+        k: v
+        for k, v in {
+            "n_wheel_orders": n_wheel_orders,
+            "bandwidth_orders": bandwidth_orders,
+            "filter_order": filter_order,
+        }.items()
+        if v is not None
+    }
+    try:
+        settings = ProcessingSettings.from_dict(changes)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from None
+    md = None
+    if metadata is not None:
+        try:
+            md = json.loads(metadata.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise typer.BadParameter(f"cannot read {metadata}: {exc}", param_hint="--metadata") from None
+
+    extras = {}
+    for name, path in (("channel_map", channel_map), ("geometry", geometry)):
+        if path is not None:
+            try:
+                extras[name] = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, json.JSONDecodeError) as exc:
+                raise typer.BadParameter(f"cannot read {path}: {exc}", param_hint=f"--{name.replace('_', '-')}") from None
+    source_sha = _file_sha256(run_file)
+    key = hashlib.sha256(
+        json.dumps({"sha": source_sha, "md": md, "settings": settings.to_dict(), **extras},
+                   sort_keys=True).encode()
+    ).hexdigest()[:16]
+    work = out / ".work" / key
+    work.mkdir(parents=True, exist_ok=True)
+    canonical = work / "run.h5"
+    if not canonical.is_file():
+        echo(f"validating {run_file} ...")
+        try:
+            lines = parse_geojson(extras["geometry"]) if "geometry" in extras else []
+            summary = ingest(run_file, format, md, canonical, channel_map=extras.get("channel_map"),
+                             geometry=lambda line, track: next(
+                                 (g for g in lines if (g.line_id, g.track) == (line, track)), None))
+        except RunFileError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(2) from None
+        for warning in summary.warnings:
+            typer.echo(f"warning: {warning}", err=True)
+        echo(
+            f"{summary.duration_s:.1f} s at {summary.fs:g} Hz, {summary.distance_m / 1000:.2f} km, "
+            f"channels {', '.join(summary.channels)}"
+        )
+    with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar:
+
+        def progress(fraction: float) -> None:
+            bar.update(max(0.0, 100 * fraction - bar.n))
+
+        results = run_pipeline(canonical, settings, work / "chunks", progress=progress)
+        progress(1.0)
+
+    out.mkdir(parents=True, exist_ok=True)
+    results.profiles.to_csv(out / "profiles.csv", index=False)
+    results.profiles.to_parquet(out / "profiles.parquet", index=False)
+    orders, wheel_profiles = _wheel_tables(results.wheels)
+    orders.to_csv(out / "wheel_orders.csv", index=False)
+    orders.to_parquet(out / "wheel_orders.parquet", index=False)
+    wheel_profiles.to_csv(out / "wheel_profiles.csv", index=False)
+    wheel_profiles.to_parquet(out / "wheel_profiles.parquet", index=False)
+    (out / "wheels.json").write_text(json.dumps(_jsonable(results.wheels), indent=1))
+    meta = {
+        **dict(results.meta or {}),
+        "source_file": str(run_file),
+        "source_sha256": source_sha,
+        "settings": settings.to_dict(),
+    }
+    (out / "meta.json").write_text(json.dumps(_jsonable(meta), indent=1))
+    echo(
+        f"{len(results.profiles)} profile rows, {len(results.wheels)} wheels -> {out}/ "
+        "(profiles.csv/.parquet, wheel_orders.csv/.parquet, wheel_profiles.csv/.parquet, "
+        "wheels.json, meta.json)"
+    )
+

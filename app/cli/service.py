@@ -1,0 +1,62 @@
+"""Service commands: ``serve`` (REST API), ``worker`` (processing), ``migrate`` (database)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from app.cli._common import echo, refuse_unsafe_production
+from app.core.config import get_settings
+from app.core.logging import configure_logging
+
+__all__ = ["serve", "worker", "migrate"]
+
+
+def serve(
+    host: Annotated[str, typer.Option(help="Interface to listen on")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port")] = 8000,
+    log_level: Annotated[str, typer.Option(help="uvicorn log level")] = "info",
+) -> None:
+    """Run the REST API (uvicorn). Migrate the database first (``trackvkf migrate``).
+
+    With ``TRACKVKF_ENV=production`` it refuses to start without a secret key
+    of its own or while a user still has the password printed by ``demo``.
+    """
+    import uvicorn
+
+    refuse_unsafe_production()
+    uvicorn.run(
+        "app.main:create_app", factory=True, host=host, port=port, log_level=log_level.lower()
+    )
+
+
+def worker(
+    once: Annotated[bool, typer.Option(help="Exit after one job (local mode)")] = False,
+    exit_when_idle: Annotated[bool, typer.Option(help="Exit when no job is queued")] = False,
+    processes: Annotated[
+        int, typer.Option(help="PostgreSQL mode: worker processes (0 = one per core)")
+    ] = 1,
+    local: Annotated[bool, typer.Option(help="Local job loop even on PostgreSQL")] = False,
+) -> None:
+    """Process queued jobs until Ctrl-C: the local worker on SQLite, Procrastinate
+    workers on PostgreSQL (mode from TRACKVKF_DATABASE_URL)."""
+    from worker import modes
+
+    settings = get_settings()
+    configure_logging(settings.log_level)
+    code = modes.run(settings, local=local, once=once, exit_when_idle=exit_when_idle, processes=processes)
+    if code:
+        raise typer.Exit(code)
+
+
+def migrate(
+    revision: Annotated[str, typer.Option(help="Target revision")] = "head",
+) -> None:
+    """Apply the database migrations (Alembic) to TRACKVKF_DATABASE_URL."""
+    from app.db import migrate as db_migrate
+
+    settings = get_settings()
+    db_migrate.upgrade(settings.database_url, revision)
+    echo(f"database {settings.database_url} at {db_migrate.current_revision(settings.database_url)}")
+

@@ -1,0 +1,151 @@
+"""Step 3 of the pipeline: merge the chunk files into profile rows and wheel results.
+
+Assembly adds the chunk sums and turns them into the 25 cm profile rows and
+the wheel out-of-roundness results. It is deterministic and idempotent; it
+reads no raw signal, only chunk files (:mod:`app.pipeline.chunkfile`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from app.analysis.binning import BinSums
+from app.analysis.settings import ProcessingSettings
+from app.analysis.wheel_oor import apply_diameter_correction, refine_diameter, summarize_oor
+from app.io import WHEELS
+from app.io.metadata import DEFAULT_WHEEL_DIAMETER_M
+from app.pipeline.chunk import OOR_WINDOW_M
+from app.pipeline.chunkfile import read_wheel
+
+__all__ = ["ENGINE_VERSION", "RunResults", "assemble", "assemble_wheel", "results_meta"]
+
+#: bump when the stored numbers would change for the same input and settings
+ENGINE_VERSION = "trackvkf-pipeline/2"
+
+
+@dataclass
+class RunResults:
+    """Profiles, wheel results and provenance of one processed run."""
+
+    profiles: pd.DataFrame
+    wheels: list[dict[str, Any]]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+def _wheel_order_numbers(settings: ProcessingSettings) -> np.ndarray:
+    return np.arange(1, settings.n_wheel_orders + 1)
+
+
+def _profile_columns(settings: ProcessingSettings) -> list[str]:
+    orders = [f"order_amp_{lvl:02d}" for lvl in _wheel_order_numbers(settings)]
+    return ["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *orders,
+            "residual_rms", "sleeper_force_amp"]
+
+
+def assemble_wheel(
+    settings: ProcessingSettings, chunk_paths: Sequence[Path], wheel: str
+) -> tuple[pd.DataFrame, dict[str, Any]] | None:
+    """Merge one wheel's sums from the chunk files into its profile rows and OOR result.
+
+    Parameters
+    ----------
+    settings : ProcessingSettings
+    chunk_paths : sequence of Path
+        One file per chunk (any order).
+    wheel : str
+        ``"11"``, ``"12"``, ``"41"`` or ``"42"``.
+
+    Returns
+    -------
+    (pandas.DataFrame, dict) or None
+        Profile rows of the wheel sorted by bin (columns of ``RunResults.profiles``)
+        and its entry of ``RunResults.wheels``; None if the chunks hold no data
+        of the wheel. Deterministic: the same files give the same result.
+    """
+    g: dict[str, list[BinSums]] = {}
+    d_w = DEFAULT_WHEEL_DIAMETER_M
+    for path in sorted(chunk_paths, key=lambda p: str(p)):
+        parts = read_wheel(path, wheel)
+        for kind, part in parts.groups.items():
+            g.setdefault(kind, []).append(part)
+        if parts.diameter_m is not None:
+            d_w = parts.diameter_m
+    if not g:
+        return None
+    prof = BinSums.merge_all(g["bins"]).finalize(settings.bin_length_m)
+    resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
+    prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
+    prof = prof[prof["n_samples"] > 0]
+    if "sleeper_force_amp" not in prof:
+        prof["sleeper_force_amp"] = np.nan
+    prof = prof.rename(columns={"speed": "speed_mean"})
+    prof.insert(0, "wheel", wheel)
+    prof = prof[_profile_columns(settings)].sort_values("bin").reset_index(drop=True)
+    prof["bin"] = prof["bin"].astype(np.int64)
+    prof["n_samples"] = prof["n_samples"].astype(np.int64)
+    return prof, _wheel_result(wheel, g.get("oor", []), d_w, settings)
+
+
+def results_meta(settings: ProcessingSettings, n_chunks: int) -> dict[str, Any]:
+    """Provenance stored with a job's results (engine version, settings)."""
+    return {"engine": ENGINE_VERSION, "settings": settings.to_dict(), "oor_window_m": OOR_WINDOW_M,
+            "n_chunks": n_chunks}
+
+
+def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence[Path]) -> RunResults:
+    """Merge chunk files into profile rows and wheel results (:func:`assemble_wheel` per wheel).
+
+    Parameters
+    ----------
+    run_path : Path
+        Canonical run file (unused: the chunk files hold everything; kept so
+        that every pipeline step takes the run).
+    settings : ProcessingSettings
+    chunk_paths : sequence of Path
+        One file per chunk (any order).
+
+    Returns
+    -------
+    RunResults
+    """
+    frames, wheels = [], []
+    for wheel in WHEELS:
+        # one wheel at a time: only its partial sums are in memory
+        done = assemble_wheel(settings, chunk_paths, wheel)
+        if done is not None:
+            frames.append(done[0])
+            wheels.append(done[1])
+    cols = _profile_columns(settings)
+    profiles = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
+    return RunResults(profiles=profiles, wheels=wheels, meta=results_meta(settings, len(chunk_paths)))
+
+
+def _wheel_result(wheel: str, parts: list[BinSums], d_w: float, settings: ProcessingSettings) -> dict[str, Any]:
+    orders = _wheel_order_numbers(settings)
+    windows = BinSums.merge_all(parts).finalize(OOR_WINDOW_M) if parts else None
+    if windows is None or windows.empty:
+        phasors = np.full((orders.size, 0), np.nan + 0j)
+        centres = np.zeros(0)
+        acc = np.full(orders.size, np.nan)
+    else:
+        windows = windows.dropna(subset=[f"re_{lvl:02d}" for lvl in orders])
+        phasors = np.vstack([windows[f"re_{lvl:02d}"].to_numpy() + 1j * windows[f"im_{lvl:02d}"].to_numpy()
+                             for lvl in orders])
+        centres = (windows["bin"].to_numpy() + 0.5) * OOR_WINDOW_M
+        acc = np.array([float(np.nanmean(windows[f"acc_{lvl:02d}"])) if len(windows) else np.nan for lvl in orders])
+    diameter = d_w
+    if phasors.shape[1] >= 5:
+        diameter = refine_diameter(phasors, centres, d_w, orders)
+        if diameter != d_w:
+            phasors = apply_diameter_correction(phasors, centres, orders, d_w, diameter)
+    summary = summarize_oor(phasors, orders)
+    for entry, a in zip(summary["orders"], acc, strict=True):
+        entry["accel_amp"] = float(a)
+    summary.update({"wheel": wheel, "wheel_diameter_m": float(d_w), "refined_diameter_m": float(diameter)})
+    return summary

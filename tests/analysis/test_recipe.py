@@ -1,0 +1,134 @@
+"""The railway order recipe: orders and labels, bandwidth rule and floor, the phase
+convention (envelope phases referred to a start position), the overlap of several
+wheels, per-order bandwidths, argument checks."""
+
+from __future__ import annotations
+
+import dataclasses
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from app.analysis.orders import railway_multipliers
+from app.analysis.recipe import (
+    CHUNK_JOIN_TOL,
+    SLEEPER,
+    OrderRecipe,
+    order_overlap,
+    order_recipe,
+    travel_phase,
+    wheel_recipe,
+)
+from app.analysis.settings import ProcessingSettings
+from app.analysis.vkf import vkf_overlap
+
+
+def test_orders_labels_and_rows():
+    settings = ProcessingSettings(n_wheel_orders=5)
+    r = order_recipe(0.91, 0.65, settings)
+    assert r.labels == (SLEEPER, "1", "2", "3", "4", "5")
+    np.testing.assert_array_equal(r.multipliers, railway_multipliers(0.91, 0.65, 5))
+    assert r.sleeper_row == 0
+    np.testing.assert_array_equal(r.wheel_orders, np.arange(1, 6))
+    np.testing.assert_array_equal(r.wheel_rows, np.arange(1, 6))
+    assert r.filter_order == settings.filter_order and r.min_speed == pytest.approx(25.0 / 3.6)
+    assert (r.wheel_diameter, r.sleeper_spacing) == (0.91, 0.65)
+    with pytest.raises(ValueError):
+        r.multipliers[0] = 1.0  # the recipe's arrays are read-only
+
+
+def test_bandwidth_rule_and_floor():
+    settings = ProcessingSettings(bandwidth_orders=0.2, min_speed_kmh=36.0)
+    r = order_recipe(0.92, 0.6, settings)
+    per_speed = 0.2 / (np.pi * 0.92)
+    np.testing.assert_allclose(r.bandwidth_per_speed, per_speed, rtol=1e-15)
+    assert r.floor_speed == pytest.approx(10.0)
+    np.testing.assert_allclose(r.bandwidth_floor, per_speed * 10.0, rtol=1e-15)
+    v = np.array([0.0, 5.0, 10.0, 20.0, 44.4])
+    np.testing.assert_array_equal(np.asarray(r.bandwidths(v)),
+                                  np.maximum(np.multiply.outer(r.bandwidth_per_speed, v), r.bandwidth_floor[:, None]))
+    np.testing.assert_array_equal(np.asarray(r.frequencies(v)), np.multiply.outer(r.multipliers, v))
+    assert r.bandwidth_range(5.0, 20.0) == pytest.approx((per_speed * 10.0, per_speed * 20.0), rel=1e-15)
+    # a standing train still gets a finite filter: floor at 1 m/s when min_speed_kmh is 0
+    assert order_recipe(0.92, 0.6, ProcessingSettings(min_speed_kmh=0.0)).floor_speed == 1.0
+
+
+@pytest.mark.parametrize("start_m", [0.0, 1234.5])
+def test_envelope_phases_follow_the_phase_convention(start_m):
+    """Orders with phases φ_n at the start position come out as envelopes a_n·exp(iφ_n)."""
+    fs = 4000.0
+    n = int(20 * fs)
+    v = np.linspace(25.0, 30.0, n)
+    r = order_recipe(0.92, 0.6, ProcessingSettings(n_wheel_orders=3))
+    amps = np.array([1.0, 0.5, 0.3, 0.2])
+    phis = np.array([0.4, -1.1, 2.0, 0.9])
+    psi = travel_phase(v, fs, start_m)
+    np.testing.assert_allclose(psi, 2 * np.pi * (start_m + np.cumsum(v) / fs))
+    y = (amps[:, None] * np.cos(r.order_phases(psi) + phis[:, None])).sum(axis=0)
+    env = r.solve(y, fs, v, start_m).envelope_at(np.arange(n // 4, 3 * n // 4, 1000))
+    np.testing.assert_allclose(np.abs(env), amps[:, None] * np.ones(env.shape), rtol=0.02)
+    np.testing.assert_allclose(np.angle(env * np.exp(-1j * phis[:, None])), 0.0, atol=0.03)
+
+
+def test_overlap_of_several_wheels_covers_the_highest_order_and_the_narrowest_filter():
+    settings = ProcessingSettings()
+    small, large = order_recipe(0.86, 0.6, settings), order_recipe(0.95, 0.6, settings)
+    fs, v = 10_000.0, np.array([-30.0, 22.0, 41.0])  # the speed's absolute value counts
+    f_max = float(small.multipliers.max()) * 41.0
+    bw_min, bw_max = large.bandwidth_range(22.0, 41.0)
+    expect = vkf_overlap(fs, 0.0, f_max, bw_min, bw_max, settings.filter_order, tol=CHUNK_JOIN_TOL)
+    assert order_overlap(fs, v, [small, large], tol=CHUNK_JOIN_TOL) == expect
+    assert order_overlap(fs, v, [large, small], tol=CHUNK_JOIN_TOL) == expect
+    # one wheel, the engine's own tolerance: longer than the chunk seams'
+    one = order_overlap(fs, v, [small])
+    assert one == vkf_overlap(fs, 0.0, f_max, *small.bandwidth_range(22.0, 41.0), settings.filter_order)
+    assert one > order_overlap(fs, v, [small], tol=CHUNK_JOIN_TOL)
+    with pytest.raises(ValueError, match="recipes"):
+        order_overlap(fs, v, [])
+    with pytest.raises(ValueError, match="speed"):
+        order_overlap(fs, np.zeros(0), [small])
+
+
+def test_per_order_bandwidths_reach_the_filter():
+    """A recipe with its own bandwidth per order (what a later recipe may do) is
+    solved with those bandwidths: a wider sleeper filter, narrow wheel orders."""
+    base = order_recipe(0.92, 0.6, ProcessingSettings(n_wheel_orders=2))
+    wide = dataclasses.replace(base, bandwidth_per_speed=base.bandwidth_per_speed * np.array([4.0, 1.0, 1.0]))
+    v = np.full(8, 20.0)
+    np.testing.assert_allclose(np.asarray(wide.bandwidths(v))[:, 0], base.bandwidth_per_speed * [80.0, 20.0, 20.0])
+    assert wide.bandwidth_range(20.0, 20.0) == pytest.approx(
+        (base.bandwidth_per_speed[1] * 20.0, base.bandwidth_per_speed[0] * 80.0)
+    )
+    fs = 2000.0
+    t = np.arange(int(10 * fs)) / fs
+    y = np.cos(2 * np.pi * (base.multipliers[0] * 20.0 + 1.0) * t)  # 1 Hz beside the sleeper order
+    env_base = np.abs(base.solve(y, fs, np.full(t.size, 20.0)).envelope_at(np.arange(5000, 15000, 500)))
+    env_wide = np.abs(wide.solve(y, fs, np.full(t.size, 20.0)).envelope_at(np.arange(5000, 15000, 500)))
+    assert env_wide[0].mean() > 2 * env_base[0].mean()  # the wide filter passes the neighbour
+
+
+def test_wheel_recipe_reads_the_metadata():
+    meta = SimpleNamespace(wheel_diameters={"11": 0.9, "41": 0.88}, sleeper_spacing=0.65)
+    r = wheel_recipe(meta, "41", ProcessingSettings())
+    assert (r.wheel_diameter, r.sleeper_spacing) == (0.88, 0.65)
+    with pytest.raises(KeyError):
+        wheel_recipe(meta, "12", ProcessingSettings())
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"labels": ("1", "2", "3")}, "sleeper"),
+        ({"multipliers": np.ones(2)}, "multipliers"),
+        ({"bandwidth_per_speed": np.array([0.1, 0.0, 0.1])}, "bandwidth_per_speed"),
+        ({"floor_speed": 0.0}, "floor_speed"),
+    ],
+)
+def test_recipe_checks_its_arguments(change, match):
+    base = order_recipe(0.92, 0.6, ProcessingSettings(n_wheel_orders=2))
+    with pytest.raises(ValueError, match=match):
+        dataclasses.replace(base, **change)
+    with pytest.raises(ValueError, match="sleeper_spacing"):
+        order_recipe(0.92, -0.6, ProcessingSettings())
+    assert isinstance(base, OrderRecipe)

@@ -1,0 +1,262 @@
+"""The job lifecycle both worker modes share: load, plan, mark, fail, describe.
+
+The local job loop (:mod:`worker.runner`: one worker runs a whole job) and the
+Procrastinate tasks (:mod:`worker.tasks`: a job fanned out over many workers)
+take a job through the same steps, written once here:
+
+* :class:`WorkerRuntime`: what the steps of one worker process share (service
+  settings, database, run store, :class:`~worker.chunkstore.ChunkStore`, stop flag);
+* :func:`load_job`: the job, its run and its processing settings;
+* :func:`record_plan`: plan a claimed job's chunks, record their rows and
+  discard half-written files of an earlier attempt;
+* :func:`mark_chunk_done`: record a chunk whose result is stored;
+* :func:`fail_job`: a job failed, with its error text;
+* :func:`remove_files_if_deleted`: the files a late step wrote for a deleted run;
+* :func:`job_meta`: the provenance stored with the results (pipeline and
+  worker metadata, ``meta["worker"]``).
+
+Every write goes through :mod:`app.db.queue`, guarded by the job's owner:
+``worker_id`` is the local worker's id, or None for the fan-out tasks (any
+owner; guarded by the job's state only).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from app.analysis.settings import ProcessingSettings
+from app.core.config import Settings
+from app.core.runstore import RunStore
+from app.db import crud, queue
+from app.db.models import ChunkStatus, Job, JobStatus, Run
+from app.db.session import Database
+from app.io import WHEELS
+from app.pipeline import ChunkSpec, plan_chunks, results_meta
+from worker.chunkstore import ChunkStore
+
+__all__ = [
+    "WorkerRuntime",
+    "JobRecord",
+    "load_job",
+    "record_plan",
+    "mark_chunk_done",
+    "fail_job",
+    "remove_files_if_deleted",
+    "job_meta",
+]
+
+log = logging.getLogger(__name__)
+
+#: longest error text stored with a failed job, characters
+_MAX_ERROR_CHARS = 4000
+
+
+class WorkerRuntime:
+    """What the job steps of one worker process share.
+
+    Parameters
+    ----------
+    settings : Settings
+        Service settings (database, run store, shared store, intervals).
+    db : Database, optional
+        Database to use; created from ``settings.database_url`` on first use
+        if omitted.
+
+    Attributes
+    ----------
+    store : RunStore
+        The run store (run files; fetched from the shared store if need be).
+    chunks : ChunkStore
+        Where the chunk results of jobs live.
+    stopping : threading.Event
+        Set when the worker process shuts down: running chunks stop at their
+        next sub-block.
+    """
+
+    def __init__(self, settings: Settings, db: Database | None = None) -> None:
+        self.settings = settings
+        self._db = db
+        self.store = RunStore(settings.run_store, settings.shared_store)
+        self.chunks = ChunkStore(self.store)
+        self.stopping = threading.Event()
+
+    @property
+    def db(self) -> Database:
+        """The database (connected on first use)."""
+        if self._db is None:
+            self._db = Database(self.settings.database_url)
+        return self._db
+
+    def close(self) -> None:
+        """Close the database connections, if any were opened."""
+        if self._db is not None:
+            self._db.dispose()
+
+
+@dataclass(frozen=True)
+class JobRecord:
+    """A job and its run as read from the database (either None when gone).
+
+    Attributes
+    ----------
+    job : Job or None
+    run : Run or None
+    """
+
+    job: Job | None
+    run: Run | None
+
+    @property
+    def lost(self) -> bool:
+        """Whether the job or its run no longer exists (deleted)."""
+        return self.job is None or self.run is None
+
+    @property
+    def settings(self) -> ProcessingSettings:
+        """The job's processing settings (ValueError if they are invalid; job not lost)."""
+        return ProcessingSettings.from_dict(self.job.settings)
+
+    @property
+    def wheels(self) -> list[str]:
+        """The wheels whose acceleration channel the run has."""
+        channels = (self.run.channels or []) if self.run is not None else []
+        return [w for w in WHEELS if f"Z{w}" in channels]
+
+    def not_running(self) -> str | None:
+        """Why the job's work should stop (``"lost"``, ``"job <status>"``), or None."""
+        if self.lost:
+            return "lost"
+        if self.job.status != JobStatus.RUNNING or self.job.cancel_requested:
+            return f"job {self.job.status}"
+        return None
+
+    def run_path(self, store: RunStore) -> Path:
+        """The run's canonical file on this host (fetched from the shared store if need be; run not lost)."""
+        return store.local_file(self.run.file_path)
+
+
+def load_job(db: Database, job_id: int) -> JobRecord:
+    """Read job ``job_id`` and its run."""
+    with db.read() as session:
+        job = crud.get_job(session, job_id)
+        run = crud.get_run(session, job.run_id) if job is not None else None
+    return JobRecord(job, run)
+
+
+def record_plan(
+    rt: WorkerRuntime, record: JobRecord, run_path: Path, *, worker_id: str
+) -> list[ChunkSpec] | None:
+    """Plan the chunks of a claimed job and record their rows (idempotent).
+
+    Half-written files of an earlier attempt are removed from the job's
+    directory (finished chunk files are kept: those chunks are not computed
+    again).
+
+    Parameters
+    ----------
+    rt : WorkerRuntime
+    record : JobRecord
+        The job (not lost).
+    run_path : Path
+        The run's canonical file on this host.
+    worker_id : str
+        Owner of the job: the local worker's id or the fan-out planner's.
+
+    Returns
+    -------
+    list of ChunkSpec or None
+        The chunks, or None if the job is no longer ``worker_id``'s.
+    """
+    chunks = plan_chunks(run_path, record.settings)
+    specs = [(c.index, c.to_dict()) for c in chunks]
+    if not queue.record_chunks(rt.db, record.job.id, specs, worker_id=worker_id):
+        return None
+    rt.chunks.discard_partial(record.run.id, record.job.id)
+    return chunks
+
+
+def mark_chunk_done(rt: WorkerRuntime, record: JobRecord, index: int, *, worker_id: str | None) -> float | None:
+    """Record chunk ``index`` of a job as done, with where its result is.
+
+    Returns
+    -------
+    float or None
+        The job's progress, or None if the job is no longer ``worker_id``'s
+        (None: any owner) or not running.
+    """
+    where = rt.chunks.location(record.run.id, record.job.id, index)
+    return queue.mark_chunk(rt.db, record.job.id, index, ChunkStatus.DONE, where, worker_id=worker_id)
+
+
+def fail_job(db: Database, job_id: int, exc: BaseException, *, worker_id: str | None) -> bool:
+    """Mark a job failed with the text of ``exc`` (its traceback goes to the log).
+
+    Returns
+    -------
+    bool
+        False if the job is no longer ``worker_id``'s (None: any owner) or not running.
+    """
+    log.error("job %s failed:\n%s", job_id, "".join(traceback.format_exception(exc)))
+    error = f"{type(exc).__name__}: {exc}"
+    return queue.finish_job(db, job_id, JobStatus.FAILED, error[:_MAX_ERROR_CHARS], worker_id=worker_id)
+
+
+def remove_files_if_deleted(rt: WorkerRuntime, run_id: int) -> bool:
+    """Remove the files of run ``run_id`` (the shared store's too) if the run was deleted.
+
+    A step that was running while its run was deleted may have written files
+    after the deletion removed the run's directory.
+
+    Returns
+    -------
+    bool
+        True if the run is deleted (its files are removed now).
+    """
+    with rt.db.read() as session:
+        if crud.get_run(session, run_id) is not None:
+            return False
+    rt.store.remove_run(run_id)
+    return True
+
+
+def job_meta(
+    settings: ProcessingSettings,
+    n_chunks: int,
+    *,
+    worker_id: str | None,
+    run_sha256: str,
+    mode: str | None = None,
+    **seconds: float,
+) -> dict[str, Any]:
+    """Provenance stored with a job's results.
+
+    Parameters
+    ----------
+    settings : ProcessingSettings
+    n_chunks : int
+    worker_id : str or None
+        Who ran the job (the local worker, or the fan-out owner).
+    run_sha256 : str
+        Hash of the run file the results come from.
+    mode : str, optional
+        ``"procrastinate"`` for the fan-out mode (the local mode says none).
+    **seconds : float
+        Timings, s (``compute_s``; ``assemble_s``, ``store_s``), rounded to ms.
+
+    Returns
+    -------
+    dict
+        :func:`app.pipeline.results_meta` plus ``"worker"``.
+    """
+    worker: dict[str, Any] = {"worker_id": worker_id}
+    if mode is not None:
+        worker["mode"] = mode
+    worker["n_chunks"] = n_chunks
+    worker.update({name: round(value, 3) for name, value in seconds.items()})
+    worker["run_sha256"] = run_sha256
+    return {**results_meta(settings, n_chunks), "worker": worker}
