@@ -79,6 +79,24 @@ class IngestLimits:
         """Largest decoded size accepted for a file of ``file_bytes`` bytes."""
         return int(self.max_expansion_ratio * max(int(file_bytes), 0)) + self.expansion_floor_bytes
 
+    def check_decoded(self, decoded: int, file_bytes: int, what: str) -> None:
+        """Refuse ``what`` (``"the MDF data"``) decoding to more than :meth:`max_decoded_bytes`.
+
+        Raises
+        ------
+        RunFileError
+            ``field == "file"``: a decompression bomb.
+        """
+        from app.io.errors import RunFileError
+
+        allowed = self.max_decoded_bytes(file_bytes)
+        if decoded > allowed:
+            raise RunFileError(
+                "file",
+                f"{what} decode to {decoded} bytes, more than {allowed} bytes allowed for a "
+                f"{file_bytes}-byte file (decompression bomb limit)",
+            )
+
     def __post_init__(self) -> None:
         if not (0.0 <= self.max_nan_fraction < 1.0):
             raise ValueError(f"max_nan_fraction must be in [0, 1), got {self.max_nan_fraction!r}")

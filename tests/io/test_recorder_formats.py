@@ -217,3 +217,14 @@ def test_default_axle_layout_is_reported(tmp_path: Path) -> None:
                channel_map=CMAP)
     assert not any(w.startswith("axle_positions") for w in s.warnings)
     json.dumps(s.report)
+
+
+
+def test_tdms_object_limit(tmp_path: Path) -> None:
+    path = tmp_path / "big.tdms"
+    with TdmsWriter(path) as w:
+        w.write_segment([GroupObject("ABA"), ChannelObject(
+            "ABA", "Z11", np.zeros(1000), {"wf_increment": 1 / FS})])
+    with pytest.raises(RunFileError) as exc:
+        ingest(path, None, _meta(), tmp_path / "t.h5", IngestLimits(max_recorder_channels=1))
+    assert exc.value.field == "file" and "exceed the limit" in exc.value.message

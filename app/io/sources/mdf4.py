@@ -126,13 +126,7 @@ class Mdf4Reader(RecorderReader):
                 name = str(ch.name)
                 unit = str(getattr(ch, "unit", "") or "")
                 channels.append(RecorderChannel(name, label, gi, unit.strip(), (gi, ci)))
-        allowed = limits.max_decoded_bytes(file_bytes)
-        if max(declared, blocks_original) > allowed:
-            raise RunFileError(
-                "file",
-                f"the MDF data decode to {max(declared, blocks_original)} bytes, more than "
-                f"{allowed} bytes allowed for a {file_bytes}-byte file (decompression bomb limit)",
-            )
+        limits.check_decoded(max(declared, blocks_original), file_bytes, "the MDF data")
         if deflated:
             with open(path, "rb") as fh:
                 for address, compressed, original in deflated:

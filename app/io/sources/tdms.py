@@ -114,13 +114,7 @@ class TdmsReader(RecorderReader):
                 self._chan[key] = ch
                 unit = str(props.get("unit_string", "") or "").strip()
                 channels.append(RecorderChannel(ch.name, group.name, gi, unit, key))
-        allowed = limits.max_decoded_bytes(file_bytes)
-        if decoded > allowed:
-            raise RunFileError(
-                "file",
-                f"the TDMS data decode to {decoded} bytes, more than {allowed} bytes allowed for "
-                f"a {file_bytes}-byte file",
-            )
+        limits.check_decoded(decoded, file_bytes, "the TDMS data")
         self._zero = min(starts) if starts else 0.0
         self.channels = channels
         self.start_time = (
