@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Request, Response, status
+from fastapi import APIRouter, Depends, Path, Query, Request, Response, status
 from sqlalchemy.exc import IntegrityError
 
 from app.api.audit import record
@@ -20,6 +20,7 @@ from app.io.channel_map import ChannelMap, parse_channel_map
 __all__ = ["router", "load_channel_map"]
 
 router = APIRouter(prefix="/channel-maps", tags=["channel maps"])
+MapId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Channel map id")]
 
 
 def _out(row: ChannelMapRow) -> ChannelMapOut:
@@ -88,7 +89,7 @@ def create_channel_map(body: ChannelMapIn, request: Request, db: DbDep, principa
 
 
 @router.get("/{map_id}", response_model=ChannelMapOut, summary="A channel map")
-def get_channel_map(map_id: int, db: DbDep) -> ChannelMapOut:
+def get_channel_map(map_id: MapId, db: DbDep) -> ChannelMapOut:
     """One stored channel map."""
     with db.read() as session:
         row = recorder_crud.get_channel_map(session, map_id)
@@ -100,7 +101,7 @@ def get_channel_map(map_id: int, db: DbDep) -> ChannelMapOut:
 @router.put("/{map_id}", response_model=ChannelMapOut, summary="Replace a channel map (engineer)",
             dependencies=[Depends(require_role("engineer"))])
 def update_channel_map(
-    map_id: int, body: ChannelMapIn, request: Request, db: DbDep, principal: EngineerDep
+    map_id: MapId, body: ChannelMapIn, request: Request, db: DbDep, principal: EngineerDep
 ) -> ChannelMapOut:
     """Replace vehicle, name and channels of a stored map."""
     channels = _validated(body)
@@ -125,7 +126,7 @@ def update_channel_map(
 
 @router.delete("/{map_id}", status_code=status.HTTP_204_NO_CONTENT,
                summary="Delete a channel map (engineer)", dependencies=[Depends(require_role("engineer"))])
-def delete_channel_map(map_id: int, request: Request, db: DbDep, principal: EngineerDep) -> Response:
+def delete_channel_map(map_id: MapId, request: Request, db: DbDep, principal: EngineerDep) -> Response:
     """Delete a stored map (runs ingested with it keep the channel sources in their report)."""
     with db.write() as session:
         if not recorder_crud.delete_channel_map(session, map_id):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated
 
 import numpy as np
-from fastapi import APIRouter, Depends, File, Query, Request, Response, UploadFile, status
+from fastapi import APIRouter, Depends, File, Path, Query, Request, Response, UploadFile, status
 from starlette.concurrency import run_in_threadpool
 
 from app.api.audit import record
@@ -29,6 +29,7 @@ from app.io.geometry import parse_geojson
 __all__ = ["router", "INDICATOR_UNITS"]
 
 router = APIRouter(prefix="/geometry", tags=["line geometry"])
+GeometryId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Geometry id")]
 
 #: Quantities the map can colour the line by (profile columns) and their units.
 INDICATOR_UNITS: dict[str, str] = {
@@ -89,7 +90,7 @@ def list_geometry(db: DbDep, line_id: Annotated[str | None, Query(max_length=128
 
 
 @router.get("/{geometry_id}", response_model=GeometryOut, summary="A line geometry with its vertices")
-def get_geometry(geometry_id: int, db: DbDep) -> GeometryOut:
+def get_geometry(geometry_id: GeometryId, db: DbDep) -> GeometryOut:
     """Vertices in WGS84 and in a local metric plane centred on the line (for maps without tiles)."""
     with db.read() as session:
         row = recorder_crud.get_geometry(session, geometry_id)
@@ -104,7 +105,7 @@ def get_geometry(geometry_id: int, db: DbDep) -> GeometryOut:
 
 @router.delete("/{geometry_id}", status_code=status.HTTP_204_NO_CONTENT,
                summary="Delete a line geometry (engineer)", dependencies=[Depends(require_role("engineer"))])
-def delete_geometry(geometry_id: int, request: Request, db: DbDep, principal: EngineerDep) -> Response:
+def delete_geometry(geometry_id: GeometryId, request: Request, db: DbDep, principal: EngineerDep) -> Response:
     """Delete a stored geometry (runs placed with it keep their km)."""
     with db.write() as session:
         if not recorder_crud.delete_geometry(session, geometry_id):
@@ -116,7 +117,7 @@ def delete_geometry(geometry_id: int, request: Request, db: DbDep, principal: En
 @router.get("/{geometry_id}/indicator", response_model=IndicatorOut,
             summary="A profile quantity of a run along the line geometry")
 def geometry_indicator(
-    geometry_id: int,
+    geometry_id: GeometryId,
     db: DbDep,
     quantity: Annotated[str, Query(max_length=64, description="Profile column to colour the line by")] = "sleeper_amp",
     run_id: Annotated[int | None, Query(ge=1, le=2**31 - 1, description="Default: the latest processed run of the line and track")] = None,
