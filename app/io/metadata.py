@@ -7,7 +7,7 @@ import json
 import math
 import re
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pydantic
@@ -18,6 +18,8 @@ from app.io.errors import RunFileError
 
 __all__ = [
     "Calibration",
+    "PositionKind",
+    "POSITION_KINDS",
     "RunMetadata",
     "DEFAULT_WHEEL_DIAMETER_M",
     "DEFAULT_SLEEPER_SPACING_M",
@@ -44,6 +46,10 @@ START_TIME_RANGE: tuple[dt.datetime, dt.datetime] = (
 #: JSON integers with more digits than this are read as floats (inf beyond ~308
 #: digits, refused then); Python refuses to convert more than 4300 digits at all.
 _MAX_INT_DIGITS = 300
+
+#: What the ``position`` channel of an input file is (see :class:`RunMetadata`).
+PositionKind = Literal["relative", "line_km", "gnss"]
+POSITION_KINDS: tuple[str, ...] = ("relative", "line_km", "gnss")
 
 
 def _finite(value: float, what: str) -> float:
@@ -113,10 +119,24 @@ class RunMetadata(pydantic.BaseModel):
         Track id on the line (e.g. ``"1"``).
     direction : str
         Direction of travel as named by the operator (free text, e.g. ``"up"``).
-    km_start : float
-        Line km of the position reference (axle 1 by default) at the first sample, km.
-    km_increasing : bool
-        Whether the line km increases along the run.
+    position_kind : {"relative", "line_km", "gnss"} or None
+        What gives the line km of the run (:mod:`app.io.positioning`):
+        ``relative`` — the position channel (or the integrated speed) is the
+        distance travelled since the start, and ``km_start``/``km_increasing``
+        place it on the line (a channel not starting at 0 is reported);
+        ``line_km`` — the position channel is the line chainage itself, m
+        (line km × 1000; increasing or decreasing), ``km_start`` and
+        ``km_increasing`` are taken from it; ``gnss`` — ``lat``/``lon``
+        channels are matched onto the line geometry and fused with the
+        odometry. ``None``: ``gnss`` when the file has GNSS channels and no
+        ``km_start`` is given, else ``relative``. Canonical files always say
+        ``relative``.
+    km_start : float or None
+        Line km of the position reference (axle 1 by default) at the first
+        sample, km. Required for ``relative`` positions; derived otherwise.
+    km_increasing : bool or None
+        Whether the line km increases along the run. Required for
+        ``relative`` positions; derived otherwise.
     wheel_diameters : dict[str, float]
         Diameter per wheel (keys ``"11"``, ``"12"``, ``"41"``, ``"42"``), m, in
         (0.3, 1.5); missing wheels get 0.92 m.
@@ -143,8 +163,9 @@ class RunMetadata(pydantic.BaseModel):
     line_id: str = Field(min_length=1, max_length=200)
     track: str = Field(min_length=1, max_length=100)
     direction: str = Field(min_length=1, max_length=100)
-    km_start: float
-    km_increasing: StrictBool
+    position_kind: PositionKind | None = None
+    km_start: float | None = None
+    km_increasing: StrictBool | None = None
     wheel_diameters: dict[str, float] = Field(
         default_factory=lambda: dict.fromkeys(WHEELS, DEFAULT_WHEEL_DIAMETER_M)
     )
@@ -178,7 +199,9 @@ class RunMetadata(pydantic.BaseModel):
 
     @field_validator("km_start")
     @classmethod
-    def _km(cls, v: float) -> float:
+    def _km(cls, v: float | None) -> float | None:
+        if v is None:
+            return v
         _finite(v, "km_start")
         if abs(v) > 100_000:
             raise ValueError(f"km_start must be within ±100000 km, got {v}")
