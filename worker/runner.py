@@ -44,6 +44,7 @@ from worker.chunkstore import ChunkStore
 from worker.steps import (
     JobRecord,
     WorkerRuntime,
+    discard_job_files,
     fail_job,
     job_meta,
     load_job,
@@ -281,6 +282,7 @@ class LocalWorker:
                 self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id
             )
             if stored:
+                discard_job_files(rt, run_id)  # its chunk files, and those of the jobs it supersedes
                 return JobOutcome(job_id, JobStatus.DONE)
             lease.beat()
             if lease.cancel_requested and not lease.lost:
@@ -303,6 +305,7 @@ class LocalWorker:
                 except Exception:  # noqa: BLE001
                     log.exception("cannot mark chunk %s failed", index)
             fail_job(self.db, job_id, exc, worker_id=self.worker_id)
+            discard_job_files(rt, run_id)
             return JobOutcome(job_id, JobStatus.FAILED)
         finally:
             lease.stop()
@@ -409,6 +412,7 @@ class LocalWorker:
             queue.finish_job(
                 self.db, job_id, JobStatus.CANCELLED, "cancelled by request", worker_id=self.worker_id
             )
+            discard_job_files(self.runtime, run_id)
             return JobOutcome(job_id, JobStatus.CANCELLED)
         queue.release_job(self.db, job_id, self.worker_id)
         return JobOutcome(job_id, "requeued")

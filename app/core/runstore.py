@@ -5,7 +5,8 @@ The run store is a directory (``Settings.run_store``)::
     <root>/.uploads/<token>/          an upload in progress (removed on any error),
                                       flock-ed by the API process receiving it
     <root>/<run_id>/run.h5            the canonical HDF5 file of a run
-    <root>/<run_id>/jobs/<job_id>/chunk-00000.npz   chunk results of a job
+    <root>/<run_id>/jobs/<job_id>/chunk-00000.npz   chunk results of a job (kept while the
+                                                    job is queued or running only)
 
 In the production mode on hosts without a common file system the same layout
 is mirrored in a shared fsspec store (:mod:`app.core.sharedstore`).
@@ -167,6 +168,20 @@ class RunStore:
             shutil.rmtree(target, ignore_errors=True)
         os.replace(upload_dir, target)
         return target
+
+    def job_ids_with_files(self, run_id: int) -> list[int]:
+        """Ids of the jobs of run ``run_id`` that have a directory here or in the shared store."""
+        jobs = self.run_dir(run_id) / "jobs"
+        ids = {int(p.name) for p in jobs.iterdir() if p.is_dir() and p.name.isdigit()} if jobs.is_dir() else set()
+        if self.shared is not None:
+            ids |= {int(n) for n in self.shared.child_names(f"{int(run_id)}/jobs") if n.isdigit()}
+        return sorted(ids)
+
+    def remove_job_files(self, run_id: int, job_id: int) -> None:
+        """Delete the chunk and wheel files of job ``job_id``, in the shared store too (no error if absent)."""
+        shutil.rmtree(self.job_dir(run_id, job_id), ignore_errors=True)
+        if self.shared is not None:
+            self.shared.remove_tree(f"{_check_id(run_id, 'run_id')}/jobs/{_check_id(job_id, 'job_id')}")
 
     def remove_run(self, run_id: int) -> None:
         """Delete everything stored for run ``run_id``, in the shared store too (no error if absent)."""
