@@ -65,8 +65,6 @@ import json
 import logging
 import os
 import signal
-import subprocess
-import sys
 import time
 from typing import Any
 
@@ -625,22 +623,16 @@ def run_workers(settings: Settings | None = None, processes: int = 1) -> int:
     """Run ``processes`` worker processes (0 = one per core) until SIGTERM/SIGINT.
 
     With one process the worker runs in this process; otherwise this process
-    starts ``python -m worker`` children, forwards SIGTERM/SIGINT to them and
-    waits for them.
+    supervises ``python -m worker`` children (:class:`worker.supervisor.Supervisor`):
+    a child that dies is replaced after a back-off (1 s, doubling up to 60 s
+    while children keep dying young), SIGTERM/SIGINT are forwarded to the
+    children and waited for.
     """
     if processes < 0:
         raise ValueError(f"processes must be >= 0, got {processes}")
     n = processes or len(os.sched_getaffinity(0)) or 1
     if n == 1:
         return run_worker_process(settings)
-    children = [subprocess.Popen([sys.executable, "-m", "worker", "--processes", "1"]) for _ in range(n)]
+    from worker.supervisor import Supervisor, worker_command
 
-    def forward(signum: int, frame: object) -> None:  # noqa: ARG001
-        for child in children:
-            if child.poll() is None:
-                child.send_signal(signum)
-
-    signal.signal(signal.SIGTERM, forward)
-    signal.signal(signal.SIGINT, forward)
-    codes = [child.wait() for child in children]
-    return max(codes, default=0)
+    return Supervisor(worker_command(), n).run()
