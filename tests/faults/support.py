@@ -20,6 +20,8 @@ __all__ = [
     "last_upload_audit",
     "mounted_tmpfs",
     "TmpfsUnavailable",
+    "single_line_csv",
+    "upload_peak_growth_mb",
 ]
 
 _counter = iter(range(1, 1_000_000))
@@ -86,3 +88,48 @@ def mounted_tmpfs(directory: Path, size_bytes: int) -> Iterator[Path]:
         yield directory
     finally:
         subprocess.run(["umount", "-l", str(directory)], capture_output=True, check=False)
+
+
+def single_line_csv(path: Path, megabytes: int) -> Path:
+    """A CSV whose only data line is ``megabytes`` MiB long (a header ``Z11,speed``)."""
+    with open(path, "wb") as fh:
+        fh.write(b"Z11,speed\n")
+        cell = b"1" * (1 << 20)
+        for _ in range(megabytes):
+            fh.write(cell)
+        fh.write(b",20\n")
+    return path
+
+
+def _status_kib(pid: int, key: str) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith(f"{key}:"):
+            return int(line.split()[1])
+    raise KeyError(key)
+
+
+def _chunks(path: Path, size: int = 1 << 20) -> Iterator[bytes]:
+    with open(path, "rb") as fh:
+        while block := fh.read(size):
+            yield block
+
+
+def upload_peak_growth_mb(
+    svc: Any, path: Path, md: dict | None, content_type: str = "text/csv"
+) -> tuple[Any, float]:
+    """Stream ``path`` as a raw body to a running service (``tests.e2e.conftest.Service``).
+
+    Returns the response and how much the API process's peak RSS grew during
+    the upload, MB (``VmHWM`` reset through ``/proc/<pid>/clear_refs`` first).
+    """
+    pid = svc.api.pid
+    Path(f"/proc/{pid}/clear_refs").write_text("5")  # reset VmHWM to the current RSS
+    before = _status_kib(pid, "VmRSS")
+    with svc.client(timeout=300) as client:
+        r = client.post(
+            "/api/v1/runs",
+            params={"filename": path.name, **({"metadata": json.dumps(md)} if md else {})},
+            content=_chunks(path),
+            headers={"content-type": content_type},
+        )
+    return r, (_status_kib(pid, "VmHWM") - before) / 1024

@@ -9,61 +9,21 @@ upload through ``/proc/<pid>/clear_refs``) is what the upload added.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
-from pathlib import Path
 
-import httpx
 import pytest
 
 from app.io import RunFileError, ingest
 from app.io.limits import IngestLimits
 from tests.api import runfiles
 from tests.e2e.conftest import running_service
+from tests.faults.support import single_line_csv, upload_peak_growth_mb
 
 #: the bound the issue asks for: memory an upload may add to the API process
 MAX_GROWTH_MB = 256
 
 
-def _single_line_csv(path: Path, megabytes: int) -> Path:
-    with open(path, "wb") as fh:
-        fh.write(b"Z11,speed\n")
-        cell = b"1" * (1 << 20)
-        for _ in range(megabytes):
-            fh.write(cell)
-        fh.write(b",20\n")
-    return path
-
-
-def _status_kib(pid: int, key: str) -> int:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith(f"{key}:"):
-            return int(line.split()[1])
-    raise KeyError(key)
-
-
-def _chunks(path: Path, size: int = 1 << 20) -> Iterator[bytes]:
-    with open(path, "rb") as fh:
-        while block := fh.read(size):
-            yield block
-
-
-def upload_peak_growth_mb(svc, path: Path, md: dict) -> tuple[httpx.Response, float]:
-    """Stream ``path`` as a raw body to the service; the API process's peak RSS growth, MB."""
-    pid = svc.api.pid
-    Path(f"/proc/{pid}/clear_refs").write_text("5")  # reset VmHWM to the current RSS
-    before = _status_kib(pid, "VmRSS")
-    with svc.client(timeout=300) as client:
-        r = client.post(
-            "/api/v1/runs",
-            params={"metadata": json.dumps(md), "filename": path.name},
-            content=_chunks(path),
-            headers={"content-type": "text/csv"},
-        )
-    return r, (_status_kib(pid, "VmHWM") - before) / 1024
-
-
 def test_200_mb_single_line_csv_upload_stays_within_the_memory_bound(tmp_path):
-    big = _single_line_csv(tmp_path / "one-line.csv", 200)
+    big = single_line_csv(tmp_path / "one-line.csv", 200)
     with running_service(tmp_path / "svc") as svc:
         warm = runfiles.write_csv(tmp_path / "warm.csv")  # a normal upload first: imports, caches
         r, _ = upload_peak_growth_mb(svc, warm, runfiles.metadata())
