@@ -79,6 +79,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.db = db
     app.state.store = store
     app.state.login_limiter = RateLimiter(settings.login_rate_limit, settings.login_rate_window_s)
+    app.state.login_address_limiter = RateLimiter(
+        settings.login_address_rate_limit, settings.login_rate_window_s
+    )
     app.state.upload_limiter = RateLimiter(settings.upload_rate_limit, settings.upload_rate_window_s)
     install_error_handlers(app)
     app.include_router(build_api_router())
