@@ -13,6 +13,7 @@ from fastapi import FastAPI
 
 from app.api import API_PREFIX, build_api_router
 from app.api.errors import install_error_handlers
+from app.api.headers import SecurityHeadersMiddleware
 from app.api.health import software_version
 from app.api.login_page import install_protected_docs
 from app.api.login_page import router as login_page_router
@@ -84,6 +85,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.upload_limiter = RateLimiter(settings.upload_rate_limit, settings.upload_rate_window_s)
     install_error_handlers(app)
+    app.add_middleware(SecurityHeadersMiddleware)  # CSP, framing, sniffing, referrer: every answer
     app.include_router(build_api_router())
     app.include_router(login_page_router)
     install_protected_docs(app, {f"{API_PREFIX}/health", f"{API_PREFIX}/auth/login"})
