@@ -107,6 +107,12 @@ class Settings(BaseSettings):
     upload_rate_limit, upload_rate_window_s : int, float
         At most ``upload_rate_limit`` uploads per principal (API key or user)
         within ``upload_rate_window_s`` seconds (per API process).
+    profile_cache_bytes : int
+        Memory each API process keeps for encoded profile answers of published
+        jobs (immutable; LRU), bytes; 0 turns the cache off.
+    profile_concurrency : int
+        Profile answers each API process computes at once; further requests
+        wait their turn without holding up uploads, logins and other requests.
     max_reference_bytes : int
         Largest accepted reference data file (subsidence, maintenance,
         superstructure), bytes.
@@ -152,6 +158,8 @@ class Settings(BaseSettings):
     upload_rate_limit: int = Field(default=60, ge=1)
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
     max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
+    profile_cache_bytes: int = Field(default=64 * 1024 * 1024, ge=0)
+    profile_concurrency: int = Field(default=2, ge=1, le=64)
     analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
     analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
     analytics_edge_trim_m: float = Field(default=50.0, ge=0)

@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
 from pathlib import Path
 
@@ -36,25 +37,21 @@ def _login(client: TestClient, username: str = "alice", password: str = PASSWORD
 @pytest.fixture
 def service(tmp_path: Path):
     """Factory of apps on one migrated SQLite database holding the admin ``alice``."""
-    created: list[TestClient] = []
+    migrate.upgrade(make_settings(tmp_path).database_url)
+    db = Database(make_settings(tmp_path).database_url)
+    with db.write() as session:
+        auth_crud.create_user(session, "alice", PASSWORD, "admin")
+    db.dispose()
+    with contextlib.ExitStack() as running:
 
-    def make(address: str = "10.0.0.1", **overrides) -> TestClient:
-        settings = make_settings(tmp_path, **overrides)
-        if not created:
-            migrate.upgrade(settings.database_url)
-            db = Database(settings.database_url)
-            with db.write() as session:
-                auth_crud.create_user(session, "alice", PASSWORD, "admin")
-            db.dispose()
-        client = TestClient(create_app(settings), client=(address, 50000))
-        client.__enter__()
-        client.app_settings = settings  # type: ignore[attr-defined]
-        created.append(client)
-        return client
+        def make(address: str = "10.0.0.1", **overrides) -> TestClient:
+            """A started app with ``overrides`` of the settings and a client from ``address``."""
+            settings = make_settings(tmp_path, **overrides)
+            client = running.enter_context(TestClient(create_app(settings), client=(address, 50000)))
+            client.app_settings = settings  # type: ignore[attr-defined]
+            return client
 
-    yield make
-    for client in created:
-        client.__exit__(None, None, None)
+        yield make
 
 
 def _browser(client: TestClient, address: str) -> TestClient:
