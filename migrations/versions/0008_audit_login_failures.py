@@ -5,8 +5,8 @@ The login endpoint counts a user name's failed logins of the last hour
 browsers without that user's device cookie; the index ``(action, target, at)``
 makes that count a range scan of the name's own entries.
 
-Revision ID: 0007_audit_login_failures
-Revises: 0006_partial_display_index
+Revision ID: 0008_audit_login_failures
+Revises: 0007_channel_maps
 Create Date: 2026-11-23
 """
 
@@ -14,8 +14,8 @@ from collections.abc import Sequence
 
 from alembic import op
 
-revision: str = "0007_audit_login_failures"
-down_revision: str | None = "0006_partial_display_index"
+revision: str = "0008_audit_login_failures"
+down_revision: str | None = "0007_channel_maps"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
