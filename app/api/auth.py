@@ -149,7 +149,7 @@ def _account(user: User | None) -> _Account | None:
     return _Account(user.id, user.username, user.role, user.password_hash, bool(user.active))
 
 
-def _check_login_rate(request: Request, settings: Settings, username: str, device: str | None) -> None:
+def _check_login_rate(request: Request, username: str, device: str | None) -> None:
     """The in-process limits of :func:`login` (429 over them; not audited, logged).
 
     A browser with the user's device cookie counts per device; any other client
@@ -194,7 +194,7 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
     again from the same browser ends its previous session.
     """
     device = device_cookie_id(settings.secret_key, request.cookies.get(DEVICE_COOKIE), body.username)
-    _check_login_rate(request, settings, body.username, device)
+    _check_login_rate(request, body.username, device)
     with db.read() as session:
         account = _account(auth_crud.get_user(session, body.username))
         since = utcnow() - dt.timedelta(seconds=settings.login_name_failure_window_s)
