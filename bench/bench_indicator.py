@@ -3,7 +3,8 @@
 Usage::
 
     .venv/bin/python bench/bench_indicator.py            # sweep + the default through the pipeline
-    .venv/bin/python bench/bench_indicator.py --plot     # also docs/img/indicator-resolution.png
+    .venv/bin/python bench/bench_indicator.py --plot     # only docs/img/indicator-resolution.png
+                                                         # (needs matplotlib: pip install -e .[bench])
 
 Signals are built from the physics reference runs (bench/physics_runs.py: steady bays tiled,
 stiffness steps and 6 m soft spots spliced at a sleeper, optionally a 90 µm order-5 wheel polygon
@@ -160,10 +161,49 @@ def sweep(resolutions: list[float | None], with_polygon: bool) -> list[dict]:
     return rows
 
 
+def plot(path: Path) -> None:
+    """Step and 6 m soft spot at 35 m/s (40 → 160 MN/m), default 3 m and the old 0.1-order band."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    c = cases()
+    a1, a2 = c["grid_k40_v35.npz"]["A_lockin"], c["grid_k160_v35.npz"]["A_lockin"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for ax, bays, title in ((axes[0], None, "stiffness step 40 → 160 MN/m at x = 0"),
+                            (axes[1], 10, "6 m soft spot: 40 MN/m inside 160 MN/m")):
+        ka, kb = (40, 160) if bays is None else (160, 40)
+        z, fs, sp, x0 = build(35, ka, kb, bays)
+        true_x = np.array([-30.0, 0.0, 0.0, 30.0]) if bays is None else np.array([-20, 0, 0, 6, 6, 26.0])
+        lv = (a1, a2) if bays is None else (a2, a1)
+        true_a = [lv[0], lv[0], lv[1], lv[1]] if bays is None else [lv[0], lv[0], lv[1], lv[1], lv[0], lv[0]]
+        ax.plot(true_x, true_a, "k--", lw=1, label="truth (lock-in of the physics runs)")
+        for res_m, style in ((2.0, "-"), (3.0, "-"), (6.0, "-"), (None, ":")):
+            x, a = profile(z, fs, sp, settings_for(res_m))
+            name = "0.1 wheel orders (before)" if res_m is None else f"track_resolution_m = {res_m:g}"
+            sel = (x - x0 > -30) & (x - x0 < 30)
+            ax.plot(x[sel] - x0, a[sel], style, lw=1.5, label=name)
+        ax.set_title(title)
+        ax.set_xlabel("position along the track, m")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("sleeper-passage amplitude, m/s²  (35 m/s, 25 cm bins)")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--resolutions", default="2,3,4,5,6,legacy")
+    ap.add_argument("--plot", action="store_true", help="write docs/img/indicator-resolution.png only")
     args = ap.parse_args()
+    if args.plot:
+        out = Path(__file__).resolve().parents[1] / "docs" / "img" / "indicator-resolution.png"
+        plot(out)
+        print(f"wrote {out}")
+        return
     res = [None if r == "legacy" else float(r) for r in args.resolutions.split(",")]
     print("| track_resolution_m | 90 µm order-5 polygon | steps | 10–90 % width max / median m | "
           "50 % offset max m | ringing max | 6 m spot depth kept min | uniform amplitude error max |")

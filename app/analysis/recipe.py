@@ -84,9 +84,11 @@ __all__ = [
 #: label of the sleeper-passage order (row 0 of the order stack)
 SLEEPER = "sleeper"
 #: 10–90 % width of the VKF's amplitude step response × its -3 dB bandwidth, per
-#: filter order q (continuous zero-phase low-pass 1/(1 + (2Δf/B)^(2q)); q = 1 in
-#: closed form 2 ln 5 / π, q = 2 and 3 by integration; see docs/indicator.md)
-STEP_WIDTH_FACTOR: dict[int, float] = {1: 2.0 * math.log(5.0) / math.pi, 2: 0.8981, 3: 0.8886}
+#: filter order q: the continuous zero-phase low-pass H = 1/(1 + (√2−1)(2Δf/B)^(2q))
+#: (-3 dB, |H| = 1/√2, at Δf = ±B/2); q = 1 in closed form 2 ln 5 / π · (√2−1)^(1/2),
+#: q = 2 and 3 by integration; measured through the VKF in tests/pipeline/test_recipe.py
+STEP_WIDTH_FACTOR: dict[int, float] = {1: 2.0 * math.log(5.0) / math.pi * math.sqrt(math.sqrt(2.0) - 1.0),
+                                       2: 0.7205, 3: 0.7672}
 #: neglected impulse-response tail at chunk seams: chunked profiles agree with an
 #: unchunked solve to ~1e-5 of the signal level (far below the indicators' noise),
 #: with 40 % less overlap than the engine's own 1e-8
@@ -271,8 +273,8 @@ def track_bandwidth_per_speed(resolution_m: float, filter_order: int) -> float:
     """-3 dB bandwidth per unit speed that gives a track order a spatial resolution, Hz per m/s.
 
     For a stationary order the VKF is a zero-phase low-pass of the complex
-    envelope, ``H(Δf) = 1 / (1 + (2Δf/B)^(2q))`` (B the full -3 dB bandwidth;
-    exact while B is far below the solve rate). Its step response rises from
+    envelope, ``H(Δf) = 1 / (1 + (√2−1)(2Δf/B)^(2q))`` (B the full -3 dB
+    bandwidth, ``|H(±B/2)| = 1/√2``; exact while B is far below the solve rate). Its step response rises from
     10 % to 90 % in ``Δt = c_q / B`` (:data:`STEP_WIDTH_FACTOR`), i.e. over
     ``Δx = v Δt = c_q v / B`` of track. A resolution ``Δx`` therefore needs
     ``B = c_q v / Δx``: a bandwidth proportional to speed, ``c_q / Δx`` Hz

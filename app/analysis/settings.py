@@ -56,10 +56,10 @@ class ProcessingSettings:
         its harmonics): the 10–90 % width, m, over which a stiffness step
         appears in their amplitude profiles. Their -3 dB bandwidth is
         ``c_q v / track_resolution_m`` Hz (:func:`app.analysis.recipe.track_bandwidth_per_speed`;
-        ``c_q`` = 1.025, 0.898, 0.889 for q = 1, 2, 3). Range 0.5–100 m.
+        ``c_q`` = 0.659, 0.721, 0.767 for q = 1, 2, 3). Range 0.5–100 m.
         Default 3.0 (chosen by ``bench/bench_indicator.py``, BENCHMARKS.md).
         None: the track orders share ``bandwidth_orders`` (the behaviour
-        before issue 15; about 26 m at 0.1 orders).
+        before issue 15; about 21 m at 0.1 orders and 0.92 m wheels, q = 2).
     sleeper_harmonics : int
         Highest harmonic of the sleeper passage extracted: 1 (the fundamental
         ``f_s = v/d_s`` only), 2 (also ``2 f_s``) or 3 (also ``3 f_s``).

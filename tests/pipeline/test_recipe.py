@@ -152,7 +152,7 @@ def test_default_recipe_tracks_sleeper_harmonics_wide_and_wheel_orders_narrow():
     np.testing.assert_allclose(r.bandwidth_per_speed[:3], track)
     np.testing.assert_allclose(r.bandwidth_per_speed[3:], settings.bandwidth_orders / (np.pi * 0.92))
     assert r.notes == ()
-    assert track_bandwidth_per_speed(6.0, 1) == pytest.approx(2 * np.log(5) / np.pi / 6.0)
+    assert track_bandwidth_per_speed(6.0, 1) == pytest.approx(2 * np.log(5) / np.pi * np.sqrt(np.sqrt(2) - 1) / 6.0)
 
 
 def test_stored_settings_without_the_new_keys_mean_the_old_recipe():
@@ -190,3 +190,46 @@ def test_order_collisions_rule():
     mult = np.array([1.0, 2.0, 1.2, 2.05])
     dropped, notes = order_collisions(labels, mult, bw)
     assert dropped == {"sleeper_2"} and "2·f_s" in notes[0]  # 1.2 is 0.2 away: no collision
+
+
+@pytest.mark.parametrize("q", [1, 2, 3])
+def test_track_resolution_is_the_measured_step_width(q):
+    """A sleeper order whose amplitude steps 1 → 2 at x = 60 m: with track_resolution_m = 5 the VKF's
+    amplitude rises from 10 % to 90 % of the step over 5 m (the c_q of STEP_WIDTH_FACTOR), the
+    50 % point on the step, overshoot as derived (q = 2: 3.4 %)."""
+    from scipy.integrate import quad
+
+    # c_q from the filter response itself: s(t) = 1/2 + (1/π)∫ H(f) sin(2πft)/f df, B = 1 Hz,
+    # H = 1/(1 + (√2−1)(2f)^(2q)) (|H| = 1/√2 at ±B/2)
+    k = np.sqrt(2.0) - 1.0
+
+    def s_of(t):
+        def integrand(f):
+            return np.sin(2 * np.pi * f * t) / f / (1 + k * (2 * f) ** (2 * q))
+
+        return 0.5 + quad(integrand, 0, 80, limit=800)[0] / np.pi
+
+    lo, hi = 0.0, 2.0
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if s_of(mid) < 0.9 else (lo, mid)
+    assert 2 * lo == pytest.approx(STEP_WIDTH_FACTOR[q], rel=2e-3)
+
+    fs, v = 2000.0, 30.0
+    n = int(120.0 / v * fs)
+    x = np.arange(n) * v / fs
+    amp = np.where(x < 60.0, 1.0, 2.0)
+    y = amp * np.cos(2 * np.pi * x / 0.6 + 0.4)
+    settings = ProcessingSettings(track_resolution_m=5.0, filter_order=q, sleeper_harmonics=1, n_wheel_orders=1)
+    r = order_recipe(0.92, 0.6, settings)
+    a = np.abs(r.solve(y, fs, np.full(n, v)).envelope_at(np.arange(n))[r.sleeper_row])
+    s = (a - 1.0) / 1.0
+    rise = (x > 50) & (x < 70)
+    i90 = int(np.argmax(s[rise] >= 0.9))
+    xs, ss = x[rise][: i90 + 1], s[rise][: i90 + 1]
+    i10 = int(np.flatnonzero(ss < 0.1)[-1])
+    x10, x50, x90 = (np.interp(level, ss[i10:], xs[i10:]) for level in (0.1, 0.5, 0.9))
+    overshoot = s[(x > 60) & (x < 80)].max() - 1.0
+    assert x90 - x10 == pytest.approx(5.0, rel=0.03)
+    assert x50 == pytest.approx(60.0, abs=0.1)
+    assert overshoot == pytest.approx({1: 0.0, 2: 0.0335, 3: 0.056}[q], abs=0.01)
