@@ -18,15 +18,21 @@ def r_from_bandwidth(bw: float, fs: float, q: int) -> float:
     return math.sqrt(math.sqrt(2.0) - 1.0) / (2.0 * math.sin(math.pi * bw / (2.0 * fs))) ** q
 
 
-def sparse_eq20(y: np.ndarray, fs: float, f: np.ndarray, r: float, q: int) -> np.ndarray:
-    """Eq. 20 assembled as written and solved directly; returns the paper's A (s, N)."""
+def _carriers_and_differences(fs: float, f: np.ndarray, q: int) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """C (carriers of the orders, N x sN) and S (q-th differences of every order, s(N-q) x sN)."""
     s, n = f.shape
     phi = 2.0 * np.pi * np.cumsum(f, axis=1) / fs
     c = sp.hstack([sp.diags(np.exp(1j * p)) for p in phi]).tocsc()
     d = sp.eye(n, format="csr")
     for _ in range(q):
         d = d[1:] - d[:-1]
-    big_s = sp.kron(sp.eye(s), d).tocsc()
+    return c, sp.kron(sp.eye(s), d).tocsc()
+
+
+def sparse_eq20(y: np.ndarray, fs: float, f: np.ndarray, r: float, q: int) -> np.ndarray:
+    """Eq. 20 assembled as written and solved directly; returns the paper's A (s, N)."""
+    s, n = f.shape
+    c, big_s = _carriers_and_differences(fs, f, q)
     m = (c.conj().T @ c + (r * big_s).T @ (r * big_s)).tocsc()
     return spl.spsolve(m, c.conj().T @ y.astype(complex)).reshape(s, n)
 
@@ -39,13 +45,8 @@ def sparse_real_model(y: np.ndarray, fs: float, f: np.ndarray, bw: np.ndarray, q
     written for the real and imaginary parts of A.
     """
     s, n = f.shape
-    phi = 2.0 * np.pi * np.cumsum(f, axis=1) / fs
-    c = sp.hstack([sp.diags(np.exp(1j * p)) for p in phi]).tocsc()
-    d = sp.eye(n, format="csr")
-    for _ in range(q):
-        d = d[1:] - d[:-1]
-    r = sp.diags(np.repeat([r_from_bandwidth(b, fs, q) for b in bw], n - q))
-    rs = r @ sp.kron(sp.eye(s), d)
+    c, big_s = _carriers_and_differences(fs, f, q)
+    rs = sp.diags(np.repeat([r_from_bandwidth(b, fs, q) for b in bw], n - q)) @ big_s
     a_mat = (c.conj().T @ c + rs.T @ rs).tocsc()
     b_mat = (c.conj().T @ c.conj()).tocsc()
     rhs = c.conj().T @ y.astype(complex)
