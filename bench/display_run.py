@@ -24,6 +24,8 @@ def _profiles(km: float, seed: int = 0) -> pd.DataFrame:
         frames.append(pd.DataFrame({
             "wheel": wheel, "bin": b, "km": (b + 0.5) * 0.25 / 1000, "n_samples": 125,
             "speed_mean": 30.0, "sleeper_amp": rng.lognormal(0, 0.4, n),
+            "sleeper_2_amp": rng.lognormal(-1, 0.4, n), "sleeper_3_amp": rng.lognormal(-1.5, 0.4, n),
+            "sleeper_rms": rng.lognormal(-0.3, 0.4, n),
             **{f"order_amp_{i:02d}": rng.random(n) for i in range(1, 12)},
             "residual_rms": 0.3, "sleeper_force_amp": rng.random(n),
         }))
