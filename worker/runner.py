@@ -277,7 +277,7 @@ class LocalWorker:
             with rt.chunks.local_copies(run_id, job_id, [c.index for c in chunks]) as paths:
                 results = assemble(run_path, settings, paths)
             meta = job_meta(settings, len(chunks), worker_id=self.worker_id, run_sha256=record.run.sha256,
-                            compute_s=time.perf_counter() - t0)
+                            warnings=results.meta.get("warnings", ()), compute_s=time.perf_counter() - t0)
             stored = queue.complete_job(
                 self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id
             )

@@ -29,6 +29,7 @@ from __future__ import annotations
 import logging
 import threading
 import traceback
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -126,7 +127,7 @@ class JobRecord:
     @property
     def settings(self) -> ProcessingSettings:
         """The job's processing settings (ValueError if they are invalid; job not lost)."""
-        return ProcessingSettings.from_dict(self.job.settings)
+        return ProcessingSettings.from_stored(self.job.settings)
 
     @property
     def wheels(self) -> list[str]:
@@ -291,6 +292,7 @@ def job_meta(
     worker_id: str | None,
     run_sha256: str,
     mode: str | None = None,
+    warnings: Sequence[str] = (),
     **seconds: float,
 ) -> dict[str, Any]:
     """Provenance stored with a job's results.
@@ -305,6 +307,8 @@ def job_meta(
         Hash of the run file the results come from.
     mode : str, optional
         ``"procrastinate"`` for the fan-out mode (the local mode says none).
+    warnings : sequence of str
+        The results' warnings (:func:`app.pipeline.run_warnings`), shown with the job.
     **seconds : float
         Timings, s (``compute_s``; ``assemble_s``, ``store_s``), rounded to ms.
 
@@ -319,4 +323,4 @@ def job_meta(
     worker["n_chunks"] = n_chunks
     worker.update({name: round(value, 3) for name, value in seconds.items()})
     worker["run_sha256"] = run_sha256
-    return {**results_meta(settings, n_chunks), "worker": worker}
+    return {**results_meta(settings, n_chunks, warnings), "worker": worker}

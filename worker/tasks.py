@@ -78,7 +78,7 @@ from app.core.config import Settings, get_settings
 from app.core.jsonable import jsonable
 from app.db import crud, queue
 from app.db.models import ChunkStatus
-from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel
+from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel, run_warnings
 from app.pipeline import process_chunk as compute_chunk
 from worker.health import alive_file
 from worker.steps import (
@@ -415,6 +415,7 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     n_chunks = len(queue.job_chunk_specs(rt.db, job_id))
     meta = job_meta(
         record.settings, n_chunks, worker_id=record.job.worker_id, run_sha256=record.run.sha256, mode=_MODE,
+        warnings=run_warnings([r["result"] for r in stored_wheels if r["result"] is not None]),
         assemble_s=sum(r["assemble_s"] for r in stored_wheels), store_s=sum(r["store_s"] for r in stored_wheels),
     )
     t0 = time.perf_counter()

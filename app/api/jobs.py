@@ -43,6 +43,11 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
         422 naming the offending setting.
     """
     merged = {k: v for k, v in (base or {}).items() if k in _SETTING_FIELDS}
+    if base is not None:  # stored settings lacking newer keys mean what they meant then
+        try:
+            merged = ProcessingSettings.from_stored(merged).to_dict()
+        except (ValueError, TypeError):
+            pass  # validated with the changes below
     merged.update(changes)
     try:
         settings = ProcessingSettings.from_dict(merged)
