@@ -16,6 +16,7 @@ from app.api.deps import (
     PageOffset,
     RunId,
     SettingsDep,
+    StoreDep,
     check_page_size,
     require_role,
 )
@@ -174,11 +175,15 @@ def get_job(job_id: JobId, db: DbDep) -> JobOut:
     dependencies=[Depends(require_role("engineer"))],
     responses={409: {"description": "The job is already done, failed or cancelled"}},
 )
-def cancel_job(job_id: JobId, request: Request, db: DbDep, principal: EngineerDep) -> JobOut:
+def cancel_job(
+    job_id: JobId, request: Request, db: DbDep, store: StoreDep, principal: EngineerDep
+) -> JobOut:
     """Cancel a queued job at once, a running one at its next chunk boundary.
 
     The response shows ``cancel_requested`` true; the job's status becomes
-    ``cancelled`` when the worker has stopped.
+    ``cancelled`` when the worker has stopped. A queued job's chunk files (of
+    an attempt interrupted by a worker's shutdown) are removed at once; a
+    running job's by its worker.
     """
     with db.write() as session:
         outcome = crud.request_cancel(session, job_id)
@@ -191,4 +196,7 @@ def cancel_job(job_id: JobId, request: Request, db: DbDep, principal: EngineerDe
         record(session, request, principal, "job.cancel", target=job_id, detail={"run_id": job.run_id})
         session.refresh(job)
         counts = crud.chunk_counts(session, [job_id])
-        return job_out(job, counts.get(job_id))
+        answer = job_out(job, counts.get(job_id))
+    if outcome == "cancelled":
+        store.remove_job_files(answer.run_id, job_id)
+    return answer

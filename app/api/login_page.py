@@ -19,6 +19,7 @@ from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from app.api.deps import API_KEY_HEADER, public, require_page_login, require_role
+from app.api.errors import document_error_responses
 from app.api.headers import content_security_policy, inline_script_hashes
 
 __all__ = ["router", "safe_next", "install_protected_docs", "TEMPLATES_DIR", "SWAGGER_ASSETS"]
@@ -73,41 +74,6 @@ def _security_schemes(schema: dict[str, Any], public_paths: set[str]) -> dict[st
     return schema
 
 
-_API_ERROR_SCHEMA = {
-    "title": "ApiError",
-    "type": "object",
-    "required": ["detail", "field"],
-    "properties": {
-        "detail": {"type": "string", "description": "<field>: <message>"},
-        "field": {"type": "string", "description": "The field, parameter or part at fault"},
-    },
-}
-
-
-def _document_api_errors(schema: dict[str, Any]) -> dict[str, Any]:
-    """A 422 is either FastAPI's validation error or an :class:`ApiError` body."""
-    schema.setdefault("components", {}).setdefault("schemas", {})["ApiError"] = _API_ERROR_SCHEMA
-    either = {
-        "anyOf": [
-            {"$ref": "#/components/schemas/HTTPValidationError"},
-            {"$ref": "#/components/schemas/ApiError"},
-        ]
-    }
-    for operations in schema.get("paths", {}).values():
-        for operation in operations.values():
-            if not isinstance(operation, dict):
-                continue
-            response = operation.get("responses", {}).get("422")
-            if response is None:
-                continue
-            content = response.setdefault("content", {}).setdefault("application/json", {})
-            if "HTTPValidationError" in str(content.get("schema", "")):
-                content["schema"] = either
-            else:
-                content["schema"] = {"$ref": "#/components/schemas/ApiError"}
-    return schema
-
-
 def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
     """Serve ``/openapi.json`` (viewer) and ``/docs`` (logged-in page) with access control.
 
@@ -118,7 +84,7 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
-            app.openapi_schema = _document_api_errors(_security_schemes(original(), public_paths))
+            app.openapi_schema = document_error_responses(_security_schemes(original(), public_paths))
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]

@@ -23,11 +23,8 @@ place. Any failure removes the upload directory: no row, job or file remains.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import json
 import logging
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,12 +41,13 @@ from app.api.channel_maps import load_channel_map
 from app.api.deps import Principal
 from app.api.errors import ApiError
 from app.core.config import Settings
+from app.core.diskspace import DiskFullError, is_disk_full, require_free
 from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
 from app.db import crud, recorder_crud
 from app.db.models import Run, utcnow
 from app.db.session import Database
-from app.io import RunFileError, RunSummary, ingest
+from app.io import RunFileError, RunSummary, ingest, load_metadata_json
 from app.io.geometry import LineGeometry
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
@@ -100,17 +98,23 @@ class _Received:
 
 
 class _Sink:
-    """Capped, hashing file writer fed with blocks of the body."""
+    """Capped, hashing file writer fed with blocks of the body.
 
-    def __init__(self, path: Path, block_bytes: int) -> None:
+    Before each block is written the free space is checked: writing it must
+    leave ``reserve`` bytes free (:class:`DiskFullError` otherwise).
+    """
+
+    def __init__(self, path: Path, block_bytes: int, reserve: int) -> None:
         self.path = path
         self.block_bytes = block_bytes
+        self.reserve = reserve
         self.hash = hashlib.sha256()
         self.size = 0
         self._buffer = bytearray()
-        self._fh = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self._fh = open(path, "wb", buffering=0)  # noqa: SIM115 - closed in close()
 
     def _write(self, data: bytes) -> None:
+        require_free(self.path.parent, len(data), self.reserve, "the upload")
         self.hash.update(data)
         self._fh.write(data)
 
@@ -137,6 +141,11 @@ def _too_large(cap: int) -> ApiError:
     )
 
 
+def _storage_full(exc: BaseException) -> ApiError:
+    reason = str(exc) if isinstance(exc, DiskFullError) else "the run store or the database is full"
+    return ApiError(507, "storage", f"{reason}; the upload was not kept, free space and try again")
+
+
 def _unsupported_type(ctype: str) -> ApiError:
     return ApiError(
         415,
@@ -156,7 +165,7 @@ def _safe_filename(name: str | None) -> str | None:
 
 
 async def _receive_raw(request: Request, path: Path, settings: Settings) -> _Received:
-    sink = _Sink(path, settings.upload_block_bytes)
+    sink = _Sink(path, settings.upload_block_bytes, settings.min_free_bytes)
     try:
         async for chunk in request.stream():
             if sink.size + len(chunk) > settings.max_upload_bytes:
@@ -279,7 +288,7 @@ async def _receive_multipart(
         parser = MultipartParser(boundary, state.callbacks())
     except FormParserError as exc:
         raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
-    sink = _Sink(path, settings.upload_block_bytes)
+    sink = _Sink(path, settings.upload_block_bytes, settings.min_free_bytes)
     received = 0
     try:
         async for chunk in request.stream():
@@ -363,12 +372,9 @@ def _parse_metadata(text: str | None) -> dict[str, Any] | None:
     if text is None or not text.strip():
         return None
     try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ApiError(422, "metadata", f"not valid JSON: {exc.msg} at position {exc.pos}") from None
-    if not isinstance(value, dict):
-        raise ApiError(422, "metadata", f"must be a JSON object, got {type(value).__name__}")
-    return value
+        return load_metadata_json(text, field="metadata")
+    except RunFileError as exc:
+        raise ApiError(422, exc.field, exc.message) from None
 
 
 def _channel_map_id(text: str | None) -> int | None:
@@ -492,8 +498,9 @@ async def receive_and_create_run(
         429 over the upload rate of the principal, 413 for a body over the
         cap, 415 for a content type that is not a run file's, 400 for a
         malformed body, 422 naming the field for invalid content (format,
-        metadata, channels, ...). Nothing is left behind but the audit entry
-        of the rejection.
+        metadata, channels, ...), 507 (``storage``) when the run store (or the
+        database) has not enough free space. Nothing is left behind but the
+        audit entry of the rejection.
     """
     wait = request.app.state.upload_limiter.hit(
         f"key:{principal.key_id}" if principal.key_id is not None else f"user:{principal.name}"
@@ -506,13 +513,24 @@ async def receive_and_create_run(
         await run_in_threadpool(_record_rejection, db, request, principal, error, "denied")
         raise error
     try:
-        return await _receive_and_create(
-            request, settings=settings, db=db, store=store, principal=principal,
-            query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
-            query_channel_map=query_channel_map,
-        )
+        try:
+            return await _receive_and_create(
+                request, settings=settings, db=db, store=store, principal=principal,
+                query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
+                query_channel_map=query_channel_map,
+            )
+        except Exception as exc:
+            if not isinstance(exc, ApiError) and is_disk_full(exc):
+                log.warning("upload refused: %s", exc)
+                raise _storage_full(exc) from None
+            raise
     except ApiError as exc:
         await run_in_threadpool(_record_rejection, db, request, principal, exc, "rejected")
+        raise
+    except Exception as exc:
+        # not the client's fault (a bug, the database away): answered 500, audited all the same
+        error = ApiError(500, "server", f"{type(exc).__name__}: {exc}")
+        await run_in_threadpool(_record_rejection, db, request, principal, error, "error")
         raise
 
 
@@ -542,12 +560,13 @@ async def _receive_and_create(
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > settings.max_upload_bytes:
         raise _too_large(settings.max_upload_bytes)
+    if declared is not None and declared.isdigit():
+        await run_in_threadpool(require_free, store.root, int(declared), settings.min_free_bytes, "the upload")
     content_type = request.headers.get("content-type", "")
     bare_type = content_type.split(";")[0].strip().lower()
     if bare_type and bare_type != "multipart/form-data" and bare_type not in ACCEPTED_CONTENT_TYPES:
         raise _unsupported_type(bare_type)
-    upload_dir = await run_in_threadpool(store.new_upload_dir)
-    try:
+    with store.upload_dir() as upload_dir:
         path = upload_dir / _UPLOAD_NAME
         try:
             if content_type.lower().startswith("multipart/form-data"):
@@ -591,7 +610,10 @@ async def _receive_and_create(
         dest = upload_dir / "run.h5"
         try:
             summary = await run_in_threadpool(
-                lambda: ingest(path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry)
+                lambda: ingest(
+                    path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry,
+                    reserve_bytes=settings.min_free_bytes,
+                )
             )
         except RunFileError as exc:
             raise ApiError(422, exc.field, exc.message) from None
@@ -611,6 +633,3 @@ async def _receive_and_create(
             "run %s created from %s (%d bytes, sha256 %s)", run_id, fmt, received.size, received.sha256
         )
         return UploadOutcome(run_id=run_id, created=True)
-    finally:
-        with contextlib.suppress(OSError):
-            shutil.rmtree(upload_dir, ignore_errors=True)

@@ -43,8 +43,16 @@ class Settings(BaseSettings):
     max_metadata_bytes : int
         Largest accepted metadata JSON document, bytes.
     upload_stale_after_s : float
-        Uploads in progress older than this (s) are swept from the run store at
-        start-up: they belong to a crashed or restarted API.
+        Age (s) after which an upload directory is swept at start-up on a file
+        system without ``flock`` (some network file systems). Elsewhere every
+        upload no live API process owns (a process holds a ``flock`` on its
+        uploads) is swept at start-up, whatever its age.
+    min_free_bytes : int
+        Free space the run store keeps in reserve, bytes (default 1 GiB). An
+        upload that would leave less is refused with 507 (checked against its
+        declared size before it is received, while it is written and before the
+        canonical file is written), and ``/health`` reports the store as
+        ``low_space`` (status ``degraded``) below it.
     worker_poll_interval_s : float
         Pause of an idle worker between two looks at the queue, s.
     worker_heartbeat_s : float
@@ -141,6 +149,7 @@ class Settings(BaseSettings):
     upload_block_bytes: int = Field(default=1024 * 1024, ge=4096)
     max_metadata_bytes: int = Field(default=1024 * 1024, ge=1024)
     upload_stale_after_s: float = Field(default=6 * 3600.0, gt=0)
+    min_free_bytes: int = Field(default=_GIB, ge=0)
     worker_poll_interval_s: float = Field(default=1.0, gt=0)
     worker_heartbeat_s: float = Field(default=2.0, gt=0)
     worker_stale_after_s: float = Field(default=30.0, gt=0)
