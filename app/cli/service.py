@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from app.cli._common import echo, refuse_unsafe_production
+from app.cli._common import echo, refuse_unsafe_production, require_migrated_database
 from app.core.config import get_settings
 from app.core.logging import configure_logging
 
@@ -25,6 +25,7 @@ def serve(
     """
     import uvicorn
 
+    require_migrated_database()
     refuse_unsafe_production()
     uvicorn.run(
         "app.main:create_app", factory=True, host=host, port=port, log_level=log_level.lower()
@@ -44,6 +45,7 @@ def worker(
     from worker import modes
 
     settings = get_settings()
+    require_migrated_database()
     configure_logging(settings.log_level)
     code = modes.run(settings, local=local, once=once, exit_when_idle=exit_when_idle, processes=processes)
     if code:
