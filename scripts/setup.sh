@@ -40,7 +40,7 @@ fi
 stamp=.venv/.trackvkf-install-stamp
 hash="$(.venv/bin/python -c 'import hashlib; print(hashlib.sha256(open("pyproject.toml", "rb").read()).hexdigest())')"
 have_hash="" have_kind=""
-read -r have_hash have_kind <"$stamp" 2>/dev/null || true
+if [[ -f "$stamp" ]]; then read -r have_hash have_kind <"$stamp" || true; fi
 if [[ -n "$have_hash" && -z "$have_kind" ]]; then
   have_kind=dev  # stamps written before the split held the hash alone (a dev install)
 fi
