@@ -156,7 +156,7 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, runs: RunsQuery,
         df = df[np.isfinite(df["sleeper_amp"].to_numpy())]
     sub = data.reference(db, "subsidence", sel, km_from=runs.km_from, km_to=runs.km_to)
     wheels = []
-    for wh in ([w] if w else sorted(set(df["wheel"]))):
+    for wh in ([w] if w else sorted(df["wheel"].unique().tolist())):
         amp, u, g, _ = _subsidence_pairs(df, sub, wh, sel.bin_length)
         wheels.append(_subsidence_wheel(wh, amp, u, g, _lag(sel), confidence))
     return {"log_base": LOG_BASE, "run_ids": sel.run_ids, "wheels": wheels}
@@ -210,7 +210,7 @@ def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
     df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=w)
     df = df[np.isfinite(df["sleeper_force_amp"].to_numpy(dtype=np.float64))]
     out = []
-    for wh in ([w] if w else sorted(set(df["wheel"]))):
+    for wh in ([w] if w else sorted(df["wheel"].unique().tolist())):
         pw = df[df["wheel"] == wh]
         z, f = pw["sleeper_amp"].to_numpy(), pw["sleeper_force_amp"].to_numpy()
         mf = fit_unsprung_mass(z, f, groups=pw["run_id"].to_numpy(), hac_lag=_lag(sel),
