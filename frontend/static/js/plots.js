@@ -11,6 +11,12 @@
   function wheelId(w) { return String(w).replace(/^Z/, ""); }
   function wheelLabel(w) { return "Z" + wheelId(w); }
   function wheelColor(w) { return WHEEL_COLORS[wheelId(w)] || "#555"; }
+  /* "Z11 · axle 1 right": channel name with axle and side (side 1 right, 2 left; docs/run-format.md). */
+  function wheelName(w) {
+    const id = wheelId(w);
+    const side = { "1": "right", "2": "left" }[id.slice(-1)];
+    return side ? `${wheelLabel(id)} · axle ${id.slice(0, -1)} ${side}` : wheelLabel(id);
+  }
 
   function axis(title, extra) {
     return Object.assign({ title: { text: title }, gridcolor: "#e6ebf0", zerolinecolor: "#c9d2dc",
@@ -183,7 +189,7 @@
   }
 
   Object.assign(T, {
-    WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelColor, axis, dateAxis, layout, config, plot,
+    WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelName, wheelColor, axis, dateAxis, layout, config, plot,
     emptyState, banner, downloadCSV, csvText, esc, fmt, date, datetime, ready, param, allRuns,
     lineKey, fillLinePicker, lineOf, rememberLine,
   });
