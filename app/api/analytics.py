@@ -8,6 +8,7 @@ sleeper-passage acceleration amplitudes in m/s², the logarithm is natural.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 from dataclasses import dataclass
 from typing import Annotated
@@ -313,7 +314,8 @@ def speed_normalisation(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                             min_speed_kmh=min_v)
     _, fits = _norm_context(db, settings, sel, df, ref_v, min_v)
     types = [{"type": t, "exponent": data.num(f.exponent), "exponent_ci": data.nums(f.exponent_ci),
-              "method": f.method, "n_samples": f.n_samples, "amplitude_at_ref": data.num(f.amplitude_at_ref)}
+              "method": f.method, "n_samples": f.n_samples, "amplitude_at_ref": data.num(f.amplitude_at_ref),
+              "plausible": f.plausible, "warning": f.warning}
              for t, f in fits.items()]
     return {"reference_speed_kmh": ref_v, "min_speed_kmh": min_v, "run_ids": sel.run_ids, "types": types}
 
@@ -351,12 +353,19 @@ def speed_normalised_profile(run_id: RunId, db: DbDep, settings: SettingsDep,
 
 
 def _alignment(sel, df, run_id, ref_id, max_shift_m, detrend_m):
+    """The alignment of a run to the reference run, for every endpoint that reports one.
+
+    A run aligned to itself is the identity: shift 0 and confidence 1 (nothing is estimated;
+    its correlation curve is still returned)."""
     a = df[df["run_id"] == ref_id].groupby("bin")["sleeper_amp"].mean()
     b = df[df["run_id"] == run_id].groupby("bin")["sleeper_amp"].mean()
     if a.empty or b.empty:
         return None
-    return align_runs(a.index.to_numpy(), a.to_numpy(), b.index.to_numpy(), b.to_numpy(),
-                      bin_length_m=sel.bin_length, max_shift_m=max_shift_m, detrend_m=detrend_m)
+    al = align_runs(a.index.to_numpy(), a.to_numpy(), b.index.to_numpy(), b.to_numpy(),
+                    bin_length_m=sel.bin_length, max_shift_m=max_shift_m, detrend_m=detrend_m)
+    if run_id == ref_id:
+        al = dataclasses.replace(al, shift_m=0.0, confidence=1.0)
+    return al
 
 
 MaxShiftQ = Annotated[float, Query(gt=0, le=5000, description="largest shift searched, m")]
@@ -397,12 +406,10 @@ def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_sh
     for run in sel.runs:
         g = df[df["run_id"] == run.id].groupby("bin")["sleeper_amp"].mean()
         shift, conf = 0.0, None
-        if align and run.id != ref_id and len(g):
+        if align and len(g):
             al = _alignment(sel, df, run.id, ref_id, max_shift_m, 50.0)
             if al is not None and np.isfinite(al.shift_m):
                 shift, conf = al.shift_m, al.confidence
-        elif run.id == ref_id:
-            conf = 1.0
         runs.append((g.index.to_numpy(), g.to_numpy()))
         shifts.append(shift)
         info.append({"run_id": run.id, "start_time": run.start_time.isoformat() if run.start_time else None,
