@@ -152,7 +152,15 @@ def _wait_jobs(client, base: str, runs: list[dict], procs: list[subprocess.Popen
                 jobs[job_id] = client.get(f"{base}/api/v1/jobs/{job_id}").json()
 
 
-def _where_to_look(base: str, runs: list[dict], line: tuple[str, str], project: Path) -> str:
+def _activate_hint() -> str:
+    """How to get ``trackvkf`` on PATH in another terminal (the venv the demo runs in)."""
+    venv = Path(sys.prefix)
+    if venv.name == ".venv":
+        return f"cd {venv.parent} && source .venv/bin/activate && trackvkf --help"
+    return f"source {venv}/bin/activate && trackvkf --help"
+
+
+def _where_to_look(base: str, runs: list[dict], line: tuple[str, str]) -> str:
     first = runs[0]["id"]
     api = f"{base}/api/v1"
     line_q = f"line_id={line[0]}&track={line[1]}"
@@ -171,7 +179,7 @@ def _where_to_look(base: str, runs: list[dict], line: tuple[str, str], project: 
         f"  subsidence fit           {api}/analytics/subsidence-fit?{line_q}\n"
         f"  jobs                     {api}/jobs\n"
         "\nThe command line, in another terminal:\n"
-        f"  cd {project} && source .venv/bin/activate && trackvkf --help\n"
+        f"  {_activate_hint()}\n"
     )
 
 
@@ -249,7 +257,7 @@ def demo(
                 "(forgotten: `trackvkf user set-password admin --generate`).\n"
             )
         echo(f"\n{login}  login page               {base}/login")
-        echo(_where_to_look(base, runs, data.reference_line, Path.cwd()))
+        echo(_where_to_look(base, runs, data.reference_line))
         if not serve_after:
             return
         echo("Serving until Ctrl-C ...")

@@ -115,3 +115,23 @@ def test_unmigrated_database_asks_for_migrate(tmp_path, monkeypatch):
         get_settings.cache_clear()
     assert result.exit_code == 2, result.output
     assert "is not migrated: run `trackvkf migrate` first" in result.output
+
+
+def test_engine_warnings_are_one_line_each_and_kept_in_meta():
+    """Warnings inside the block reach the writer once per distinct message, without a source
+    line, and are counted."""
+    import warnings
+
+    from app.analysis.vkf import VKFWarning
+    from app.cli._warnings import engine_warnings
+
+    lines: list[str] = []
+    with engine_warnings(lines.append) as seen:
+        for _ in range(3):
+            warnings.warn("orders [(1, 2)] come closer than their bandwidth", VKFWarning, stacklevel=1)
+        warnings.warn("other", UserWarning, stacklevel=1)
+    assert lines[0] == "warning: VKFWarning: orders [(1, 2)] come closer than their bandwidth"
+    assert lines[1] == "warning: UserWarning: other"
+    assert lines[2].startswith("warning: VKFWarning repeated 3 times")
+    assert not any("warnings.warn" in line or ".py:" in line for line in lines)
+    assert seen.as_list()[0] == {"category": "VKFWarning", "message": "orders [(1, 2)] come closer than their bandwidth", "count": 3}
