@@ -81,7 +81,7 @@
       }
     }
     await T.plot(el, traces, {
-      xaxis: T.axis("Sleeper-passage amplitude Z (m/s², log scale)", { type: "log" }),
+      xaxis: T.axis("Sleeper-passage amplitude Z (m/s², log scale)", { type: "log", tickformat: "~g", dtick: "D2" }),
       yaxis: T.axis("Subsidence u (mm)"),
     }, {
       filename: "subsidence-vs-amplitude",
