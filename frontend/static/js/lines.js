@@ -122,7 +122,7 @@
     document.getElementById("trend-title").textContent = `Trend of segment km ${k0.toFixed(3)}–${(k0 + seg.segment_m / 1000).toFixed(3)} across run dates`;
     if (!points.length) { T.emptyState(el, "No runs cover this segment.", ""); return; }
     await T.plot(el, [{
-      type: "scatter", mode: "lines+markers", name: T.wheelLabel(wheel), x: points.map((p) => p.start_time), y: points.map((p) => p.amplitude),
+      type: "scatter", mode: T.trendMode(points.map((p) => p.start_time)), name: T.wheelLabel(wheel), x: points.map((p) => p.start_time), y: points.map((p) => p.amplitude),
       customdata: points.map((p) => p.run_id), line: { color: T.wheelColor(wheel), width: 2 }, marker: { size: 9 },
       hovertemplate: "%{x|%Y-%m-%d}<br>%{y:.3f} m/s²<br>run %{customdata}<extra></extra>",
     }], {

@@ -151,6 +151,13 @@
     return axis(title, Object.assign(out, extra || {}));
   }
 
+  /* "lines+markers" for a trend over run dates, "markers" when two points share a time (a line
+   * between them would be a vertical stroke that means nothing). */
+  function trendMode(dates) {
+    const ms = (dates || []).map((d) => Date.parse(d));
+    return new Set(ms).size < ms.length ? "markers" : "lines+markers";
+  }
+
   /* Line/track picker: one option per line and track of the runs ("line L / track T · n runs"),
    * chosen from the page URL (?line_id=&track=) or else the one with the most processed runs.
    * Returns the keys (line_id + "\u0001" + track). */
@@ -189,7 +196,7 @@
   }
 
   Object.assign(T, {
-    WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelName, wheelColor, axis, dateAxis, layout, config, plot,
+    WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelName, wheelColor, axis, dateAxis, trendMode, layout, config, plot,
     emptyState, banner, downloadCSV, csvText, esc, fmt, date, datetime, ready, param, allRuns,
     lineKey, fillLinePicker, lineOf, rememberLine,
   });

@@ -104,7 +104,7 @@
     const traces = T.WHEELS.filter((w) => trend.items.some((i) => i.wheel === w)).map((w) => {
       const items = trend.items.filter((i) => i.wheel === w);
       return {
-        type: "scatter", mode: "lines+markers", name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 2 },
+        type: "scatter", mode: T.trendMode(items.map((i) => i.start_time)), name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 2 },
         marker: { size: 8 }, x: items.map((i) => i.start_time), y: items.map((i) => trendValue(i, q)),
         customdata: items.map((i) => i.run_id),
         hovertemplate: `${T.wheelLabel(w)}<br>%{x|%Y-%m-%d %H:%M}<br>%{y:.1f} µm<br>run %{customdata}<extra></extra>`,
