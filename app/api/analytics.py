@@ -55,6 +55,8 @@ router = APIRouter(tags=["analytics"])
 RunIdsQ = Annotated[str | None, Query(description="comma-separated run ids (default: all runs with results)")]
 WheelQ = Annotated[str | None, Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="wheel (default all)")]
 _MAX_POINTS = 5000
+PointsQ = Annotated[int, Query(ge=10, le=_MAX_POINTS,
+                               description="scatter points returned per wheel (the fit uses all samples)")]
 _WHEELS = ("11", "12", "41", "42")
 RefSpeedQ = Annotated[float | None, Query(gt=0, le=500, description="reference speed, km/h")]
 MinSpeedQ = Annotated[float | None, Query(ge=0, le=500, description="minimum speed, km/h (default 25)")]
@@ -119,9 +121,9 @@ def _subsidence_pairs(df: pd.DataFrame, sub: pd.DataFrame, wheel: str, bin_lengt
             pw["run_id"].to_numpy()[m], m)
 
 
-def _subsidence_wheel(wheel, amp, u, groups, lag, confidence=0.95):
+def _subsidence_wheel(wheel, amp, u, groups, lag, confidence=0.95, max_points=_MAX_POINTS):
     f = fit_subsidence(amp, u, groups=groups, hac_lag=lag, confidence=confidence) if amp.size else None
-    idx = decimate_indices(amp.size, _MAX_POINTS)
+    idx = decimate_indices(amp.size, max_points)
     return {
         "wheel": wheel,
         "slope": data.num(f.slope) if f else None, "slope_ci": data.nums(f.slope_ci) if f else [None, None],
@@ -139,7 +141,7 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                    confidence: Annotated[float, Query(gt=0.5, lt=1)] = 0.95,
                    normalise: Annotated[bool, Query(
                        description="fit on the amplitude normalised to reference_speed_kmh")] = False,
-                   reference_speed_kmh: RefSpeedQ = None) -> dict:
+                   reference_speed_kmh: RefSpeedQ = None, max_points: PointsQ = _MAX_POINTS) -> dict:
     """Fit u (mm) = slope · ln(Z / 1 m/s²) + intercept on 25 cm bins with both a
     sleeper-passage amplitude Z and a subsidence value of the wheel's rail (or of
     both rails). Intervals: ``confidence`` (default 95 %), Newey–West over 100 m.
@@ -159,7 +161,7 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, runs: RunsQuery,
     wheels = []
     for wh in ([w] if w else sorted(df["wheel"].unique().tolist())):
         amp, u, g, _ = _subsidence_pairs(df, sub, wh, sel.bin_length)
-        wheels.append(_subsidence_wheel(wh, amp, u, g, _lag(sel), confidence))
+        wheels.append(_subsidence_wheel(wh, amp, u, g, _lag(sel), confidence, max_points))
     return {"log_base": LOG_BASE, "run_ids": sel.run_ids, "wheels": wheels}
 
 
@@ -201,7 +203,8 @@ def predicted_subsidence(run_id: RunId, db: DbDep, settings: SettingsDep,
             summary="Unsprung mass from force vs acceleration amplitude per wheel")
 def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                   mass_min_kg: Annotated[float, Query(ge=0)] = 150.0,
-                  mass_max_kg: Annotated[float, Query(gt=0)] = 600.0) -> dict:
+                  mass_max_kg: Annotated[float, Query(gt=0)] = 600.0,
+                  max_points: PointsQ = _MAX_POINTS) -> dict:
     """Slope of the sleeper-passage force amplitude (kN) on the acceleration amplitude
     (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``."""
     if mass_min_kg >= mass_max_kg:
@@ -216,7 +219,7 @@ def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
         z, f = pw["sleeper_amp"].to_numpy(), pw["sleeper_force_amp"].to_numpy()
         mf = fit_unsprung_mass(z, f, groups=pw["run_id"].to_numpy(), hac_lag=_lag(sel),
                                plausible_kg=(mass_min_kg, mass_max_kg)) if z.size else None
-        idx = decimate_indices(z.size, _MAX_POINTS)
+        idx = decimate_indices(z.size, max_points)
         out.append({"wheel": wh, "mass_kg": data.num(mf.mass_kg) if mf else None,
                     "mass_ci": data.nums(mf.mass_ci) if mf else [None, None],
                     "r2": data.num(mf.fit.r2) if mf else None, "n_samples": int(z.size),

@@ -10,17 +10,9 @@
   const HOWTO = `<p>Import reference data with <code>POST /api/v1/reference/subsidence</code>,
     <code>/maintenance</code> or <code>/superstructure</code> (CSV or Parquet), then reload this page.</p>`;
   let fit = null;
-  // markers drawn per wheel and plot (SVG markers are slow by the ten thousand); the CSV has all
+  // markers per wheel and plot (SVG markers are slow by the ten thousand), asked of the server
+  // as max_points; the fits use every sample
   const DRAW_POINTS = 1500;
-
-  /* Every k-th index so that at most `n` of `len` remain (all when len <= n). */
-  function thin(len, n) {
-    const k = Math.max(1, Math.ceil(len / n));
-    const out = [];
-    for (let i = 0; i < len; i += k) out.push(i);
-    return out;
-  }
-  function pick(values, idx) { return idx.map((i) => values[i]); }
 
   function query() {
     const { line_id, track } = T.lineOf("line-track");
@@ -68,9 +60,8 @@
     const traces = [];
     for (const w of ws) {
       const amps = w.points.amplitude.filter((a) => a > 0);
-      const idx = thin(w.points.amplitude.length, DRAW_POINTS);
       traces.push({ type: "scatter", mode: "markers", name: T.wheelLabel(w.wheel), legendgroup: w.wheel,
-        x: pick(w.points.amplitude, idx), y: pick(w.points.subsidence_mm, idx), marker: { color: T.wheelColor(w.wheel), size: 4, opacity: 0.35 },
+        x: w.points.amplitude, y: w.points.subsidence_mm, marker: { color: T.wheelColor(w.wheel), size: 4, opacity: 0.35 },
         hovertemplate: `${T.wheelLabel(w.wheel)}<br>%{x:.3f} m/s²<br>%{y:.3f} mm<extra></extra>` });
       if (amps.length && Number.isFinite(w.slope)) {
         const lo = Math.min(...amps), hi = Math.max(...amps);
@@ -109,9 +100,8 @@
     ws.forEach((w, i) => {
       const n = i === 0 ? "" : String(i + 1), xa = "x" + n, ya = "y" + n;
       const name = `${T.wheelLabel(w.wheel)}: ${T.fmt(w.mass_kg, 0)} kg${w.plausible ? "" : " (implausible)"}`;
-      const idx = thin(w.points.acceleration.length, DRAW_POINTS);
       traces.push({ type: "scatter", mode: "markers", name, xaxis: xa, yaxis: ya,
-        x: pick(w.points.acceleration, idx), y: pick(w.points.force_kn, idx),
+        x: w.points.acceleration, y: w.points.force_kn,
         marker: { color: T.wheelColor(w.wheel), size: 4, opacity: 0.35 },
         hovertemplate: `${T.wheelLabel(w.wheel)}<br>%{x:.3f} m/s²<br>%{y:.3f} kN<extra></extra>` });
       traces.push({ type: "scatter", mode: "lines", showlegend: false, xaxis: xa, yaxis: ya, x: [0, amax], y: [0, w.mass_kg * amax / 1000],
@@ -188,8 +178,8 @@
     T.rememberLine(q);
     try {
       const [sub, mass, maint] = await Promise.all([
-        F.analytics_subsidence ? T.api.optional("/analytics/subsidence-fit", q) : null,
-        F.analytics_unsprung_mass ? T.api.optional("/analytics/unsprung-mass", q) : null,
+        F.analytics_subsidence ? T.api.optional("/analytics/subsidence-fit", Object.assign({ max_points: DRAW_POINTS }, q)) : null,
+        F.analytics_unsprung_mass ? T.api.optional("/analytics/unsprung-mass", Object.assign({ max_points: DRAW_POINTS }, q)) : null,
         F.analytics_maintenance ? T.api.optional("/analytics/maintenance", Object.assign({ type: document.getElementById("mtype").value }, q)) : null,
       ]);
       fit = sub;
