@@ -106,6 +106,12 @@ class Settings(BaseSettings):
     analytics_edge_trim_m : float
         The first and last metres of every run's profile left out of the
         analytics (filter end transients).
+    map_tile_url : str, optional
+        Raster tile URL template (``https://tiles.example/{z}/{x}/{y}.png``) of
+        a basemap under the map page's line geometry. Default: none (the page
+        draws the geometry alone and requests nothing outside the server).
+    map_tile_attribution : str
+        Attribution text shown with the basemap.
     """
 
     model_config = SettingsConfigDict(
@@ -141,6 +147,8 @@ class Settings(BaseSettings):
     analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
     analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
     analytics_edge_trim_m: float = Field(default=50.0, ge=0)
+    map_tile_url: str | None = Field(default=None, max_length=500)
+    map_tile_attribution: str = Field(default="", max_length=300)
 
     @field_validator("anonymous_role")
     @classmethod
