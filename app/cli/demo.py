@@ -129,6 +129,17 @@ def _import_reference(client, base: str, files: dict[str, Path]) -> None:
         echo(f"  {kind}: {resp.json()['imported']} rows")
 
 
+def _import_geometry(client, base: str, files: list[Path]) -> None:
+    """Import the lines' geometry (a line imported again replaces its geometry)."""
+    for path in files:
+        with open(path, "rb") as fh:
+            resp = client.post(f"{base}/api/v1/geometry",
+                               files={"file": (path.name, fh, "application/geo+json")})
+        if resp.status_code not in (200, 201):
+            raise RuntimeError(f"import of {path.name} failed: {resp.status_code} {resp.text}")
+        echo(f"  geometry: {path.name}")
+
+
 def _wait_jobs(client, base: str, runs: list[dict], procs: list[subprocess.Popen]) -> None:
     """Follow the runs' latest jobs until none is queued or running, printing changes."""
     jobs = {run["latest_job"]["id"]: run["latest_job"] for run in runs if run.get("latest_job")}
@@ -169,6 +180,7 @@ def _where_to_look(base: str, runs: list[dict], line: tuple[str, str]) -> str:
         f"  dashboard (runs)         {base}/\n"
         f"  stiffness map, run {first:<5} {base}/runs/{first}\n"
         f"  line view                {base}/lines\n"
+        f"  map                      {base}/map\n"
         f"  wheels                   {base}/wheels\n"
         f"  correlations             {base}/correlations\n"
         f"  API docs (OpenAPI)       {base}/docs\n"
@@ -192,8 +204,8 @@ def demo(
         bool, typer.Option("--serve/--no-serve", help="Keep serving after processing (until Ctrl-C)")
     ] = True,
 ) -> None:
-    """Migrate, simulate the demo data (4 runs of 2 lines, reference data), start API and
-    worker, upload, import and process it all over HTTP, print where to look."""
+    """Migrate, simulate the demo data (4 runs of 2 lines, reference data, line geometry), start
+    API and worker, upload, import and process it all over HTTP, print where to look."""
     import httpx
 
     from app.db import migrate as db_migrate
@@ -243,6 +255,7 @@ def demo(
             echo(f"importing the reference data of line {data.reference_line[0]} "
                  f"track {data.reference_line[1]} ...")
             _import_reference(client, base, data.reference)
+            _import_geometry(client, base, data.geometry)
             _wait_jobs(client, base, runs, procs)
         _revoke_demo_key(upload_key_id)
         if admin_password is not None:

@@ -4,8 +4,9 @@
 runs of line ``SIM`` track 1 by vehicle ``SIM-1`` half a year apart (the same line model and
 the same wheels, so the line view, the run alignment and the wheel trend compare like with
 like; the later runs carry a few metres of odometry error), one run of line ``SIM-B`` track 2
-by vehicle ``SIM-2``, and subsidence, maintenance and superstructure records of line ``SIM``
-track 1 (CSV, as an asset manager would export them).
+by vehicle ``SIM-2``, subsidence, maintenance and superstructure records of line ``SIM``
+track 1 (CSV, as an asset manager would export them) and the geometry of both lines (GeoJSON
+with km stations, for the map).
 
 Files are written once into a directory and reused (same bytes, same sha256: the demo's second
 start uploads nothing new).
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.simulate.geometry import synthetic_line, write_geometry
 from app.simulate.reference import simulate_reference
 from app.simulate.run import DEFAULT_TRUE_DIAMETERS_M, simulate_run
 from app.simulate.track import LineModel, generate_line
@@ -64,11 +66,13 @@ DEMO_RUNS: tuple[DemoRun, ...] = (
 @dataclass
 class DemoDataset:
     """Paths of the demo's files: ``runs`` in the order of :data:`DEMO_RUNS`, ``reference``
-    by kind (:data:`REFERENCE_KINDS`), all under ``directory``."""
+    by kind (:data:`REFERENCE_KINDS`), ``geometry`` one GeoJSON per line and track, all under
+    ``directory``."""
 
     directory: Path
     runs: list[Path] = field(default_factory=list)
     reference: dict[str, Path] = field(default_factory=dict)
+    geometry: list[Path] = field(default_factory=list)
     reference_line: tuple[str, str] = ("SIM", "1")
     written: list[Path] = field(default_factory=list)
 
@@ -134,4 +138,13 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
         files = {kind: Path(ref.files[kind]) for kind in REFERENCE_KINDS}
         data.written.extend(files.values())
     data.reference = files
+    for line_id, track, seed in dict.fromkeys((r.line_id, r.track, r.line_seed) for r in runs):
+        path = out / f"geometry-{line_id}-{track}-{length_km:g}km.geojson"
+        data.geometry.append(path)
+        if not path.is_file():
+            # a margin for the odometry errors and the trailing axle
+            _, doc = synthetic_line(DEMO_KM_START - 0.1, DEMO_KM_START + length_km + 0.1, seed=seed,
+                                    line_id=line_id, track=track)
+            write_geometry(path, doc)
+            data.written.append(path)
     return data

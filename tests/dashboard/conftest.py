@@ -1,7 +1,7 @@
 """Browser tests of the dashboard: Debian's chromium driven by Playwright against the real
 service (uvicorn + worker subprocesses, tests/e2e/conftest.py) holding the demo data (short
-runs): three processed runs of line SIM at three dates, one of line SIM-B, and the reference
-data of line SIM, all uploaded and imported over HTTP.
+runs): three processed runs of line SIM at three dates, one of line SIM-B, the reference data
+of line SIM and the geometry of both lines, all uploaded and imported over HTTP.
 
 No browser is downloaded: /usr/bin/chromium comes from the Debian package, installed here
 with apt-get when it is missing (the CI machine runs as root).
@@ -102,6 +102,10 @@ def dashboard(tmp_path_factory) -> Iterator[Dashboard]:
                 with open(path, "rb") as fh:
                     r = client.post(f"/api/v1/reference/{kind}", files={"file": (path.name, fh, "text/csv")})
                 assert r.status_code == 201, r.text
+            for path in demo.geometry:
+                with open(path, "rb") as fh:
+                    r = client.post("/api/v1/geometry", files={"file": (path.name, fh, "application/geo+json")})
+                assert r.status_code in (200, 201), r.text
             for job_id in jobs:
                 job = svc.wait_job(client, job_id)
                 assert job["status"] == "done", f"{job['error']}\n{svc.log_text()}"
