@@ -19,6 +19,7 @@ from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from app.api.deps import API_KEY_HEADER, public, require_page_login, require_role
+from app.api.headers import content_security_policy, inline_script_hashes
 
 __all__ = [
     "router", "safe_next", "install_protected_docs", "swagger_ui_dir", "TEMPLATES_DIR",
@@ -31,12 +32,8 @@ SWAGGER_ASSETS = "/docs-assets"
 MIN_SWAGGER_UI_MAJOR = 5
 
 TEMPLATES_DIR = Path(__file__).resolve().parents[2] / "frontend" / "templates"
-_PAGE_HEADERS = {
-    "Cache-Control": "no-store",
-    "X-Frame-Options": "DENY",
-    "Content-Security-Policy": "frame-ancestors 'none'",
-    "X-Content-Type-Options": "nosniff",
-}
+#: the security headers (CSP, framing, ...) come from app.api.headers.SecurityHeadersMiddleware
+_PAGE_HEADERS = {"Cache-Control": "no-store"}
 
 router = APIRouter(include_in_schema=False, dependencies=[Depends(public)])
 
@@ -179,4 +176,6 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
             swagger_css_url=f"{SWAGGER_ASSETS}/swagger-ui.css",
             swagger_favicon_url=f"{SWAGGER_ASSETS}/favicon-32x32.png",
         )
-        return HTMLResponse(page.body, headers=_PAGE_HEADERS)
+        # the page's one inline script (SwaggerUIBundle setup) is allowed by its hash
+        csp = content_security_policy(inline_script_hashes(page.body.decode("utf-8")))
+        return HTMLResponse(page.body, headers={**_PAGE_HEADERS, "Content-Security-Policy": csp})

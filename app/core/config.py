@@ -91,11 +91,28 @@ class Settings(BaseSettings):
         Send the session cookies with the ``Secure`` flag (HTTPS only);
         always on in production.
     login_rate_limit, login_rate_window_s : int, float
-        At most ``login_rate_limit`` login attempts per client address and per
-        user name within ``login_rate_window_s`` seconds (per API process).
+        At most ``login_rate_limit`` login attempts per (client address, user
+        name) within ``login_rate_window_s`` seconds (per API process); a
+        browser holding the user's device cookie counts per device instead.
+    login_address_rate_limit : int
+        At most this many login attempts per client address over all user
+        names within ``login_rate_window_s`` (per API process; not for
+        browsers holding the user's device cookie).
+    login_name_failure_limit, login_name_failure_window_s : int, float
+        Failed logins of one user name from all addresses within the window
+        (counted in the audit log: shared by all API processes) after which
+        the name's logins are refused, except from browsers that logged in as
+        that user before (device cookie). Brute force gets at most this many
+        guesses per window; the user keeps logging in from their browser.
     upload_rate_limit, upload_rate_window_s : int, float
         At most ``upload_rate_limit`` uploads per principal (API key or user)
         within ``upload_rate_window_s`` seconds (per API process).
+    profile_cache_bytes : int
+        Memory each API process keeps for encoded profile answers of published
+        jobs (immutable; LRU), bytes; 0 turns the cache off.
+    profile_concurrency : int
+        Profile answers each API process computes at once; further requests
+        wait their turn without holding up uploads, logins and other requests.
     max_reference_bytes : int
         Largest accepted reference data file (subsidence, maintenance,
         superstructure), bytes.
@@ -141,9 +158,14 @@ class Settings(BaseSettings):
     cookie_secure: bool = False
     login_rate_limit: int = Field(default=10, ge=1)
     login_rate_window_s: float = Field(default=60.0, gt=0)
+    login_address_rate_limit: int = Field(default=30, ge=1)
+    login_name_failure_limit: int = Field(default=50, ge=1)
+    login_name_failure_window_s: float = Field(default=3600.0, gt=0)
     upload_rate_limit: int = Field(default=60, ge=1)
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
     max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
+    profile_cache_bytes: int = Field(default=64 * 1024 * 1024, ge=0)
+    profile_concurrency: int = Field(default=2, ge=1, le=64)
     analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
     analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
     analytics_edge_trim_m: float = Field(default=50.0, ge=0)

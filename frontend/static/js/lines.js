@@ -72,7 +72,7 @@
   async function drawProfiles(doneRuns, wheel) {
     const el = document.getElementById("profiles-plot");
     profiles = await Promise.all(doneRuns.map(async (r) => {
-      try { return { run: r, rows: (await T.api.get(`/runs/${r.id}/profile`, { wheel, level: 10, max_points: 3000, columns: "sleeper_amp" })).rows }; }
+      try { return { run: r, rows: (await T.api.profile(`/runs/${r.id}/profile`, { wheel, level: 10, max_points: 3000, columns: "sleeper_amp" })).rows }; }
       catch (_) { return { run: r, rows: [] }; }
     }));
     profiles = profiles.filter((p) => p.rows.length);
