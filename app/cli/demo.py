@@ -101,17 +101,22 @@ def _stop(procs: list[subprocess.Popen]) -> None:
             p.wait()
 
 
+def _post_file(client, url: str, path: Path, content_type: str, params: dict | None = None) -> tuple[int, dict]:
+    """POST a file as the multipart field ``file``; (status, JSON body). Raises RuntimeError
+    naming the file for anything but 200/201."""
+    with open(path, "rb") as fh:
+        resp = client.post(url, params=params, files={"file": (path.name, fh, content_type)})
+    if resp.status_code not in (200, 201):
+        raise RuntimeError(f"{path.name}: {resp.status_code} {resp.text}")
+    return resp.status_code, resp.json()
+
+
 def _upload_runs(client, base: str, files: list[Path]) -> list[dict]:
     """Upload the run files (a file uploaded before answers 200 with its run); the runs."""
     runs = []
     for path in files:
-        with open(path, "rb") as fh:
-            resp = client.post(f"{base}/api/v1/runs",
-                               files={"file": (path.name, fh, "application/x-hdf5")})
-        if resp.status_code not in (200, 201):
-            raise RuntimeError(f"upload of {path.name} failed: {resp.status_code} {resp.text}")
-        run = resp.json()
-        state = "created" if resp.status_code == 201 else "already uploaded"
+        status, run = _post_file(client, f"{base}/api/v1/runs", path, "application/x-hdf5")
+        state = "created" if status == 201 else "already uploaded"
         echo(f"  run {run['id']} {state}: line {run['line_id']} track {run['track']}, "
              f"{run['vehicle_id']}, {str(run['start_time'])[:10]}")
         runs.append(run)
@@ -121,22 +126,14 @@ def _upload_runs(client, base: str, files: list[Path]) -> list[dict]:
 def _import_reference(client, base: str, files: dict[str, Path]) -> None:
     """Import the reference files, replacing what the demo imported before."""
     for kind, path in files.items():
-        with open(path, "rb") as fh:
-            resp = client.post(f"{base}/api/v1/reference/{kind}", params={"mode": "replace"},
-                               files={"file": (path.name, fh, "text/csv")})
-        if resp.status_code != 201:
-            raise RuntimeError(f"import of {path.name} failed: {resp.status_code} {resp.text}")
-        echo(f"  {kind}: {resp.json()['imported']} rows")
+        _, body = _post_file(client, f"{base}/api/v1/reference/{kind}", path, "text/csv", {"mode": "replace"})
+        echo(f"  {kind}: {body['imported']} rows")
 
 
 def _import_geometry(client, base: str, files: list[Path]) -> None:
     """Import the lines' geometry (a line imported again replaces its geometry)."""
     for path in files:
-        with open(path, "rb") as fh:
-            resp = client.post(f"{base}/api/v1/geometry",
-                               files={"file": (path.name, fh, "application/geo+json")})
-        if resp.status_code not in (200, 201):
-            raise RuntimeError(f"import of {path.name} failed: {resp.status_code} {resp.text}")
+        _post_file(client, f"{base}/api/v1/geometry", path, "application/geo+json")
         echo(f"  geometry: {path.name}")
 
 
