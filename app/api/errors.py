@@ -87,13 +87,23 @@ def _shown(value: Any) -> str:
 def validation_error(errors: Sequence[dict[str, Any]]) -> ApiError:
     """The 422 :class:`ApiError` of FastAPI's (pydantic's) list of validation errors.
 
-    The first error is reported: its location without the parameter kind
+    The first error names the field: its location without the parameter kind
     (``("query", "limit")`` → ``limit``, ``("body", "a", 0)`` → ``a.0``), its
-    message and, unless missing, the value given (cut short).
+    message and, unless missing, the value given (cut short). Further errors
+    (up to three) follow in the message as ``also <field>: <message>``, so that
+    a body with a misspelt key says both what is missing and what is unknown.
     """
     if not errors:
         return ApiError(422, "request", "invalid request")
-    err = errors[0]
+    field, message = _described(errors[0])
+    more = [": ".join(_described(err)) for err in errors[1:4]]
+    if more:
+        message = f"{message}; also {'; '.join(more)}"
+    return ApiError(422, field, message)
+
+
+def _described(err: dict[str, Any]) -> tuple[str, str]:
+    """(field, message) of one pydantic validation error."""
     loc = [str(p) for p in err.get("loc", ())]
     kind = err.get("type", "")
     if loc and loc[0] in _PARAMETER_KINDS:
@@ -101,17 +111,15 @@ def validation_error(errors: Sequence[dict[str, Any]]) -> ApiError:
     else:
         place, rest = "request", loc
     if kind == "json_invalid":
-        field = place
         reason = (err.get("ctx") or {}).get("error")
-        message = f"not valid JSON{f': {reason}' if reason else ''}"
-    else:
-        field = ".".join(rest) or place
-        message = str(err.get("msg", "invalid value")).removeprefix("Value error, ")
-        if kind == "missing":
-            message = "required"
-        elif "input" in err:
-            message = f"{message} (got {_shown(err['input'])})"
-    return ApiError(422, field, message)
+        return place, f"not valid JSON{f': {reason}' if reason else ''}"
+    field = ".".join(rest) or place
+    message = str(err.get("msg", "invalid value")).removeprefix("Value error, ")
+    if kind == "missing":
+        message = "required"
+    elif "input" in err:
+        message = f"{message} (got {_shown(err['input'])})"
+    return field, message
 
 
 async def _api_error_handler(request: Request, exc: Exception) -> JSONResponse:

@@ -8,11 +8,11 @@ docs' "Authorize" button and API clients know how to authenticate.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any
 
 import jinja2
-import swagger_ui_bundle
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse
@@ -22,10 +22,15 @@ from app.api.deps import API_KEY_HEADER, public, require_page_login, require_rol
 from app.api.errors import document_error_responses
 from app.api.headers import content_security_policy, inline_script_hashes
 
-__all__ = ["router", "safe_next", "install_protected_docs", "TEMPLATES_DIR", "SWAGGER_ASSETS"]
+__all__ = [
+    "router", "safe_next", "install_protected_docs", "swagger_ui_dir", "TEMPLATES_DIR",
+    "SWAGGER_ASSETS", "MIN_SWAGGER_UI_MAJOR",
+]
 
 #: URL prefix of the locally served Swagger UI assets (public static files)
 SWAGGER_ASSETS = "/docs-assets"
+#: Swagger UI renders OpenAPI 3.1 (what FastAPI serves) from major version 5 on
+MIN_SWAGGER_UI_MAJOR = 5
 
 TEMPLATES_DIR = Path(__file__).resolve().parents[2] / "frontend" / "templates"
 #: the security headers (CSP, framing, ...) come from app.api.headers.SecurityHeadersMiddleware
@@ -74,6 +79,37 @@ def _security_schemes(schema: dict[str, Any], public_paths: set[str]) -> dict[st
     return schema
 
 
+def swagger_ui_dir() -> Path:
+    """Directory of the newest Swagger UI (>= 5) shipped by the installed ``swagger-ui-bundle-v2``.
+
+    The package installs as ``swagger_ui_bundle/vendor/swagger-ui-<version>``; an older
+    ``swagger-ui-bundle`` (Swagger UI 4, which cannot render OpenAPI 3.1) left in the same
+    environment shares that directory, so the version is chosen here, not taken from the
+    package's ``__init__``.
+
+    Raises
+    ------
+    RuntimeError
+        No Swagger UI >= 5 is installed.
+    """
+    import swagger_ui_bundle
+
+    vendor = Path(swagger_ui_bundle.__file__).resolve().parent / "vendor"
+    found: list[tuple[tuple[int, ...], Path]] = []
+    for path in vendor.glob("swagger-ui-*"):
+        m = re.fullmatch(r"swagger-ui-(\d+)\.(\d+)\.(\d+)", path.name)
+        if m and path.is_dir() and (path / "swagger-ui-bundle.js").is_file():
+            found.append((tuple(int(g) for g in m.groups()), path))
+    usable = [item for item in found if item[0][0] >= MIN_SWAGGER_UI_MAJOR]
+    if not usable:
+        have = ", ".join(p.name for _, p in sorted(found)) or "none"
+        raise RuntimeError(
+            f"Swagger UI >= {MIN_SWAGGER_UI_MAJOR} not found in {vendor} (found: {have}); "
+            "install the package `swagger-ui-bundle-v2`"
+        )
+    return max(usable)[1]
+
+
 def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
     """Serve ``/openapi.json`` (viewer) and ``/docs`` (logged-in page) with access control.
 
@@ -95,7 +131,7 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
 
     # Swagger UI's assets from the installed swagger-ui-bundle package, not a CDN:
     # the docs page must work on a closed network like every other page
-    app.mount(SWAGGER_ASSETS, StaticFiles(directory=swagger_ui_bundle.swagger_ui_path), name="swagger-ui")
+    app.mount(SWAGGER_ASSETS, StaticFiles(directory=swagger_ui_dir()), name="swagger-ui")
 
     @app.get("/docs", include_in_schema=False, dependencies=[Depends(require_page_login("viewer"))])
     def docs(request: Request) -> HTMLResponse:

@@ -40,6 +40,8 @@ from app.api.audit import record, record_now
 from app.api.channel_maps import load_channel_map
 from app.api.deps import Principal
 from app.api.errors import ApiError
+from app.api.run_metadata import describe_differences, metadata_differences, run_fields
+from app.api.views import API_PREFIX
 from app.core.config import Settings
 from app.core.diskspace import DiskFullError, is_disk_full, require_free
 from app.core.jsonable import jsonable
@@ -393,45 +395,43 @@ def _one_of(name: str, form_value: str | None, query_value: str | None) -> str |
 
 
 def _run_row(summary: RunSummary, received: _Received, fmt: str | None, principal_name: str) -> Run:
-    md = summary.metadata
     return Run(
         sha256=received.sha256,
         file_path="",
         source_format=summary.source_format or fmt or "unknown",
         original_filename=received.filename,
         size_bytes=received.size,
-        vehicle_id=md.vehicle_id,
-        line_id=md.line_id,
-        track=md.track,
-        direction=md.direction,
-        start_time=md.start_time,
-        km_start=md.km_start,
-        km_increasing=md.km_increasing,
-        fs=float(summary.fs),
-        n_samples=int(summary.n_samples),
-        duration_s=float(summary.duration_s),
-        distance_m=_float_or_none(summary.distance_m),
-        speed_min=_float_or_none(summary.speed_min),
-        speed_max=_float_or_none(summary.speed_max),
-        channels=list(summary.channels),
-        meta=md.model_dump(mode="json"),
+        **run_fields(summary),
         ingest_report=jsonable({"warnings": list(summary.warnings), "report": dict(summary.report)}),
         created_by=principal_name,
         created_at=utcnow(),
     )
 
 
-def _float_or_none(value: Any) -> float | None:
-    if value is None:
-        return None
-    value = float(value)
-    return value if value == value and abs(value) != float("inf") else None
-
-
 def _existing_run_id(db: Database, sha256: str) -> int | None:
     with db.read() as session:
         run = crud.get_run_by_sha256(session, sha256)
         return run.id if run is not None else None
+
+
+def _check_same_metadata(db: Database, run_id: int, given: dict[str, Any] | None) -> None:
+    """The same file again: 409 when the given metadata differ from the run's (a correction
+    goes through ``PATCH /runs/{id}``; keeping either version silently would lose one)."""
+    if not given:
+        return
+    with db.read() as session:
+        run = crud.get_run(session, run_id)
+        stored = dict(run.meta or {}) if run is not None else None
+    if stored is None:
+        return
+    diffs = metadata_differences(stored, given)
+    if diffs:
+        raise ApiError(
+            409, "metadata",
+            f"this file was uploaded before as run {run_id} with other metadata "
+            f"({describe_differences(diffs)}); correct the run's metadata with "
+            f"PATCH {API_PREFIX}/runs/{run_id} (re-ingests and reprocesses the run)",
+        )
 
 
 def _create_run(
@@ -592,6 +592,7 @@ async def _receive_and_create(
 
         existing_id = await run_in_threadpool(_existing_run_id, db, received.sha256)
         if existing_id is not None:
+            await run_in_threadpool(_check_same_metadata, db, existing_id, metadata)
             return UploadOutcome(run_id=existing_id, created=False)
 
         map_id = _channel_map_id(_one_of("channel_map", received.fields.get("channel_map"), query_channel_map))
@@ -628,6 +629,7 @@ async def _receive_and_create(
             existing_id = await run_in_threadpool(_existing_run_id, db, received.sha256)
             if existing_id is None:
                 raise
+            await run_in_threadpool(_check_same_metadata, db, existing_id, metadata)
             return UploadOutcome(run_id=existing_id, created=False)
         log.info(
             "run %s created from %s (%d bytes, sha256 %s)", run_id, fmt, received.size, received.sha256

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Annotated, Any
@@ -11,6 +12,7 @@ from typing import Annotated, Any
 import typer
 
 from app.cli._common import echo
+from app.cli._warnings import engine_warnings
 
 __all__ = ["simulate", "process"]
 
@@ -201,7 +203,8 @@ def process(
             f"{summary.duration_s:.1f} s at {summary.fs:g} Hz, {summary.distance_m / 1000:.2f} km, "
             f"channels {', '.join(summary.channels)}"
         )
-    with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar:
+    with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar, \
+            engine_warnings(lambda line: tqdm.write(line, file=sys.stderr)) as seen:
 
         def progress(fraction: float) -> None:
             bar.update(max(0.0, 100 * fraction - bar.n))
@@ -223,6 +226,7 @@ def process(
         "source_file": str(run_file),
         "source_sha256": source_sha,
         "settings": settings.to_dict(),
+        "warnings": seen.as_list(),
     }
     (out / "meta.json").write_text(json.dumps(_jsonable(meta), indent=1))
     for text in meta.get("warnings") or ():

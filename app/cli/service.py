@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from app.cli._common import echo, refuse_unsafe_production
+from app.cli._common import echo, refuse_unsafe_production, require_migrated_database
 from app.core.config import get_settings
 from app.core.logging import configure_logging
 
@@ -42,6 +42,7 @@ def serve(
     """
     import uvicorn
 
+    require_migrated_database()
     refuse_unsafe_production()
     n = workers if workers is not None else default_api_workers()
     uvicorn.run(
@@ -63,6 +64,7 @@ def worker(
     from worker import modes
 
     settings = get_settings()
+    require_migrated_database()
     configure_logging(settings.log_level)
     code = modes.run(settings, local=local, once=once, exit_when_idle=exit_when_idle, processes=processes)
     if code:

@@ -92,6 +92,15 @@ class RunStore:
         """Path of the run file relative to the store root (stored in SQL)."""
         return f"{_check_id(run_id, 'run_id')}/{RUN_FILE_NAME}"
 
+    def revised_run_file(self, relative: str) -> str:
+        """Store-relative path of the next revision of a run file (its metadata corrected):
+        ``7/run.h5`` → ``7/run-r2.h5`` → ``7/run-r3.h5``. A new name, so no host keeps
+        using a cached copy of the previous revision."""
+        head, _, name = relative.rpartition("/")
+        stem = name.removesuffix(".h5")
+        revision = int(stem.rpartition("-r")[2]) if stem.startswith("run-r") else 1
+        return f"{head}/run-r{revision + 1}.h5"
+
     def resolve(self, relative: str) -> Path:
         """Absolute path of a store-relative path; refuses paths leaving the store."""
         path = (self.root / relative).resolve()
@@ -194,6 +203,11 @@ class RunStore:
         """Upload the run's canonical file to the shared store (nothing without one)."""
         if self.shared is not None:
             self.shared.put(self.run_file(run_id), self.relative_run_file(run_id))
+
+    def publish_file(self, relative: str) -> None:
+        """Upload a store-relative file to the shared store (nothing without one)."""
+        if self.shared is not None:
+            self.shared.put(self.resolve(relative), relative)
 
     def local_file(self, relative: str) -> Path:
         """Local path of a store-relative file, fetched from the shared store if missing here.

@@ -11,13 +11,16 @@ from typer.testing import CliRunner
 from app.cli import app
 from app.cli.service import default_api_workers
 from app.core.config import get_settings
+from app.db import migrate
 
 
 @pytest.fixture
 def started(monkeypatch, tmp_path):
     calls: list[dict] = []
     monkeypatch.setattr(uvicorn, "run", lambda *a, **kw: calls.append({"args": a, **kw}))
-    monkeypatch.setenv("TRACKVKF_DATABASE_URL", f"sqlite:///{tmp_path / 'db.sqlite'}")
+    url = f"sqlite:///{tmp_path / 'db.sqlite'}"
+    migrate.upgrade(url)  # serve refuses a database that does not exist
+    monkeypatch.setenv("TRACKVKF_DATABASE_URL", url)
     get_settings.cache_clear()
     yield calls
     get_settings.cache_clear()

@@ -8,8 +8,6 @@ import io
 import httpx
 import pytest
 
-from tests.dashboard.conftest import save_screenshot
-
 pytestmark = pytest.mark.timeout(300)
 
 
@@ -49,13 +47,13 @@ def test_page_loads_clean_with_data(open_page, dashboard, name):
     page, log = open_page(path)
     plots = _plots(page)
     if name == "correlations":
-        # no reference data on this server: subsidence and maintenance show how to import them;
-        # the simulated runs have force channels, so the unsprung-mass fit has data
+        # the demo's reference data of line SIM (the default line: most processed runs) fill
+        # every panel; the simulated runs have force channels, so the unsprung mass is fitted
         state = {p["id"]: p for p in plots}
         for plot_id in ("subsidence-plot", "maintenance-plot"):
-            assert state[plot_id]["state"] == "empty"
-            assert "/api/v1/reference/subsidence" in page.inner_text(f"#{plot_id}")
-        assert "No fit" in page.inner_text("#fit-table")
+            assert state[plot_id]["state"] == "ready" and state[plot_id]["points"] > 0
+        assert "Wheel 11" in page.inner_text("#fit-table") and "No fit" not in page.inner_text("#fit-table")
+        assert page.input_value("#line-track").startswith("SIM\u0001")
         mass = state["mass-plot"]
         assert mass["state"] == "ready" and mass["points"] > 0 and mass["modebarPng"] and mass["csvEnabled"]
         names = page.evaluate("document.getElementById('mass-plot').data.map(t => t.name)")
@@ -75,7 +73,6 @@ def test_page_loads_clean_with_data(open_page, dashboard, name):
         rows = page.locator("#runs-body tr[data-run]")
         assert rows.count() >= len(dashboard.run_ids)
         assert page.locator("#runs-body .badge.done").count() >= len(dashboard.run_ids)
-    save_screenshot(page, name)
     log.assert_clean()
     assert not log.foreign()
 
