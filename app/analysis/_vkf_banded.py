@@ -49,7 +49,7 @@ from scipy.linalg.lapack import zpbtrf, zpbtrs
 from scipy.special import comb
 from threadpoolctl import threadpool_limits
 
-from ._vkf_kernels import structural_residual
+from ._vkf_kernels import assemble_band, structural_residual
 
 __all__ = ["BandedSolution", "solve_orders"]
 
@@ -111,33 +111,19 @@ def _assemble(expo: np.ndarray, w: np.ndarray, q: int) -> np.ndarray:
         Squared weights r² of every row of S.
     q : int
         Difference order.
+
+    Notes
+    -----
+    ``Cᴴ C`` couples the orders within one sample, ``M[(k, n+d), (k, n)] =
+    conj(c_{n+d}) c_n``; ``(R S)ᵀ (R S)`` adds the lag-δ products of the
+    stencil, weighted by the rows that contain both samples. Filled in one
+    compiled pass (:func:`._vkf_kernels.assemble_band`), in Fortran order as
+    LAPACK wants it: ``zpbtrf`` then factorises in place instead of copying
+    the largest array of the solve.
     """
     s, n = expo.shape
-    kd = q * s
-    # Fortran order, as LAPACK wants it: zpbtrf then factorises in place
-    # instead of copying the largest array of the solve.
-    ab = np.zeros((n * s, kd + 1), dtype=np.complex128).T
-
-    def diagonal(d: int) -> np.ndarray:
-        view = ab[d].reshape(n, s)
-        assert np.shares_memory(view, ab)
-        return view
-
-    # Cᴴ C: within one sample, M[(k, n+d), (k, n)] = conj(c_{n+d}) c_n.
-    conj = expo.conj()
-    for d in range(s):
-        diagonal(d)[:, : s - d] = (conj[d:] * expo[: s - d]).T
-    # (R S)ᵀ (R S): lag-δ products of the stencil, weighted by the rows that
-    # contain both samples. Row i covers samples i-q..i; wpad[k + q - j2] is
-    # the weight of the row in which sample k sits at stencil position j2.
-    c = _stencil(q)
-    wpad = np.zeros((s, n + q))
-    wpad[:, q:n] = w
-    for lag in range(q + 1):
-        acc = np.zeros((s, n - lag))
-        for j2 in range(q - lag + 1):
-            acc += (c[j2 + lag] * c[j2]) * wpad[:, q - j2 : q - j2 + n - lag]
-        diagonal(lag * s)[: n - lag, :] += acc.T
+    ab = np.empty((n * s, q * s + 1), dtype=np.complex128).T
+    assemble_band(np.ascontiguousarray(expo), np.ascontiguousarray(w, dtype=np.float64), _stencil(q), ab)
     return ab
 
 

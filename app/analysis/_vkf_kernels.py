@@ -1,6 +1,7 @@
-"""Compiled (numba) kernel of the VKF refinement residual.
+"""Compiled (numba) kernels of the banded VKF solve: the band and the refinement residual.
 
-The refinement evaluates ``Cᴴ(y − C a − I a*) − Sᵀ(r² ⊙ S a)`` once per step;
+:func:`assemble_band` writes the normal matrix straight into LAPACK's band
+storage (NumPy needed a temporary per diagonal and lag). The refinement evaluates ``Cᴴ(y − C a − I a*) − Sᵀ(r² ⊙ S a)`` once per step;
 in NumPy that is a dozen passes over ``(s, N)`` complex temporaries
 (``np.diff``, its padded adjoint, ``einsum``), here one pass per channel with
 two length-N work arrays. (A compiled banded Cholesky and back-substitution
@@ -13,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["structural_residual"]
+__all__ = ["assemble_band", "structural_residual"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -73,3 +74,42 @@ def structural_residual(
                 for i in range(max(0, k - q), min(k, m - 1) + 1):
                     acc -= stencil[k - i] * d[i]
                 out[ch, o, k] = acc
+
+
+@numba.njit(cache=True, nogil=True)
+def assemble_band(expo: np.ndarray, w: np.ndarray, stencil: np.ndarray, ab: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Fill the lower band storage of ``Cᴴ C + (R S)ᵀ (R S)`` (time-major unknowns).
+
+    Parameters
+    ----------
+    expo : ndarray, complex, shape (s, N)
+        ``exp(jφ)`` (0 where a sample's data equation is left out).
+    w : ndarray, float, shape (s, N − q)
+        r² of every row of S.
+    stencil : ndarray, float, shape (q + 1,)
+    ab : ndarray, complex, shape (q·s + 1, N·s), Fortran order
+        Output, ``ab[d, k·s + n] = M[k·s + n + d, k·s + n]``; every entry is written.
+    """
+    s, n = expo.shape
+    q = stencil.shape[0] - 1
+    kd = ab.shape[0] - 1
+    for k in range(n):
+        for o in range(s):
+            u = k * s + o
+            for d in range(kd + 1):
+                ab[d, u] = 0.0
+            # Cᴴ C within sample k: M[(k, o+d), (k, o)] = conj(e_{o+d}) e_o
+            e = expo[o, k]
+            for d in range(s - o):
+                ab[d, u] = expo[o + d, k].conjugate() * e
+            # (R S)ᵀ (R S): row i of S covers samples i..i+q (weight w[o, i]); samples k and
+            # k + lag share the rows i = k − j for j = 0..q − lag (k at stencil position j)
+            for lag in range(q + 1):
+                if k + lag >= n:
+                    break
+                acc = 0.0
+                for j in range(q - lag + 1):
+                    i = k - j
+                    if 0 <= i < n - q:
+                        acc += stencil[j] * stencil[j + lag] * w[o, i]
+                ab[lag * s, u] += acc
