@@ -46,6 +46,7 @@ from ._vkf_baseband import (
     BasebandPlan,
     EnvelopeSpline,
     filter_gain,
+    guard_band,
     mixing_phase,
     plan_baseband,
     to_baseband,
@@ -71,6 +72,8 @@ _AUTO_CHUNK_S = 60.0
 _OVERLAP_TOL = 1e-8
 #: refinement that ends above this relative correction did not converge
 _CONVERGED = 1e-8
+#: grid on which the orders' guard band is evaluated, s
+_GUARD_GRID_S = 1e-3
 
 
 class VKFWarning(UserWarning):
@@ -184,6 +187,14 @@ def _image_carriers(
     return (fade * gain) * np.exp(-1j * (phi + mixing_phase(plan, index, fs)[None, :]))
 
 
+def _segment_guard_band(inp: VKFInput, lo: int, hi: int) -> tuple[float, float]:
+    """:func:`guard_band` of a segment, evaluated every ``_GUARD_GRID_S`` (the exact
+    frequency extremes are added by :func:`plan_baseband`; the guard itself is a margin)."""
+    step = max(int(inp.fs * _GUARD_GRID_S), 1)
+    grid = np.unique(np.append(np.arange(0, hi - lo, step), hi - lo - 1))
+    return guard_band(inp.at("freqs", lo, hi, grid), inp.at("bandwidth", lo, hi, grid))
+
+
 def _solve_segment(
     inp: VKFInput, seg: _Segment, cum_lo: np.ndarray, decimation: str | int, real_signal: bool = True
 ) -> set[tuple[int, int]]:
@@ -193,7 +204,7 @@ def _solve_segment(
     """
     lo, hi, fs, q = seg.lo, seg.hi, inp.fs, inp.q
     f_lo, f_hi, _, bw_max = extremes_over(inp, lo, hi)  # exact, not block-rounded
-    plan = plan_baseband(f_lo, f_hi, bw_max, fs, decimation)
+    plan = plan_baseband(f_lo, f_hi, bw_max, fs, decimation, _segment_guard_band(inp, lo, hi))
     y = inp.y_slice(lo, hi)
     if plan is None:
         factor = 1
@@ -482,7 +493,10 @@ def vkf_overlap(fs: float, f_min: float, f_max: float, bw_min: float, bw_max: fl
         raise ValueError(f"filter_order must be 1, 2 or 3, got {filter_order!r}")
     if not (0 < bw_min <= bw_max):
         raise ValueError(f"bandwidth range must satisfy 0 < bw_min <= bw_max, got {bw_min}, {bw_max}")
-    plan = plan_baseband(f_min, f_max, bw_max, fs, decimation)
+    # the narrowest pass band a solve over this range can get (every order guarded by
+    # at least bw_min): the longest anti-alias filter, an upper bound of the delay
+    narrowest = guard_band(np.array([[f_min], [f_max]]), np.full((2, 1), bw_min))
+    plan = plan_baseband(f_min, f_max, bw_max, fs, decimation, narrowest)
     factor = 1 if plan is None else plan.factor
     delay = 0 if plan is None else plan.delay
     return impulse_length(bw_min, fs / factor, filter_order, tol) * factor + delay + factor
