@@ -123,7 +123,8 @@ def demo(
     admin_password, upload_key, upload_key_id = _demo_credentials(settings)
 
     demo_dir = Path(settings.run_store).resolve().parent / "demo"
-    run_file = demo_dir / f"demo-run-{length_km:g}km-{fs:g}Hz.h5"
+    # the amplitude follows the resonance model (app.simulate.amplitude): not a power law in speed
+    run_file = demo_dir / f"demo-run-{length_km:g}km-{fs:g}Hz-resonance.h5"
     if not run_file.is_file():
         echo(f"simulating a {length_km:g} km demo run at {fs:g} Hz ...")
         from app.simulate.run import simulate_run

@@ -24,13 +24,20 @@ def simulate(
     reference: Annotated[bool, typer.Option(
         help="Also write matching subsidence, maintenance and superstructure CSV files "
         "(OUT stem + '-reference/')")] = False,
+    amplitude_model: Annotated[str, typer.Option(
+        help="Speed response of the sleeper-passage amplitude: 'resonance' (a wheel on a discretely "
+        "supported rail) or 'power_law' ((v / 100 km/h) ** 1.5)")] = "resonance",
 ) -> None:
     """Write a synthetic run in the canonical format with its ground truth beside it."""
     from app.simulate.run import simulate_run
 
     out.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces)
+    if amplitude_model not in ("resonance", "power_law"):
+        typer.echo(f"error: --amplitude-model must be resonance or power_law, got {amplitude_model!r}", err=True)
+        raise typer.Exit(2)
+    truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces,
+                         amplitude_model=amplitude_model)
     echo(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
     truth_path = getattr(truth, "path", None)
     if truth_path:

@@ -2,7 +2,8 @@
 
 Runs (1.5 km at 2 kHz, constant speed, processed by the real pipeline):
 A at 100 km/h (= v_ref of the simulator), B at 100 km/h with a known odometry
-error of +13.4 m, C at 140 km/h.
+error of +13.4 m, C at 140 km/h. The amplitude follows the simulator's power-law
+option ``(v / v_ref) ** 1.5``, whose exponent the speed-normalisation tests recover.
 """
 
 from __future__ import annotations
@@ -53,7 +54,8 @@ def sim_set(tmp_path_factory) -> SimSet:
         path = root / f"run-{name}.h5"
         truth = simulate_run(path, length_km=1.5, fs=2000.0, seed=seed, line=line, noise_std=1.0,
                              speed_profile=SpeedProfile.constant(speed / 3.6), km_error_m=err,
-                             start_time=start, line_id=LINE_ID, track=TRACK)
+                             start_time=start, line_id=LINE_ID, track=TRACK,
+                             amplitude_model="power_law")  # the analytics of the power-law option
         results = run_pipeline(path, ProcessingSettings(), root / f"work-{name}")
         runs[name] = SimRun(name, path, truth, results, speed)
     return SimSet(line, reference, runs)
