@@ -49,6 +49,7 @@ from worker.steps import (
     load_job,
     mark_chunk_done,
     record_plan,
+    refresh_line_reference,
     remove_files_if_deleted,
 )
 
@@ -272,6 +273,7 @@ class LocalWorker:
                 self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id
             )
             if stored:
+                refresh_line_reference(rt, record.run)
                 return JobOutcome(job_id, JobStatus.DONE)
             lease.beat()
             if lease.cancel_requested and not lease.lost:

@@ -90,6 +90,7 @@ from worker.steps import (
     load_job,
     mark_chunk_done,
     record_plan,
+    refresh_line_reference,
     remove_files_if_deleted,
 )
 
@@ -414,6 +415,8 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None)
     log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
              time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
+    if stored:
+        refresh_line_reference(rt, record.run)
     return "published" if stored else "not running any more"
 
 

@@ -14,6 +14,7 @@ from fastapi import APIRouter, Depends
 
 from app.api import (
     analytics,
+    analytics_index,
     audit,
     auth,
     health,
@@ -37,7 +38,7 @@ def build_api_router() -> APIRouter:
     api.include_router(health.router, dependencies=[Depends(public)])
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
-    for module in (runs, jobs, profiles, wheels, spectrogram, reference, analytics, auth, audit):
+    for module in (runs, jobs, profiles, wheels, spectrogram, reference, analytics, analytics_index, auth, audit):
         protected.include_router(module.router)
     api.include_router(protected)
     return api

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 import pandas as pd
@@ -19,6 +19,7 @@ from fastapi import APIRouter, Depends, Query
 from app.analysis.stiffness.alignment import align_runs, segment_table
 from app.analysis.stiffness.maintenance import count_actions, maintenance_correlation
 from app.analysis.stiffness.regression import decimate_indices
+from app.analysis.stiffness.speed_norm import MAX_POWER_LAW_MISFIT
 from app.analysis.stiffness.subsidence import (
     LOG_BASE,
     bin_means,
@@ -28,6 +29,7 @@ from app.analysis.stiffness.subsidence import (
 from app.analysis.stiffness.superstructure import flag_segments, type_distributions
 from app.analysis.stiffness.unsprung_mass import fit_unsprung_mass
 from app.api import analytics_data as data
+from app.api.analytics_index import curve_misfits, index_context
 from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.profiles import run_with_results
@@ -45,6 +47,7 @@ from app.api.schemas.analytics import (
     UnsprungMassOut,
 )
 from app.db import crud
+from app.db import reference_curves as curves_db
 from app.db.session import Database
 
 __all__ = ["router"]
@@ -261,27 +264,37 @@ def _norm_context(db, settings, sel, df, ref_speed, min_speed):
 def superstructure(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                    segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0,
                    z_threshold: Annotated[float, Query(gt=0, le=100)] = 3.5,
-                   normalise: Annotated[bool, Query(description="use the speed-normalised amplitude")] = True,
+                   normalise: Annotated[bool, Query(description="use the amplitude conditioned to "
+                                                    "reference_speed_kmh (see conditioning)")] = True,
+                   conditioning: Annotated[Literal["index", "power_law"], Query(
+                       description="index: A_ref(type, v_ref) · exp(stiffness index) by the reference curves; "
+                       "power_law: A · (v_ref / v) ** exponent (explicit option)")] = "index",
                    reference_speed_kmh: RefSpeedQ = None, min_speed_kmh: MinSpeedQ = None) -> dict:
     """Distribution of the amplitude per type (the paper's clusters); segments of
     ``segment_m`` whose median departs from their type by more than ``z_threshold``
-    robust standard deviations are flagged for inspection."""
+    robust standard deviations are flagged for inspection. With ``normalise`` the amplitude
+    is first conditioned to the reference speed (``conditioning``); types whose reference
+    curve does not reach ``reference_speed_kmh`` then have no rows."""
     sel = runs.select(db)
     ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
     df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=_wheel(runs.wheel),
                             min_speed_kmh=min_v)
     sections = data.reference(db, "superstructure", sel)
-    out = {"normalised": False, "reference_speed_kmh": ref_v, "run_ids": sel.run_ids,
+    out = {"normalised": False, "conditioning": None, "reference_speed_kmh": ref_v, "run_ids": sel.run_ids,
            "types": [], "segments": [], "flagged": []}
     if sections.empty or df.empty:
         return out
     amp = df["sleeper_amp"].to_numpy()
     if normalise:
-        fits = data.speed_exponents(df, sections, sel.bin_length, ref_v, min_v)
-        namp, _ = data.normalised(df, sections, fits, sel.bin_length, ref_v, min_v)
+        if conditioning == "power_law":
+            fits = data.speed_exponents(df, sections, sel.bin_length, ref_v, min_v)
+            namp, _ = data.normalised(df, sections, fits, sel.bin_length, ref_v, min_v)
+        else:
+            ctx = index_context(db, settings, sel.line_id, sel.track, sel.bin_length)
+            namp = ctx.at_reference_speed(df, ref_v / 3.6)
         if np.isfinite(namp).any():
-            amp, out["normalised"] = namp, True
+            amp, out["normalised"], out["conditioning"] = namp, True, conditioning
     df = df.assign(value=amp)
     df = df[np.isfinite(df["value"].to_numpy())]
     pb = df.groupby("bin", sort=True)["value"].mean()
@@ -305,16 +318,26 @@ def speed_normalisation(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                         reference_speed_kmh: RefSpeedQ = None,
                         min_speed_kmh: MinSpeedQ = None) -> dict:
     """ln A = exponent · ln(v / v_ref) + c per type ('*' = all bins, '' = outside any
-    section), estimated within bins passed at several speeds where possible."""
+    section), estimated within bins passed at several speeds where possible. An explicit
+    option (the default speed conditioning is the stiffness index): every exponent comes with
+    ``stable`` and the reasons it should not be trusted."""
     sel = runs.select(db)
     ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
     df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=_wheel(runs.wheel),
                             min_speed_kmh=min_v)
     _, fits = _norm_context(db, settings, sel, df, ref_v, min_v)
-    types = [{"type": t, "exponent": data.num(f.exponent), "exponent_ci": data.nums(f.exponent_ci),
-              "method": f.method, "n_samples": f.n_samples, "amplitude_at_ref": data.num(f.amplitude_at_ref)}
-             for t, f in fits.items()]
+    stored = curves_db.current_reference(db, sel.line_id, sel.track, curves_db.CurveParams.from_settings(settings)) \
+        if sel.line_id is not None and fits else None
+    misfit = curve_misfits(stored, {t: f.exponent for t, f in fits.items() if t != "*"})
+    types = []
+    for t, f in fits.items():
+        if misfit.get(t, 0.0) > MAX_POWER_LAW_MISFIT:
+            f = f.with_reason("not_power_law")
+        types.append({"type": t, "exponent": data.num(f.exponent), "exponent_ci": data.nums(f.exponent_ci),
+                      "method": f.method, "n_samples": f.n_samples, "amplitude_at_ref": data.num(f.amplitude_at_ref),
+                      "stable": f.stable, "unstable_reasons": list(f.unstable_reasons),
+                      "log_speed_std": data.num(f.log_speed_std), "power_law_misfit": data.num(misfit.get(t))})
     return {"reference_speed_kmh": ref_v, "min_speed_kmh": min_v, "run_ids": sel.run_ids, "types": types}
 
 

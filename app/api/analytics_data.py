@@ -10,14 +10,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import func, select
 
 from app.analysis.stiffness.speed_norm import SpeedFit, fit_speed_exponent, normalise_amplitude
 from app.analysis.stiffness.superstructure import assign_sections
 from app.api.errors import ApiError
 from app.core.config import Settings
-from app.db import crud, reference_crud, results_reader
-from app.db.models import Job, JobStatus, ProfileBin, Run
+from app.db import crud, line_profiles, reference_crud, results_reader
+from app.db.models import Run
 from app.db.session import Database
 
 __all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
@@ -89,11 +88,7 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
         else:
             if line_id is None:
                 raise ApiError(422, "line_id", "is required unless run_ids are given")
-            with_results = select(Job.run_id).where(Job.status == JobStatus.DONE)
-            stmt = select(Run).where(Run.line_id == line_id, Run.id.in_(with_results))
-            if track is not None:
-                stmt = stmt.where(Run.track == track)
-            runs = list(session.scalars(stmt).all())
+            runs = line_profiles.runs_with_results(session, line_id, track)
             tracks = {r.track for r in runs}
             if track is None and len(tracks) > 1:
                 raise ApiError(422, "track", f"line {line_id!r} has runs on tracks {sorted(map(str, tracks))}: choose one")
@@ -113,41 +108,14 @@ def load_profiles(
     km_to: float | None = None, wheel: str | None = None, min_speed_kmh: float | None = None,
 ) -> pd.DataFrame:
     """Profile rows of the selected runs (columns ``_COLS``), without the run ends
-    (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude."""
-    min_v = (settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh) / 3.6
-    trim = settings.analytics_edge_trim_m
-    frames = []
+    (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude
+    (:func:`app.db.line_profiles.analytics_frame`)."""
+    min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
     with db.read() as session:
-        for run in sel.runs:
-            job_id = results_reader.results_job_id(session, run.id)
-            if job_id is None:
-                continue
-            ext = session.execute(
-                select(ProfileBin.wheel, func.min(ProfileBin.bin), func.max(ProfileBin.bin))
-                .where(ProfileBin.job_id == job_id).group_by(ProfileBin.wheel)
-            ).all()
-            df = _rows(session, job_id, wheel, km_from, km_to)
-            if df.empty:
-                continue
-            lo = df["wheel"].map({w: b0 for w, b0, _ in ext})
-            hi = df["wheel"].map({w: b1 for w, _, b1 in ext})
-            k = trim / sel.bin_length
-            keep = (df["bin"] >= lo + k) & (df["bin"] <= hi - k)
-            keep &= (df["speed_mean"] >= min_v) & (df["sleeper_amp"] > 0)
-            df = df[keep]
-            df.insert(0, "run_id", run.id)
-            frames.append(df[_COLS])
-    if not frames:
-        return pd.DataFrame({c: pd.Series(dtype=object if c == "wheel" else float) for c in _COLS})
-    return pd.concat(frames, ignore_index=True)
-
-
-def _rows(session, job_id: int, wheel: str | None, km_from: float | None, km_to: float | None) -> pd.DataFrame:
-    """The analytics' columns of a job's profile rows (ordered by wheel and bin)."""
-    return results_reader.job_profile_frame(
-        session, job_id, wheel=wheel, km_from=km_from, km_to=km_to,
-        columns=["speed_mean", "sleeper_amp", "sleeper_force_amp"],
-    )
+        return line_profiles.analytics_frame(
+            session, sel.runs, bin_length_m=sel.bin_length, min_speed_kmh=min_v,
+            edge_trim_m=settings.analytics_edge_trim_m, km_from=km_from, km_to=km_to, wheel=wheel,
+        )[_COLS]
 
 
 def reference(db: Database, kind: str, sel: Selection, **kw) -> pd.DataFrame:

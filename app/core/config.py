@@ -106,6 +106,13 @@ class Settings(BaseSettings):
     analytics_edge_trim_m : float
         The first and last metres of every run's profile left out of the
         analytics (filter end transients).
+    analytics_speed_tolerance : float
+        Matched-speed rule of the stiffness index: the reference amplitude at
+        speed v is estimated from passes within ±this fraction of v (0.1 =
+        ±10 %), and exists only where such passes are.
+    analytics_section_margin_m : float
+        Bins within this distance of a change of superstructure type get no
+        stiffness index and do not enter the reference curves, m.
     """
 
     model_config = SettingsConfigDict(
@@ -141,6 +148,8 @@ class Settings(BaseSettings):
     analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
     analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
     analytics_edge_trim_m: float = Field(default=50.0, ge=0)
+    analytics_speed_tolerance: float = Field(default=0.1, gt=0, le=1)
+    analytics_section_margin_m: float = Field(default=50.0, ge=0)
 
     @field_validator("anonymous_role")
     @classmethod

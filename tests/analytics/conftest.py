@@ -59,3 +59,23 @@ def sim_set(tmp_path_factory) -> SimSet:
         results = run_pipeline(path, ProcessingSettings(), root / f"work-{name}")
         runs[name] = SimRun(name, path, truth, results, speed)
     return SimSet(line, reference, runs)
+
+
+@pytest.fixture(scope="module")
+def api(sim_set, tmp_path_factory):
+    """(client, {name: run_id}) with runs A, B, C stored and the reference data imported."""
+    from fastapi.testclient import TestClient
+
+    from app.db import migrate
+    from app.main import create_app
+    from tests.analytics.support import import_reference, store_run
+    from tests.api.support import auth_headers, create_api_key, make_settings
+
+    settings = make_settings(tmp_path_factory.mktemp("analytics-api"))
+    migrate.upgrade(settings.database_url)
+    headers = auth_headers(create_api_key(settings.database_url))
+    with TestClient(create_app(settings), headers=headers) as client:
+        client.settings = settings  # type: ignore[attr-defined]
+        ids = {name: store_run(client, run) for name, run in sim_set.runs.items()}
+        import_reference(client, sim_set.reference.files)
+        yield client, ids

@@ -13,7 +13,7 @@ from app.db.session import make_engine
 TABLES = {
     "runs", "jobs", "job_chunks", "profile_bins", "wheel_oor",
     "users", "sessions", "api_keys", "audit_log",
-    "ref_subsidence", "ref_maintenance", "ref_superstructure",
+    "ref_subsidence", "ref_maintenance", "ref_superstructure", "reference_curves",
 }
 
 
