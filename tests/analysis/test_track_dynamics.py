@@ -69,3 +69,32 @@ def test_argument_checks() -> None:
         sleeper_passage_amplitude(_p(80), np.array([10.0]), harmonic=4)
     with pytest.raises(ValueError, match="ballast_stiffness"):
         TrackParameters(ballast_stiffness=-1.0)
+
+
+#: Physics sweep at 80 MN/m (cases.csv): speed m/s, lock-in amplitude m/s².
+PHYSICS_K80 = [(15, 0.2555), (20, 0.5247), (25, 1.0334), (27.5, 1.4389), (30, 2.2188), (35, 5.6871),
+               (40, 4.4730), (42.5, 3.1204), (45, 2.3427), (50, 1.5111), (55, 1.2530), (60, 1.5394)]
+
+
+def test_support_stiffness_from_passes_at_several_speeds() -> None:
+    from app.analysis.stiffness.support_stiffness import (
+        estimate_support_stiffness,
+        model_log_amplitudes,
+    )
+
+    v = np.array([s for s, _ in PHYSICS_K80])
+    a = np.array([x for _, x in PHYSICS_K80])
+    est = estimate_support_stiffness(v, a)  # the shape against speed only
+    assert 70 < est.k_mnm < 90 and est.k_interval_mnm[0] <= est.k_mnm <= est.k_interval_mnm[1]
+    assert not est.at_grid_edge and est.rms_log_residual < 0.15
+    # own model, 5 % noise, three passes: the right stiffness within its interval
+    rng = np.random.default_rng(1)
+    p = _p(150)
+    speeds = np.array([22.0, 33.0, 45.0])
+    amp = sleeper_passage_amplitude(p, speeds) * 2.0 * np.exp(0.05 * rng.standard_normal(3))
+    k_grid = np.geomspace(20, 600, 61)
+    est = estimate_support_stiffness(speeds, amp, k_grid_mnm=k_grid,
+                                     model=model_log_amplitudes(TrackParameters(), speeds, k_grid))
+    assert est.k_interval_mnm[0] <= 150 <= est.k_interval_mnm[1] and abs(est.log_scale - np.log(2)) < 0.2
+    with pytest.raises(ValueError, match="at least 3"):
+        estimate_support_stiffness(speeds[:2], amp[:2])

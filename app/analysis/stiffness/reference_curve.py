@@ -8,8 +8,9 @@ speed, with no speed law assumed:
 * the 25 cm rows are reduced to **blocks** (default 10 m) per run and wheel
   (median ``ln A``, median speed): :func:`block_samples`;
 * the model is additive in logs, ``ln A = g_class(ln v) + m(location) + e``,
-  a location being a block of one rail. ``g`` is a robust local-linear
-  regression in ``ln v`` (tricube kernel of half-width ``h = ln(1 + tol)``,
+  a location being a block of one rail. ``g`` is a robust local regression
+  in ``ln v`` on the medians of fine bins of ``ln v`` (``h / 10`` wide; tricube
+  kernel of half-width ``h = ln(1 + tol)``,
   bisquare robustness weights: LOWESS, local quadratic so that resonance
   peaks are not flattened) and ``m`` the median over the
   location's passes; the two are estimated by backfitting. Where locations were
@@ -75,6 +76,8 @@ _MAX_BACKFIT = 60
 #: linear and for a local quadratic term (fewer distinct speeds: a lower degree).
 _MIN_LINEAR_SPREAD = 0.05
 _MIN_QUADRATIC_SPREAD = 0.25
+#: Fine bins of ln v per window half-width h (the local fit works on their medians).
+_FINE_BINS_PER_H = 10
 #: Backfitting stops when the curve moves less than this (ln units).
 _BACKFIT_TOL = 5e-4
 #: Backfitting iterations of a bootstrap replicate (it starts from the fit).
@@ -190,15 +193,19 @@ def block_samples(
     block = np.floor(x / block_m).astype(np.int64)
     run_u, run_i = np.unique(run_a, return_inverse=True)
     wheel_u, wheel_i = np.unique(wheel_a.astype(str), return_inverse=True)
-    key = np.stack([run_i.ravel(), wheel_i.ravel(), block], axis=1)
-    if key.shape[0] == 0:
+    if block.size == 0:
         empty = np.zeros(0)
         obj = np.zeros(0, dtype=object)
         return BlockSamples(empty, empty, np.zeros(0, np.int64), np.zeros(0, run_u.dtype), obj, obj,
                             np.zeros(0, np.int64), obj)
-    uniq, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    # one int64 key per (run, wheel, block): a 1-D unique is much faster than rows of a 2-D one
+    b0 = block - block.min()
+    nb, nw = int(b0.max()) + 1, wheel_u.size
+    flat, inv, counts = np.unique((run_i.ravel() * nw + wheel_i.ravel()) * nb + b0, return_inverse=True,
+                                  return_counts=True)
     inv = inv.ravel()
-    n = uniq.shape[0]
+    n = flat.size
+    uniq = np.stack([flat // (nw * nb), (flat // nb) % nw, flat % nb + block.min()], axis=1)
     la = _group_median(np.log(a), inv, n)
     lv = _group_median(np.log(v), inv, n)
     first = np.full(n, -1)
@@ -209,8 +216,8 @@ def block_samples(
     block_cls = cls_u[np.argmax(votes, axis=1)].astype(object)
     keep = counts >= min_fill * block_m / bin_length_m
     rail_b = rail_a[first].astype(str).astype(object)
-    loc_key = np.stack([np.unique(rail_b, return_inverse=True)[1].ravel(), uniq[:, 2]], axis=1)
-    _, loc = np.unique(loc_key, axis=0, return_inverse=True)
+    _, loc = np.unique(np.unique(rail_b, return_inverse=True)[1].ravel() * nb + (uniq[:, 2] - block.min()),
+                       return_inverse=True)
     s = BlockSamples(la, lv, loc.ravel().astype(np.int64), run_u[uniq[:, 0]],
                      wheel_u[uniq[:, 1]].astype(object), block_cls, uniq[:, 2], rail_b)
     return s.take(keep)
@@ -224,43 +231,51 @@ def _local_fit(u: np.ndarray, r: np.ndarray, nodes: np.ndarray, h: float, min_su
                robust_iter: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """Robust local-quadratic fit (LOWESS) of ``r`` on ``u`` at ``nodes``; NaN where support is short.
 
-    Windows whose speeds hardly vary (a plateau) get a local-linear or constant fit.
-
-    A node needs ``min_support`` samples within ``±h`` and one within ``±h/2``
-    (the fit never reaches further than ``h/2`` beyond the data, e.g. above the
-    highest speed of a class). All nodes at once: the
-    samples within ``±h`` of each node are gathered into a padded
-    (nodes × window) matrix. Returns the fit and the support per node.
+    The samples are first reduced to the medians of fine bins of ``u``
+    (``h / 10`` wide) weighted by their counts, so the cost hardly grows with
+    the number of samples; windows whose speeds hardly vary (a plateau) get a
+    local-linear or constant fit. A node needs ``min_support`` samples within
+    ``±h`` and one within ``±h/2`` (the fit never reaches further than ``h/2``
+    beyond the data, e.g. above the highest speed of a class). Returns the fit
+    and the support (samples within ``±h``) per node.
     """
-    order = np.argsort(u, kind="stable")
-    us, rs = u[order], r[order]
-    lo = np.searchsorted(us, nodes - h, side="left")
-    mid = np.searchsorted(us, nodes, side="left")
-    hi = np.searchsorted(us, nodes + h, side="right")
-    support = hi - lo
     fit = np.full(nodes.size, np.nan)
-    below = np.abs(nodes - us[np.clip(mid - 1, 0, us.size - 1)])
-    above = np.abs(us[np.clip(mid, 0, us.size - 1)] - nodes)
+    keep = np.isfinite(u) & np.isfinite(r)
+    u, r = u[keep], r[keep]
+    if u.size == 0:
+        return fit, np.zeros(nodes.size, dtype=np.int64)
+    fine = np.floor(u / (h / _FINE_BINS_PER_H)).astype(np.int64)
+    fb, fi, fc = np.unique(fine, return_inverse=True, return_counts=True)
+    fi = fi.ravel()
+    ub = np.bincount(fi, weights=u) / fc  # fine bins in ascending u
+    rb = _group_median(r, fi, fb.size)
+    cum = np.r_[0, np.cumsum(fc)]
+    lo = np.searchsorted(ub, nodes - h, side="left")
+    mid = np.searchsorted(ub, nodes, side="left")
+    hi = np.searchsorted(ub, nodes + h, side="right")
+    support = cum[hi] - cum[lo]
+    below = np.abs(nodes - ub[np.clip(mid - 1, 0, ub.size - 1)])
+    above = np.abs(ub[np.clip(mid, 0, ub.size - 1)] - nodes)
     near = np.minimum(below, above) <= h / 2
     live = np.flatnonzero((support >= min_support) & near)
     if live.size == 0:
         return fit, support
-    width = int(support[live].max())
+    width = int((hi[live] - lo[live]).max())
     idx = lo[live, None] + np.arange(width)[None, :]
     inside = idx < hi[live, None]
-    idx = np.minimum(idx, us.size - 1)
-    du = np.where(inside, (us[idx] - nodes[live, None]) / h, 0.0)
-    yy = np.where(inside, rs[idx], 0.0)
-    w0 = np.where(inside, _tricube(du), 0.0)
+    idx = np.minimum(idx, ub.size - 1)
+    du = np.where(inside, (ub[idx] - nodes[live, None]) / h, 0.0)
+    yy = np.where(inside, rb[idx], 0.0)
+    w0 = np.where(inside, _tricube(du) * fc[idx], 0.0)
     # the degree the window's speeds can carry: quadratic, linear, or a weighted mean
-    sw0 = w0.sum(axis=1)
+    sw0 = np.maximum(w0.sum(axis=1), 1e-300)
     spread = np.sqrt((w0 * (du - ((w0 * du).sum(axis=1) / sw0)[:, None]) ** 2).sum(axis=1) / sw0)
     use_lin = (spread >= _MIN_LINEAR_SPREAD)[:, None]
     use_quad = (spread >= _MIN_QUADRATIC_SPREAD)[:, None]
     basis = np.stack([np.ones_like(du), du * use_lin, du * du * use_quad], axis=-1)  # (nodes, window, 3)
     w = w0
+    n_in = (hi - lo)[live]
     rows = np.arange(live.size)
-    n_in = support[live]
     coef = np.zeros((live.size, 3))
     for it in range(robust_iter + 1):
         xtwx = np.einsum("nwi,nw,nwj->nij", basis, w, basis)
@@ -272,9 +287,9 @@ def _local_fit(u: np.ndarray, r: np.ndarray, nodes: np.ndarray, h: float, min_su
             break
         res = yy - np.einsum("nwi,ni->nw", basis, coef)
         srt = np.sort(np.where(inside, np.abs(res), np.inf), axis=1)
-        s = 0.5 * (srt[rows, (n_in - 1) // 2] + srt[rows, n_in // 2])
-        s = np.where(s > 0, s, np.inf)
-        w = w0 * np.clip(1.0 - (res / (6.0 * s[:, None])) ** 2, 0.0, None) ** 2
+        scale = 0.5 * (srt[rows, (n_in - 1) // 2] + srt[rows, n_in // 2])
+        scale = np.where(scale > 0, scale, np.inf)
+        w = w0 * np.clip(1.0 - (res / (6.0 * scale[:, None])) ** 2, 0.0, None) ** 2
     fit[live] = coef[:, 0]
     return fit, support
 
@@ -640,7 +655,9 @@ def fit_reference_curve(
     lo = np.searchsorted(us, nodes - h, side="left")
     hi = np.searchsorted(us, nodes + h, side="right")
     support = (hi - lo).astype(np.int64)
-    support_runs = np.array([np.unique(runs_sorted[a:b]).size for a, b in zip(lo, hi, strict=True)], dtype=np.int64)
+    run_ids = np.unique(runs_sorted, return_inverse=True)[1].ravel()
+    support_runs = np.array([np.count_nonzero(np.bincount(run_ids[a:b])) for a, b in zip(lo, hi, strict=True)],
+                            dtype=np.int64)
     se = np.full(nodes.size, np.nan)
     low = np.full(nodes.size, np.nan)
     high = np.full(nodes.size, np.nan)
@@ -684,6 +701,13 @@ def fit_reference_curve(
     )
 
 
+def _codes(values: np.ndarray) -> np.ndarray:
+    """Integer codes of labels (numbers as they are; anything else by its text)."""
+    if values.dtype.kind in "iub":
+        return values.astype(np.int64)
+    return np.unique(values.astype(str), return_inverse=True)[1].ravel()
+
+
 def bin_repeatability(
     log_amp: np.ndarray, log_speed: np.ndarray, rail: np.ndarray, bin_index: np.ndarray, pass_id: np.ndarray,
     *, speed_tolerance: float = 0.1,
@@ -700,9 +724,9 @@ def bin_repeatability(
         raise ValueError("log_amp, log_speed, rail, bin_index, pass_id: must have equal shapes")
     ok = np.isfinite(y) & np.isfinite(u)
     y, u = y[ok], u[ok]
-    r = np.unique(np.asarray(rail)[ok].astype(str), return_inverse=True)[1].ravel()
+    r = _codes(np.asarray(rail)[ok])
     b = np.asarray(bin_index)[ok].astype(np.int64)
-    p = np.unique(np.asarray(pass_id)[ok].astype(str), return_inverse=True)[1].ravel()
+    p = _codes(np.asarray(pass_id)[ok])
     order = np.lexsort((p, b, r))
     r, b, p, y, u = r[order], b[order], p[order], y[order], u[order]
     same = (r[1:] == r[:-1]) & (b[1:] == b[:-1]) & (p[1:] != p[:-1])
@@ -823,8 +847,11 @@ def fit_reference_from_rows(
                             bin_length_m=bin_length_m)
     with np.errstate(invalid="ignore", divide="ignore"):
         la, lv = np.log(a), np.log(v)
-    passes = np.char.add(np.char.add(np.asarray(run).astype(str), ":"), np.asarray(wheel).astype(str))
-    rep = bin_repeatability(la, lv, rail, np.floor(np.asarray(position_m) / bin_length_m), passes,
+    run_code = np.unique(np.asarray(run), return_inverse=True)[1].ravel()
+    wheel_u, wheel_code = np.unique(np.asarray(wheel).astype(str), return_inverse=True)
+    passes = run_code * wheel_u.size + wheel_code.ravel()
+    rail_code = np.unique(np.asarray(rail).astype(str), return_inverse=True)[1].ravel()
+    rep = bin_repeatability(la, lv, rail_code, np.floor(np.asarray(position_m) / bin_length_m), passes,
                             speed_tolerance=speed_tolerance)
     out = fit_reference_set(samples, speed_tolerance=speed_tolerance, min_support=min_support,
                             confidence=confidence, n_boot=n_boot, repeatability=rep, seed=seed)
