@@ -413,12 +413,21 @@ def run_alignment(run_id: RunId, db: DbDep, settings: SettingsDep,
             "overlap_m": al.overlap_m, "lags_m": al.lags_m.tolist(), "correlation": data.nums(al.correlation)}
 
 
-def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_shift_m):
+ValueQ = Annotated[Literal["amplitude", "index"], Query(
+    description="amplitude: mean sleeper-passage amplitude (m/s²); index: mean stiffness index (ln units)")]
+
+
+def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_shift_m, value="amplitude"):
     df = data.load_profiles(db, settings, sel, km_from=km_from, km_to=km_to, wheel=wheel)
-    runs, shifts, info = [], [], []
+    column = "sleeper_amp"
+    if value == "index":
+        df = index_context(db, settings, sel.line_id, sel.track, sel.bin_length).add_columns(df)
+        column = "stiffness_index"
+    runs, shifts, info, speeds = [], [], [], []
     ref_id = sel.run_ids[0] if sel.runs else None
     for run in sel.runs:
-        g = df[df["run_id"] == run.id].groupby("bin")["sleeper_amp"].mean()
+        per_bin = df[df["run_id"] == run.id].groupby("bin")
+        g = per_bin["sleeper_amp"].mean()
         shift, conf = 0.0, None
         if align and run.id != ref_id and len(g):
             al = _alignment(sel, df, run.id, ref_id, max_shift_m, 50.0)
@@ -426,11 +435,13 @@ def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_sh
                 shift, conf = al.shift_m, al.confidence
         elif run.id == ref_id:
             conf = 1.0
-        runs.append((g.index.to_numpy(), g.to_numpy()))
+        runs.append((g.index.to_numpy(), per_bin[column].mean().to_numpy()))
+        speeds.append(per_bin["speed_mean"].mean().to_numpy())
         shifts.append(shift)
         info.append({"run_id": run.id, "start_time": run.start_time.isoformat() if run.start_time else None,
                      "shift_m": shift if align else None, "shift_confidence": conf if align else None})
-    table = segment_table(runs, shifts, bin_length_m=sel.bin_length, segment_m=segment_m)
+    table = segment_table(runs, shifts, bin_length_m=sel.bin_length, segment_m=segment_m, speeds=speeds,
+                          speed_tolerance=settings.analytics_speed_tolerance)
     return ref_id, info, table
 
 
@@ -438,14 +449,18 @@ def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_sh
             summary="Per-segment mean amplitude per run, mean, spread and change over runs")
 def segments(db: DbDep, settings: SettingsDep, runs: RunsQuery,
              segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0,
-             align: bool = True, max_shift_m: MaxShiftQ = 50.0) -> dict:
+             align: bool = True, max_shift_m: MaxShiftQ = 50.0, value: ValueQ = "amplitude") -> dict:
     """Runs (by start time) are aligned to the first one (``align``), then averaged per
-    segment; ``spread`` is the standard deviation over runs, ``change`` last minus first."""
+    segment; ``spread`` is the standard deviation over runs, ``change`` last minus first
+    where the two passed at matched speed (``TRACKVKF_ANALYTICS_SPEED_TOLERANCE``; else null)."""
     sel = runs.select(db)
-    ref_id, info, t = _segments(db, settings, sel, runs.km_from, runs.km_to, _wheel(runs.wheel), segment_m, align, max_shift_m)
-    return {"segment_m": segment_m, "reference_run_id": ref_id, "km": (t.start_m / 1000).tolist(),
+    ref_id, info, t = _segments(db, settings, sel, runs.km_from, runs.km_to, _wheel(runs.wheel), segment_m, align,
+                                max_shift_m, value)
+    return {"segment_m": segment_m, "value": value, "reference_run_id": ref_id, "km": (t.start_m / 1000).tolist(),
             "runs": info, "matrix": [data.nums(row) for row in t.matrix], "mean": data.nums(t.mean),
-            "spread": data.nums(t.spread), "change": data.nums(t.change)}
+            "spread": data.nums(t.spread), "change": data.nums(t.change),
+            "speed_kmh": [data.nums(row * 3.6) for row in t.speed],
+            "speed_tolerance": settings.analytics_speed_tolerance}
 
 
 @router.get("/analytics/segment-trend", response_model=SegmentTrendOut,
@@ -453,14 +468,17 @@ def segments(db: DbDep, settings: SettingsDep, runs: RunsQuery,
 def segment_trend(db: DbDep, settings: SettingsDep, km: Annotated[float, km_query()],
                   line_id: LineQ = None, track: TrackQ = None, run_ids: RunIdsQ = None, wheel: WheelQ = None,
                   segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0, align: bool = True,
-                  max_shift_m: MaxShiftQ = 50.0) -> dict:
-    """The mean amplitude of the segment holding ``km`` in each run, by start time."""
+                  max_shift_m: MaxShiftQ = 50.0, value: ValueQ = "amplitude") -> dict:
+    """The mean amplitude (or stiffness index) of the segment holding ``km`` in each run, by start
+    time, with the run's mean speed there."""
     sel = _sel(db, line_id, track, run_ids, None, None)
     w = _wheel(wheel)
     start = np.floor(km * 1000 / segment_m) * segment_m
     lo, hi = (start - max_shift_m - 200) / 1000, (start + segment_m + max_shift_m + 200) / 1000
-    _, info, t = _segments(db, settings, sel, lo, hi, w, segment_m, align, max_shift_m)
+    _, info, t = _segments(db, settings, sel, lo, hi, w, segment_m, align, max_shift_m, value)
     j = np.flatnonzero(np.isclose(t.start_m, start))
     points = [{"run_id": r["run_id"], "start_time": r["start_time"],
-               "amplitude": data.num(t.matrix[i, j[0]]) if j.size else None} for i, r in enumerate(info)]
-    return {"km": km, "segment_km": [start / 1000, (start + segment_m) / 1000], "wheel": w, "points": points}
+               value: data.num(t.matrix[i, j[0]]) if j.size else None,
+               "speed_kmh": data.num(t.speed[i, j[0]] * 3.6) if j.size else None} for i, r in enumerate(info)]
+    return {"km": km, "segment_km": [start / 1000, (start + segment_m) / 1000], "wheel": w, "value": value,
+            "points": points}

@@ -6,6 +6,7 @@ import io
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from tests.analytics.conftest import LINE_ID, TRACK
 from tests.analytics.support import get, store_run
@@ -122,3 +123,21 @@ def test_curves_go_stale_with_a_new_run_and_without_line(make_client, sim_set):
     viewer = make_client(role="viewer")
     r = viewer.post("/api/v1/analytics/reference-curves/refresh", params={"line_id": LINE_ID})
     assert r.status_code in (401, 403)
+
+
+def test_segments_compare_runs_only_at_matched_speed(api):
+    client, ids = api
+    both = get(client, "/analytics/segments", line_id=LINE_ID, track=TRACK, run_ids=f"{ids['A']},{ids['C']}")
+    assert both["value"] == "amplitude" and both["speed_tolerance"] == 0.1
+    speeds = np.array(both["speed_kmh"], float)
+    assert np.nanmedian(speeds[0]) == pytest.approx(100, abs=1) and np.nanmedian(speeds[1]) == pytest.approx(140, abs=1)
+    assert all(c is None for c in both["change"])  # 100 vs 140 km/h: not compared
+    same = get(client, "/analytics/segments", line_id=LINE_ID, track=TRACK, run_ids=f"{ids['A']},{ids['B']}")
+    assert np.isfinite(np.array(same["change"], float)).mean() > 0.8
+    idx = get(client, "/analytics/segments", line_id=LINE_ID, track=TRACK, run_ids=f"{ids['A']},{ids['C']}",
+              value="index", align="false")
+    m = np.array(idx["matrix"], float)
+    ok = np.isfinite(m).all(axis=0)
+    assert ok.mean() > 0.7 and np.median(np.abs(m[0, ok] - m[1, ok])) < 0.03  # the index agrees across speeds
+    trend = get(client, "/analytics/segment-trend", line_id=LINE_ID, track=TRACK, km=12.95, value="index")
+    assert trend["value"] == "index" and all(p["index"] is not None and p["speed_kmh"] > 90 for p in trend["points"])

@@ -177,3 +177,9 @@ def test_segment_table():
     np.testing.assert_allclose(t.mean, [7 / 3, 7 / 3])
     np.testing.assert_allclose(t.change, [3, 3])
     np.testing.assert_allclose(t.spread, np.std([1, 2, 4], ddof=1))
+    assert t.speed is None
+    # with speeds: the last and the first run are compared only where they passed at similar speed
+    v = [np.where(b < 400, 30.0, 30.0), np.full(b.size, 20.0), np.where(b < 400, 32.0, 40.0)]
+    t = segment_table(runs, [0.0, -10.0, 0.0], segment_m=100, speeds=v, speed_tolerance=0.1)
+    np.testing.assert_allclose(t.speed[[0, 2]], [[30, 30], [32, 40]])
+    assert t.change[0] == 3 and np.isnan(t.change[1])

@@ -89,25 +89,32 @@ class SegmentRun(BaseModel):
 
 class SegmentsOut(BaseModel):
     segment_m: float
+    value: str = Field("amplitude", description="amplitude (m/s²) or index (stiffness index, ln units)")
     reference_run_id: int | None
     km: list[float]
     runs: list[SegmentRun]
     matrix: list[list[float | None]]
     mean: list[float | None]
     spread: list[float | None]
-    change: list[float | None]
+    change: list[float | None] = Field(
+        description="last minus first run with data; null where their speeds differ by more than speed_tolerance")
+    speed_kmh: list[list[float | None]] = Field(description="mean speed per run and segment, km/h")
+    speed_tolerance: float
 
 
 class TrendPoint(BaseModel):
     run_id: int
     start_time: str | None
-    amplitude: float | None
+    amplitude: float | None = Field(None, description="mean amplitude, m/s² (value=amplitude)")
+    index: float | None = Field(None, description="mean stiffness index (value=index)")
+    speed_kmh: float | None
 
 
 class SegmentTrendOut(BaseModel):
     km: float
     segment_km: list[float]
     wheel: str | None
+    value: str = "amplitude"
     points: list[TrendPoint]
 
 
