@@ -6,6 +6,8 @@ Kept apart from the routes so each route reads like its analysis.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,9 +22,11 @@ from app.db.models import Run
 from app.db.session import Database
 
 __all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
-           "speed_exponents", "normalised", "section_types", "num", "nums"]
+           "speed_exponents", "normalised", "section_types", "num", "nums", "PROFILE_CACHE_ROWS"]
 
 _COLS = ["run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
+#: rows of analytics profile frames kept in memory per API process (about 60 MB)
+PROFILE_CACHE_ROWS = 1_000_000
 
 
 @dataclass
@@ -103,19 +107,71 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
     return Selection(line_id, track, runs, bin_length)
 
 
+class _FrameCache:
+    """Least recently used profile frames of :func:`load_profiles`, at most ``max_rows`` rows.
+
+    Keys name the jobs whose rows a frame holds: a job's profile rows never change once it is
+    done (a reprocessing job has a new id), so an entry is never stale. Requests for the same
+    key wait for the one that reads it (the correlations page asks three analyses at once).
+    """
+
+    def __init__(self, max_rows: int) -> None:
+        self.max_rows = max_rows
+        self._frames: OrderedDict[tuple, pd.DataFrame] = OrderedDict()
+        self._rows = 0
+        self._lock = threading.Lock()
+        self._loading: dict[tuple, threading.Lock] = {}
+
+    def get(self, key: tuple, load) -> pd.DataFrame:
+        with self._lock:
+            if key in self._frames:
+                self._frames.move_to_end(key)
+                return self._frames[key]
+            gate = self._loading.setdefault(key, threading.Lock())
+        with gate:
+            with self._lock:
+                if key in self._frames:
+                    return self._frames[key]
+            frame = load()
+            with self._lock:
+                self._loading.pop(key, None)
+                if len(frame) <= self.max_rows:
+                    self._frames[key] = frame
+                    self._rows += len(frame)
+                    while self._rows > self.max_rows:
+                        _, old = self._frames.popitem(last=False)
+                        self._rows -= len(old)
+            return frame
+
+
+_CACHE = _FrameCache(PROFILE_CACHE_ROWS)
+
+
 def load_profiles(
     db: Database, settings: Settings, sel: Selection, *, km_from: float | None = None,
     km_to: float | None = None, wheel: str | None = None, min_speed_kmh: float | None = None,
 ) -> pd.DataFrame:
     """Profile rows of the selected runs (columns ``_COLS``), without the run ends
     (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude
-    (:func:`app.db.line_profiles.analytics_frame`)."""
+    (:func:`app.db.line_profiles.analytics_frame`).
+
+    Frames are kept per API process (:data:`PROFILE_CACHE_ROWS`), keyed by the runs' result
+    jobs and the arguments; treat the returned frame as read-only.
+    """
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
+    trim = settings.analytics_edge_trim_m
     with db.read() as session:
-        return line_profiles.analytics_frame(
-            session, sel.runs, bin_length_m=sel.bin_length, min_speed_kmh=min_v,
-            edge_trim_m=settings.analytics_edge_trim_m, km_from=km_from, km_to=km_to, wheel=wheel,
-        )[_COLS]
+        jobs = line_profiles.result_jobs(session, sel.runs)
+
+    def load() -> pd.DataFrame:
+        with db.read() as session:
+            return line_profiles.analytics_frame(
+                session, jobs, bin_length_m=sel.bin_length, min_speed_kmh=min_v, edge_trim_m=trim,
+                km_from=km_from, km_to=km_to, wheel=wheel,
+            )[_COLS]
+
+    key = (db.url, tuple(jobs), wheel, km_from, km_to, min_v, trim, sel.bin_length)
+    return _CACHE.get(key, load).copy(deep=False)
 
 
 def reference(db: Database, kind: str, sel: Selection, **kw) -> pd.DataFrame:

@@ -75,6 +75,10 @@ class IndexContext:
                 at_ref[m] = np.exp(curve.evaluate(np.array([reference_speed_mps]))[0][0])
         return at_ref * np.exp(idx)
 
+    def version(self) -> str:
+        """What the index columns depend on besides the run's job: the curves' fingerprint (or why none)."""
+        return self.stored.fingerprint if self.stored is not None else f"none: {self.reason}"
+
     def describe(self) -> dict:
         """The reference used (line, runs, classes and speed ranges), or why there is none."""
         if self.stored is None:

@@ -22,7 +22,14 @@ from app.api.deps import (
     require_role,
 )
 from app.api.errors import not_found
-from app.api.schemas.runs import RunDetail, RunList
+from app.api.run_metadata import revise_run_metadata
+from app.api.schemas.runs import (
+    RunDetail,
+    RunList,
+    RunMetadataChange,
+    RunMetadataOut,
+    RunMetadataPatch,
+)
 from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
 from app.api.views import API_PREFIX, run_detail, run_out
 from app.db import crud
@@ -39,8 +46,9 @@ _UPLOAD_BODY = {
     "description": (
         "Either `multipart/form-data` with the parts `file` (the run file), `metadata` "
         "(JSON object, see docs/run-format.md; optional for HDF5 files that carry it as "
-        "attributes) and `format`; or the raw file as the body with `format`, `metadata` "
-        "and `filename` as query parameters."
+        "attributes), `format` and `channel_map` (id of a stored channel map, for MDF4/TDMS "
+        "recorder files); or the raw file as the body with `format`, `metadata`, `filename` "
+        "and `channel_map` as query parameters."
     ),
     "content": {
         "multipart/form-data": {
@@ -51,6 +59,10 @@ _UPLOAD_BODY = {
                     "file": {"type": "string", "format": "binary"},
                     "metadata": {"type": "string", "description": "JSON object"},
                     "format": {"type": "string", "enum": list(SUPPORTED_FORMATS)},
+                    "channel_map": {
+                        "type": "string",
+                        "description": "id of a stored channel map (MDF4/TDMS recorder files)",
+                    },
                 },
             }
         },
@@ -85,13 +97,18 @@ async def upload_run(
     store: StoreDep,
     principal: EngineerDep,
     format: Annotated[
-        str | None, Query(description="hdf5, csv or parquet (raw body uploads)", max_length=16)
+        str | None,
+        Query(description="hdf5, csv, parquet, mdf4 or tdms (raw body uploads)", max_length=16),
     ] = None,
     metadata: Annotated[
         str | None, Query(description="Metadata JSON object (raw body uploads)", max_length=65536)
     ] = None,
     filename: Annotated[
         str | None, Query(description="Original file name (raw body uploads)", max_length=255)
+    ] = None,
+    channel_map: Annotated[
+        str | None,
+        Query(description="Id of a stored channel map (raw body uploads of MDF4/TDMS files)", max_length=12),
     ] = None,
 ) -> RunDetail:
     """Create a run from an uploaded file.
@@ -110,6 +127,7 @@ async def upload_run(
         query_format=format,
         query_metadata=metadata,
         query_filename=filename,
+        query_channel_map=channel_map,
     )
     if not outcome.created:
         response.status_code = status.HTTP_200_OK
@@ -170,6 +188,38 @@ def list_runs(
 def get_run(run_id: RunId, db: DbDep) -> RunDetail:
     """Metadata, sha256, file summary and latest job of a run."""
     return _detail(db, run_id)
+
+
+@router.patch(
+    "/{run_id}",
+    response_model=RunMetadataOut,
+    summary="Correct a run's metadata: re-ingest, reprocess, audit (engineer)",
+    dependencies=[Depends(require_role("engineer"))],
+    responses={
+        409: {"description": "A job of the run is queued or running"},
+        422: {"description": "Invalid metadata; `detail` names the field"},
+    },
+)
+async def patch_run_metadata(
+    run_id: RunId, body: RunMetadataPatch, request: Request, db: DbDep, store: StoreDep,
+    principal: EngineerDep,
+) -> RunMetadataOut:
+    """Change metadata fields of a run (e.g. the line, km or start time of a re-uploaded file).
+
+    The run's file is re-ingested with the corrected fields, the run is updated, a
+    reprocessing job with the run's latest settings is queued and the change is audited
+    (``run.metadata`` with each field's old and new value). Fields equal to the stored ones
+    change nothing (no job). The previous results stay until the new job is done.
+    """
+    outcome = await run_in_threadpool(
+        revise_run_metadata, db, store, run_id, body.metadata, principal, request
+    )
+    detail = await run_in_threadpool(_detail, db, run_id)
+    return RunMetadataOut(
+        **detail.model_dump(),
+        changed=[RunMetadataChange(field=k, old=old, new=new) for k, (old, new) in outcome.changed.items()],
+        reprocess_job_id=outcome.job_id,
+    )
 
 
 @router.delete(

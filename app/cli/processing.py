@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Annotated, Any
@@ -11,6 +12,7 @@ from typing import Annotated, Any
 import typer
 
 from app.cli._common import echo
+from app.cli._warnings import engine_warnings
 
 __all__ = ["simulate", "process"]
 
@@ -27,6 +29,12 @@ def simulate(
     amplitude_model: Annotated[str, typer.Option(
         help="Speed response of the sleeper-passage amplitude: 'resonance' (a wheel on a discretely "
         "supported rail) or 'power_law' ((v / 100 km/h) ** 1.5)")] = "resonance",
+    recorder: Annotated[str | None, typer.Option(
+        help="Write OUT as a recorder file (mdf4 or tdms) with drifting odometry, plus its channel "
+        "map and metadata JSON beside it")] = None,
+    gnss: Annotated[bool, typer.Option(
+        help="With --recorder: a GNSS group (3 m noise, 30 s outages) and the line geometry "
+        "(OUT stem + '.line.geojson')")] = False,
 ) -> None:
     """Write a synthetic run in the canonical format with its ground truth beside it."""
     from app.simulate.run import simulate_run
@@ -36,6 +44,17 @@ def simulate(
     if amplitude_model not in ("resonance", "power_law"):
         typer.echo(f"error: --amplitude-model must be resonance or power_law, got {amplitude_model!r}", err=True)
         raise typer.Exit(2)
+    if recorder is not None:
+        from app.simulate.recorder import GnssSimulation, simulate_recorder_run
+
+        if recorder not in ("mdf4", "tdms"):
+            raise typer.BadParameter("mdf4 or tdms", param_hint="--recorder")
+        rec = simulate_recorder_run(out, recorder, gnss=GnssSimulation() if gnss else None, seed=seed,
+                                    length_km=length_km, fs=fs, with_forces=forces,
+                                    amplitude_model=amplitude_model)
+        echo(f"wrote {out} in {time.perf_counter() - t0:.1f} s; channel map {rec.channel_map_path}, "
+             f"metadata {rec.metadata_path}" + (f", geometry {rec.geometry_path}" if gnss else ""))
+        return
     truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces,
                          amplitude_model=amplitude_model)
     echo(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
@@ -89,21 +108,42 @@ def _jsonable(value: Any) -> Any:
 
 
 def process(
-    run_file: Annotated[Path, typer.Argument(help="Run file: HDF5, CSV or Parquet")],
+    run_file: Annotated[Path, typer.Argument(help="Run file: HDF5, CSV, Parquet, MDF4 or TDMS")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Output directory")] = Path("trackvkf-out"),
     format: Annotated[
-        str | None, typer.Option("--format", help="hdf5, csv or parquet (default: detect)")
+        str | None, typer.Option("--format", help="hdf5, csv, parquet, mdf4 or tdms (default: detect)")
     ] = None,
     metadata: Annotated[
         Path | None, typer.Option(help="Metadata JSON file (required for CSV/Parquet)")
     ] = None,
     n_wheel_orders: Annotated[int | None, typer.Option(help="Wheel orders (default 11)")] = None,
     bandwidth_orders: Annotated[
-        float | None, typer.Option(help="Bandwidth in wheel orders (default 0.1)")
+        float | None, typer.Option(help="Bandwidth of the wheel orders, in wheel orders (default 0.1)")
+    ] = None,
+    track_resolution_m: Annotated[
+        float | None,
+        typer.Option(help="Spatial resolution of the sleeper orders: 10-90 % step width, m (default 3)"),
+    ] = None,
+    sleeper_harmonics: Annotated[
+        int | None, typer.Option(help="Highest sleeper harmonic extracted: 1, 2 or 3 (default 3)")
+    ] = None,
+    force_mean_window_m: Annotated[
+        float | None, typer.Option(help="Moving mean removed from the force channels, m; 0: off (default 12)")
     ] = None,
     filter_order: Annotated[int | None, typer.Option(help="VKF filter order q (default 2)")] = None,
+    channel_map: Annotated[
+        Path | None, typer.Option(help="Channel map JSON file (MDF4/TDMS recorder files)")
+    ] = None,
+    geometry: Annotated[
+        Path | None, typer.Option(help="Line geometry GeoJSON (runs placed by GNSS)")
+    ] = None,
 ) -> None:
     """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
+
+    ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
+    (``sleeper_amp``), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
+    (``sleeper_rms``), the wheel orders and the force amplitude; ``meta.json`` the settings and
+    the warnings (docs/indicator.md).
 
     Intermediate chunk results are kept in ``OUT/.work`` so an interrupted run
     resumes where it stopped.
@@ -112,6 +152,7 @@ def process(
 
     from app.analysis.settings import ProcessingSettings
     from app.io import RunFileError, ingest
+    from app.io.geometry import parse_geojson
     from app.pipeline import run_pipeline
 
     if not run_file.is_file():
@@ -121,6 +162,9 @@ def process(
         for k, v in {
             "n_wheel_orders": n_wheel_orders,
             "bandwidth_orders": bandwidth_orders,
+            "track_resolution_m": track_resolution_m,
+            "sleeper_harmonics": sleeper_harmonics,
+            "force_mean_window_m": force_mean_window_m,
             "filter_order": filter_order,
         }.items()
         if v is not None
@@ -136,9 +180,17 @@ def process(
         except (OSError, json.JSONDecodeError) as exc:
             raise typer.BadParameter(f"cannot read {metadata}: {exc}", param_hint="--metadata") from None
 
+    extras = {}
+    for name, path in (("channel_map", channel_map), ("geometry", geometry)):
+        if path is not None:
+            try:
+                extras[name] = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, json.JSONDecodeError) as exc:
+                raise typer.BadParameter(f"cannot read {path}: {exc}", param_hint=f"--{name.replace('_', '-')}") from None
     source_sha = _file_sha256(run_file)
     key = hashlib.sha256(
-        json.dumps({"sha": source_sha, "md": md, "settings": settings.to_dict()}, sort_keys=True).encode()
+        json.dumps({"sha": source_sha, "md": md, "settings": settings.to_dict(), **extras},
+                   sort_keys=True).encode()
     ).hexdigest()[:16]
     work = out / ".work" / key
     work.mkdir(parents=True, exist_ok=True)
@@ -146,15 +198,21 @@ def process(
     if not canonical.is_file():
         echo(f"validating {run_file} ...")
         try:
-            summary = ingest(run_file, format, md, canonical)
+            lines = parse_geojson(extras["geometry"]) if "geometry" in extras else []
+            summary = ingest(run_file, format, md, canonical, channel_map=extras.get("channel_map"),
+                             geometry=lambda line, track: next(
+                                 (g for g in lines if (g.line_id, g.track) == (line, track)), None))
         except RunFileError as exc:
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(2) from None
+        for warning in summary.warnings:
+            typer.echo(f"warning: {warning}", err=True)
         echo(
             f"{summary.duration_s:.1f} s at {summary.fs:g} Hz, {summary.distance_m / 1000:.2f} km, "
             f"channels {', '.join(summary.channels)}"
         )
-    with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar:
+    with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar, \
+            engine_warnings(lambda line: tqdm.write(line, file=sys.stderr)) as seen:
 
         def progress(fraction: float) -> None:
             bar.update(max(0.0, 100 * fraction - bar.n))
@@ -176,8 +234,11 @@ def process(
         "source_file": str(run_file),
         "source_sha256": source_sha,
         "settings": settings.to_dict(),
+        "warnings": seen.as_list(),
     }
     (out / "meta.json").write_text(json.dumps(_jsonable(meta), indent=1))
+    for text in meta.get("warnings") or ():
+        typer.echo(f"warning: {text}", err=True)
     echo(
         f"{len(results.profiles)} profile rows, {len(results.wheels)} wheels -> {out}/ "
         "(profiles.csv/.parquet, wheel_orders.csv/.parquet, wheel_profiles.csv/.parquet, "

@@ -67,6 +67,9 @@ PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
     "n_samples",
     "speed_mean",
     "sleeper_amp",
+    "sleeper_2_amp",
+    "sleeper_3_amp",
+    "sleeper_rms",
     *ORDER_COLUMNS,
     "residual_rms",
     "sleeper_force_amp",
@@ -168,6 +171,8 @@ class Run(Base):
     speed_max: Mapped[float | None] = mapped_column(Float)
     channels: Mapped[list[str]] = mapped_column(JSONType)
     meta: Mapped[dict[str, Any]] = mapped_column("metadata", JSONType)
+    #: what ingest reported: {"warnings": [...], "report": {...}} (RunSummary.warnings/.report)
+    ingest_report: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
     created_by: Mapped[str | None] = mapped_column(String(128))
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
@@ -268,6 +273,11 @@ class ProfileBin(Base):
     n_samples: Mapped[int] = mapped_column(Integer)
     speed_mean: Mapped[float | None] = mapped_column(Float)
     sleeper_amp: Mapped[float | None] = mapped_column(Float)
+    #: sleeper-passage harmonics 2·f_s and 3·f_s (peak, m/s²) and the RMS over the fundamental
+    #: and the harmonics extracted (the energy indicator, m/s²); NULL in jobs before issue 15
+    sleeper_2_amp: Mapped[float | None] = mapped_column(Float)
+    sleeper_3_amp: Mapped[float | None] = mapped_column(Float)
+    sleeper_rms: Mapped[float | None] = mapped_column(Float)
     order_amp_01: Mapped[float | None] = mapped_column(Float)
     order_amp_02: Mapped[float | None] = mapped_column(Float)
     order_amp_03: Mapped[float | None] = mapped_column(Float)
@@ -304,4 +314,5 @@ class WheelOOR(Base):
 
 from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessions, api_keys, audit_log)
 from app.db import curve_models as _curve_models  # noqa: E402,F401  (reference_curves in Base.metadata)
+from app.db import recorder_models as _recorder_models  # noqa: E402,F401  (channel maps, line geometries)
 from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)

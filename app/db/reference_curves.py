@@ -117,7 +117,7 @@ def classes_at(sections: pd.DataFrame, position_m: np.ndarray, margin_m: float) 
 
 def _fingerprint(session: Session, line_id: str, track: str | None, params: CurveParams) -> tuple[str, list, list]:
     runs = line_profiles.runs_with_results(session, line_id, track)
-    pairs = sorted((r.id, results_reader.results_job_id(session, r.id)) for r in runs)
+    pairs = sorted(line_profiles.result_jobs(session, runs))
     sec = line_sections(session, line_id, track)
     sections = [] if sec.empty else sorted(
         [int(i), float(a), float(b), str(t)] for i, a, b, t in
@@ -154,7 +154,7 @@ def refresh_reference(db: Database, line_id: str, track: str | None, params: Cur
         runs = line_profiles.runs_with_results(session, line_id, track)
         bin_length = max((results_reader.bin_length_of(results_reader.results_job(session, r.id)) for r in runs),
                          default=0.25)
-        df = line_profiles.analytics_frame(session, runs, bin_length_m=bin_length,
+        df = line_profiles.analytics_frame(session, line_profiles.result_jobs(session, runs), bin_length_m=bin_length,
                                            min_speed_kmh=params.min_speed_kmh, edge_trim_m=params.edge_trim_m,
                                            columns=("speed_mean", "sleeper_amp"))
         sections = line_sections(session, line_id, track)

@@ -9,8 +9,10 @@ from app.io.errors import RunFileError
 __all__ = ["FORMATS", "HDF5_SIGNATURE", "detect_format", "resolve_format"]
 
 #: Accepted input formats.
-FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet")
+FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet", "mdf4", "tdms")
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+#: Leading bytes of recorder files: ASAM MDF identification block, NI TDMS lead-in.
+_RECORDER_MAGIC = {"mdf4": b"MDF     ", "tdms": b"TDSm"}
 _PARQUET_MAGIC = b"PAR1"
 _GZIP_MAGIC = b"\x1f\x8b"
 _CSV_SUFFIXES = (".csv", ".tsv", ".txt", ".csv.gz", ".tsv.gz", ".txt.gz")
@@ -40,19 +42,33 @@ def _is_parquet(path: Path, size: int) -> bool:
     return head == _PARQUET_MAGIC and tail == _PARQUET_MAGIC
 
 
-def _looks_like_text(path: Path) -> bool:
+def _recorder_format(path: Path) -> str | None:
+    with open(path, "rb") as fh:
+        head = fh.read(8)
+    return next((fmt for fmt, magic in _RECORDER_MAGIC.items() if head.startswith(magic)), None)
+
+
+def _text_problem(path: Path) -> str | None:
+    """Why the file does not start with a delimited-text header line (None: it does).
+
+    Only the first line is judged here: a NUL byte or bytes that are not UTF-8
+    further on are reported, with their offset, by the CSV reader.
+    """
     with open(path, "rb") as fh:
         head = fh.read(4096)
-    if b"\x00" in head:
-        return False
+    first, newline, _ = head.partition(b"\n")
+    nul = first.find(b"\x00")
+    if nul >= 0:
+        return f"NUL byte at byte {nul} of the first line (binary data?)"
     try:
-        text = head.decode("utf-8")
+        text = first.decode("utf-8")
     except UnicodeDecodeError as exc:
-        if exc.start < len(head) - 4:  # a multi-byte character cut at the end is fine
-            return False
-        text = head[: exc.start].decode("utf-8")
-    first = text.lstrip("\ufeff").splitlines()[0] if text.strip() else ""
-    return any(sep in first for sep in (",", ";", "\t"))
+        if newline or exc.start < len(first) - 4:  # a multi-byte character cut at the end is fine
+            return f"not UTF-8 text: byte 0x{first[exc.start]:02x} at byte {exc.start} of the first line"
+        text = first[: exc.start].decode("utf-8")
+    if not any(sep in text for sep in (",", ";", "\t")):
+        return "no delimiter (comma, semicolon or tab) in the first line"
+    return None
 
 
 def _is_gzip(path: Path) -> bool:
@@ -71,7 +87,7 @@ def detect_format(path: Path) -> tuple[str, str | None]:
     Returns
     -------
     fmt : str
-        ``"hdf5"``, ``"csv"`` or ``"parquet"``.
+        ``"hdf5"``, ``"csv"``, ``"parquet"``, ``"mdf4"`` (ASAM MDF) or ``"tdms"``.
     compression : str or None
         ``"gzip"`` for gzip-compressed CSV, else ``None``.
 
@@ -85,18 +101,22 @@ def detect_format(path: Path) -> tuple[str, str | None]:
         return "hdf5", None
     if _is_parquet(path, size):
         return "parquet", None
+    recorder = _recorder_format(path)
+    if recorder is not None:
+        return recorder, None
     name = path.name.lower()
     if _is_gzip(path):
         if name.endswith(_CSV_SUFFIXES) or not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES):
             return "csv", "gzip"
-    elif name.endswith(_CSV_SUFFIXES) or (
-        not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES) and _looks_like_text(path)
-    ):
+    elif name.endswith(_CSV_SUFFIXES):
+        return "csv", None
+    problem = _text_problem(path)
+    if problem is None and not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES):
         return "csv", None
     raise RunFileError(
         "format",
-        f"unknown format of {path.name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic) "
-        "and not delimited text (CSV)",
+        f"unknown format of {path.name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic), "
+        f"not MDF4 or TDMS (no identification) and not delimited text (CSV{f': {problem}' if problem else ''})",
     )
 
 
@@ -125,12 +145,21 @@ def resolve_format(path: Path, fmt: str | None) -> tuple[str, str | None]:
                 "format", "declared format 'hdf5' but the file has no HDF5 signature"
             )
         return fmt, None
+    if fmt in _RECORDER_MAGIC:
+        if _recorder_format(path) != fmt:
+            raise RunFileError(
+                "format", f"declared format {fmt!r} but the file does not start like one"
+            )
+        return fmt, None
     if fmt == "parquet":
         if not _is_parquet(path, size):
             raise RunFileError("format", "declared format 'parquet' but the file has no PAR1 magic")
         return fmt, None
     if _is_gzip(path):
         return fmt, "gzip"
-    if _has_hdf5_signature(path, size) or _is_parquet(path, size) or not _looks_like_text(path):
-        raise RunFileError("format", "declared format 'csv' but the file is not delimited text")
+    if _has_hdf5_signature(path, size) or _is_parquet(path, size) or _recorder_format(path) is not None:
+        raise RunFileError("format", "declared format 'csv' but the file is HDF5, Parquet, MDF4 or TDMS")
+    problem = _text_problem(path)
+    if problem is not None:
+        raise RunFileError("format", f"declared format 'csv' but the file is not delimited text: {problem}")
     return fmt, None

@@ -8,22 +8,41 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 import pydantic
 from pydantic import ConfigDict
 
-from app.io.canonical import CanonicalWriter, Compression, atomic_output
-from app.io.channels import ACCEL_CHANNELS, ALL_CHANNELS, TIME_COLUMN
+from app.io.canonical import CanonicalWriter, Compression, canonical_output
+from app.io.channel_map import ChannelMap, parse_channel_map
+from app.io.channels import (
+    ACCEL_CHANNELS,
+    ALL_CHANNELS,
+    FORCE_CHANNELS,
+    TIME_COLUMN,
+    UNITS,
+    storage_dtype,
+)
 from app.io.detect import resolve_format
 from app.io.errors import RunFileError
 from app.io.gapfill import GapFiller
+from app.io.geometry import LineGeometry
 from app.io.kinematics import POSITION_BLOCK, SPEED_WINDOW_S, integrate_block, speed_from_position
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
-from app.io.metadata import RunMetadata, parse_metadata
+from app.io.metadata import DEFAULT_AXLE_POSITIONS_M, RunMetadata, parse_metadata
+from app.io.positioning import (
+    GeometryLookup,
+    GnssFixes,
+    apply_gnss,
+    finish_line_km,
+    resolve_position_kind,
+)
 from app.io.sources import Source, open_source
+from app.io.sources.recorder import RecorderSource
 
 __all__ = ["RunSummary", "ingest"]
+
+#: A relative position channel starting farther than this from 0 m is reported.
+_ZERO_TOLERANCE_M = 1e-3
 
 
 class RunSummary(pydantic.BaseModel):
@@ -46,9 +65,19 @@ class RunSummary(pydantic.BaseModel):
     speed_min, speed_max : float
         Range of the speed, m/s.
     source_format : str
-        ``"hdf5"``, ``"csv"`` or ``"parquet"``.
+        ``"hdf5"``, ``"csv"``, ``"parquet"``, ``"mdf4"`` or ``"tdms"``.
     nan_filled : dict[str, int]
         Interpolated samples per channel (channels without NaN omitted).
+    warnings : list of str
+        What ingest assumed or did that the uploader should know (a relative
+        position channel not starting at 0, the default axle layout, the start
+        time taken from the recorder, GNSS outages bridged …), each
+        ``"<field>: <message>"``.
+    report : dict
+        Provenance kept with the run: ``position_kind`` (as given),
+        ``km_source`` (``metadata``, ``line_km`` or ``gnss``), ``channels``
+        (recorder channel, group, unit and factor of each channel of a
+        recorder file), ``positioning`` (GNSS matching and fusion summary).
     """
 
     model_config = ConfigDict(frozen=True)
@@ -63,6 +92,8 @@ class RunSummary(pydantic.BaseModel):
     speed_max: float
     source_format: str = ""
     nan_filled: dict[str, int] = {}
+    warnings: list[str] = []
+    report: dict[str, Any] = {}
 
 
 def ingest(
@@ -73,14 +104,17 @@ def ingest(
     limits: IngestLimits = DEFAULT_LIMITS,
     *,
     compression: Compression = "auto",
+    channel_map: ChannelMap | Mapping[str, Any] | None = None,
+    geometry: GeometryLookup | LineGeometry | None = None,
+    reserve_bytes: int = 0,
 ) -> RunSummary:
     """Validate a run file and write it as a canonical HDF5 file.
 
     Parameters
     ----------
     src : Path
-        Input file (HDF5, CSV or Parquet).
-    fmt : {"hdf5", "csv", "parquet"} or None
+        Input file (HDF5, CSV, Parquet, MDF4 or TDMS).
+    fmt : {"hdf5", "csv", "parquet", "mdf4", "tdms"} or None
         Declared format; ``None`` detects it from the magic bytes (and the file
         suffix for CSV).
     metadata : mapping or None
@@ -94,6 +128,17 @@ def ingest(
         Acceptance limits.
     compression : {"auto", "lzf", "gzip", None}
         Compression of the output datasets (see :class:`~app.io.canonical.CanonicalWriter`).
+    channel_map : ChannelMap or mapping, optional
+        Recorder channel → trackvkf channel and unit (MDF4 and TDMS files;
+        see :mod:`app.io.channel_map`).
+    geometry : callable or LineGeometry, optional
+        Line geometry for GNSS positions: the geometry itself, or
+        ``lookup(line_id, track)`` returning the geometry of the run's line
+        and track (or None). See :mod:`app.io.positioning`.
+    reserve_bytes : int
+        Free space that must remain on the file system of ``dest``
+        (``TRACKVKF_MIN_FREE_BYTES``): checked against the expected size before
+        writing when the sample count is known, and while writing.
 
     Returns
     -------
@@ -105,6 +150,10 @@ def ingest(
         On any problem with the file or the metadata; nothing is left at
         ``dest`` (an existing file there is not touched) and no temporary file
         remains.
+    DiskFullError
+        When ``dest``'s file system has not enough space (before or while
+        writing); nothing is left behind either, and libhdf5 never saw a
+        failed write (:func:`app.io.canonical.canonical_output`).
     """
     src, dest = Path(src), Path(dest)
     if not isinstance(limits, IngestLimits):
@@ -117,16 +166,32 @@ def ingest(
         raise RunFileError(
             "metadata", f"metadata must be a JSON object, got {type(metadata).__name__}"
         )
+    cmap = parse_channel_map(channel_map) if channel_map is not None else None
     fmt_name, comp = resolve_format(src, fmt)
-    with open_source(src, fmt_name, comp, limits) as source:
-        return _ingest(source, fmt_name, metadata, dest, limits, compression)
+    with open_source(src, fmt_name, comp, limits, cmap) as source:
+        return _ingest(source, fmt_name, metadata, dest, limits, compression, geometry, reserve_bytes)
 
 
-def _merge_metadata(source: Source, given: Mapping[str, Any] | None) -> RunMetadata:
+def _merge_metadata(
+    source: Source, given: Mapping[str, Any] | None, warnings: list[str]
+) -> RunMetadata:
     info = source.info
     if given is None and not info.file_metadata:
         return parse_metadata(None)
     merged: dict[str, Any] = {**info.file_metadata, **(given or {})}
+    if "start_time" in info.file_metadata and "start_time" not in (given or {}):
+        if isinstance(source, RecorderSource):
+            warnings.append(
+                f"start_time: taken from the recorder file header ({info.file_metadata['start_time']})"
+            )
+    axles = merged.get("axle_positions")
+    missing = [a for a in DEFAULT_AXLE_POSITIONS_M if not isinstance(axles, Mapping) or a not in axles]
+    if missing:
+        layout = ", ".join(f"axle {a} at {DEFAULT_AXLE_POSITIONS_M[a]:g} m" for a in missing)
+        warnings.append(
+            f"axle_positions: not given; the default layout was used ({layout} from the "
+            "position reference)"
+        )
     calibration: dict[str, Any] = dict(info.calibration)
     for part in (info.file_metadata.get("calibration"), (given or {}).get("calibration")):
         if part is not None:
@@ -187,17 +252,69 @@ def _fs_from_time(t: np.ndarray | None) -> float | None:
     return float(rounded) if abs(fs - rounded) <= 1e-6 * fs else fs
 
 
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 class _Checks:
     """Per-block checks on physical values of speed, position and time."""
 
-    def __init__(self, meta: RunMetadata, fs: float, limits: IngestLimits, from_time: bool) -> None:
+    def __init__(
+        self, meta: RunMetadata, fs: float, limits: IngestLimits, from_time: bool, direction: int
+    ) -> None:
         self.meta, self.fs, self.limits, self.from_time = meta, fs, limits, from_time
-        self.last_pos = -math.inf
+        self.last_pos: float | None = None
+        self.first_pos: float | None = None
+        #: +1: position must not decrease (relative); 0: the first change decides (line km)
+        self.direction = direction
         self.t0: tuple[int, float] | None = None
 
     def physical(self, name: str, x: np.ndarray) -> np.ndarray:
         gain, offset = self.meta.gain_offset(name)
-        return x * gain + offset if (gain, offset) != (1.0, 0.0) else x
+        if (gain, offset) == (1.0, 0.0):
+            return x
+        with np.errstate(over="ignore", invalid="ignore"):
+            return x * gain + offset
+
+    def _bound(self, name: str) -> float | None:
+        if name in ACCEL_CHANNELS:
+            return self.limits.max_abs_accel_mps2
+        if name in FORCE_CHANNELS:
+            return self.limits.max_abs_force_kn
+        if name == "position":
+            return self.limits.max_abs_position_m
+        return None  # speed: checked by speed()
+
+    def magnitude(self, name: str, offset: int, raw: np.ndarray) -> None:
+        """Raw values must fit their storage type and calibrated values a plausible range."""
+        if storage_dtype(name) == np.float32:
+            big = np.flatnonzero(np.abs(raw) > _FLOAT32_MAX)
+            if big.size:
+                i = int(big[0])
+                raise RunFileError(
+                    name,
+                    f"value {raw[i]:.6g} at sample {offset + i} does not fit the float32 storage of the "
+                    f"channel (|x| <= {_FLOAT32_MAX:.3g})",
+                )
+        bound = self._bound(name)
+        if bound is None:
+            return
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(~(np.abs(self.physical(name, raw)) <= bound) & ~np.isnan(raw))
+        if not bad.size:
+            return
+        i = int(bad[0])
+        value = float(self.physical(name, raw[i : i + 1])[0])
+        gain, off = self.meta.gain_offset(name)
+        unit = UNITS[name]
+        if (gain, off) != (1.0, 0.0) and abs(raw[i]) <= bound:
+            raise RunFileError(
+                f"calibration.{name}",
+                f"gain {gain:.6g} and offset {off:.6g} make sample {offset + i} ({raw[i]:.6g}) "
+                f"{value:.6g} {unit}, beyond ±{bound:g} {unit}; check the calibration",
+            )
+        raise RunFileError(
+            name, f"value {value:.6g} {unit} at sample {offset + i} is beyond ±{bound:g} {unit}"
+        )
 
     def position(self, offset: int, raw: np.ndarray) -> None:
         p = self.physical("position", raw)
@@ -205,15 +322,28 @@ class _Checks:
         if idx.size == 0:
             return
         v = p[idx]
-        prev = np.concatenate(([self.last_pos], v[:-1]))
-        bad = np.flatnonzero(v < prev)
+        if self.first_pos is None:
+            self.first_pos = float(v[0])
+        if self.direction == 0:
+            moved = np.flatnonzero(v != self.first_pos)
+            if moved.size:
+                self.direction = 1 if v[moved[0]] > self.first_pos else -1
+        d = self.direction or 1
+        prev = np.concatenate(([v[0] if self.last_pos is None else self.last_pos], v[:-1]))
+        bad = np.flatnonzero(d * v < d * prev)
         if bad.size:
             i = int(bad[0])
+            if self.direction == 1 and self.meta.position_kind != "line_km":
+                rule = (
+                    "position must be non-decreasing along the run (the km direction is given "
+                    "by metadata km_increasing; an absolute line km is position_kind line_km)"
+                )
+            else:
+                rule = "a line km channel must change in one direction along the run"
             raise RunFileError(
                 "position",
-                f"non-monotonic position: decreases from {prev[i]:.6g} m to {v[i]:.6g} m at sample "
-                f"{offset + int(idx[i])}; position must be non-decreasing along the run "
-                "(the km direction is given by metadata km_increasing)",
+                f"non-monotonic position: {'decreases' if d > 0 else 'increases'} from "
+                f"{prev[i]:.6g} m to {v[i]:.6g} m at sample {offset + int(idx[i])}; {rule}",
             )
         self.last_pos = float(v[-1])
 
@@ -262,10 +392,15 @@ def _ingest(
     dest: Path,
     limits: IngestLimits,
     compression: Compression,
+    geometry: GeometryLookup | LineGeometry | None,
+    reserve_bytes: int,
 ) -> RunSummary:
     info = source.info
-    meta = _merge_metadata(source, given)
+    warnings: list[str] = []
+    meta = _merge_metadata(source, given, warnings)
+    kind = resolve_position_kind(meta, info.channels, warnings)
     stored = _check_channels(info.channels)
+    gnss_used = kind == "gnss"
     n_known = info.n_samples
     if n_known is not None:
         if n_known == 0:
@@ -286,9 +421,13 @@ def _ingest(
             f"{limits.max_sample_rate_hz:g} Hz",
         )
     meta = meta.model_copy(update={"sample_rate_hz": fs})
-    checks = _Checks(meta, fs, limits, from_time)
+    checks = _Checks(meta, fs, limits, from_time, 0 if kind == "line_km" else 1)
+    fixes = GnssFixes(fs, limits) if gnss_used else None
+    if n_known is not None:
+        _check_duration(n_known, fs, limits)
 
-    with atomic_output(dest) as tmp, h5py.File(tmp, "w") as h5:
+    expected = 0 if n_known is None else n_known * _canonical_bytes_per_sample(stored)
+    with canonical_output(dest, reserve_bytes=reserve_bytes, expected_bytes=expected) as (h5, check_io):
         writer = CanonicalWriter(
             h5,
             fs=fs,
@@ -309,6 +448,8 @@ def _ingest(
                 raise RunFileError("file", f"more than {limits.max_samples} samples (limit)")
             if TIME_COLUMN in block:
                 checks.time(offset, block[TIME_COLUMN])
+            if fixes is not None:
+                fixes.add(offset, block["lat"], block["lon"])
             for c in stored:
                 x = block[c]
                 if not x.flags.writeable:
@@ -316,6 +457,7 @@ def _ingest(
                 if np.isinf(x).any():
                     i = int(np.flatnonzero(np.isinf(x))[0])
                     raise RunFileError(c, f"infinite value at sample {offset + i}")
+                checks.magnitude(c, offset, x)
                 fillers[c].process(offset, x)
                 if n_known is not None and fillers[c].n_nan > limits.max_nan_fraction * n_known:
                     _too_many_nan(c, fillers[c].n_nan, n_known, limits)
@@ -324,16 +466,35 @@ def _ingest(
                 elif c == "speed":
                     checks.speed(offset, x)
                 writer.write(c, offset, x)
+            check_io()
             offset += m
         n = offset
         if n_known is not None and n != n_known:
             raise RunFileError("file", f"read {n} samples but the file declares {n_known}")
+        _check_duration(n, fs, limits)
         for c in stored:
             if fillers[c].n_nan > limits.max_nan_fraction * n:
                 _too_many_nan(c, fillers[c].n_nan, n, limits)
             fillers[c].finish(n)
         writer.n_samples = n
+        report: dict[str, Any] = {"position_kind": kind, "km_source": "metadata"}
+        if kind == "line_km":
+            finish_line_km(writer, checks.first_pos, checks.direction)
+            report["km_source"] = "line_km"
+        elif checks.first_pos is not None and abs(checks.first_pos) > _ZERO_TOLERANCE_M:
+            warnings.append(
+                f"position: the relative position channel starts at {checks.first_pos:.6g} m, "
+                "not 0 m; it was taken as distance travelled (its first sample subtracted). "
+                "If it is the line chainage, upload with position_kind line_km"
+            )
         stats = _derive_kinematics(writer, stored, n, fs, limits)
+        if fixes is not None:
+            lookup = geometry(meta.line_id, meta.track) if callable(geometry) else geometry
+            if lookup is not None and (lookup.line_id, lookup.track) != (meta.line_id, meta.track):
+                lookup = None
+            report.update(apply_gnss(writer, fixes, lookup, n, limits, warnings))
+        if isinstance(source, RecorderSource):
+            report["channels"] = source.channel_sources()
         writer.finish(n)
         channels = [c for c in ALL_CHANNELS if c in h5]
         final_meta = writer.metadata
@@ -348,7 +509,24 @@ def _ingest(
         speed_max=stats["vmax"],
         source_format=fmt,
         nan_filled={c: f.n_nan for c, f in fillers.items() if f.n_nan},
+        warnings=warnings,
+        report=report,
     )
+
+
+def _canonical_bytes_per_sample(stored: list[str]) -> int:
+    """Bytes per sample of the canonical file: the stored channels plus speed and position."""
+    names = set(stored) | {"speed", "position"}
+    return sum(storage_dtype(c).itemsize for c in names)
+
+
+def _check_duration(n: int, fs: float, limits: IngestLimits) -> None:
+    if n < limits.min_duration_s * fs:
+        raise RunFileError(
+            "file",
+            f"the run lasts {n / fs:.3g} s ({n} samples at {fs:g} Hz); at least "
+            f"{limits.min_duration_s:g} s are needed to process it",
+        )
 
 
 def _too_many_nan(channel: str, count: int, n: int, limits: IngestLimits) -> None:

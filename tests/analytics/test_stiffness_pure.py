@@ -183,3 +183,21 @@ def test_segment_table():
     t = segment_table(runs, [0.0, -10.0, 0.0], segment_m=100, speeds=v, speed_tolerance=0.1)
     np.testing.assert_allclose(t.speed[[0, 2]], [[30, 30], [32, 40]])
     assert t.change[0] == 3 and np.isnan(t.change[1])
+
+
+def test_speed_exponent_outside_the_physical_range_is_flagged():
+    """A pooled fit over sections where the stiffer track is passed faster gives an
+    exponent no track has: it is flagged with the reason, a plausible one is not."""
+    from app.analysis.stiffness.speed_norm import PHYSICAL_EXPONENT_RANGE, fit_speed_exponent
+
+    rng = np.random.default_rng(3)
+    v = np.repeat([20.0, 30.0, 45.0], 400)
+    loc = np.arange(v.size)  # every location passed once: pooled
+    confounded = (v / 27.8) ** 9.0 * np.exp(rng.normal(0, 0.05, v.size))
+    fit = fit_speed_exponent(confounded, v, loc, reference_speed_mps=27.8, min_speed_mps=5.0)
+    assert fit.method == "pooled" and fit.exponent > PHYSICAL_EXPONENT_RANGE[1]
+    assert not fit.plausible and "outside the physical range" in fit.warning and "pooled" in fit.warning
+    normal = (v / 27.8) ** 1.5 * np.exp(rng.normal(0, 0.05, v.size))
+    fit = fit_speed_exponent(normal, v, loc, reference_speed_mps=27.8, min_speed_mps=5.0)
+    assert fit.plausible and "outside the physical range" not in fit.warning
+    assert fit.unstable_reasons == ("pooled_confounded",) and "pooled" in fit.warning

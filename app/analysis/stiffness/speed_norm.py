@@ -111,6 +111,33 @@ class SpeedFit:
         return SpeedFit(self.exponent, self.exponent_ci, self.method, self.n_samples, self.amplitude_at_ref,
                         self.fit, self.log_speed_std, (*self.unstable_reasons, reason))
 
+    @property
+    def plausible(self) -> bool:
+        """The exponent lies in :data:`PHYSICAL_EXPONENT_RANGE` (False when NaN)."""
+        lo, hi = PHYSICAL_EXPONENT_RANGE
+        return bool(lo <= self.exponent <= hi)
+
+    @property
+    def warning(self) -> str | None:
+        """The :attr:`unstable_reasons` in words (None when stable)."""
+        if self.stable:
+            return None
+        lo, hi = PHYSICAL_EXPONENT_RANGE
+        width = self.exponent_ci[1] - self.exponent_ci[0]
+        text = {
+            "not_estimable": "no exponent: the speeds do not vary enough",
+            "interval_wide": f"confidence interval {width:.2f} wide (more than {MAX_EXPONENT_CI_WIDTH:g})",
+            "outside_physical_range": f"exponent {self.exponent:.2f} is outside the physical range {lo:g}…{hi:g}",
+            "speed_spread_small": f"the speeds vary too little (std of ln v {self.log_speed_std:.3f} < "
+                                  f"{MIN_STABLE_LOG_SPEED_STD:g})",
+            "pooled_confounded": "pooled over locations passed once: stiffness varying with the speed along "
+                                 "the line biases it; runs passing the same bins at other speeds give a within "
+                                 "estimate",
+            "not_power_law": f"the line's reference curve departs from a power law by more than "
+                             f"{MAX_POWER_LAW_MISFIT:g} in ln A",
+        }
+        return "; ".join(text.get(r, r) for r in self.unstable_reasons)
+
 
 def _reasons(method: str, exponent: float, ci: tuple[float, float], log_speed_std: float) -> tuple[str, ...]:
     if method == "none":
@@ -126,7 +153,6 @@ def _reasons(method: str, exponent: float, ci: tuple[float, float], log_speed_st
     if method == "pooled":
         out.append("pooled_confounded")
     return tuple(out)
-
 
 def _check(amplitude, speed_mps, reference_speed_mps, min_speed_mps):
     a, v = paired_1d(amplitude, speed_mps, "amplitude, speed_mps")

@@ -152,6 +152,8 @@ class SpeedType(BaseModel):
     log_speed_std: float | None = Field(description="spread of ln(v) the exponent rests on")
     power_law_misfit: float | None = Field(
         None, description="largest departure of the type's reference curve from the power law, ln units")
+    plausible: bool = Field(description="exponent within the physical range (0 … 3); false when unknown")
+    warning: str | None = Field(None, description="the unstable_reasons in words; null when stable")
 
 
 class SpeedNormOut(BaseModel):

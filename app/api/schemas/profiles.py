@@ -42,4 +42,12 @@ class ProfileOut(BaseModel):
         "run_ids, computed_at, speed_tolerance, classes with their speed ranges), or "
         "{available: false, reason}",
     )
-    rows: list[dict[str, Any]]
+    rows: list[dict[str, Any]] = Field(
+        default_factory=list, description="The rows as objects (layout=rows, the default)"
+    )
+    data: dict[str, list[Any]] | None = Field(
+        None,
+        description="layout=columns: one array per column (same order as `columns`, the wheel "
+        "left out), numbers rounded to fixed decimals: km to 6 (1 mm), others to 5 significant "
+        "digits of the column's largest magnitude; null for missing values",
+    )

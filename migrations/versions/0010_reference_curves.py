@@ -1,7 +1,7 @@
 """reference_curves: the cached reference curves of the stiffness index, one row per line and track.
 
-Revision ID: 0008_reference_curves
-Revises: 0006_partial_display_index
+Revision ID: 0010_reference_curves
+Revises: 0009_sleeper_harmonics
 Create Date: 2026-11-24
 """
 
@@ -11,8 +11,8 @@ import sqlalchemy as sa
 from alembic import op
 from sqlalchemy.dialects import postgresql
 
-revision: str = "0008_reference_curves"
-down_revision: str | None = "0006_partial_display_index"
+revision: str = "0010_reference_curves"
+down_revision: str | None = "0009_sleeper_harmonics"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
