@@ -160,13 +160,16 @@ def _line(one_type: bool):
     return generate_line(11_900.0, 16_100.0, np.random.default_rng([9, 7]), anomaly_range_m=(12_100.0, 15_950.0))
 
 
-def _process(work: Path, line, tag: str, noise: float, profile_seeds: tuple[int, int]) -> pd.DataFrame:
+def _process(work: Path, line, tag: str, noise: float, profile_seeds: tuple[int, int],
+             track_resolution_m: float | None = None) -> pd.DataFrame:
     frames = []
     for name, seed, ps in (("A", 31, profile_seeds[0]), ("B", 32, profile_seeds[1])):
         path = work / f"{tag}-{name}.h5"
         prof = SpeedProfile.random(ps, length_m=4100.0, v_min_kmh=60.0, v_max_kmh=180.0)
         simulate_run(path, length_km=4.0, fs=2000.0, seed=seed, line=line, noise_std=noise, speed_profile=prof)
-        res = run_pipeline(path, ProcessingSettings(), work / f"work-{tag}-{name}")
+        settings = ProcessingSettings() if track_resolution_m is None else \
+            ProcessingSettings(track_resolution_m=track_resolution_m)
+        res = run_pipeline(path, settings, work / f"work-{tag}-{name}")
         df = res.profiles.copy()
         lo = df.groupby("wheel")["bin"].transform("min")
         hi = df.groupby("wheel")["bin"].transform("max")
@@ -208,13 +211,16 @@ def _agreement(df: pd.DataFrame) -> list[list]:
         ia, ib = a.loc[j, "idx"], b.loc[j, "idx"]
         ok = np.isfinite(ia) & np.isfinite(ib)
         ra, rb = a.loc[j, "la"][ok], b.loc[j, "la"][ok]
+        seg = j.to_numpy()[ok.to_numpy()] // int(100 / 0.25)  # 100 m segments: the index's mean per run
+        sa, sb = ia[ok].groupby(seg).mean(), ib[ok].groupby(seg).mean()
         rows.append([w, float(ok.mean()), float(np.corrcoef(ia[ok], ib[ok])[0, 1]),
-                     float(np.median(np.abs(ia[ok] - ib[ok]))), float(np.corrcoef(ra, rb)[0, 1]),
+                     float(np.median(np.abs(ia[ok] - ib[ok]))), float(np.corrcoef(sa, sb)[0, 1]),
+                     float(np.corrcoef(ra, rb)[0, 1]),
                      float(np.median(np.abs(ra - rb))), float(np.median(a.loc[j, "se"][ok]))])
     return rows
 
 
-def part_index(work: Path, img: Path | None) -> dict:
+def part_index(work: Path, img: Path | None, only: list[str] | None = None) -> dict:
     out = {}
     mixed, one = _line(False), _line(True)
     scenarios = [
@@ -223,12 +229,18 @@ def part_index(work: Path, img: Path | None) -> dict:
         ("one superstructure type, no sections, noise 0.5 m/s²", "one", one, False, 0.5, (31, 32)),
         ("mixed line, sections imported, noise 1.0 m/s²", "n10", mixed, True, 1.0, (31, 32)),
         ("baseline: SAME speed profile, sections, noise 1.0 m/s²", "same", mixed, True, 1.0, (31, 31)),
+        ("baseline: SAME speed profile, sections, noise 0.5 m/s²", "same05", mixed, True, 0.5, (31, 31)),
+        ("mixed line, sections, noise 0.5 m/s², track_resolution_m 6", "n05r6", mixed, True, 0.5, (31, 32), 6.0),
+        ("baseline: SAME speed profile, sections, noise 0.5 m/s², track_resolution_m 6", "same05r6", mixed, True,
+         0.5, (31, 31), 6.0),
     ]
+    if only:
+        scenarios = [s for s in scenarios if s[1] in only]
     cache: dict[str, pd.DataFrame] = {}
-    for title, tag, line, sections, noise, seeds in scenarios:
+    for title, tag, line, sections, noise, seeds, *res in scenarios:
         if tag not in cache:
             t0 = time.perf_counter()
-            cache[tag] = _process(work, line, tag, noise, seeds)
+            cache[tag] = _process(work, line, tag, noise, seeds, *res)
             print(f"\n(simulated and processed two 4 km runs [{tag}] in {time.perf_counter() - t0:.1f} s)")
         ref, df, fit_s = _index(cache[tag], line, sections)
         out[(tag, sections)] = (ref, df, line)
@@ -239,7 +251,8 @@ def part_index(work: Path, img: Path | None) -> dict:
                   f"spread {cu.spread:.3f}, repeatability {cu.repeatability:.3f}, "
                   f"median se {np.nanmedian(cu.log_amp_se):.3f}")
         print()
-        print(_table(["wheel", "index coverage", "index Pearson", "index median abs Δ", "raw ln A Pearson",
+        print(_table(["wheel", "index coverage", "index Pearson", "index median abs Δ", "index Pearson 100 m",
+                      "raw ln A Pearson",
                       "raw median abs Δ ln A", "median index se"], _agreement(df)))
     if img is not None:
         _plots_index(out, img)
@@ -420,6 +433,8 @@ def main() -> None:
     ap.add_argument("--physics", type=Path, default=Path("../shared/physics"))
     ap.add_argument("--img-dir", type=Path, default=None, help="write the PNG plots here (e.g. docs/img)")
     ap.add_argument("--parts", default="physics,index,powerlaw,wheels,demo,timing,stiffness")
+    ap.add_argument("--index-runs", default=None,
+                    help="only these run pairs of the index part (n05,one,n10,same,same05,n05r6,same05r6)")
     args = ap.parse_args()
     parts = set(args.parts.split(","))
     if args.img_dir is not None:
@@ -428,7 +443,7 @@ def main() -> None:
         part_physics(args.physics, args.img_dir)
     if parts & {"index", "powerlaw", "wheels"}:
         with tempfile.TemporaryDirectory(prefix="trackvkf-speed-") as tmp:
-            out = part_index(Path(tmp), args.img_dir)
+            out = part_index(Path(tmp), args.img_dir, args.index_runs.split(",") if args.index_runs else None)
             if "powerlaw" in parts:
                 part_powerlaw(out)
             if "wheels" in parts:

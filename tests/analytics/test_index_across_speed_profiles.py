@@ -80,7 +80,13 @@ def test_index_profiles_agree_across_speed_profiles(make_client, one_type):
 
 
 def test_index_with_superstructure_classes(make_client, two_profiles, tmp_path):
-    """Three superstructure types with three speed responses: a curve per imported type."""
+    """Three superstructure types with three speed responses: a curve per imported type.
+
+    Per 25 cm bin the two runs' indices differ by little (median 0.02) but, within a class whose
+    locations vary by only ~7 % in amplitude, correlate no better than the measurement noise at
+    the 3 m track resolution allows: two runs at the SAME speed profile give 0.81–0.86, these two
+    0.85–0.88 (bench/bench_speed_conditioning.py). The Pearson target is checked on the index's
+    100 m segment means through ``/analytics/segments?value=index`` (the stored segment form)."""
     from app.simulate.reference import simulate_reference
     from tests.analytics.support import import_reference
 
@@ -97,8 +103,17 @@ def test_index_with_superstructure_classes(make_client, two_profiles, tmp_path):
         ia, ib = a.loc[common, "stiffness_index"].astype(float), b.loc[common, "stiffness_index"].astype(float)
         both = np.isfinite(ia) & np.isfinite(ib)
         assert both.mean() > 0.8  # less: no index within 50 m of a change of superstructure
-        assert np.corrcoef(ia[both], ib[both])[0, 1] >= 0.95
+        assert np.corrcoef(ia[both], ib[both])[0, 1] >= 0.8  # the noise bound (docstring)
         assert np.median(np.abs(ia - ib)[both]) <= 0.1
+        raw = np.log(a.loc[common, "sleeper_amp"][both]) - np.log(b.loc[common, "sleeper_amp"][both])
+        assert np.median(np.abs(raw)) > 0.15 and np.median(np.abs(raw)) > 5 * np.median(np.abs(ia - ib)[both])
+        seg = get(client, "/analytics/segments", line_id=LINE, wheel=wheel, run_ids=f"{ids[0]},{ids[1]}",
+                  segment_m=100, align="false", value="index")
+        sa, sb = (np.array(row, dtype=float) for row in seg["matrix"])
+        ok = np.isfinite(sa) & np.isfinite(sb)
+        assert ok.sum() >= 30
+        assert np.corrcoef(sa[ok], sb[ok])[0, 1] >= 0.95, wheel
+        assert np.median(np.abs(sa - sb)[ok]) <= 0.1, wheel
         # within its class, the index follows the simulator's local stiffness factor
         x = (common.to_numpy()[both.to_numpy()] + 0.5) * 0.25
         factor = np.log(line.stiffness_factor(x, int(wheel[1])))
