@@ -50,6 +50,7 @@ from worker.steps import (
     load_job,
     mark_chunk_done,
     record_plan,
+    refresh_line_reference,
     remove_files_if_deleted,
 )
 
@@ -283,6 +284,7 @@ class LocalWorker:
             )
             if stored:
                 discard_job_files(rt, run_id)  # its chunk files, and those of the jobs it supersedes
+                refresh_line_reference(rt, record.run)
                 return JobOutcome(job_id, JobStatus.DONE)
             lease.beat()
             if lease.cancel_requested and not lease.lost:

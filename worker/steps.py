@@ -17,7 +17,9 @@ take a job through the same steps, written once here:
   running: the published rows are in SQL, a failed or cancelled job is never
   resumed), here and in the shared store; called at every such end;
 * :func:`job_meta`: the provenance stored with the results (pipeline and
-  worker metadata, ``meta["worker"]``).
+  worker metadata, ``meta["worker"]``);
+* :func:`refresh_line_reference`: after a publish, recompute the reference
+  curves of the run's line (stiffness index; :mod:`app.db.reference_curves`).
 
 Every write goes through :mod:`app.db.queue`, guarded by the job's owner:
 ``worker_id`` is the local worker's id, or None for the fan-out tasks (any
@@ -40,6 +42,7 @@ from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
 from app.db.models import ChunkStatus, Job, JobStatus, Run
+from app.db.reference_curves import CurveParams, refresh_reference
 from app.db.session import Database
 from app.io import WHEELS
 from app.pipeline import ChunkSpec, plan_chunks, results_meta
@@ -56,6 +59,7 @@ __all__ = [
     "discard_job_files",
     "finalize_cancels",
     "job_meta",
+    "refresh_line_reference",
 ]
 
 log = logging.getLogger(__name__)
@@ -324,3 +328,21 @@ def job_meta(
     worker.update({name: round(value, 3) for name, value in seconds.items()})
     worker["run_sha256"] = run_sha256
     return {**results_meta(settings, n_chunks, warnings), "worker": worker}
+
+
+def refresh_line_reference(rt: WorkerRuntime, run: Run | None) -> None:
+    """Recompute the reference curves of the stiffness index of ``run``'s line (after a publish).
+
+    Best effort: the job's results are already published, so a failure is only
+    logged (the API computes stale curves on demand).
+    """
+    if run is None or run.line_id is None:
+        return
+    try:
+        stored = refresh_reference(rt.db, run.line_id, run.track, CurveParams.from_settings(rt.settings))
+    except Exception:  # noqa: BLE001 - never fail a published job for its reference curves
+        log.exception("reference curves of line %s track %s not refreshed", run.line_id, run.track)
+        return
+    if stored is not None:
+        log.info("reference curves of line %s track %s refreshed from %d runs in %.2f s",
+                 run.line_id, run.track, len(stored.run_ids), stored.compute_s)

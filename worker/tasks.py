@@ -90,6 +90,7 @@ from worker.steps import (
     load_job,
     mark_chunk_done,
     record_plan,
+    refresh_line_reference,
     remove_files_if_deleted,
 )
 
@@ -424,6 +425,8 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
              time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
     discard_job_files(rt, run_id)  # its chunk and wheel files, and those of the jobs it supersedes
+    if stored:
+        refresh_line_reference(rt, record.run)
     return "published" if stored else "not running any more"
 
 

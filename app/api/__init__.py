@@ -14,6 +14,7 @@ from fastapi import APIRouter, Depends
 
 from app.api import (
     analytics,
+    analytics_index,
     audit,
     auth,
     channel_maps,
@@ -40,7 +41,7 @@ def build_api_router() -> APIRouter:
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
-        runs, jobs, profiles, wheels, spectrogram, reference, analytics, auth, audit,
+        runs, jobs, profiles, wheels, spectrogram, reference, analytics, analytics_index, auth, audit,
         channel_maps, geometry,
     ):
         protected.include_router(module.router)

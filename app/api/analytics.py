@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 import pandas as pd
@@ -20,6 +20,7 @@ from fastapi import APIRouter, Depends, Query
 from app.analysis.stiffness.alignment import align_runs, segment_table
 from app.analysis.stiffness.maintenance import count_actions, maintenance_correlation
 from app.analysis.stiffness.regression import decimate_indices
+from app.analysis.stiffness.speed_norm import MAX_POWER_LAW_MISFIT
 from app.analysis.stiffness.subsidence import (
     LOG_BASE,
     bin_means,
@@ -29,6 +30,7 @@ from app.analysis.stiffness.subsidence import (
 from app.analysis.stiffness.superstructure import flag_segments, type_distributions
 from app.analysis.stiffness.unsprung_mass import fit_unsprung_mass
 from app.api import analytics_data as data
+from app.api.analytics_index import curve_misfits, index_context
 from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.profiles import run_with_results
@@ -46,6 +48,7 @@ from app.api.schemas.analytics import (
     UnsprungMassOut,
 )
 from app.db import crud
+from app.db import reference_curves as curves_db
 from app.db.session import Database
 
 __all__ = ["router"]
@@ -265,27 +268,37 @@ def _norm_context(db, settings, sel, df, ref_speed, min_speed):
 def superstructure(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                    segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0,
                    z_threshold: Annotated[float, Query(gt=0, le=100)] = 3.5,
-                   normalise: Annotated[bool, Query(description="use the speed-normalised amplitude")] = True,
+                   normalise: Annotated[bool, Query(description="use the amplitude conditioned to "
+                                                    "reference_speed_kmh (see conditioning)")] = True,
+                   conditioning: Annotated[Literal["index", "power_law"], Query(
+                       description="index: A_ref(type, v_ref) · exp(stiffness index) by the reference curves; "
+                       "power_law: A · (v_ref / v) ** exponent (explicit option)")] = "index",
                    reference_speed_kmh: RefSpeedQ = None, min_speed_kmh: MinSpeedQ = None) -> dict:
     """Distribution of the amplitude per type (the paper's clusters); segments of
     ``segment_m`` whose median departs from their type by more than ``z_threshold``
-    robust standard deviations are flagged for inspection."""
+    robust standard deviations are flagged for inspection. With ``normalise`` the amplitude
+    is first conditioned to the reference speed (``conditioning``); types whose reference
+    curve does not reach ``reference_speed_kmh`` then have no rows."""
     sel = runs.select(db)
     ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
     df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=_wheel(runs.wheel),
                             min_speed_kmh=min_v)
     sections = data.reference(db, "superstructure", sel)
-    out = {"normalised": False, "reference_speed_kmh": ref_v, "run_ids": sel.run_ids,
+    out = {"normalised": False, "conditioning": None, "reference_speed_kmh": ref_v, "run_ids": sel.run_ids,
            "types": [], "segments": [], "flagged": []}
     if sections.empty or df.empty:
         return out
     amp = df["sleeper_amp"].to_numpy()
     if normalise:
-        fits = data.speed_exponents(df, sections, sel.bin_length, ref_v, min_v)
-        namp, _ = data.normalised(df, sections, fits, sel.bin_length, ref_v, min_v)
+        if conditioning == "power_law":
+            fits = data.speed_exponents(df, sections, sel.bin_length, ref_v, min_v)
+            namp, _ = data.normalised(df, sections, fits, sel.bin_length, ref_v, min_v)
+        else:
+            ctx = index_context(db, settings, sel.line_id, sel.track, sel.bin_length)
+            namp = ctx.at_reference_speed(df, ref_v / 3.6)
         if np.isfinite(namp).any():
-            amp, out["normalised"] = namp, True
+            amp, out["normalised"], out["conditioning"] = namp, True, conditioning
     df = df.assign(value=amp)
     df = df[np.isfinite(df["value"].to_numpy())]
     pb = df.groupby("bin", sort=True)["value"].mean()
@@ -309,17 +322,27 @@ def speed_normalisation(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                         reference_speed_kmh: RefSpeedQ = None,
                         min_speed_kmh: MinSpeedQ = None) -> dict:
     """ln A = exponent · ln(v / v_ref) + c per type ('*' = all bins, '' = outside any
-    section), estimated within bins passed at several speeds where possible."""
+    section), estimated within bins passed at several speeds where possible. An explicit
+    option (the default speed conditioning is the stiffness index): every exponent comes with
+    ``stable`` and the reasons it should not be trusted."""
     sel = runs.select(db)
     ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
     df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=_wheel(runs.wheel),
                             min_speed_kmh=min_v)
     _, fits = _norm_context(db, settings, sel, df, ref_v, min_v)
-    types = [{"type": t, "exponent": data.num(f.exponent), "exponent_ci": data.nums(f.exponent_ci),
-              "method": f.method, "n_samples": f.n_samples, "amplitude_at_ref": data.num(f.amplitude_at_ref),
-              "plausible": f.plausible, "warning": f.warning}
-             for t, f in fits.items()]
+    stored = curves_db.current_reference(db, sel.line_id, sel.track, curves_db.CurveParams.from_settings(settings)) \
+        if sel.line_id is not None and fits else None
+    misfit = curve_misfits(stored, {t: f.exponent for t, f in fits.items() if t != "*"})
+    types = []
+    for t, f in fits.items():
+        if misfit.get(t, 0.0) > MAX_POWER_LAW_MISFIT:
+            f = f.with_reason("not_power_law")
+        types.append({"type": t, "exponent": data.num(f.exponent), "exponent_ci": data.nums(f.exponent_ci),
+                      "method": f.method, "n_samples": f.n_samples, "amplitude_at_ref": data.num(f.amplitude_at_ref),
+                      "stable": f.stable, "unstable_reasons": list(f.unstable_reasons),
+                      "log_speed_std": data.num(f.log_speed_std), "power_law_misfit": data.num(misfit.get(t)),
+                      "plausible": f.plausible, "warning": f.warning})
     return {"reference_speed_kmh": ref_v, "min_speed_kmh": min_v, "run_ids": sel.run_ids, "types": types}
 
 
@@ -402,22 +425,33 @@ def run_alignment(run_id: RunId, db: DbDep, settings: SettingsDep,
             "overlap_m": al.overlap_m, "lags_m": al.lags_m.tolist(), "correlation": data.nums(al.correlation)}
 
 
-def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_shift_m):
+ValueQ = Annotated[Literal["amplitude", "index"], Query(
+    description="amplitude: mean sleeper-passage amplitude (m/s²); index: mean stiffness index (ln units)")]
+
+
+def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_shift_m, value="amplitude"):
     df = data.load_profiles(db, settings, sel, km_from=km_from, km_to=km_to, wheel=wheel)
-    runs, shifts, info = [], [], []
+    column = "sleeper_amp"
+    if value == "index":
+        df = index_context(db, settings, sel.line_id, sel.track, sel.bin_length).add_columns(df)
+        column = "stiffness_index"
+    runs, shifts, info, speeds = [], [], [], []
     ref_id = sel.run_ids[0] if sel.runs else None
     for run in sel.runs:
-        g = df[df["run_id"] == run.id].groupby("bin")["sleeper_amp"].mean()
+        per_bin = df[df["run_id"] == run.id].groupby("bin")
+        g = per_bin["sleeper_amp"].mean()
         shift, conf = 0.0, None
         if align and len(g):
             al = _alignment(sel, df, run.id, ref_id, max_shift_m, 50.0)
             if al is not None and np.isfinite(al.shift_m):
                 shift, conf = al.shift_m, al.confidence
-        runs.append((g.index.to_numpy(), g.to_numpy()))
+        runs.append((g.index.to_numpy(), per_bin[column].mean().to_numpy()))
+        speeds.append(per_bin["speed_mean"].mean().to_numpy())
         shifts.append(shift)
         info.append({"run_id": run.id, "start_time": run.start_time.isoformat() if run.start_time else None,
                      "shift_m": shift if align else None, "shift_confidence": conf if align else None})
-    table = segment_table(runs, shifts, bin_length_m=sel.bin_length, segment_m=segment_m)
+    table = segment_table(runs, shifts, bin_length_m=sel.bin_length, segment_m=segment_m, speeds=speeds,
+                          speed_tolerance=settings.analytics_speed_tolerance)
     return ref_id, info, table
 
 
@@ -425,14 +459,18 @@ def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_sh
             summary="Per-segment mean amplitude per run, mean, spread and change over runs")
 def segments(db: DbDep, settings: SettingsDep, runs: RunsQuery,
              segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0,
-             align: bool = True, max_shift_m: MaxShiftQ = 50.0) -> dict:
+             align: bool = True, max_shift_m: MaxShiftQ = 50.0, value: ValueQ = "amplitude") -> dict:
     """Runs (by start time) are aligned to the first one (``align``), then averaged per
-    segment; ``spread`` is the standard deviation over runs, ``change`` last minus first."""
+    segment; ``spread`` is the standard deviation over runs, ``change`` last minus first
+    where the two passed at matched speed (``TRACKVKF_ANALYTICS_SPEED_TOLERANCE``; else null)."""
     sel = runs.select(db)
-    ref_id, info, t = _segments(db, settings, sel, runs.km_from, runs.km_to, _wheel(runs.wheel), segment_m, align, max_shift_m)
-    return {"segment_m": segment_m, "reference_run_id": ref_id, "km": (t.start_m / 1000).tolist(),
+    ref_id, info, t = _segments(db, settings, sel, runs.km_from, runs.km_to, _wheel(runs.wheel), segment_m, align,
+                                max_shift_m, value)
+    return {"segment_m": segment_m, "value": value, "reference_run_id": ref_id, "km": (t.start_m / 1000).tolist(),
             "runs": info, "matrix": [data.nums(row) for row in t.matrix], "mean": data.nums(t.mean),
-            "spread": data.nums(t.spread), "change": data.nums(t.change)}
+            "spread": data.nums(t.spread), "change": data.nums(t.change),
+            "speed_kmh": [data.nums(row * 3.6) for row in t.speed],
+            "speed_tolerance": settings.analytics_speed_tolerance}
 
 
 @router.get("/analytics/segment-trend", response_model=SegmentTrendOut,
@@ -440,14 +478,17 @@ def segments(db: DbDep, settings: SettingsDep, runs: RunsQuery,
 def segment_trend(db: DbDep, settings: SettingsDep, km: Annotated[float, km_query()],
                   line_id: LineQ = None, track: TrackQ = None, run_ids: RunIdsQ = None, wheel: WheelQ = None,
                   segment_m: Annotated[float, Query(gt=0, le=10_000)] = 100.0, align: bool = True,
-                  max_shift_m: MaxShiftQ = 50.0) -> dict:
-    """The mean amplitude of the segment holding ``km`` in each run, by start time."""
+                  max_shift_m: MaxShiftQ = 50.0, value: ValueQ = "amplitude") -> dict:
+    """The mean amplitude (or stiffness index) of the segment holding ``km`` in each run, by start
+    time, with the run's mean speed there."""
     sel = _sel(db, line_id, track, run_ids, None, None)
     w = _wheel(wheel)
     start = np.floor(km * 1000 / segment_m) * segment_m
     lo, hi = (start - max_shift_m - 200) / 1000, (start + segment_m + max_shift_m + 200) / 1000
-    _, info, t = _segments(db, settings, sel, lo, hi, w, segment_m, align, max_shift_m)
+    _, info, t = _segments(db, settings, sel, lo, hi, w, segment_m, align, max_shift_m, value)
     j = np.flatnonzero(np.isclose(t.start_m, start))
     points = [{"run_id": r["run_id"], "start_time": r["start_time"],
-               "amplitude": data.num(t.matrix[i, j[0]]) if j.size else None} for i, r in enumerate(info)]
-    return {"km": km, "segment_km": [start / 1000, (start + segment_m) / 1000], "wheel": w, "points": points}
+               value: data.num(t.matrix[i, j[0]]) if j.size else None,
+               "speed_kmh": data.num(t.speed[i, j[0]] * 3.6) if j.size else None} for i, r in enumerate(info)]
+    return {"km": km, "segment_km": [start / 1000, (start + segment_m) / 1000], "wheel": w, "value": value,
+            "points": points}

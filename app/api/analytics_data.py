@@ -12,14 +12,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import func, select
 
 from app.analysis.stiffness.speed_norm import SpeedFit, fit_speed_exponent, normalise_amplitude
 from app.analysis.stiffness.superstructure import assign_sections
 from app.api.errors import ApiError
 from app.core.config import Settings
-from app.db import crud, reference_crud, results_reader
-from app.db.models import Job, JobStatus, ProfileBin, Run
+from app.db import crud, line_profiles, reference_crud, results_reader
+from app.db.models import Run
 from app.db.session import Database
 
 __all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
@@ -93,11 +92,7 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
         else:
             if line_id is None:
                 raise ApiError(422, "line_id", "is required unless run_ids are given")
-            with_results = select(Job.run_id).where(Job.status == JobStatus.DONE)
-            stmt = select(Run).where(Run.line_id == line_id, Run.id.in_(with_results))
-            if track is not None:
-                stmt = stmt.where(Run.track == track)
-            runs = list(session.scalars(stmt).all())
+            runs = line_profiles.runs_with_results(session, line_id, track)
             tracks = {r.track for r in runs}
             if track is None and len(tracks) > 1:
                 raise ApiError(422, "track", f"line {line_id!r} has runs on tracks {sorted(map(str, tracks))}: choose one")
@@ -157,67 +152,26 @@ def load_profiles(
     km_to: float | None = None, wheel: str | None = None, min_speed_kmh: float | None = None,
 ) -> pd.DataFrame:
     """Profile rows of the selected runs (columns ``_COLS``), without the run ends
-    (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude.
+    (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude
+    (:func:`app.db.line_profiles.analytics_frame`).
 
     Frames are kept per API process (:data:`PROFILE_CACHE_ROWS`), keyed by the runs' result
     jobs and the arguments; treat the returned frame as read-only.
     """
-    min_v = (settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh) / 3.6
+    min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
     trim = settings.analytics_edge_trim_m
     with db.read() as session:
-        jobs = [(run.id, results_reader.results_job_id(session, run.id)) for run in sel.runs]
-    jobs = [(run_id, job_id) for run_id, job_id in jobs if job_id is not None]
+        jobs = line_profiles.result_jobs(session, sel.runs)
+
+    def load() -> pd.DataFrame:
+        with db.read() as session:
+            return line_profiles.analytics_frame(
+                session, jobs, bin_length_m=sel.bin_length, min_speed_kmh=min_v, edge_trim_m=trim,
+                km_from=km_from, km_to=km_to, wheel=wheel,
+            )[_COLS]
+
     key = (db.url, tuple(jobs), wheel, km_from, km_to, min_v, trim, sel.bin_length)
-    frame = _CACHE.get(key, lambda: _load_profiles(db, jobs, km_from, km_to, wheel, min_v, trim,
-                                                   sel.bin_length))
-    return frame.copy(deep=False)
-
-
-def _wheel_extents(session, job_id: int) -> dict[str, tuple[int, int]]:
-    """First and last bin of each wheel of a job (index lookups, not a scan of its rows)."""
-    out = {}
-    for w in results_reader.stored_profile_wheels(session, job_id):
-        where = (ProfileBin.job_id == job_id) & (ProfileBin.wheel == w)
-        lo = session.scalar(select(func.min(ProfileBin.bin)).where(where))
-        hi = session.scalar(select(func.max(ProfileBin.bin)).where(where))
-        out[w] = (int(lo), int(hi))
-    return out
-
-
-def _load_profiles(db: Database, jobs: list[tuple[int, int]], km_from: float | None,
-                   km_to: float | None, wheel: str | None, min_v: float, trim: float,
-                   bin_length: float) -> pd.DataFrame:
-    frames = []
-    with db.read() as session:
-        for run_id, job_id in jobs:
-            ext = _wheel_extents(session, job_id)
-            df = _rows(session, job_id, wheel, km_from, km_to)
-            if df.empty:
-                continue
-            wheels = df["wheel"].to_numpy(dtype=object)
-            bins = df["bin"].to_numpy()
-            lo = np.zeros(len(df), dtype=np.int64)
-            hi = np.zeros(len(df), dtype=np.int64)
-            for w, (b0, b1) in ext.items():
-                m = wheels == w
-                lo[m], hi[m] = b0, b1
-            k = trim / bin_length
-            keep = (bins >= lo + k) & (bins <= hi - k)
-            keep &= (df["speed_mean"].to_numpy() >= min_v) & (df["sleeper_amp"].to_numpy() > 0)
-            df = df[keep]
-            df.insert(0, "run_id", run_id)
-            frames.append(df[_COLS])
-    if not frames:
-        return pd.DataFrame({c: pd.Series(dtype=object if c == "wheel" else float) for c in _COLS})
-    return pd.concat(frames, ignore_index=True)
-
-
-def _rows(session, job_id: int, wheel: str | None, km_from: float | None, km_to: float | None) -> pd.DataFrame:
-    """The analytics' columns of a job's profile rows (ordered by wheel and bin)."""
-    return results_reader.job_profile_frame(
-        session, job_id, wheel=wheel, km_from=km_from, km_to=km_to,
-        columns=["speed_mean", "sleeper_amp", "sleeper_force_amp"],
-    )
+    return _CACHE.get(key, load).copy(deep=False)
 
 
 def reference(db: Database, kind: str, sel: Selection, **kw) -> pd.DataFrame:

@@ -26,6 +26,7 @@ from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
 from app.analysis.aggregate import aggregate_profile, display_indices
+from app.api.analytics_index import INDEX_COLUMNS, IndexContext, index_context
 from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
@@ -108,6 +109,18 @@ Columns = Annotated[
 ]
 
 
+IndexQ = Annotated[
+    bool,
+    Query(
+        description="Add the stiffness index: stiffness_index = ln(sleeper_amp / reference_amp), "
+        "stiffness_index_se (its standard uncertainty, ln units) and reference_amp (m/s², the "
+        "amplitude of a typical location of the bin's superstructure class at the bin's speed, from "
+        "the line's reference curves); null where the reference has no passes at that speed. The "
+        "answer's `reference` says which curves were used",
+    ),
+]
+
+
 def _columns(value: str | None, max_points: int | None) -> tuple[str, ...] | None:
     """The asked indicator columns (422 naming the unknown ones); sleeper_amp added for decimation."""
     if value is None:
@@ -136,6 +149,14 @@ def run_with_results(session: Session, run_id: int) -> tuple[Run, Job]:
     return run, job
 
 
+def _index_context(db: Database, settings, run_id: int, bin_length: float) -> IndexContext:
+    """The reference curves of the run's line for the ``index`` columns."""
+    with db.read() as session:
+        run = crud.get_run(session, run_id)
+        line_id, track = (run.line_id, run.track) if run is not None else (None, None)
+    return index_context(db, settings, line_id, track, bin_length)
+
+
 def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int, float, list[str]]:
     """Job id and bin length of the stored results and the wheels; 404/409 if none."""
     with db.read() as session:
@@ -162,6 +183,7 @@ def _aggregate(
     df: pd.DataFrame, level_m: float, bin_length: float, columns: Sequence[str] | None = None
 ) -> pd.DataFrame:
     wanted = AGGREGATED_COLUMNS if columns is None else [c for c in columns if c in AGGREGATED_COLUMNS]
+    wanted = [*wanted, *(c for c in INDEX_COLUMNS if c in df.columns)]
     out = aggregate_profile(df, level_m, list(wanted), bin_length)
     out.insert(0, "wheel", df["wheel"].iloc[0] if len(df) else "")
     return out
@@ -265,6 +287,7 @@ async def get_profile(
     max_points: MaxPoints = None,
     columns: Columns = None,
     layout: Layout = "rows",
+    index: IndexQ = False,
 ) -> Response:
     """Per-bin indicators of one wheel in a km range, or their aggregates per segment.
 
@@ -276,25 +299,31 @@ async def get_profile(
     and the query) and ``Cache-Control: private, no-cache``, a request with a
     matching ``If-None-Match`` gets ``304 Not Modified``, and the server keeps
     recent answers (gzip-encoded too) in memory (``TRACKVKF_PROFILE_CACHE_BYTES``
-    per API process). A new job of the run changes the ETag. At most
+    per API process). A new job of the run changes the ETag (and, with ``index``, new
+    reference curves of the line). At most
     ``TRACKVKF_PROFILE_CONCURRENCY`` answers per API process are computed at
     once; more wait their turn without holding up other requests (uploads, logins).
     """
     check_km(km_from, km_to)
     values = _columns(columns, max_points)
+    if index and values is not None:
+        values = tuple(dict.fromkeys([*values, "speed_mean", "sleeper_amp"]))
     job_id, bin_length, _ = await run_in_threadpool(_results_context, db, run_id, wheel)
+    ctx = await run_in_threadpool(_index_context, db, settings, run_id, bin_length) if index else None
     k = _level_ratio(level, bin_length)
     if max_points is not None and max_points > settings.max_profile_rows:
         raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
     etag = _etag(job_id, settings.max_profile_rows, wheel=wheel, km_from=km_from, km_to=km_to, level=level,
-                 max_points=max_points, columns=values, layout=layout)
+                 max_points=max_points, columns=values, layout=layout,
+                 index=ctx.version() if ctx is not None else None)
     headers = {"ETag": etag, "Cache-Control": PROFILE_CACHE_CONTROL, "Vary": "Accept-Encoding"}
     if _matches(etag, request.headers.get("if-none-match")):
         return Response(status_code=304, headers=headers)
     cache: ByteLRU[tuple[bytes, bytes | None]] = request.app.state.profile_cache
     encoded = cache.get(etag)
     if encoded is None:
-        query = _ProfileQuery(run_id, job_id, bin_length, k, wheel, km_from, km_to, level, max_points, values, layout)
+        query = _ProfileQuery(run_id, job_id, bin_length, k, wheel, km_from, km_to, level, max_points, values, layout,
+                              ctx)
         body, encoded = await _compute_once(request, etag, db, settings, query)
         if encoded is None:  # too large to keep: sent as it is (the middleware compresses it on the way)
             return Response(content=body, media_type="application/json", headers=headers)
@@ -320,6 +349,7 @@ class _ProfileQuery:
     max_points: int | None
     values: tuple[str, ...] | None
     layout: str
+    index: IndexContext | None = None
 
 
 _Computed = tuple[bytes, tuple[bytes, bytes | None] | None]
@@ -378,6 +408,7 @@ def _profile_body(db: Database, settings: Settings, query: _ProfileQuery) -> byt
     q = query
     run_id, job_id, bin_length, k, wheel = q.run_id, q.job_id, q.bin_length, q.k, q.wheel
     km_from, km_to, level, max_points, values = q.km_from, q.km_to, q.level, q.max_points, q.values
+    ctx = q.index
     read = {"wheel": wheel, "km_from": km_from, "km_to": km_to, "columns": values}
     with db.read() as session:  # one snapshot: the extent and the rows of the same job
         extent = km_extent(session, job_id, wheel)
@@ -389,6 +420,8 @@ def _profile_body(db: Database, settings: Settings, query: _ProfileQuery) -> byt
             df = results_reader.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
         else:
             df = results_reader.job_profile_frame(session, job_id, **read)
+    if ctx is not None:
+        df = ctx.add_columns(df)
     truncated = False
     if max_points is not None and k > 1:
         df = _decimate(_aggregate(df, level, bin_length, values), max_points, "sleeper_amp_max")
@@ -410,6 +443,7 @@ def _profile_body(db: Database, settings: Settings, query: _ProfileQuery) -> byt
         n_rows=len(df),
         truncated=truncated,
         columns=list(df.columns),
+        reference=ctx.describe() if ctx is not None else None,
     )
     head = meta.model_dump(mode="json", exclude={"rows", "data"})
     return _columns_json(head, df) if q.layout == "columns" else _rows_json(head, df)
@@ -423,19 +457,22 @@ def _frames(
     km_to: float | None,
     level: float,
     bin_length: float,
+    ctx: IndexContext | None = None,
 ) -> Iterator[pd.DataFrame]:
-    """Pages of the export: stored rows, or aggregated segments wheel by wheel."""
+    """Pages of the export: stored rows, or aggregated segments wheel by wheel (with the
+    stiffness index columns when ``ctx`` is given)."""
     if _level_ratio(level, bin_length) == 1:
         for wheel in wheels:
-            yield from results_reader.iter_profile_pages(
+            for page in results_reader.iter_profile_pages(
                 db.read, job_id, wheel, km_from=km_from, km_to=km_to, page_size=_EXPORT_PAGE
-            )
+            ):
+                yield ctx.add_columns(page) if ctx is not None else page
         return
     for wheel in wheels:
         with db.read() as session:
             df = results_reader.job_profile_frame(session, job_id, wheel=wheel, km_from=km_from, km_to=km_to)
         if len(df):
-            yield _aggregate(df, level, bin_length)
+            yield _aggregate(ctx.add_columns(df) if ctx is not None else df, level, bin_length)
 
 
 @dataclass(frozen=True)
@@ -450,10 +487,12 @@ class _Export:
     km_to: float | None
     level: float
     bin_length: float
+    index: IndexContext | None = None
 
     def frames(self, db: Database) -> Iterator[pd.DataFrame]:
         """The pages to write (:func:`_frames`)."""
-        return _frames(db, self.job_id, self.wheels, self.km_from, self.km_to, self.level, self.bin_length)
+        return _frames(db, self.job_id, self.wheels, self.km_from, self.km_to, self.level, self.bin_length,
+                       self.index)
 
     def content_disposition(self, ext: str) -> dict[str, str]:
         """The attachment header naming the file ``run-<id>-profile[_wheel-<w>]_<level>m.<ext>``."""
@@ -464,16 +503,19 @@ class _Export:
 def _export_query(
     run_id: RunId,
     db: DbDep,
+    settings: SettingsDep,
     wheel: OptionalWheel = None,
     km_from: KmFrom = None,
     km_to: KmTo = None,
     level: Level = 0.25,
+    index: IndexQ = False,
 ) -> _Export:
     """The query of both export routes, checked: km bounds, results of the wheel, level."""
     check_km(km_from, km_to)
     job_id, bin_length, wheels = _results_context(db, run_id, wheel)
     _level_ratio(level, bin_length)
-    return _Export(run_id, job_id, wheel, [wheel] if wheel else wheels, km_from, km_to, level, bin_length)
+    ctx = _index_context(db, settings, run_id, bin_length) if index else None
+    return _Export(run_id, job_id, wheel, [wheel] if wheel else wheels, km_from, km_to, level, bin_length, ctx)
 
 
 ExportQuery = Annotated[_Export, Depends(_export_query)]
@@ -508,7 +550,7 @@ def export_csv(export: ExportQuery, db: DbDep) -> StreamingResponse:
             yield buffer.getvalue()
             header = False
         if header:  # no rows: still send the header line
-            cols = ["wheel", "bin", "km", *PROFILE_VALUE_COLUMNS]
+            cols = ["wheel", "bin", "km", *PROFILE_VALUE_COLUMNS, *(INDEX_COLUMNS if export.index else ())]
             yield (",".join(cols) + "\n").encode()
 
     return StreamingResponse(generate(), media_type="text/csv", headers=export.content_disposition("csv"))
@@ -543,6 +585,8 @@ def export_parquet(export: ExportQuery, db: DbDep) -> StreamingResponse:
                     writer.write_table(table.cast(writer.schema))
                 if writer is None:
                     empty = results_reader.profile_frame([])
+                    if export.index is not None:
+                        empty = export.index.add_columns(empty)
                     pq.write_table(pa.Table.from_pandas(empty, preserve_index=False), tmp)
             finally:
                 if writer is not None:

@@ -223,9 +223,10 @@ def demo(
     admin_password, upload_key, upload_key_id = _demo_credentials(settings)
 
     demo_dir = Path(settings.run_store).resolve().parent / "demo"
+    # the amplitudes follow the resonance model (app.simulate.amplitude): not a power law in speed
     echo(f"demo data in {demo_dir}: {len(DEMO_RUNS)} runs of {length_km:g} km at {fs:g} Hz "
          "and reference data (simulated once, then reused) ...")
-    data = write_demo_dataset(demo_dir, length_km=length_km, fs=fs)
+    data = write_demo_dataset(demo_dir, length_km=length_km, fs=fs, amplitude_model="resonance")
 
     base = f"http://{host}:{port}"
     env = dict(os.environ)

@@ -26,6 +26,9 @@ def simulate(
     reference: Annotated[bool, typer.Option(
         help="Also write matching subsidence, maintenance and superstructure CSV files "
         "(OUT stem + '-reference/')")] = False,
+    amplitude_model: Annotated[str, typer.Option(
+        help="Speed response of the sleeper-passage amplitude: 'resonance' (a wheel on a discretely "
+        "supported rail) or 'power_law' ((v / 100 km/h) ** 1.5)")] = "resonance",
     recorder: Annotated[str | None, typer.Option(
         help="Write OUT as a recorder file (mdf4 or tdms) with drifting odometry, plus its channel "
         "map and metadata JSON beside it")] = None,
@@ -38,17 +41,22 @@ def simulate(
 
     out.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    if amplitude_model not in ("resonance", "power_law"):
+        typer.echo(f"error: --amplitude-model must be resonance or power_law, got {amplitude_model!r}", err=True)
+        raise typer.Exit(2)
     if recorder is not None:
         from app.simulate.recorder import GnssSimulation, simulate_recorder_run
 
         if recorder not in ("mdf4", "tdms"):
             raise typer.BadParameter("mdf4 or tdms", param_hint="--recorder")
         rec = simulate_recorder_run(out, recorder, gnss=GnssSimulation() if gnss else None, seed=seed,
-                                    length_km=length_km, fs=fs, with_forces=forces)
+                                    length_km=length_km, fs=fs, with_forces=forces,
+                                    amplitude_model=amplitude_model)
         echo(f"wrote {out} in {time.perf_counter() - t0:.1f} s; channel map {rec.channel_map_path}, "
              f"metadata {rec.metadata_path}" + (f", geometry {rec.geometry_path}" if gnss else ""))
         return
-    truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces)
+    truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces,
+                         amplitude_model=amplitude_model)
     echo(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
     truth_path = getattr(truth, "path", None)
     if truth_path:

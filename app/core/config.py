@@ -131,6 +131,13 @@ class Settings(BaseSettings):
     analytics_edge_trim_m : float
         The first and last metres of every run's profile left out of the
         analytics (filter end transients).
+    analytics_speed_tolerance : float
+        Matched-speed rule of the stiffness index: the reference amplitude at
+        speed v is estimated from passes within ±this fraction of v (0.1 =
+        ±10 %), and exists only where such passes are.
+    analytics_section_margin_m : float
+        Bins within this distance of a change of superstructure type get no
+        stiffness index and do not enter the reference curves, m.
     map_tile_url : str, optional
         Raster tile URL template (``https://tiles.example/{z}/{x}/{y}.png``) of
         a basemap under the map page's line geometry. Default: none (the page
@@ -178,6 +185,8 @@ class Settings(BaseSettings):
     analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
     analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
     analytics_edge_trim_m: float = Field(default=50.0, ge=0)
+    analytics_speed_tolerance: float = Field(default=0.1, gt=0, le=1)
+    analytics_section_margin_m: float = Field(default=50.0, ge=0)
     map_tile_url: str | None = Field(default=None, max_length=500)
     map_tile_attribution: str = Field(default="", max_length=300)
 

@@ -313,5 +313,6 @@ class WheelOOR(Base):
     extra: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
 
 from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessions, api_keys, audit_log)
+from app.db import curve_models as _curve_models  # noqa: E402,F401  (reference_curves in Base.metadata)
 from app.db import recorder_models as _recorder_models  # noqa: E402,F401  (channel maps, line geometries)
 from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)

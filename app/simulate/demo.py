@@ -46,10 +46,10 @@ class DemoRun:
     vehicle_seed: int
     km_error_m: float = 0.0
 
-    def file_name(self, length_km: float, fs: float) -> str:
+    def file_name(self, length_km: float, fs: float, amplitude_model: str = "resonance") -> str:
         """Name of the run file (changes with the demo options)."""
         day = self.start_time[:10]
-        return f"{self.line_id}-{self.track}-{day}-{length_km:g}km-{fs:g}Hz.h5"
+        return f"{self.line_id}-{self.track}-{day}-{length_km:g}km-{fs:g}Hz-{amplitude_model}.h5"
 
 
 #: the demo's runs: line SIM track 1 three times (the reference data's line), SIM-B once
@@ -87,7 +87,7 @@ def _line(line_seed: int, length_km: float) -> LineModel:
 
 
 def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: float = 10_000.0,
-                       runs: tuple[DemoRun, ...] = DEMO_RUNS) -> DemoDataset:
+                       runs: tuple[DemoRun, ...] = DEMO_RUNS, amplitude_model: str = "resonance") -> DemoDataset:
     """Write the demo's run files and reference files into ``directory`` (missing ones only).
 
     Parameters
@@ -101,6 +101,9 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
     runs : tuple of DemoRun
         The runs (default :data:`DEMO_RUNS`); the reference data belong to the first run's
         line and track.
+    amplitude_model : {"resonance", "power_law"}
+        Speed response of the sleeper-passage amplitude (:func:`app.simulate.run.simulate_run`;
+        default the resonance model: not a power law in speed).
 
     Returns
     -------
@@ -117,7 +120,7 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
     data = DemoDataset(directory=out, reference_line=(first.line_id, first.track))
     lines: dict[int, LineModel] = {}
     for run in runs:
-        path = out / run.file_name(length_km, fs)
+        path = out / run.file_name(length_km, fs, amplitude_model)
         data.runs.append(path)
         if path.is_file():
             continue
@@ -127,7 +130,7 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
         simulate_run(path, length_km=length_km, fs=fs, seed=run.seed, line=line, wheels=wheels,
                      start_time=run.start_time, vehicle_id=run.vehicle_id, line_id=run.line_id,
                      track=run.track, km_start=DEMO_KM_START, km_error_m=run.km_error_m,
-                     with_forces=True)
+                     with_forces=True, amplitude_model=amplitude_model)
         data.written.append(path)
     ref_dir = out / f"reference-{first.line_id}-{first.track}-{length_km:g}km"
     files = {kind: ref_dir / f"{kind}.csv" for kind in REFERENCE_KINDS}

@@ -11,8 +11,12 @@ Signal model (per wheel ``w`` = axle + side, see ``docs/run-format.md``)::
   ``1000 km_start ± (s(t) + axle offset)``; ``s(t)`` is the distance travelled
   since the run start (analytic, from the speed profile), so phases are
   continuous across blocks. Sleepers lie at ``x = k d_s``.
-* ``a_s = K_type(x_w) f_side(x_w) (v / v_ref) ** alpha`` (see
-  :mod:`app.simulate.track`), ``alpha = 1.5``, ``v_ref = 100 km/h``.
+* ``a_s = K_type(x_w) f_side(x_w) R_type(v)`` (see :mod:`app.simulate.track`):
+  ``K_type f_side`` is the amplitude at ``v_ref = 100 km/h`` and ``R_type`` the
+  speed response (:mod:`app.simulate.amplitude`): by default the resonance of a
+  wheel on a discretely supported rail with a support stiffness per
+  superstructure type; ``amplitude_model="power_law"`` gives the separable
+  ``(v / v_ref) ** alpha`` (``alpha = 1.5``) of earlier versions.
 * ``z''_OOR`` is the second time derivative of the wheel radius at the contact
   point (:func:`app.simulate.wheels.oor_acceleration`; phase convention there).
 * ``Q`` uses the full ``Z`` (noise included): the broadband part stands for
@@ -34,6 +38,7 @@ import numpy as np
 
 from app.io import ACCEL_CHANNELS, FORCE_CHANNELS, WHEELS, Calibration, parse_metadata
 from app.io.canonical import CanonicalWriter, Compression, atomic_output
+from app.simulate.amplitude import SpeedResponse, speed_response
 from app.simulate.noise import BandLimitedNoise
 from app.simulate.speed import SpeedProfile
 from app.simulate.track import LineModel, generate_line
@@ -82,6 +87,7 @@ def simulate_run(
     reported_wheel_diameters: Mapping[str, float] | None = None,
     unsprung_mass_kg: float = 300.0,
     static_load_kn: float = 80.0,
+    amplitude_model: str | SpeedResponse = "resonance",
     alpha: float = 1.5,
     v_ref_kmh: float = 100.0,
     sleeper_spacing: float = 0.6,
@@ -138,8 +144,13 @@ def simulate_run(
         ``m_u``, kg (default 300).
     static_load_kn : float
         Static wheel load, kN (default 80).
+    amplitude_model : {"resonance", "power_law"} or SpeedResponse
+        Speed response ``R_type(v)`` of the sleeper-passage amplitude
+        (:mod:`app.simulate.amplitude`; default ``"resonance"``). A model
+        object brings its own reference speed.
     alpha, v_ref_kmh : float
-        Sleeper amplitude law ``(v / v_ref) ** alpha`` (defaults 1.5, 100 km/h).
+        Exponent of ``"power_law"`` (default 1.5) and the reference speed
+        (default 100 km/h) of the named models.
     sleeper_spacing : float
         ``d_s``, m (default 0.6).
     axle_positions : mapping, optional
@@ -181,6 +192,10 @@ def simulate_run(
     static_load_kn = _positive("static_load_kn", static_load_kn)
     alpha = _non_negative("alpha", alpha)
     v_ref = _positive("v_ref_kmh", v_ref_kmh) * _KMH
+    response = speed_response(amplitude_model, v_ref_mps=v_ref, alpha=alpha) \
+        if isinstance(amplitude_model, str) else amplitude_model
+    v_ref = float(response.v_ref_mps)
+    alpha = float(getattr(response, "alpha", float("nan")))
     sleeper_spacing = _positive("sleeper_spacing", sleeper_spacing)
     if int(block_samples) != block_samples or block_samples < 256:
         raise ValueError(f"block_samples must be an integer >= 256, got {block_samples!r}")
@@ -294,13 +309,12 @@ def simulate_run(
                 b = min(a + block_samples, n)
                 t = np.arange(a, b) / fs
                 v, acc, s = speed_profile.evaluate(t)
-                vfac = (v / v_ref) ** alpha
                 for w in WHEELS:
                     side = int(w[1])
                     x = ref0 + sign * (s + axles[w[0]])
                     z = (
                         np.interp(x, centres, grids[side])
-                        * vfac
+                        * response.factor(_type_codes(line, x), v)
                         * np.cos(2 * np.pi * x / sleeper_spacing)
                     )
                     z += oor_acceleration(oors[w], s, v, acc)
@@ -325,8 +339,7 @@ def simulate_run(
                 ref0,
                 sign,
                 s_end,
-                v_ref,
-                alpha,
+                response,
             )
             for w in WHEELS
         }
@@ -357,6 +370,7 @@ def simulate_run(
             wheels=oors,
             reported_diameters=reported,
             bins=bins,
+            speed_response=response,
         )
         with atomic_output(truth_path) as tmp_truth, h5py.File(tmp_truth, "w") as h5t:
             save_truth(truth, h5t)
@@ -372,8 +386,7 @@ def _wheel_bins(
     ref0: float,
     sign: float,
     s_end: float,
-    v_ref: float,
-    alpha: float,
+    response: SpeedResponse,
 ) -> WheelBins:
     """Truth of the bins whose centre the wheel passes during the run."""
     bl = line.bin_length
@@ -399,5 +412,11 @@ def _wheel_bins(
         section=line.type_code[idx],
         stiffness_factor=line.factor[side - 1, idx],
         amplitude_vref_mps2=amp_vref,
-        amplitude_mps2=amp_vref * (v_c / v_ref) ** alpha,
+        amplitude_mps2=amp_vref * response.factor(line.type_code[idx], v_c),
     )
+
+
+def _type_codes(line: LineModel, track_m: np.ndarray) -> np.ndarray:
+    """Superstructure type code of the grid cell holding each position (clipped to the grid)."""
+    idx = np.floor(track_m / line.bin_length).astype(np.int64) - line.first_bin
+    return line.type_code[np.clip(idx, 0, line.n_bins - 1)]

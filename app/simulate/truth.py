@@ -6,7 +6,9 @@ Truth file layout (``truth_format_version`` 1)::
                distance_m, alpha, v_ref_mps, sleeper_spacing_m, bin_length_m,
                noise_std_mps2, noise_band_hz (2,), force_noise_std_kn,
                unsprung_mass_kg, static_load_kn, with_forces, km_start,
-               km_increasing, km_error_m, axle_positions (JSON)
+               km_increasing, km_error_m, axle_positions (JSON),
+               speed_response (JSON, :mod:`app.simulate.amplitude`; files without it
+               used the power law ``(v / v_ref) ** alpha``)
     /line      attrs first_bin, bin_length, amplitude_vref (JSON)
                type_code int8 (nb,), factor (2, nb)
     /line/sections   track_from_m, track_to_m, type (strings)
@@ -27,6 +29,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from app.simulate.amplitude import PowerLawResponse, SpeedResponse, speed_response_from_json
 from app.simulate.speed import SpeedProfile
 from app.simulate.track import SUPERSTRUCTURE_TYPES, LineModel, StiffnessAnomaly, TrackSection
 from app.simulate.wheels import WheelOOR
@@ -142,8 +145,8 @@ class SimulationTruth:
     duration_s, distance_m : float
         Duration (s) and distance covered by the position reference (m).
     alpha, v_ref_mps : float
-        Speed exponent and reference speed (m/s) of the sleeper amplitude law
-        ``a_s = K_type * factor * (v / v_ref) ** alpha``.
+        Speed exponent (NaN unless the power law was simulated) and reference
+        speed (m/s) of the sleeper amplitude ``a_s = K_type * factor * R_type(v)``.
     sleeper_spacing_m, bin_length_m : float
         Sleeper spacing and profile bin length, m.
     noise_std_mps2 : float
@@ -177,6 +180,9 @@ class SimulationTruth:
     km_error_m : float
         Odometry error of the metadata's ``km_start``, m (the metadata states
         ``km_start + km_error_m / 1000``; everything here is in real positions).
+    speed_response : SpeedResponse or None
+        ``R_type(v)`` (:mod:`app.simulate.amplitude`); None means the power law
+        with ``alpha`` and ``v_ref_mps``.
     """
 
     run_path: Path
@@ -205,6 +211,11 @@ class SimulationTruth:
     reported_diameters: dict[str, float]
     bins: dict[str, WheelBins]
     km_error_m: float = 0.0
+    speed_response: SpeedResponse | None = None
+
+    def __post_init__(self) -> None:
+        if self.speed_response is None:
+            object.__setattr__(self, "speed_response", PowerLawResponse(self.alpha, self.v_ref_mps))
 
     @property
     def path(self) -> Path:
@@ -251,6 +262,7 @@ def save_truth(truth: SimulationTruth, h5: h5py.File) -> None:
         a[key] = getattr(truth, key)
     a["noise_band_hz"] = np.asarray(truth.noise_band_hz, dtype=np.float64)
     a["axle_positions"] = json.dumps(truth.axle_positions)
+    a["speed_response"] = truth.speed_response.to_json()
     line = truth.line
     g = h5.create_group("line")
     g.attrs["first_bin"] = line.first_bin
@@ -357,6 +369,7 @@ def load_truth(path: Path | str) -> SimulationTruth:
             **{key: _scalar(a, key, cast) for key, cast in _SCALAR_ATTRS.items()},
             noise_band_hz=tuple(float(x) for x in a["noise_band_hz"]),  # type: ignore[arg-type]
             axle_positions=json.loads(a["axle_positions"]),
+            speed_response=speed_response_from_json(a["speed_response"]) if "speed_response" in a else None,
             line=line,
             speed_profile=profile,
             wheels=wheels,

@@ -2,7 +2,8 @@
 
 Runs (1.5 km at 2 kHz, constant speed, processed by the real pipeline):
 A at 100 km/h (= v_ref of the simulator), B at 100 km/h with a known odometry
-error of +13.4 m, C at 140 km/h.
+error of +13.4 m, C at 140 km/h. The amplitude follows the simulator's power-law
+option ``(v / v_ref) ** 1.5``, whose exponent the speed-normalisation tests recover.
 """
 
 from __future__ import annotations
@@ -56,7 +57,28 @@ def sim_set(tmp_path_factory) -> SimSet:
         # bin and widened the per-bin subsidence fits' intervals beyond what these tests call informative
         truth = simulate_run(path, length_km=1.5, fs=2000.0, seed=seed, line=line, noise_std=0.5,
                              speed_profile=SpeedProfile.constant(speed / 3.6), km_error_m=err,
-                             start_time=start, line_id=LINE_ID, track=TRACK)
+                             start_time=start, line_id=LINE_ID, track=TRACK,
+                             amplitude_model="power_law")  # the analytics of the power-law option
         results = run_pipeline(path, ProcessingSettings(), root / f"work-{name}")
         runs[name] = SimRun(name, path, truth, results, speed)
     return SimSet(line, reference, runs)
+
+
+@pytest.fixture(scope="module")
+def api(sim_set, tmp_path_factory):
+    """(client, {name: run_id}) with runs A, B, C stored and the reference data imported."""
+    from fastapi.testclient import TestClient
+
+    from app.db import migrate
+    from app.main import create_app
+    from tests.analytics.support import import_reference, store_run
+    from tests.api.support import auth_headers, create_api_key, make_settings
+
+    settings = make_settings(tmp_path_factory.mktemp("analytics-api"))
+    migrate.upgrade(settings.database_url)
+    headers = auth_headers(create_api_key(settings.database_url))
+    with TestClient(create_app(settings), headers=headers) as client:
+        client.settings = settings  # type: ignore[attr-defined]
+        ids = {name: store_run(client, run) for name, run in sim_set.runs.items()}
+        import_reference(client, sim_set.reference.files)
+        yield client, ids

@@ -29,3 +29,10 @@ def import_reference(client, files: dict[str, str]) -> None:
         with open(files[kind], "rb") as fh:
             r = client.post(f"/api/v1/reference/{kind}", files={"file": (files[kind].rsplit("/", 1)[-1], fh)})
         assert r.status_code == 201, r.text
+
+
+def get(client, path: str, **params):
+    """GET ``/api/v1{path}``, assert 200, return the JSON body."""
+    r = client.get(f"/api/v1{path}", params=params)
+    assert r.status_code == 200, r.text
+    return r.json()

@@ -5,33 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
 from tests.analytics.conftest import KM_ERROR_M, LINE_ID, TRACK
-from tests.analytics.support import import_reference, store_run
-from tests.api.support import auth_headers, create_api_key, make_settings
-
-
-@pytest.fixture(scope="module")
-def api(sim_set, tmp_path_factory):
-    """(client, {name: run_id}) with runs A, B, C stored and the reference data imported."""
-    from app.db import migrate
-    from app.main import create_app
-
-    settings = make_settings(tmp_path_factory.mktemp("analytics-api"))
-    migrate.upgrade(settings.database_url)
-    headers = auth_headers(create_api_key(settings.database_url))
-    with TestClient(create_app(settings), headers=headers) as client:
-        client.settings = settings  # type: ignore[attr-defined]
-        ids = {name: store_run(client, run) for name, run in sim_set.runs.items()}
-        import_reference(client, sim_set.reference.files)
-        yield client, ids
-
-
-def _get(client, path, **params):
-    r = client.get(f"/api/v1{path}", params=params)
-    assert r.status_code == 200, r.text
-    return r.json()
+from tests.analytics.support import get as _get
+from tests.analytics.support import store_run
 
 
 @pytest.mark.parametrize("name", ["A", "C"])

@@ -120,6 +120,35 @@ def test_speed_exponent_within_locations_beats_confounding():
     np.testing.assert_allclose(norm[ok] / stiff[ok], 1, atol=0.1)
     flat = fit_speed_exponent(amp[0], np.full(bins.size, 30.0), bins, reference_speed_mps=27.8)
     assert flat.method == "none" and np.isnan(flat.exponent)
+    # the assessment: the pooled fit is flagged, the within fit over a 1.4x speed spread is not
+    assert not one.stable and "pooled_confounded" in one.unstable_reasons
+    assert both.stable and both.unstable_reasons == () and both.log_speed_std > 0.1
+    assert flat.unstable_reasons == ("not_estimable",)
+
+
+def test_power_law_instability_flags_and_misfit():
+    from app.analysis.stiffness.speed_norm import MAX_POWER_LAW_MISFIT, power_law_misfit
+
+    rng = np.random.default_rng(2)
+    bins = np.arange(3000)
+    stiff = np.exp(0.1 * rng.standard_normal(bins.size))
+    v1 = np.full(bins.size, 30.0)
+    # a 5 % speed difference: too little spread for an exponent, and a wide interval
+    v2 = v1 * 1.05
+    amp = [stiff * (v / 27.8) ** 1.5 * np.exp(0.2 * rng.standard_normal(bins.size)) for v in (v1, v2)]
+    near = fit_speed_exponent(np.r_[amp[0], amp[1]], np.r_[v1, v2], np.r_[bins, bins], reference_speed_mps=27.8,
+                              hac_lag=100)
+    assert near.method == "within" and "speed_spread_small" in near.unstable_reasons
+    # a steep rise (the flank of a resonance) is outside the physical range of one exponent
+    steep = [stiff * (v / 27.8) ** 5 for v in (v1, v1 * 1.5)]
+    far = fit_speed_exponent(np.r_[steep[0], steep[1]], np.r_[v1, v1 * 1.5], np.r_[bins, bins], reference_speed_mps=27.8)
+    assert far.exponent == pytest.approx(5, abs=0.01) and far.unstable_reasons == ("outside_physical_range",)
+    assert far.with_reason("not_power_law").unstable_reasons == ("outside_physical_range", "not_power_law")
+    u = np.log(np.linspace(15, 55, 30))
+    assert power_law_misfit(u, 1.5 * u + 0.3, 1.5) == pytest.approx(0, abs=1e-12)
+    bump = 1.5 * u + 0.8 * np.exp(-0.5 * ((u - np.log(35)) / 0.1) ** 2)
+    assert power_law_misfit(u, bump, 1.5) > MAX_POWER_LAW_MISFIT
+    assert np.isnan(power_law_misfit(u, bump, float("nan")))
 
 
 @pytest.mark.parametrize("shift_m", [-13.4, 0.0, 7.25, 31.6])
@@ -148,20 +177,27 @@ def test_segment_table():
     np.testing.assert_allclose(t.mean, [7 / 3, 7 / 3])
     np.testing.assert_allclose(t.change, [3, 3])
     np.testing.assert_allclose(t.spread, np.std([1, 2, 4], ddof=1))
+    assert t.speed is None
+    # with speeds: the last and the first run are compared only where they passed at similar speed
+    v = [np.where(b < 400, 30.0, 30.0), np.full(b.size, 20.0), np.where(b < 400, 32.0, 40.0)]
+    t = segment_table(runs, [0.0, -10.0, 0.0], segment_m=100, speeds=v, speed_tolerance=0.1)
+    np.testing.assert_allclose(t.speed[[0, 2]], [[30, 30], [32, 40]])
+    assert t.change[0] == 3 and np.isnan(t.change[1])
 
 
 def test_speed_exponent_outside_the_physical_range_is_flagged():
     """A pooled fit over sections where the stiffer track is passed faster gives an
     exponent no track has: it is flagged with the reason, a plausible one is not."""
-    from app.analysis.stiffness.speed_norm import PLAUSIBLE_SPEED_EXPONENT, fit_speed_exponent
+    from app.analysis.stiffness.speed_norm import PHYSICAL_EXPONENT_RANGE, fit_speed_exponent
 
     rng = np.random.default_rng(3)
     v = np.repeat([20.0, 30.0, 45.0], 400)
     loc = np.arange(v.size)  # every location passed once: pooled
     confounded = (v / 27.8) ** 9.0 * np.exp(rng.normal(0, 0.05, v.size))
     fit = fit_speed_exponent(confounded, v, loc, reference_speed_mps=27.8, min_speed_mps=5.0)
-    assert fit.method == "pooled" and fit.exponent > PLAUSIBLE_SPEED_EXPONENT[1]
+    assert fit.method == "pooled" and fit.exponent > PHYSICAL_EXPONENT_RANGE[1]
     assert not fit.plausible and "outside the physical range" in fit.warning and "pooled" in fit.warning
     normal = (v / 27.8) ** 1.5 * np.exp(rng.normal(0, 0.05, v.size))
     fit = fit_speed_exponent(normal, v, loc, reference_speed_mps=27.8, min_speed_mps=5.0)
-    assert fit.plausible and fit.warning is None
+    assert fit.plausible and "outside the physical range" not in fit.warning
+    assert fit.unstable_reasons == ("pooled_confounded",) and "pooled" in fit.warning

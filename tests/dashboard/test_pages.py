@@ -107,13 +107,18 @@ def test_stiffness_map_zoom_refetches_decimated_range(open_page, dashboard):
     xs = page.evaluate("document.getElementById('stiffness-plot').data[0].x")
     assert 300 <= len(xs) <= 401  # 100 m of 25 cm bins: all of them, not decimated
     assert min(xs) >= 12.5 and max(xs) <= 12.6
+    # the stiffness index by default, with the reference curves it used stated; raw amplitude one click away
+    assert "index" in page.evaluate("document.getElementById('stiffness-plot').layout.yaxis.title.text")
+    assert "Reference curves of line" in page.inner_text("#reference-info")
+    page.select_option("#map-value", "amplitude")
+    page.wait_for_function("document.getElementById('stiffness-plot').layout.yaxis.title.text.includes('m/s')")
     page.select_option("#amp-scale", "log")
     page.wait_for_function("() => document.getElementById('stiffness-plot').layout.yaxis.type === 'log'")
     with page.expect_download() as dl:
         page.click("button[data-csv-for='stiffness-plot']")
     text = dl.value.path().read_text()
     rows = list(csv.DictReader(io.StringIO(text)))
-    assert rows and set(rows[0]) >= {"wheel", "km", "sleeper_amp_mps2", "speed_kmh"}
+    assert rows and set(rows[0]) >= {"wheel", "km", "sleeper_amp_mps2", "speed_kmh", "stiffness_index"}
     assert {r["wheel"] for r in rows} == {"11", "12", "41", "42"}
     log.assert_clean()
 

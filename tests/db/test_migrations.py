@@ -13,7 +13,7 @@ from app.db.session import make_engine
 TABLES = {
     "runs", "jobs", "job_chunks", "profile_bins", "wheel_oor",
     "users", "sessions", "api_keys", "audit_log",
-    "ref_subsidence", "ref_maintenance", "ref_superstructure",
+    "ref_subsidence", "ref_maintenance", "ref_superstructure", "reference_curves",
     "channel_maps", "line_geometries",
 }
 
@@ -31,7 +31,7 @@ def test_upgrade_downgrade_upgrade(tmp_path):
     migrate.upgrade(url)
     assert _tables(url) == TABLES
     head = migrate.current_revision(url)
-    assert head is not None
+    assert head == "0010_reference_curves"  # one chain: the newest migration is the head
 
     migrate.downgrade(url, "base")
     assert _tables(url) == set()

@@ -19,7 +19,8 @@ def test_reference_import_and_analytics_over_http(service, tmp_path):
                          anomaly_range_m=(12_050.0, 13_450.0), n_anomalies=2)
     path = tmp_path / "run.h5"
     truth = simulate_run(path, length_km=1.5, fs=2000.0, seed=1, line=line, noise_std=1.0,
-                         speed_profile=SpeedProfile.constant(100 / 3.6), line_id="L1", track="2")
+                         speed_profile=SpeedProfile.constant(100 / 3.6), line_id="L1", track="2",
+                         amplitude_model="power_law")
     ref = simulate_reference(line, tmp_path / "ref", line_id="L1", track="2", seed=1, fmt="parquet")
     service.start_worker()
     with service.client(timeout=120) as client:

@@ -104,7 +104,7 @@ def test_truth_is_self_consistent(realistic) -> None:
     for w in WHEELS:
         b = t.bins[w]
         np.testing.assert_allclose(
-            b.amplitude_mps2, b.amplitude_vref_mps2 * (b.speed_mps / t.v_ref_mps) ** 1.5
+            b.amplitude_mps2, b.amplitude_vref_mps2 * t.speed_response.factor(b.section, b.speed_mps)
         )
         np.testing.assert_allclose(b.speed_mps, p.speed(b.t_s))
         np.testing.assert_allclose(p.distance(b.t_s), b.s_m, atol=1e-6)

@@ -210,7 +210,11 @@ class SegmentTable:
     mean, spread : numpy.ndarray
         Mean and standard deviation (ddof = 1; NaN with fewer than 2 runs) over runs.
     change : numpy.ndarray
-        Last minus first run with data in the segment (runs in date order), m/s².
+        Last minus first run with data in the segment (runs in date order), m/s²;
+        with speeds given, NaN where those two passed at speeds differing by more
+        than the tolerance (the matched-speed rule).
+    speed : numpy.ndarray or None
+        (runs, segments) mean speed, m/s (when speeds were given).
     """
 
     start_m: np.ndarray
@@ -218,6 +222,7 @@ class SegmentTable:
     mean: np.ndarray
     spread: np.ndarray
     change: np.ndarray
+    speed: np.ndarray | None = None
 
 
 def segment_table(
@@ -227,6 +232,8 @@ def segment_table(
     bin_length_m: float = 0.25,
     segment_m: float = 100.0,
     min_coverage: float = 0.5,
+    speeds: list[np.ndarray] | None = None,
+    speed_tolerance: float = 0.1,
 ) -> SegmentTable:
     """Per-segment mean amplitude of several runs after shifting each by its alignment.
 
@@ -240,36 +247,52 @@ def segment_table(
         Bin and segment length, m.
     min_coverage : float
         A run's segment mean needs this fraction of the segment's bins.
+    speeds : list of numpy.ndarray, optional
+        Speed of each run's bins (m/s): the table then holds the segment speeds and
+        ``change`` compares two runs only where their speeds differ by at most
+        ``speed_tolerance`` (relative).
+    speed_tolerance : float
+        ``|ln(v_last / v_first)| <= ln(1 + speed_tolerance)`` for a change.
     """
-    if len(runs) != len(shifts_m):
-        raise ValueError("runs, shifts_m: must have equal lengths")
+    if len(runs) != len(shifts_m) or (speeds is not None and len(speeds) != len(runs)):
+        raise ValueError("runs, shifts_m, speeds: must have equal lengths")
     if not segment_m > 0 or not bin_length_m > 0:
         raise ValueError("segment_m, bin_length_m: must be > 0")
     per_run = []
-    for (bins, amp), shift in zip(runs, shifts_m, strict=True):
+    for i, ((bins, amp), shift) in enumerate(zip(runs, shifts_m, strict=True)):
         amp = np.asarray(amp, dtype=np.float64)
         x = (np.asarray(bins, dtype=np.float64) + 0.5) * bin_length_m + (shift if np.isfinite(shift) else 0.0)
         ok = np.isfinite(amp)
         seg = np.floor(x[ok] / segment_m).astype(np.int64)
-        per_run.append((seg, amp[ok]))
-    all_segs = np.unique(np.concatenate([s for s, _ in per_run])) if per_run else np.zeros(0, np.int64)
+        v = np.asarray(speeds[i], dtype=np.float64)[ok] if speeds is not None else None
+        per_run.append((seg, amp[ok], v))
+    all_segs = np.unique(np.concatenate([s for s, _, _ in per_run])) if per_run else np.zeros(0, np.int64)
     matrix = np.full((len(runs), all_segs.size), np.nan)
+    speed = np.full((len(runs), all_segs.size), np.nan) if speeds is not None else None
     need = min_coverage * segment_m / bin_length_m
-    for i, (seg, amp) in enumerate(per_run):
+    for i, (seg, amp, v) in enumerate(per_run):
         if seg.size == 0:
             continue
         j = np.searchsorted(all_segs, seg)
         s = np.bincount(j, weights=amp, minlength=all_segs.size)
         c = np.bincount(j, minlength=all_segs.size)
         matrix[i] = np.where(c >= need, s / np.maximum(c, 1), np.nan)
+        if speed is not None:
+            speed[i] = np.where(c >= need, np.bincount(j, weights=v, minlength=all_segs.size) / np.maximum(c, 1),
+                                np.nan)
     n_ok = np.isfinite(matrix).sum(axis=0)
     with np.errstate(invalid="ignore"):
         mean = np.where(n_ok > 0, np.nansum(matrix, axis=0) / np.maximum(n_ok, 1), np.nan)
         dev = np.where(np.isfinite(matrix), matrix - mean, 0.0)
         spread = np.where(n_ok >= 2, np.sqrt((dev**2).sum(axis=0) / np.maximum(n_ok - 1, 1)), np.nan)
     change = np.full(all_segs.size, np.nan)
+    limit = np.log1p(speed_tolerance)
     for j in range(all_segs.size):
-        col = matrix[:, j][np.isfinite(matrix[:, j])]
-        if col.size >= 2:
-            change[j] = col[-1] - col[0]
-    return SegmentTable(all_segs * segment_m, matrix, mean, spread, change)
+        have = np.flatnonzero(np.isfinite(matrix[:, j]))
+        if have.size < 2:
+            continue
+        first, last = have[0], have[-1]
+        if speed is not None and not abs(np.log(speed[last, j] / speed[first, j])) <= limit:
+            continue
+        change[j] = matrix[last, j] - matrix[first, j]
+    return SegmentTable(all_segs * segment_m, matrix, mean, spread, change, speed)

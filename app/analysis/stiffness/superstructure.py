@@ -16,7 +16,8 @@ import numpy as np
 
 from app.analysis._checks import check_positive, paired_1d
 
-__all__ = ["TypeDistribution", "SegmentFlag", "assign_sections", "type_distributions", "flag_segments"]
+__all__ = ["TypeDistribution", "SegmentFlag", "assign_sections", "section_classes", "type_distributions",
+           "flag_segments"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,52 @@ def assign_sections(position_m: np.ndarray, start_m: np.ndarray, end_m: np.ndarr
     out = np.full(x.shape, -1, dtype=np.int64)
     for i in np.argsort(a, kind="stable"):
         out[(x >= a[i]) & (x < b[i])] = i
+    return out
+
+
+def section_classes(
+    position_m: np.ndarray,
+    start_m: np.ndarray,
+    end_m: np.ndarray,
+    types: np.ndarray,
+    *,
+    boundary_margin_m: float = 0.0,
+) -> np.ndarray:
+    """Class label per position: the type of the section holding it, ``""`` outside any.
+
+    Positions within ``boundary_margin_m`` of a place where the label changes
+    (a section of another type, or the end of the sections) get ``None``: the
+    filtered amplitude there mixes both sides (the VKF resolves the sleeper
+    order over tens of metres), so it belongs to neither class.
+
+    Parameters
+    ----------
+    position_m : numpy.ndarray
+        Positions (bin centres), m on the km axis.
+    start_m, end_m : numpy.ndarray
+        Section extents ``[start_m, end_m)``, m.
+    types : numpy.ndarray
+        Type of each section.
+    boundary_margin_m : float
+        Half-width of the zone left without a class around each change, m (>= 0).
+    """
+    x = np.asarray(position_m, dtype=np.float64)
+    if not boundary_margin_m >= 0:
+        raise ValueError(f"boundary_margin_m: must be >= 0, got {boundary_margin_m!r}")
+    kinds = np.asarray(types, dtype=object)
+    idx = assign_sections(x, start_m, end_m) if kinds.size else np.full(x.shape, -1)
+    out = np.where(idx >= 0, kinds[np.maximum(idx, 0)] if kinds.size else "", "").astype(object)
+    if boundary_margin_m > 0 and kinds.size:
+        edges = np.unique(np.r_[np.asarray(start_m, dtype=np.float64), np.asarray(end_m, dtype=np.float64)])
+        probe = np.r_[edges - 1e-6, edges + 1e-6]
+        pidx = assign_sections(probe, start_m, end_m)
+        plab = np.where(pidx >= 0, kinds[np.maximum(pidx, 0)], "").astype(str)
+        change = edges[plab[: edges.size] != plab[edges.size:]]
+        if change.size:
+            j = np.searchsorted(change, x)
+            left = change[np.clip(j - 1, 0, change.size - 1)]
+            right = change[np.clip(j, 0, change.size - 1)]
+            out[np.minimum(np.abs(x - left), np.abs(x - right)) < boundary_margin_m] = None
     return out
 
 

@@ -14,7 +14,7 @@ from app.analysis.stiffness.superstructure import TypeDistribution
 
 __all__ = ["SubsidenceFitOut", "UnsprungMassOut", "MaintenanceOut", "SegmentsOut", "SegmentTrendOut",
            "SuperstructureOut", "SpeedNormOut", "AlignmentOut", "PredictedSubsidenceOut",
-           "NormalisedProfileOut"]
+           "NormalisedProfileOut", "ReferenceCurvesOut"]
 
 
 class SubsidencePoints(BaseModel):
@@ -89,25 +89,32 @@ class SegmentRun(BaseModel):
 
 class SegmentsOut(BaseModel):
     segment_m: float
+    value: str = Field("amplitude", description="amplitude (m/s²) or index (stiffness index, ln units)")
     reference_run_id: int | None
     km: list[float]
     runs: list[SegmentRun]
     matrix: list[list[float | None]]
     mean: list[float | None]
     spread: list[float | None]
-    change: list[float | None]
+    change: list[float | None] = Field(
+        description="last minus first run with data; null where their speeds differ by more than speed_tolerance")
+    speed_kmh: list[list[float | None]] = Field(description="mean speed per run and segment, km/h")
+    speed_tolerance: float
 
 
 class TrendPoint(BaseModel):
     run_id: int
     start_time: str | None
-    amplitude: float | None
+    amplitude: float | None = Field(None, description="mean amplitude, m/s² (value=amplitude)")
+    index: float | None = Field(None, description="mean stiffness index (value=index)")
+    speed_kmh: float | None
 
 
 class SegmentTrendOut(BaseModel):
     km: float
     segment_km: list[float]
     wheel: str | None
+    value: str = "amplitude"
     points: list[TrendPoint]
 
 
@@ -124,6 +131,7 @@ class SegmentOut(BaseModel):
 
 class SuperstructureOut(BaseModel):
     normalised: bool
+    conditioning: str | None = Field(None, description="index or power_law when normalised")
     reference_speed_kmh: float
     run_ids: list[int]
     types: list[TypeDistribution]
@@ -138,14 +146,22 @@ class SpeedType(BaseModel):
     method: str = Field(description="within (same bins at several speeds), pooled or none")
     n_samples: int
     amplitude_at_ref: float | None = Field(description="median normalised amplitude, m/s²")
+    stable: bool = Field(description="false: do not trust this exponent (see unstable_reasons)")
+    unstable_reasons: list[str] = Field(description="interval_wide, outside_physical_range, speed_spread_small, "
+                                        "pooled_confounded, not_estimable, not_power_law")
+    log_speed_std: float | None = Field(description="spread of ln(v) the exponent rests on")
+    power_law_misfit: float | None = Field(
+        None, description="largest departure of the type's reference curve from the power law, ln units")
     plausible: bool = Field(description="exponent within the physical range (0 … 3); false when unknown")
-    warning: str | None = Field(None, description="why the exponent should not be trusted")
+    warning: str | None = Field(None, description="the unstable_reasons in words; null when stable")
 
 
 class SpeedNormOut(BaseModel):
     reference_speed_kmh: float
     min_speed_kmh: float
     model: str = "A = A_ref * (v / v_ref) ** exponent"
+    note: str = ("an explicit option: the default speed conditioning is the stiffness index "
+                 "(/analytics/reference-curves, profile index=true)")
     run_ids: list[int]
     types: list[SpeedType]
 
@@ -185,3 +201,50 @@ class NormalisedProfileOut(BaseModel):
     type: list[str | None]
     amplitude: list[float | None]
     amplitude_normalised: list[float | None]
+
+
+class ReferenceClass(BaseModel):
+    """The reference curve of one class (speeds in km/h, amplitudes in m/s²)."""
+
+    model_config = {"populate_by_name": True}
+
+    class_: str = Field(alias="class", description="superstructure type; '' = no section (the whole line)")
+    label: str
+    method: str = Field(description="within (locations passed at several speeds shape it) or pooled")
+    n_runs: int
+    n_samples: int = Field(description="block passes (10 m, one run and wheel) used")
+    n_locations: int
+    spread: float | None = Field(description="location-to-location spread of the class, ln units")
+    repeatability: float | None = Field(description="pass-to-pass spread of one 25 cm bin, ln units")
+    confidence: float
+    speed_range_kmh: list[float | None]
+    speed_kmh: list[float | None]
+    amplitude: list[float | None] = Field(description="A_ref at speed_kmh, m/s²")
+    low: list[float | None] = Field(description="lower end of the confidence band, m/s²")
+    high: list[float | None]
+    log_se: list[float | None] = Field(description="standard error of ln A_ref")
+    support: list[int] = Field(description="block passes within the matched-speed window")
+    support_runs: list[int]
+
+
+class WheelOffsetOut(BaseModel):
+    wheel: str
+    offset: float | None = Field(description="median ln A of the wheel against the other wheels of its rail")
+    low: float | None
+    high: float | None
+    n_samples: int
+
+
+class ReferenceCurvesOut(BaseModel):
+    line_id: str
+    track: str | None
+    speed_tolerance: float = Field(description="matched-speed window ±tolerance × v")
+    section_margin_m: float
+    min_speed_kmh: float
+    pooling: str
+    run_ids: list[int]
+    computed_at: str | None
+    compute_s: float | None
+    classes: list[ReferenceClass]
+    wheel_offsets: list[WheelOffsetOut]
+    rail_difference: float | None = Field(description="median location effect rail 2 minus rail 1, ln units")

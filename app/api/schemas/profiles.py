@@ -36,6 +36,12 @@ class ProfileOut(BaseModel):
     n_rows: int
     truncated: bool = Field(False, description="True if more rows matched than returned")
     columns: list[str]
+    reference: dict[str, Any] | None = Field(
+        None,
+        description="With index=true: the reference curves the stiffness index used (line, track, "
+        "run_ids, computed_at, speed_tolerance, classes with their speed ranges), or "
+        "{available: false, reason}",
+    )
     rows: list[dict[str, Any]] = Field(
         default_factory=list, description="The rows as objects (layout=rows, the default)"
     )

@@ -1,6 +1,7 @@
-/* Stiffness map of one run: sleeper-passage amplitude along km for the four wheels,
- * decimated on the server per zoom level, speed on a second axis, superstructure sections
- * and maintenance actions shaded when the reference data exist. */
+/* Stiffness map of one run: the stiffness index ln(A / A_ref(class, v)) along km for the four
+ * wheels (raw sleeper-passage amplitude one click away), decimated on the server per zoom level,
+ * speed on a second axis, the reference curves it used stated under the plot, superstructure
+ * sections and maintenance actions shaded when the reference data exist. */
 (function () {
   "use strict";
   const T = window.trackvkf;
@@ -19,6 +20,7 @@
   let run = null, wheels = [], full = null, current = null, data = {}, shapes = [], annotations = [];
   let busy = false, pending = null, seq = 0;
   const COLUMNS = "sleeper_amp,speed_mean,sleeper_force_amp"; // what the map draws and exports
+  let reference = null; // the reference curves the index used (from the profile answer)
 
   function maxPoints() { return Math.max(600, Math.min(4000, Math.round(2 * (el.clientWidth || 1200)))); }
 
@@ -100,18 +102,42 @@
     const mp = Math.ceil(maxPoints() / 200) * 200;
     const out = {};
     await Promise.all(wheels.map(async (w) => {
-      out[w] = await T.api.profile(`/runs/${runId}/profile`, { wheel: w, km_from: a, km_to: b, max_points: mp, columns: COLUMNS });
+      out[w] = await T.api.profile(`/runs/${runId}/profile`, { wheel: w, km_from: a, km_to: b, max_points: mp, columns: COLUMNS, index: true });
     }));
     return out;
+  }
+
+  function showIndex() { return document.getElementById("map-value").value === "index"; }
+
+  function referenceText(ref) {
+    if (!ref) return "";
+    if (!ref.available) return `No stiffness index: ${ref.reason}. Showing the raw amplitude.`;
+    const cls = (ref.classes || []).map((c) => {
+      const [lo, hi] = c.speed_range_kmh || [];
+      const range = lo == null ? "no speeds" : `${T.fmt(lo, 0)}–${T.fmt(hi, 0)} km/h`;
+      return `${c.class || "line"} (${range}, ${c.n_runs} run${c.n_runs === 1 ? "" : "s"}, ${c.method})`;
+    }).join("; ");
+    return `Index = ln(A / A_ref): 0 is a typical location of its superstructure class at the same speed, ` +
+      `+0.1 ≈ 10 % more amplitude (stiffer). Reference curves of line ${ref.line_id} track ${ref.track} ` +
+      `from runs ${(ref.run_ids || []).join(", ")} (computed ${T.datetime(ref.computed_at)}, ` +
+      `matched speed ±${T.fmt(100 * ref.speed_tolerance, 0)} %): ${cls}. Gaps: no reference passes at that speed, ` +
+      `or near a change of superstructure.`;
   }
 
   function traces() {
     const tr = [];
     let speedSrc = null;
+    const index = showIndex();
     for (const w of wheels) {
       const rows = data[w].rows;
       if (!speedSrc && rows.length) speedSrc = rows;
-      tr.push({
+      tr.push(index ? {
+        type: "scatter", mode: "lines", name: T.wheelName(w), line: { color: T.wheelColor(w), width: 1.3 },
+        x: rows.map((r) => r.km), y: rows.map((r) => r.stiffness_index ?? null),
+        customdata: rows.map((r) => [r.stiffness_index_se ?? NaN, r.sleeper_amp, r.reference_amp ?? NaN, (r.speed_mean ?? NaN) * 3.6]),
+        hovertemplate: `${T.wheelLabel(w)}<br>km %{x:.4f}<br>index %{y:.3f} ± %{customdata[0]:.3f}` +
+          `<br>amplitude %{customdata[1]:.3f} m/s² (reference %{customdata[2]:.3f})<br>speed %{customdata[3]:.1f} km/h<extra></extra>`,
+      } : {
         type: "scatter", mode: "lines", name: T.wheelName(w), line: { color: T.wheelColor(w), width: 1.3 },
         x: rows.map((r) => r.km), y: rows.map((r) => r.sleeper_amp),
         customdata: rows.map((r) => (r.speed_mean ?? NaN) * 3.6),
@@ -129,7 +155,11 @@
   }
 
   async function draw(a, b) {
-    const scale = document.getElementById("amp-scale").value;
+    const index = showIndex();
+    const scale = index ? "linear" : document.getElementById("amp-scale").value;
+    document.getElementById("amp-scale").disabled = index;
+    document.getElementById("map-title").textContent = index ? "Stiffness index along the track" : "Sleeper-passage amplitude along the track";
+    document.getElementById("reference-info").textContent = index ? referenceText(reference) : "";
     const tr = traces();
     const n = wheels.length ? data[wheels[0]].n_rows : 0;
     document.getElementById("map-info").textContent =
@@ -137,7 +167,8 @@
     await T.plot(el, tr, {
       uirevision: "map",
       xaxis: T.axis("Track position (km)", { range: [a, b], tickformat: ".3f" }),
-      yaxis: T.axis("Sleeper-passage amplitude (m/s²)", { type: scale, rangemode: scale === "log" ? undefined : "tozero" }),
+      yaxis: index ? T.axis("Stiffness index ln(A / A_ref) (–)", { zeroline: true })
+        : T.axis("Sleeper-passage amplitude (m/s²)", { type: scale, rangemode: scale === "log" ? undefined : "tozero" }),
       yaxis2: T.axis("Speed (km/h)", { overlaying: "y", side: "right", showgrid: false, rangemode: "tozero", dtick: 20 }),
       margin: { l: 75, r: 75, t: 40, b: 60 },
       hovermode: "x unified",
@@ -146,8 +177,12 @@
       filename: `run-${runId}-stiffness-map`,
       csv: () => {
         const rows = [];
-        for (const w of wheels) for (const r of data[w].rows) rows.push([w, r.km, r.sleeper_amp, (r.speed_mean ?? NaN) * 3.6, r.sleeper_force_amp]);
-        return { columns: ["wheel", "km", "sleeper_amp_mps2", "speed_kmh", "sleeper_force_amp_kn"], rows };
+        for (const w of wheels) for (const r of data[w].rows) {
+          rows.push([w, r.km, r.sleeper_amp, (r.speed_mean ?? NaN) * 3.6, r.sleeper_force_amp,
+            r.stiffness_index ?? NaN, r.stiffness_index_se ?? NaN, r.reference_amp ?? NaN]);
+        }
+        return { columns: ["wheel", "km", "sleeper_amp_mps2", "speed_kmh", "sleeper_force_amp_kn",
+          "stiffness_index", "stiffness_index_se", "reference_amp_mps2"], rows };
       },
     });
   }
@@ -160,6 +195,8 @@
       const got = await fetchRange(a, b);
       if (my !== seq) return;
       data = got; current = [a, b];
+      reference = wheels.length ? got[wheels[0]].reference : null;
+      if (reference && !reference.available && showIndex()) document.getElementById("map-value").value = "amplitude";
       document.getElementById("km-from").value = a.toFixed(3);
       document.getElementById("km-to").value = b.toFixed(3);
       await loadReference(a, b);
@@ -193,6 +230,7 @@
   });
   document.getElementById("km-reset").addEventListener("click", () => show(full[0], full[1]));
   document.getElementById("amp-scale").addEventListener("change", () => current && draw(current[0], current[1]));
+  document.getElementById("map-value").addEventListener("change", () => current && draw(current[0], current[1]));
 
   (async () => {
     try {
