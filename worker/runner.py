@@ -269,7 +269,8 @@ class LocalWorker:
             meta = job_meta(settings, len(chunks), worker_id=self.worker_id, run_sha256=record.run.sha256,
                             compute_s=time.perf_counter() - t0)
             stored = queue.complete_job(
-                self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id
+                self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id,
+                condition=rt.condition,
             )
             if stored:
                 return JobOutcome(job_id, JobStatus.DONE)

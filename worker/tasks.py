@@ -411,7 +411,7 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     )
     t0 = time.perf_counter()
     wheels = [r["result"] for r in stored_wheels if r["result"] is not None]
-    stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None)
+    stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None, condition=rt.condition)
     log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
              time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
     return "published" if stored else "not running any more"

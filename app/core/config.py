@@ -106,6 +106,27 @@ class Settings(BaseSettings):
     analytics_edge_trim_m : float
         The first and last metres of every run's profile left out of the
         analytics (filter end transients).
+    condition_step_z, condition_trend_z : float
+        Scores (repeatability units, wheels combined) beyond which the
+        condition store flags a sudden change (step) or a gradual trend.
+    condition_agree_z : float
+        A wheel agrees with a flag when its own score reaches this.
+    condition_min_history : int
+        Fewest speed-matched earlier runs a change test needs.
+    condition_history_runs : int
+        Most recent earlier runs of the line the step test compares with.
+    condition_trend_window_days : float
+        Days of history the trend test regresses over.
+    condition_speed_tolerance : float
+        Earlier runs count only where they passed within this relative speed
+        difference of the new run (0.10 = ±10 %).
+    condition_level_block_m : float
+        Length of the blocks whose median change is taken as a run's level
+        (calibration, temperature), m.
+    condition_max_shift_m : float
+        Largest alignment shift of a run onto its line's reference, m.
+    condition_min_shift_confidence : float
+        Alignments less clear than this are not applied.
     """
 
     model_config = SettingsConfigDict(
@@ -141,6 +162,16 @@ class Settings(BaseSettings):
     analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
     analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
     analytics_edge_trim_m: float = Field(default=50.0, ge=0)
+    condition_step_z: float = Field(default=4.5, gt=0)
+    condition_trend_z: float = Field(default=4.5, gt=0)
+    condition_agree_z: float = Field(default=2.0, gt=0)
+    condition_min_history: int = Field(default=8, ge=2)
+    condition_history_runs: int = Field(default=40, ge=2, le=1000)
+    condition_trend_window_days: float = Field(default=180.0, gt=0)
+    condition_speed_tolerance: float = Field(default=0.10, gt=0, le=1)
+    condition_level_block_m: float = Field(default=1000.0, gt=0)
+    condition_max_shift_m: float = Field(default=50.0, gt=0)
+    condition_min_shift_confidence: float = Field(default=0.2, ge=0, le=1)
 
     @field_validator("anonymous_role")
     @classmethod

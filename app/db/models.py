@@ -303,4 +303,5 @@ class WheelOOR(Base):
     extra: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
 
 from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessions, api_keys, audit_log)
+from app.db import condition_models as _condition_models  # noqa: E402,F401  (segment condition store)
 from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)

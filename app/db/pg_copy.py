@@ -34,6 +34,7 @@ PG_BINARY_TYPES: dict[str, str | None] = {
     "int2": ">i2",
     "int4": ">i4",
     "int8": ">i8",
+    "float4": ">f4",
     "float8": ">f8",
     "text": None,  # also varchar / char: their binary form is the UTF-8 bytes
 }

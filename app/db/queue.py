@@ -25,6 +25,7 @@ from sqlalchemy import and_, case, func, literal, or_, select, update
 
 from app.core.jsonable import jsonable
 from app.db import results_writer
+from app.db.condition_writer import DEFAULT_CONDITION_CONFIG, ConditionConfig
 from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
 from app.db.session import Database
 
@@ -278,6 +279,7 @@ def complete_job(
     meta: dict[str, Any],
     *,
     worker_id: str | None,
+    condition: ConditionConfig = DEFAULT_CONDITION_CONFIG,
 ) -> bool:
     """Store (unless already stored) and publish a job's results and mark it done, in one transaction.
 
@@ -294,6 +296,9 @@ def complete_job(
         already (:func:`store_wheel_rows`, fan-out mode).
     worker_id : str or None
         Owner of the job; None: any owner (fan-out mode).
+    condition : ConditionConfig
+        How the run's segment condition rows are made; their summary is kept
+        in the job's metadata (``meta["condition"]``).
 
     Returns
     -------
@@ -313,7 +318,9 @@ def complete_job(
             return False
         if profiles is not None:
             results_writer.store_profile_rows(session, run_id, job_id, profiles)
-        results_writer.publish_results(session, run_id, job_id, wheels)
+        summary = results_writer.publish_results(session, run_id, job_id, wheels, condition=condition,
+                                                 profiles=profiles)
+        meta = {**meta, "condition": summary}
         session.execute(
             update(Job)
             .where(Job.id == job_id)

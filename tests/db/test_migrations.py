@@ -14,6 +14,7 @@ TABLES = {
     "runs", "jobs", "job_chunks", "profile_bins", "wheel_oor",
     "users", "sessions", "api_keys", "audit_log",
     "ref_subsidence", "ref_maintenance", "ref_superstructure",
+    "condition_lines", "condition_runs", "segment_condition", "condition_flags",
 }
 
 
