@@ -114,7 +114,10 @@ class Settings(BaseSettings):
     condition_min_history : int
         Fewest speed-matched earlier runs a change test needs.
     condition_history_runs : int
-        Most recent earlier runs of the line the step test compares with.
+        Most recent speed-matched earlier runs the step test compares each
+        segment with.
+    condition_history_scan_runs : int
+        Most recent earlier runs of the line looked at to find them.
     condition_trend_window_days : float
         Days of history the trend test regresses over.
     condition_speed_tolerance : float
@@ -166,7 +169,8 @@ class Settings(BaseSettings):
     condition_trend_z: float = Field(default=4.5, gt=0)
     condition_agree_z: float = Field(default=2.0, gt=0)
     condition_min_history: int = Field(default=8, ge=2)
-    condition_history_runs: int = Field(default=40, ge=2, le=1000)
+    condition_history_runs: int = Field(default=30, ge=2, le=1000)
+    condition_history_scan_runs: int = Field(default=60, ge=2, le=2000)
     condition_trend_window_days: float = Field(default=180.0, gt=0)
     condition_speed_tolerance: float = Field(default=0.10, gt=0, le=1)
     condition_level_block_m: float = Field(default=1000.0, gt=0)

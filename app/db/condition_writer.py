@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -112,6 +112,7 @@ class ConditionConfig:
                 agree_z=settings.condition_agree_z,
                 min_history=settings.condition_min_history,
                 history_runs=settings.condition_history_runs,
+                history_scan_runs=settings.condition_history_scan_runs,
                 trend_window_days=settings.condition_trend_window_days,
                 speed_tolerance=settings.condition_speed_tolerance,
                 level_block_m=settings.condition_level_block_m,
@@ -221,23 +222,27 @@ def _align(line: ConditionLine, run_id: int, bins: np.ndarray, amp: np.ndarray, 
 
 def wheel_segments(
     session: Session, line: ConditionLine, wheels: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    *, bin_length_m: float, segment_lengths_m: tuple[float, ...] = SEGMENT_LENGTHS_M,
+    *, bin_length_m: float, segment_lengths_m: tuple[float, ...] = SEGMENT_LENGTHS_M, bins_per_cell: int = 1,
 ) -> dict[float, dict[str, SegmentStats]]:
     """Segments of every wheel from its bins: ``{wheel: (position_m, amplitude, speed_mps)}``
-    (positions aligned, amplitude NaN where not valid), with the index of :func:`condition_index`."""
+    (positions aligned, amplitude NaN where not valid), with the index of :func:`condition_index`.
+
+    ``bins_per_cell``: each value stands for that many bins (a generated fleet
+    on a coarser grid); ``n_valid`` counts bins.
+    """
     out: dict[float, dict[str, SegmentStats]] = {s: {} for s in segment_lengths_m}
     for wheel, (pos, amp, speed) in wheels.items():
         index, index_sd = condition_index(session, line.line_id, line.track, pos, amp, speed)
         for seg_m in segment_lengths_m:
-            out[seg_m][wheel] = segment_stats(pos, amp, speed, index, index_sd, segment_m=seg_m,
-                                              bin_length_m=bin_length_m)
+            st = segment_stats(pos, amp, speed, index, index_sd, segment_m=seg_m, bin_length_m=bin_length_m)
+            out[seg_m][wheel] = replace(st, n_valid=st.n_valid * bins_per_cell) if bins_per_cell != 1 else st
     return out
 
 
 class DbHistory:
     """The earlier runs of a line from the store, as :class:`~app.analysis.condition.HistorySource`.
 
-    The step test sees the ``history_runs`` most recent runs before the run;
+    The step test sees the ``history_scan_runs`` most recent runs before the run;
     the trend test (``trend=True``) also every run within the trend window.
     """
 
@@ -252,7 +257,7 @@ class DbHistory:
         rows = session.execute(
             select(ConditionRun.run_id, ConditionRun.run_time).where(earlier)
             .order_by(ConditionRun.run_time.desc(), ConditionRun.run_id.desc())
-            .limit(params.history_runs)
+            .limit(params.history_scan_runs)
         ).all()
         window = session.execute(
             select(ConditionRun.run_id, ConditionRun.run_time)

@@ -18,8 +18,8 @@ LINE = generate_line(12_000.0, 15_000.0, seed=7)
 QUIET = FleetNoise(segment_sd=0.02, run_sd=0.01, speed_spread=0.03, speed_wobble=0.02)
 
 
-def _sim(plan: FleetPlan = FleetPlan(), noise: FleetNoise = QUIET) -> FleetSimulator:
-    return FleetSimulator(LINE, plan, noise, grid_m=0.25)
+def _sim(plan: FleetPlan | None = None, noise: FleetNoise = QUIET) -> FleetSimulator:
+    return FleetSimulator(LINE, plan or FleetPlan(), noise, grid_m=0.25)
 
 
 def _rows(db, run_id: int, seg_m: int, wheel: str) -> list[SegmentCondition]:
@@ -67,7 +67,7 @@ def test_a_planted_step_is_flagged_once_as_new(any_db):
     published = publish_history(any_db, _sim(FleetPlan(steps=(step,))), 12)
     before = [s for _, s in published[:10]]
     assert all(s["flags"] == 0 for s in before), [s["flags"] for s in before]
-    (run10, s10), (run11, s11) = published[10], published[11]
+    (run10, s10), (run11, _) = published[10], published[11]
     assert s10["history_runs"] == 10 and s10["new_flag_ids"]
     with any_db.read() as s:
         flags = list(s.scalars(select(ConditionFlag).order_by(ConditionFlag.id)))

@@ -226,7 +226,7 @@ class RollingHistory:
     """The recent runs of one line in memory, as :class:`HistorySource`.
 
     Keeps, per segment length and wheel, a dense window over the segments
-    seen so far: the last ``params.history_runs`` runs, and for the trend
+    seen so far: the last ``params.history_scan_runs`` runs, and for the trend
     segment length also every run within ``params.trend_window_days`` of the
     newest. Feed it the runs in date order: :meth:`append` after
     :func:`assess_run`.
@@ -259,7 +259,7 @@ class RollingHistory:
             for wheel, st in wheels.items():
                 cols = self._cols.setdefault((seg_m, wheel), [])
                 cols.append((float(day), st.seg.copy(), st.index.copy(), st.speed_mean.copy()))
-                keep = self.params.history_runs
+                keep = self.params.history_scan_runs
                 if trend:
                     keep = max(keep, sum(1 for c in cols if c[0] > day - self.params.trend_window_days))
                 del cols[:-keep]

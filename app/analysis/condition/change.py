@@ -17,7 +17,10 @@ uncertainty of the median of ``n`` values. ``|z| ≥ step_z`` flags it.
 **Trend** (:func:`trend_change`) — a gradual degradation. Over the last
 ``trend_window_days`` (history and the newest run), the index is winsorised at
 ``median ± 3 · spread`` and regressed on time; the score is the slope over its
-standard error from the robust residual spread. ``|z| ≥ trend_z`` flags it, and
+standard error from the robust residual spread. A step inside the window tilts
+that line too, so the score counts (else it is 0) only where the slope over the
+recent half of the window's data has the same sign and reaches ``trend_recent_z``: the
+change is still going on. ``|z| ≥ trend_z`` flags it, and
 ``rate_per_year`` (index units per year; ×100 ≈ % per year for a log index) says
 how fast.
 
@@ -29,8 +32,9 @@ grows with speed; a speed-conditioned index does not, and its exponent comes
 out near 0).
 
 **Run level** (:func:`level_offsets`): every run (history and newest) is
-brought to the history's level block by block (``level_block_m``, the median
-deviation of the block's segments from their baselines), so that what moves a
+brought to the history's level block by block (``level_block_m``, and at least
+``level_block_segments`` segments; the median deviation of the block's
+segments from their baselines), so that what moves a
 whole kilometre at once — a sensor's calibration, rail temperature, a speed
 law the exponent does not catch — is not taken for a change of the segments.
 A change that covers a whole block in one run is therefore not seen by these
@@ -83,10 +87,16 @@ class ChangeParams:
         Step score beyond which a change is flagged (repeatability units).
     trend_z : float
         Trend score beyond which a degradation is flagged.
+    trend_recent_z : float
+        The slope over the recent half of the trend window must reach this
+        score (same sign) for a trend to count: a step inside the window is
+        not a trend.
     min_history : int
         Fewest speed-matched history runs a test needs.
     history_runs : int
-        Most recent runs the step test compares with.
+        Most recent speed-matched runs the step test compares each segment with.
+    history_scan_runs : int
+        Most recent runs of the line looked at to find them.
     trend_window_days : float
         Days of history the trend test regresses over.
     min_spread : float
@@ -99,6 +109,10 @@ class ChangeParams:
         speed difference, ``|v / v_new − 1| ≤ speed_tolerance``.
     level_block_m : float
         Length of the blocks whose median deviation is taken as a run's level, m.
+    level_block_segments : int
+        Blocks hold at least this many segments (longer blocks for long
+        segments), so that a local change of a few segments does not move
+        their median.
     min_level_segments : int
         Fewest segments with a value a block needs for a level correction.
     spread_prior_runs : float
@@ -108,30 +122,42 @@ class ChangeParams:
 
     step_z: float = 4.5
     trend_z: float = 4.5
+    trend_recent_z: float = 1.0
     agree_z: float = 2.0
     min_history: int = 8
-    history_runs: int = 40
+    history_runs: int = 30
+    history_scan_runs: int = 60
     trend_window_days: float = 180.0
     min_spread: float = 0.005
     speed_tolerance: float = 0.10
     level_block_m: float = 1000.0
+    level_block_segments: int = 50
     min_level_segments: int = 5
     spread_prior_runs: float = 10.0
 
+    def block_m(self, segment_m: float) -> float:
+        """Block length for segments of ``segment_m``, m."""
+        return max(self.level_block_m, self.level_block_segments * segment_m)
+
     def __post_init__(self) -> None:
-        for name in ("step_z", "trend_z", "agree_z", "trend_window_days", "min_spread", "speed_tolerance",
+        for name in ("step_z", "trend_z", "trend_recent_z", "agree_z", "trend_window_days", "min_spread", "speed_tolerance",
                      "level_block_m"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
         if not (np.isfinite(self.spread_prior_runs) and self.spread_prior_runs >= 0):
             raise ValueError(f"spread_prior_runs: must be >= 0, got {self.spread_prior_runs!r}")
+        if self.level_block_segments < 1:
+            raise ValueError(f"level_block_segments: must be >= 1, got {self.level_block_segments!r}")
         if self.min_level_segments < 1:
             raise ValueError(f"min_level_segments: must be >= 1, got {self.min_level_segments!r}")
         if self.min_history < 2:
             raise ValueError(f"min_history: must be >= 2, got {self.min_history!r}")
         if self.history_runs < self.min_history:
             raise ValueError(f"history_runs: must be >= min_history ({self.min_history}), got {self.history_runs!r}")
+        if self.history_scan_runs < self.history_runs:
+            raise ValueError(f"history_scan_runs: must be >= history_runs ({self.history_runs}), "
+                             f"got {self.history_scan_runs!r}")
 
 
 #: The default thresholds and windows.
@@ -363,7 +389,7 @@ def step_change(
     n = np.isfinite(h).sum(axis=1)
     med, spread = robust_spread(h, min_spread=params.min_spread)
     if seg is not None and segment_m is not None:
-        spread = pooled_spread(spread, n, seg, segment_m=segment_m, block_m=params.level_block_m,
+        spread = pooled_spread(spread, n, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
                                prior_runs=params.spread_prior_runs)
     change = x - med
     se = spread * np.sqrt(1.0 + np.pi / (2.0 * np.maximum(n, 1)))
@@ -419,24 +445,35 @@ def trend_change(
     n = ok.sum(axis=1)
     med, spread = robust_spread(y, min_spread=params.min_spread)
     lo, hi = (med - 3 * spread)[:, None], (med + 3 * spread)[:, None]
-    yw = np.where(ok, np.clip(y, lo, hi), 0.0)
-    w = ok.astype(np.float64)
-    tw = np.broadcast_to(tt, y.shape) * w
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t_mean = tw.sum(axis=1) / n
-        y_mean = yw.sum(axis=1) / n
-        dt = (tt[None, :] - t_mean[:, None]) * w
-        sxx = (dt * dt).sum(axis=1)
-        slope = (dt * (yw - y_mean[:, None])).sum(axis=1) / sxx
-        resid = np.where(ok, yw - y_mean[:, None] - slope[:, None] * dt, np.nan)
-        _, r_spread = robust_spread(resid, min_spread=params.min_spread)
-        if seg is not None and segment_m is not None:
-            r_spread = pooled_spread(r_spread, n, seg, segment_m=segment_m, block_m=params.level_block_m,
-                                     prior_runs=params.spread_prior_runs)
-        se = r_spread / np.sqrt(sxx)
-        z = slope / se
+    yw = np.where(ok, np.clip(y, lo, hi), np.nan)
+
+    def fit(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Slope, score and count of the least-squares line over the columns ``keep``."""
+        yy, tk = yw[:, keep], tt[keep]
+        okk = np.isfinite(yy)
+        nk = okk.sum(axis=1)
+        w = okk.astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t_mean = (tk[None, :] * w).sum(axis=1) / nk
+            y_mean = np.where(okk, yy, 0.0).sum(axis=1) / nk
+            dt = (tk[None, :] - t_mean[:, None]) * w
+            sxx = (dt * dt).sum(axis=1)
+            slope = (dt * np.where(okk, yy - y_mean[:, None], 0.0)).sum(axis=1) / sxx
+            resid = np.where(okk, yy - y_mean[:, None] - slope[:, None] * dt, np.nan)
+            _, r_spread = robust_spread(resid, min_spread=params.min_spread)
+            if seg is not None and segment_m is not None:
+                r_spread = pooled_spread(r_spread, nk, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
+                                         prior_runs=params.spread_prior_runs)
+            z_k = np.where(sxx > 0, slope / (r_spread / np.sqrt(sxx)), np.nan)
+        return slope, z_k, nk
+
+    slope, z, _ = fit(np.ones(tt.size, dtype=bool))
+    # a step inside the window also tilts the line: a trend must go on in the recent half of the data
+    recent_slope, recent_z, n_recent = fit(tt >= tt.min() / 2)
+    consistent = (np.sign(recent_slope) == np.sign(slope)) & (np.abs(recent_z) >= params.trend_recent_z)
+    z = np.where(consistent, z, 0.0)
     # the newest value and at least min_history earlier ones, spread over some time
-    testable = (n >= params.min_history + 1) & np.isfinite(x) & (sxx > 0)
+    testable = (n >= params.min_history + 1) & (n_recent >= params.min_history // 2 + 1) & np.isfinite(x) & np.isfinite(slope)
     return TrendResult(
         rate_per_year=np.where(testable, slope * _DAYS_PER_YEAR, np.nan),
         z=np.where(testable, z, np.nan),
@@ -526,7 +563,8 @@ def detect_changes(
     Parameters
     ----------
     history, history_speed : numpy.ndarray
-        (segments, runs) index and speed (m/s) of earlier runs, oldest column first (NaN = none).
+        (segments, runs) index and speed (m/s) of earlier runs, oldest column first (NaN = none);
+        the step test takes each segment's ``params.history_runs`` most recent speed-matched values.
     history_days : numpy.ndarray
         (runs,) time of each history run, days.
     value, speed : numpy.ndarray
@@ -549,15 +587,16 @@ def detect_changes(
     matched = speed_matched(history, history_speed, speed, params.speed_tolerance)
     h = matched.history
     times = np.asarray(history_days, dtype=np.float64)
-    recent = np.zeros(h.shape[1], dtype=bool)
-    recent[max(h.shape[1] - params.history_runs, 0):] = True
-    base = nan_median(h[:, recent], axis=1)
+    finite = np.isfinite(h)
+    # per segment the history_runs most recent matched values (columns are oldest first)
+    recent = finite & (np.cumsum(finite[:, ::-1], axis=1)[:, ::-1] <= params.history_runs)
+    base = nan_median(np.where(recent, h, np.nan), axis=1)
     y = np.concatenate([h, x[:, None]], axis=1)
     dev = y - base[:, None]
-    y = y - level_offsets(dev, seg, segment_m=segment_m, block_m=params.level_block_m,
+    y = y - level_offsets(dev, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
                           min_segments=params.min_level_segments)
     h_lev, x_lev = y[:, :-1], y[:, -1]
-    step = step_change(h_lev[:, recent], x_lev, params, seg=seg, segment_m=segment_m)
+    step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m)
     if trend and h.shape[1]:
         tr = trend_change(times, h_lev, x_lev, now_days, params, seg=seg, segment_m=segment_m)
         rate, tz = tr.rate_per_year, tr.z

@@ -1,0 +1,243 @@
+"""Track condition over time, from the segment condition store (never the 25 cm rows).
+
+``GET /condition/lines`` — the lines and tracks of the store;
+``GET /condition/heatmap`` — index per run × segment, flagged cells marked;
+``GET /condition/trend`` — one segment over every run, with maintenance actions;
+``GET /condition/changes`` and ``GET /condition/runs/{id}/changes`` — the change
+list (flags) of a line's newest run or of any run; ``GET /condition/flags`` — the
+feed of flags for data systems, ``since=`` the last id seen.
+
+A line id (and track) without runs in the store answers 404 naming
+``line_id``; a km outside the stored extent of the line answers 422 naming the
+km parameter; ``segment_m`` is 10 or 100.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from typing import Annotated
+
+import numpy as np
+from fastapi import APIRouter, Query
+from sqlalchemy import select
+
+from app.api.deps import DbDep, RunId, check_km, km_query, parse_time_range
+from app.api.errors import ApiError, not_found
+from app.api.schemas.condition import (
+    ChangesOut,
+    ConditionLinesOut,
+    FlagFeedOut,
+    HeatmapOut,
+    TrendOut,
+)
+from app.db import condition_reader as reader
+from app.db import reference_crud
+from app.db.condition_index import index_name
+from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun
+from app.db.models import Job
+from app.db.session import Database
+
+__all__ = ["router", "resolve_line", "check_line_km", "segment_length", "flag_out"]
+
+router = APIRouter(prefix="/condition", tags=["condition"])
+
+LineIdQ = Annotated[str, Query(min_length=1, max_length=128, description="Line id")]
+TrackQ = Annotated[str | None, Query(max_length=64, description="Track (default: the line's only track)")]
+SegmentQ = Annotated[int, Query(description="segment length, m: 10 or 100")]
+WheelQ = Annotated[str | None, Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="wheel (default: mean over wheels)")]
+_SEGMENTS = (10, 100)
+_WHEELS = ("11", "12", "41", "42")
+_MAX_FEED = 1000
+
+
+def segment_length(value: int) -> int:
+    """``segment_m`` checked: 10 or 100 (422 otherwise)."""
+    if value not in _SEGMENTS:
+        raise ApiError(422, "segment_m", f"must be 10 or 100, got {value}")
+    return value
+
+
+def _wheel(w: str | None) -> str | None:
+    if w is None:
+        return None
+    w = w[1:] if w[:1] in ("Z", "z") else w
+    if w not in _WHEELS:
+        raise ApiError(422, "wheel", f"must be one of {', '.join(_WHEELS)} (or Z11 …), got {w!r}")
+    return w
+
+
+def resolve_line(db: Database, line_id: str, track: str | None) -> ConditionLine:
+    """The store's line; 404 naming ``line_id`` when it has no runs there, 422 when the track is ambiguous."""
+    with db.read() as session:
+        lines = reader.find_lines(session, line_id, track)
+    if not lines:
+        where = f"line {line_id!r}" + (f" track {track!r}" if track is not None else "")
+        raise ApiError(404, "line_id", f"{where} has no runs in the condition store")
+    if len(lines) > 1:
+        raise ApiError(422, "track", f"line {line_id!r} has tracks {', '.join(repr(x.track) for x in lines)}: choose one")
+    return lines[0]
+
+
+def check_line_km(line: ConditionLine, **values: float | None) -> None:
+    """422 naming the parameter when a km lies outside the line's stored extent."""
+    if line.km_min is None or line.km_max is None:
+        return
+    for name, value in values.items():
+        if value is None:
+            continue
+        if not math.isfinite(value) or value < line.km_min - 1e-9 or value > line.km_max + 1e-9:
+            raise ApiError(422, name, f"km {value} is outside line {line.line_id!r} track {line.track!r} "
+                                      f"(km {line.km_min:.3f}–{line.km_max:.3f})")
+
+
+def _iso(t: dt.datetime | None) -> str | None:
+    if t is None:
+        return None
+    return (t if t.tzinfo else t.replace(tzinfo=dt.UTC)).isoformat()
+
+
+def _num(v: float | None) -> float | None:
+    return float(v) if v is not None and math.isfinite(float(v)) else None
+
+
+def flag_out(f: ConditionFlag, line: ConditionLine) -> dict:
+    """A flag as the API answers it."""
+    change = _num(f.change)
+    return {
+        "id": f.id, "run_id": f.run_id, "line_id": line.line_id, "track": line.track,
+        "km_from": f.seg * f.seg_m / 1000.0, "km_to": (f.seg + 1) * f.seg_m / 1000.0, "segment_m": f.seg_m,
+        "kind": f.kind, "direction": "up" if f.direction > 0 else "down", "score": float(f.score),
+        "change": change, "change_pct": 100.0 * math.expm1(change) if change is not None else None,
+        "rate_per_year": _num(f.rate_per_year), "wheels": [w for w in f.wheels.split(",") if w],
+        "is_new": bool(f.is_new), "created_at": _iso(f.created_at),
+    }
+
+
+@router.get("/lines", response_model=ConditionLinesOut, summary="Lines and tracks of the condition store")
+def lines(db: DbDep) -> dict:
+    with db.read() as session:
+        items = reader.list_lines(session)
+    return {"items": [{
+        "line_id": s.line.line_id, "track": s.line.track, "km_min": s.line.km_min, "km_max": s.line.km_max,
+        "n_runs": s.n_runs, "first_run": _iso(s.first_run), "last_run": _iso(s.last_run),
+        "last_run_id": s.last_run_id, "last_run_flags": s.last_run_flags, "reference_run_id": s.line.ref_run_id,
+    } for s in items]}
+
+
+@router.get("/heatmap", response_model=HeatmapOut, summary="Index per run × segment of a line")
+def heatmap(db: DbDep, line_id: LineIdQ, track: TrackQ = None, segment_m: SegmentQ = 100, wheel: WheelQ = None,
+            km_from: Annotated[float | None, km_query("Lower km bound")] = None,
+            km_to: Annotated[float | None, km_query("Upper km bound")] = None,
+            date_from: Annotated[str | None, Query(description="ISO date or datetime")] = None,
+            date_to: Annotated[str | None, Query(description="ISO date or datetime")] = None) -> dict:
+    """Rows are the line's runs (oldest first), columns its segments; the index of the wheel
+    asked for, or the mean over the wheels. ``flagged`` marks cells holding a flag of the run."""
+    seg_m = segment_length(segment_m)
+    w = _wheel(wheel)
+    check_km(km_from, km_to)
+    start, end = parse_time_range(date_from, date_to, ("date_from", "date_to"), whole_days=True)
+    line = resolve_line(db, line_id, track)
+    check_line_km(line, km_from=km_from, km_to=km_to)
+    with db.read() as session:
+        runs = reader.line_runs(session, line.id, start, end)
+        hm = reader.heatmap(session, runs, seg_m, wheel=w, km_from=km_from, km_to=km_to)
+        name = index_name(session, line.line_id, line.track)
+    matrix = np.where(np.isfinite(hm.matrix), np.round(hm.matrix, 5), np.nan)
+    return {
+        "line_id": line.line_id, "track": line.track, "segment_m": seg_m, "wheel": w, "index": name,
+        "km": (hm.seg * seg_m / 1000.0).tolist(),
+        "runs": [{"run_id": r.run_id, "start_time": _iso(r.run_time), "shift_m": r.shift_m, "n_flags": r.n_flags}
+                 for r in hm.runs],
+        "matrix": [[None if math.isnan(v) else v for v in row] for row in matrix.tolist()],
+        "flagged": [list(c) for c in hm.flagged],
+    }
+
+
+@router.get("/trend", response_model=TrendOut, summary="One segment over every run of a line")
+def trend(db: DbDep, line_id: LineIdQ, km: Annotated[float, km_query("A km inside the segment")],
+          track: TrackQ = None, segment_m: SegmentQ = 10, wheel: WheelQ = None) -> dict:
+    """Per run (oldest first) the segment's index (mean over the wheels) and each wheel's row,
+    with the maintenance actions that cover the segment."""
+    seg_m = segment_length(segment_m)
+    w = _wheel(wheel)
+    line = resolve_line(db, line_id, track)
+    check_line_km(line, km=km)
+    seg = int(math.floor(km * 1000.0 / seg_m))
+    lo, hi = seg * seg_m / 1000.0, (seg + 1) * seg_m / 1000.0
+    with db.read() as session:
+        history = reader.segment_history(session, line.id, seg_m, seg, w)
+        flagged = set(session.scalars(select(ConditionFlag.run_id).where(
+            ConditionFlag.line_key == line.id, ConditionFlag.seg_m == seg_m, ConditionFlag.seg == seg)))
+        actions = reference_crud.reference_frame(session, "maintenance", line_id=line.line_id, track=line.track,
+                                                 km_from=lo, km_to=hi)
+    points = []
+    for run, rows in history:
+        idx = [r.index for r in rows if r.index is not None]
+        points.append({
+            "run_id": run.run_id, "start_time": _iso(run.run_time),
+            "index": float(np.mean(idx)) if idx else None, "flagged": run.run_id in flagged,
+            "wheels": [{
+                "wheel": r.wheel, "index": float(r.index), "index_sd": _num(r.index_sd), "amp_mean": float(r.amp_mean),
+                "amp_p95": float(r.amp_p95), "speed_kmh": float(r.speed_mean) * 3.6, "n_valid": r.n_valid,
+                "n_history": r.n_history, "change": _num(r.change), "change_z": _num(r.change_z),
+                "trend_rate_per_year": _num(r.trend_rate), "trend_z": _num(r.trend_z),
+            } for r in rows],
+        })
+    return {
+        "line_id": line.line_id, "track": line.track, "segment_m": seg_m, "segment_km": [lo, hi], "points": points,
+        "maintenance": [{"id": int(a.id), "type": a.type, "date": a.date.isoformat(), "km_from": float(a.km_from),
+                         "km_to": float(a.km_to)} for a in actions.itertuples()],
+    }
+
+
+def _changes(db: Database, run: ConditionRun) -> dict:
+    with db.read() as session:
+        line = session.get(ConditionLine, run.line_key)
+        flags = reader.run_flags(session, run.run_id)
+        job = session.get(Job, run.job_id)  # its condition summary: provenance
+    summary = ((job.meta or {}).get("condition") or {}) if job is not None else {}
+    return {
+        "run_id": run.run_id, "line_id": line.line_id, "track": line.track, "start_time": _iso(run.run_time),
+        "shift_m": run.shift_m, "history_runs": summary.get("history_runs"),
+        "items": [flag_out(f, line) for f in flags],
+    }
+
+
+@router.get("/changes", response_model=ChangesOut, summary="Change list of a line's newest run")
+def newest_changes(db: DbDep, line_id: LineIdQ, track: TrackQ = None) -> dict:
+    """The flags of the line's newest run in the store, strongest first."""
+    line = resolve_line(db, line_id, track)
+    with db.read() as session:
+        run = reader.newest_run(session, line.id)
+    if run is None:
+        raise ApiError(404, "line_id", f"line {line_id!r} has no runs in the condition store")
+    return _changes(db, run)
+
+
+@router.get("/runs/{run_id}/changes", response_model=ChangesOut, summary="Change list of a run")
+def run_changes(db: DbDep, run_id: RunId) -> dict:
+    """The flags of a run, strongest first; 404 when the run has no rows in the store."""
+    with db.read() as session:
+        run = session.get(ConditionRun, run_id)
+    if run is None:
+        raise not_found("run", run_id)
+    return _changes(db, run)
+
+
+@router.get("/flags", response_model=FlagFeedOut, summary="Feed of condition flags (poll with since=)")
+def flags(db: DbDep, since: Annotated[int, Query(ge=0, le=2**62, description="last flag id seen (0: from the start)")] = 0,
+          limit: Annotated[int, Query(ge=1, le=_MAX_FEED)] = 200, line_id: str | None = None, track: TrackQ = None,
+          new_only: Annotated[bool, Query(description="only flags new in their run")] = False) -> dict:
+    """Flags with an id above ``since``, ascending. Ids grow in the order the flags become
+    visible, so a system that keeps the last id it saw (``next_since``) never misses one; the
+    flags of a reprocessed run are replaced (new ids)."""
+    keys = None
+    if line_id is not None:
+        keys = [resolve_line(db, line_id, track).id]
+    with db.read() as session:
+        items = reader.flags_since(session, since, limit, line_keys=keys, only_new=new_only)
+        lines_ = {ln.id: ln for ln in session.scalars(
+            select(ConditionLine).where(ConditionLine.id.in_({f.line_key for f in items})))}
+    return {"items": [flag_out(f, lines_[f.line_key]) for f in items],
+            "next_since": items[-1].id if items else since}
