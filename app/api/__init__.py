@@ -1,7 +1,7 @@
 """REST API of trackvkf under ``/api/v1``.
 
 Routers by resource: runs, jobs, profiles, wheels, reference data, analytics,
-condition (the segment condition store), health, auth, audit. Every
+condition (the segment condition store), channel maps, line geometry, health, auth, audit. Every
 route declares its access policy through a dependency (see
 :func:`app.api.deps.route_policy`): ``public`` (health, login), or
 ``require_role(role)`` — the resource routers below get ``viewer`` for all their
@@ -16,7 +16,9 @@ from app.api import (
     analytics,
     audit,
     auth,
+    channel_maps,
     condition,
+    geometry,
     health,
     jobs,
     profiles,
@@ -38,7 +40,10 @@ def build_api_router() -> APIRouter:
     api.include_router(health.router, dependencies=[Depends(public)])
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
-    for module in (runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition, auth, audit):
+    for module in (
+        runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition, auth, audit,
+        channel_maps, geometry,
+    ):
         protected.include_router(module.router)
     api.include_router(protected)
     return api

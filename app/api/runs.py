@@ -39,8 +39,9 @@ _UPLOAD_BODY = {
     "description": (
         "Either `multipart/form-data` with the parts `file` (the run file), `metadata` "
         "(JSON object, see docs/run-format.md; optional for HDF5 files that carry it as "
-        "attributes) and `format`; or the raw file as the body with `format`, `metadata` "
-        "and `filename` as query parameters."
+        "attributes), `format` and `channel_map` (id of a stored channel map, for MDF4/TDMS "
+        "recorder files); or the raw file as the body with `format`, `metadata`, `filename` "
+        "and `channel_map` as query parameters."
     ),
     "content": {
         "multipart/form-data": {
@@ -51,6 +52,10 @@ _UPLOAD_BODY = {
                     "file": {"type": "string", "format": "binary"},
                     "metadata": {"type": "string", "description": "JSON object"},
                     "format": {"type": "string", "enum": list(SUPPORTED_FORMATS)},
+                    "channel_map": {
+                        "type": "string",
+                        "description": "id of a stored channel map (MDF4/TDMS recorder files)",
+                    },
                 },
             }
         },
@@ -85,13 +90,18 @@ async def upload_run(
     store: StoreDep,
     principal: EngineerDep,
     format: Annotated[
-        str | None, Query(description="hdf5, csv or parquet (raw body uploads)", max_length=16)
+        str | None,
+        Query(description="hdf5, csv, parquet, mdf4 or tdms (raw body uploads)", max_length=16),
     ] = None,
     metadata: Annotated[
         str | None, Query(description="Metadata JSON object (raw body uploads)", max_length=65536)
     ] = None,
     filename: Annotated[
         str | None, Query(description="Original file name (raw body uploads)", max_length=255)
+    ] = None,
+    channel_map: Annotated[
+        str | None,
+        Query(description="Id of a stored channel map (raw body uploads of MDF4/TDMS files)", max_length=12),
     ] = None,
 ) -> RunDetail:
     """Create a run from an uploaded file.
@@ -110,6 +120,7 @@ async def upload_run(
         query_format=format,
         query_metadata=metadata,
         query_filename=filename,
+        query_channel_map=channel_map,
     )
     if not outcome.created:
         response.status_code = status.HTTP_200_OK

@@ -11,7 +11,7 @@ from fastapi import APIRouter, Query
 from app.analysis.recipe import order_overlap, wheel_recipe
 from app.analysis.settings import ProcessingSettings
 from app.analysis.spectrogram import window_spectrograms
-from app.api.deps import DbDep, RunId, StoreDep
+from app.api.deps import DbDep, RunId, StoreDep, km_query
 from app.api.errors import ApiError, not_found
 from app.db import crud, results_reader
 from app.io import WHEELS, RunFile, open_run
@@ -83,8 +83,8 @@ def get_spectrogram(
     db: DbDep,
     store: StoreDep,
     wheel: Annotated[str, Query(pattern=r"^Z?(11|12|41|42)$", description='Wheel: "11" … "42" (or "Z11")')],
-    km_from: Annotated[float, Query(ge=-100_000, le=100_000, description="Window start, km")],
-    km_to: Annotated[float, Query(ge=-100_000, le=100_000, description="Window end, km")],
+    km_from: Annotated[float, km_query("Window start, km")],
+    km_to: Annotated[float, km_query("Window end, km")],
     revolutions: Annotated[
         float, Query(ge=1, le=64, description="Wheel revolutions per STFT frame (resolution f1/revolutions)")
     ] = 8.0,

@@ -4,12 +4,14 @@ Two request shapes are accepted on ``POST /api/v1/runs``:
 
 ``multipart/form-data``
     parts ``file`` (the run file, required), ``metadata`` (JSON object,
-    optional for HDF5) and ``format`` (``hdf5``, ``csv`` or ``parquet``,
-    optional: else taken from the file name or the part's content type).
+    optional for HDF5), ``format`` (``hdf5``, ``csv``, ``parquet``, ``mdf4``
+    or ``tdms``, optional: else taken from the file name or the part's
+    content type) and ``channel_map`` (id of a stored channel map, recorder
+    files only).
 any other content type (``application/octet-stream``, ``application/x-hdf5``,
 ``text/csv``, ``application/vnd.apache.parquet``)
-    the body is the file; ``format``, ``metadata`` and ``filename`` come as
-    query parameters.
+    the body is the file; ``format``, ``metadata``, ``filename`` and
+    ``channel_map`` come as query parameters.
 
 The body is read block by block into ``<run_store>/.uploads/<token>/`` while
 its sha256 is computed and its size checked against the cap; it is never held
@@ -38,26 +40,31 @@ from starlette.requests import ClientDisconnect, Request
 
 from app.analysis.settings import ProcessingSettings
 from app.api.audit import record, record_now
+from app.api.channel_maps import load_channel_map
 from app.api.deps import Principal
 from app.api.errors import ApiError
 from app.core.config import Settings
+from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
-from app.db import crud
+from app.db import crud, recorder_crud
 from app.db.models import Run, utcnow
 from app.db.session import Database
 from app.io import RunFileError, RunSummary, ingest
+from app.io.geometry import LineGeometry
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
 
 log = logging.getLogger(__name__)
 
-SUPPORTED_FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet")
-_FORMAT_ALIASES = {"h5": "hdf5", "hdf": "hdf5", "hdf5": "hdf5", "csv": "csv", "parquet": "parquet", "pq": "parquet"}
+SUPPORTED_FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet", "mdf4", "tdms")
+_FORMAT_ALIASES = {"h5": "hdf5", "hdf": "hdf5", "hdf5": "hdf5", "csv": "csv", "parquet": "parquet", "pq": "parquet",
+                   "mdf4": "mdf4", "mf4": "mdf4", "mdf": "mdf4", "tdms": "tdms"}
 _EXTENSIONS = {
     ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".he5": "hdf5", ".mat": "hdf5",
     ".csv": "csv", ".tsv": "csv", ".txt": "csv",
     ".csv.gz": "csv", ".tsv.gz": "csv", ".txt.gz": "csv",
     ".parquet": "parquet", ".pq": "parquet",
+    ".mf4": "mdf4", ".mdf": "mdf4", ".tdms": "tdms",
 }
 _CONTENT_TYPES = {
     "application/x-hdf5": "hdf5", "application/x-hdf": "hdf5", "application/hdf5": "hdf5",
@@ -70,7 +77,7 @@ ACCEPTED_CONTENT_TYPES: frozenset[str] = frozenset(
     {*_CONTENT_TYPES, "application/octet-stream", "application/gzip", "application/x-gzip",
      "text/plain", "text/tab-separated-values"}
 )
-_FORM_FIELDS = ("file", "metadata", "format")
+_FORM_FIELDS = ("file", "metadata", "format", "channel_map")
 _UPLOAD_NAME = "upload"
 
 
@@ -218,7 +225,8 @@ class _MultipartState:
         name = options.get(b"name", b"").decode("utf-8", "replace")
         if name not in _FORM_FIELDS:
             self.error = self.error or ApiError(
-                422, "form", f"unknown form field {name!r} (expected file, metadata or format)"
+                422, "form",
+                f"unknown form field {name!r} (expected file, metadata, format or channel_map)",
             )
         self.name = name
         if name == "file":
@@ -363,6 +371,15 @@ def _parse_metadata(text: str | None) -> dict[str, Any] | None:
     return value
 
 
+def _channel_map_id(text: str | None) -> int | None:
+    if text is None or not text.strip():
+        return None
+    value = text.strip()
+    if not value.isdigit() or not 0 < int(value) < 2**31:
+        raise ApiError(422, "channel_map", f"must be the id of a stored channel map, got {value[:40]!r}")
+    return int(value)
+
+
 def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
     if form_value is not None and query_value is not None:
         raise ApiError(422, name, "given both as form field and as query parameter")
@@ -392,6 +409,7 @@ def _run_row(summary: RunSummary, received: _Received, fmt: str | None, principa
         speed_max=_float_or_none(summary.speed_max),
         channels=list(summary.channels),
         meta=md.model_dump(mode="json"),
+        ingest_report=jsonable({"warnings": list(summary.warnings), "report": dict(summary.report)}),
         created_by=principal_name,
         created_at=utcnow(),
     )
@@ -458,6 +476,7 @@ async def receive_and_create_run(
     query_format: str | None = None,
     query_metadata: str | None = None,
     query_filename: str | None = None,
+    query_channel_map: str | None = None,
 ) -> UploadOutcome:
     """Receive an upload, validate it and create the run and its processing job.
 
@@ -490,6 +509,7 @@ async def receive_and_create_run(
         return await _receive_and_create(
             request, settings=settings, db=db, store=store, principal=principal,
             query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
+            query_channel_map=query_channel_map,
         )
     except ApiError as exc:
         await run_in_threadpool(_record_rejection, db, request, principal, exc, "rejected")
@@ -517,6 +537,7 @@ async def _receive_and_create(
     query_format: str | None,
     query_metadata: str | None,
     query_filename: str | None,
+    query_channel_map: str | None,
 ) -> UploadOutcome:
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > settings.max_upload_bytes:
@@ -554,9 +575,24 @@ async def _receive_and_create(
         if existing_id is not None:
             return UploadOutcome(run_id=existing_id, created=False)
 
+        map_id = _channel_map_id(_one_of("channel_map", received.fields.get("channel_map"), query_channel_map))
+        channel_map = None
+        if map_id is not None:
+            vehicle = (metadata or {}).get("vehicle_id")
+            channel_map = await run_in_threadpool(
+                load_channel_map, db, map_id, vehicle if isinstance(vehicle, str) else None
+            )
+
+        def geometry(line_id: str, track: str) -> LineGeometry | None:
+            with db.read() as session:
+                row = recorder_crud.find_geometry(session, line_id, track)
+                return recorder_crud.to_line_geometry(row) if row is not None else None
+
         dest = upload_dir / "run.h5"
         try:
-            summary = await run_in_threadpool(ingest, path, fmt, metadata, dest)
+            summary = await run_in_threadpool(
+                lambda: ingest(path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry)
+            )
         except RunFileError as exc:
             raise ApiError(422, exc.field, exc.message) from None
         await run_in_threadpool(path.unlink)

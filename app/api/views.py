@@ -73,10 +73,15 @@ def run_out(run: Run, latest: Job | None, chunk_counts: dict[str, int] | None = 
         ),
         latest_job=job_out(latest, chunk_counts) if latest is not None else None,
         links=_links(run.id),
+        warnings=list((run.ingest_report or {}).get("warnings", [])),
     )
 
 
 def run_detail(run: Run, latest: Job | None, chunk_counts: dict[str, int] | None = None) -> RunDetail:
     """Response model of one run with its metadata."""
     base = run_out(run, latest, chunk_counts)
-    return RunDetail(**base.model_dump(), metadata=dict(run.meta or {}))
+    return RunDetail(
+        **base.model_dump(),
+        metadata=dict(run.meta or {}),
+        ingest_report=dict((run.ingest_report or {}).get("report", {})),
+    )

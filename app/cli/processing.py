@@ -24,12 +24,28 @@ def simulate(
     reference: Annotated[bool, typer.Option(
         help="Also write matching subsidence, maintenance and superstructure CSV files "
         "(OUT stem + '-reference/')")] = False,
+    recorder: Annotated[str | None, typer.Option(
+        help="Write OUT as a recorder file (mdf4 or tdms) with drifting odometry, plus its channel "
+        "map and metadata JSON beside it")] = None,
+    gnss: Annotated[bool, typer.Option(
+        help="With --recorder: a GNSS group (3 m noise, 30 s outages) and the line geometry "
+        "(OUT stem + '.line.geojson')")] = False,
 ) -> None:
     """Write a synthetic run in the canonical format with its ground truth beside it."""
     from app.simulate.run import simulate_run
 
     out.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    if recorder is not None:
+        from app.simulate.recorder import GnssSimulation, simulate_recorder_run
+
+        if recorder not in ("mdf4", "tdms"):
+            raise typer.BadParameter("mdf4 or tdms", param_hint="--recorder")
+        rec = simulate_recorder_run(out, recorder, gnss=GnssSimulation() if gnss else None, seed=seed,
+                                    length_km=length_km, fs=fs, with_forces=forces)
+        echo(f"wrote {out} in {time.perf_counter() - t0:.1f} s; channel map {rec.channel_map_path}, "
+             f"metadata {rec.metadata_path}" + (f", geometry {rec.geometry_path}" if gnss else ""))
+        return
     truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces)
     echo(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
     truth_path = getattr(truth, "path", None)
@@ -82,10 +98,10 @@ def _jsonable(value: Any) -> Any:
 
 
 def process(
-    run_file: Annotated[Path, typer.Argument(help="Run file: HDF5, CSV or Parquet")],
+    run_file: Annotated[Path, typer.Argument(help="Run file: HDF5, CSV, Parquet, MDF4 or TDMS")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Output directory")] = Path("trackvkf-out"),
     format: Annotated[
-        str | None, typer.Option("--format", help="hdf5, csv or parquet (default: detect)")
+        str | None, typer.Option("--format", help="hdf5, csv, parquet, mdf4 or tdms (default: detect)")
     ] = None,
     metadata: Annotated[
         Path | None, typer.Option(help="Metadata JSON file (required for CSV/Parquet)")
@@ -95,6 +111,12 @@ def process(
         float | None, typer.Option(help="Bandwidth in wheel orders (default 0.1)")
     ] = None,
     filter_order: Annotated[int | None, typer.Option(help="VKF filter order q (default 2)")] = None,
+    channel_map: Annotated[
+        Path | None, typer.Option(help="Channel map JSON file (MDF4/TDMS recorder files)")
+    ] = None,
+    geometry: Annotated[
+        Path | None, typer.Option(help="Line geometry GeoJSON (runs placed by GNSS)")
+    ] = None,
 ) -> None:
     """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
 
@@ -105,6 +127,7 @@ def process(
 
     from app.analysis.settings import ProcessingSettings
     from app.io import RunFileError, ingest
+    from app.io.geometry import parse_geojson
     from app.pipeline import run_pipeline
 
     if not run_file.is_file():
@@ -129,9 +152,17 @@ def process(
         except (OSError, json.JSONDecodeError) as exc:
             raise typer.BadParameter(f"cannot read {metadata}: {exc}", param_hint="--metadata") from None
 
+    extras = {}
+    for name, path in (("channel_map", channel_map), ("geometry", geometry)):
+        if path is not None:
+            try:
+                extras[name] = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, json.JSONDecodeError) as exc:
+                raise typer.BadParameter(f"cannot read {path}: {exc}", param_hint=f"--{name.replace('_', '-')}") from None
     source_sha = _file_sha256(run_file)
     key = hashlib.sha256(
-        json.dumps({"sha": source_sha, "md": md, "settings": settings.to_dict()}, sort_keys=True).encode()
+        json.dumps({"sha": source_sha, "md": md, "settings": settings.to_dict(), **extras},
+                   sort_keys=True).encode()
     ).hexdigest()[:16]
     work = out / ".work" / key
     work.mkdir(parents=True, exist_ok=True)
@@ -139,10 +170,15 @@ def process(
     if not canonical.is_file():
         echo(f"validating {run_file} ...")
         try:
-            summary = ingest(run_file, format, md, canonical)
+            lines = parse_geojson(extras["geometry"]) if "geometry" in extras else []
+            summary = ingest(run_file, format, md, canonical, channel_map=extras.get("channel_map"),
+                             geometry=lambda line, track: next(
+                                 (g for g in lines if (g.line_id, g.track) == (line, track)), None))
         except RunFileError as exc:
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(2) from None
+        for warning in summary.warnings:
+            typer.echo(f"warning: {warning}", err=True)
         echo(
             f"{summary.duration_s:.1f} s at {summary.fs:g} Hz, {summary.distance_m / 1000:.2f} km, "
             f"channels {', '.join(summary.channels)}"

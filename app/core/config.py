@@ -130,6 +130,12 @@ class Settings(BaseSettings):
         Largest alignment shift of a run onto its line's reference, m.
     condition_min_shift_confidence : float
         Alignments less clear than this are not applied.
+    map_tile_url : str, optional
+        Raster tile URL template (``https://tiles.example/{z}/{x}/{y}.png``) of
+        a basemap under the map page's line geometry. Default: none (the page
+        draws the geometry alone and requests nothing outside the server).
+    map_tile_attribution : str
+        Attribution text shown with the basemap.
     """
 
     model_config = SettingsConfigDict(
@@ -176,6 +182,8 @@ class Settings(BaseSettings):
     condition_level_block_m: float = Field(default=1000.0, gt=0)
     condition_max_shift_m: float = Field(default=50.0, gt=0)
     condition_min_shift_confidence: float = Field(default=0.2, ge=0, le=1)
+    map_tile_url: str | None = Field(default=None, max_length=500)
+    map_tile_attribution: str = Field(default="", max_length=300)
 
     @field_validator("anonymous_role")
     @classmethod

@@ -168,6 +168,8 @@ class Run(Base):
     speed_max: Mapped[float | None] = mapped_column(Float)
     channels: Mapped[list[str]] = mapped_column(JSONType)
     meta: Mapped[dict[str, Any]] = mapped_column("metadata", JSONType)
+    #: what ingest reported: {"warnings": [...], "report": {...}} (RunSummary.warnings/.report)
+    ingest_report: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
     created_by: Mapped[str | None] = mapped_column(String(128))
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
@@ -304,4 +306,5 @@ class WheelOOR(Base):
 
 from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessions, api_keys, audit_log)
 from app.db import condition_models as _condition_models  # noqa: E402,F401  (segment condition store)
+from app.db import recorder_models as _recorder_models  # noqa: E402,F401  (channel maps, line geometries)
 from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)

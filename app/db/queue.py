@@ -68,6 +68,17 @@ def _now_literal(now: dt.datetime):
     return literal(now, UTCDateTime())
 
 
+def _start_values(worker_id: str, now: dt.datetime) -> dict[str, Any]:
+    """Column values of a job that ``worker_id`` starts (claims) at ``now``."""
+    return {
+        "status": JobStatus.RUNNING,
+        "worker_id": worker_id,
+        "heartbeat_at": now,
+        "started_at": func.coalesce(Job.started_at, _now_literal(now)),
+        "attempts": Job.attempts + 1,
+    }
+
+
 def _claimable(cutoff: dt.datetime):
     return or_(
         Job.status == JobStatus.QUEUED,
@@ -105,13 +116,7 @@ def claim_next_job(db: Database, worker_id: str, stale_after_s: float) -> int | 
             result = session.execute(
                 update(Job)
                 .where(Job.id == job_id, _claimable(cutoff))
-                .values(
-                    status=JobStatus.RUNNING,
-                    worker_id=worker_id,
-                    heartbeat_at=now,
-                    started_at=func.coalesce(Job.started_at, _now_literal(now)),
-                    attempts=Job.attempts + 1,
-                )
+                .values(**_start_values(worker_id, now))
             )
             if result.rowcount == 1:
                 return int(job_id)
@@ -397,13 +402,7 @@ def claim_for_fanout(db: Database, job_id: int, owner: str) -> bool:
         result = session.execute(
             update(Job)
             .where(Job.id == job_id, Job.status == JobStatus.QUEUED)
-            .values(
-                status=JobStatus.RUNNING,
-                worker_id=owner,
-                heartbeat_at=now,
-                started_at=func.coalesce(Job.started_at, _now_literal(now)),
-                attempts=Job.attempts + 1,
-            )
+            .values(**_start_values(owner, now))
         )
         if result.rowcount == 1:
             return True

@@ -257,6 +257,11 @@ class CanonicalWriter:
 
     def finish(self, n_samples: int) -> None:
         """Check the lengths and write the root attributes."""
+        for name in ("km_start", "km_increasing"):
+            if getattr(self.metadata, name) is None:
+                raise RunFileError(
+                    name, "required field is missing (the km of the run's first sample)"
+                )
         for name in self.h5:
             if self.h5[name].shape[0] != n_samples:
                 raise RuntimeError(

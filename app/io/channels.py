@@ -18,6 +18,8 @@ __all__ = [
     "KINEMATIC_CHANNELS",
     "ALL_CHANNELS",
     "TIME_COLUMN",
+    "GNSS_CHANNELS",
+    "INPUT_CHANNELS",
     "UNITS",
     "UNIT_SYNONYMS",
     "canonical_name",
@@ -41,12 +43,21 @@ ALL_CHANNELS: tuple[str, ...] = ACCEL_CHANNELS + FORCE_CHANNELS + KINEMATIC_CHAN
 #: the sample rate, never stored.
 TIME_COLUMN = "time"
 
+#: Optional GNSS fix of the vehicle, WGS84 latitude and longitude (degrees); read to
+#: place the run on the line geometry (:mod:`app.io.positioning`), never stored. Samples
+#: without a fix are NaN.
+GNSS_CHANNELS: tuple[str, ...] = ("lat", "lon")
+#: Every channel an input file may hold besides ``time``: the stored ones and GNSS.
+INPUT_CHANNELS: tuple[str, ...] = ALL_CHANNELS + GNSS_CHANNELS
+
 #: Physical unit of every channel (stored as the ``units`` attribute).
 UNITS: dict[str, str] = {
     **{c: "m/s^2" for c in ACCEL_CHANNELS},
     **{c: "kN" for c in FORCE_CHANNELS},
     "speed": "m/s",
     "position": "m",
+    "lat": "deg",
+    "lon": "deg",
     TIME_COLUMN: "s",
 }
 
@@ -57,9 +68,10 @@ UNIT_SYNONYMS: dict[str, frozenset[str]] = {
     "m/s": frozenset({"m/s", "m s-1", "m*s^-1", "ms-1"}),
     "m": frozenset({"m"}),
     "s": frozenset({"s"}),
+    "deg": frozenset({"deg", "°", "degree", "degrees"}),
 }
 
-_LOOKUP: dict[str, str] = {name.lower(): name for name in (*ALL_CHANNELS, TIME_COLUMN)}
+_LOOKUP: dict[str, str] = {name.lower(): name for name in (*INPUT_CHANNELS, TIME_COLUMN)}
 
 
 def canonical_name(name: str) -> str | None:

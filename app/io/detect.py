@@ -9,8 +9,10 @@ from app.io.errors import RunFileError
 __all__ = ["FORMATS", "HDF5_SIGNATURE", "detect_format", "resolve_format"]
 
 #: Accepted input formats.
-FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet")
+FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet", "mdf4", "tdms")
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+#: Leading bytes of recorder files: ASAM MDF identification block, NI TDMS lead-in.
+_RECORDER_MAGIC = {"mdf4": b"MDF     ", "tdms": b"TDSm"}
 _PARQUET_MAGIC = b"PAR1"
 _GZIP_MAGIC = b"\x1f\x8b"
 _CSV_SUFFIXES = (".csv", ".tsv", ".txt", ".csv.gz", ".tsv.gz", ".txt.gz")
@@ -38,6 +40,12 @@ def _is_parquet(path: Path, size: int) -> bool:
         fh.seek(size - 4)
         tail = fh.read(4)
     return head == _PARQUET_MAGIC and tail == _PARQUET_MAGIC
+
+
+def _recorder_format(path: Path) -> str | None:
+    with open(path, "rb") as fh:
+        head = fh.read(8)
+    return next((fmt for fmt, magic in _RECORDER_MAGIC.items() if head.startswith(magic)), None)
 
 
 def _looks_like_text(path: Path) -> bool:
@@ -71,7 +79,7 @@ def detect_format(path: Path) -> tuple[str, str | None]:
     Returns
     -------
     fmt : str
-        ``"hdf5"``, ``"csv"`` or ``"parquet"``.
+        ``"hdf5"``, ``"csv"``, ``"parquet"``, ``"mdf4"`` (ASAM MDF) or ``"tdms"``.
     compression : str or None
         ``"gzip"`` for gzip-compressed CSV, else ``None``.
 
@@ -85,6 +93,9 @@ def detect_format(path: Path) -> tuple[str, str | None]:
         return "hdf5", None
     if _is_parquet(path, size):
         return "parquet", None
+    recorder = _recorder_format(path)
+    if recorder is not None:
+        return recorder, None
     name = path.name.lower()
     if _is_gzip(path):
         if name.endswith(_CSV_SUFFIXES) or not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES):
@@ -95,8 +106,8 @@ def detect_format(path: Path) -> tuple[str, str | None]:
         return "csv", None
     raise RunFileError(
         "format",
-        f"unknown format of {path.name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic) "
-        "and not delimited text (CSV)",
+        f"unknown format of {path.name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic), "
+        "not MDF4 or TDMS (no identification) and not delimited text (CSV)",
     )
 
 
@@ -125,12 +136,23 @@ def resolve_format(path: Path, fmt: str | None) -> tuple[str, str | None]:
                 "format", "declared format 'hdf5' but the file has no HDF5 signature"
             )
         return fmt, None
+    if fmt in _RECORDER_MAGIC:
+        if _recorder_format(path) != fmt:
+            raise RunFileError(
+                "format", f"declared format {fmt!r} but the file does not start like one"
+            )
+        return fmt, None
     if fmt == "parquet":
         if not _is_parquet(path, size):
             raise RunFileError("format", "declared format 'parquet' but the file has no PAR1 magic")
         return fmt, None
     if _is_gzip(path):
         return fmt, "gzip"
-    if _has_hdf5_signature(path, size) or _is_parquet(path, size) or not _looks_like_text(path):
+    if (
+        _has_hdf5_signature(path, size)
+        or _is_parquet(path, size)
+        or _recorder_format(path) is not None
+        or not _looks_like_text(path)
+    ):
         raise RunFileError("format", "declared format 'csv' but the file is not delimited text")
     return fmt, None

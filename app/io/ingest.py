@@ -14,16 +14,29 @@ import pydantic
 from pydantic import ConfigDict
 
 from app.io.canonical import CanonicalWriter, Compression, atomic_output
+from app.io.channel_map import ChannelMap, parse_channel_map
 from app.io.channels import ACCEL_CHANNELS, ALL_CHANNELS, TIME_COLUMN
 from app.io.detect import resolve_format
 from app.io.errors import RunFileError
 from app.io.gapfill import GapFiller
+from app.io.geometry import LineGeometry
 from app.io.kinematics import POSITION_BLOCK, SPEED_WINDOW_S, integrate_block, speed_from_position
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
-from app.io.metadata import RunMetadata, parse_metadata
+from app.io.metadata import DEFAULT_AXLE_POSITIONS_M, RunMetadata, parse_metadata
+from app.io.positioning import (
+    GeometryLookup,
+    GnssFixes,
+    apply_gnss,
+    finish_line_km,
+    resolve_position_kind,
+)
 from app.io.sources import Source, open_source
+from app.io.sources.recorder import RecorderSource
 
 __all__ = ["RunSummary", "ingest"]
+
+#: A relative position channel starting farther than this from 0 m is reported.
+_ZERO_TOLERANCE_M = 1e-3
 
 
 class RunSummary(pydantic.BaseModel):
@@ -46,9 +59,19 @@ class RunSummary(pydantic.BaseModel):
     speed_min, speed_max : float
         Range of the speed, m/s.
     source_format : str
-        ``"hdf5"``, ``"csv"`` or ``"parquet"``.
+        ``"hdf5"``, ``"csv"``, ``"parquet"``, ``"mdf4"`` or ``"tdms"``.
     nan_filled : dict[str, int]
         Interpolated samples per channel (channels without NaN omitted).
+    warnings : list of str
+        What ingest assumed or did that the uploader should know (a relative
+        position channel not starting at 0, the default axle layout, the start
+        time taken from the recorder, GNSS outages bridged …), each
+        ``"<field>: <message>"``.
+    report : dict
+        Provenance kept with the run: ``position_kind`` (as given),
+        ``km_source`` (``metadata``, ``line_km`` or ``gnss``), ``channels``
+        (recorder channel, group, unit and factor of each channel of a
+        recorder file), ``positioning`` (GNSS matching and fusion summary).
     """
 
     model_config = ConfigDict(frozen=True)
@@ -63,6 +86,8 @@ class RunSummary(pydantic.BaseModel):
     speed_max: float
     source_format: str = ""
     nan_filled: dict[str, int] = {}
+    warnings: list[str] = []
+    report: dict[str, Any] = {}
 
 
 def ingest(
@@ -73,14 +98,16 @@ def ingest(
     limits: IngestLimits = DEFAULT_LIMITS,
     *,
     compression: Compression = "auto",
+    channel_map: ChannelMap | Mapping[str, Any] | None = None,
+    geometry: GeometryLookup | LineGeometry | None = None,
 ) -> RunSummary:
     """Validate a run file and write it as a canonical HDF5 file.
 
     Parameters
     ----------
     src : Path
-        Input file (HDF5, CSV or Parquet).
-    fmt : {"hdf5", "csv", "parquet"} or None
+        Input file (HDF5, CSV, Parquet, MDF4 or TDMS).
+    fmt : {"hdf5", "csv", "parquet", "mdf4", "tdms"} or None
         Declared format; ``None`` detects it from the magic bytes (and the file
         suffix for CSV).
     metadata : mapping or None
@@ -94,6 +121,13 @@ def ingest(
         Acceptance limits.
     compression : {"auto", "lzf", "gzip", None}
         Compression of the output datasets (see :class:`~app.io.canonical.CanonicalWriter`).
+    channel_map : ChannelMap or mapping, optional
+        Recorder channel → trackvkf channel and unit (MDF4 and TDMS files;
+        see :mod:`app.io.channel_map`).
+    geometry : callable or LineGeometry, optional
+        Line geometry for GNSS positions: the geometry itself, or
+        ``lookup(line_id, track)`` returning the geometry of the run's line
+        and track (or None). See :mod:`app.io.positioning`.
 
     Returns
     -------
@@ -117,16 +151,32 @@ def ingest(
         raise RunFileError(
             "metadata", f"metadata must be a JSON object, got {type(metadata).__name__}"
         )
+    cmap = parse_channel_map(channel_map) if channel_map is not None else None
     fmt_name, comp = resolve_format(src, fmt)
-    with open_source(src, fmt_name, comp, limits) as source:
-        return _ingest(source, fmt_name, metadata, dest, limits, compression)
+    with open_source(src, fmt_name, comp, limits, cmap) as source:
+        return _ingest(source, fmt_name, metadata, dest, limits, compression, geometry)
 
 
-def _merge_metadata(source: Source, given: Mapping[str, Any] | None) -> RunMetadata:
+def _merge_metadata(
+    source: Source, given: Mapping[str, Any] | None, warnings: list[str]
+) -> RunMetadata:
     info = source.info
     if given is None and not info.file_metadata:
         return parse_metadata(None)
     merged: dict[str, Any] = {**info.file_metadata, **(given or {})}
+    if "start_time" in info.file_metadata and "start_time" not in (given or {}):
+        if isinstance(source, RecorderSource):
+            warnings.append(
+                f"start_time: taken from the recorder file header ({info.file_metadata['start_time']})"
+            )
+    axles = merged.get("axle_positions")
+    missing = [a for a in DEFAULT_AXLE_POSITIONS_M if not isinstance(axles, Mapping) or a not in axles]
+    if missing:
+        layout = ", ".join(f"axle {a} at {DEFAULT_AXLE_POSITIONS_M[a]:g} m" for a in missing)
+        warnings.append(
+            f"axle_positions: not given; the default layout was used ({layout} from the "
+            "position reference)"
+        )
     calibration: dict[str, Any] = dict(info.calibration)
     for part in (info.file_metadata.get("calibration"), (given or {}).get("calibration")):
         if part is not None:
@@ -190,9 +240,14 @@ def _fs_from_time(t: np.ndarray | None) -> float | None:
 class _Checks:
     """Per-block checks on physical values of speed, position and time."""
 
-    def __init__(self, meta: RunMetadata, fs: float, limits: IngestLimits, from_time: bool) -> None:
+    def __init__(
+        self, meta: RunMetadata, fs: float, limits: IngestLimits, from_time: bool, direction: int
+    ) -> None:
         self.meta, self.fs, self.limits, self.from_time = meta, fs, limits, from_time
-        self.last_pos = -math.inf
+        self.last_pos: float | None = None
+        self.first_pos: float | None = None
+        #: +1: position must not decrease (relative); 0: the first change decides (line km)
+        self.direction = direction
         self.t0: tuple[int, float] | None = None
 
     def physical(self, name: str, x: np.ndarray) -> np.ndarray:
@@ -205,15 +260,28 @@ class _Checks:
         if idx.size == 0:
             return
         v = p[idx]
-        prev = np.concatenate(([self.last_pos], v[:-1]))
-        bad = np.flatnonzero(v < prev)
+        if self.first_pos is None:
+            self.first_pos = float(v[0])
+        if self.direction == 0:
+            moved = np.flatnonzero(v != self.first_pos)
+            if moved.size:
+                self.direction = 1 if v[moved[0]] > self.first_pos else -1
+        d = self.direction or 1
+        prev = np.concatenate(([v[0] if self.last_pos is None else self.last_pos], v[:-1]))
+        bad = np.flatnonzero(d * v < d * prev)
         if bad.size:
             i = int(bad[0])
+            if self.direction == 1 and self.meta.position_kind != "line_km":
+                rule = (
+                    "position must be non-decreasing along the run (the km direction is given "
+                    "by metadata km_increasing; an absolute line km is position_kind line_km)"
+                )
+            else:
+                rule = "a line km channel must change in one direction along the run"
             raise RunFileError(
                 "position",
-                f"non-monotonic position: decreases from {prev[i]:.6g} m to {v[i]:.6g} m at sample "
-                f"{offset + int(idx[i])}; position must be non-decreasing along the run "
-                "(the km direction is given by metadata km_increasing)",
+                f"non-monotonic position: {'decreases' if d > 0 else 'increases'} from "
+                f"{prev[i]:.6g} m to {v[i]:.6g} m at sample {offset + int(idx[i])}; {rule}",
             )
         self.last_pos = float(v[-1])
 
@@ -262,10 +330,14 @@ def _ingest(
     dest: Path,
     limits: IngestLimits,
     compression: Compression,
+    geometry: GeometryLookup | LineGeometry | None,
 ) -> RunSummary:
     info = source.info
-    meta = _merge_metadata(source, given)
+    warnings: list[str] = []
+    meta = _merge_metadata(source, given, warnings)
+    kind = resolve_position_kind(meta, info.channels, warnings)
     stored = _check_channels(info.channels)
+    gnss_used = kind == "gnss"
     n_known = info.n_samples
     if n_known is not None:
         if n_known == 0:
@@ -286,7 +358,8 @@ def _ingest(
             f"{limits.max_sample_rate_hz:g} Hz",
         )
     meta = meta.model_copy(update={"sample_rate_hz": fs})
-    checks = _Checks(meta, fs, limits, from_time)
+    checks = _Checks(meta, fs, limits, from_time, 0 if kind == "line_km" else 1)
+    fixes = GnssFixes(fs, limits) if gnss_used else None
 
     with atomic_output(dest) as tmp, h5py.File(tmp, "w") as h5:
         writer = CanonicalWriter(
@@ -309,6 +382,8 @@ def _ingest(
                 raise RunFileError("file", f"more than {limits.max_samples} samples (limit)")
             if TIME_COLUMN in block:
                 checks.time(offset, block[TIME_COLUMN])
+            if fixes is not None:
+                fixes.add(offset, block["lat"], block["lon"])
             for c in stored:
                 x = block[c]
                 if not x.flags.writeable:
@@ -333,7 +408,24 @@ def _ingest(
                 _too_many_nan(c, fillers[c].n_nan, n, limits)
             fillers[c].finish(n)
         writer.n_samples = n
+        report: dict[str, Any] = {"position_kind": kind, "km_source": "metadata"}
+        if kind == "line_km":
+            finish_line_km(writer, checks.first_pos, checks.direction)
+            report["km_source"] = "line_km"
+        elif checks.first_pos is not None and abs(checks.first_pos) > _ZERO_TOLERANCE_M:
+            warnings.append(
+                f"position: the relative position channel starts at {checks.first_pos:.6g} m, "
+                "not 0 m; it was taken as distance travelled (its first sample subtracted). "
+                "If it is the line chainage, upload with position_kind line_km"
+            )
         stats = _derive_kinematics(writer, stored, n, fs, limits)
+        if fixes is not None:
+            lookup = geometry(meta.line_id, meta.track) if callable(geometry) else geometry
+            if lookup is not None and (lookup.line_id, lookup.track) != (meta.line_id, meta.track):
+                lookup = None
+            report.update(apply_gnss(writer, fixes, lookup, n, limits, warnings))
+        if isinstance(source, RecorderSource):
+            report["channels"] = source.channel_sources()
         writer.finish(n)
         channels = [c for c in ALL_CHANNELS if c in h5]
         final_meta = writer.metadata
@@ -348,6 +440,8 @@ def _ingest(
         speed_max=stats["vmax"],
         source_format=fmt,
         nan_filled={c: f.n_nan for c, f in fillers.items() if f.n_nan},
+        warnings=warnings,
+        report=report,
     )
 
 

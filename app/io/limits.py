@@ -50,6 +50,13 @@ class IngestLimits:
     max_parquet_footer_bytes : int
         Largest Parquet footer (file metadata), bytes (default 16 MiB); read
         from the file's last 8 bytes before the footer is parsed.
+    max_recorder_channels : int
+        Largest number of channels in an MDF4 or TDMS recorder file (default
+        2048: recorders log many signals besides the ones a run reads; the
+        channels read are at most :attr:`max_columns`).
+    max_gnss_rate_hz : float
+        GNSS fixes are kept at most at this rate, Hz (default 10): fixes
+        resampled onto the ABA time base are thinned to it before map matching.
     """
 
     max_nan_fraction: float = 0.01
@@ -65,10 +72,30 @@ class IngestLimits:
     max_expansion_ratio: float = 100.0
     expansion_floor_bytes: int = 64 * 1024 * 1024
     max_parquet_footer_bytes: int = 16 * 1024 * 1024
+    max_recorder_channels: int = 2048
+    max_gnss_rate_hz: float = 10.0
 
     def max_decoded_bytes(self, file_bytes: int) -> int:
         """Largest decoded size accepted for a file of ``file_bytes`` bytes."""
         return int(self.max_expansion_ratio * max(int(file_bytes), 0)) + self.expansion_floor_bytes
+
+    def check_decoded(self, decoded: int, file_bytes: int, what: str) -> None:
+        """Refuse ``what`` (``"the MDF data"``) decoding to more than :meth:`max_decoded_bytes`.
+
+        Raises
+        ------
+        RunFileError
+            ``field == "file"``: a decompression bomb.
+        """
+        from app.io.errors import RunFileError
+
+        allowed = self.max_decoded_bytes(file_bytes)
+        if decoded > allowed:
+            raise RunFileError(
+                "file",
+                f"{what} decode to {decoded} bytes, more than {allowed} bytes allowed for a "
+                f"{file_bytes}-byte file (decompression bomb limit)",
+            )
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.max_nan_fraction < 1.0):
@@ -90,12 +117,20 @@ class IngestLimits:
             raise ValueError(
                 f"speed_position_tolerance must be > 0, got {self.speed_position_tolerance!r}"
             )
-        for name in ("max_columns", "max_header_bytes", "expansion_floor_bytes", "max_parquet_footer_bytes"):
+        for name in (
+            "max_columns",
+            "max_header_bytes",
+            "expansion_floor_bytes",
+            "max_parquet_footer_bytes",
+            "max_recorder_channels",
+        ):
             value = getattr(self, name)
             if int(value) != value or value < 1:
                 raise ValueError(f"{name} must be a positive integer, got {value!r}")
         if not (math.isfinite(self.max_expansion_ratio) and self.max_expansion_ratio >= 1):
             raise ValueError(f"max_expansion_ratio must be >= 1, got {self.max_expansion_ratio!r}")
+        if not (math.isfinite(self.max_gnss_rate_hz) and self.max_gnss_rate_hz > 0):
+            raise ValueError(f"max_gnss_rate_hz must be > 0 Hz, got {self.max_gnss_rate_hz!r}")
         if int(self.block_samples) != self.block_samples or not 1024 <= self.block_samples <= 2**24:
             raise ValueError(
                 f"block_samples must be an integer in [1024, 2**24], got {self.block_samples!r}"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Literal
 
 import pydantic
 from pydantic import AliasChoices, AwareDatetime, ConfigDict, Field, field_validator
@@ -14,6 +14,8 @@ from app.io.errors import RunFileError
 
 __all__ = [
     "Calibration",
+    "PositionKind",
+    "POSITION_KINDS",
     "RunMetadata",
     "DEFAULT_WHEEL_DIAMETER_M",
     "DEFAULT_SLEEPER_SPACING_M",
@@ -27,6 +29,10 @@ DEFAULT_WHEEL_DIAMETER_M = 0.92
 DEFAULT_SLEEPER_SPACING_M = 0.6
 #: Axle positions relative to the position reference, m (axle 4 runs 17.5 m behind axle 1).
 DEFAULT_AXLE_POSITIONS_M: dict[str, float] = {"1": 0.0, "4": -17.5}
+
+#: What the ``position`` channel of an input file is (see :class:`RunMetadata`).
+PositionKind = Literal["relative", "line_km", "gnss"]
+POSITION_KINDS: tuple[str, ...] = ("relative", "line_km", "gnss")
 
 
 def _finite(value: float, what: str) -> float:
@@ -94,10 +100,24 @@ class RunMetadata(pydantic.BaseModel):
         Track id on the line (e.g. ``"1"``).
     direction : str
         Direction of travel as named by the operator (free text, e.g. ``"up"``).
-    km_start : float
-        Line km of the position reference (axle 1 by default) at the first sample, km.
-    km_increasing : bool
-        Whether the line km increases along the run.
+    position_kind : {"relative", "line_km", "gnss"} or None
+        What gives the line km of the run (:mod:`app.io.positioning`):
+        ``relative`` — the position channel (or the integrated speed) is the
+        distance travelled since the start, and ``km_start``/``km_increasing``
+        place it on the line (a channel not starting at 0 is reported);
+        ``line_km`` — the position channel is the line chainage itself, m
+        (line km × 1000; increasing or decreasing), ``km_start`` and
+        ``km_increasing`` are taken from it; ``gnss`` — ``lat``/``lon``
+        channels are matched onto the line geometry and fused with the
+        odometry. ``None``: ``gnss`` when the file has GNSS channels and no
+        ``km_start`` is given, else ``relative``. Canonical files always say
+        ``relative``.
+    km_start : float or None
+        Line km of the position reference (axle 1 by default) at the first
+        sample, km. Required for ``relative`` positions; derived otherwise.
+    km_increasing : bool or None
+        Whether the line km increases along the run. Required for
+        ``relative`` positions; derived otherwise.
     wheel_diameters : dict[str, float]
         Diameter per wheel (keys ``"11"``, ``"12"``, ``"41"``, ``"42"``), m, in
         (0.3, 1.5); missing wheels get 0.92 m.
@@ -124,8 +144,9 @@ class RunMetadata(pydantic.BaseModel):
     line_id: str = Field(min_length=1, max_length=200)
     track: str = Field(min_length=1, max_length=100)
     direction: str = Field(min_length=1, max_length=100)
-    km_start: float
-    km_increasing: bool
+    position_kind: PositionKind | None = None
+    km_start: float | None = None
+    km_increasing: bool | None = None
     wheel_diameters: dict[str, float] = Field(
         default_factory=lambda: dict.fromkeys(WHEELS, DEFAULT_WHEEL_DIAMETER_M)
     )
@@ -145,7 +166,9 @@ class RunMetadata(pydantic.BaseModel):
 
     @field_validator("km_start")
     @classmethod
-    def _km(cls, v: float) -> float:
+    def _km(cls, v: float | None) -> float | None:
+        if v is None:
+            return v
         _finite(v, "km_start")
         if abs(v) > 100_000:
             raise ValueError(f"km_start must be within ±100000 km, got {v}")

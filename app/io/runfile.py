@@ -67,6 +67,8 @@ class RunFile(Closing):
         if isinstance(raw_meta, bytes):
             raw_meta = raw_meta.decode("utf-8")
         self.metadata: RunMetadata = parse_metadata(json.loads(raw_meta))
+        if self.metadata.km_start is None or self.metadata.km_increasing is None:
+            raise RunFileError("format", "run file metadata lacks km_start/km_increasing")
         lengths = {members[c].shape[0] for c in self.channels}
         if len(lengths) > 1:
             raise RunFileError("file", "channels of unequal length in run file")

@@ -36,6 +36,7 @@ _FEATURES = {
 NAV = (
     ("runs", "/", "Runs"),
     ("lines", "/lines", "Line view"),
+    ("map", "/map", "Map"),
     ("wheels", "/wheels", "Wheels"),
     ("correlations", "/correlations", "Correlations"),
 )
@@ -89,6 +90,12 @@ def build_pages_router(templates: Jinja2Templates) -> APIRouter:
     @router.get("/lines", response_class=HTMLResponse)
     def lines_page(request: Request) -> HTMLResponse:
         return page(request, "lines.html", "lines", "Line view")
+
+    @router.get("/map", response_class=HTMLResponse)
+    def map_page(request: Request) -> HTMLResponse:
+        settings = request.app.state.settings
+        tiles = {"url": settings.map_tile_url, "attribution": settings.map_tile_attribution}
+        return page(request, "map.html", "map", "Map", tiles=tiles if settings.map_tile_url else None)
 
     @router.get("/wheels", response_class=HTMLResponse)
     def wheels_page(request: Request) -> HTMLResponse:

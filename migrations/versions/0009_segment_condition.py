@@ -5,7 +5,7 @@ source; these are kept for ever). Runs already processed get theirs when they
 are reprocessed.
 
 Revision ID: 0009_segment_condition
-Revises: 0006_partial_display_index
+Revises: 0010_channel_maps
 Create Date: 2026-11-24
 """
 
@@ -15,7 +15,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "0009_segment_condition"
-down_revision: str | None = "0006_partial_display_index"
+down_revision: str | None = "0010_channel_maps"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -44,12 +44,22 @@ class RunOut(BaseModel):
     summary: RunSummaryOut
     latest_job: JobOut | None = None
     links: dict[str, str] = Field(default_factory=dict)
+    warnings: list[str] = Field(
+        default_factory=list,
+        description='What ingest assumed or did ("<field>: <message>"): a relative position '
+        "not starting at 0, the default axle layout, GNSS outages bridged …",
+    )
 
 
 class RunDetail(RunOut):
     """A run with its full metadata."""
 
     metadata: dict[str, Any]
+    ingest_report: dict[str, Any] = Field(
+        default_factory=dict,
+        description="Provenance from ingest: position_kind, km_source, recorder channel sources, "
+        "GNSS matching and fusion summary",
+    )
 
 
 class RunList(BaseModel):

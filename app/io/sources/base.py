@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from app.io._closing import Closing
-from app.io.channels import ALL_CHANNELS, TIME_COLUMN, canonical_name
+from app.io.channels import INPUT_CHANNELS, TIME_COLUMN, canonical_name
 from app.io.errors import RunFileError
 
 __all__ = ["SourceInfo", "Source", "map_channel_names"]
@@ -78,7 +78,7 @@ def map_channel_names(names: Iterable[str]) -> dict[str, str]:
         if canon is None:
             raise RunFileError(
                 str(name),
-                f"unknown channel; accepted are {', '.join(ALL_CHANNELS)} and {TIME_COLUMN}",
+                f"unknown channel; accepted are {', '.join(INPUT_CHANNELS)} and {TIME_COLUMN}",
             )
         if canon in seen:
             raise RunFileError(str(name), f"duplicate channel (also given as {seen[canon]!r})")

@@ -34,6 +34,10 @@
       ["File sha256", (r.sha256 || "").slice(0, 16) + "…"],
     ];
     document.getElementById("run-meta").innerHTML = items.map(([k, v]) => `<div><span>${k}</span><b>${T.esc(v)}</b></div>`).join("");
+    const warn = document.getElementById("run-warnings");
+    const list = r.warnings || [];
+    warn.hidden = list.length === 0;
+    warn.innerHTML = list.length ? "<b>Ingest warnings</b><ul>" + list.map((w) => `<li>${T.esc(w)}</li>`).join("") + "</ul>" : "";
   }
 
   async function loadReference(a, b) {
