@@ -5,7 +5,8 @@
 ``GET /condition/trend`` — one segment over every run, with maintenance actions;
 ``GET /condition/changes`` and ``GET /condition/runs/{id}/changes`` — the change
 list (flags) of a line's newest run or of any run; ``GET /condition/flags`` — the
-feed of flags for data systems, ``since=`` the last id seen.
+feed of flags for data systems, ``since=`` the last id seen; ``GET /condition/hotspots``
+(``.csv``, ``.geojson``) — the work list: segments ranked by where to act first.
 
 A line id (and track) without runs in the store answers 404 naming
 ``line_id``; a km outside the stored extent of the line answers 422 naming the
@@ -14,28 +15,37 @@ km parameter; ``segment_m`` is 10 or 100.
 
 from __future__ import annotations
 
+import csv
 import datetime as dt
+import io
 import math
+from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Depends, Query
+from fastapi.responses import JSONResponse, Response
 from sqlalchemy import select
 
-from app.api.deps import DbDep, RunId, check_km, km_query, parse_time_range
+from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query, parse_time_range
 from app.api.errors import ApiError, not_found
 from app.api.schemas.condition import (
     ChangesOut,
     ConditionLinesOut,
     FlagFeedOut,
     HeatmapOut,
+    HotspotsOut,
     TrendOut,
 )
+from app.core.config import Settings
 from app.db import condition_reader as reader
-from app.db import reference_crud
+from app.db import recorder_crud, reference_crud
+from app.db.condition_fleet import FLEET_SOURCE_FORMAT
+from app.db.condition_hotspots import line_hotspots
 from app.db.condition_index import index_name
 from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun
-from app.db.models import Job
+from app.db.condition_writer import ConditionConfig
+from app.db.models import Job, JobStatus, Run
 from app.db.session import Database
 
 __all__ = ["router", "resolve_line", "check_line_km", "segment_length", "flag_out"]
@@ -241,3 +251,155 @@ def flags(db: DbDep, since: Annotated[int, Query(ge=0, le=2**62, description="la
             select(ConditionLine).where(ConditionLine.id.in_({f.line_key for f in items})))}
     return {"items": [flag_out(f, lines_[f.line_key]) for f in items],
             "next_since": items[-1].id if items else since}
+
+
+# --- hotspots: the work list ---------------------------------------------------------------
+@dataclass(frozen=True)
+class _HotspotQuery:
+    """Filters of the work list (JSON, CSV and GeoJSON alike)."""
+
+    line_id: str | None
+    track: str | None
+    km_from: float | None
+    km_to: float | None
+    superstructure: str | None
+    segment_m: int
+    min_priority: float
+    limit: int
+
+
+def _hotspot_query(
+    line_id: Annotated[str | None, Query(min_length=1, max_length=128, description="Line id (default: every line)")] = None,
+    track: TrackQ = None,
+    km_from: Annotated[float | None, km_query("Lower km bound (needs line_id)")] = None,
+    km_to: Annotated[float | None, km_query("Upper km bound (needs line_id)")] = None,
+    superstructure: Annotated[str | None, Query(alias="class", max_length=64,
+                                                description="superstructure class ('' = outside the sections)")] = None,
+    segment_m: SegmentQ = 10,
+    min_priority: Annotated[float, Query(ge=0, le=1000, description="least priority listed (1: beyond a threshold)")] = 1.0,
+    limit: Annotated[int, Query(ge=1, le=10_000)] = 200,
+) -> _HotspotQuery:
+    return _HotspotQuery(line_id, track, km_from, km_to, superstructure, segment_length(segment_m), min_priority, limit)
+
+
+HotspotQ = Annotated[_HotspotQuery, Depends(_hotspot_query)]
+
+
+def _map_run(session, line: ConditionLine) -> int | None:
+    """The line's newest run whose 25 cm rows are there (what the stiffness map shows)."""
+    return session.scalar(
+        select(Run.id).where(Run.line_id == line.line_id, Run.track == line.track,
+                             Run.source_format != FLEET_SOURCE_FORMAT,
+                             select(Job.id).where(Job.run_id == Run.id, Job.status == JobStatus.DONE).exists())
+        .order_by(Run.start_time.desc(), Run.id.desc()).limit(1))
+
+
+def _hotspots(db: Database, settings: Settings, q: _HotspotQuery) -> tuple[int, list[dict], dict[int, ConditionLine]]:
+    """(matching count, items ranked by priority, lines by key)."""
+    check_km(q.km_from, q.km_to)
+    if q.line_id is not None:
+        lines = [resolve_line(db, q.line_id, q.track)]
+        check_line_km(lines[0], km_from=q.km_from, km_to=q.km_to)
+    else:
+        if q.km_from is not None or q.km_to is not None:
+            raise ApiError(422, "line_id", "is required with km_from / km_to")
+        with db.read() as session:
+            lines = [s.line for s in reader.list_lines(session)
+                     if q.track is None or s.line.track == q.track]
+    params = ConditionConfig.from_settings(settings).change
+    items = []
+    with db.read() as session:
+        for line in lines:
+            hs = line_hotspots(session, line, q.segment_m, params=params)
+            if hs is None:
+                continue
+            t = hs.table
+            keep = t.priority >= q.min_priority
+            start = t.seg * q.segment_m / 1000.0
+            if q.km_from is not None:
+                keep &= start + q.segment_m / 1000.0 > q.km_from
+            if q.km_to is not None:
+                keep &= start < q.km_to
+            if q.superstructure is not None:
+                keep &= hs.classes == q.superstructure
+            map_run = _map_run(session, line)
+            for j in np.flatnonzero(keep):
+                lo = float(start[j])
+                hi = lo + q.segment_m / 1000.0
+                change, rate = _num(t.change[j]), _num(t.rate_per_year[j])
+                items.append({
+                    "line_key": line.id, "line_id": line.line_id, "track": line.track, "km_from": lo, "km_to": hi,
+                    "segment_m": q.segment_m, "superstructure": str(hs.classes[j]), "index": _num(t.index[j]),
+                    "anomaly_z": _num(t.anomaly_z[j]), "change": change,
+                    "change_pct": 100.0 * math.expm1(change) if change is not None else None,
+                    "change_z": _num(t.change_z[j]), "rate_per_year": rate,
+                    "rate_pct_per_year": 100.0 * math.expm1(rate) if rate is not None else None,
+                    "trend_z": _num(t.trend_z[j]), "wheels_agreeing": int(t.agreeing[j]),
+                    "n_wheels": int(t.n_wheels[j]), "priority": float(t.priority[j]),
+                    "direction": "up" if t.direction[j] > 0 else "down", "reasons": list(t.reasons[j]),
+                    "run_id": hs.run.run_id, "run_time": _iso(hs.run.run_time),
+                    "map_url": (f"/runs/{map_run}?km_from={max(lo - 0.1, 0.0):.3f}&km_to={hi + 0.1:.3f}"
+                                if map_run is not None else None),
+                })
+    items.sort(key=lambda x: (-x["priority"], x["line_id"], x["track"], x["km_from"]))
+    total = len(items)
+    items = items[: q.limit]
+    for rank, item in enumerate(items, start=1):
+        item["rank"] = rank
+    return total, items, {ln.id: ln for ln in lines}
+
+
+@router.get("/hotspots", response_model=HotspotsOut, summary="Work list: segments ranked by where to act first")
+def hotspots(db: DbDep, settings: SettingsDep, q: HotspotQ) -> dict:
+    """Segments of every line's newest run (or one line's), ranked by priority: the anomaly of
+    the segment's index against its superstructure class, the change against its history, the
+    trend per year and the wheels agreeing (docs/condition.md). Filter by line, track, km and class."""
+    total, items, _ = _hotspots(db, settings, q)
+    return {"segment_m": q.segment_m, "min_priority": q.min_priority, "total": total, "items": items}
+
+
+_CSV_COLUMNS = ("rank", "line_id", "track", "km_from", "km_to", "segment_m", "superstructure", "priority", "reasons",
+                "direction", "index", "anomaly_z", "change_pct", "change_z", "rate_pct_per_year", "trend_z",
+                "wheels_agreeing", "n_wheels", "run_id", "run_time")
+
+
+@router.get("/hotspots.csv", summary="Work list as CSV (the filters of /condition/hotspots)",
+            response_class=Response, responses={200: {"content": {"text/csv": {}}}})
+def hotspots_csv(db: DbDep, settings: SettingsDep, q: HotspotQ) -> Response:
+    """One row per segment; ``reasons`` joined by ``+``; km in km, changes in %."""
+    _, items, _ = _hotspots(db, settings, q)
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(_CSV_COLUMNS)
+    for item in items:
+        writer.writerow(["+".join(item[c]) if c == "reasons" else ("" if item[c] is None else item[c])
+                         for c in _CSV_COLUMNS])
+    return Response(out.getvalue(), media_type="text/csv",
+                    headers={"Content-Disposition": 'attachment; filename="hotspots.csv"'})
+
+
+@router.get("/hotspots.geojson", summary="Work list as GeoJSON (the filters of /condition/hotspots)",
+            response_class=JSONResponse, responses={200: {"content": {"application/geo+json": {}}}})
+def hotspots_geojson(db: DbDep, settings: SettingsDep, q: HotspotQ) -> JSONResponse:
+    """A FeatureCollection, one feature per segment with the work-list fields as properties
+    (line, track, km: linear referencing). Where a line geometry is imported
+    (``/geometry``) the geometry is the segment's LineString in WGS84, else null."""
+    _, items, lines = _hotspots(db, settings, q)
+    geoms: dict[int, object] = {}
+    with db.read() as session:
+        for key, line in lines.items():
+            row = recorder_crud.find_geometry(session, line.line_id, line.track)
+            geoms[key] = recorder_crud.to_line_geometry(row) if row is not None else None
+    features = []
+    for item in items:
+        geom = geoms.get(item["line_key"])
+        geometry = None
+        if geom is not None:
+            lon, lat = geom.lonlat_at_km(np.linspace(item["km_from"], item["km_to"], 3))
+            geometry = {"type": "LineString", "coordinates": [[float(a), float(b)] for a, b in zip(lon, lat,
+                                                                                                  strict=True)]}
+        props = {k: v for k, v in item.items() if k not in ("line_key", "map_url")}
+        features.append({"type": "Feature", "id": f"{item['line_id']}/{item['track']}/{item['km_from']:.3f}",
+                         "geometry": geometry, "properties": props})
+    return JSONResponse({"type": "FeatureCollection", "features": features},
+                        media_type="application/geo+json")

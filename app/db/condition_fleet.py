@@ -31,7 +31,7 @@ from app.db.condition_models import SegmentCondition
 from app.db.condition_writer import days_of, line_of, wheel_segments, write_assessed_run
 from app.db.models import Job, JobStatus, Run, utcnow
 from app.db.session import Database
-from app.simulate.fleet import FLEET_WHEELS, FleetSimulator
+from app.simulate.fleet import FLEET_WHEELS, FleetDay, FleetSimulator
 
 __all__ = ["FleetIngest", "FLEET_SOURCE_FORMAT", "ingest_fleet"]
 
@@ -81,12 +81,15 @@ def ingest_fleet(
     params: ChangeParams = DEFAULT_CHANGE_PARAMS,
     reference: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    on_run: Callable[[FleetDay], None] | None = None,
 ) -> FleetIngest:
     """Generate ``n_runs`` runs of ``sim`` (day ``i · every_days`` after ``start``) and store them.
 
     Runs already stored by an earlier call with the same line, track and seed
     are kept and skipped (their history is regenerated in memory, so the runs
-    after them are judged against the same history).
+    after them are judged against the same history). ``on_run`` sees every
+    generated run with its assessment (e.g. to score the flags against the plan,
+    :func:`app.simulate.fleet.score_history`).
     """
     if n_runs < 1:
         raise ValueError(f"n_runs: must be >= 1, got {n_runs!r}")
@@ -140,6 +143,8 @@ def ingest_fleet(
                 rows += int(sum(len(st) for w in segments.values() for st in w.values()))
         write_s += time.perf_counter() - t1
         history.append(days_of(when), segments, assessment.flags)
+        if on_run is not None:
+            on_run(FleetDay(i, day, speed_kmh, tracks, segments, assessment))
         if progress is not None:
             progress(i + 1, n_runs)
     if reference:

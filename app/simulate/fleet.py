@@ -58,6 +58,7 @@ __all__ = [
     "FleetDay",
     "fleet_history",
     "FleetScore",
+    "FleetScorer",
     "score_history",
 ]
 
@@ -445,51 +446,71 @@ def _overlaps(flag: Flag, lo: float, hi: float, margin_m: float = 0.0) -> bool:
     return a < hi + margin_m and lo - margin_m < b
 
 
-def score_history(plan: FleetPlan, days: Iterator[FleetDay] | list[FleetDay], *, min_history: int = 8,
-                  margin_m: float = 100.0) -> FleetScore:
-    """Score the flags of :func:`fleet_history` against the planted changes.
+class FleetScorer:
+    """Scores the flags of generated runs against the planted changes, one run at a time
+    (:meth:`add` each :class:`FleetDay` in date order, then :meth:`score`).
 
     Places within ``margin_m`` of a planted extent (steps, trends, actions) do not
-    count as unchanged.
+    count as unchanged; runs before ``min_history`` are not counted.
     """
-    score = FleetScore()
-    extents = [(e.track_from_m, e.track_to_m) for e in (*plan.steps, *plan.trends, *plan.actions)]
-    step_done = [False] * len(plan.steps)
-    step_checked = [False] * len(plan.steps)
-    trend_delay = [float("inf")] * len(plan.trends)
-    newest = (0, 0)
-    for fd in days:
+
+    def __init__(self, plan: FleetPlan, *, min_history: int = 8, margin_m: float = 100.0) -> None:
+        self.plan, self.min_history, self.margin_m = plan, min_history, margin_m
+        self._extents = [(e.track_from_m, e.track_to_m) for e in (*plan.steps, *plan.trends, *plan.actions)]
+        self._step_found = [False] * len(plan.steps)
+        self._step_checked = [False] * len(plan.steps)
+        self._trend_delay = [float("inf")] * len(plan.trends)
+        self._tested = self._flagged = 0
+        self._newest = (0, 0)
+
+    def add(self, fd: FleetDay) -> None:
+        """Score one run."""
         flags = fd.assessment.flags
-        for k, st in enumerate(plan.steps):
-            if not step_checked[k] and fd.day >= st.day:
-                step_checked[k] = True
+        for k, st in enumerate(self.plan.steps):
+            if not self._step_checked[k] and fd.day >= st.day:
+                self._step_checked[k] = True
                 want = 1 if st.factor > 1 else -1
-                step_done[k] = any(f.kind == "step" and f.seg_m == 10.0 and f.direction == want
-                                   and _overlaps(f, st.track_from_m, st.track_to_m) for f in flags)
-        for k, tr in enumerate(plan.trends):
-            if np.isinf(trend_delay[k]) and fd.day >= tr.day and any(
+                self._step_found[k] = any(f.kind == "step" and f.seg_m == 10.0 and f.direction == want
+                                          and _overlaps(f, st.track_from_m, st.track_to_m) for f in flags)
+        for k, tr in enumerate(self.plan.trends):
+            if np.isinf(self._trend_delay[k]) and fd.day >= tr.day and any(
                     f.kind == "trend" and f.direction == 1 and _overlaps(f, tr.track_from_m, tr.track_to_m)
                     for f in flags):
-                trend_delay[k] = fd.day - tr.day
-        if fd.number < min_history:
-            continue
+                self._trend_delay[k] = fd.day - tr.day
+        if fd.number < self.min_history:
+            return
         tested = flagged = 0
+        m = self.margin_m
         for seg_m, changes in fd.assessment.changes.items():
             flagged_segs = {f.seg for f in flags if f.seg_m == seg_m}
             segs = np.unique(np.concatenate([fd.segments[seg_m][w].seg[np.isfinite(c.change_z)]
                                              for w, c in changes.items()] or [np.zeros(0, np.int64)]))
             lo, hi = segs * seg_m, (segs + 1) * seg_m
             away = np.ones(segs.size, dtype=bool)
-            for a, b in extents:
-                away &= ~((lo < b + margin_m) & (a - margin_m < hi))
+            for a, b in self._extents:
+                away &= ~((lo < b + m) & (a - m < hi))
             tested += int(away.sum())
             flagged += int(sum(1 for s, ok in zip(segs.tolist(), away.tolist(), strict=True)
                                if ok and s in flagged_segs))
-        score.unchanged_tested += tested
-        score.unchanged_flagged += flagged
-        newest = (tested, flagged)
-    score.newest_unchanged_rate = newest[1] / newest[0] if newest[0] else float("nan")
-    score.steps_found = int(sum(step_done))
-    score.steps_total = int(sum(step_checked))
-    score.trend_delays_days = trend_delay
-    return score
+        self._tested += tested
+        self._flagged += flagged
+        self._newest = (tested, flagged)
+
+    def score(self) -> FleetScore:
+        """The score of the runs added so far."""
+        tested, flagged = self._newest
+        return FleetScore(
+            unchanged_tested=self._tested, unchanged_flagged=self._flagged,
+            newest_unchanged_rate=flagged / tested if tested else float("nan"),
+            steps_found=int(sum(self._step_found)), steps_total=int(sum(self._step_checked)),
+            trend_delays_days=list(self._trend_delay),
+        )
+
+
+def score_history(plan: FleetPlan, days: Iterator[FleetDay] | list[FleetDay], *, min_history: int = 8,
+                  margin_m: float = 100.0) -> FleetScore:
+    """Score the flags of :func:`fleet_history` against the planted changes (:class:`FleetScorer`)."""
+    scorer = FleetScorer(plan, min_history=min_history, margin_m=margin_m)
+    for fd in days:
+        scorer.add(fd)
+    return scorer.score()

@@ -3,7 +3,8 @@ against a segment's history, hotspot ranking and the effect of maintenance actio
 
 Modules: :mod:`segments` (25 cm bins → 10 m / 100 m segment rows), :mod:`change`
 (step and trend tests against the repeatability of the history), :mod:`assess` (a run's
-tests per wheel and its flags per place; the in-memory history of generated runs).
+tests per wheel and its flags per place; the in-memory history of generated runs),
+:mod:`hotspots` (segments ranked by where to act first), :mod:`index` (the provisional index).
 """
 
 from app.analysis.condition.assess import (
@@ -32,6 +33,7 @@ from app.analysis.condition.change import (
     step_change,
     trend_change,
 )
+from app.analysis.condition.hotspots import DEFAULT_ANOMALY_Z, HotspotTable, rank_segments
 from app.analysis.condition.segments import SEGMENT_LENGTHS_M, SegmentStats, segment_stats
 
 __all__ = [
@@ -60,4 +62,7 @@ __all__ = [
     "RollingHistory",
     "RunAssessment",
     "assess_run",
+    "DEFAULT_ANOMALY_Z",
+    "HotspotTable",
+    "rank_segments",
 ]

@@ -16,6 +16,8 @@ __all__ = [
     "FlagOut",
     "ChangesOut",
     "FlagFeedOut",
+    "HotspotOut",
+    "HotspotsOut",
 ]
 
 
@@ -127,3 +129,36 @@ class ChangesOut(BaseModel):
 class FlagFeedOut(BaseModel):
     items: list[FlagOut]
     next_since: int = Field(description="pass as since= to get the flags after these")
+
+
+class HotspotOut(BaseModel):
+    rank: int
+    line_id: str
+    track: str
+    km_from: float
+    km_to: float
+    segment_m: int
+    superstructure: str = Field(description="class of the segment ('' outside the imported sections)")
+    index: float | None = Field(description="mean over the wheels (log units)")
+    anomaly_z: float | None = Field(description="robust z against the segments of its class")
+    change: float | None = Field(description="newest run against the history (log units)")
+    change_pct: float | None
+    change_z: float | None = Field(description="step score, wheels combined")
+    rate_per_year: float | None = Field(description="trend, log units per year")
+    rate_pct_per_year: float | None
+    trend_z: float | None = Field(description="trend score, wheels combined")
+    wheels_agreeing: int
+    n_wheels: int
+    priority: float = Field(description=">= 1: at least one criterion beyond its threshold")
+    direction: str = Field(description="up (stiffer / higher amplitude) or down")
+    reasons: list[str]
+    run_id: int = Field(description="the run the evidence comes from (the line's newest)")
+    run_time: str
+    map_url: str | None = Field(description="the stiffness map of the line's newest run with 25 cm rows there")
+
+
+class HotspotsOut(BaseModel):
+    segment_m: int
+    min_priority: float
+    total: int = Field(description="segments matching the filters (before limit)")
+    items: list[HotspotOut]
