@@ -18,6 +18,7 @@ from app.api import (
     auth,
     channel_maps,
     condition,
+    condition_effects,
     geometry,
     health,
     jobs,
@@ -41,7 +42,7 @@ def build_api_router() -> APIRouter:
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
-        runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition, auth, audit,
+        runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition, condition_effects, auth, audit,
         channel_maps, geometry,
     ):
         protected.include_router(module.router)

@@ -175,3 +175,30 @@ def test_hotspot_exports_csv_and_geojson(fleet):
     assert located["geometry"]["type"] == "LineString" and len(coords) == 3
     frac = (located["properties"]["km_from"] - 10.0) / 4.0
     assert coords[0][0] == pytest.approx(11.0 + frac * 4 / 75.0, abs=2e-4) and coords[0][1] == pytest.approx(48.0)
+
+
+def test_maintenance_effect_of_the_planted_tamping(fleet):
+    r = fleet.client.get("/api/v1/condition/maintenance-effect", params={"line_id": FLEET_LINE})
+    assert r.status_code == 200, r.text
+    (item,) = r.json()["items"]
+    assert item["type"] == "tamping" and item["date"] == "2025-03-31"
+    assert item["n_runs_before"] == 31 and item["n_runs_after"] == 29  # runs at 08:00, the action at noon
+    assert item["recovery"] == pytest.approx(math.log(0.85 + 0.3 * 15 / 365.25), abs=0.03)
+    assert item["recovery_pct"] < -10
+    assert item["slope_after_per_year"] == pytest.approx(0.3 / 0.87, abs=0.15)
+    assert item["lasted_days_observed"] is None  # a month of data after it: not lost yet
+    assert 40 < item["lasted_days_projected"] < 200
+    d = fleet.client.get(f"/api/v1/condition/maintenance-effect/{item['action_id']}").json()
+    assert len(d["series"]) == FLEET_RUNS and d["recovery"] == item["recovery"]
+    assert d["profile_km"][0] == pytest.approx(12.9) and d["profile_km"][-1] == pytest.approx(13.4)
+    inside = [b - a for k, a, b in zip(d["profile_km"], d["profile_before"], d["profile_after"], strict=True)
+              if 13.0 <= k < 13.29]
+    outside = [b - a for k, a, b in zip(d["profile_km"], d["profile_before"], d["profile_after"], strict=True)
+               if k < 12.98 or k > 13.31]
+    assert np.mean(inside) < -0.1 and abs(np.mean(outside)) < 0.03
+    none = fleet.client.get("/api/v1/condition/maintenance-effect", params={"line_id": FLEET_LINE,
+                                                                           "type": "grinding"}).json()
+    assert none["items"] == []
+    assert fleet.client.get("/api/v1/condition/maintenance-effect/99999").status_code == 404
+    bad = fleet.client.get("/api/v1/condition/maintenance-effect", params={"line_id": FLEET_LINE, "type": "x"})
+    assert bad.status_code == 422 and bad.json()["field"] == "type"

@@ -177,3 +177,23 @@ def test_rank_segments_weighs_the_evidence_and_the_wheels():
     assert abs(t.anomaly_z[120]) < 4  # the pads are judged against pads, not against slab
     with pytest.raises(ValueError, match="classes"):
         rank_segments(seg, classes[:5], idx, chg, cz, rate, tz)
+
+
+def test_action_effect_before_after_and_how_long_it_lasted():
+    from app.analysis.condition.maintenance_effect import action_effect
+
+    rng = np.random.default_rng(8)
+    days = np.arange(0.0, 400.0)
+    level = np.where(days < 100, 0.0, np.minimum(-0.2 + 0.4 * (days - 100) / 365.25, 0.0))
+    values = level + rng.normal(0, 0.01, days.size)
+    e = action_effect(days, values, 99.5)
+    assert e.n_before == 90 and e.n_after == 30
+    assert e.recovery == pytest.approx(-0.2 + 0.4 * 15 / 365.25, abs=0.01)  # median of the first 30 days
+    assert e.slope_after_per_year == pytest.approx(0.3, abs=0.1)  # the regrowth, levelling off at 0
+    half = 0.5 * abs(e.recovery) / 0.4 * 365.25 + 15  # the level halfway back
+    assert e.lasted_days_observed == pytest.approx(half, abs=10)
+    assert e.lasted_days_projected is not None and e.lasted_days_projected > 0
+    none = action_effect(days[:90], values[:90], 99.5)  # no run after: no recovery
+    assert none.recovery is None and none.n_after == 0
+    with pytest.raises(ValueError, match="regain_fraction"):
+        action_effect(days, values, 99.5, regain_fraction=0)
