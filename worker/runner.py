@@ -41,6 +41,7 @@ from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
 from app.pipeline import ChunkSpec, PipelineCancelled, assemble, process_chunk
 from worker.chunkstore import ChunkStore
+from worker.deliveries import DeliveryLoop
 from worker.steps import (
     JobRecord,
     WorkerRuntime,
@@ -427,6 +428,7 @@ def run_worker(
         Number of jobs processed.
     """
     worker = LocalWorker(settings)
+    deliveries = DeliveryLoop(settings)  # webhook alerts, beside the jobs
 
     def _graceful(signum: int, frame: object) -> None:  # noqa: ARG001
         if worker.stopping:
@@ -438,9 +440,11 @@ def run_worker(
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             previous[sig] = signal.signal(sig, _graceful)
+    deliveries.start()
     try:
         return worker.run(once=once, exit_when_idle=exit_when_idle)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        deliveries.stop(timeout=settings.webhook_timeout_s + 1)
         worker.runtime.close()

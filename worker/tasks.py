@@ -82,6 +82,7 @@ from app.db import crud, queue
 from app.db.models import ChunkStatus
 from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel
 from app.pipeline import process_chunk as compute_chunk
+from worker.deliveries import DeliveryLoop
 from worker.health import alive_file
 from worker.steps import (
     WorkerRuntime,
@@ -490,7 +491,12 @@ def run_worker_process(settings: Settings | None = None, *, wait: bool = True) -
         Exit status (0 after a graceful stop, 130 after a second signal).
     """
     settings = settings or get_settings()
-    return asyncio.run(_supervise(settings, wait))
+    deliveries = DeliveryLoop(settings)  # webhook alerts, beside the tasks
+    deliveries.start()
+    try:
+        return asyncio.run(_supervise(settings, wait))
+    finally:
+        deliveries.stop(timeout=settings.webhook_timeout_s + 1)
 
 
 async def _supervise(settings: Settings, wait: bool) -> int:

@@ -1,7 +1,7 @@
 """REST API of trackvkf under ``/api/v1``.
 
 Routers by resource: runs, jobs, profiles, wheels, reference data, analytics,
-condition (the segment condition store), channel maps, line geometry, health, auth, audit. Every
+condition (the segment condition store), channel maps, line geometry, webhooks (admin), health, auth, audit. Every
 route declares its access policy through a dependency (see
 :func:`app.api.deps.route_policy`): ``public`` (health, login), or
 ``require_role(role)`` — the resource routers below get ``viewer`` for all their
@@ -26,6 +26,7 @@ from app.api import (
     reference,
     runs,
     spectrogram,
+    webhooks,
     wheels,
 )
 from app.api.deps import public, require_role
@@ -43,7 +44,7 @@ def build_api_router() -> APIRouter:
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
         runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition, condition_effects, auth, audit,
-        channel_maps, geometry,
+        channel_maps, geometry, webhooks,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

@@ -16,7 +16,6 @@ km parameter; ``segment_m`` is 10 or 100.
 from __future__ import annotations
 
 import csv
-import datetime as dt
 import io
 import math
 from dataclasses import dataclass
@@ -48,7 +47,7 @@ from app.db.condition_writer import ConditionConfig
 from app.db.models import Job, JobStatus, Run
 from app.db.session import Database
 
-__all__ = ["router", "resolve_line", "check_line_km", "segment_length", "flag_out"]
+__all__ = ["router", "resolve_line", "check_line_km", "segment_length"]
 
 router = APIRouter(prefix="/condition", tags=["condition"])
 
@@ -101,27 +100,8 @@ def check_line_km(line: ConditionLine, **values: float | None) -> None:
                                       f"(km {line.km_min:.3f}–{line.km_max:.3f})")
 
 
-def _iso(t: dt.datetime | None) -> str | None:
-    if t is None:
-        return None
-    return (t if t.tzinfo else t.replace(tzinfo=dt.UTC)).isoformat()
-
-
 def _num(v: float | None) -> float | None:
     return float(v) if v is not None and math.isfinite(float(v)) else None
-
-
-def flag_out(f: ConditionFlag, line: ConditionLine) -> dict:
-    """A flag as the API answers it."""
-    change = _num(f.change)
-    return {
-        "id": f.id, "run_id": f.run_id, "line_id": line.line_id, "track": line.track,
-        "km_from": f.seg * f.seg_m / 1000.0, "km_to": (f.seg + 1) * f.seg_m / 1000.0, "segment_m": f.seg_m,
-        "kind": f.kind, "direction": "up" if f.direction > 0 else "down", "score": float(f.score),
-        "change": change, "change_pct": 100.0 * math.expm1(change) if change is not None else None,
-        "rate_per_year": _num(f.rate_per_year), "wheels": [w for w in f.wheels.split(",") if w],
-        "is_new": bool(f.is_new), "created_at": _iso(f.created_at),
-    }
 
 
 @router.get("/lines", response_model=ConditionLinesOut, summary="Lines and tracks of the condition store")
@@ -130,7 +110,7 @@ def lines(db: DbDep) -> dict:
         items = reader.list_lines(session)
     return {"items": [{
         "line_id": s.line.line_id, "track": s.line.track, "km_min": s.line.km_min, "km_max": s.line.km_max,
-        "n_runs": s.n_runs, "first_run": _iso(s.first_run), "last_run": _iso(s.last_run),
+        "n_runs": s.n_runs, "first_run": reader.iso_time(s.first_run), "last_run": reader.iso_time(s.last_run),
         "last_run_id": s.last_run_id, "last_run_flags": s.last_run_flags, "reference_run_id": s.line.ref_run_id,
     } for s in items]}
 
@@ -157,7 +137,7 @@ def heatmap(db: DbDep, line_id: LineIdQ, track: TrackQ = None, segment_m: Segmen
     return {
         "line_id": line.line_id, "track": line.track, "segment_m": seg_m, "wheel": w, "index": name,
         "km": (hm.seg * seg_m / 1000.0).tolist(),
-        "runs": [{"run_id": r.run_id, "start_time": _iso(r.run_time), "shift_m": r.shift_m, "n_flags": r.n_flags}
+        "runs": [{"run_id": r.run_id, "start_time": reader.iso_time(r.run_time), "shift_m": r.shift_m, "n_flags": r.n_flags}
                  for r in hm.runs],
         "matrix": [[None if math.isnan(v) else v for v in row] for row in matrix.tolist()],
         "flagged": [list(c) for c in hm.flagged],
@@ -185,7 +165,7 @@ def trend(db: DbDep, line_id: LineIdQ, km: Annotated[float, km_query("A km insid
     for run, rows in history:
         idx = [r.index for r in rows if r.index is not None]
         points.append({
-            "run_id": run.run_id, "start_time": _iso(run.run_time),
+            "run_id": run.run_id, "start_time": reader.iso_time(run.run_time),
             "index": float(np.mean(idx)) if idx else None, "flagged": run.run_id in flagged,
             "wheels": [{
                 "wheel": r.wheel, "index": float(r.index), "index_sd": _num(r.index_sd), "amp_mean": float(r.amp_mean),
@@ -208,9 +188,9 @@ def _changes(db: Database, run: ConditionRun) -> dict:
         job = session.get(Job, run.job_id)  # its condition summary: provenance
     summary = ((job.meta or {}).get("condition") or {}) if job is not None else {}
     return {
-        "run_id": run.run_id, "line_id": line.line_id, "track": line.track, "start_time": _iso(run.run_time),
+        "run_id": run.run_id, "line_id": line.line_id, "track": line.track, "start_time": reader.iso_time(run.run_time),
         "shift_m": run.shift_m, "history_runs": summary.get("history_runs"),
-        "items": [flag_out(f, line) for f in flags],
+        "items": [reader.flag_dict(f, line) for f in flags],
     }
 
 
@@ -249,7 +229,7 @@ def flags(db: DbDep, since: Annotated[int, Query(ge=0, le=2**62, description="la
         items = reader.flags_since(session, since, limit, line_keys=keys, only_new=new_only)
         lines_ = {ln.id: ln for ln in session.scalars(
             select(ConditionLine).where(ConditionLine.id.in_({f.line_key for f in items})))}
-    return {"items": [flag_out(f, lines_[f.line_key]) for f in items],
+    return {"items": [reader.flag_dict(f, lines_[f.line_key]) for f in items],
             "next_since": items[-1].id if items else since}
 
 
@@ -337,7 +317,7 @@ def _hotspots(db: Database, settings: Settings, q: _HotspotQuery) -> tuple[int, 
                     "trend_z": _num(t.trend_z[j]), "wheels_agreeing": int(t.agreeing[j]),
                     "n_wheels": int(t.n_wheels[j]), "priority": float(t.priority[j]),
                     "direction": "up" if t.direction[j] > 0 else "down", "reasons": list(t.reasons[j]),
-                    "run_id": hs.run.run_id, "run_time": _iso(hs.run.run_time),
+                    "run_id": hs.run.run_id, "run_time": reader.iso_time(hs.run.run_time),
                     "map_url": (f"/runs/{map_run}?km_from={max(lo - 0.1, 0.0):.3f}&km_to={hi + 0.1:.3f}"
                                 if map_run is not None else None),
                 })

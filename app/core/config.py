@@ -130,6 +130,14 @@ class Settings(BaseSettings):
         Largest alignment shift of a run onto its line's reference, m.
     condition_min_shift_confidence : float
         Alignments less clear than this are not applied.
+    webhook_timeout_s : float
+        Time a webhook receiver has to answer, s.
+    webhook_max_attempts : int
+        Attempts of a delivery before it is given up.
+    webhook_retry_base_s, webhook_retry_max_s : float
+        Back-off after the n-th failed attempt: ``base · 2^(n−1)`` seconds, at most ``max``.
+    webhook_poll_s : float
+        Pause of a worker's delivery loop when nothing is due, s.
     map_tile_url : str, optional
         Raster tile URL template (``https://tiles.example/{z}/{x}/{y}.png``) of
         a basemap under the map page's line geometry. Default: none (the page
@@ -182,6 +190,11 @@ class Settings(BaseSettings):
     condition_level_block_m: float = Field(default=1000.0, gt=0)
     condition_max_shift_m: float = Field(default=50.0, gt=0)
     condition_min_shift_confidence: float = Field(default=0.2, ge=0, le=1)
+    webhook_timeout_s: float = Field(default=5.0, gt=0, le=120)
+    webhook_max_attempts: int = Field(default=8, ge=1, le=100)
+    webhook_retry_base_s: float = Field(default=5.0, gt=0)
+    webhook_retry_max_s: float = Field(default=3600.0, gt=0)
+    webhook_poll_s: float = Field(default=1.0, gt=0)
     map_tile_url: str | None = Field(default=None, max_length=500)
     map_tile_attribution: str = Field(default="", max_length=300)
 

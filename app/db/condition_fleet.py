@@ -11,6 +11,7 @@ window (:class:`app.analysis.condition.RollingHistory`, the same matrices
 :class:`~app.db.condition_writer.DbHistory` builds from the store), so a year
 is written in minutes. The planted maintenance actions and the line's
 superstructure sections are imported as reference data, replacing the line's.
+Generated runs send no webhook alerts (a year of history at once is not news).
 """
 
 from __future__ import annotations
@@ -132,14 +133,13 @@ def ingest_fleet(
                           finished_at=utcnow())
                 session.add(job)
                 session.flush()
-                ids = write_assessed_run(session, run_id=run.id, job_id=job.id, line=line, when=when,
-                                         segments=segments, assessment=assessment)
+                flags = write_assessed_run(session, run_id=run.id, job_id=job.id, line=line, when=when,
+                                           segments=segments, assessment=assessment)
                 job.meta = {"simulated_fleet": True, "condition": {
-                    "stored": True, "flags": len(ids), "new_flag_ids": [
-                        k for k, f in zip(ids, assessment.flags, strict=True) if f.is_new],
+                    "stored": True, "flags": len(flags), "new_flag_ids": [f.id for f in flags if f.is_new],
                     "history_runs": min(i, params.history_scan_runs)}}
                 written += 1
-                n_flags += len(ids)
+                n_flags += len(flags)
                 rows += int(sum(len(st) for w in segments.values() for st in w.values()))
         write_s += time.perf_counter() - t1
         history.append(days_of(when), segments, assessment.flags)

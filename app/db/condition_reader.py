@@ -9,6 +9,7 @@ numpy arrays.
 from __future__ import annotations
 
 import datetime as dt
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -30,6 +31,8 @@ __all__ = [
     "flags_since",
     "newest_run",
     "fetch_array",
+    "flag_dict",
+    "iso_time",
 ]
 
 
@@ -201,3 +204,27 @@ def flags_since(session: Session, since: int, limit: int, *, line_keys: Sequence
     if only_new:
         stmt = stmt.where(ConditionFlag.is_new.is_(True))
     return list(session.scalars(stmt.order_by(ConditionFlag.id).limit(limit)))
+
+
+def iso_time(t: dt.datetime | None) -> str | None:
+    """ISO 8601 with the UTC offset (naive times are UTC)."""
+    if t is None:
+        return None
+    return (t if t.tzinfo else t.replace(tzinfo=dt.UTC)).isoformat()
+
+
+def _finite(v: float | None) -> float | None:
+    return float(v) if v is not None and math.isfinite(float(v)) else None
+
+
+def flag_dict(f: ConditionFlag, line: ConditionLine) -> dict:
+    """A flag as the API answers it and the webhooks send it (km in km, change also in %)."""
+    change = _finite(f.change)
+    return {
+        "id": f.id, "run_id": f.run_id, "line_id": line.line_id, "track": line.track,
+        "km_from": f.seg * f.seg_m / 1000.0, "km_to": (f.seg + 1) * f.seg_m / 1000.0, "segment_m": f.seg_m,
+        "kind": f.kind, "direction": "up" if f.direction > 0 else "down", "score": float(f.score),
+        "change": change, "change_pct": 100.0 * math.expm1(change) if change is not None else None,
+        "rate_per_year": _finite(f.rate_per_year), "wheels": [w for w in f.wheels.split(",") if w],
+        "is_new": bool(f.is_new), "created_at": iso_time(f.created_at),
+    }

@@ -17,7 +17,10 @@ with a line id it
 4. tests every segment against the earlier runs of the line read from the
    store (:class:`DbHistory`, :func:`app.analysis.condition.assess_run`) and
    writes the rows, the flags and the run's entry, replacing the run's earlier
-   ones.
+   ones;
+5. queues a webhook delivery of the new flags for every active webhook
+   (:func:`app.db.webhooks.enqueue_condition_flags`; sent by the workers'
+   delivery loop after the commit, never in the way of processing).
 
 Flags are inserted under a transaction-level advisory lock on PostgreSQL, so
 their ids (the feed cursor) become visible in increasing order.
@@ -46,7 +49,7 @@ from app.analysis.condition import (
     segment_stats,
 )
 from app.analysis.stiffness.alignment import align_runs
-from app.db import results_reader
+from app.db import results_reader, webhooks
 from app.db.bulk import insert_frame
 from app.db.condition_index import condition_index, index_name
 from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun, SegmentCondition
@@ -333,13 +336,14 @@ def _segment_frame(run_id: int, job_id: int, line_key: int, segments: Mapping[fl
     return frame
 
 
-def _insert_flags(session: Session, run_id: int, job_id: int, line_key: int, assessment: RunAssessment) -> list[int]:
-    """Insert the run's flags (under the feed lock on PostgreSQL); their ids."""
+def _insert_flags(session: Session, run_id: int, job_id: int, line_key: int,
+                  assessment: RunAssessment) -> list[ConditionFlag]:
+    """Insert the run's flags (under the feed lock on PostgreSQL)."""
     if not assessment.flags:
         return []
     if session.get_bind().dialect.name == "postgresql":
         session.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _FLAG_FEED_LOCK})
-    ids = []
+    rows: list[ConditionFlag] = []
     now = dt.datetime.now(dt.UTC)
     for f in assessment.flags:
         row = ConditionFlag(
@@ -351,22 +355,22 @@ def _insert_flags(session: Session, run_id: int, job_id: int, line_key: int, ass
         )
         session.add(row)
         session.flush()
-        ids.append(row.id)
-    return ids
+        rows.append(row)
+    return rows
 
 
 def write_assessed_run(
     session: Session, *, run_id: int, job_id: int, line: ConditionLine, when: dt.datetime,
     segments: Mapping[float, Mapping[str, SegmentStats]], assessment: RunAssessment,
     shift_m: float = 0.0, shift_confidence: float | None = None,
-) -> list[int]:
-    """Write a run's assessed segments, its flags and its entry (replacing earlier ones); the flag ids."""
+) -> list[ConditionFlag]:
+    """Write a run's assessed segments, its flags and its entry (replacing earlier ones); the flag rows."""
     delete_run_condition(session, run_id)
     frame = _segment_frame(run_id, job_id, line.id, segments, assessment)
     insert_frame(session, SegmentCondition.__table__, frame, _SEGMENT_PG_TYPES)
-    ids = _insert_flags(session, run_id, job_id, line.id, assessment)
+    flags = _insert_flags(session, run_id, job_id, line.id, assessment)
     session.add(ConditionRun(run_id=run_id, line_key=line.id, job_id=job_id, run_time=when, shift_m=shift_m,
-                             shift_confidence=shift_confidence, n_segments=len(frame), n_flags=len(ids),
+                             shift_confidence=shift_confidence, n_segments=len(frame), n_flags=len(flags),
                              published_at=dt.datetime.now(dt.UTC)))
     if len(frame):
         ten = frame[frame["seg_m"] == frame["seg_m"].min()]
@@ -375,7 +379,7 @@ def write_assessed_run(
         line.km_min = lo if line.km_min is None else min(line.km_min, lo)
         line.km_max = hi if line.km_max is None else max(line.km_max, hi)
     session.flush()
-    return ids
+    return flags
 
 
 def store_run_condition(
@@ -422,15 +426,16 @@ def store_run_condition(
     history = DbHistory(session, line.id, run_id, when, config.change)
     assessment = assess_run(segments, history, days_of(when), params=config.change,
                             previous_flags=history.previous_flags())
-    ids = write_assessed_run(session, run_id=run_id, job_id=job_id, line=line, when=when, segments=segments,
-                             assessment=assessment, shift_m=shift, shift_confidence=confidence)
-    new_ids = [i for i, f in zip(ids, assessment.flags, strict=True) if f.is_new]
+    flags = write_assessed_run(session, run_id=run_id, job_id=job_id, line=line, when=when, segments=segments,
+                               assessment=assessment, shift_m=shift, shift_confidence=confidence)
+    new_ids = [f.id for f in flags if f.is_new]
+    deliveries = webhooks.enqueue_condition_flags(session, run_id, line, flags)
     exponents = {f"{s:g}": float(np.mean(list(e.values()))) if e else None
                  for s, e in assessment.exponents.items()}
     return {
         "stored": True, "index": index_name(session, line.line_id, line.track), "line_key": line.id,
         "shift_m": round(shift, 3), "shift_confidence": confidence,
         "segments": int(sum(len(st) for w in segments.values() for st in w.values())),
-        "history_runs": len(history.step_runs), "flags": len(ids), "new_flag_ids": new_ids,
-        "speed_exponent": exponents,
+        "history_runs": len(history.step_runs), "flags": len(flags), "new_flag_ids": new_ids,
+        "webhook_deliveries": len(deliveries), "speed_exponent": exponents,
     }

@@ -308,3 +308,4 @@ from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessi
 from app.db import condition_models as _condition_models  # noqa: E402,F401  (segment condition store)
 from app.db import recorder_models as _recorder_models  # noqa: E402,F401  (channel maps, line geometries)
 from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)
+from app.db import webhook_models as _webhook_models  # noqa: E402,F401  (webhooks, delivery log)

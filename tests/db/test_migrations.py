@@ -15,6 +15,7 @@ TABLES = {
     "users", "sessions", "api_keys", "audit_log",
     "ref_subsidence", "ref_maintenance", "ref_superstructure",
     "condition_lines", "condition_runs", "segment_condition", "condition_flags",
+    "webhooks", "webhook_deliveries",
     "channel_maps", "line_geometries",
 }
 
