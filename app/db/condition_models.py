@@ -10,6 +10,8 @@ segment_condition    per run, segment length (10 m, 100 m), wheel and segment:
                      condition index (+ uncertainty), raw amplitude mean / p95,
                      speed, number of valid bins, and the change tests against
                      the segment's history (baseline, change, scores)
+condition_overview   per run and 100 m segment: the index over the wheels and whether
+                     the run flagged anything there (the line's heat map)
 condition_flags      changes beyond the repeatability, one row per run, segment
                      and test (wheels combined); ``id`` is the feed cursor (``since=``)
 
@@ -38,7 +40,7 @@ from sqlalchemy.orm import Mapped, mapped_column
 
 from app.db.models import Base, UTCDateTime, utcnow
 
-__all__ = ["ConditionLine", "ConditionRun", "SegmentCondition", "ConditionFlag", "FLAG_KINDS"]
+__all__ = ["ConditionLine", "ConditionRun", "SegmentCondition", "ConditionOverview", "ConditionFlag", "FLAG_KINDS"]
 
 #: Kinds of condition flags: a sudden change, a gradual trend.
 FLAG_KINDS: tuple[str, ...] = ("step", "trend")
@@ -123,6 +125,25 @@ class SegmentCondition(Base):
     change_z: Mapped[float | None] = mapped_column(REAL)
     trend_rate: Mapped[float | None] = mapped_column(REAL)
     trend_z: Mapped[float | None] = mapped_column(REAL)
+
+
+class ConditionOverview(Base):
+    """A run's 100 m segment as the line overview (heat map runs × km) shows it.
+
+    ``index`` is the mean of the wheels' 100 m index, ``flagged`` whether any
+    flag of the run (10 m or 100 m) lies in the segment: the heat map of a
+    year of daily runs reads these ~500 rows per 50 km run instead of
+    averaging four times as many segment rows.
+    """
+
+    __tablename__ = "condition_overview"
+
+    run_id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    seg: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    line_key: Mapped[int] = mapped_column(Integer)
+    index: Mapped[float] = mapped_column(REAL)
+    n_wheels: Mapped[int] = mapped_column(SmallInteger)
+    flagged: Mapped[bool] = mapped_column(Boolean, default=False)
 
 
 class ConditionFlag(Base):

@@ -14,10 +14,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from sqlalchemy import func, select
+from sqlalchemy import func, literal, select
 from sqlalchemy.orm import Session
 
-from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun, SegmentCondition
+from app.db.condition_models import (
+    ConditionFlag,
+    ConditionLine,
+    ConditionOverview,
+    ConditionRun,
+    SegmentCondition,
+)
 
 __all__ = [
     "LineSummary",
@@ -34,6 +40,10 @@ __all__ = [
     "flag_dict",
     "iso_time",
 ]
+
+
+#: Segment length of the overview rows, m.
+OVERVIEW_M = 100
 
 
 @dataclass(frozen=True)
@@ -133,41 +143,51 @@ def _seg_range(seg_m: int, km_from: float | None, km_to: float | None) -> tuple[
 
 def heatmap(session: Session, runs: Sequence[ConditionRun], seg_m: int, *, wheel: str | None = None,
             km_from: float | None = None, km_to: float | None = None) -> Heatmap:
-    """Index of every run and segment of ``seg_m`` in a km range (mean over wheels unless ``wheel``)."""
+    """Index of every run and segment of ``seg_m`` in a km range (mean over wheels unless ``wheel``).
+
+    The line overview (100 m, mean over the wheels) reads the runs' overview rows
+    (:class:`~app.db.condition_models.ConditionOverview`); other views the segment rows.
+    """
     run_ids = [r.run_id for r in runs]
     if not run_ids:
         return Heatmap([], np.zeros(0, np.int64), np.zeros((0, 0)), [])
-    sc = SegmentCondition
     lo, hi = _seg_range(seg_m, km_from, km_to)
-    conds = [sc.run_id.in_(run_ids), sc.seg_m == seg_m]
-    if wheel is not None:
-        conds.append(sc.wheel == wheel)
+    overview = wheel is None and seg_m == OVERVIEW_M
+    t = ConditionOverview if overview else SegmentCondition
+    conds = [t.run_id.in_(run_ids)]
+    if not overview:
+        conds.append(SegmentCondition.seg_m == seg_m)
+        if wheel is not None:
+            conds.append(SegmentCondition.wheel == wheel)
     if lo is not None:
-        conds.append(sc.seg >= lo)
+        conds.append(t.seg >= lo)
     if hi is not None:
-        conds.append(sc.seg <= hi)
-    if wheel is None:
-        stmt = select(sc.run_id, sc.seg, func.avg(sc.index)).where(*conds).group_by(sc.run_id, sc.seg)
+        conds.append(t.seg <= hi)
+    if overview:
+        stmt = select(t.run_id, t.seg, t.index, t.flagged).where(*conds)
+    elif wheel is None:
+        stmt = select(t.run_id, t.seg, func.avg(t.index), literal(0)).where(*conds).group_by(t.run_id, t.seg)
     else:
-        stmt = select(sc.run_id, sc.seg, sc.index).where(*conds)
-    values = fetch_array(session, stmt, 3)
+        stmt = select(t.run_id, t.seg, t.index, literal(0)).where(*conds)
+    values = fetch_array(session, stmt, 4)
     segs = np.unique(values[:, 1].astype(np.int64)) if len(values) else np.zeros(0, np.int64)
-    row_of = {rid: i for i, rid in enumerate(run_ids)}
+    order = np.argsort(run_ids)
+    sorted_ids = np.asarray(run_ids, dtype=np.int64)[order]
+    rows = order[np.searchsorted(sorted_ids, values[:, 0].astype(np.int64))] if len(values) else np.zeros(0, int)
+    cols = np.searchsorted(segs, values[:, 1].astype(np.int64))
     matrix = np.full((len(run_ids), segs.size), np.nan)
-    if len(values):
-        rows = np.array([row_of[int(r)] for r in values[:, 0]], dtype=np.int64)
-        matrix[rows, np.searchsorted(segs, values[:, 1].astype(np.int64))] = values[:, 2]
-    flagged: set[tuple[int, int]] = set()
-    if segs.size:
-        fl = session.execute(
-            select(ConditionFlag.run_id, ConditionFlag.seg_m, ConditionFlag.seg)
-            .where(ConditionFlag.run_id.in_(run_ids), ConditionFlag.seg_m <= seg_m)
-        ).all()
-        for rid, fm, fs in fl:
-            cell = int(np.floor(fs * fm / seg_m))
-            j = int(np.searchsorted(segs, cell))
-            if j < segs.size and segs[j] == cell:
-                flagged.add((row_of[rid], j))
+    matrix[rows, cols] = values[:, 2]
+    if overview:
+        hit = values[:, 3] > 0
+        flagged = set(zip(rows[hit].tolist(), cols[hit].tolist(), strict=True))
+    else:
+        fl = fetch_array(session, select(ConditionFlag.run_id, ConditionFlag.seg_m, ConditionFlag.seg).where(
+            ConditionFlag.run_id.in_(run_ids), ConditionFlag.seg_m <= seg_m), 3)
+        cell = np.floor(fl[:, 2] * fl[:, 1] / seg_m).astype(np.int64)
+        j = np.minimum(np.searchsorted(segs, cell), max(segs.size - 1, 0))
+        hit = (segs.size > 0) & (segs[j] == cell) if segs.size else np.zeros(len(fl), dtype=bool)
+        fr = order[np.searchsorted(sorted_ids, fl[:, 0].astype(np.int64))] if len(fl) else np.zeros(0, int)
+        flagged = set(zip(fr[hit].tolist(), j[hit].tolist(), strict=True))
     return Heatmap(list(runs), segs, matrix, sorted(flagged))
 
 

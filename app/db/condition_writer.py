@@ -52,7 +52,13 @@ from app.analysis.stiffness.alignment import align_runs
 from app.db import results_reader, webhooks
 from app.db.bulk import insert_frame
 from app.db.condition_index import condition_index, index_name
-from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun, SegmentCondition
+from app.db.condition_models import (
+    ConditionFlag,
+    ConditionLine,
+    ConditionOverview,
+    ConditionRun,
+    SegmentCondition,
+)
 from app.db.models import Run
 
 __all__ = [
@@ -79,6 +85,14 @@ _SEGMENT_PG_TYPES: dict[str, str] = {
     "index_sd": "float4", "n_history": "int2", "baseline": "float4", "change": "float4", "change_z": "float4",
     "trend_rate": "float4", "trend_z": "float4",
 }
+
+
+#: PostgreSQL binary types of an overview row (app.db.condition_models.ConditionOverview)
+_OVERVIEW_PG_TYPES: dict[str, str] = {
+    "run_id": "int4", "seg": "int4", "line_key": "int4", "index": "float4", "n_wheels": "int2", "flagged": "bool",
+}
+#: Segment length of the overview rows, m.
+OVERVIEW_SEGMENT_M = 100.0
 
 
 @dataclass(frozen=True)
@@ -162,8 +176,9 @@ def line_of(session: Session, line_id: str, track: str, bin_length_m: float = 0.
 
 
 def delete_run_condition(session: Session, run_id: int) -> None:
-    """Delete a run's segment rows, flags and entry (reprocessing, deletion)."""
+    """Delete a run's segment rows, overview, flags and entry (reprocessing, deletion)."""
     session.execute(delete(SegmentCondition).where(SegmentCondition.run_id == run_id))
+    session.execute(delete(ConditionOverview).where(ConditionOverview.run_id == run_id))
     session.execute(delete(ConditionFlag).where(ConditionFlag.run_id == run_id))
     session.execute(delete(ConditionRun).where(ConditionRun.run_id == run_id))
 
@@ -336,6 +351,23 @@ def _segment_frame(run_id: int, job_id: int, line_key: int, segments: Mapping[fl
     return frame
 
 
+def _overview_frame(run_id: int, line_key: int, segments: Mapping[float, Mapping[str, SegmentStats]],
+                    flags: list[ConditionFlag]) -> pd.DataFrame:
+    """The run's 100 m overview rows: mean index over the wheels, flagged cells."""
+    wheels = segments.get(OVERVIEW_SEGMENT_M, {})
+    parts = [pd.DataFrame({"seg": st.seg, "index": st.index}) for st in wheels.values() if len(st)]
+    if not parts:
+        return pd.DataFrame(columns=list(_OVERVIEW_PG_TYPES))
+    g = pd.concat(parts).groupby("seg")["index"].agg(["mean", "count"])
+    cells = {int(f.seg * f.seg_m // OVERVIEW_SEGMENT_M) for f in flags}
+    seg = g.index.to_numpy(dtype=np.int64)
+    return pd.DataFrame({
+        "run_id": np.full(seg.size, run_id), "seg": seg, "line_key": np.full(seg.size, line_key),
+        "index": g["mean"].to_numpy(), "n_wheels": g["count"].to_numpy(dtype=np.int64),
+        "flagged": np.isin(seg, list(cells)),
+    })
+
+
 def _insert_flags(session: Session, run_id: int, job_id: int, line_key: int,
                   assessment: RunAssessment) -> list[ConditionFlag]:
     """Insert the run's flags (under the feed lock on PostgreSQL)."""
@@ -369,6 +401,8 @@ def write_assessed_run(
     frame = _segment_frame(run_id, job_id, line.id, segments, assessment)
     insert_frame(session, SegmentCondition.__table__, frame, _SEGMENT_PG_TYPES)
     flags = _insert_flags(session, run_id, job_id, line.id, assessment)
+    insert_frame(session, ConditionOverview.__table__, _overview_frame(run_id, line.id, segments, flags),
+                 _OVERVIEW_PG_TYPES)
     session.add(ConditionRun(run_id=run_id, line_key=line.id, job_id=job_id, run_time=when, shift_m=shift_m,
                              shift_confidence=shift_confidence, n_segments=len(frame), n_flags=len(flags),
                              published_at=dt.datetime.now(dt.UTC)))

@@ -31,6 +31,7 @@ _BLOCK_ROWS = 8192
 
 #: PostgreSQL type name -> big-endian numpy dtype of its binary value (None: text bytes)
 PG_BINARY_TYPES: dict[str, str | None] = {
+    "bool": ">u1",
     "int2": ">i2",
     "int4": ">i4",
     "int8": ">i8",

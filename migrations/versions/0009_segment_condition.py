@@ -1,4 +1,5 @@
-"""Segment condition store: condition_lines, condition_runs, segment_condition, condition_flags.
+"""Segment condition store: condition_lines, condition_runs, segment_condition, condition_overview,
+condition_flags.
 
 Rows are written when a job is published (the 25 cm profile rows stay the
 source; these are kept for ever). Runs already processed get theirs when they
@@ -78,6 +79,16 @@ def upgrade() -> None:
     )
     op.create_index("ix_segment_condition_line_key_seg_m_seg", "segment_condition", ["line_key", "seg_m", "seg"])
     op.create_table(
+        "condition_overview",
+        sa.Column("run_id", sa.Integer(), autoincrement=False, nullable=False),
+        sa.Column("seg", sa.Integer(), autoincrement=False, nullable=False),
+        sa.Column("line_key", sa.Integer(), nullable=False),
+        sa.Column("index", sa.REAL(), nullable=False),
+        sa.Column("n_wheels", sa.SmallInteger(), nullable=False),
+        sa.Column("flagged", sa.Boolean(), nullable=False),
+        sa.PrimaryKeyConstraint("run_id", "seg", name=op.f("pk_condition_overview")),
+    )
+    op.create_table(
         "condition_flags",
         sa.Column("id", _FEED_ID, autoincrement=True, nullable=False),
         sa.Column("run_id", sa.Integer(), nullable=False),
@@ -105,6 +116,7 @@ def downgrade() -> None:
     op.drop_index("ix_condition_flags_line_key_seg_m_seg", table_name="condition_flags")
     op.drop_index("ix_condition_flags_run_id", table_name="condition_flags")
     op.drop_table("condition_flags")
+    op.drop_table("condition_overview")
     op.drop_index("ix_segment_condition_line_key_seg_m_seg", table_name="segment_condition")
     op.drop_table("segment_condition")
     op.drop_index("ix_condition_runs_line_key_run_time", table_name="condition_runs")

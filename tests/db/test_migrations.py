@@ -15,7 +15,7 @@ TABLES = {
     "users", "sessions", "api_keys", "audit_log",
     "ref_subsidence", "ref_maintenance", "ref_superstructure",
     "condition_lines", "condition_runs", "segment_condition", "condition_flags",
-    "webhooks", "webhook_deliveries",
+    "webhooks", "webhook_deliveries", "condition_overview",
     "channel_maps", "line_geometries",
 }
 
