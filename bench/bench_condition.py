@@ -49,11 +49,11 @@ def _size_bytes(db, url: str, sqlite_path: Path | None) -> dict[str, int]:
         with db.read() as s:
             rows = s.execute(text(
                 "SELECT name, SUM(pgsize) FROM dbstat WHERE name LIKE '%segment_condition%' "
-                "OR name LIKE '%condition_flags%' GROUP BY name")).all()
+                "OR name LIKE '%condition_flags%' OR name LIKE '%condition_overview%' GROUP BY name")).all()
         return {name: int(size) for name, size in rows}
     with db.read() as s:
         return {t: int(s.execute(text(f"SELECT pg_total_relation_size('{t}')")).scalar())
-                for t in ("segment_condition", "condition_flags")}
+                for t in ("segment_condition", "condition_overview", "condition_flags")}
 
 
 def main() -> None:
@@ -112,17 +112,17 @@ def main() -> None:
         cpu = _cpu() - cpu0
         sizes = _size_bytes(db, url, sqlite_path)
         run_km = args.runs * args.km
-        seg_bytes = sum(v for k, v in sizes.items() if "segment_condition" in k)
+        seg_bytes = sum(v for k, v in sizes.items() if "segment_condition" in k or "overview" in k)
         print(f"ingest: {res.runs} runs, {res.segment_rows} segment rows, {res.flags} flags in {res.seconds:.1f} s "
               f"wall ({res.seconds / res.runs:.2f} s/run; {res.write_seconds:.1f} s in transactions), "
               f"{cpu:.1f} s CPU of this process", flush=True)
-        print(f"storage: segment rows {seg_bytes / 1e6:.1f} MB with indexes = {seg_bytes / run_km:.0f} bytes per "
+        print(f"storage: segment and overview rows {seg_bytes / 1e6:.1f} MB with indexes = {seg_bytes / run_km:.0f} bytes per "
               f"run-km ({seg_bytes / res.segment_rows:.0f} bytes per row); {sizes}")
         score = scorer.score()
         print(f"detection: unchanged places flagged {100 * score.false_flag_rate:.3f} % "
               f"({score.unchanged_flagged} of {score.unchanged_tested}), newest run "
               f"{100 * score.newest_unchanged_rate:.3f} %; steps found {score.steps_found}/{score.steps_total}; "
-              f"trend delays (days) {[round(d) for d in score.trend_delays_days]}", flush=True)
+              f"trend delays (days) {[round(d) if np.isfinite(d) else None for d in score.trend_delays_days]}", flush=True)
 
         settings = Settings(_env_file=None, database_url=url, run_store=tmp / "runs", auth_disabled=True,
                             log_level="WARNING")

@@ -42,6 +42,7 @@ from app.db import recorder_crud, reference_crud
 from app.db.condition_fleet import FLEET_SOURCE_FORMAT
 from app.db.condition_hotspots import line_hotspots
 from app.db.condition_index import index_name
+from app.db.condition_maintenance import run_levels
 from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun
 from app.db.condition_writer import ConditionConfig
 from app.db.models import Job, JobStatus, Run
@@ -147,8 +148,9 @@ def heatmap(db: DbDep, line_id: LineIdQ, track: TrackQ = None, segment_m: Segmen
 @router.get("/trend", response_model=TrendOut, summary="One segment over every run of a line")
 def trend(db: DbDep, line_id: LineIdQ, km: Annotated[float, km_query("A km inside the segment")],
           track: TrackQ = None, segment_m: SegmentQ = 10, wheel: WheelQ = None) -> dict:
-    """Per run (oldest first) the segment's index (mean over the wheels) and each wheel's row,
-    with the maintenance actions that cover the segment."""
+    """Per run (oldest first) the segment's index (mean over the wheels), the same relative to
+    the surrounding track of the run (±1 km: what the run's speed and level share cancels) and
+    each wheel's row, with the maintenance actions that cover the segment."""
     seg_m = segment_length(segment_m)
     w = _wheel(wheel)
     line = resolve_line(db, line_id, track)
@@ -161,12 +163,16 @@ def trend(db: DbDep, line_id: LineIdQ, km: Annotated[float, km_query("A km insid
             ConditionFlag.line_key == line.id, ConditionFlag.seg_m == seg_m, ConditionFlag.seg == seg)))
         actions = reference_crud.reference_frame(session, "maintenance", line_id=line.line_id, track=line.track,
                                                  km_from=lo, km_to=hi)
+        levels = run_levels(session, line, lo, hi, seg_m=100)
     points = []
     for run, rows in history:
         idx = [r.index for r in rows if r.index is not None]
+        mean = float(np.mean(idx)) if idx else None
+        level = levels.get(run.run_id)
         points.append({
-            "run_id": run.run_id, "start_time": reader.iso_time(run.run_time),
-            "index": float(np.mean(idx)) if idx else None, "flagged": run.run_id in flagged,
+            "run_id": run.run_id, "start_time": reader.iso_time(run.run_time), "index": mean,
+            "relative": mean - level if mean is not None and level is not None else None,
+            "flagged": run.run_id in flagged,
             "wheels": [{
                 "wheel": r.wheel, "index": float(r.index), "index_sd": _num(r.index_sd), "amp_mean": float(r.amp_mean),
                 "amp_p95": float(r.amp_p95), "speed_kmh": float(r.speed_mean) * 3.6, "n_valid": r.n_valid,

@@ -196,7 +196,8 @@ class TrendResult:
     Attributes
     ----------
     rate_per_year : numpy.ndarray
-        Slope of the index, log units per year (NaN: no test).
+        Slope of the index, log units per year (NaN: no test, or the recent half
+        of the data does not go on in the same direction).
     z : numpy.ndarray
         Slope over its standard error (NaN: no test).
     n_runs : numpy.ndarray
@@ -475,7 +476,7 @@ def trend_change(
     # the newest value and at least min_history earlier ones, spread over some time
     testable = (n >= params.min_history + 1) & (n_recent >= params.min_history // 2 + 1) & np.isfinite(x) & np.isfinite(slope)
     return TrendResult(
-        rate_per_year=np.where(testable, slope * _DAYS_PER_YEAR, np.nan),
+        rate_per_year=np.where(testable & consistent, slope * _DAYS_PER_YEAR, np.nan),
         z=np.where(testable, z, np.nan),
         n_runs=n.astype(np.int64),
     )

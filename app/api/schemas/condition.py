@@ -76,6 +76,7 @@ class TrendPoint(BaseModel):
     run_id: int
     start_time: str
     index: float | None = Field(description="mean over the wheels")
+    relative: float | None = Field(description="index minus the run's mean over the surrounding ±1 km (log units)")
     flagged: bool
     wheels: list[TrendWheel]
 
