@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import logging
-import threading
 
 import httpx
 
@@ -28,6 +27,7 @@ from app.core.config import Settings
 from app.core.signing import SIGNATURE_HEADER, signature_header
 from app.db import webhooks
 from app.db.session import Database
+from worker.background import PeriodicLoop
 
 __all__ = ["DeliveryLoop", "deliver_due", "retry_policy", "EVENT_HEADER", "DELIVERY_HEADER"]
 
@@ -78,38 +78,22 @@ def deliver_due(db: Database, settings: Settings, client: httpx.Client | None = 
     return len(claimed)
 
 
-class DeliveryLoop(threading.Thread):
-    """Daemon thread sending due webhook deliveries every ``webhook_poll_s`` until :meth:`stop`.
+class DeliveryLoop(PeriodicLoop):
+    """Daemon thread sending due webhook deliveries, pausing ``webhook_poll_s`` when none is due.
 
     Parameters
     ----------
     settings : Settings
-    db : Database, optional
-        Created from the settings if omitted (and disposed at the end).
+    db : Database
     """
 
-    def __init__(self, settings: Settings, db: Database | None = None) -> None:
-        super().__init__(name="webhook-deliveries", daemon=True)
-        self.settings = settings
-        self._own_db = db is None
-        self.db = db or Database(settings.database_url)
-        self._stop_event = threading.Event()
-
-    def stop(self, timeout: float | None = None) -> None:
-        """Ask the loop to end and wait for it (``timeout`` s at most)."""
-        self._stop_event.set()
-        if self.is_alive():
-            self.join(timeout)
+    def __init__(self, settings: Settings, db: Database) -> None:
+        self.client = httpx.Client(follow_redirects=False)
+        super().__init__("webhook-deliveries", lambda: deliver_due(db, settings, self.client) > 0,
+                         settings.webhook_poll_s)
 
     def run(self) -> None:
-        with httpx.Client(follow_redirects=False) as client:
-            while not self._stop_event.is_set():
-                try:
-                    busy = deliver_due(self.db, self.settings, client)
-                except Exception as exc:  # noqa: BLE001 - database away: try again later
-                    log.warning("webhook deliveries: %s", exc)
-                    busy = 0
-                if not busy:
-                    self._stop_event.wait(self.settings.webhook_poll_s)
-        if self._own_db:
-            self.db.dispose()
+        try:
+            super().run()
+        finally:
+            self.client.close()

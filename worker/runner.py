@@ -40,8 +40,8 @@ from app.db import queue
 from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
 from app.pipeline import ChunkSpec, PipelineCancelled, assemble, process_chunk
+from worker.background import Background
 from worker.chunkstore import ChunkStore
-from worker.deliveries import DeliveryLoop
 from worker.steps import (
     JobRecord,
     WorkerRuntime,
@@ -428,7 +428,7 @@ def run_worker(
         Number of jobs processed.
     """
     worker = LocalWorker(settings)
-    deliveries = DeliveryLoop(settings)  # webhook alerts, beside the jobs
+    background = Background(settings)  # webhook deliveries, retention sweep: beside the jobs
 
     def _graceful(signum: int, frame: object) -> None:  # noqa: ARG001
         if worker.stopping:
@@ -440,11 +440,11 @@ def run_worker(
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             previous[sig] = signal.signal(sig, _graceful)
-    deliveries.start()
+    background.start()
     try:
         return worker.run(once=once, exit_when_idle=exit_when_idle)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        deliveries.stop(timeout=settings.webhook_timeout_s + 1)
+        background.stop()
         worker.runtime.close()

@@ -82,7 +82,7 @@ from app.db import crud, queue
 from app.db.models import ChunkStatus
 from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel
 from app.pipeline import process_chunk as compute_chunk
-from worker.deliveries import DeliveryLoop
+from worker.background import start_background
 from worker.health import alive_file
 from worker.steps import (
     WorkerRuntime,
@@ -491,12 +491,11 @@ def run_worker_process(settings: Settings | None = None, *, wait: bool = True) -
         Exit status (0 after a graceful stop, 130 after a second signal).
     """
     settings = settings or get_settings()
-    deliveries = DeliveryLoop(settings)  # webhook alerts, beside the tasks
-    deliveries.start()
+    background = start_background(settings)  # webhook deliveries, retention sweep: beside the tasks
     try:
         return asyncio.run(_supervise(settings, wait))
     finally:
-        deliveries.stop(timeout=settings.webhook_timeout_s + 1)
+        background.stop()
 
 
 async def _supervise(settings: Settings, wait: bool) -> int:

@@ -1,4 +1,5 @@
-"""Commands of the condition store: ``simulate-fleet`` (a generated history of daily runs)."""
+"""Commands of the condition store: ``simulate-fleet`` (a generated history of daily runs) and
+``sweep-profiles`` (retention of the 25 cm rows)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import typer
 
 from app.cli._common import database, echo
 
-__all__ = ["simulate_fleet"]
+__all__ = ["simulate_fleet", "sweep_profiles"]
 
 
 def simulate_fleet(
@@ -70,3 +71,30 @@ def simulate_fleet(
         db.dispose()
     echo(f"wrote {result.runs} runs ({result.skipped} already there), {result.segment_rows} segment rows, "
          f"{result.flags} flags in {result.seconds:.1f} s ({result.write_seconds:.1f} s in the database)")
+
+
+def sweep_profiles(
+    older_than_days: Annotated[int | None, typer.Option(
+        help="Remove the 25 cm rows of runs measured more than this many days ago "
+        "(default: TRACKVKF_PROFILE_RETENTION_DAYS)")] = None,
+    dry_run: Annotated[bool, typer.Option(help="Only count the runs")] = False,
+) -> None:
+    """Remove old 25 cm profile rows (segment condition rows stay); the workers do it hourly when
+    TRACKVKF_PROFILE_RETENTION_DAYS is set."""
+    from app.core.config import get_settings
+    from app.db.models import utcnow
+    from app.db.retention import sweep_profiles as sweep
+
+    days = older_than_days if older_than_days is not None else get_settings().profile_retention_days
+    if days is None or days < 1:
+        raise typer.BadParameter("give --older-than-days N (>= 1) or set TRACKVKF_PROFILE_RETENTION_DAYS",
+                                 param_hint="--older-than-days")
+    db = database()
+    try:
+        result = sweep(db, utcnow() - dt.timedelta(days=days), dry_run=dry_run)
+    finally:
+        db.dispose()
+    what = "would lose" if dry_run else "lost"
+    echo(f"{result.runs} run(s) measured more than {days} days ago {what} their 25 cm rows"
+         + ("" if dry_run else f" ({result.rows} rows deleted, partitions dropped: "
+                                f"{', '.join(result.partitions) or 'none'}) in {result.seconds:.1f} s"))

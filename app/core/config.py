@@ -138,6 +138,12 @@ class Settings(BaseSettings):
         Back-off after the n-th failed attempt: ``base · 2^(n−1)`` seconds, at most ``max``.
     webhook_poll_s : float
         Pause of a worker's delivery loop when nothing is due, s.
+    profile_retention_days : int, optional
+        Keep the 25 cm profile rows of runs measured in the last this many
+        days; the workers remove older ones every ``profile_sweep_interval_s``
+        (segment condition rows are kept for ever). Default: none (keep all).
+    profile_sweep_interval_s : float
+        Seconds between two retention sweeps of a worker.
     map_tile_url : str, optional
         Raster tile URL template (``https://tiles.example/{z}/{x}/{y}.png``) of
         a basemap under the map page's line geometry. Default: none (the page
@@ -195,6 +201,8 @@ class Settings(BaseSettings):
     webhook_retry_base_s: float = Field(default=5.0, gt=0)
     webhook_retry_max_s: float = Field(default=3600.0, gt=0)
     webhook_poll_s: float = Field(default=1.0, gt=0)
+    profile_retention_days: int | None = Field(default=None, ge=1)
+    profile_sweep_interval_s: float = Field(default=3600.0, gt=0)
     map_tile_url: str | None = Field(default=None, max_length=500)
     map_tile_attribution: str = Field(default="", max_length=300)
 

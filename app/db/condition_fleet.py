@@ -2,7 +2,7 @@
 
 Each generated run (:class:`app.simulate.fleet.FleetSimulator`) becomes a run
 row and a done job (source format ``fleet``: no run file and no 25 cm rows,
-like a run whose profile rows the retention sweep removed), and its segment
+marked like a run whose profile rows the retention sweep removed), and its segment
 rows, change tests and flags are written exactly as the publish step writes a
 processed run's (:func:`app.db.condition_writer.wheel_segments`: the store's one
 index function; :func:`app.db.condition_writer.write_assessed_run`), one
@@ -125,7 +125,7 @@ def ingest_fleet(
                           speed_max=float(np.max(tracks[FLEET_WHEELS[0]].speed_mps)),
                           channels=[f"Z{w}" for w in FLEET_WHEELS],
                           meta={"simulated_fleet": {"seed": seed, "number": i, "speed_kmh": round(speed_kmh, 2)}},
-                          created_by="simulate-fleet", created_at=utcnow())
+                          created_by="simulate-fleet", created_at=utcnow(), profiles_swept_at=utcnow())
                 session.add(run)
                 session.flush()
                 job = Job(run_id=run.id, status=JobStatus.DONE, progress=1.0, settings=settings, attempts=1,

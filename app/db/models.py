@@ -172,6 +172,8 @@ class Run(Base):
     ingest_report: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
     created_by: Mapped[str | None] = mapped_column(String(128))
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    #: when the retention sweep removed the run's 25 cm rows (its segment condition rows stay)
+    profiles_swept_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
 
     jobs: Mapped[list[Job]] = relationship(
         back_populates="run", passive_deletes=True, order_by="Job.id"

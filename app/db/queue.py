@@ -24,7 +24,7 @@ import pandas as pd
 from sqlalchemy import and_, case, func, literal, or_, select, update
 
 from app.core.jsonable import jsonable
-from app.db import results_writer
+from app.db import partitions, results_writer
 from app.db.condition_writer import DEFAULT_CONDITION_CONFIG, ConditionConfig
 from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
 from app.db.session import Database
@@ -310,6 +310,8 @@ def complete_job(
     bool
         True if the results were published.
     """
+    if profiles is not None:
+        partitions.ensure_for_job(db, job_id)  # PostgreSQL: before the rows, in its own transaction
     with db.write() as session:
         # the run first, then the job: the order delete_run locks them in (no deadlock)
         if not results_writer.lock_run_for_results(session, run_id):
@@ -355,6 +357,7 @@ def store_wheel_rows(db: Database, job_id: int, run_id: int, profiles: pd.DataFr
     bool
         True if the rows were written (the job is running, no cancel requested).
     """
+    partitions.ensure_for_job(db, job_id)  # PostgreSQL: before the rows, in its own transaction
     with db.write() as session:
         if not results_writer.lock_run_for_results(session, run_id):
             return False

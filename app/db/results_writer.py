@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import delete, insert, select
+from sqlalchemy import delete, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import display_levels
@@ -206,6 +206,7 @@ def publish_results(
         session.execute(insert(WheelOOR), wheel_rows)
     other_jobs = select(Job.id).where(Job.run_id == run_id, Job.id != job_id).scalar_subquery()
     session.execute(delete(ProfileBin).where(ProfileBin.job_id.in_(other_jobs)))
+    session.execute(update(Run).where(Run.id == run_id).values(profiles_swept_at=None))  # rows again
     return store_run_condition(session, run_id, job_id, config=condition, profiles=profiles)
 
 

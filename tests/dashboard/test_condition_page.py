@@ -24,7 +24,13 @@ def condition_service(tmp_path_factory) -> Iterator[object]:
     from app.db import auth_crud
     from app.db.condition_fleet import ingest_fleet
     from app.db.session import Database
-    from app.simulate.fleet import FleetPlan, FleetSimulator, PlantedAction, PlantedStep, PlantedTrend
+    from app.simulate.fleet import (
+        FleetPlan,
+        FleetSimulator,
+        PlantedAction,
+        PlantedStep,
+        PlantedTrend,
+    )
     from app.simulate.track import generate_line
     from tests.condition.support import publish_tracks
 
