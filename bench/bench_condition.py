@@ -87,7 +87,7 @@ def main() -> None:
     else:
         from tests.pg_cluster import PgCluster
 
-        cluster = PgCluster(tmp / "pg").init()
+        cluster = PgCluster().init()
         url = cluster.create_database()
     try:
         migrate.upgrade(url)

@@ -163,7 +163,7 @@ def trend(db: DbDep, line_id: LineIdQ, km: Annotated[float, km_query("A km insid
             ConditionFlag.line_key == line.id, ConditionFlag.seg_m == seg_m, ConditionFlag.seg == seg)))
         actions = reference_crud.reference_frame(session, "maintenance", line_id=line.line_id, track=line.track,
                                                  km_from=lo, km_to=hi)
-        levels = run_levels(session, line, lo, hi, seg_m=100)
+        levels = run_levels(session, [run.run_id for run, _ in history], lo, hi)
     points = []
     for run, rows in history:
         idx = [r.index for r in rows if r.index is not None]

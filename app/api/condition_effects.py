@@ -144,8 +144,8 @@ def maintenance_effect(
     after = [r.run_id for r, d in zip(runs, days, strict=True) if day < d <= day + after_days]
     lo, hi = min(a.km_from, a.km_to) - _MARGIN_KM, max(a.km_from, a.km_to) + _MARGIN_KM
     with db.read() as session:
-        km_b, v_b = extent_profile(session, line, lo, hi, before, action_km=(a.km_from, a.km_to))
-        km_a, v_a = extent_profile(session, line, lo, hi, after, action_km=(a.km_from, a.km_to))
+        km_b, v_b = extent_profile(session, before, lo, hi, action_km=(a.km_from, a.km_to))
+        km_a, v_a = extent_profile(session, after, lo, hi, action_km=(a.km_from, a.km_to))
     km = np.union1d(np.round(km_b, 6), np.round(km_a, 6))
 
     def on(kms: np.ndarray, vals: np.ndarray) -> list[float | None]:
