@@ -9,13 +9,17 @@ import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
+import anyio
 from fastapi import FastAPI
+from starlette.middleware.gzip import DEFAULT_EXCLUDED_CONTENT_TYPES, GZipMiddleware
 
 from app.api import API_PREFIX, build_api_router
 from app.api.errors import install_error_handlers
+from app.api.headers import SecurityHeadersMiddleware
 from app.api.health import software_version
 from app.api.login_page import install_protected_docs
 from app.api.login_page import router as login_page_router
+from app.core.bytecache import ByteLRU
 from app.core.config import ProductionConfigError, Settings, get_settings
 from app.core.logging import configure_logging
 from app.core.ratelimit import RateLimiter
@@ -24,6 +28,9 @@ from app.db.session import Database
 from app.web import install_pages
 
 __all__ = ["create_app", "check_production_database"]
+
+#: answers not worth compressing again (already compressed formats)
+_NOT_GZIPPED = (*DEFAULT_EXCLUDED_CONTENT_TYPES, "application/vnd.apache.parquet", "application/x-hdf5")
 
 log = logging.getLogger(__name__)
 
@@ -79,8 +86,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.db = db
     app.state.store = store
     app.state.login_limiter = RateLimiter(settings.login_rate_limit, settings.login_rate_window_s)
+    app.state.login_address_limiter = RateLimiter(
+        settings.login_address_rate_limit, settings.login_rate_window_s
+    )
     app.state.upload_limiter = RateLimiter(settings.upload_rate_limit, settings.upload_rate_window_s)
     install_error_handlers(app)
+    app.state.profile_cache = ByteLRU(settings.profile_cache_bytes)
+    # profile answers computed at once in this process (the others wait: app.api.profiles)
+    app.state.profile_limiter = anyio.CapacityLimiter(settings.profile_concurrency)
+    app.state.profile_pending = {}  # answers being computed: asked again, awaited once
+    app.add_middleware(GZipMiddleware, minimum_size=1024, compresslevel=5, exclude_content_types=_NOT_GZIPPED)
+    app.add_middleware(SecurityHeadersMiddleware)  # CSP, framing, sniffing, referrer: every answer
     app.include_router(build_api_router())
     app.include_router(login_page_router)
     install_protected_docs(app, {f"{API_PREFIX}/health", f"{API_PREFIX}/auth/login"})

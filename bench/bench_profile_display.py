@@ -15,9 +15,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -25,48 +22,20 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
 
+    from display_run import store_display_run
     from fastapi.testclient import TestClient
 
     from app.core.config import Settings
-    from app.db import auth_crud, crud, migrate, results_writer
-    from app.db.models import Run
-    from app.db.session import Database
+    from app.db import migrate
     from app.main import create_app
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-profile-"))
     settings = Settings(_env_file=None, database_url=f"sqlite:///{tmp / 'db.sqlite'}",
                         run_store=tmp / "runs", log_level="WARNING")
     migrate.upgrade(settings.database_url)
-    n = int(args.km * 4000)
-    rng = np.random.default_rng(0)
-    frames = []
-    for wheel in ("11", "12", "41", "42"):
-        b = np.arange(n, dtype=np.int64)
-        frames.append(pd.DataFrame({
-            "wheel": wheel, "bin": b, "km": (b + 0.5) * 0.25 / 1000, "n_samples": 125,
-            "speed_mean": 30.0, "sleeper_amp": rng.lognormal(0, 0.4, n),
-            **{f"order_amp_{i:02d}": rng.random(n) for i in range(1, 12)},
-            "residual_rms": 0.3, "sleeper_force_amp": rng.random(n),
-        }))
-    profiles = pd.concat(frames, ignore_index=True)
-    db = Database(settings.database_url)
     t0 = time.perf_counter()
-    with db.write() as session:
-        run = Run(sha256="0" * 64, file_path="1/run.h5", source_format="hdf5", size_bytes=0, fs=24000.0,
-                  n_samples=1, duration_s=1.0, channels=[], meta={}, vehicle_id="BENCH", line_id="B",
-                  track="1", km_start=0.0, km_increasing=True)
-        session.add(run)
-        session.flush()
-        job = crud.create_job(session, run.id, {"bin_length_m": 0.25})
-        job.status = "done"
-        # as the worker does (app.db.queue.complete_job): store, then publish with the job done
-        results_writer.store_profile_rows(session, run.id, job.id, profiles)
-        results_writer.publish_results(session, run.id, job.id, [])
-        run_id = run.id
-    with db.write() as session:
-        _, api_key = auth_crud.create_api_key(session, "bench", "viewer", created_by="bench")
-    db.dispose()
-    print(f"stored {len(profiles)} rows in {time.perf_counter() - t0:.1f} s")
+    run_id, api_key, n_rows = store_display_run(settings.database_url, args.km)
+    print(f"stored {n_rows} rows in {time.perf_counter() - t0:.1f} s")
 
     with TestClient(create_app(settings), headers={"Authorization": f"Bearer {api_key}"}) as client:
         cases = [("whole run", None, None, {}), ("10 km", 40.0, 50.0, {}), ("1 km", 45.0, 46.0, {}),

@@ -74,6 +74,7 @@ def case_engine(duration: float) -> dict:
         "full_rate_waveforms_s": full_s,
         "sleeper_rms_err": sleeper_err,
         "decimation": res.info["chunks"][0]["decimation"],
+        "refinement_iterations": res.info["chunks"][0]["refinement_iterations"],
         "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
@@ -104,6 +105,35 @@ def case_sparse(duration: float) -> dict:
         "case": f"direct sparse Eq. 20, 12 orders, {duration:g} s @ 24 kHz",
         "seconds": sec,
         "rtf": duration / sec,
+        "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
+
+
+def case_recipe(duration: float) -> dict:
+    """The product's default recipe (``ProcessingSettings()``): sleeper order + 2 harmonics
+    (3 m resolution) and 11 wheel orders (0.1 orders), solved jointly, one channel."""
+    from app.analysis.recipe import order_recipe
+    from app.analysis.settings import ProcessingSettings
+
+    y, v, _, amp = railway_case(duration)
+    recipe = order_recipe(D_W, 0.6, ProcessingSettings())
+    t0 = time.perf_counter()
+    res = recipe.solve(y, FS, v)
+    grid = np.arange(0, y.size, 24)
+    env = res.envelope_at(grid)
+    solve_s = time.perf_counter() - t0
+    edge = int(2 * FS)
+    g = (grid >= edge) & (grid < y.size - edge)
+    a_true = amp[0, grid]
+    sleeper_err = float(np.sqrt(np.mean((np.abs(env[0, g]) - a_true[g]) ** 2) / np.mean(a_true[g] ** 2)))
+    chunk = res.info["chunks"][0]
+    return {
+        "case": f"recipe, {len(recipe.labels)} orders (default settings), {duration:g} s @ 24 kHz",
+        "seconds": solve_s,
+        "rtf": duration / solve_s,
+        "sleeper_rms_err": sleeper_err,
+        "decimation": chunk["decimation"],
+        "refinement_iterations": chunk["refinement_iterations"],
         "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
@@ -157,7 +187,7 @@ def case_memory(duration: float) -> dict:
     }
 
 
-CASES = {"engine": case_engine, "sparse": case_sparse, "memory": case_memory}
+CASES = {"engine": case_engine, "recipe": case_recipe, "sparse": case_sparse, "memory": case_memory}
 
 
 def run_isolated(name: str, duration: float) -> dict:
@@ -178,7 +208,8 @@ def main() -> None:
     if args.case:
         print(json.dumps(CASES[args.case](args.duration)))
         return
-    rows = [run_isolated("engine", args.duration), run_isolated("sparse", args.sparse_duration)]
+    rows = [run_isolated("engine", args.duration), run_isolated("sparse", args.sparse_duration),
+            run_isolated("recipe", args.duration)]
     if args.memory:
         rows.append(run_isolated("memory", 1800.0))
     eng, sps = rows[0], rows[1]

@@ -1,9 +1,20 @@
 #!/usr/bin/env bash
-# Create or refresh .venv with trackvkf and its dev dependencies.
-# Idempotent: re-installs only when pyproject.toml changed or the package is missing.
-# Set PYTHON=/path/to/python3.11 to choose the interpreter.
+# Create or refresh .venv with trackvkf.
+#   bash scripts/setup.sh         the runtime only (pip install -e .): what the demo and the service need
+#   bash scripts/setup.sh --dev   also the test and lint tools (pip install -e '.[dev]')
+# Idempotent: re-installs only when pyproject.toml changed, the package is missing, or
+# --dev is asked of a runtime-only environment. Set PYTHON=/path/to/python3.11 to choose
+# the interpreter.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+want_kind=runtime
+for arg in "$@"; do
+  case "$arg" in
+    --dev) want_kind=dev ;;
+    *) echo "usage: bash scripts/setup.sh [--dev]" >&2; exit 2 ;;
+  esac
+done
 
 py="${PYTHON:-}"
 if [[ -z "$py" ]]; then
@@ -25,17 +36,29 @@ if [[ ! -x .venv/bin/python ]]; then
   "$py" -m venv .venv
 fi
 
+# the stamp holds the hash of pyproject.toml and what was installed: "<sha256> runtime|dev"
 stamp=.venv/.trackvkf-install-stamp
-want="$(.venv/bin/python -c 'import hashlib; print(hashlib.sha256(open("pyproject.toml", "rb").read()).hexdigest())')"
-have="$(cat "$stamp" 2>/dev/null || true)"
-if [[ "$have" != "$want" ]] \
-  || ! .venv/bin/python -c 'import importlib.metadata as m; m.version("trackvkf")' >/dev/null 2>&1; then
-  echo "setup: installing trackvkf and its dependencies into .venv ..."
-  if ! .venv/bin/python -m pip install --disable-pip-version-check -e '.[dev]' \
+hash="$(.venv/bin/python -c 'import hashlib; print(hashlib.sha256(open("pyproject.toml", "rb").read()).hexdigest())')"
+have_hash="" have_kind=""
+if [[ -f "$stamp" ]]; then read -r have_hash have_kind <"$stamp" || true; fi
+if [[ -n "$have_hash" && -z "$have_kind" ]]; then
+  have_kind=dev  # stamps written before the split held the hash alone (a dev install)
+fi
+up_to_date=false
+if [[ "$have_hash" == "$hash" ]] && { [[ "$have_kind" == dev ]] || [[ "$want_kind" == runtime ]]; } \
+  && .venv/bin/python -c 'import importlib.metadata as m; m.version("trackvkf")' >/dev/null 2>&1; then
+  up_to_date=true
+fi
+if [[ "$up_to_date" != true ]]; then
+  # an environment that had the dev tools keeps them (a refresh installs them again)
+  if [[ "$have_kind" == dev ]]; then want_kind=dev; fi
+  if [[ "$want_kind" == dev ]]; then target='.[dev]'; else target='.'; fi
+  echo "setup: installing trackvkf ($want_kind: pip install -e '$target') into .venv ..."
+  if ! .venv/bin/python -m pip install --disable-pip-version-check -e "$target" \
     >.venv/pip-install.log 2>&1; then
     tail -n 40 .venv/pip-install.log >&2
     echo "error: pip install failed (full log: .venv/pip-install.log)" >&2
     exit 1
   fi
-  echo "$want" >"$stamp"
+  echo "$hash $want_kind" >"$stamp"
 fi

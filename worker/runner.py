@@ -45,6 +45,7 @@ from worker.chunkstore import ChunkStore
 from worker.steps import (
     JobRecord,
     WorkerRuntime,
+    discard_job_files,
     fail_job,
     job_meta,
     load_job,
@@ -206,7 +207,16 @@ class LocalWorker:
                     break
                 self.runtime.stopping.wait(self.settings.worker_poll_interval_s)
                 continue
-            outcome = self.process(job_id)
+            try:
+                outcome = self.process(job_id)
+            except Exception:  # noqa: BLE001 - e.g. the database full or away: the worker lives on
+                # the job could not even be marked failed; it is claimed again once its heartbeat is stale
+                log.exception("job %s: cannot record its outcome; retrying later", job_id)
+                processed += 1
+                self.runtime.stopping.wait(self.settings.worker_poll_interval_s)
+                if once:
+                    break
+                continue
             log.info("job %s %s", outcome.job_id, outcome.status)
             processed += 1
             if once:
@@ -268,12 +278,13 @@ class LocalWorker:
             with rt.chunks.local_copies(run_id, job_id, [c.index for c in chunks]) as paths:
                 results = assemble(run_path, settings, paths)
             meta = job_meta(settings, len(chunks), worker_id=self.worker_id, run_sha256=record.run.sha256,
-                            compute_s=time.perf_counter() - t0)
+                            warnings=results.meta.get("warnings", ()), compute_s=time.perf_counter() - t0)
             stored = queue.complete_job(
                 self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id,
                 condition=rt.condition,
             )
             if stored:
+                discard_job_files(rt, run_id)  # its chunk files, and those of the jobs it supersedes
                 return JobOutcome(job_id, JobStatus.DONE)
             lease.beat()
             if lease.cancel_requested and not lease.lost:
@@ -296,6 +307,7 @@ class LocalWorker:
                 except Exception:  # noqa: BLE001
                     log.exception("cannot mark chunk %s failed", index)
             fail_job(self.db, job_id, exc, worker_id=self.worker_id)
+            discard_job_files(rt, run_id)
             return JobOutcome(job_id, JobStatus.FAILED)
         finally:
             lease.stop()
@@ -402,6 +414,7 @@ class LocalWorker:
             queue.finish_job(
                 self.db, job_id, JobStatus.CANCELLED, "cancelled by request", worker_id=self.worker_id
             )
+            discard_job_files(self.runtime, run_id)
             return JobOutcome(job_id, JobStatus.CANCELLED)
         queue.release_job(self.db, job_id, self.worker_id)
         return JobOutcome(job_id, "requeued")

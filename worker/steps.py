@@ -12,6 +12,10 @@ take a job through the same steps, written once here:
 * :func:`mark_chunk_done`: record a chunk whose result is stored;
 * :func:`fail_job`: a job failed, with its error text;
 * :func:`remove_files_if_deleted`: the files a late step wrote for a deleted run;
+* :func:`discard_job_files`: the chunk and wheel files of a run's jobs that are
+  done, failed or cancelled (a job's files are kept only while it is queued or
+  running: the published rows are in SQL, a failed or cancelled job is never
+  resumed), here and in the shared store; called at every such end;
 * :func:`job_meta`: the provenance stored with the results (pipeline and
   worker metadata, ``meta["worker"]``).
 
@@ -25,12 +29,14 @@ from __future__ import annotations
 import logging
 import threading
 import traceback
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from app.analysis.settings import ProcessingSettings
 from app.core.config import Settings
+from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
 from app.db.condition_writer import ConditionConfig
@@ -48,6 +54,8 @@ __all__ = [
     "mark_chunk_done",
     "fail_job",
     "remove_files_if_deleted",
+    "discard_job_files",
+    "finalize_cancels",
     "job_meta",
 ]
 
@@ -123,7 +131,7 @@ class JobRecord:
     @property
     def settings(self) -> ProcessingSettings:
         """The job's processing settings (ValueError if they are invalid; job not lost)."""
-        return ProcessingSettings.from_dict(self.job.settings)
+        return ProcessingSettings.from_stored(self.job.settings)
 
     @property
     def wheels(self) -> list[str]:
@@ -207,6 +215,8 @@ def fail_job(db: Database, job_id: int, exc: BaseException, *, worker_id: str | 
     """
     log.error("job %s failed:\n%s", job_id, "".join(traceback.format_exception(exc)))
     error = f"{type(exc).__name__}: {exc}"
+    if is_disk_full(exc):
+        error = f"disk full: the results could not be written ({error}); free space and reprocess"
     return queue.finish_job(db, job_id, JobStatus.FAILED, error[:_MAX_ERROR_CHARS], worker_id=worker_id)
 
 
@@ -228,6 +238,57 @@ def remove_files_if_deleted(rt: WorkerRuntime, run_id: int) -> bool:
     return True
 
 
+def discard_job_files(rt: WorkerRuntime, run_id: int) -> list[int]:
+    """Remove the files of run ``run_id``'s jobs that are no longer queued or running.
+
+    Called when a job of the run is published, fails or is cancelled: its own
+    files go, and so do those of older jobs it supersedes or that ended
+    without a worker (a queued job cancelled through the API). Nothing that
+    a queued or running job may still need is touched (a job put back in the
+    queue by a worker's shutdown resumes from its chunk files). A failure to
+    remove is logged, never raised: the job's outcome is recorded already.
+
+    Returns
+    -------
+    list of int
+        The jobs whose files were removed.
+    """
+    try:
+        ids = rt.store.job_ids_with_files(run_id)
+        if not ids:
+            return []
+        with rt.db.read() as session:
+            active = {
+                job_id for job_id in ids
+                if (job := crud.get_job(session, job_id)) is not None
+                and job.run_id == run_id
+                and job.status in (JobStatus.QUEUED, JobStatus.RUNNING)
+            }
+        gone = [job_id for job_id in ids if job_id not in active]
+        for job_id in gone:
+            rt.store.remove_job_files(run_id, job_id)
+    except Exception:  # noqa: BLE001 - clean-up only: retried at the run's next job end
+        log.exception("cannot remove the finished job files of run %s", run_id)
+        return []
+    if gone:
+        log.info("run %s: removed the files of finished job(s) %s", run_id, gone)
+    return gone
+
+
+def finalize_cancels(rt: WorkerRuntime) -> int:
+    """Mark the fan-out jobs with a cancel request cancelled and remove their files.
+
+    Returns
+    -------
+    int
+        Number of jobs cancelled now.
+    """
+    cancelled = queue.finalize_cancel_requests(rt.db)
+    for run_id in sorted(set(cancelled.values())):
+        discard_job_files(rt, run_id)
+    return len(cancelled)
+
+
 def job_meta(
     settings: ProcessingSettings,
     n_chunks: int,
@@ -235,6 +296,7 @@ def job_meta(
     worker_id: str | None,
     run_sha256: str,
     mode: str | None = None,
+    warnings: Sequence[str] = (),
     **seconds: float,
 ) -> dict[str, Any]:
     """Provenance stored with a job's results.
@@ -249,6 +311,8 @@ def job_meta(
         Hash of the run file the results come from.
     mode : str, optional
         ``"procrastinate"`` for the fan-out mode (the local mode says none).
+    warnings : sequence of str
+        The results' warnings (:func:`app.pipeline.run_warnings`), shown with the job.
     **seconds : float
         Timings, s (``compute_s``; ``assemble_s``, ``store_s``), rounded to ms.
 
@@ -263,4 +327,4 @@ def job_meta(
     worker["n_chunks"] = n_chunks
     worker.update({name: round(value, 3) for name, value in seconds.items()})
     worker["run_sha256"] = run_sha256
-    return {**results_meta(settings, n_chunks), "worker": worker}
+    return {**results_meta(settings, n_chunks, warnings), "worker": worker}

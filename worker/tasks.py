@@ -65,8 +65,6 @@ import json
 import logging
 import os
 import signal
-import subprocess
-import sys
 import time
 from typing import Any
 
@@ -80,13 +78,15 @@ from app.core.config import Settings, get_settings
 from app.core.jsonable import jsonable
 from app.db import crud, queue
 from app.db.models import ChunkStatus
-from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel
+from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel, run_warnings
 from app.pipeline import process_chunk as compute_chunk
 from worker.background import start_background
 from worker.health import alive_file
 from worker.steps import (
     WorkerRuntime,
+    discard_job_files,
     fail_job,
+    finalize_cancels,
     job_meta,
     load_job,
     mark_chunk_done,
@@ -217,7 +217,7 @@ def _defer(app: procrastinate.App, name: str, lock: str | None, priority: int, *
 def dispatch_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
     """Fan queued jobs out to :func:`plan_job`; finish cancel requests."""
     rt = runtime_of(context)
-    queue.finalize_cancel_requests(rt.db)
+    finalize_cancels(rt)
     n = 0
     for job_id in queue.queued_job_ids(rt.db):
         n += _defer(context.app, TASK_PLAN, f"plan:{job_id}", _PRIO_HIGH, job_id=job_id)
@@ -248,6 +248,7 @@ def plan_job(context: procrastinate.JobContext, job_id: int) -> str:
     owner = f"{queue.FANOUT_OWNER_PREFIX}{context.job.id}"
     if not queue.claim_for_fanout(rt.db, job_id, owner):
         return "skipped"
+    record = None
     try:
         record = load_job(rt.db, job_id)
         if record.lost:
@@ -260,6 +261,8 @@ def plan_job(context: procrastinate.JobContext, job_id: int) -> str:
         if _is_transient(exc):
             raise
         fail_job(rt.db, job_id, exc, worker_id=None)
+        if record is not None and not record.lost:
+            discard_job_files(rt, record.run.id)
         return "failed"
     pending = 0
     for chunk in chunks:
@@ -284,7 +287,8 @@ def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) ->
             remove_files_if_deleted(rt, record.job.run_id)
         return "lost"
     if (why := record.not_running()) is not None:
-        queue.finalize_cancel_requests(rt.db)
+        finalize_cancels(rt)
+        discard_job_files(rt, record.run.id)
         return why
     run_id = record.run.id
     t0 = time.perf_counter()
@@ -306,16 +310,19 @@ def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) ->
         except PipelineCancelled:
             if rt.stopping.is_set():
                 raise WorkerShutdown(f"chunk {index} of job {job_id} interrupted by shutdown") from None
-            queue.finalize_cancel_requests(rt.db)
+            finalize_cancels(rt)
+            discard_job_files(rt, run_id)
             return "cancelled"
         except Exception as exc:
             if _is_transient(exc):
                 raise
             queue.mark_chunk(rt.db, job_id, index, ChunkStatus.FAILED, worker_id=None)
             fail_job(rt.db, job_id, exc, worker_id=None)
+            discard_job_files(rt, run_id)
             return "failed"
     compute_s = time.perf_counter() - t0
     if mark_chunk_done(rt, record, index, worker_id=None) is None:
+        discard_job_files(rt, run_id)  # the job ended while this chunk was computed: its file goes too
         return "job not running"
     done, total = queue.chunk_progress(rt.db, job_id)
     log.info("job %s chunk %s done in %.2f s (%d/%d)", job_id, index, compute_s, done, total)
@@ -370,6 +377,7 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
             if _is_transient(exc):
                 raise
             fail_job(rt.db, job_id, exc, worker_id=None)
+            discard_job_files(rt, run_id)
             return "failed"
         profiles, result = done if done is not None else (None, None)  # None: no data of the wheel
         t1 = time.perf_counter()
@@ -408,6 +416,7 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     n_chunks = len(queue.job_chunk_specs(rt.db, job_id))
     meta = job_meta(
         record.settings, n_chunks, worker_id=record.job.worker_id, run_sha256=record.run.sha256, mode=_MODE,
+        warnings=run_warnings([r["result"] for r in stored_wheels if r["result"] is not None]),
         assemble_s=sum(r["assemble_s"] for r in stored_wheels), store_s=sum(r["store_s"] for r in stored_wheels),
     )
     t0 = time.perf_counter()
@@ -415,6 +424,7 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None, condition=rt.condition)
     log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
              time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
+    discard_job_files(rt, run_id)  # its chunk and wheel files, and those of the jobs it supersedes
     return "published" if stored else "not running any more"
 
 
@@ -619,22 +629,16 @@ def run_workers(settings: Settings | None = None, processes: int = 1) -> int:
     """Run ``processes`` worker processes (0 = one per core) until SIGTERM/SIGINT.
 
     With one process the worker runs in this process; otherwise this process
-    starts ``python -m worker`` children, forwards SIGTERM/SIGINT to them and
-    waits for them.
+    supervises ``python -m worker`` children (:class:`worker.supervisor.Supervisor`):
+    a child that dies is replaced after a back-off (1 s, doubling up to 60 s
+    while children keep dying young), SIGTERM/SIGINT are forwarded to the
+    children and waited for.
     """
     if processes < 0:
         raise ValueError(f"processes must be >= 0, got {processes}")
     n = processes or len(os.sched_getaffinity(0)) or 1
     if n == 1:
         return run_worker_process(settings)
-    children = [subprocess.Popen([sys.executable, "-m", "worker", "--processes", "1"]) for _ in range(n)]
+    from worker.supervisor import Supervisor, worker_command
 
-    def forward(signum: int, frame: object) -> None:  # noqa: ARG001
-        for child in children:
-            if child.poll() is None:
-                child.send_signal(signum)
-
-    signal.signal(signal.SIGTERM, forward)
-    signal.signal(signal.SIGINT, forward)
-    codes = [child.wait() for child in children]
-    return max(codes, default=0)
+    return Supervisor(worker_command(), n).run()

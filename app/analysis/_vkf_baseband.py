@@ -22,7 +22,7 @@ import numpy as np
 from scipy.interpolate import make_interp_spline
 from scipy.signal import firwin, kaiserord, upfirdn
 
-__all__ = ["BasebandPlan", "plan_baseband", "to_baseband", "EnvelopeSpline"]
+__all__ = ["BasebandPlan", "plan_baseband", "to_baseband", "EnvelopeSpline", "filter_gain"]
 
 #: stop-band attenuation of the anti-alias filter, dB (pass-band ripple 1e-5)
 _ATTEN_DB = 100.0
@@ -121,6 +121,28 @@ def plan_baseband(
     return BasebandPlan(
         factor=int(np.prod(factors)), center=(f_lo + f_hi) / 2.0, half_width=half_width, stages=tuple(stages)
     )
+
+
+def filter_gain(plan: BasebandPlan, freq: np.ndarray, fs: float) -> np.ndarray:
+    """Gain of the cascaded anti-alias FIR at input frequencies ``freq`` (Hz), delay removed.
+
+    The taps are symmetric, so the gain is real and even in frequency:
+    ``G(f) = Π_i [h_i(c_i) + 2 Σ_{j≥1} h_i(c_i + j) cos(2π f j / rate_i)]``.
+    The mirror image of an order at ``f`` reaches the baseband samples at
+    ``−(f + f_c)`` scaled by ``G(f + f_c)``.
+    """
+    f = np.asarray(freq, dtype=np.float64)
+    gain = np.ones_like(f)
+    rate = fs
+    for factor, taps in plan.stages:
+        c = (len(taps) - 1) // 2
+        grid = np.linspace(0.0, rate / 2.0, 16 * len(taps) + 1)
+        lags = np.arange(1, c + 1)
+        resp = taps[c] + 2.0 * np.cos(2.0 * np.pi * np.outer(grid, lags) / rate) @ taps[c + 1 :]
+        folded = np.abs(np.mod(f + rate / 2.0, rate) - rate / 2.0)  # periodic in rate, even
+        gain *= np.interp(folded, grid, resp)
+        rate /= factor
+    return gain
 
 
 def mixing_phase(plan: BasebandPlan, index: np.ndarray, fs: float) -> np.ndarray:

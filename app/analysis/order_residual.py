@@ -5,9 +5,10 @@ envelopes are known on a coarse output grid (every few cm of travel); the
 waveforms are needed at every sample. This module evaluates them in one
 compiled pass (numba), without full-rate temporaries per order.
 
-The orders must be *railway orders*: order 0 has the phase ``m0·ψ`` (the
-sleeper passage) and orders ``l = 1 … L`` the phases ``l·m1·ψ`` (wheel
-orders), so that the wheel-order sum is a polynomial in one phasor
+The orders must be *railway orders*: track orders with the phases ``h·m0·ψ``
+(the sleeper passage ``h = 1`` and its harmonics ``h = 2, 3``) and wheel
+orders with the phases ``l·m1·ψ`` (``l = 1 … L``, any subset), so that each
+group's sum is a polynomial in one phasor, ``exp(i·m0·ψ)`` or
 ``exp(i·m1·ψ)`` (Horner's scheme).
 """
 
@@ -23,26 +24,39 @@ __all__ = ["railway_residual"]
 def _residual_kernel(
     y: np.ndarray,
     psi: np.ndarray,
-    env: np.ndarray,
-    slope: np.ndarray,
+    track: np.ndarray,
+    track_slope: np.ndarray,
+    wheel: np.ndarray,
+    wheel_slope: np.ndarray,
     step: int,
     m0: float,
     m1: float,
     out: np.ndarray,
 ) -> None:  # pragma: no cover - compiled; covered through railway_residual
     n = y.shape[0]
-    s = env.shape[1]
+    h_max = track.shape[1] - 1
+    l_max = wheel.shape[1] - 1
     for k in range(n):
         j = k // step
         f = float(k - j * step)
         th = psi[k]
         e1 = complex(np.cos(m1 * th), np.sin(m1 * th))
-        acc = env[j, s - 1] + f * slope[j, s - 1]
-        for order in range(s - 2, 0, -1):
-            acc = acc * e1 + (env[j, order] + f * slope[j, order])
-        es = complex(np.cos(m0 * th), np.sin(m0 * th))
-        sleeper = (env[j, 0] + f * slope[j, 0]) * es
-        out[k] = y[k] - (acc * e1 + sleeper).real
+        acc = wheel[j, l_max] + f * wheel_slope[j, l_max]
+        for order in range(l_max - 1, 0, -1):
+            acc = acc * e1 + (wheel[j, order] + f * wheel_slope[j, order])
+        e0 = complex(np.cos(m0 * th), np.sin(m0 * th))
+        tr = track[j, h_max] + f * track_slope[j, h_max]
+        for order in range(h_max - 1, 0, -1):
+            tr = tr * e0 + (track[j, order] + f * track_slope[j, order])
+        out[k] = y[k] - (acc * e1 + tr * e0).real
+
+
+def _dense(env: np.ndarray, powers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Grid values ``(M, max power + 1)`` by power (zero where absent) and their slopes per sample."""
+    dense = np.zeros((env.shape[1] + 1, int(powers.max()) + 1), dtype=np.complex128)
+    dense[:-1, powers] = env.T
+    dense[-1, powers] = env[:, -1]  # the last grid value held
+    return np.ascontiguousarray(dense[:-1]), np.ascontiguousarray(np.diff(dense, axis=0))
 
 
 def railway_residual(
@@ -51,6 +65,8 @@ def railway_residual(
     envelope: np.ndarray,
     step: int,
     multipliers: np.ndarray,
+    powers: np.ndarray | None = None,
+    n_track: int = 1,
 ) -> np.ndarray:
     """``y − Σ_n Re(a_n·exp(i·φ_n))`` with envelopes linear between grid points.
 
@@ -68,9 +84,14 @@ def railway_residual(
     step : int
         Grid spacing, samples (≥ 1).
     multipliers : ndarray, shape (s,)
-        Railway order multipliers: ``[m0, m1, 2·m1, …, (s−1)·m1]`` (sleeper
-        order first, then the wheel orders), Hz per (m/s) or any unit that
-        matches ``psi``.
+        Railway order multipliers, Hz per (m/s) or any unit that matches
+        ``psi``: the ``n_track`` track orders ``powers[n]·m0`` first, then the
+        wheel orders ``powers[n]·m1``.
+    powers : ndarray of int, shape (s,), optional
+        Harmonic number of every order within its group (≥ 1). Default: one
+        track order and wheel orders 1, 2, … (``[m0, m1, 2·m1, …]``).
+    n_track : int
+        Number of track orders (the first rows), ≥ 1.
 
     Returns
     -------
@@ -99,14 +120,22 @@ def railway_residual(
     step = int(step)
     if env.shape[1] < -(-y.size // step):
         raise ValueError(f"envelope grid of {env.shape[1]} points does not cover {y.size} samples at step {step}")
-    wheel = mult[1:]
-    if not np.allclose(wheel, mult[1] * np.arange(1, wheel.size + 1), rtol=1e-12, atol=0.0):
-        raise ValueError("multipliers must be [m0, m1, 2·m1, …] (railway orders)")
-    # grid values transposed (M + 1, s) for locality, the last one held
-    grid = np.concatenate([env, env[:, -1:]], axis=1).T
-    slope = np.ascontiguousarray(np.diff(grid, axis=0) / step)
-    grid = np.ascontiguousarray(grid[:-1])
+    if powers is None:
+        powers = np.concatenate([[1], np.arange(1, mult.size)])
+    powers = np.asarray(powers)
+    if powers.shape != mult.shape or not 1 <= int(n_track) < mult.size or np.any(powers < 1):
+        raise ValueError(f"powers must hold one integer >= 1 per multiplier and 1 <= n_track < {mult.size}")
+    n_track = int(n_track)
+    m0, m1 = mult[0] / powers[0], mult[n_track] / powers[n_track]
+    base = np.where(np.arange(mult.size) < n_track, m0, m1)
+    if not np.allclose(mult, powers * base, rtol=1e-12, atol=0.0) or len(set(powers[:n_track])) < n_track \
+            or len(set(powers[n_track:])) < mult.size - n_track:
+        raise ValueError("multipliers must be [h·m0 …, l·m1 …] (railway orders)")
+    track, track_slope = _dense(env[:n_track], powers[:n_track])
+    wheel, wheel_slope = _dense(env[n_track:], powers[n_track:])
+    track_slope /= step
+    wheel_slope /= step
     out = np.empty_like(y)
     if y.size:
-        _residual_kernel(y, psi, grid, slope, step, float(mult[0]), float(mult[1]), out)
+        _residual_kernel(y, psi, track, track_slope, wheel, wheel_slope, step, float(m0), float(m1), out)
     return out

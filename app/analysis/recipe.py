@@ -16,11 +16,16 @@ from the wheel diameter d_w, the sleeper spacing d_s and the job's
 (row ``n`` of the VKF's order stack), as arrays:
 
 * ``labels[n]``: ``"sleeper"`` (row 0, the sleeper passage ``f_s = v/d_s``),
-  then ``"1"`` … ``"n"`` (wheel out-of-roundness orders ``f_l = l·v/(π d_w)``);
+  ``"sleeper_2"``, ``"sleeper_3"`` (its harmonics ``2 f_s``, ``3 f_s``, up to
+  ``settings.sleeper_harmonics``), then ``"1"`` … ``"n"`` (wheel
+  out-of-roundness orders ``f_l = l·v/(π d_w)``); the sleeper order and its
+  harmonics are the *track orders*;
 * ``multipliers[n]``: frequency per unit speed, Hz per m/s;
 * ``bandwidth_per_speed[n]``: full -3 dB bandwidth per unit speed, Hz per
-  m/s (today ``bandwidth_orders / (π d_w)`` for every order: constant in
-  wheel orders);
+  m/s (:func:`order_bandwidths`): the wheel orders ``bandwidth_orders / (π d_w)``
+  (narrow: out-of-roundness is stationary over a run), the track orders
+  ``c_q / track_resolution_m`` (wide: a set spatial resolution, see
+  :func:`track_bandwidth_per_speed`), all solved in one coupled VKF;
 * below :attr:`OrderRecipe.floor_speed` the bandwidths keep their value at
   that speed (a slow or standing train still gives a finite filter), so the
   bandwidth floor of row ``n`` is ``bandwidth_per_speed[n] × floor_speed``.
@@ -31,6 +36,13 @@ sample ``k`` order ``n`` has the phase ``multipliers[n] × psi[k]`` with
 started with ``phase0 = 2π multipliers s0`` (:meth:`OrderRecipe.phase0`). The
 pipeline refers phases to the run start (``s0`` = position of the chunk's
 first sample), the spectrogram to the window's first sample (``s0 = 0``).
+
+Collisions: an order closer to another than the narrower one's bandwidth
+cannot be told apart from it by the coupled solve. At d_w = 0.86 m the sleeper
+order sits at 4.50 wheel orders and ``2 f_s`` at wheel order 9.01. A colliding
+harmonic is dropped for that wheel; where the fundamental collides, the wheel
+order is dropped instead (:func:`order_collisions`). The recipe keeps what it
+dropped and why (:attr:`OrderRecipe.notes`), for the job's warnings.
 
 Overlap: a stretch solved on its own agrees with a longer solve inside it
 when it is padded by the impulse-response length of its narrowest filter
@@ -47,7 +59,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from app.analysis.orders import OrderTrack, railway_multipliers
-from app.analysis.settings import ProcessingSettings
+from app.analysis.settings import MAX_SLEEPER_HARMONIC, ProcessingSettings
 from app.analysis.vkf import vkf, vkf_overlap
 
 if TYPE_CHECKING:
@@ -55,6 +67,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "SLEEPER",
+    "STEP_WIDTH_FACTOR",
+    "harmonic_label",
+    "track_bandwidth_per_speed",
+    "order_collisions",
     "CHUNK_JOIN_TOL",
     "OrderRecipe",
     "WheelGeometry",
@@ -67,6 +83,12 @@ __all__ = [
 
 #: label of the sleeper-passage order (row 0 of the order stack)
 SLEEPER = "sleeper"
+#: 10–90 % width of the VKF's amplitude step response × its -3 dB bandwidth, per
+#: filter order q: the continuous zero-phase low-pass H = 1/(1 + (√2−1)(2Δf/B)^(2q))
+#: (-3 dB, |H| = 1/√2, at Δf = ±B/2); q = 1 in closed form 2 ln 5 / π · (√2−1)^(1/2),
+#: q = 2 and 3 by integration; measured through the VKF in tests/pipeline/test_recipe.py
+STEP_WIDTH_FACTOR: dict[int, float] = {1: 2.0 * math.log(5.0) / math.pi * math.sqrt(math.sqrt(2.0) - 1.0),
+                                       2: 0.7205, 3: 0.7672}
 #: neglected impulse-response tail at chunk seams: chunked profiles agree with an
 #: unchunked solve to ~1e-5 of the signal level (far below the indicators' noise),
 #: with 40 % less overlap than the engine's own 1e-8
@@ -110,6 +132,8 @@ class OrderRecipe:
         Order q of the VKF's structural equation.
     min_speed : float
         Samples slower than this do not count for indicators, m/s.
+    notes : tuple of str
+        What the recipe dropped and why (colliding orders), in plain words.
     """
 
     wheel_diameter: float
@@ -120,6 +144,7 @@ class OrderRecipe:
     floor_speed: float
     filter_order: int
     min_speed: float
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         s = len(self.labels)
@@ -133,6 +158,9 @@ class OrderRecipe:
             object.__setattr__(self, name, a)
         if self.labels.count(SLEEPER) != 1:
             raise ValueError(f"labels must hold {SLEEPER!r} once, got {self.labels!r}")
+        n_track = sum(not x.isdigit() for x in self.labels)
+        if any(x.isdigit() for x in self.labels[:n_track]):
+            raise ValueError(f"labels must list the track orders first, got {self.labels!r}")
         if not (math.isfinite(self.floor_speed) and self.floor_speed > 0):
             raise ValueError(f"floor_speed must be > 0 m/s, got {self.floor_speed!r}")
 
@@ -146,6 +174,22 @@ class OrderRecipe:
     def wheel_orders(self) -> np.ndarray:
         """Numbers ``l`` of the tracked wheel orders (1 … n), int."""
         return np.array([int(x) for x in self.labels if x.isdigit()], dtype=np.int64)
+
+    @property
+    def harmonics(self) -> dict[int, int]:
+        """Row of every extracted sleeper-passage harmonic: ``{1: row, 2: row, …}``."""
+        return {h: self.labels.index(harmonic_label(h))
+                for h in range(1, MAX_SLEEPER_HARMONIC + 1) if harmonic_label(h) in self.labels}
+
+    @property
+    def track_rows(self) -> np.ndarray:
+        """Rows of the track orders (the sleeper passage and its harmonics; the first rows), int."""
+        return np.array(list(self.harmonics.values()), dtype=np.int64)
+
+    @property
+    def powers(self) -> np.ndarray:
+        """Harmonic number of every row within its group: ``h`` of a track order, ``l`` of a wheel order."""
+        return np.array([1 if x == SLEEPER else int(x.rsplit("_", 1)[-1]) for x in self.labels], dtype=np.int64)
 
     @property
     def wheel_rows(self) -> np.ndarray:
@@ -220,6 +264,36 @@ class OrderRecipe:
         return np.multiply.outer(self.multipliers, psi)
 
 
+def harmonic_label(h: int) -> str:
+    """Label of the sleeper-passage harmonic ``h`` (1: :data:`SLEEPER`, 2: ``"sleeper_2"``, …)."""
+    return SLEEPER if int(h) == 1 else f"{SLEEPER}_{int(h)}"
+
+
+def track_bandwidth_per_speed(resolution_m: float, filter_order: int) -> float:
+    """-3 dB bandwidth per unit speed that gives a track order a spatial resolution, Hz per m/s.
+
+    For a stationary order the VKF is a zero-phase low-pass of the complex
+    envelope, ``H(Δf) = 1 / (1 + (√2−1)(2Δf/B)^(2q))`` (B the full -3 dB
+    bandwidth, ``|H(±B/2)| = 1/√2``; exact while B is far below the solve rate). Its step response rises from
+    10 % to 90 % in ``Δt = c_q / B`` (:data:`STEP_WIDTH_FACTOR`), i.e. over
+    ``Δx = v Δt = c_q v / B`` of track. A resolution ``Δx`` therefore needs
+    ``B = c_q v / Δx``: a bandwidth proportional to speed, ``c_q / Δx`` Hz
+    per m/s.
+
+    Parameters
+    ----------
+    resolution_m : float
+        10–90 % width of a step in the amplitude profile, m (> 0).
+    filter_order : int
+        q, 1–3.
+    """
+    if not (math.isfinite(resolution_m) and resolution_m > 0):
+        raise ValueError(f"resolution_m must be > 0 m, got {resolution_m!r}")
+    if filter_order not in STEP_WIDTH_FACTOR:
+        raise ValueError(f"filter_order must be 1, 2 or 3, got {filter_order!r}")
+    return STEP_WIDTH_FACTOR[filter_order] / float(resolution_m)
+
+
 def order_bandwidths(
     labels: Sequence[str], wheel_diameter: float, settings: ProcessingSettings
 ) -> tuple[np.ndarray, float]:
@@ -232,20 +306,80 @@ def order_bandwidths(
     wheel_diameter : float
         d_w, m (> 0).
     settings : ProcessingSettings
-        ``bandwidth_orders``, ``min_speed_kmh``.
+        ``bandwidth_orders``, ``track_resolution_m``, ``filter_order``,
+        ``min_speed_kmh``.
 
     Returns
     -------
     bandwidth_per_speed : ndarray, shape (len(labels),)
-        Full -3 dB bandwidth per unit speed of every order, Hz per m/s:
-        ``bandwidth_orders / (π d_w)`` (constant in wheel orders) for all.
+        Full -3 dB bandwidth per unit speed of every order, Hz per m/s: the
+        wheel orders ``bandwidth_orders / (π d_w)`` (constant in wheel
+        orders), the track orders :func:`track_bandwidth_per_speed` of
+        ``track_resolution_m`` (the wheel orders' when it is None).
     floor_speed : float
         Speed below which the bandwidths keep their value, m/s:
         ``max(min_speed_kmh, 3.6)`` km/h, so that a slow or standing train
         still gives a finite filter.
     """
-    per_speed = float(settings.bandwidth_orders) / (math.pi * float(wheel_diameter))
-    return np.full(len(labels), per_speed), max(float(settings.min_speed_kmh) / 3.6, 1.0)
+    wheel = float(settings.bandwidth_orders) / (math.pi * float(wheel_diameter))
+    track = wheel
+    if settings.track_resolution_m is not None:
+        track = track_bandwidth_per_speed(float(settings.track_resolution_m), int(settings.filter_order))
+    per_speed = np.array([wheel if x.isdigit() else track for x in labels], dtype=np.float64)
+    return per_speed, max(float(settings.min_speed_kmh) / 3.6, 1.0)
+
+
+def order_collisions(
+    labels: Sequence[str], multipliers: np.ndarray, bandwidth_per_speed: np.ndarray
+) -> tuple[set[str], list[str]]:
+    """Orders that collide with another, and which of them to drop.
+
+    Two orders collide when their frequencies lie closer than the narrower
+    one's full -3 dB bandwidth (both scale with speed, so this holds at every
+    speed or at none): the narrow filter then passes the other order's
+    content too, and the coupled solve cannot tell them apart. A colliding
+    sleeper harmonic is dropped; where the fundamental collides with a wheel
+    order, the wheel order is dropped (the fundamental is the indicator).
+
+    Parameters
+    ----------
+    labels : sequence of str
+        Order labels (:attr:`OrderRecipe.labels`).
+    multipliers, bandwidth_per_speed : ndarray, shape (s,)
+        Hz per m/s.
+
+    Returns
+    -------
+    dropped : set of str
+        Labels to drop.
+    notes : list of str
+        One sentence per collision, for the job's warnings.
+    """
+    dropped: set[str] = set()
+    notes: list[str] = []
+    track = [i for i, x in enumerate(labels) if not x.isdigit()]
+    wheel = [i for i, x in enumerate(labels) if x.isdigit()]
+    for i in track:
+        for j in wheel:
+            gap = abs(float(multipliers[i]) - float(multipliers[j]))
+            limit = min(float(bandwidth_per_speed[i]), float(bandwidth_per_speed[j]))
+            if gap >= limit or labels[i] in dropped:
+                continue
+            gap_orders = gap * int(labels[j]) / float(multipliers[j])  # one wheel order: multiplier / l
+            if labels[i] == SLEEPER:
+                dropped.add(labels[j])
+                notes.append(
+                    f"the sleeper-passage order f_s lies {gap_orders:.3f} wheel orders from wheel order {labels[j]} "
+                    f"(closer than the bandwidth): wheel order {labels[j]} is not extracted"
+                )
+            else:
+                h = labels[i].rsplit("_", 1)[1]
+                dropped.add(labels[i])
+                notes.append(
+                    f"the sleeper harmonic {h}·f_s lies {gap_orders:.3f} wheel orders from wheel order {labels[j]} "
+                    f"(closer than the bandwidth): {h}·f_s is not extracted and the sleeper energy leaves it out"
+                )
+    return dropped, notes
 
 
 def order_recipe(wheel_diameter: float, sleeper_spacing: float, settings: ProcessingSettings) -> OrderRecipe:
@@ -258,13 +392,15 @@ def order_recipe(wheel_diameter: float, sleeper_spacing: float, settings: Proces
     sleeper_spacing : float
         d_s, m (> 0).
     settings : ProcessingSettings
-        ``n_wheel_orders``, ``bandwidth_orders``, ``filter_order``, ``min_speed_kmh``.
+        ``n_wheel_orders``, ``sleeper_harmonics``, ``bandwidth_orders``,
+        ``track_resolution_m``, ``filter_order``, ``min_speed_kmh``.
 
     Returns
     -------
     OrderRecipe
-        Row 0 the sleeper passage, rows 1..n the wheel orders 1..n, the
-        bandwidths of :func:`order_bandwidths`.
+        The sleeper passage and its harmonics 2..``sleeper_harmonics``, then
+        the wheel orders 1..n, the bandwidths of :func:`order_bandwidths`,
+        less the orders :func:`order_collisions` drops (said in ``notes``).
 
     Raises
     ------
@@ -276,17 +412,23 @@ def order_recipe(wheel_diameter: float, sleeper_spacing: float, settings: Proces
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be > 0 m, got {value!r}")
     n = int(settings.n_wheel_orders)
-    labels = (SLEEPER, *[str(lvl) for lvl in range(1, n + 1)])
+    n_h = int(settings.sleeper_harmonics)
+    labels = (*[harmonic_label(h) for h in range(1, n_h + 1)], *[str(lvl) for lvl in range(1, n + 1)])
+    wheel_mult = railway_multipliers(d_w, d_s, n)[1:]
+    multipliers = np.concatenate([np.arange(1, n_h + 1) / d_s, wheel_mult])
     per_speed, floor_speed = order_bandwidths(labels, d_w, settings)
+    dropped, notes = order_collisions(labels, multipliers, per_speed)
+    keep = np.array([x not in dropped for x in labels])
     return OrderRecipe(
         wheel_diameter=d_w,
         sleeper_spacing=d_s,
-        labels=labels,
-        multipliers=railway_multipliers(d_w, d_s, n),
-        bandwidth_per_speed=per_speed,
+        labels=tuple(x for x in labels if x not in dropped),
+        multipliers=multipliers[keep],
+        bandwidth_per_speed=per_speed[keep],
         floor_speed=floor_speed,
         filter_order=int(settings.filter_order),
         min_speed=float(settings.min_speed_kmh) / 3.6,
+        notes=tuple(notes),
     )
 
 

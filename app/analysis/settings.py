@@ -5,15 +5,32 @@ worker, the ``process`` command and the API all read the orders, bandwidth and
 binning from it (the railway order recipe, :mod:`app.analysis.recipe`, turns
 them into the orders and bandwidths of a wheel), so every stored number can be
 traced back to the settings that produced it.
+
+Settings stored by older versions lack the keys added since; they must still
+mean what they meant then. :meth:`ProcessingSettings.from_stored` reads a
+stored dict and fills a missing key with its **legacy** value
+(:data:`LEGACY_VALUES`: track orders as narrow as the wheel orders, no sleeper
+harmonics, no static load removed), whereas :meth:`ProcessingSettings.from_dict`
+(a new request) fills it with today's default.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["ProcessingSettings"]
+__all__ = ["ProcessingSettings", "LEGACY_VALUES", "MAX_SLEEPER_HARMONIC"]
+
+#: highest sleeper-passage harmonic that can be extracted (2·f_s and 3·f_s)
+MAX_SLEEPER_HARMONIC = 3
+#: what a stored settings dict without these keys meant (before issue 15)
+LEGACY_VALUES: dict[str, Any] = {
+    "track_resolution_m": None,
+    "sleeper_harmonics": 1,
+    "force_mean_window_m": 0.0,
+}
 
 
 @dataclass(frozen=True)
@@ -26,12 +43,35 @@ class ProcessingSettings:
         Number of wheel out-of-roundness orders tracked (orders 1..n), 1–30.
         Default 11 (the paper).
     bandwidth_orders : float
-        Full -3 dB bandwidth of every order's filter, expressed in wheel
-        orders (multiples of the wheel rotation frequency ``v/(pi d_w)``), so
-        that the bandwidth in Hz is proportional to speed. Default 0.1: at
-        160 km/h (44.4 m/s) and d_w = 0.92 m this is 1.54 Hz; the sleeper
-        order lies 0.18 orders from wheel order 5, i.e. 1.8 bandwidths away.
-        Range 0.01–1.
+        Full -3 dB bandwidth of every **wheel** order's filter, expressed in
+        wheel orders (multiples of the wheel rotation frequency
+        ``v/(pi d_w)``), so that the bandwidth in Hz is proportional to speed.
+        Default 0.1: at 160 km/h (44.4 m/s) and d_w = 0.92 m this is 1.54 Hz;
+        the sleeper order lies 0.18 orders from wheel order 5, i.e. 1.8
+        bandwidths away. Range 0.01–1. Wheel out-of-roundness does not change
+        over a run, so a narrow band costs nothing and rejects the most.
+        With ``track_resolution_m = None`` the track orders use it too.
+    track_resolution_m : float or None
+        Spatial resolution of the **track** orders (the sleeper passage and
+        its harmonics): the 10–90 % width, m, over which a stiffness step
+        appears in their amplitude profiles. Their -3 dB bandwidth is
+        ``c_q v / track_resolution_m`` Hz (:func:`app.analysis.recipe.track_bandwidth_per_speed`;
+        ``c_q`` = 0.659, 0.721, 0.767 for q = 1, 2, 3). Range 0.5–100 m.
+        Default 3.0 (chosen by ``bench/bench_indicator.py``, BENCHMARKS.md).
+        None: the track orders share ``bandwidth_orders`` (the behaviour
+        before issue 15; about 21 m at 0.1 orders and 0.92 m wheels, q = 2).
+    sleeper_harmonics : int
+        Highest harmonic of the sleeper passage extracted: 1 (the fundamental
+        ``f_s = v/d_s`` only), 2 (also ``2 f_s``) or 3 (also ``3 f_s``).
+        Default 3.
+    force_mean_window_m : float
+        Length, m, of the moving mean (over travelled distance) subtracted from
+        the force channels before the VKF, removing the static wheel load; 0
+        keeps the load in (the behaviour before issue 15). A whole number of
+        sleeper bays of the nominal 0.6 m is best (the mean then holds no
+        sleeper-passage content). Range 0 or 1.2–200 m. Default 12.0 (20
+        bays; measured in tests/pipeline/test_indicator.py: 3 m leaves the force
+        amplitude 11–18 % off at the run ends, 12 m 1–2 %, 24 m 1–4 %).
     filter_order : int
         Order q of the difference operator of the VKF structural equation,
         1, 2 or 3. Default 2.
@@ -47,6 +87,9 @@ class ProcessingSettings:
 
     n_wheel_orders: int = 11
     bandwidth_orders: float = 0.1
+    track_resolution_m: float | None = 3.0
+    sleeper_harmonics: int = 3
+    force_mean_window_m: float = 12.0
     filter_order: int = 2
     bin_length_m: float = 0.25
     min_speed_kmh: float = 25.0
@@ -57,6 +100,18 @@ class ProcessingSettings:
             raise ValueError(f"n_wheel_orders must be an integer in 1..30, got {self.n_wheel_orders!r}")
         if not 0.01 <= float(self.bandwidth_orders) <= 1.0:
             raise ValueError(f"bandwidth_orders must be in [0.01, 1], got {self.bandwidth_orders!r}")
+        if self.track_resolution_m is not None and not 0.5 <= float(self.track_resolution_m) <= 100.0:
+            raise ValueError(
+                f"track_resolution_m must be in [0.5, 100] m (or null: as bandwidth_orders), "
+                f"got {self.track_resolution_m!r}"
+            )
+        if self.sleeper_harmonics not in range(1, MAX_SLEEPER_HARMONIC + 1):
+            raise ValueError(
+                f"sleeper_harmonics must be 1, 2 or {MAX_SLEEPER_HARMONIC}, got {self.sleeper_harmonics!r}"
+            )
+        w = float(self.force_mean_window_m)
+        if not (math.isfinite(w) and (w == 0.0 or 1.2 <= w <= 200.0)):
+            raise ValueError(f"force_mean_window_m must be 0 (off) or in [1.2, 200] m, got {self.force_mean_window_m!r}")
         if self.filter_order not in (1, 2, 3):
             raise ValueError(f"filter_order must be 1, 2 or 3, got {self.filter_order!r}")
         if not 0.05 <= float(self.bin_length_m) <= 10.0:
@@ -67,12 +122,12 @@ class ProcessingSettings:
             raise ValueError(f"chunk_seconds must be in [1, 3600] s, got {self.chunk_seconds!r}")
 
     def to_dict(self) -> dict[str, Any]:
-        """Return the settings as a JSON-serialisable dict."""
+        """Return the settings as a JSON-serialisable dict (every key, so it reads back the same)."""
         return dataclasses.asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any] | None) -> ProcessingSettings:
-        """Build settings from a dict; missing keys take their defaults.
+        """Build settings of a new request from a dict; missing keys take their defaults.
 
         Raises
         ------
@@ -85,3 +140,21 @@ class ProcessingSettings:
         if unknown:
             raise ValueError(f"unknown processing setting(s): {', '.join(sorted(unknown))}")
         return cls(**data)
+
+    @classmethod
+    def from_stored(cls, data: dict[str, Any] | None) -> ProcessingSettings:
+        """Read settings stored with a job; keys it lacks take their legacy values.
+
+        A job stored before a setting existed was processed without it:
+        :data:`LEGACY_VALUES` says what that was, so the settings read back
+        describe (and reproduce) what that job did.
+
+        Raises
+        ------
+        ValueError
+            If a key is unknown or a value is out of range.
+        """
+        data = dict(data or {})
+        for key, value in LEGACY_VALUES.items():
+            data.setdefault(key, value)
+        return cls.from_dict(data)

@@ -8,6 +8,7 @@ sleeper-passage acceleration amplitudes in m/s², the logarithm is natural.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 from dataclasses import dataclass
 from typing import Annotated
@@ -54,6 +55,8 @@ router = APIRouter(tags=["analytics"])
 RunIdsQ = Annotated[str | None, Query(description="comma-separated run ids (default: all runs with results)")]
 WheelQ = Annotated[str | None, Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="wheel (default all)")]
 _MAX_POINTS = 5000
+PointsQ = Annotated[int, Query(ge=10, le=_MAX_POINTS,
+                               description="scatter points returned per wheel (the fit uses all samples)")]
 _WHEELS = ("11", "12", "41", "42")
 RefSpeedQ = Annotated[float | None, Query(gt=0, le=500, description="reference speed, km/h")]
 MinSpeedQ = Annotated[float | None, Query(ge=0, le=500, description="minimum speed, km/h (default 25)")]
@@ -118,9 +121,9 @@ def _subsidence_pairs(df: pd.DataFrame, sub: pd.DataFrame, wheel: str, bin_lengt
             pw["run_id"].to_numpy()[m], m)
 
 
-def _subsidence_wheel(wheel, amp, u, groups, lag, confidence=0.95):
+def _subsidence_wheel(wheel, amp, u, groups, lag, confidence=0.95, max_points=_MAX_POINTS):
     f = fit_subsidence(amp, u, groups=groups, hac_lag=lag, confidence=confidence) if amp.size else None
-    idx = decimate_indices(amp.size, _MAX_POINTS)
+    idx = decimate_indices(amp.size, max_points)
     return {
         "wheel": wheel,
         "slope": data.num(f.slope) if f else None, "slope_ci": data.nums(f.slope_ci) if f else [None, None],
@@ -138,7 +141,7 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                    confidence: Annotated[float, Query(gt=0.5, lt=1)] = 0.95,
                    normalise: Annotated[bool, Query(
                        description="fit on the amplitude normalised to reference_speed_kmh")] = False,
-                   reference_speed_kmh: RefSpeedQ = None) -> dict:
+                   reference_speed_kmh: RefSpeedQ = None, max_points: PointsQ = _MAX_POINTS) -> dict:
     """Fit u (mm) = slope · ln(Z / 1 m/s²) + intercept on 25 cm bins with both a
     sleeper-passage amplitude Z and a subsidence value of the wheel's rail (or of
     both rails). Intervals: ``confidence`` (default 95 %), Newey–West over 100 m.
@@ -156,9 +159,9 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, runs: RunsQuery,
         df = df[np.isfinite(df["sleeper_amp"].to_numpy())]
     sub = data.reference(db, "subsidence", sel, km_from=runs.km_from, km_to=runs.km_to)
     wheels = []
-    for wh in ([w] if w else sorted(set(df["wheel"]))):
+    for wh in ([w] if w else sorted(df["wheel"].unique().tolist())):
         amp, u, g, _ = _subsidence_pairs(df, sub, wh, sel.bin_length)
-        wheels.append(_subsidence_wheel(wh, amp, u, g, _lag(sel), confidence))
+        wheels.append(_subsidence_wheel(wh, amp, u, g, _lag(sel), confidence, max_points))
     return {"log_base": LOG_BASE, "run_ids": sel.run_ids, "wheels": wheels}
 
 
@@ -200,7 +203,8 @@ def predicted_subsidence(run_id: RunId, db: DbDep, settings: SettingsDep,
             summary="Unsprung mass from force vs acceleration amplitude per wheel")
 def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                   mass_min_kg: Annotated[float, Query(ge=0)] = 150.0,
-                  mass_max_kg: Annotated[float, Query(gt=0)] = 600.0) -> dict:
+                  mass_max_kg: Annotated[float, Query(gt=0)] = 600.0,
+                  max_points: PointsQ = _MAX_POINTS) -> dict:
     """Slope of the sleeper-passage force amplitude (kN) on the acceleration amplitude
     (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``."""
     if mass_min_kg >= mass_max_kg:
@@ -210,12 +214,12 @@ def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
     df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=w)
     df = df[np.isfinite(df["sleeper_force_amp"].to_numpy(dtype=np.float64))]
     out = []
-    for wh in ([w] if w else sorted(set(df["wheel"]))):
+    for wh in ([w] if w else sorted(df["wheel"].unique().tolist())):
         pw = df[df["wheel"] == wh]
         z, f = pw["sleeper_amp"].to_numpy(), pw["sleeper_force_amp"].to_numpy()
         mf = fit_unsprung_mass(z, f, groups=pw["run_id"].to_numpy(), hac_lag=_lag(sel),
                                plausible_kg=(mass_min_kg, mass_max_kg)) if z.size else None
-        idx = decimate_indices(z.size, _MAX_POINTS)
+        idx = decimate_indices(z.size, max_points)
         out.append({"wheel": wh, "mass_kg": data.num(mf.mass_kg) if mf else None,
                     "mass_ci": data.nums(mf.mass_ci) if mf else [None, None],
                     "r2": data.num(mf.fit.r2) if mf else None, "n_samples": int(z.size),
@@ -313,7 +317,8 @@ def speed_normalisation(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                             min_speed_kmh=min_v)
     _, fits = _norm_context(db, settings, sel, df, ref_v, min_v)
     types = [{"type": t, "exponent": data.num(f.exponent), "exponent_ci": data.nums(f.exponent_ci),
-              "method": f.method, "n_samples": f.n_samples, "amplitude_at_ref": data.num(f.amplitude_at_ref)}
+              "method": f.method, "n_samples": f.n_samples, "amplitude_at_ref": data.num(f.amplitude_at_ref),
+              "plausible": f.plausible, "warning": f.warning}
              for t, f in fits.items()]
     return {"reference_speed_kmh": ref_v, "min_speed_kmh": min_v, "run_ids": sel.run_ids, "types": types}
 
@@ -351,12 +356,19 @@ def speed_normalised_profile(run_id: RunId, db: DbDep, settings: SettingsDep,
 
 
 def _alignment(sel, df, run_id, ref_id, max_shift_m, detrend_m):
+    """The alignment of a run to the reference run, for every endpoint that reports one.
+
+    A run aligned to itself is the identity: shift 0 and confidence 1 (nothing is estimated;
+    its correlation curve is still returned)."""
     a = df[df["run_id"] == ref_id].groupby("bin")["sleeper_amp"].mean()
     b = df[df["run_id"] == run_id].groupby("bin")["sleeper_amp"].mean()
     if a.empty or b.empty:
         return None
-    return align_runs(a.index.to_numpy(), a.to_numpy(), b.index.to_numpy(), b.to_numpy(),
-                      bin_length_m=sel.bin_length, max_shift_m=max_shift_m, detrend_m=detrend_m)
+    al = align_runs(a.index.to_numpy(), a.to_numpy(), b.index.to_numpy(), b.to_numpy(),
+                    bin_length_m=sel.bin_length, max_shift_m=max_shift_m, detrend_m=detrend_m)
+    if run_id == ref_id:
+        al = dataclasses.replace(al, shift_m=0.0, confidence=1.0)
+    return al
 
 
 MaxShiftQ = Annotated[float, Query(gt=0, le=5000, description="largest shift searched, m")]
@@ -397,12 +409,10 @@ def _segments(db, settings, sel, km_from, km_to, wheel, segment_m, align, max_sh
     for run in sel.runs:
         g = df[df["run_id"] == run.id].groupby("bin")["sleeper_amp"].mean()
         shift, conf = 0.0, None
-        if align and run.id != ref_id and len(g):
+        if align and len(g):
             al = _alignment(sel, df, run.id, ref_id, max_shift_m, 50.0)
             if al is not None and np.isfinite(al.shift_m):
                 shift, conf = al.shift_m, al.confidence
-        elif run.id == ref_id:
-            conf = 1.0
         runs.append((g.index.to_numpy(), g.to_numpy()))
         shifts.append(shift)
         info.append({"run_id": run.id, "start_time": run.start_time.isoformat() if run.start_time else None,

@@ -6,6 +6,8 @@ Kept apart from the routes so each route reads like its analysis.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,9 +23,11 @@ from app.db.models import Job, JobStatus, ProfileBin, Run
 from app.db.session import Database
 
 __all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
-           "speed_exponents", "normalised", "section_types", "num", "nums"]
+           "speed_exponents", "normalised", "section_types", "num", "nums", "PROFILE_CACHE_ROWS"]
 
 _COLS = ["run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
+#: rows of analytics profile frames kept in memory per API process (about 60 MB)
+PROFILE_CACHE_ROWS = 1_000_000
 
 
 @dataclass
@@ -108,34 +112,100 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
     return Selection(line_id, track, runs, bin_length)
 
 
+class _FrameCache:
+    """Least recently used profile frames of :func:`load_profiles`, at most ``max_rows`` rows.
+
+    Keys name the jobs whose rows a frame holds: a job's profile rows never change once it is
+    done (a reprocessing job has a new id), so an entry is never stale. Requests for the same
+    key wait for the one that reads it (the correlations page asks three analyses at once).
+    """
+
+    def __init__(self, max_rows: int) -> None:
+        self.max_rows = max_rows
+        self._frames: OrderedDict[tuple, pd.DataFrame] = OrderedDict()
+        self._rows = 0
+        self._lock = threading.Lock()
+        self._loading: dict[tuple, threading.Lock] = {}
+
+    def get(self, key: tuple, load) -> pd.DataFrame:
+        with self._lock:
+            if key in self._frames:
+                self._frames.move_to_end(key)
+                return self._frames[key]
+            gate = self._loading.setdefault(key, threading.Lock())
+        with gate:
+            with self._lock:
+                if key in self._frames:
+                    return self._frames[key]
+            frame = load()
+            with self._lock:
+                self._loading.pop(key, None)
+                if len(frame) <= self.max_rows:
+                    self._frames[key] = frame
+                    self._rows += len(frame)
+                    while self._rows > self.max_rows:
+                        _, old = self._frames.popitem(last=False)
+                        self._rows -= len(old)
+            return frame
+
+
+_CACHE = _FrameCache(PROFILE_CACHE_ROWS)
+
+
 def load_profiles(
     db: Database, settings: Settings, sel: Selection, *, km_from: float | None = None,
     km_to: float | None = None, wheel: str | None = None, min_speed_kmh: float | None = None,
 ) -> pd.DataFrame:
     """Profile rows of the selected runs (columns ``_COLS``), without the run ends
-    (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude."""
+    (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude.
+
+    Frames are kept per API process (:data:`PROFILE_CACHE_ROWS`), keyed by the runs' result
+    jobs and the arguments; treat the returned frame as read-only.
+    """
     min_v = (settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh) / 3.6
     trim = settings.analytics_edge_trim_m
+    with db.read() as session:
+        jobs = [(run.id, results_reader.results_job_id(session, run.id)) for run in sel.runs]
+    jobs = [(run_id, job_id) for run_id, job_id in jobs if job_id is not None]
+    key = (db.url, tuple(jobs), wheel, km_from, km_to, min_v, trim, sel.bin_length)
+    frame = _CACHE.get(key, lambda: _load_profiles(db, jobs, km_from, km_to, wheel, min_v, trim,
+                                                   sel.bin_length))
+    return frame.copy(deep=False)
+
+
+def _wheel_extents(session, job_id: int) -> dict[str, tuple[int, int]]:
+    """First and last bin of each wheel of a job (index lookups, not a scan of its rows)."""
+    out = {}
+    for w in results_reader.stored_profile_wheels(session, job_id):
+        where = (ProfileBin.job_id == job_id) & (ProfileBin.wheel == w)
+        lo = session.scalar(select(func.min(ProfileBin.bin)).where(where))
+        hi = session.scalar(select(func.max(ProfileBin.bin)).where(where))
+        out[w] = (int(lo), int(hi))
+    return out
+
+
+def _load_profiles(db: Database, jobs: list[tuple[int, int]], km_from: float | None,
+                   km_to: float | None, wheel: str | None, min_v: float, trim: float,
+                   bin_length: float) -> pd.DataFrame:
     frames = []
     with db.read() as session:
-        for run in sel.runs:
-            job_id = results_reader.results_job_id(session, run.id)
-            if job_id is None:
-                continue
-            ext = session.execute(
-                select(ProfileBin.wheel, func.min(ProfileBin.bin), func.max(ProfileBin.bin))
-                .where(ProfileBin.job_id == job_id).group_by(ProfileBin.wheel)
-            ).all()
+        for run_id, job_id in jobs:
+            ext = _wheel_extents(session, job_id)
             df = _rows(session, job_id, wheel, km_from, km_to)
             if df.empty:
                 continue
-            lo = df["wheel"].map({w: b0 for w, b0, _ in ext})
-            hi = df["wheel"].map({w: b1 for w, _, b1 in ext})
-            k = trim / sel.bin_length
-            keep = (df["bin"] >= lo + k) & (df["bin"] <= hi - k)
-            keep &= (df["speed_mean"] >= min_v) & (df["sleeper_amp"] > 0)
+            wheels = df["wheel"].to_numpy(dtype=object)
+            bins = df["bin"].to_numpy()
+            lo = np.zeros(len(df), dtype=np.int64)
+            hi = np.zeros(len(df), dtype=np.int64)
+            for w, (b0, b1) in ext.items():
+                m = wheels == w
+                lo[m], hi[m] = b0, b1
+            k = trim / bin_length
+            keep = (bins >= lo + k) & (bins <= hi - k)
+            keep &= (df["speed_mean"].to_numpy() >= min_v) & (df["sleeper_amp"].to_numpy() > 0)
             df = df[keep]
-            df.insert(0, "run_id", run.id)
+            df.insert(0, "run_id", run_id)
             frames.append(df[_COLS])
     if not frames:
         return pd.DataFrame({c: pd.Series(dtype=object if c == "wheel" else float) for c in _COLS})

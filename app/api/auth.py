@@ -14,6 +14,7 @@ import datetime as dt
 import functools
 import logging
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Depends, Path, Request, Response, status
@@ -47,11 +48,19 @@ from app.api.schemas.auth import (
     UserPatch,
 )
 from app.core.config import Settings
-from app.core.security import csrf_token, hash_password, verify_password
+from app.core.ratelimit import RateLimiter
+from app.core.security import (
+    csrf_token,
+    device_cookie_id,
+    hash_password,
+    new_device_cookie,
+    verify_password,
+)
 from app.db import auth_crud
+from app.db.auth_models import User
 from app.db.models import utcnow
 
-__all__ = ["router", "login_router", "set_session_cookies"]
+__all__ = ["router", "login_router", "set_session_cookies", "DEVICE_COOKIE"]
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +71,10 @@ login_router = APIRouter(prefix="/auth", tags=["auth"], dependencies=[Depends(pu
 UsernamePath = Annotated[
     str, Path(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9._@-]+$", description="User name")
 ]
+#: marks a browser that logged in as a user before (exempt from the user name's failure budget)
+DEVICE_COOKIE = "trackvkf_device"
+DEVICE_COOKIE_MAX_AGE_S = 365 * 24 * 3600
+
 KeyIdPath = Annotated[int, Path(ge=1, le=2**31 - 1, description="API key id")]
 
 
@@ -92,6 +105,15 @@ def set_session_cookies(response: Response, settings: Settings, token: str) -> N
     )
 
 
+def _set_device_cookie(response: Response, settings: Settings, username: str, path: str) -> None:
+    """Mark this browser as one that logged in as ``username`` (sent to the login path only)."""
+    response.set_cookie(
+        DEVICE_COOKIE, new_device_cookie(settings.secret_key, username), max_age=DEVICE_COOKIE_MAX_AGE_S,
+        path=path, secure=settings.cookie_secure or settings.is_production, httponly=True,
+        samesite="strict",
+    )
+
+
 def _clear_cookies(response: Response) -> None:
     response.delete_cookie(SESSION_COOKIE, path="/", httponly=True, samesite="strict")
     response.delete_cookie(CSRF_COOKIE, path="/", samesite="strict")
@@ -110,6 +132,45 @@ def _me(principal: Principal) -> MeOut:
     return MeOut(name=principal.name, role=principal.role, kind=principal.kind)
 
 
+@dataclass(frozen=True)
+class _Account:
+    """What a login needs of a user, read before the password is verified."""
+
+    id: int
+    username: str
+    role: str
+    password_hash: str
+    active: bool
+
+
+def _account(user: User | None) -> _Account | None:
+    if user is None:
+        return None
+    return _Account(user.id, user.username, user.role, user.password_hash, bool(user.active))
+
+
+def _check_login_rate(request: Request, username: str, device: str | None) -> None:
+    """The in-process limits of :func:`login` (429 over them; not audited, logged).
+
+    A browser with the user's device cookie counts per device; any other client
+    per (address, user name) and per address: an attacker only ever uses up
+    its own budgets, never the one of the user's browser.
+    """
+    limiter: RateLimiter = request.app.state.login_limiter
+    ip = client_ip(request)
+    name = username.lower()
+    if device is not None:
+        hits = [(limiter, f"device:{device}")]
+    else:
+        hits = [(limiter, f"ip-user:{ip}:{name}"), (request.app.state.login_address_limiter, f"ip:{ip}")]
+    for each, key in hits:
+        wait = each.hit(key)
+        if wait is not None:
+            # not audited: a flood must not grow the append-only log; the service log has it
+            log.warning("login rate limit hit by %s for user %r", ip, username[:64])
+            raise _too_many(wait)
+
+
 @login_router.post(
     "/login",
     response_model=MeOut,
@@ -119,24 +180,40 @@ def _me(principal: Principal) -> MeOut:
 def login(body: LoginIn, request: Request, response: Response, db: DbDep, settings: SettingsDep) -> MeOut:
     """Check the password and start a session.
 
-    At most ``TRACKVKF_LOGIN_RATE_LIMIT`` attempts per client address and per
-    user name within ``TRACKVKF_LOGIN_RATE_WINDOW_S`` (per API process).
+    Limits: ``TRACKVKF_LOGIN_RATE_LIMIT`` attempts per (client address, user
+    name) and ``TRACKVKF_LOGIN_ADDRESS_RATE_LIMIT`` per address within
+    ``TRACKVKF_LOGIN_RATE_WINDOW_S`` (per API process), and at most
+    ``TRACKVKF_LOGIN_NAME_FAILURE_LIMIT`` failures of one user name within
+    ``TRACKVKF_LOGIN_NAME_FAILURE_WINDOW_S`` from browsers that never logged in
+    as that user (the device cookie ``trackvkf_device`` exempts the others).
+
+    The password is verified outside any transaction (Argon2 takes tens of
+    milliseconds: on SQLite a write transaction would block every other
+    writer that long); the audit entry, which is also the failure counter, and
+    the session are written in one short transaction afterwards. Logging in
+    again from the same browser ends its previous session.
     """
-    limiter = request.app.state.login_limiter
-    for key in (f"ip:{client_ip(request)}", f"user:{body.username.lower()}"):
-        wait = limiter.hit(key)
-        if wait is not None:
-            # not audited: a flood must not grow the append-only log; the service log has it
-            log.warning("login rate limit hit by %s for user %r", client_ip(request), body.username[:64])
-            raise _too_many(wait)
+    device = device_cookie_id(settings.secret_key, request.cookies.get(DEVICE_COOKIE), body.username)
+    _check_login_rate(request, body.username, device)
+    with db.read() as session:
+        account = _account(auth_crud.get_user(session, body.username))
+        since = utcnow() - dt.timedelta(seconds=settings.login_name_failure_window_s)
+        failures = 0 if device else auth_crud.count_failed_logins(session, body.username, since)
+    if failures >= settings.login_name_failure_limit:
+        log.warning("login of %r from %s refused: %d failed logins of the name within %g s",
+                    body.username[:64], client_ip(request), failures, settings.login_name_failure_window_s)
+        raise _too_many(settings.login_rate_window_s)
+    ok = verify_password(account.password_hash if account else _dummy_hash(), body.password)
     with db.write() as session:
-        user = auth_crud.get_user(session, body.username)
-        ok = verify_password(user.password_hash if user else _dummy_hash(), body.password)
-        if user is None or not ok or not user.active:
+        user = auth_crud.get_user(session, body.username) if ok and account and account.active else None
+        if user is None or not user.active or user.password_hash != account.password_hash:
             record(session, request, None, "auth.login", target=body.username, outcome="denied",
                    actor=body.username)
             failed = True
         else:
+            old = request.cookies.get(SESSION_COOKIE)
+            if old:  # the same browser logs in again: its previous session ends
+                auth_crud.delete_session(session, old)
             token = auth_crud.create_session(
                 session, user, dt.timedelta(seconds=settings.session_ttl_s), client_ip(request)
             )
@@ -146,6 +223,8 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
     if failed:
         raise ApiError(401, "credentials", "wrong user name or password")
     set_session_cookies(response, settings, token)
+    if device is None:
+        _set_device_cookie(response, settings, user.username, request.url.path)
     return _me(principal)
 
 
@@ -183,10 +262,15 @@ def change_password(body: PasswordChangeIn, request: Request, db: DbDep, princip
     """Change the logged-in user's password; all the user's sessions end (log in again)."""
     if principal.kind != "user":
         raise ApiError(409, "principal", "only users have passwords (this is an API key)")
+    with db.read() as session:
+        account = _account(auth_crud.get_user(session, principal.name))
+    # verified outside any transaction (see login)
+    if account is None or not verify_password(account.password_hash, body.current_password):
+        raise ApiError(401, "current_password", "wrong password")
     with db.write() as session:
         user = auth_crud.get_user(session, principal.name)
-        if user is None or not verify_password(user.password_hash, body.current_password):
-            raise ApiError(401, "current_password", "wrong password")
+        if user is None or user.password_hash != account.password_hash:
+            raise ApiError(409, "current_password", "the password was changed meanwhile; try again")
         with _auth_errors_as_422(field="new_password"):
             auth_crud.update_user(session, principal.name, password=body.new_password)
         record(session, request, principal, "auth.password", target=principal.name)

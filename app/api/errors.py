@@ -1,11 +1,52 @@
-"""Error responses of the API: ``{"detail": "<field>: <message>", "field": "<field>"}``."""
+"""Error responses of the API: ``{"detail": "<field>: <message>", "field": "<field>"}``.
+
+Every error the API answers takes this form: :class:`ApiError` raised by the
+routes and their dependencies, and FastAPI's own validation of query, path
+and body parameters (:class:`fastapi.exceptions.RequestValidationError`),
+whose list of problems is reduced to the first one, naming its parameter, and
+PostgreSQL's refusal of NUL characters in text (a query filter holding one).
+Messages are cut to :data:`MAX_MESSAGE_CHARS`: no answer echoes a large input.
+"""
 
 from __future__ import annotations
 
-from fastapi import FastAPI, Request
-from fastapi.responses import JSONResponse
+from collections.abc import Sequence
+from typing import Any
 
-__all__ = ["ApiError", "not_found", "install_error_handlers"]
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from sqlalchemy.exc import DataError
+
+__all__ = [
+    "ApiError",
+    "MAX_MESSAGE_CHARS",
+    "ERROR_SCHEMA",
+    "not_found",
+    "validation_error",
+    "document_error_responses",
+    "install_error_handlers",
+]
+
+#: Longest message of an error answer, characters (longer ones are cut, ending in "…").
+MAX_MESSAGE_CHARS = 500
+
+#: OpenAPI schema of an error answer.
+ERROR_SCHEMA: dict[str, Any] = {
+    "title": "ApiError",
+    "type": "object",
+    "required": ["detail", "field"],
+    "properties": {
+        "detail": {"type": "string", "description": "<field>: <message>"},
+        "field": {"type": "string", "description": "The field, parameter or part at fault"},
+    },
+}
+
+_PARAMETER_KINDS = ("query", "path", "body", "header", "cookie")
+
+
+def _cut(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 class ApiError(Exception):
@@ -14,12 +55,12 @@ class ApiError(Exception):
     Parameters
     ----------
     status_code : int
-        HTTP status (4xx).
+        HTTP status (4xx; 507 when the run store is full).
     field : str
         What is wrong: a channel, a metadata field, a query parameter,
         ``format``, ``file`` ...
     message : str
-        Human-readable explanation.
+        Human-readable explanation; cut to :data:`MAX_MESSAGE_CHARS` characters.
     headers : dict, optional
         Extra response headers (``WWW-Authenticate``, ``Retry-After``).
     """
@@ -27,16 +68,58 @@ class ApiError(Exception):
     def __init__(
         self, status_code: int, field: str, message: str, headers: dict[str, str] | None = None
     ) -> None:
-        super().__init__(f"{field}: {message}")
         self.status_code = status_code
-        self.field = field
-        self.message = message
+        self.field = _cut(str(field), 200)
+        self.message = _cut(str(message))
         self.headers = headers
+        super().__init__(f"{self.field}: {self.message}")
 
 
 def not_found(what: str, ident: object) -> ApiError:
     """A 404 error for ``what`` (``"run"``, ``"job"``) with id ``ident``."""
     return ApiError(404, f"{what}_id", f"{what} {ident} not found")
+
+
+def _shown(value: Any) -> str:
+    return _cut(repr(value), 60)
+
+
+def validation_error(errors: Sequence[dict[str, Any]]) -> ApiError:
+    """The 422 :class:`ApiError` of FastAPI's (pydantic's) list of validation errors.
+
+    The first error names the field: its location without the parameter kind
+    (``("query", "limit")`` → ``limit``, ``("body", "a", 0)`` → ``a.0``), its
+    message and, unless missing, the value given (cut short). Further errors
+    (up to three) follow in the message as ``also <field>: <message>``, so that
+    a body with a misspelt key says both what is missing and what is unknown.
+    """
+    if not errors:
+        return ApiError(422, "request", "invalid request")
+    field, message = _described(errors[0])
+    more = [": ".join(_described(err)) for err in errors[1:4]]
+    if more:
+        message = f"{message}; also {'; '.join(more)}"
+    return ApiError(422, field, message)
+
+
+def _described(err: dict[str, Any]) -> tuple[str, str]:
+    """(field, message) of one pydantic validation error."""
+    loc = [str(p) for p in err.get("loc", ())]
+    kind = err.get("type", "")
+    if loc and loc[0] in _PARAMETER_KINDS:
+        place, rest = loc[0], loc[1:]
+    else:
+        place, rest = "request", loc
+    if kind == "json_invalid":
+        reason = (err.get("ctx") or {}).get("error")
+        return place, f"not valid JSON{f': {reason}' if reason else ''}"
+    field = ".".join(rest) or place
+    message = str(err.get("msg", "invalid value")).removeprefix("Value error, ")
+    if kind == "missing":
+        message = "required"
+    elif "input" in err:
+        message = f"{message} (got {_shown(err['input'])})"
+    return field, message
 
 
 async def _api_error_handler(request: Request, exc: Exception) -> JSONResponse:
@@ -48,6 +131,47 @@ async def _api_error_handler(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+async def _validation_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    return await _api_error_handler(request, validation_error(exc.errors()))
+
+
+async def _data_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    """PostgreSQL refuses NUL characters in text: the client's input, answered 422 naming it."""
+    assert isinstance(exc, DataError)
+    if "NUL" not in str(exc.orig):
+        raise exc
+    field = next((k for k, v in request.query_params.multi_items() if "\x00" in k or "\x00" in v), "request")
+    return await _api_error_handler(
+        request, ApiError(422, field, "text must not contain NUL characters (\\u0000)")
+    )
+
+
+def document_error_responses(schema: dict[str, Any]) -> dict[str, Any]:
+    """Make an OpenAPI schema say what the API answers on errors: :data:`ERROR_SCHEMA`.
+
+    FastAPI documents its validation errors as ``HTTPValidationError`` (a
+    list); the handler installed by :func:`install_error_handlers` answers
+    them as every other error, so each 422 refers to ``ApiError`` and the
+    list schemas are dropped.
+    """
+    schemas = schema.setdefault("components", {}).setdefault("schemas", {})
+    schemas["ApiError"] = ERROR_SCHEMA
+    for name in ("HTTPValidationError", "ValidationError"):
+        schemas.pop(name, None)
+    for operations in schema.get("paths", {}).values():
+        for operation in operations.values():
+            if not isinstance(operation, dict):
+                continue
+            response = operation.get("responses", {}).get("422")
+            if response is not None:
+                content = response.setdefault("content", {}).setdefault("application/json", {})
+                content["schema"] = {"$ref": "#/components/schemas/ApiError"}
+    return schema
+
+
 def install_error_handlers(app: FastAPI) -> None:
-    """Register the handler that renders :class:`ApiError`."""
+    """Register the handlers that render :class:`ApiError` and request validation errors."""
     app.add_exception_handler(ApiError, _api_error_handler)
+    app.add_exception_handler(RequestValidationError, _validation_error_handler)
+    app.add_exception_handler(DataError, _data_error_handler)

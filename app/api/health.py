@@ -10,8 +10,9 @@ from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import SQLAlchemyError
 
-from app.api.deps import DbDep, StoreDep
+from app.api.deps import DbDep, SettingsDep, StoreDep
 from app.api.schemas.health import HealthOut
+from app.core.diskspace import free_bytes
 from app.db import crud
 
 __all__ = ["router", "software_version"]
@@ -35,25 +36,44 @@ def software_version() -> str:
     summary="Service health",
     responses={503: {"description": "Database or run store unavailable"}},
 )
-def health(db: DbDep, store: StoreDep):
-    """Database reachable, run store writable, and the number of jobs per status."""
-    ok = True
+def health(db: DbDep, store: StoreDep, settings: SettingsDep):
+    """Database reachable, run store writable with its free space, and the number of jobs per status.
+
+    ``status``: ``ok``; ``degraded`` (200) while the run store has less free
+    space than ``TRACKVKF_MIN_FREE_BYTES`` (uploads get 507); ``unavailable``
+    (503) when the database or the run store cannot be used.
+    """
+    available = True
     try:
         with db.read() as session:
             jobs = crud.queue_counts(session)
         database = "ok"
     except SQLAlchemyError as exc:
         log.warning("health: database error %s", exc)
-        jobs, database, ok = {}, "unavailable", False
-    store_ok = store.root.is_dir() and os.access(store.root, os.W_OK)
-    ok = ok and store_ok
+        jobs, database, available = {}, "unavailable", False
+    free: int | None = None
+    if store.root.is_dir() and os.access(store.root, os.W_OK):
+        try:
+            free = free_bytes(store.root)
+        except OSError as exc:
+            log.warning("health: cannot read the free space of %s: %s", store.root, exc)
+    if free is None:
+        run_store, available = "unavailable", False
+    elif free < settings.min_free_bytes:
+        run_store = "low_space"
+        log.warning("health: run store has %d bytes free, less than TRACKVKF_MIN_FREE_BYTES", free)
+    else:
+        run_store = "ok"
+    status = "unavailable" if not available else ("degraded" if run_store == "low_space" else "ok")
     body = HealthOut(
-        status="ok" if ok else "degraded",
+        status=status,
         version=software_version(),
         database=database,
-        run_store="ok" if store_ok else "unavailable",
+        run_store=run_store,
+        run_store_free_bytes=free,
+        run_store_min_free_bytes=settings.min_free_bytes,
         jobs=jobs,
     )
-    if not ok:
+    if not available:
         return JSONResponse(status_code=503, content=body.model_dump())
     return body

@@ -16,6 +16,7 @@ from app.api.deps import (
     PageOffset,
     RunId,
     SettingsDep,
+    StoreDep,
     check_page_size,
     require_role,
 )
@@ -42,6 +43,11 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
         422 naming the offending setting.
     """
     merged = {k: v for k, v in (base or {}).items() if k in _SETTING_FIELDS}
+    if base is not None:  # stored settings lacking newer keys mean what they meant then
+        try:
+            merged = ProcessingSettings.from_stored(merged).to_dict()
+        except (ValueError, TypeError):
+            pass  # validated with the changes below
     merged.update(changes)
     try:
         settings = ProcessingSettings.from_dict(merged)
@@ -169,11 +175,15 @@ def get_job(job_id: JobId, db: DbDep) -> JobOut:
     dependencies=[Depends(require_role("engineer"))],
     responses={409: {"description": "The job is already done, failed or cancelled"}},
 )
-def cancel_job(job_id: JobId, request: Request, db: DbDep, principal: EngineerDep) -> JobOut:
+def cancel_job(
+    job_id: JobId, request: Request, db: DbDep, store: StoreDep, principal: EngineerDep
+) -> JobOut:
     """Cancel a queued job at once, a running one at its next chunk boundary.
 
     The response shows ``cancel_requested`` true; the job's status becomes
-    ``cancelled`` when the worker has stopped.
+    ``cancelled`` when the worker has stopped. A queued job's chunk files (of
+    an attempt interrupted by a worker's shutdown) are removed at once; a
+    running job's by its worker.
     """
     with db.write() as session:
         outcome = crud.request_cancel(session, job_id)
@@ -186,4 +196,7 @@ def cancel_job(job_id: JobId, request: Request, db: DbDep, principal: EngineerDe
         record(session, request, principal, "job.cancel", target=job_id, detail={"run_id": job.run_id})
         session.refresh(job)
         counts = crud.chunk_counts(session, [job_id])
-        return job_out(job, counts.get(job_id))
+        answer = job_out(job, counts.get(job_id))
+    if outcome == "cancelled":
+        store.remove_job_files(answer.run_id, job_id)
+    return answer

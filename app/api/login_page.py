@@ -8,30 +8,33 @@ docs' "Authorize" button and API clients know how to authenticate.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any
 
 import jinja2
-import swagger_ui_bundle
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from app.api.deps import API_KEY_HEADER, public, require_page_login, require_role
+from app.api.errors import document_error_responses
+from app.api.headers import content_security_policy, inline_script_hashes
 
-__all__ = ["router", "safe_next", "install_protected_docs", "TEMPLATES_DIR", "SWAGGER_ASSETS"]
+__all__ = [
+    "router", "safe_next", "install_protected_docs", "swagger_ui_dir", "TEMPLATES_DIR",
+    "SWAGGER_ASSETS", "MIN_SWAGGER_UI_MAJOR",
+]
 
 #: URL prefix of the locally served Swagger UI assets (public static files)
 SWAGGER_ASSETS = "/docs-assets"
+#: Swagger UI renders OpenAPI 3.1 (what FastAPI serves) from major version 5 on
+MIN_SWAGGER_UI_MAJOR = 5
 
 TEMPLATES_DIR = Path(__file__).resolve().parents[2] / "frontend" / "templates"
-_PAGE_HEADERS = {
-    "Cache-Control": "no-store",
-    "X-Frame-Options": "DENY",
-    "Content-Security-Policy": "frame-ancestors 'none'",
-    "X-Content-Type-Options": "nosniff",
-}
+#: the security headers (CSP, framing, ...) come from app.api.headers.SecurityHeadersMiddleware
+_PAGE_HEADERS = {"Cache-Control": "no-store"}
 
 router = APIRouter(include_in_schema=False, dependencies=[Depends(public)])
 
@@ -76,39 +79,35 @@ def _security_schemes(schema: dict[str, Any], public_paths: set[str]) -> dict[st
     return schema
 
 
-_API_ERROR_SCHEMA = {
-    "title": "ApiError",
-    "type": "object",
-    "required": ["detail", "field"],
-    "properties": {
-        "detail": {"type": "string", "description": "<field>: <message>"},
-        "field": {"type": "string", "description": "The field, parameter or part at fault"},
-    },
-}
+def swagger_ui_dir() -> Path:
+    """Directory of the newest Swagger UI (>= 5) shipped by the installed ``swagger-ui-bundle-v2``.
 
+    The package installs as ``swagger_ui_bundle/vendor/swagger-ui-<version>``; an older
+    ``swagger-ui-bundle`` (Swagger UI 4, which cannot render OpenAPI 3.1) left in the same
+    environment shares that directory, so the version is chosen here, not taken from the
+    package's ``__init__``.
 
-def _document_api_errors(schema: dict[str, Any]) -> dict[str, Any]:
-    """A 422 is either FastAPI's validation error or an :class:`ApiError` body."""
-    schema.setdefault("components", {}).setdefault("schemas", {})["ApiError"] = _API_ERROR_SCHEMA
-    either = {
-        "anyOf": [
-            {"$ref": "#/components/schemas/HTTPValidationError"},
-            {"$ref": "#/components/schemas/ApiError"},
-        ]
-    }
-    for operations in schema.get("paths", {}).values():
-        for operation in operations.values():
-            if not isinstance(operation, dict):
-                continue
-            response = operation.get("responses", {}).get("422")
-            if response is None:
-                continue
-            content = response.setdefault("content", {}).setdefault("application/json", {})
-            if "HTTPValidationError" in str(content.get("schema", "")):
-                content["schema"] = either
-            else:
-                content["schema"] = {"$ref": "#/components/schemas/ApiError"}
-    return schema
+    Raises
+    ------
+    RuntimeError
+        No Swagger UI >= 5 is installed.
+    """
+    import swagger_ui_bundle
+
+    vendor = Path(swagger_ui_bundle.__file__).resolve().parent / "vendor"
+    found: list[tuple[tuple[int, ...], Path]] = []
+    for path in vendor.glob("swagger-ui-*"):
+        m = re.fullmatch(r"swagger-ui-(\d+)\.(\d+)\.(\d+)", path.name)
+        if m and path.is_dir() and (path / "swagger-ui-bundle.js").is_file():
+            found.append((tuple(int(g) for g in m.groups()), path))
+    usable = [item for item in found if item[0][0] >= MIN_SWAGGER_UI_MAJOR]
+    if not usable:
+        have = ", ".join(p.name for _, p in sorted(found)) or "none"
+        raise RuntimeError(
+            f"Swagger UI >= {MIN_SWAGGER_UI_MAJOR} not found in {vendor} (found: {have}); "
+            "install the package `swagger-ui-bundle-v2`"
+        )
+    return max(usable)[1]
 
 
 def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
@@ -121,7 +120,7 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
-            app.openapi_schema = _document_api_errors(_security_schemes(original(), public_paths))
+            app.openapi_schema = document_error_responses(_security_schemes(original(), public_paths))
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]
@@ -132,7 +131,7 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
 
     # Swagger UI's assets from the installed swagger-ui-bundle package, not a CDN:
     # the docs page must work on a closed network like every other page
-    app.mount(SWAGGER_ASSETS, StaticFiles(directory=swagger_ui_bundle.swagger_ui_path), name="swagger-ui")
+    app.mount(SWAGGER_ASSETS, StaticFiles(directory=swagger_ui_dir()), name="swagger-ui")
 
     @app.get("/docs", include_in_schema=False, dependencies=[Depends(require_page_login("viewer"))])
     def docs(request: Request) -> HTMLResponse:
@@ -143,4 +142,6 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
             swagger_css_url=f"{SWAGGER_ASSETS}/swagger-ui.css",
             swagger_favicon_url=f"{SWAGGER_ASSETS}/favicon-32x32.png",
         )
-        return HTMLResponse(page.body, headers=_PAGE_HEADERS)
+        # the page's one inline script (SwaggerUIBundle setup) is allowed by its hash
+        csp = content_security_policy(inline_script_hashes(page.body.decode("utf-8")))
+        return HTMLResponse(page.body, headers={**_PAGE_HEADERS, "Content-Security-Policy": csp})

@@ -2,33 +2,41 @@
 
 from __future__ import annotations
 
+import asyncio
+import gzip
+import hashlib
 import io
 import json
+import math
 import os
 import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
+import anyio.to_thread
 import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
-from fastapi import APIRouter, Depends, Query, Response
+from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import StreamingResponse
 from sqlalchemy.orm import Session
+from starlette.concurrency import run_in_threadpool
 
 from app.analysis.aggregate import aggregate_profile, display_indices
 from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.schemas.profiles import ProfileOut
+from app.core.bytecache import ByteLRU
+from app.core.config import Settings
 from app.db import crud, results_reader
 from app.db.display import display_rows, km_extent
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, Run
 from app.db.session import Database
 
-__all__ = ["router", "AGGREGATED_COLUMNS"]
+__all__ = ["router", "AGGREGATED_COLUMNS", "PROFILE_CACHE_CONTROL"]
 
 router = APIRouter(tags=["profiles"])
 
@@ -66,6 +74,27 @@ MaxPoints = Annotated[
         "(sleeper_amp, or sleeper_amp_max of segments); all rows when omitted",
     ),
 ]
+
+
+Layout = Annotated[
+    Literal["rows", "columns"],
+    Query(
+        description="rows (default): a list of row objects; columns: one array per column with "
+        "fixed decimals (about a third of the bytes, quicker to encode and to plot; the dashboard "
+        "asks for it)"
+    ),
+]
+
+#: profile answers are immutable per published job: browsers keep them and revalidate (ETag)
+PROFILE_CACHE_CONTROL = "private, no-cache"
+#: bumped when the encoding of a profile answer changes (part of its ETag)
+_ENCODING_VERSION = 1
+#: km columns keep 6 decimals (1 mm); other columns 5 significant digits of their largest value
+_KM_COLUMNS = frozenset({"km", "km_from", "km_to"})
+_KM_DECIMALS = 6
+_SIGNIFICANT = 5
+_GZIP_MIN_BYTES = 1024
+_GZIP_LEVEL = 5
 
 
 Columns = Annotated[
@@ -155,13 +184,71 @@ def _decimate(df: pd.DataFrame, max_points: int, column: str) -> pd.DataFrame:
     return df.iloc[idx].reset_index(drop=True)
 
 
-def _json_response(meta: ProfileOut, df: pd.DataFrame) -> Response:
-    """The profile as JSON; rows are serialised by pandas (fast, NaN -> null)."""
-    head = meta.model_dump(mode="json", exclude={"rows"})
+def _rows_json(head: dict, df: pd.DataFrame) -> bytes:
+    """``layout=rows``: the rows as objects, serialised by pandas (fast, NaN -> null)."""
     values = df.replace([np.inf, -np.inf], np.nan)
     rows = values.to_json(orient="records", double_precision=15) if len(df) else "[]"
-    body = json.dumps(head)[:-1] + ', "rows": ' + rows + "}"
-    return Response(content=body, media_type="application/json")
+    return (json.dumps(head)[:-1] + ', "rows": ' + rows + "}").encode()
+
+
+def _decimals(name: str, values: pd.Series) -> int:
+    """Fixed decimals of a float column: 6 for km, else 5 significant digits of its largest value."""
+    if name in _KM_COLUMNS:
+        return _KM_DECIMALS
+    finite = np.abs(values.to_numpy(dtype=np.float64, na_value=np.nan))
+    finite = finite[np.isfinite(finite) & (finite > 0)]
+    if not len(finite):
+        return _SIGNIFICANT
+    return int(min(max(_SIGNIFICANT - 1 - math.floor(math.log10(float(finite.max()))), 0), 15))
+
+
+def _columns_json(head: dict, df: pd.DataFrame) -> bytes:
+    """``layout=columns``: one array per column (the wheel is in the head), fixed decimals."""
+    parts = []
+    names = [c for c in df.columns if c != "wheel"]
+    for name in names:
+        col = df[name]
+        if pd.api.types.is_float_dtype(col.dtype):
+            col = col.replace([np.inf, -np.inf], np.nan)
+            text = col.to_json(orient="values", double_precision=_decimals(name, col))
+        elif pd.api.types.is_numeric_dtype(col.dtype) or pd.api.types.is_bool_dtype(col.dtype):
+            text = col.to_json(orient="values")
+        else:
+            text = json.dumps(col.astype(object).where(col.notna(), None).tolist())
+        parts.append(f"{json.dumps(name)}: {text}")
+    head = {**head, "columns": names}
+    return (json.dumps(head)[:-1] + ', "data": {' + ", ".join(parts) + "}}").encode()
+
+
+def _etag(job_id: int, settings_rows: int, **query: object) -> str:
+    """ETag of a profile answer: the job (immutable once published) and the normalised query.
+
+    Weak (``W/``): the same answer is sent plain or gzip-encoded.
+    """
+    key = json.dumps({"v": _ENCODING_VERSION, "job": job_id, "max_rows": settings_rows, **query}, sort_keys=True)
+    return 'W/"pf-' + hashlib.sha256(key.encode()).hexdigest()[:32] + '"'
+
+
+def _matches(etag: str, if_none_match: str | None) -> bool:
+    """Whether an ``If-None-Match`` header names ``etag`` or ``*`` (weak comparison, RFC 9110)."""
+    if not if_none_match:
+        return False
+    tags = [t.strip().removeprefix("W/") for t in if_none_match.split(",")]
+    return "*" in tags or etag.removeprefix("W/") in tags
+
+
+def _accepts_gzip(request: Request) -> bool:
+    accept = request.headers.get("accept-encoding", "")
+    for part in accept.split(","):
+        name, _, params = part.strip().partition(";")
+        if name.strip().lower() in ("gzip", "*"):
+            return params.replace(" ", "").lower() not in ("q=0", "q=0.0", "q=0.00", "q=0.000")
+    return False
+
+
+def _encoded(body: bytes) -> tuple[bytes, bytes | None]:
+    """The body and, when worth it, its gzip encoding (kept together in the answer cache)."""
+    return body, gzip.compress(body, _GZIP_LEVEL, mtime=0) if len(body) >= _GZIP_MIN_BYTES else None
 
 
 @router.get(
@@ -170,7 +257,8 @@ def _json_response(meta: ProfileOut, df: pd.DataFrame) -> Response:
     summary="Indicator profile of a run and wheel",
     responses={409: {"description": "The run has no results yet"}},
 )
-def get_profile(
+async def get_profile(
+    request: Request,
     run_id: RunId,
     db: DbDep,
     settings: SettingsDep,
@@ -180,20 +268,121 @@ def get_profile(
     level: Level = 0.25,
     max_points: MaxPoints = None,
     columns: Columns = None,
+    layout: Layout = "rows",
 ) -> Response:
     """Per-bin indicators of one wheel in a km range, or their aggregates per segment.
 
     With ``max_points`` the rows are decimated for display: a plot of a whole
     100 km run asks for a few thousand rows that keep every peak, and asks again
     with a narrower km range when the user zooms in.
+
+    The answer of a published job never changes: it carries an ``ETag`` (the job
+    and the query) and ``Cache-Control: private, no-cache``, a request with a
+    matching ``If-None-Match`` gets ``304 Not Modified``, and the server keeps
+    recent answers (gzip-encoded too) in memory (``TRACKVKF_PROFILE_CACHE_BYTES``
+    per API process). A new job of the run changes the ETag. At most
+    ``TRACKVKF_PROFILE_CONCURRENCY`` answers per API process are computed at
+    once; more wait their turn without holding up other requests (uploads, logins).
     """
     check_km(km_from, km_to)
     values = _columns(columns, max_points)
-    job_id, bin_length, _ = _results_context(db, run_id, wheel)
+    job_id, bin_length, _ = await run_in_threadpool(_results_context, db, run_id, wheel)
     k = _level_ratio(level, bin_length)
-    read = {"wheel": wheel, "km_from": km_from, "km_to": km_to, "columns": values}
     if max_points is not None and max_points > settings.max_profile_rows:
         raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
+    etag = _etag(job_id, settings.max_profile_rows, wheel=wheel, km_from=km_from, km_to=km_to, level=level,
+                 max_points=max_points, columns=values, layout=layout)
+    headers = {"ETag": etag, "Cache-Control": PROFILE_CACHE_CONTROL, "Vary": "Accept-Encoding"}
+    if _matches(etag, request.headers.get("if-none-match")):
+        return Response(status_code=304, headers=headers)
+    cache: ByteLRU[tuple[bytes, bytes | None]] = request.app.state.profile_cache
+    encoded = cache.get(etag)
+    if encoded is None:
+        query = _ProfileQuery(run_id, job_id, bin_length, k, wheel, km_from, km_to, level, max_points, values, layout)
+        body, encoded = await _compute_once(request, etag, db, settings, query)
+        if encoded is None:  # too large to keep: sent as it is (the middleware compresses it on the way)
+            return Response(content=body, media_type="application/json", headers=headers)
+    body, gzipped = encoded
+    if gzipped is not None and _accepts_gzip(request):
+        return Response(content=gzipped, media_type="application/json",
+                        headers={**headers, "Content-Encoding": "gzip"})
+    return Response(content=body, media_type="application/json", headers=headers)
+
+
+@dataclass(frozen=True)
+class _ProfileQuery:
+    """A checked profile query of one published job (what :func:`_profile_body` answers)."""
+
+    run_id: int
+    job_id: int
+    bin_length: float
+    k: int
+    wheel: str
+    km_from: float | None
+    km_to: float | None
+    level: float
+    max_points: int | None
+    values: tuple[str, ...] | None
+    layout: str
+
+
+_Computed = tuple[bytes, tuple[bytes, bytes | None] | None]
+
+
+def _compute(db: Database, settings: Settings, query: _ProfileQuery, keep_bytes: int) -> _Computed:
+    """The answer's body and, if at most ``keep_bytes`` long, its cache entry (body, gzip body)."""
+    body = _profile_body(db, settings, query)
+    return body, _encoded(body) if len(body) <= keep_bytes else None
+
+
+async def _compute_once(
+    request: Request, etag: str, db: Database, settings: Settings, query: _ProfileQuery
+) -> _Computed:
+    """Compute an answer (in a worker thread, at most ``profile_concurrency`` at once) and cache it.
+
+    Requests for an answer already being computed in this process wait for that
+    computation instead of repeating it (50 browsers opening the same map at
+    once compute it once).
+    """
+    pending: dict[str, asyncio.Future[_Computed]] = request.app.state.profile_pending
+    running = pending.get(etag)
+    if running is not None:
+        try:
+            return await asyncio.shield(running)
+        except asyncio.CancelledError:
+            task = asyncio.current_task()
+            if not running.cancelled() or (task is not None and task.cancelling()):
+                raise
+            # the request computing it went away (client gone): compute it for this one
+            return await _compute_once(request, etag, db, settings, query)
+    future: asyncio.Future[_Computed] = asyncio.get_running_loop().create_future()
+    pending[etag] = future
+    try:
+        cache: ByteLRU[tuple[bytes, bytes | None]] = request.app.state.profile_cache
+        result = await anyio.to_thread.run_sync(
+            _compute, db, settings, query, cache.max_bytes // 4, limiter=request.app.state.profile_limiter
+        )
+        if result[1] is not None:
+            cache.put(etag, result[1], len(result[1][0]) + len(result[1][1] or b""))
+        future.set_result(result)
+        return result
+    except asyncio.CancelledError:
+        future.cancel()
+        raise
+    except BaseException as exc:
+        future.set_exception(exc)
+        future.exception()  # retrieved: no "never retrieved" warning when nobody else waited
+        raise
+    finally:
+        del pending[etag]
+
+
+def _profile_body(db: Database, settings: Settings, query: _ProfileQuery) -> bytes:
+    """The encoded profile answer of :func:`get_profile` (read, aggregate, decimate, encode)."""
+    q = query
+    run_id, job_id, bin_length, k, wheel = q.run_id, q.job_id, q.bin_length, q.k, q.wheel
+    km_from, km_to, level, max_points, values = q.km_from, q.km_to, q.level, q.max_points, q.values
+    read = {"wheel": wheel, "km_from": km_from, "km_to": km_to, "columns": values}
     with db.read() as session:  # one snapshot: the extent and the rows of the same job
         extent = km_extent(session, job_id, wheel)
         if max_points is not None and k == 1:
@@ -225,9 +414,9 @@ def get_profile(
         n_rows=len(df),
         truncated=truncated,
         columns=list(df.columns),
-        rows=[],
     )
-    return _json_response(meta, df)
+    head = meta.model_dump(mode="json", exclude={"rows", "data"})
+    return _columns_json(head, df) if q.layout == "columns" else _rows_json(head, df)
 
 
 def _frames(

@@ -22,7 +22,14 @@ from app.api.deps import (
     require_role,
 )
 from app.api.errors import not_found
-from app.api.schemas.runs import RunDetail, RunList
+from app.api.run_metadata import revise_run_metadata
+from app.api.schemas.runs import (
+    RunDetail,
+    RunList,
+    RunMetadataChange,
+    RunMetadataOut,
+    RunMetadataPatch,
+)
 from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
 from app.api.views import API_PREFIX, run_detail, run_out
 from app.db import crud
@@ -181,6 +188,38 @@ def list_runs(
 def get_run(run_id: RunId, db: DbDep) -> RunDetail:
     """Metadata, sha256, file summary and latest job of a run."""
     return _detail(db, run_id)
+
+
+@router.patch(
+    "/{run_id}",
+    response_model=RunMetadataOut,
+    summary="Correct a run's metadata: re-ingest, reprocess, audit (engineer)",
+    dependencies=[Depends(require_role("engineer"))],
+    responses={
+        409: {"description": "A job of the run is queued or running"},
+        422: {"description": "Invalid metadata; `detail` names the field"},
+    },
+)
+async def patch_run_metadata(
+    run_id: RunId, body: RunMetadataPatch, request: Request, db: DbDep, store: StoreDep,
+    principal: EngineerDep,
+) -> RunMetadataOut:
+    """Change metadata fields of a run (e.g. the line, km or start time of a re-uploaded file).
+
+    The run's file is re-ingested with the corrected fields, the run is updated, a
+    reprocessing job with the run's latest settings is queued and the change is audited
+    (``run.metadata`` with each field's old and new value). Fields equal to the stored ones
+    change nothing (no job). The previous results stay until the new job is done.
+    """
+    outcome = await run_in_threadpool(
+        revise_run_metadata, db, store, run_id, body.metadata, principal, request
+    )
+    detail = await run_in_threadpool(_detail, db, run_id)
+    return RunMetadataOut(
+        **detail.model_dump(),
+        changed=[RunMetadataChange(field=k, old=old, new=new) for k, (old, new) in outcome.changed.items()],
+        reprocess_job_id=outcome.job_id,
+    )
 
 
 @router.delete(

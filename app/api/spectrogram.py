@@ -58,9 +58,9 @@ def _settings_of(db, run_id: int) -> tuple[ProcessingSettings, str]:
             raise not_found("run", run_id)
         job = results_reader.results_job(session, run_id) or crud.latest_job(session, run_id)
         path = run.file_path
-        raw = dict(job.settings or {}) if job is not None else {}
+        raw = dict(job.settings or {}) if job is not None else None
     try:
-        settings = ProcessingSettings.from_dict(raw)
+        settings = ProcessingSettings.from_stored(raw) if raw is not None else ProcessingSettings()
     except (TypeError, ValueError):
         settings = ProcessingSettings()
     return settings, path

@@ -23,11 +23,8 @@ place. Any failure removes the upload directory: no row, job or file remains.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import json
 import logging
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -43,13 +40,16 @@ from app.api.audit import record, record_now
 from app.api.channel_maps import load_channel_map
 from app.api.deps import Principal
 from app.api.errors import ApiError
+from app.api.run_metadata import describe_differences, metadata_differences, run_fields
+from app.api.views import API_PREFIX
 from app.core.config import Settings
+from app.core.diskspace import DiskFullError, is_disk_full, require_free
 from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
 from app.db import crud, recorder_crud
 from app.db.models import Run, utcnow
 from app.db.session import Database
-from app.io import RunFileError, RunSummary, ingest
+from app.io import RunFileError, RunSummary, ingest, load_metadata_json
 from app.io.geometry import LineGeometry
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
@@ -100,17 +100,23 @@ class _Received:
 
 
 class _Sink:
-    """Capped, hashing file writer fed with blocks of the body."""
+    """Capped, hashing file writer fed with blocks of the body.
 
-    def __init__(self, path: Path, block_bytes: int) -> None:
+    Before each block is written the free space is checked: writing it must
+    leave ``reserve`` bytes free (:class:`DiskFullError` otherwise).
+    """
+
+    def __init__(self, path: Path, block_bytes: int, reserve: int) -> None:
         self.path = path
         self.block_bytes = block_bytes
+        self.reserve = reserve
         self.hash = hashlib.sha256()
         self.size = 0
         self._buffer = bytearray()
-        self._fh = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self._fh = open(path, "wb", buffering=0)  # noqa: SIM115 - closed in close()
 
     def _write(self, data: bytes) -> None:
+        require_free(self.path.parent, len(data), self.reserve, "the upload")
         self.hash.update(data)
         self._fh.write(data)
 
@@ -137,6 +143,11 @@ def _too_large(cap: int) -> ApiError:
     )
 
 
+def _storage_full(exc: BaseException) -> ApiError:
+    reason = str(exc) if isinstance(exc, DiskFullError) else "the run store or the database is full"
+    return ApiError(507, "storage", f"{reason}; the upload was not kept, free space and try again")
+
+
 def _unsupported_type(ctype: str) -> ApiError:
     return ApiError(
         415,
@@ -156,7 +167,7 @@ def _safe_filename(name: str | None) -> str | None:
 
 
 async def _receive_raw(request: Request, path: Path, settings: Settings) -> _Received:
-    sink = _Sink(path, settings.upload_block_bytes)
+    sink = _Sink(path, settings.upload_block_bytes, settings.min_free_bytes)
     try:
         async for chunk in request.stream():
             if sink.size + len(chunk) > settings.max_upload_bytes:
@@ -279,7 +290,7 @@ async def _receive_multipart(
         parser = MultipartParser(boundary, state.callbacks())
     except FormParserError as exc:
         raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
-    sink = _Sink(path, settings.upload_block_bytes)
+    sink = _Sink(path, settings.upload_block_bytes, settings.min_free_bytes)
     received = 0
     try:
         async for chunk in request.stream():
@@ -363,12 +374,9 @@ def _parse_metadata(text: str | None) -> dict[str, Any] | None:
     if text is None or not text.strip():
         return None
     try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ApiError(422, "metadata", f"not valid JSON: {exc.msg} at position {exc.pos}") from None
-    if not isinstance(value, dict):
-        raise ApiError(422, "metadata", f"must be a JSON object, got {type(value).__name__}")
-    return value
+        return load_metadata_json(text, field="metadata")
+    except RunFileError as exc:
+        raise ApiError(422, exc.field, exc.message) from None
 
 
 def _channel_map_id(text: str | None) -> int | None:
@@ -387,45 +395,43 @@ def _one_of(name: str, form_value: str | None, query_value: str | None) -> str |
 
 
 def _run_row(summary: RunSummary, received: _Received, fmt: str | None, principal_name: str) -> Run:
-    md = summary.metadata
     return Run(
         sha256=received.sha256,
         file_path="",
         source_format=summary.source_format or fmt or "unknown",
         original_filename=received.filename,
         size_bytes=received.size,
-        vehicle_id=md.vehicle_id,
-        line_id=md.line_id,
-        track=md.track,
-        direction=md.direction,
-        start_time=md.start_time,
-        km_start=md.km_start,
-        km_increasing=md.km_increasing,
-        fs=float(summary.fs),
-        n_samples=int(summary.n_samples),
-        duration_s=float(summary.duration_s),
-        distance_m=_float_or_none(summary.distance_m),
-        speed_min=_float_or_none(summary.speed_min),
-        speed_max=_float_or_none(summary.speed_max),
-        channels=list(summary.channels),
-        meta=md.model_dump(mode="json"),
+        **run_fields(summary),
         ingest_report=jsonable({"warnings": list(summary.warnings), "report": dict(summary.report)}),
         created_by=principal_name,
         created_at=utcnow(),
     )
 
 
-def _float_or_none(value: Any) -> float | None:
-    if value is None:
-        return None
-    value = float(value)
-    return value if value == value and abs(value) != float("inf") else None
-
-
 def _existing_run_id(db: Database, sha256: str) -> int | None:
     with db.read() as session:
         run = crud.get_run_by_sha256(session, sha256)
         return run.id if run is not None else None
+
+
+def _check_same_metadata(db: Database, run_id: int, given: dict[str, Any] | None) -> None:
+    """The same file again: 409 when the given metadata differ from the run's (a correction
+    goes through ``PATCH /runs/{id}``; keeping either version silently would lose one)."""
+    if not given:
+        return
+    with db.read() as session:
+        run = crud.get_run(session, run_id)
+        stored = dict(run.meta or {}) if run is not None else None
+    if stored is None:
+        return
+    diffs = metadata_differences(stored, given)
+    if diffs:
+        raise ApiError(
+            409, "metadata",
+            f"this file was uploaded before as run {run_id} with other metadata "
+            f"({describe_differences(diffs)}); correct the run's metadata with "
+            f"PATCH {API_PREFIX}/runs/{run_id} (re-ingests and reprocesses the run)",
+        )
 
 
 def _create_run(
@@ -492,8 +498,9 @@ async def receive_and_create_run(
         429 over the upload rate of the principal, 413 for a body over the
         cap, 415 for a content type that is not a run file's, 400 for a
         malformed body, 422 naming the field for invalid content (format,
-        metadata, channels, ...). Nothing is left behind but the audit entry
-        of the rejection.
+        metadata, channels, ...), 507 (``storage``) when the run store (or the
+        database) has not enough free space. Nothing is left behind but the
+        audit entry of the rejection.
     """
     wait = request.app.state.upload_limiter.hit(
         f"key:{principal.key_id}" if principal.key_id is not None else f"user:{principal.name}"
@@ -506,13 +513,24 @@ async def receive_and_create_run(
         await run_in_threadpool(_record_rejection, db, request, principal, error, "denied")
         raise error
     try:
-        return await _receive_and_create(
-            request, settings=settings, db=db, store=store, principal=principal,
-            query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
-            query_channel_map=query_channel_map,
-        )
+        try:
+            return await _receive_and_create(
+                request, settings=settings, db=db, store=store, principal=principal,
+                query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
+                query_channel_map=query_channel_map,
+            )
+        except Exception as exc:
+            if not isinstance(exc, ApiError) and is_disk_full(exc):
+                log.warning("upload refused: %s", exc)
+                raise _storage_full(exc) from None
+            raise
     except ApiError as exc:
         await run_in_threadpool(_record_rejection, db, request, principal, exc, "rejected")
+        raise
+    except Exception as exc:
+        # not the client's fault (a bug, the database away): answered 500, audited all the same
+        error = ApiError(500, "server", f"{type(exc).__name__}: {exc}")
+        await run_in_threadpool(_record_rejection, db, request, principal, error, "error")
         raise
 
 
@@ -542,12 +560,13 @@ async def _receive_and_create(
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > settings.max_upload_bytes:
         raise _too_large(settings.max_upload_bytes)
+    if declared is not None and declared.isdigit():
+        await run_in_threadpool(require_free, store.root, int(declared), settings.min_free_bytes, "the upload")
     content_type = request.headers.get("content-type", "")
     bare_type = content_type.split(";")[0].strip().lower()
     if bare_type and bare_type != "multipart/form-data" and bare_type not in ACCEPTED_CONTENT_TYPES:
         raise _unsupported_type(bare_type)
-    upload_dir = await run_in_threadpool(store.new_upload_dir)
-    try:
+    with store.upload_dir() as upload_dir:
         path = upload_dir / _UPLOAD_NAME
         try:
             if content_type.lower().startswith("multipart/form-data"):
@@ -573,6 +592,7 @@ async def _receive_and_create(
 
         existing_id = await run_in_threadpool(_existing_run_id, db, received.sha256)
         if existing_id is not None:
+            await run_in_threadpool(_check_same_metadata, db, existing_id, metadata)
             return UploadOutcome(run_id=existing_id, created=False)
 
         map_id = _channel_map_id(_one_of("channel_map", received.fields.get("channel_map"), query_channel_map))
@@ -591,7 +611,10 @@ async def _receive_and_create(
         dest = upload_dir / "run.h5"
         try:
             summary = await run_in_threadpool(
-                lambda: ingest(path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry)
+                lambda: ingest(
+                    path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry,
+                    reserve_bytes=settings.min_free_bytes,
+                )
             )
         except RunFileError as exc:
             raise ApiError(422, exc.field, exc.message) from None
@@ -606,11 +629,9 @@ async def _receive_and_create(
             existing_id = await run_in_threadpool(_existing_run_id, db, received.sha256)
             if existing_id is None:
                 raise
+            await run_in_threadpool(_check_same_metadata, db, existing_id, metadata)
             return UploadOutcome(run_id=existing_id, created=False)
         log.info(
             "run %s created from %s (%d bytes, sha256 %s)", run_id, fmt, received.size, received.sha256
         )
         return UploadOutcome(run_id=run_id, created=True)
-    finally:
-        with contextlib.suppress(OSError):
-            shutil.rmtree(upload_dir, ignore_errors=True)

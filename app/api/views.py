@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from app.analysis.settings import ProcessingSettings
 from app.api.schemas.jobs import JobOut
 from app.api.schemas.runs import RunDetail, RunOut, RunSummaryOut
 from app.db.models import ChunkStatus, Job, Run
@@ -9,6 +10,14 @@ from app.db.models import ChunkStatus, Job, Run
 __all__ = ["job_out", "run_out", "run_detail"]
 
 API_PREFIX = "/api/v1"
+
+
+def _settings_shown(stored: dict | None) -> dict:
+    """A job's stored settings with every key, the ones it predates at their legacy values."""
+    try:
+        return ProcessingSettings.from_stored(stored).to_dict()
+    except (TypeError, ValueError):
+        return dict(stored or {})
 
 
 def job_out(job: Job, chunk_counts: dict[str, int] | None = None) -> JobOut:
@@ -20,8 +29,9 @@ def job_out(job: Job, chunk_counts: dict[str, int] | None = None) -> JobOut:
         status=job.status,
         progress=float(job.progress or 0.0),
         error=job.error,
-        settings=dict(job.settings or {}),
+        settings=_settings_shown(job.settings),
         meta=job.meta,
+        warnings=[str(w) for w in (job.meta or {}).get("warnings") or []],
         n_chunks=job.n_chunks,
         chunks_done=int(counts.get(ChunkStatus.DONE, 0)),
         attempts=int(job.attempts or 0),

@@ -17,9 +17,11 @@ from app.cli import accounts, condition, demo, processing, service
 
 __all__ = ["app", "main"]
 
+# rich_markup_mode=None: click's plain help (Typer's rich panels label flags "<bool>")
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
+    rich_markup_mode=None,
     help="Track stiffness and wheel out-of-roundness from axle-box accelerations.",
 )
 app.command()(service.serve)

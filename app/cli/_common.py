@@ -8,7 +8,10 @@ import typer
 
 from app.core.config import get_settings
 
-__all__ = ["CLI_ACTOR", "echo", "refuse_unsafe_production", "database", "cli_audit", "new_password"]
+__all__ = [
+    "CLI_ACTOR", "echo", "refuse_unsafe_production", "database", "database_problem",
+    "require_migrated_database", "cli_audit", "new_password",
+]
 
 #: ``created_by`` of users and keys made on the command line
 CLI_ACTOR = "cli"
@@ -39,10 +42,60 @@ def refuse_unsafe_production() -> None:
         raise typer.Exit(2) from None
 
 
+def database_problem(url: str) -> str | None:
+    """Why the database at ``url`` cannot serve the commands yet, or None when it is migrated.
+
+    Creates nothing: a SQLite file that does not exist (a relative URL resolved in
+    another working directory, typically) is reported, not created.
+    """
+    from pathlib import Path
+
+    from sqlalchemy.engine import make_url
+
+    from app.db.migrate import current_revision
+
+    parsed = make_url(url)
+    if parsed.get_backend_name() == "sqlite" and parsed.database not in (None, "", ":memory:"):
+        path = Path(parsed.database).expanduser()
+        if not path.is_file():
+            where = (
+                f" (the URL is relative to the working directory {Path.cwd()})"
+                if not path.is_absolute() else ""
+            )
+            return (
+                f"no database at {path.resolve()}{where}. Run trackvkf from the project "
+                "directory (where ./scripts/demo.sh created var/), set TRACKVKF_DATABASE_URL "
+                "to your database, or create a new one here with `trackvkf migrate`"
+            )
+    try:
+        revision = current_revision(url)
+    except Exception as exc:  # noqa: BLE001 - any failure to connect is reported as a hint
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        return f"cannot open the database {parsed.render_as_string(hide_password=True)}: {first}"
+    if revision is None:
+        return (
+            f"the database {parsed.render_as_string(hide_password=True)} is not migrated: "
+            "run `trackvkf migrate` first"
+        )
+    return None
+
+
+def require_migrated_database() -> None:
+    """Exit with status 2 and a one-line hint unless ``TRACKVKF_DATABASE_URL`` is migrated."""
+    problem = database_problem(get_settings().database_url)
+    if problem is not None:
+        typer.echo(f"error: {problem}", err=True)
+        raise typer.Exit(2)
+
+
 def database():
-    """A :class:`~app.db.session.Database` on ``TRACKVKF_DATABASE_URL`` (dispose it after use)."""
+    """A :class:`~app.db.session.Database` on ``TRACKVKF_DATABASE_URL`` (dispose it after use).
+
+    Exits with a hint (status 2) when the database does not exist or is not migrated.
+    """
     from app.db.session import Database
 
+    require_migrated_database()
     return Database(get_settings().database_url)
 
 

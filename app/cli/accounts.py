@@ -12,8 +12,8 @@ from app.cli._common import CLI_ACTOR, cli_audit, database, echo, new_password
 
 __all__ = ["user_app", "key_app"]
 
-user_app = typer.Typer(no_args_is_help=True, help="Browser users (stored with Argon2id password hashes).")
-key_app = typer.Typer(no_args_is_help=True, help="API keys of data systems (stored hashed, shown once).")
+user_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None, help="Browser users (stored with Argon2id password hashes).")
+key_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None, help="API keys of data systems (stored hashed, shown once).")
 
 
 @contextlib.contextmanager

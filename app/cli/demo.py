@@ -1,4 +1,5 @@
-"""Command ``demo``: migrate, simulate a demo run, start API and worker, process it over HTTP."""
+"""Command ``demo``: migrate, simulate the demo data, start API and worker, upload and process
+it over HTTP (runs of two lines at several dates and reference data: every page has content)."""
 
 from __future__ import annotations
 
@@ -100,41 +101,132 @@ def _stop(procs: list[subprocess.Popen]) -> None:
             p.wait()
 
 
+def _post_file(client, url: str, path: Path, content_type: str, params: dict | None = None) -> tuple[int, dict]:
+    """POST a file as the multipart field ``file``; (status, JSON body). Raises RuntimeError
+    naming the file for anything but 200/201."""
+    with open(path, "rb") as fh:
+        resp = client.post(url, params=params, files={"file": (path.name, fh, content_type)})
+    if resp.status_code not in (200, 201):
+        raise RuntimeError(f"{path.name}: {resp.status_code} {resp.text}")
+    return resp.status_code, resp.json()
+
+
+def _upload_runs(client, base: str, files: list[Path]) -> list[dict]:
+    """Upload the run files (a file uploaded before answers 200 with its run); the runs."""
+    runs = []
+    for path in files:
+        status, run = _post_file(client, f"{base}/api/v1/runs", path, "application/x-hdf5")
+        state = "created" if status == 201 else "already uploaded"
+        echo(f"  run {run['id']} {state}: line {run['line_id']} track {run['track']}, "
+             f"{run['vehicle_id']}, {str(run['start_time'])[:10]}")
+        runs.append(run)
+    return runs
+
+
+def _import_reference(client, base: str, files: dict[str, Path]) -> None:
+    """Import the reference files, replacing what the demo imported before."""
+    for kind, path in files.items():
+        _, body = _post_file(client, f"{base}/api/v1/reference/{kind}", path, "text/csv", {"mode": "replace"})
+        echo(f"  {kind}: {body['imported']} rows")
+
+
+def _import_geometry(client, base: str, files: list[Path]) -> None:
+    """Import the lines' geometry (a line imported again replaces its geometry)."""
+    for path in files:
+        _post_file(client, f"{base}/api/v1/geometry", path, "application/geo+json")
+        echo(f"  geometry: {path.name}")
+
+
+def _wait_jobs(client, base: str, runs: list[dict], procs: list[subprocess.Popen]) -> None:
+    """Follow the runs' latest jobs until none is queued or running, printing changes."""
+    jobs = {run["latest_job"]["id"]: run["latest_job"] for run in runs if run.get("latest_job")}
+    shown: dict[int, tuple] = {}
+    while True:
+        for job_id, job in jobs.items():
+            state = (job["status"], job["chunks_done"], job["n_chunks"])
+            if shown.get(job_id) != state:
+                chunks = f", {job['chunks_done']}/{job['n_chunks']} chunks" if job["n_chunks"] else ""
+                error = f": {job['error']}" if job.get("error") else ""
+                echo(f"  job {job_id} (run {job['run_id']}) {job['status']}{chunks}{error}")
+                shown[job_id] = state
+        if all(job["status"] not in ("queued", "running") for job in jobs.values()):
+            return
+        time.sleep(1.0)
+        for p in procs:
+            if p.poll() is not None:
+                raise RuntimeError(f"process {p.args} exited with {p.returncode}")
+        for job_id, job in jobs.items():
+            if job["status"] in ("queued", "running"):
+                jobs[job_id] = client.get(f"{base}/api/v1/jobs/{job_id}").json()
+
+
+def _activate_hint() -> str:
+    """How to get ``trackvkf`` on PATH in another terminal (the venv the demo runs in)."""
+    venv = Path(sys.prefix)
+    if venv.name == ".venv":
+        return f"cd {venv.parent} && source .venv/bin/activate && trackvkf --help"
+    return f"source {venv}/bin/activate && trackvkf --help"
+
+
+def _where_to_look(base: str, runs: list[dict], line: tuple[str, str]) -> str:
+    first = runs[0]["id"]
+    api = f"{base}/api/v1"
+    line_q = f"line_id={line[0]}&track={line[1]}"
+    return (
+        "\nWhere to look:\n"
+        f"  dashboard (runs)         {base}/\n"
+        f"  stiffness map, run {first:<5} {base}/runs/{first}\n"
+        f"  line view                {base}/lines\n"
+        f"  map                      {base}/map\n"
+        f"  wheels                   {base}/wheels\n"
+        f"  correlations             {base}/correlations\n"
+        f"  API docs (OpenAPI)       {base}/docs\n"
+        f"  run detail (JSON)        {api}/runs/{first}\n"
+        f"  profile, wheel 11, 10 m  {api}/runs/{first}/profile?wheel=11&level=10\n"
+        f"  profile export (CSV)     {api}/runs/{first}/profile.csv?wheel=11\n"
+        f"  wheel OOR                {api}/runs/{first}/wheels\n"
+        f"  subsidence fit           {api}/analytics/subsidence-fit?{line_q}\n"
+        f"  jobs                     {api}/jobs\n"
+        "\nThe command line, in another terminal:\n"
+        f"  {_activate_hint()}\n"
+    )
+
+
 def demo(
     host: Annotated[str, typer.Option(help="Interface for the API")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="TCP port for the API")] = 8000,
-    length_km: Annotated[float, typer.Option(help="Length of the demo run, km")] = 3.0,
-    fs: Annotated[float, typer.Option(help="Sample rate of the demo run, Hz")] = 10_000.0,
+    length_km: Annotated[float, typer.Option(help="Length of each demo run, km")] = 3.0,
+    fs: Annotated[float, typer.Option(help="Sample rate of the demo runs, Hz")] = 10_000.0,
     serve_after: Annotated[
         bool, typer.Option("--serve/--no-serve", help="Keep serving after processing (until Ctrl-C)")
     ] = True,
 ) -> None:
-    """Migrate, simulate a demo run, start API and worker, upload and process it over HTTP."""
+    """Migrate, simulate the demo data (4 runs of 2 lines, reference data, line geometry), start
+    API and worker, upload, import and process it all over HTTP, print where to look."""
     import httpx
 
     from app.db import migrate as db_migrate
+    from app.simulate.demo import DEMO_RUNS, write_demo_dataset
 
     settings = get_settings()
     if settings.is_production:
         typer.echo("error: the demo does not run with TRACKVKF_ENV=production", err=True)
         raise typer.Exit(2)
+    if not length_km > 0:
+        typer.echo(f"error: --length-km must be > 0, got {length_km:g}", err=True)
+        raise typer.Exit(2)
+    if not _port_free(host, port):
+        typer.echo(f"error: port {port} on {host} is in use; pass --port", err=True)
+        raise typer.Exit(1)
     db_migrate.upgrade(settings.database_url)
     echo(f"database ready: {settings.database_url}")
     admin_password, upload_key, upload_key_id = _demo_credentials(settings)
 
     demo_dir = Path(settings.run_store).resolve().parent / "demo"
-    run_file = demo_dir / f"demo-run-{length_km:g}km-{fs:g}Hz.h5"
-    if not run_file.is_file():
-        echo(f"simulating a {length_km:g} km demo run at {fs:g} Hz ...")
-        from app.simulate.run import simulate_run
+    echo(f"demo data in {demo_dir}: {len(DEMO_RUNS)} runs of {length_km:g} km at {fs:g} Hz "
+         "and reference data (simulated once, then reused) ...")
+    data = write_demo_dataset(demo_dir, length_km=length_km, fs=fs)
 
-        demo_dir.mkdir(parents=True, exist_ok=True)
-        simulate_run(run_file, length_km=length_km, fs=fs, seed=7, with_forces=True)
-    echo(f"demo run: {run_file}")
-
-    if not _port_free(host, port):
-        typer.echo(f"error: port {port} on {host} is in use; pass --port", err=True)
-        raise typer.Exit(1)
     base = f"http://{host}:{port}"
     env = dict(os.environ)
 
@@ -153,34 +245,16 @@ def demo(
     procs = [api, wrk]
     try:
         _wait_healthy(base, procs)
-        echo(f"API up at {base}; uploading the demo run ...")
+        echo(f"API up at {base}; uploading the demo runs ...")
         headers = {"Authorization": f"Bearer {upload_key}"}
-        with open(run_file, "rb") as fh, httpx.Client(timeout=600, headers=headers) as client:
-            resp = client.post(
-                f"{base}/api/v1/runs",
-                files={"file": (run_file.name, fh, "application/x-hdf5")},
-            )
-            if resp.status_code not in (200, 201):
-                raise RuntimeError(f"upload failed: {resp.status_code} {resp.text}")
-            run = resp.json()
-            run_id = run["id"]
-            echo(f"run {run_id} {'created' if resp.status_code == 201 else 'already uploaded'}")
-            job = run["latest_job"]
-            last: tuple = ()
-            while job["status"] in ("queued", "running"):
-                state = (job["status"], job["chunks_done"], job["n_chunks"])
-                if state != last:
-                    chunks = f", {job['chunks_done']}/{job['n_chunks']} chunks" if job["n_chunks"] else ""
-                    echo(f"  job {job['id']} {job['status']}{chunks}")
-                    last = state
-                time.sleep(1.0)
-                for p in procs:
-                    if p.poll() is not None:
-                        raise RuntimeError(f"process {p.args} exited with {p.returncode}")
-                job = client.get(f"{base}/api/v1/jobs/{job['id']}").json()
-            echo(f"  job {job['id']} {job['status']}" + (f": {job['error']}" if job["error"] else ""))
+        with httpx.Client(timeout=600, headers=headers) as client:
+            runs = _upload_runs(client, base, data.runs)
+            echo(f"importing the reference data of line {data.reference_line[0]} "
+                 f"track {data.reference_line[1]} ...")
+            _import_reference(client, base, data.reference)
+            _import_geometry(client, base, data.geometry)
+            _wait_jobs(client, base, runs, procs)
         _revoke_demo_key(upload_key_id)
-        runs = f"{base}/api/v1/runs/{run_id}"
         if admin_password is not None:
             login = (
                 "Log in (first start: these credentials are printed once and stored hashed;\n"
@@ -193,15 +267,7 @@ def demo(
                 "(forgotten: `trackvkf user set-password admin --generate`).\n"
             )
         echo(f"\n{login}  login page               {base}/login")
-        echo(
-            "\nWhere to look:\n"
-            f"  API docs (OpenAPI)       {base}/docs\n"
-            f"  run detail               {runs}\n"
-            f"  profile, wheel 11, 10 m  {runs}/profile?wheel=11&level=10\n"
-            f"  profile export (CSV)     {runs}/profile.csv?wheel=11\n"
-            f"  wheel OOR                {runs}/wheels\n"
-            f"  jobs                     {base}/api/v1/jobs\n"
-        )
+        echo(_where_to_look(base, runs, data.reference_line))
         if not serve_after:
             return
         echo("Serving until Ctrl-C ...")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Annotated, Any
@@ -11,6 +12,7 @@ from typing import Annotated, Any
 import typer
 
 from app.cli._common import echo
+from app.cli._warnings import engine_warnings
 
 __all__ = ["simulate", "process"]
 
@@ -108,7 +110,17 @@ def process(
     ] = None,
     n_wheel_orders: Annotated[int | None, typer.Option(help="Wheel orders (default 11)")] = None,
     bandwidth_orders: Annotated[
-        float | None, typer.Option(help="Bandwidth in wheel orders (default 0.1)")
+        float | None, typer.Option(help="Bandwidth of the wheel orders, in wheel orders (default 0.1)")
+    ] = None,
+    track_resolution_m: Annotated[
+        float | None,
+        typer.Option(help="Spatial resolution of the sleeper orders: 10-90 % step width, m (default 3)"),
+    ] = None,
+    sleeper_harmonics: Annotated[
+        int | None, typer.Option(help="Highest sleeper harmonic extracted: 1, 2 or 3 (default 3)")
+    ] = None,
+    force_mean_window_m: Annotated[
+        float | None, typer.Option(help="Moving mean removed from the force channels, m; 0: off (default 12)")
     ] = None,
     filter_order: Annotated[int | None, typer.Option(help="VKF filter order q (default 2)")] = None,
     channel_map: Annotated[
@@ -119,6 +131,11 @@ def process(
     ] = None,
 ) -> None:
     """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
+
+    ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
+    (``sleeper_amp``), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
+    (``sleeper_rms``), the wheel orders and the force amplitude; ``meta.json`` the settings and
+    the warnings (docs/indicator.md).
 
     Intermediate chunk results are kept in ``OUT/.work`` so an interrupted run
     resumes where it stopped.
@@ -137,6 +154,9 @@ def process(
         for k, v in {
             "n_wheel_orders": n_wheel_orders,
             "bandwidth_orders": bandwidth_orders,
+            "track_resolution_m": track_resolution_m,
+            "sleeper_harmonics": sleeper_harmonics,
+            "force_mean_window_m": force_mean_window_m,
             "filter_order": filter_order,
         }.items()
         if v is not None
@@ -183,7 +203,8 @@ def process(
             f"{summary.duration_s:.1f} s at {summary.fs:g} Hz, {summary.distance_m / 1000:.2f} km, "
             f"channels {', '.join(summary.channels)}"
         )
-    with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar:
+    with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar, \
+            engine_warnings(lambda line: tqdm.write(line, file=sys.stderr)) as seen:
 
         def progress(fraction: float) -> None:
             bar.update(max(0.0, 100 * fraction - bar.n))
@@ -205,8 +226,11 @@ def process(
         "source_file": str(run_file),
         "source_sha256": source_sha,
         "settings": settings.to_dict(),
+        "warnings": seen.as_list(),
     }
     (out / "meta.json").write_text(json.dumps(_jsonable(meta), indent=1))
+    for text in meta.get("warnings") or ():
+        typer.echo(f"warning: {text}", err=True)
     echo(
         f"{len(results.profiles)} profile rows, {len(results.wheels)} wheels -> {out}/ "
         "(profiles.csv/.parquet, wheel_orders.csv/.parquet, wheel_profiles.csv/.parquet, "

@@ -2,32 +2,52 @@
 
 from __future__ import annotations
 
+import os
 from typing import Annotated
 
 import typer
 
-from app.cli._common import echo, refuse_unsafe_production
+from app.cli._common import echo, refuse_unsafe_production, require_migrated_database
 from app.core.config import get_settings
 from app.core.logging import configure_logging
 
-__all__ = ["serve", "worker", "migrate"]
+__all__ = ["serve", "worker", "migrate", "default_api_workers"]
+
+
+def default_api_workers() -> int:
+    """API processes ``serve`` starts by default: one per core this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 def serve(
     host: Annotated[str, typer.Option(help="Interface to listen on")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="TCP port")] = 8000,
     log_level: Annotated[str, typer.Option(help="uvicorn log level")] = "info",
+    workers: Annotated[
+        int | None,
+        typer.Option(min=1, max=64, help="API processes (default: one per core)"),
+    ] = None,
 ) -> None:
     """Run the REST API (uvicorn). Migrate the database first (``trackvkf migrate``).
+
+    Several API processes share the port (uvicorn restarts one that dies); on
+    SQLite they read side by side (WAL) and take turns writing. Each process
+    keeps its own in-process rate limits and profile answer cache.
 
     With ``TRACKVKF_ENV=production`` it refuses to start without a secret key
     of its own or while a user still has the password printed by ``demo``.
     """
     import uvicorn
 
+    require_migrated_database()
     refuse_unsafe_production()
+    n = workers if workers is not None else default_api_workers()
     uvicorn.run(
-        "app.main:create_app", factory=True, host=host, port=port, log_level=log_level.lower()
+        "app.main:create_app", factory=True, host=host, port=port, log_level=log_level.lower(),
+        workers=n, timeout_graceful_shutdown=30,
     )
 
 
@@ -44,6 +64,7 @@ def worker(
     from worker import modes
 
     settings = get_settings()
+    require_migrated_database()
     configure_logging(settings.log_level)
     code = modes.run(settings, local=local, once=once, exit_when_idle=exit_when_idle, processes=processes)
     if code:

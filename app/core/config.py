@@ -43,8 +43,16 @@ class Settings(BaseSettings):
     max_metadata_bytes : int
         Largest accepted metadata JSON document, bytes.
     upload_stale_after_s : float
-        Uploads in progress older than this (s) are swept from the run store at
-        start-up: they belong to a crashed or restarted API.
+        Age (s) after which an upload directory is swept at start-up on a file
+        system without ``flock`` (some network file systems). Elsewhere every
+        upload no live API process owns (a process holds a ``flock`` on its
+        uploads) is swept at start-up, whatever its age.
+    min_free_bytes : int
+        Free space the run store keeps in reserve, bytes (default 1 GiB). An
+        upload that would leave less is refused with 507 (checked against its
+        declared size before it is received, while it is written and before the
+        canonical file is written), and ``/health`` reports the store as
+        ``low_space`` (status ``degraded``) below it.
     worker_poll_interval_s : float
         Pause of an idle worker between two looks at the queue, s.
     worker_heartbeat_s : float
@@ -91,11 +99,28 @@ class Settings(BaseSettings):
         Send the session cookies with the ``Secure`` flag (HTTPS only);
         always on in production.
     login_rate_limit, login_rate_window_s : int, float
-        At most ``login_rate_limit`` login attempts per client address and per
-        user name within ``login_rate_window_s`` seconds (per API process).
+        At most ``login_rate_limit`` login attempts per (client address, user
+        name) within ``login_rate_window_s`` seconds (per API process); a
+        browser holding the user's device cookie counts per device instead.
+    login_address_rate_limit : int
+        At most this many login attempts per client address over all user
+        names within ``login_rate_window_s`` (per API process; not for
+        browsers holding the user's device cookie).
+    login_name_failure_limit, login_name_failure_window_s : int, float
+        Failed logins of one user name from all addresses within the window
+        (counted in the audit log: shared by all API processes) after which
+        the name's logins are refused, except from browsers that logged in as
+        that user before (device cookie). Brute force gets at most this many
+        guesses per window; the user keeps logging in from their browser.
     upload_rate_limit, upload_rate_window_s : int, float
         At most ``upload_rate_limit`` uploads per principal (API key or user)
         within ``upload_rate_window_s`` seconds (per API process).
+    profile_cache_bytes : int
+        Memory each API process keeps for encoded profile answers of published
+        jobs (immutable; LRU), bytes; 0 turns the cache off.
+    profile_concurrency : int
+        Profile answers each API process computes at once; further requests
+        wait their turn without holding up uploads, logins and other requests.
     max_reference_bytes : int
         Largest accepted reference data file (subsidence, maintenance,
         superstructure), bytes.
@@ -162,6 +187,7 @@ class Settings(BaseSettings):
     upload_block_bytes: int = Field(default=1024 * 1024, ge=4096)
     max_metadata_bytes: int = Field(default=1024 * 1024, ge=1024)
     upload_stale_after_s: float = Field(default=6 * 3600.0, gt=0)
+    min_free_bytes: int = Field(default=_GIB, ge=0)
     worker_poll_interval_s: float = Field(default=1.0, gt=0)
     worker_heartbeat_s: float = Field(default=2.0, gt=0)
     worker_stale_after_s: float = Field(default=30.0, gt=0)
@@ -179,9 +205,14 @@ class Settings(BaseSettings):
     cookie_secure: bool = False
     login_rate_limit: int = Field(default=10, ge=1)
     login_rate_window_s: float = Field(default=60.0, gt=0)
+    login_address_rate_limit: int = Field(default=30, ge=1)
+    login_name_failure_limit: int = Field(default=50, ge=1)
+    login_name_failure_window_s: float = Field(default=3600.0, gt=0)
     upload_rate_limit: int = Field(default=60, ge=1)
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
     max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
+    profile_cache_bytes: int = Field(default=64 * 1024 * 1024, ge=0)
+    profile_concurrency: int = Field(default=2, ge=1, le=64)
     analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
     analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
     analytics_edge_trim_m: float = Field(default=50.0, ge=0)

@@ -16,6 +16,10 @@ with them.
   token)``. The browser gets it in a readable cookie and sends it back in the
   ``X-CSRF-Token`` header (double submit); the server recomputes it, so a
   cookie planted by another site cannot be paired with a forged header.
+* Device cookies mark a browser that logged in as a user before:
+  ``<random id>.<HMAC-SHA256(secret_key, id and user name)>``. A brute-force
+  attack on a user name (from anywhere) cannot lock its owner out of the
+  browsers that carry one.
 """
 
 from __future__ import annotations
@@ -45,6 +49,8 @@ __all__ = [
     "api_key_prefix",
     "csrf_token",
     "csrf_matches",
+    "new_device_cookie",
+    "device_cookie_id",
     "MIN_PASSWORD_LENGTH",
     "API_KEY_PREFIX",
 ]
@@ -173,3 +179,30 @@ def csrf_matches(secret_key: str, session_token: str, header: str | None) -> boo
     if not header:
         return False
     return hmac.compare_digest(csrf_token(secret_key, session_token), header.strip())
+
+
+def _device_mac(secret_key: str, device_id: str, username: str) -> str:
+    message = f"device:{device_id}:{username}".encode()
+    return hmac.new(secret_key.encode("utf-8"), message, hashlib.sha256).hexdigest()
+
+
+def new_device_cookie(secret_key: str, username: str) -> str:
+    """Value of a device cookie: this browser logged in as ``username``.
+
+    ``<random id>.<HMAC-SHA256(secret_key, id, user name)>``: only the server
+    can make one, and it names one user.
+    """
+    device_id = secrets.token_urlsafe(16)
+    return f"{device_id}.{_device_mac(secret_key, device_id, username)}"
+
+
+def device_cookie_id(secret_key: str, cookie: str | None, username: str) -> str | None:
+    """The device id of a valid device cookie of ``username``, else None (constant-time compare)."""
+    if not cookie or len(cookie) > 200:
+        return None
+    device_id, _, mac = cookie.partition(".")
+    if not device_id or not mac:
+        return None
+    if not hmac.compare_digest(_device_mac(secret_key, device_id, username), mac):
+        return None
+    return device_id

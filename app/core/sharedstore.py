@@ -89,6 +89,19 @@ class SharedStore:
 
     def remove_run(self, run_id: int) -> None:
         """Delete every object of run ``run_id`` (no error if there is none)."""
-        key = self.key(str(int(run_id)))
+        self.remove_tree(str(int(run_id)))
+
+    def remove_tree(self, relative: str) -> None:
+        """Delete every object below ``relative`` (no error if there is none)."""
+        key = self.key(relative)
         if self.fs.exists(key):
             self.fs.rm(key, recursive=True)
+
+    def child_names(self, relative: str) -> list[str]:
+        """Names of the objects and prefixes directly below ``relative`` (none if it does not exist)."""
+        key = self.key(relative)
+        try:
+            entries = self.fs.ls(key, detail=False)
+        except FileNotFoundError:
+            return []
+        return sorted({str(e).rstrip("/").rsplit("/", 1)[-1] for e in entries})

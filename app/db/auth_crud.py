@@ -40,6 +40,7 @@ __all__ = [
     "api_key_by_token",
     "touch_api_key",
     "audit",
+    "count_failed_logins",
     "list_audit",
     "active_demo_users",
 ]
@@ -332,6 +333,21 @@ def audit(
     session.add(entry)
     session.flush()
     return entry
+
+
+def count_failed_logins(session: Session, username: str, since: dt.datetime) -> int:
+    """Failed logins (audited ``auth.login`` with outcome ``denied``) of ``username`` since ``since``.
+
+    The audit log is the failure counter: one row per failed attempt, shared by
+    every API process (index ``ix_audit_log_action_target_at``).
+    """
+    stmt = select(func.count()).select_from(AuditEntry).where(
+        AuditEntry.action == "auth.login",
+        AuditEntry.target == username[:128],
+        AuditEntry.at >= since,
+        AuditEntry.outcome == "denied",
+    )
+    return int(session.scalar(stmt) or 0)
 
 
 def list_audit(

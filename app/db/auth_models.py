@@ -80,6 +80,8 @@ class AuditEntry(Base):
     __tablename__ = "audit_log"
     __table_args__ = (
         Index("ix_audit_log_action_at", "action", "at"),
+        # failed logins of one user name in a window (app.db.auth_crud.count_failed_logins)
+        Index("ix_audit_log_action_target_at", "action", "target", "at"),
         {"sqlite_autoincrement": True},
     )
 

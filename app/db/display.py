@@ -18,7 +18,13 @@ from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import DISPLAY_LEVEL_BASE, display_indices
 from app.db.models import COARSE_DISPLAY_LEVEL, ProfileBin
-from app.db.results_reader import PROFILE_COLUMNS, profile_frame, profile_where
+from app.db.results_reader import (
+    PROFILE_COLUMNS,
+    fetch_numeric,
+    numeric_frame,
+    profile_frame,
+    profile_where,
+)
 
 __all__ = ["display_rows", "km_extent"]
 
@@ -102,11 +108,13 @@ def display_rows(
     hi = extent[1] if km_to is None else min(extent[1], km_to)
     n_bins = max(hi - lo, 0.0) * 1000.0 / bin_length_m + 1.0
     level = _display_level(n_bins, max_points)
-    cols = [getattr(ProfileBin, c) for c in columns]
+    # numbers only, straight from the cursor into one array (the wheel is the same on every row)
+    numeric = [c for c in columns if c != "wheel"]
+    cols = [getattr(ProfileBin, c) for c in numeric]
     by_bin = profile_where(job_id, wheel, km_from, km_to, bin_length_m)  # primary key
-    conn = session.connection()
+    parts = []
     if level == 0:
-        rows = conn.execute(select(*cols).where(by_bin)).all()
+        parts.append(fetch_numeric(session, select(*cols).where(by_bin), len(cols)))
     else:
         if level < COARSE_DISPLAY_LEVEL:  # a range of a few 4 × max_points bins: primary key
             stmt = select(*cols).where(by_bin, ProfileBin.display_level >= level)
@@ -116,7 +124,7 @@ def display_rows(
             coarse = ProfileBin.display_level >= literal_column(str(int(COARSE_DISPLAY_LEVEL)))
             where = profile_where(job_id, wheel, km_from, km_to)
             stmt = select(*cols).where(where, coarse, ProfileBin.display_level >= level)
-        rows = conn.execute(stmt).all()
+        parts.append(fetch_numeric(session, stmt, len(cols)))
         # and every row of the (partial) buckets at the range's two ends (primary
         # key): their stored extremes may lie outside the range
         span = DISPLAY_LEVEL_BASE**level
@@ -124,15 +132,17 @@ def display_rows(
             edge = session.scalar(select(ProfileBin.bin).where(by_bin).order_by(bin_order).limit(1))
             if edge is not None:
                 start = (int(edge) // span) * span
-                rows += conn.execute(
-                    select(*cols).where(by_bin, ProfileBin.bin.between(start, start + span - 1))
-                ).all()
-    df = profile_frame(rows, columns).drop_duplicates("bin").sort_values("km", kind="stable").reset_index(drop=True)
-    if len(df) > max_points:
-        keep = display_indices(
-            df["km"].to_numpy(dtype=np.float64),
-            df["sleeper_amp"].to_numpy(dtype=np.float64, na_value=np.nan),
-            max_points,
-        )
-        df = df.iloc[keep].reset_index(drop=True)
-    return df
+                stmt = select(*cols).where(by_bin, ProfileBin.bin.between(start, start + span - 1))
+                parts.append(fetch_numeric(session, stmt, len(cols)))
+    values = np.concatenate(parts)
+    i_bin, i_km = numeric.index("bin"), numeric.index("km")
+    _, first = np.unique(values[:, i_bin], return_index=True)  # each bin once
+    values = values[first]
+    values = values[np.argsort(values[:, i_km], kind="stable")]
+    if len(values) > max_points:
+        keep = display_indices(values[:, i_km], values[:, numeric.index("sleeper_amp")], max_points)
+        values = values[keep]
+    df = numeric_frame(values, numeric)
+    if "wheel" in columns:
+        df.insert(0, "wheel", np.full(len(df), wheel, dtype=object))
+    return df[list(columns)]

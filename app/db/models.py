@@ -67,6 +67,9 @@ PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
     "n_samples",
     "speed_mean",
     "sleeper_amp",
+    "sleeper_2_amp",
+    "sleeper_3_amp",
+    "sleeper_rms",
     *ORDER_COLUMNS,
     "residual_rms",
     "sleeper_force_amp",
@@ -272,6 +275,11 @@ class ProfileBin(Base):
     n_samples: Mapped[int] = mapped_column(Integer)
     speed_mean: Mapped[float | None] = mapped_column(Float)
     sleeper_amp: Mapped[float | None] = mapped_column(Float)
+    #: sleeper-passage harmonics 2·f_s and 3·f_s (peak, m/s²) and the RMS over the fundamental
+    #: and the harmonics extracted (the energy indicator, m/s²); NULL in jobs before issue 15
+    sleeper_2_amp: Mapped[float | None] = mapped_column(Float)
+    sleeper_3_amp: Mapped[float | None] = mapped_column(Float)
+    sleeper_rms: Mapped[float | None] = mapped_column(Float)
     order_amp_01: Mapped[float | None] = mapped_column(Float)
     order_amp_02: Mapped[float | None] = mapped_column(Float)
     order_amp_03: Mapped[float | None] = mapped_column(Float)

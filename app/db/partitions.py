@@ -6,7 +6,7 @@ rows are written (creating a partition locks the parent table briefly; inside
 the long transaction that stores a run it would hold readers up). A default
 partition takes rows of any range without one. Retention drops whole
 partitions of old jobs (:mod:`app.db.retention`). Migration
-``0012_profile_partitions`` made the table partitioned and attached the rows
+``0013_profile_partitions`` made the table partitioned and attached the rows
 stored before as the first partition. SQLite tables are not partitioned: every
 function here does nothing there.
 """
@@ -46,7 +46,7 @@ class Partition(NamedTuple):
 
 
 def is_partitioned(session: Session) -> bool:
-    """Whether ``profile_bins`` is a partitioned table (PostgreSQL after migration 0012)."""
+    """Whether ``profile_bins`` is a partitioned table (PostgreSQL after migration 0013)."""
     if session.get_bind().dialect.name != "postgresql":
         return False
     kind = session.execute(text("SELECT relkind FROM pg_class WHERE relname = 'profile_bins' "

@@ -413,14 +413,19 @@ def claim_for_fanout(db: Database, job_id: int, owner: str) -> bool:
         return row is not None and row[0] == JobStatus.RUNNING and row[1] == owner
 
 
-def finalize_cancel_requests(db: Database) -> int:
+def finalize_cancel_requests(db: Database) -> dict[int, int]:
     """Mark running fan-out jobs with a cancel request as cancelled.
 
     Their chunk tasks see the job is no longer running at their next check
-    (between sub-blocks) and stop. Returns the number of jobs cancelled.
+    (between sub-blocks) and stop.
+
+    Returns
+    -------
+    dict
+        Job id → run id of the jobs cancelled now.
     """
     with db.write() as session:
-        ids = session.scalars(
+        rows = session.execute(
             update(Job)
             .where(
                 Job.status == JobStatus.RUNNING,
@@ -433,11 +438,11 @@ def finalize_cancel_requests(db: Database) -> int:
                 finished_at=utcnow(),
                 heartbeat_at=None,
             )
-            .returning(Job.id)
+            .returning(Job.id, Job.run_id)
         ).all()
-        for job_id in ids:
+        for job_id, _ in rows:
             results_writer.discard_profile_rows(session, job_id)  # rows of wheels stored before the cancel
-        return len(ids)
+        return {int(job_id): int(run_id) for job_id, run_id in rows}
 
 
 def chunk_progress(db: Database, job_id: int) -> tuple[int, int]:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import ColumnElement, and_, select
+from sqlalchemy import ColumnElement, Select, and_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, JobStatus, ProfileBin, WheelOOR
@@ -34,6 +34,8 @@ __all__ = [
     "profile_frame",
     "profile_where",
     "profile_rows",
+    "fetch_numeric",
+    "numeric_frame",
     "job_profile_frame",
     "iter_profile_pages",
     "get_wheels",
@@ -177,6 +179,28 @@ def profile_rows(
     )
 
 
+def fetch_numeric(session: Session, stmt: Select, n_columns: int) -> np.ndarray:
+    """The rows of a query of ``n_columns`` numeric columns as one float array (NULL -> NaN).
+
+    Straight from the DBAPI cursor: no Python row object per row.
+    """
+    result = session.connection().execute(stmt)
+    try:
+        rows = result.cursor.fetchall()  # DBAPI tuples: no row processing needed for numbers
+    finally:
+        result.close()
+    return np.array(rows, dtype=np.float64).reshape(len(rows), n_columns)
+
+
+def numeric_frame(values: np.ndarray, names: Sequence[str]) -> pd.DataFrame:
+    """DataFrame of numeric profile columns from :func:`fetch_numeric`'s array (``bin``, ``n_samples`` as integers)."""
+    frame = pd.DataFrame(values, columns=list(names))
+    for col in ("bin", "n_samples"):
+        if col in frame:
+            frame[col] = frame[col].astype(np.int64)
+    return frame
+
+
 def job_profile_frame(
     session: Session,
     job_id: int,
@@ -212,16 +236,7 @@ def job_profile_frame(
             stmt = stmt.where(ProfileBin.bin > after_bin)
         if remaining is not None:
             stmt = stmt.limit(remaining)
-        result = session.connection().execute(stmt)
-        try:
-            rows = result.cursor.fetchall()  # DBAPI tuples: no row processing needed for numbers
-        finally:
-            result.close()
-        values = np.array(rows, dtype=np.float64).reshape(len(rows), len(numeric))  # None -> NaN
-        frame = pd.DataFrame(values, columns=numeric)
-        for col in ("bin", "n_samples"):
-            if col in frame:
-                frame[col] = frame[col].astype(np.int64)
+        frame = numeric_frame(fetch_numeric(session, stmt, len(numeric)), numeric)
         frame.insert(0, "wheel", np.full(len(frame), w, dtype=object))
         frames.append(frame)
         if remaining is not None:

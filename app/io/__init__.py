@@ -16,7 +16,7 @@ from app.io.channels import (
 from app.io.errors import RunFileError
 from app.io.ingest import RunSummary, ingest
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
-from app.io.metadata import Calibration, RunMetadata, parse_metadata
+from app.io.metadata import Calibration, RunMetadata, load_metadata_json, parse_metadata
 from app.io.runfile import RunFile, open_run
 
 __all__ = [
@@ -37,6 +37,7 @@ __all__ = [
     "RunSummary",
     "atomic_output",
     "ingest",
+    "load_metadata_json",
     "open_run",
     "parse_metadata",
     "write_run_hdf5",

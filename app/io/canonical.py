@@ -23,7 +23,7 @@ default. Files written by :func:`app.io.ingest` always hold both ``speed`` and
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from importlib import metadata as _pkg_metadata
 from pathlib import Path
 from typing import Any, Literal
@@ -32,6 +32,8 @@ import h5py
 import numpy as np
 
 from app.core.atomic import atomic_path
+from app.core.diskspace import require_free
+from app.io._guarded_file import GuardedFile
 from app.io.channels import ALL_CHANNELS, UNITS, storage_dtype
 from app.io.errors import RunFileError
 from app.io.metadata import Calibration, RunMetadata, parse_metadata
@@ -41,6 +43,7 @@ __all__ = [
     "CHUNK_SAMPLES",
     "Compression",
     "atomic_output",
+    "canonical_output",
     "CanonicalWriter",
     "write_run_hdf5",
     "check_hdf5_tree",
@@ -81,6 +84,57 @@ def atomic_output(dest: Path) -> Iterator[Path]:
         raise FileNotFoundError(f"dest: directory {str(dest.parent)!r} does not exist")
     with atomic_path(dest, suffix=".part", must_write=True) as tmp:
         yield tmp
+
+
+@contextlib.contextmanager
+def canonical_output(
+    dest: Path, *, reserve_bytes: int = 0, expected_bytes: int = 0
+) -> Iterator[tuple[h5py.File, Callable[[], None]]]:
+    """An HDF5 file open for writing that becomes ``dest`` atomically, safe on a full disk.
+
+    Parameters
+    ----------
+    dest : Path
+        Final location; its directory must exist.
+    reserve_bytes : int
+        Free space that must remain on the file system (``TRACKVKF_MIN_FREE_BYTES``);
+        checked before writing (with ``expected_bytes``) and every few MiB while writing.
+    expected_bytes : int
+        Size the file is expected to reach, if known (0: not checked up front).
+
+    Yields
+    ------
+    h5 : h5py.File
+        The file (h5py's file-object driver over a :class:`GuardedFile`, so
+        libhdf5 never sees a failed write).
+    check : callable
+        Raises the first write failure (:class:`~app.core.diskspace.DiskFullError`
+        for a full disk); call it between blocks to stop early.
+
+    Raises
+    ------
+    DiskFullError
+        Not enough space (before writing, or found while writing; then this
+        replaces whatever error the dropped writes caused). Nothing is left
+        at ``dest`` and no temporary file remains.
+    """
+    with atomic_output(dest) as tmp:
+        if expected_bytes > 0 or reserve_bytes > 0:
+            require_free(tmp.parent, max(int(expected_bytes), 0), reserve_bytes, "the canonical run file")
+        guard = GuardedFile(tmp, reserve_bytes)
+        try:
+            h5 = h5py.File(guard, "w")
+            try:
+                yield h5, guard.raise_if_failed
+            except BaseException:
+                with contextlib.suppress(Exception):
+                    h5.close()
+                guard.raise_if_failed()  # a failed write explains what followed it
+                raise
+            h5.close()
+            guard.raise_if_failed()
+        finally:
+            guard.close()
 
 
 def check_hdf5_tree(f: h5py.File) -> dict[str, h5py.Dataset]:
@@ -354,7 +408,7 @@ def write_run_hdf5(
         raise RunFileError(next(iter(arrays)), f"channels of unequal length ({lengths})")
     n_samples = n.pop()
     order = [c for c in ALL_CHANNELS if c in arrays]
-    with atomic_output(Path(path)) as tmp, h5py.File(tmp, "w") as h5:
+    with canonical_output(Path(path)) as (h5, _):
         writer = CanonicalWriter(
             h5,
             fs=fs,

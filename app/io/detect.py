@@ -48,19 +48,27 @@ def _recorder_format(path: Path) -> str | None:
     return next((fmt for fmt, magic in _RECORDER_MAGIC.items() if head.startswith(magic)), None)
 
 
-def _looks_like_text(path: Path) -> bool:
+def _text_problem(path: Path) -> str | None:
+    """Why the file does not start with a delimited-text header line (None: it does).
+
+    Only the first line is judged here: a NUL byte or bytes that are not UTF-8
+    further on are reported, with their offset, by the CSV reader.
+    """
     with open(path, "rb") as fh:
         head = fh.read(4096)
-    if b"\x00" in head:
-        return False
+    first, newline, _ = head.partition(b"\n")
+    nul = first.find(b"\x00")
+    if nul >= 0:
+        return f"NUL byte at byte {nul} of the first line (binary data?)"
     try:
-        text = head.decode("utf-8")
+        text = first.decode("utf-8")
     except UnicodeDecodeError as exc:
-        if exc.start < len(head) - 4:  # a multi-byte character cut at the end is fine
-            return False
-        text = head[: exc.start].decode("utf-8")
-    first = text.lstrip("\ufeff").splitlines()[0] if text.strip() else ""
-    return any(sep in first for sep in (",", ";", "\t"))
+        if newline or exc.start < len(first) - 4:  # a multi-byte character cut at the end is fine
+            return f"not UTF-8 text: byte 0x{first[exc.start]:02x} at byte {exc.start} of the first line"
+        text = first[: exc.start].decode("utf-8")
+    if not any(sep in text for sep in (",", ";", "\t")):
+        return "no delimiter (comma, semicolon or tab) in the first line"
+    return None
 
 
 def _is_gzip(path: Path) -> bool:
@@ -100,14 +108,15 @@ def detect_format(path: Path) -> tuple[str, str | None]:
     if _is_gzip(path):
         if name.endswith(_CSV_SUFFIXES) or not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES):
             return "csv", "gzip"
-    elif name.endswith(_CSV_SUFFIXES) or (
-        not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES) and _looks_like_text(path)
-    ):
+    elif name.endswith(_CSV_SUFFIXES):
+        return "csv", None
+    problem = _text_problem(path)
+    if problem is None and not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES):
         return "csv", None
     raise RunFileError(
         "format",
         f"unknown format of {path.name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic), "
-        "not MDF4 or TDMS (no identification) and not delimited text (CSV)",
+        f"not MDF4 or TDMS (no identification) and not delimited text (CSV{f': {problem}' if problem else ''})",
     )
 
 
@@ -148,11 +157,9 @@ def resolve_format(path: Path, fmt: str | None) -> tuple[str, str | None]:
         return fmt, None
     if _is_gzip(path):
         return fmt, "gzip"
-    if (
-        _has_hdf5_signature(path, size)
-        or _is_parquet(path, size)
-        or _recorder_format(path) is not None
-        or not _looks_like_text(path)
-    ):
-        raise RunFileError("format", "declared format 'csv' but the file is not delimited text")
+    if _has_hdf5_signature(path, size) or _is_parquet(path, size) or _recorder_format(path) is not None:
+        raise RunFileError("format", "declared format 'csv' but the file is HDF5, Parquet, MDF4 or TDMS")
+    problem = _text_problem(path)
+    if problem is not None:
+        raise RunFileError("format", f"declared format 'csv' but the file is not delimited text: {problem}")
     return fmt, None

@@ -8,14 +8,20 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 import pydantic
 from pydantic import ConfigDict
 
-from app.io.canonical import CanonicalWriter, Compression, atomic_output
+from app.io.canonical import CanonicalWriter, Compression, canonical_output
 from app.io.channel_map import ChannelMap, parse_channel_map
-from app.io.channels import ACCEL_CHANNELS, ALL_CHANNELS, TIME_COLUMN
+from app.io.channels import (
+    ACCEL_CHANNELS,
+    ALL_CHANNELS,
+    FORCE_CHANNELS,
+    TIME_COLUMN,
+    UNITS,
+    storage_dtype,
+)
 from app.io.detect import resolve_format
 from app.io.errors import RunFileError
 from app.io.gapfill import GapFiller
@@ -100,6 +106,7 @@ def ingest(
     compression: Compression = "auto",
     channel_map: ChannelMap | Mapping[str, Any] | None = None,
     geometry: GeometryLookup | LineGeometry | None = None,
+    reserve_bytes: int = 0,
 ) -> RunSummary:
     """Validate a run file and write it as a canonical HDF5 file.
 
@@ -128,6 +135,10 @@ def ingest(
         Line geometry for GNSS positions: the geometry itself, or
         ``lookup(line_id, track)`` returning the geometry of the run's line
         and track (or None). See :mod:`app.io.positioning`.
+    reserve_bytes : int
+        Free space that must remain on the file system of ``dest``
+        (``TRACKVKF_MIN_FREE_BYTES``): checked against the expected size before
+        writing when the sample count is known, and while writing.
 
     Returns
     -------
@@ -139,6 +150,10 @@ def ingest(
         On any problem with the file or the metadata; nothing is left at
         ``dest`` (an existing file there is not touched) and no temporary file
         remains.
+    DiskFullError
+        When ``dest``'s file system has not enough space (before or while
+        writing); nothing is left behind either, and libhdf5 never saw a
+        failed write (:func:`app.io.canonical.canonical_output`).
     """
     src, dest = Path(src), Path(dest)
     if not isinstance(limits, IngestLimits):
@@ -154,7 +169,7 @@ def ingest(
     cmap = parse_channel_map(channel_map) if channel_map is not None else None
     fmt_name, comp = resolve_format(src, fmt)
     with open_source(src, fmt_name, comp, limits, cmap) as source:
-        return _ingest(source, fmt_name, metadata, dest, limits, compression, geometry)
+        return _ingest(source, fmt_name, metadata, dest, limits, compression, geometry, reserve_bytes)
 
 
 def _merge_metadata(
@@ -237,6 +252,9 @@ def _fs_from_time(t: np.ndarray | None) -> float | None:
     return float(rounded) if abs(fs - rounded) <= 1e-6 * fs else fs
 
 
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 class _Checks:
     """Per-block checks on physical values of speed, position and time."""
 
@@ -252,7 +270,51 @@ class _Checks:
 
     def physical(self, name: str, x: np.ndarray) -> np.ndarray:
         gain, offset = self.meta.gain_offset(name)
-        return x * gain + offset if (gain, offset) != (1.0, 0.0) else x
+        if (gain, offset) == (1.0, 0.0):
+            return x
+        with np.errstate(over="ignore", invalid="ignore"):
+            return x * gain + offset
+
+    def _bound(self, name: str) -> float | None:
+        if name in ACCEL_CHANNELS:
+            return self.limits.max_abs_accel_mps2
+        if name in FORCE_CHANNELS:
+            return self.limits.max_abs_force_kn
+        if name == "position":
+            return self.limits.max_abs_position_m
+        return None  # speed: checked by speed()
+
+    def magnitude(self, name: str, offset: int, raw: np.ndarray) -> None:
+        """Raw values must fit their storage type and calibrated values a plausible range."""
+        if storage_dtype(name) == np.float32:
+            big = np.flatnonzero(np.abs(raw) > _FLOAT32_MAX)
+            if big.size:
+                i = int(big[0])
+                raise RunFileError(
+                    name,
+                    f"value {raw[i]:.6g} at sample {offset + i} does not fit the float32 storage of the "
+                    f"channel (|x| <= {_FLOAT32_MAX:.3g})",
+                )
+        bound = self._bound(name)
+        if bound is None:
+            return
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(~(np.abs(self.physical(name, raw)) <= bound) & ~np.isnan(raw))
+        if not bad.size:
+            return
+        i = int(bad[0])
+        value = float(self.physical(name, raw[i : i + 1])[0])
+        gain, off = self.meta.gain_offset(name)
+        unit = UNITS[name]
+        if (gain, off) != (1.0, 0.0) and abs(raw[i]) <= bound:
+            raise RunFileError(
+                f"calibration.{name}",
+                f"gain {gain:.6g} and offset {off:.6g} make sample {offset + i} ({raw[i]:.6g}) "
+                f"{value:.6g} {unit}, beyond ±{bound:g} {unit}; check the calibration",
+            )
+        raise RunFileError(
+            name, f"value {value:.6g} {unit} at sample {offset + i} is beyond ±{bound:g} {unit}"
+        )
 
     def position(self, offset: int, raw: np.ndarray) -> None:
         p = self.physical("position", raw)
@@ -331,6 +393,7 @@ def _ingest(
     limits: IngestLimits,
     compression: Compression,
     geometry: GeometryLookup | LineGeometry | None,
+    reserve_bytes: int,
 ) -> RunSummary:
     info = source.info
     warnings: list[str] = []
@@ -360,8 +423,11 @@ def _ingest(
     meta = meta.model_copy(update={"sample_rate_hz": fs})
     checks = _Checks(meta, fs, limits, from_time, 0 if kind == "line_km" else 1)
     fixes = GnssFixes(fs, limits) if gnss_used else None
+    if n_known is not None:
+        _check_duration(n_known, fs, limits)
 
-    with atomic_output(dest) as tmp, h5py.File(tmp, "w") as h5:
+    expected = 0 if n_known is None else n_known * _canonical_bytes_per_sample(stored)
+    with canonical_output(dest, reserve_bytes=reserve_bytes, expected_bytes=expected) as (h5, check_io):
         writer = CanonicalWriter(
             h5,
             fs=fs,
@@ -391,6 +457,7 @@ def _ingest(
                 if np.isinf(x).any():
                     i = int(np.flatnonzero(np.isinf(x))[0])
                     raise RunFileError(c, f"infinite value at sample {offset + i}")
+                checks.magnitude(c, offset, x)
                 fillers[c].process(offset, x)
                 if n_known is not None and fillers[c].n_nan > limits.max_nan_fraction * n_known:
                     _too_many_nan(c, fillers[c].n_nan, n_known, limits)
@@ -399,10 +466,12 @@ def _ingest(
                 elif c == "speed":
                     checks.speed(offset, x)
                 writer.write(c, offset, x)
+            check_io()
             offset += m
         n = offset
         if n_known is not None and n != n_known:
             raise RunFileError("file", f"read {n} samples but the file declares {n_known}")
+        _check_duration(n, fs, limits)
         for c in stored:
             if fillers[c].n_nan > limits.max_nan_fraction * n:
                 _too_many_nan(c, fillers[c].n_nan, n, limits)
@@ -443,6 +512,21 @@ def _ingest(
         warnings=warnings,
         report=report,
     )
+
+
+def _canonical_bytes_per_sample(stored: list[str]) -> int:
+    """Bytes per sample of the canonical file: the stored channels plus speed and position."""
+    names = set(stored) | {"speed", "position"}
+    return sum(storage_dtype(c).itemsize for c in names)
+
+
+def _check_duration(n: int, fs: float, limits: IngestLimits) -> None:
+    if n < limits.min_duration_s * fs:
+        raise RunFileError(
+            "file",
+            f"the run lasts {n / fs:.3g} s ({n} samples at {fs:g} Hz); at least "
+            f"{limits.min_duration_s:g} s are needed to process it",
+        )
 
 
 def _too_many_nan(channel: str, count: int, n: int, limits: IngestLimits) -> None:

@@ -50,6 +50,33 @@ class IngestLimits:
     max_parquet_footer_bytes : int
         Largest Parquet footer (file metadata), bytes (default 16 MiB); read
         from the file's last 8 bytes before the footer is parsed.
+    min_duration_s : float
+        Shortest accepted run, s (default 1 s): shorter runs cannot be
+        processed (the order filters need more samples).
+    max_abs_accel_mps2 : float
+        Largest accepted magnitude of a calibrated acceleration, m/s² (default
+        1e5, about 10 000 g): larger values mean a wrong calibration.
+    max_abs_force_kn : float
+        Largest accepted magnitude of a calibrated wheel–rail force, kN (default 1e4).
+    max_abs_position_m : float
+        Largest accepted magnitude of a calibrated position, m (default 1e8).
+    max_metadata_bytes : int
+        Largest HDF5 ``metadata`` attribute, bytes (default 1 MiB, as the
+        metadata form field of an upload).
+    max_attribute_bytes : int
+        Largest other HDF5 attribute (``units``, ``gain``, ``sample_rate_hz`` …),
+        bytes (default 64 KiB).
+    max_attribute_read_bytes : int
+        Variable-length HDF5 attributes (strings) are read only when the file
+        holds at most this many bytes outside its datasets' data (default
+        64 MiB): their length is not known before they are read.
+    max_line_bytes : int
+        Longest accepted CSV line, bytes (default 64 KiB; a run's line has at
+        most 64 numbers).
+    csv_block_bytes : int
+        CSV text is parsed in pieces of about this many bytes (default 8 MiB),
+        cut at line ends: the parser's memory is bounded by it whatever the
+        file holds.
     max_recorder_channels : int
         Largest number of channels in an MDF4 or TDMS recorder file (default
         2048: recorders log many signals besides the ones a run reads; the
@@ -72,6 +99,15 @@ class IngestLimits:
     max_expansion_ratio: float = 100.0
     expansion_floor_bytes: int = 64 * 1024 * 1024
     max_parquet_footer_bytes: int = 16 * 1024 * 1024
+    min_duration_s: float = 1.0
+    max_abs_accel_mps2: float = 1e5
+    max_abs_force_kn: float = 1e4
+    max_abs_position_m: float = 1e8
+    max_metadata_bytes: int = 1024 * 1024
+    max_attribute_bytes: int = 64 * 1024
+    max_attribute_read_bytes: int = 64 * 1024 * 1024
+    max_line_bytes: int = 64 * 1024
+    csv_block_bytes: int = 8 * 1024 * 1024
     max_recorder_channels: int = 2048
     max_gnss_rate_hz: float = 10.0
 
@@ -123,10 +159,26 @@ class IngestLimits:
             "expansion_floor_bytes",
             "max_parquet_footer_bytes",
             "max_recorder_channels",
+            "max_metadata_bytes",
+            "max_attribute_bytes",
+            "max_attribute_read_bytes",
+            "max_line_bytes",
+            "csv_block_bytes",
         ):
             value = getattr(self, name)
             if int(value) != value or value < 1:
                 raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        for name in ("max_abs_accel_mps2", "max_abs_force_kn", "max_abs_position_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        if not (math.isfinite(self.min_duration_s) and self.min_duration_s >= 0):
+            raise ValueError(f"min_duration_s must be >= 0 s, got {self.min_duration_s!r}")
+        if self.csv_block_bytes < 2 * self.max_line_bytes:
+            raise ValueError(
+                f"csv_block_bytes ({self.csv_block_bytes}) must be at least twice max_line_bytes "
+                f"({self.max_line_bytes})"
+            )
         if not (math.isfinite(self.max_expansion_ratio) and self.max_expansion_ratio >= 1):
             raise ValueError(f"max_expansion_ratio must be >= 1, got {self.max_expansion_ratio!r}")
         if not (math.isfinite(self.max_gnss_rate_hz) and self.max_gnss_rate_hz > 0):

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import datetime as dt
+import json
 import math
+import re
 from collections.abc import Mapping
 from typing import Any, Literal
 
+import numpy as np
 import pydantic
-from pydantic import AliasChoices, AwareDatetime, ConfigDict, Field, field_validator
+from pydantic import AliasChoices, AwareDatetime, ConfigDict, Field, StrictBool, field_validator
 
 from app.io.channels import ALL_CHANNELS, AXLES, WHEELS
 from app.io.errors import RunFileError
@@ -20,6 +24,9 @@ __all__ = [
     "DEFAULT_WHEEL_DIAMETER_M",
     "DEFAULT_SLEEPER_SPACING_M",
     "DEFAULT_AXLE_POSITIONS_M",
+    "MAX_METADATA_DEPTH",
+    "START_TIME_RANGE",
+    "load_metadata_json",
     "parse_metadata",
 ]
 
@@ -29,6 +36,16 @@ DEFAULT_WHEEL_DIAMETER_M = 0.92
 DEFAULT_SLEEPER_SPACING_M = 0.6
 #: Axle positions relative to the position reference, m (axle 4 runs 17.5 m behind axle 1).
 DEFAULT_AXLE_POSITIONS_M: dict[str, float] = {"1": 0.0, "4": -17.5}
+#: Deepest nesting of objects and arrays accepted in metadata (the top-level object is 1).
+MAX_METADATA_DEPTH = 32
+#: Accepted start times (UTC): [first, last).
+START_TIME_RANGE: tuple[dt.datetime, dt.datetime] = (
+    dt.datetime(1900, 1, 1, tzinfo=dt.UTC),
+    dt.datetime(2200, 1, 1, tzinfo=dt.UTC),
+)
+#: JSON integers with more digits than this are read as floats (inf beyond ~308
+#: digits, refused then); Python refuses to convert more than 4300 digits at all.
+_MAX_INT_DIGITS = 300
 
 #: What the ``position`` channel of an input file is (see :class:`RunMetadata`).
 PositionKind = Literal["relative", "line_km", "gnss"]
@@ -80,7 +97,9 @@ class Calibration(pydantic.BaseModel):
 def _to_str(v: Any) -> Any:
     if isinstance(v, bool):
         return v
-    if isinstance(v, int | float) and not isinstance(v, bool):
+    if isinstance(v, float) and not math.isfinite(v):
+        raise ValueError(f"must be text or a finite number, got {v!r}")
+    if isinstance(v, int | float):
         return str(v)
     return v
 
@@ -146,7 +165,7 @@ class RunMetadata(pydantic.BaseModel):
     direction: str = Field(min_length=1, max_length=100)
     position_kind: PositionKind | None = None
     km_start: float | None = None
-    km_increasing: bool | None = None
+    km_increasing: StrictBool | None = None
     wheel_diameters: dict[str, float] = Field(
         default_factory=lambda: dict.fromkeys(WHEELS, DEFAULT_WHEEL_DIAMETER_M)
     )
@@ -163,6 +182,20 @@ class RunMetadata(pydantic.BaseModel):
     def _strings(cls, v: Any) -> Any:
         v = _to_str(v)
         return v.strip() if isinstance(v, str) else v
+
+    @field_validator("start_time")
+    @classmethod
+    def _start_time(cls, v: dt.datetime) -> dt.datetime:
+        first, last = START_TIME_RANGE
+        try:
+            utc = v.astimezone(dt.UTC)
+        except OverflowError:
+            utc = None
+        if utc is None or not first <= utc < last:
+            raise ValueError(
+                f"start time must lie between {first:%Y-%m-%d} and {last:%Y-%m-%d} (UTC), got {v.isoformat()}"
+            )
+        return v
 
     @field_validator("km_start")
     @classmethod
@@ -261,6 +294,7 @@ def parse_metadata(data: Mapping[str, Any] | RunMetadata | None) -> RunMetadata:
         raise RunFileError("metadata", "metadata is required (vehicle_id, start_time, line_id, …)")
     if not isinstance(data, Mapping):
         raise RunFileError("metadata", f"metadata must be a JSON object, got {type(data).__name__}")
+    _check_json_values(data, "", 1)
     try:
         return RunMetadata.model_validate(dict(data))
     except pydantic.ValidationError as exc:
@@ -275,8 +309,10 @@ def parse_metadata(data: Mapping[str, Any] | RunMetadata | None) -> RunMetadata:
             msg = "required field is missing"
         elif err.get("type") == "extra_forbidden":
             msg = "unknown metadata field"
+        elif err.get("type") == "bool_type":
+            msg = "must be true or false (a JSON boolean)"
         given = err.get("input")
-        shown = repr(given)
+        shown = _shown(given)
         if (
             err.get("type") != "missing"
             and given is not None
@@ -285,3 +321,94 @@ def parse_metadata(data: Mapping[str, Any] | RunMetadata | None) -> RunMetadata:
         ):
             msg = f"{msg} (got {shown})"
         raise RunFileError(field, msg) from None
+
+
+def _shown(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters (messages never echo large inputs)."""
+    text = repr(value) if not isinstance(value, dict | list) else type(value).__name__
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _check_json_values(value: Any, path: str, depth: int) -> None:
+    """Refuse what JSON cannot hold or a database cannot store, naming the field.
+
+    Non-finite numbers (``NaN``, ``Infinity``, ``1e400``), NUL characters in
+    strings or keys (PostgreSQL text cannot hold them) and nesting deeper than
+    :data:`MAX_METADATA_DEPTH`.
+    """
+    field = path or "metadata"
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise RunFileError(field, f"must be a finite number, got {value!r} (out of range or not a number)")
+    elif isinstance(value, str):
+        if "\x00" in value:
+            raise RunFileError(field, "must not contain NUL characters (\\u0000)")
+    elif isinstance(value, Mapping | list | tuple):
+        if depth > MAX_METADATA_DEPTH:
+            raise RunFileError(field, f"nested deeper than {MAX_METADATA_DEPTH} levels")
+        items = value.items() if isinstance(value, Mapping) else enumerate(value)
+        for key, item in items:
+            if isinstance(key, str) and "\x00" in key:
+                raise RunFileError(field, "keys must not contain NUL characters (\\u0000)")
+            _check_json_values(item, f"{path}.{key}" if path else str(key), depth + 1)
+
+
+# a JSON string literal (with escapes); stripped before the brackets are counted
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
+
+
+def _json_depth(text: str) -> int:
+    """Deepest nesting of ``[``/``{`` in a JSON text, without parsing it (linear time)."""
+    skeleton = _JSON_STRING.sub("", text).encode("ascii", "ignore")
+    codes = np.frombuffer(skeleton, dtype=np.uint8)
+    steps = np.zeros(codes.shape, dtype=np.int32)
+    steps[(codes == ord("[")) | (codes == ord("{"))] = 1
+    steps[(codes == ord("]")) | (codes == ord("}"))] = -1
+    return int(np.cumsum(steps).max(initial=0))
+
+
+def _parse_int(digits: str) -> int | float:
+    return int(digits) if len(digits) <= _MAX_INT_DIGITS else float(digits)
+
+
+def load_metadata_json(text: str | bytes, *, field: str = "metadata") -> dict[str, Any]:
+    """Parse a metadata JSON document (form field, query parameter, HDF5 attribute).
+
+    Parameters
+    ----------
+    text : str or bytes
+        The JSON text (bytes are decoded as UTF-8).
+    field : str
+        Name reported for problems of the document as a whole.
+
+    Returns
+    -------
+    dict
+        The object. Numbers too large for a float come back as ``inf`` and
+        ``NaN``/``Infinity`` literals as floats: :func:`parse_metadata` refuses
+        them naming their field.
+
+    Raises
+    ------
+    RunFileError
+        ``field`` for text that is not UTF-8, not JSON, not an object, or
+        nested deeper than :data:`MAX_METADATA_DEPTH` (checked before parsing,
+        so a document nested 100 000 deep costs no recursion).
+    """
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise RunFileError(field, f"not UTF-8 text (byte {exc.start})") from None
+    depth = _json_depth(text)
+    if depth > MAX_METADATA_DEPTH:
+        raise RunFileError(field, f"nested deeper than {MAX_METADATA_DEPTH} levels ({depth})")
+    try:
+        value = json.loads(text, parse_int=_parse_int, parse_constant=float)
+    except json.JSONDecodeError as exc:
+        raise RunFileError(field, f"not valid JSON: {exc.msg} at position {exc.pos}") from None
+    except (ValueError, RecursionError) as exc:  # belt and braces: the depth is checked above
+        raise RunFileError(field, f"not valid JSON: {str(exc)[:120]}") from None
+    if not isinstance(value, dict):
+        raise RunFileError(field, f"must be a JSON object, got {type(value).__name__}")
+    return value

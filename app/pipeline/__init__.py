@@ -24,7 +24,15 @@ those of the railway order recipe, :mod:`app.analysis.recipe` (which the
 spectrogram of a km window uses too).
 """
 
-from app.pipeline.assemble import ENGINE_VERSION, RunResults, assemble, assemble_wheel, results_meta
+from app.pipeline.assemble import (
+    ENGINE_VERSION,
+    TRACK_COLUMNS,
+    RunResults,
+    assemble,
+    assemble_wheel,
+    results_meta,
+    run_warnings,
+)
 from app.pipeline.chunk import PipelineCancelled, process_chunk
 from app.pipeline.plan import ChunkSpec, plan_chunks
 from app.pipeline.workdir import run_pipeline
@@ -38,6 +46,8 @@ __all__ = [
     "assemble",
     "assemble_wheel",
     "results_meta",
+    "run_warnings",
+    "TRACK_COLUMNS",
     "run_pipeline",
     "ENGINE_VERSION",
 ]

@@ -23,10 +23,15 @@ from app.io.metadata import DEFAULT_WHEEL_DIAMETER_M
 from app.pipeline.chunk import OOR_WINDOW_M
 from app.pipeline.chunkfile import read_wheel
 
-__all__ = ["ENGINE_VERSION", "RunResults", "assemble", "assemble_wheel", "results_meta"]
+__all__ = ["ENGINE_VERSION", "TRACK_COLUMNS", "RunResults", "assemble", "assemble_wheel", "results_meta",
+           "run_warnings"]
 
 #: bump when the stored numbers would change for the same input and settings
-ENGINE_VERSION = "trackvkf-pipeline/2"
+#: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q)
+ENGINE_VERSION = "trackvkf-pipeline/3"
+#: the sleeper-passage columns of a profile row: the fundamental (m/s²), its 2nd and
+#: 3rd harmonics (m/s², NaN where not extracted) and their RMS (the energy indicator, m/s²)
+TRACK_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms")
 
 
 @dataclass
@@ -44,7 +49,7 @@ def _wheel_order_numbers(settings: ProcessingSettings) -> np.ndarray:
 
 def _profile_columns(settings: ProcessingSettings) -> list[str]:
     orders = [f"order_amp_{lvl:02d}" for lvl in _wheel_order_numbers(settings)]
-    return ["wheel", "bin", "km", "n_samples", "speed_mean", "sleeper_amp", *orders,
+    return ["wheel", "bin", "km", "n_samples", "speed_mean", *TRACK_COLUMNS, *orders,
             "residual_rms", "sleeper_force_amp"]
 
 
@@ -70,32 +75,62 @@ def assemble_wheel(
     """
     g: dict[str, list[BinSums]] = {}
     d_w = DEFAULT_WHEEL_DIAMETER_M
+    notes: dict[str, None] = {}
     for path in sorted(chunk_paths, key=lambda p: str(p)):
         parts = read_wheel(path, wheel)
         for kind, part in parts.groups.items():
             g.setdefault(kind, []).append(part)
         if parts.diameter_m is not None:
             d_w = parts.diameter_m
+        notes.update(dict.fromkeys(parts.warnings))
     if not g:
         return None
     prof = BinSums.merge_all(g["bins"]).finalize(settings.bin_length_m)
     resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
     prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
     prof = prof[prof["n_samples"] > 0]
-    if "sleeper_force_amp" not in prof:
-        prof["sleeper_force_amp"] = np.nan
+    for col in (*TRACK_COLUMNS, *[f"order_amp_{lvl:02d}" for lvl in _wheel_order_numbers(settings)],
+                "sleeper_force_amp"):
+        if col not in prof:  # not extracted (collision, no force channel, older chunk files)
+            prof[col] = np.nan
     prof = prof.rename(columns={"speed": "speed_mean"})
     prof.insert(0, "wheel", wheel)
     prof = prof[_profile_columns(settings)].sort_values("bin").reset_index(drop=True)
     prof["bin"] = prof["bin"].astype(np.int64)
     prof["n_samples"] = prof["n_samples"].astype(np.int64)
-    return prof, _wheel_result(wheel, g.get("oor", []), d_w, settings)
+    result = _wheel_result(wheel, g.get("oor", []), d_w, settings)
+    result["warnings"] = list(notes)
+    return prof, result
 
 
-def results_meta(settings: ProcessingSettings, n_chunks: int) -> dict[str, Any]:
-    """Provenance stored with a job's results (engine version, settings)."""
+def run_warnings(wheels: Sequence[dict[str, Any]]) -> list[str]:
+    """The job's warnings from its wheel results: each text once, naming the wheels it concerns.
+
+    Parameters
+    ----------
+    wheels : sequence of dict
+        ``RunResults.wheels`` (entries with ``wheel`` and ``warnings``).
+
+    Returns
+    -------
+    list of str
+        ``"wheels 11, 12: <text>"``, in the order first met.
+    """
+    seen: dict[str, list[str]] = {}
+    for w in wheels:
+        for text in w.get("warnings") or ():
+            seen.setdefault(str(text), []).append(str(w.get("wheel")))
+    return [f"wheel{'s' if len(ws) > 1 else ''} {', '.join(ws)}: {text}" for text, ws in seen.items()]
+
+
+def results_meta(settings: ProcessingSettings, n_chunks: int, warnings: Sequence[str] = ()) -> dict[str, Any]:
+    """Provenance stored with a job's results (engine version, settings) and its warnings.
+
+    ``warnings`` (:func:`run_warnings`) are what the results cannot be trusted
+    for; the API shows them with the job.
+    """
     return {"engine": ENGINE_VERSION, "settings": settings.to_dict(), "oor_window_m": OOR_WINDOW_M,
-            "n_chunks": n_chunks}
+            "n_chunks": n_chunks, "warnings": list(warnings)}
 
 
 def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence[Path]) -> RunResults:
@@ -123,12 +158,15 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
             wheels.append(done[1])
     cols = _profile_columns(settings)
     profiles = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
-    return RunResults(profiles=profiles, wheels=wheels, meta=results_meta(settings, len(chunk_paths)))
+    meta = results_meta(settings, len(chunk_paths), run_warnings(wheels))
+    return RunResults(profiles=profiles, wheels=wheels, meta=meta)
 
 
 def _wheel_result(wheel: str, parts: list[BinSums], d_w: float, settings: ProcessingSettings) -> dict[str, Any]:
-    orders = _wheel_order_numbers(settings)
     windows = BinSums.merge_all(parts).finalize(OOR_WINDOW_M) if parts else None
+    orders = _wheel_order_numbers(settings)
+    if windows is not None:  # the orders extracted (a wheel order colliding with the sleeper order is not)
+        orders = np.array([lvl for lvl in orders if f"re_{lvl:02d}" in windows.columns], dtype=np.int64)
     if windows is None or windows.empty:
         phasors = np.full((orders.size, 0), np.nan + 0j)
         centres = np.zeros(0)

@@ -13,6 +13,9 @@ all: its presence is the proof that the chunk is done. Members:
     window of :data:`app.pipeline.chunk.OOR_WINDOW_M`).
 ``diameter_<wheel>``
     The wheel diameter the chunk was solved with, m.
+``warnings_<wheel>``
+    Plain-language warnings of the wheel's solve in this chunk (strings;
+    absent in files written before issue 15: none).
 
 Files of the earlier layout (one member per array, ``<kind>_<wheel>__<name>``)
 still read (:func:`load_group`).
@@ -22,7 +25,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -55,6 +58,10 @@ def group_prefix(kind: str, wheel: str) -> str:
 
 def _diameter_member(wheel: str) -> str:
     return f"diameter_{wheel}"
+
+
+def _warnings_member(wheel: str) -> str:
+    return f"warnings_{wheel}"
 
 
 def pack_group(prefix: str, arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -129,7 +136,9 @@ def load_group(npz: Any, prefix: str) -> BinSums | None:
     return BinSums.from_arrays(keys) if keys else None
 
 
-def wheel_members(wheel: str, groups: Mapping[str, BinSums], diameter_m: float) -> dict[str, np.ndarray]:
+def wheel_members(
+    wheel: str, groups: Mapping[str, BinSums], diameter_m: float, warnings: Sequence[str] = ()
+) -> dict[str, np.ndarray]:
     """The members of one wheel in a chunk file: its groups of sums and its diameter.
 
     Parameters
@@ -140,6 +149,8 @@ def wheel_members(wheel: str, groups: Mapping[str, BinSums], diameter_m: float) 
         One entry per kind of :data:`GROUP_KINDS`.
     diameter_m : float
         Wheel diameter the chunk was solved with, m.
+    warnings : sequence of str
+        Warnings of the wheel's solve in this chunk.
     """
     if set(groups) != set(GROUP_KINDS):
         raise ValueError(f"groups must hold {', '.join(GROUP_KINDS)}, got {', '.join(sorted(groups))}")
@@ -147,6 +158,7 @@ def wheel_members(wheel: str, groups: Mapping[str, BinSums], diameter_m: float) 
     for kind in GROUP_KINDS:
         members.update(pack_group(group_prefix(kind, wheel), groups[kind].to_arrays()))
     members[_diameter_member(wheel)] = np.array(diameter_m)
+    members[_warnings_member(wheel)] = np.array(list(warnings), dtype=np.str_).reshape(-1)
     return members
 
 
@@ -160,10 +172,13 @@ class WheelParts:
         The groups found (kinds of :data:`GROUP_KINDS`).
     diameter_m : float or None
         Wheel diameter, m (None if the file does not hold it).
+    warnings : tuple of str
+        Warnings of the wheel's solve in the chunk.
     """
 
     groups: dict[str, BinSums]
     diameter_m: float | None
+    warnings: tuple[str, ...] = ()
 
 
 def read_wheel(path: Path, wheel: str) -> WheelParts:
@@ -176,7 +191,9 @@ def read_wheel(path: Path, wheel: str) -> WheelParts:
                 groups[kind] = part
         member = _diameter_member(wheel)
         diameter = float(npz[member]) if member in npz.files else None
-    return WheelParts(groups=groups, diameter_m=diameter)
+        notes = _warnings_member(wheel)
+        found = tuple(str(x) for x in npz[notes]) if notes in npz.files else ()
+    return WheelParts(groups=groups, diameter_m=diameter, warnings=found)
 
 
 def write_chunk_file(path: Path, chunk_index: int, members: Mapping[str, np.ndarray]) -> None:

@@ -12,14 +12,19 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from app.api import API_PREFIX
-from app.api.deps import RunId, iter_routes, require_page_login
+from app.api.deps import RunId, iter_routes, public, require_page_login
 
-__all__ = ["FRONTEND_DIR", "PLOTLY_JS", "build_pages_router", "install_pages", "plotly_js_path"]
+__all__ = [
+    "FRONTEND_DIR", "PLOTLY_JS", "FAVICON", "build_pages_router", "build_public_router",
+    "install_pages", "plotly_js_path",
+]
 
 #: templates/ and static/ of the dashboard
 FRONTEND_DIR = Path(__file__).resolve().parents[2] / "frontend"
 #: URL of the Plotly.js bundle served from the installed plotly package
 PLOTLY_JS = "/vendor/plotly.min.js"
+#: the icon browsers ask for at ``/favicon.ico`` on their own (pages also link the SVG)
+FAVICON = FRONTEND_DIR / "static" / "img" / "favicon.ico"
 
 #: API features a page uses only when the server has them (built by other modules)
 _FEATURES = {
@@ -121,8 +126,22 @@ def build_pages_router(templates: Jinja2Templates) -> APIRouter:
     return router
 
 
+def build_public_router() -> APIRouter:
+    """Router of what a browser fetches before anyone logs in: ``/favicon.ico``."""
+    router = APIRouter(include_in_schema=False, dependencies=[Depends(public)])
+
+    @router.get("/favicon.ico")
+    def favicon() -> FileResponse:
+        return FileResponse(
+            FAVICON, media_type="image/x-icon", headers={"Cache-Control": "public, max-age=86400"}
+        )
+
+    return router
+
+
 def install_pages(app: FastAPI) -> None:
-    """Mount the dashboard on ``app``: pages, ``/static`` and the Plotly.js bundle."""
+    """Mount the dashboard on ``app``: pages, ``/favicon.ico``, ``/static`` and the Plotly.js bundle."""
     templates = Jinja2Templates(directory=str(FRONTEND_DIR / "templates"))
     app.include_router(build_pages_router(templates))
+    app.include_router(build_public_router())
     app.mount("/static", StaticFiles(directory=str(FRONTEND_DIR / "static")), name="static")

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from app.analysis.orders import railway_multipliers
+from app.analysis.recipe import STEP_WIDTH_FACTOR, order_recipe
 from app.analysis.settings import ProcessingSettings
 from app.analysis.spectrogram import (
     component_padding,
@@ -65,12 +66,13 @@ def test_window_spectrograms_put_the_components_on_the_order_lines():
     lo, hi = int(10 * fs), int(30 * fs)
     w = window_spectrograms(y, fs, v, core=(lo, hi), wheel_diameter=0.92, sleeper_spacing=0.6, settings=settings)
     assert w.raw_db.shape == w.components_db.shape == (w.freq_hz.size, w.time_s.size)
-    assert w.order_labels[0] == "sleeper" and len(w.order_labels) == 12
+    recipe = order_recipe(0.92, 0.6, settings)
+    assert w.order_labels[0] == "sleeper" and tuple(w.order_labels) == recipe.labels  # f_s, 2f_s, 3f_s, 1..11
     # order tracks: multiplier × frame speed, speed as generated
     t_abs = (lo + w.frame_index) / fs
     v_true = np.interp(t_abs, np.arange(v.size) / fs, v)
     np.testing.assert_allclose(w.speed, v_true, rtol=0.01)
-    np.testing.assert_allclose(w.order_freq_hz, np.multiply.outer(railway_multipliers(0.92, 0.6, 11), w.speed))
+    np.testing.assert_allclose(w.order_freq_hz, np.multiply.outer(recipe.multipliers, w.speed))
     # the components' power lies on the order lines; the raw signal also has broadband noise
     df = w.resolution_hz
     near = np.zeros_like(w.components_db, dtype=bool)
@@ -90,10 +92,12 @@ def test_order_bandwidth_is_the_pipelines_rule():
         s = ProcessingSettings(**kw)
         for d_w in (0.86, 0.92):
             recipe = order_recipe(d_w, 0.6, s)
-            per_speed = s.bandwidth_orders / (np.pi * d_w)
+            wheel = s.bandwidth_orders / (np.pi * d_w)
+            track = STEP_WIDTH_FACTOR[s.filter_order] / s.track_resolution_m  # c_q / resolution
+            per_speed = np.where([x.isdigit() for x in recipe.labels], wheel, track)
             floor = per_speed * max(s.min_speed_kmh / 3.6, 1.0)
-            assert recipe.bandwidth_per_speed == pytest.approx(np.full(12, per_speed), rel=1e-12)
-            assert recipe.bandwidth_floor == pytest.approx(np.full(12, floor), rel=1e-12)
+            assert recipe.bandwidth_per_speed == pytest.approx(per_speed, rel=1e-12)
+            assert recipe.bandwidth_floor == pytest.approx(floor, rel=1e-12)
     with pytest.raises(ValueError, match="wheel_diameter"):
         order_recipe(0.0, 0.6, ProcessingSettings())
 

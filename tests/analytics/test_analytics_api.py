@@ -138,6 +138,7 @@ def test_speed_exponent_and_normalised_profile(api, sim_set):
     for t in fits.values():
         if t["n_samples"] > 2000:
             assert t["exponent_ci"][0] <= alpha <= t["exponent_ci"][1], t
+            assert t["plausible"] is True and t["warning"] is None, t
     prof = _get(client, f"/runs/{ids['C']}/speed-normalised-profile", wheel="11", fit_run_ids=runs)
     norm = np.array(prof["amplitude_normalised"], float)
     km = np.array(prof["km"])
@@ -154,7 +155,13 @@ def test_alignment_recovers_imposed_shift(api):
     assert abs(body["shift_m"] + KM_ERROR_M) < 1.0, body["shift_m"]
     assert body["shift_confidence"] > 0.2
     same = _get(client, f"/runs/{ids['A']}/alignment")
-    assert same["reference_run_id"] == ids["A"] and abs(same["shift_m"]) < 0.01
+    assert same["reference_run_id"] == ids["A"] and same["shift_m"] == 0.0
+    # the same quantity answers the same everywhere: the reference run aligned to itself
+    seg = _get(client, "/analytics/segments", line_id=LINE_ID, track=TRACK, run_ids=f"{ids['A']},{ids['B']}")
+    ref = next(r for r in seg["runs"] if r["run_id"] == ids["A"])
+    assert same["shift_confidence"] == ref["shift_confidence"] == 1.0
+    other = next(r for r in seg["runs"] if r["run_id"] == ids["B"])
+    assert other["shift_confidence"] == pytest.approx(body["shift_confidence"])
 
 
 def test_segments_aligned_repeatability(api):

@@ -148,3 +148,20 @@ def test_segment_table():
     np.testing.assert_allclose(t.mean, [7 / 3, 7 / 3])
     np.testing.assert_allclose(t.change, [3, 3])
     np.testing.assert_allclose(t.spread, np.std([1, 2, 4], ddof=1))
+
+
+def test_speed_exponent_outside_the_physical_range_is_flagged():
+    """A pooled fit over sections where the stiffer track is passed faster gives an
+    exponent no track has: it is flagged with the reason, a plausible one is not."""
+    from app.analysis.stiffness.speed_norm import PLAUSIBLE_SPEED_EXPONENT, fit_speed_exponent
+
+    rng = np.random.default_rng(3)
+    v = np.repeat([20.0, 30.0, 45.0], 400)
+    loc = np.arange(v.size)  # every location passed once: pooled
+    confounded = (v / 27.8) ** 9.0 * np.exp(rng.normal(0, 0.05, v.size))
+    fit = fit_speed_exponent(confounded, v, loc, reference_speed_mps=27.8, min_speed_mps=5.0)
+    assert fit.method == "pooled" and fit.exponent > PLAUSIBLE_SPEED_EXPONENT[1]
+    assert not fit.plausible and "outside the physical range" in fit.warning and "pooled" in fit.warning
+    normal = (v / 27.8) ** 1.5 * np.exp(rng.normal(0, 0.05, v.size))
+    fit = fit_speed_exponent(normal, v, loc, reference_speed_mps=27.8, min_speed_mps=5.0)
+    assert fit.plausible and fit.warning is None

@@ -186,3 +186,20 @@ def test_pages_and_local_plotly(client):
     assert len(js.content) > 1_000_000
     assert client.get("/static/js/api.js").status_code == 200
     assert "/vendor/plotly.min.js" not in client.get("/openapi.json").text
+
+
+def test_favicon_ico_is_public(client):
+    """Browsers ask for /favicon.ico on their own, also before login: an icon, not a 404."""
+    client.cookies.clear()
+    r = client.get("/favicon.ico", headers={"Authorization": ""})
+    assert r.status_code == 200 and r.headers["content-type"] == "image/x-icon"
+    assert r.content[:4] == b"\x00\x00\x01\x00"  # ICO header: reserved 0, type 1 (icon)
+
+
+def test_docs_serve_swagger_ui_5():
+    """Swagger UI >= 5 renders the OpenAPI 3.1 the app serves (UI 4 shows "Unable to render")."""
+    from app.api.login_page import swagger_ui_dir
+
+    path = swagger_ui_dir()
+    assert int(path.name.removeprefix("swagger-ui-").split(".")[0]) >= 5
+    assert (path / "swagger-ui-bundle.js").is_file() and (path / "swagger-ui.css").is_file()

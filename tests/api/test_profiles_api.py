@@ -40,7 +40,7 @@ def _synthetic(n_bins: int = N_BINS):
 @pytest.fixture
 def processed(client, tmp_path):
     """A run whose job was completed with synthetic results; returns (client, run_id, df)."""
-    path = runfiles.write_hdf5(tmp_path / "r.h5", runfiles.channels(4000))
+    path = runfiles.write_hdf5(tmp_path / "r.h5", runfiles.channels(10_000))
     with open(path, "rb") as fh:
         run = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()
     db = Database(client.settings.database_url)
@@ -106,7 +106,7 @@ def test_profile_bad_parameters(processed, params, status, field):
 
 
 def test_profile_before_results_is_409(client, tmp_path):
-    path = runfiles.write_hdf5(tmp_path / "r.h5", runfiles.channels(4000))
+    path = runfiles.write_hdf5(tmp_path / "r.h5", runfiles.channels(10_000))
     with open(path, "rb") as fh:
         run_id = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()["id"]
     r = client.get(f"/api/v1/runs/{run_id}/profile", params={"wheel": "11"})

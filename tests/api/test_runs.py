@@ -26,7 +26,7 @@ def populated(client, tmp_path):
         md = runfiles.metadata(
             vehicle_id=vehicle, line_id=line, start_time=start, sample_rate_hz=None
         )
-        path = runfiles.write_hdf5(tmp_path / f"r{i}.h5", runfiles.channels(4000, seed=i), md)
+        path = runfiles.write_hdf5(tmp_path / f"r{i}.h5", runfiles.channels(10_000, seed=i), md)
         with open(path, "rb") as fh:
             r = client.post("/api/v1/runs", files={"file": (path.name, fh)})
         assert r.status_code == 201, r.text
@@ -104,7 +104,7 @@ def test_delete_removes_rows_and_files(client, populated):
         db.dispose()
     assert len(store_files(client.settings.run_store)) == 3
     # ids are never reused: a new run gets a new directory
-    path = runfiles.write_hdf5(client.settings.run_store.parent / "new.h5", runfiles.channels(4000, seed=99))
+    path = runfiles.write_hdf5(client.settings.run_store.parent / "new.h5", runfiles.channels(10_000, seed=99))
     with open(path, "rb") as fh:
         new_id = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()["id"]
     assert new_id > max(populated)

@@ -78,7 +78,7 @@ def test_postgresql_profile_rows_are_partitioned_by_job_range(pg_cluster):
     if isinstance(pg_cluster, str):
         pytest.skip(pg_cluster)
     url = pg_cluster.create_database()
-    migrate.upgrade(url, "0011_condition_webhooks")  # a database of the version before, with rows
+    migrate.upgrade(url, "0012_condition_webhooks")  # a database of the version before, with rows
     db = Database(url)
     try:
         with db.write() as s:  # the models know columns of later versions: plain SQL
@@ -120,7 +120,7 @@ def test_postgresql_profile_rows_are_partitioned_by_job_range(pg_cluster):
             assert s.scalar(select(func.count()).select_from(ProfileBin).where(ProfileBin.run_id != new_run)) == 0
             assert s.scalar(select(func.count()).select_from(ProfileBin).where(ProfileBin.run_id == new_run)) > 0
             assert "profile_bins_legacy" not in {p.name for p in partitions.list_partitions(s)}
-        migrate.downgrade(url, "0011_condition_webhooks")  # back to one plain table, rows kept
+        migrate.downgrade(url, "0012_condition_webhooks")  # back to one plain table, rows kept
         with db.read() as s:
             assert s.scalar(text("SELECT relkind FROM pg_class WHERE relname = 'profile_bins'")) == "r"
             assert s.scalar(select(func.count()).select_from(ProfileBin).where(ProfileBin.run_id == new_run)) > 0

@@ -1,5 +1,7 @@
 """Browser tests of the dashboard: Debian's chromium driven by Playwright against the real
-service (uvicorn + worker subprocesses, tests/e2e/conftest.py) with processed simulated runs.
+service (uvicorn + worker subprocesses, tests/e2e/conftest.py) holding the demo data (short
+runs): three processed runs of line SIM at three dates, one of line SIM-B, the reference data
+of line SIM and the geometry of both lines, all uploaded and imported over HTTP.
 
 No browser is downloaded: /usr/bin/chromium comes from the Debian package, installed here
 with apt-get when it is missing (the CI machine runs as root).
@@ -25,8 +27,7 @@ CHROMIUM_ARGS = [
     "--disable-background-networking", "--disable-component-update", "--disable-sync",
 ]
 SCREENSHOTS = Path(__file__).resolve().parents[2] / "docs" / "screenshots"
-#: the fixture's runs: same line and track (same track model), two dates
-RUN_DATES = ("2024-05-01T08:00:00+02:00", "2024-09-01T08:00:00+02:00")
+#: the demo data set, with runs of this length (km) and sample rate (Hz)
 RUN_LENGTH_KM = 1.2
 RUN_FS = 10_000.0
 LINE_SEED = 7
@@ -66,17 +67,14 @@ class Dashboard:
 
 @pytest.fixture(scope="session")
 def dashboard(tmp_path_factory) -> Iterator[Dashboard]:
-    """The real service with two processed simulated runs of one line (1.5 km at 10 kHz),
-    a worker left running, a third run file for the upload test and a bad file."""
+    """The real service with the demo data processed (app.simulate.demo: 4 runs of 1.2 km at
+    10 kHz on two lines, reference data of line SIM), two workers left running, a further run
+    file for the upload test and a bad file."""
+    from app.simulate.demo import write_demo_dataset
     from app.simulate.run import simulate_run
 
     work = tmp_path_factory.mktemp("dashboard")
-    files = []
-    for i, start in enumerate(RUN_DATES):
-        path = work / f"sim-{i + 1}.h5"
-        simulate_run(path, length_km=RUN_LENGTH_KM, fs=RUN_FS, seed=11 + i, line_seed=LINE_SEED,
-                     start_time=start, with_forces=True)
-        files.append(path)
+    demo = write_demo_dataset(work / "demo", length_km=RUN_LENGTH_KM, fs=RUN_FS)
     upload = work / "upload-run.h5"
     simulate_run(upload, length_km=0.6, fs=RUN_FS, seed=21, line_seed=LINE_SEED,
                  start_time="2025-01-15T09:30:00+01:00", with_forces=False)
@@ -94,12 +92,20 @@ def dashboard(tmp_path_factory) -> Iterator[Dashboard]:
         svc.start_worker()
         run_ids, jobs = [], []
         with svc.client(timeout=120) as client:
-            for path in files:
+            for path in demo.runs:
                 with open(path, "rb") as fh:
                     r = client.post("/api/v1/runs", files={"file": (path.name, fh, "application/x-hdf5")})
                 assert r.status_code == 201, r.text
                 run_ids.append(r.json()["id"])
                 jobs.append(r.json()["latest_job"]["id"])
+            for kind, path in demo.reference.items():
+                with open(path, "rb") as fh:
+                    r = client.post(f"/api/v1/reference/{kind}", files={"file": (path.name, fh, "text/csv")})
+                assert r.status_code == 201, r.text
+            for path in demo.geometry:
+                with open(path, "rb") as fh:
+                    r = client.post("/api/v1/geometry", files={"file": (path.name, fh, "application/geo+json")})
+                assert r.status_code in (200, 201), r.text
             for job_id in jobs:
                 job = svc.wait_job(client, job_id)
                 assert job["status"] == "done", f"{job['error']}\n{svc.log_text()}"

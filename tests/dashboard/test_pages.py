@@ -8,8 +8,6 @@ import io
 import httpx
 import pytest
 
-from tests.dashboard.conftest import save_screenshot
-
 pytestmark = pytest.mark.timeout(300)
 
 
@@ -49,13 +47,13 @@ def test_page_loads_clean_with_data(open_page, dashboard, name):
     page, log = open_page(path)
     plots = _plots(page)
     if name == "correlations":
-        # no reference data on this server: subsidence and maintenance show how to import them;
-        # the simulated runs have force channels, so the unsprung-mass fit has data
+        # the demo's reference data of line SIM (the default line: most processed runs) fill
+        # every panel; the simulated runs have force channels, so the unsprung mass is fitted
         state = {p["id"]: p for p in plots}
         for plot_id in ("subsidence-plot", "maintenance-plot"):
-            assert state[plot_id]["state"] == "empty"
-            assert "/api/v1/reference/subsidence" in page.inner_text(f"#{plot_id}")
-        assert "No fit" in page.inner_text("#fit-table")
+            assert state[plot_id]["state"] == "ready" and state[plot_id]["points"] > 0
+        assert "Wheel 11" in page.inner_text("#fit-table") and "No fit" not in page.inner_text("#fit-table")
+        assert page.input_value("#line-track").startswith("SIM\u0001")
         mass = state["mass-plot"]
         assert mass["state"] == "ready" and mass["points"] > 0 and mass["modebarPng"] and mass["csvEnabled"]
         names = page.evaluate("document.getElementById('mass-plot').data.map(t => t.name)")
@@ -75,7 +73,6 @@ def test_page_loads_clean_with_data(open_page, dashboard, name):
         rows = page.locator("#runs-body tr[data-run]")
         assert rows.count() >= len(dashboard.run_ids)
         assert page.locator("#runs-body .badge.done").count() >= len(dashboard.run_ids)
-    save_screenshot(page, name)
     log.assert_clean()
     assert not log.foreign()
 
@@ -89,7 +86,7 @@ def test_all_requests_go_to_own_origin(open_page, dashboard):
             page.fill("#km-from", "12.4")
             page.fill("#km-to", "12.6")
             page.click("#map-controls button[type=submit]")
-            page.wait_for_function("document.querySelector('#km-from').value === '12.400'")
+            page.wait_for_function("() => document.querySelector('#km-from').value === '12.400'")
         seen += log.requests
         assert not log.foreign(), f"{path}: requests outside the server: {log.foreign()}"
         log.assert_clean()
@@ -106,12 +103,12 @@ def test_stiffness_map_zoom_refetches_decimated_range(open_page, dashboard):
         page.fill("#km-from", "12.5")
         page.fill("#km-to", "12.6")
         page.click("#map-controls button[type=submit]")
-    page.wait_for_function("document.querySelector('#map-info').textContent.includes('12.500')")
+    page.wait_for_function("() => document.querySelector('#map-info').textContent.includes('12.500')")
     xs = page.evaluate("document.getElementById('stiffness-plot').data[0].x")
     assert 300 <= len(xs) <= 401  # 100 m of 25 cm bins: all of them, not decimated
     assert min(xs) >= 12.5 and max(xs) <= 12.6
     page.select_option("#amp-scale", "log")
-    page.wait_for_function("document.getElementById('stiffness-plot').layout.yaxis.type === 'log'")
+    page.wait_for_function("() => document.getElementById('stiffness-plot').layout.yaxis.type === 'log'")
     with page.expect_download() as dl:
         page.click("button[data-csv-for='stiffness-plot']")
     text = dl.value.path().read_text()
@@ -126,7 +123,7 @@ def test_upload_shows_job_finishing(open_page, dashboard):
     page.set_input_files("#upload-file", str(dashboard.upload_file))
     page.click("#upload-button")
     page.wait_for_function(
-        "document.getElementById('upload-status').textContent.includes('done')", timeout=180_000
+        "() => document.getElementById('upload-status').textContent.includes('done')", timeout=180_000
     )
     status = page.inner_text("#upload-status")
     assert "processing job" in status
@@ -163,14 +160,14 @@ def test_reprocess_and_cancel_from_the_runs_page(open_page, dashboard):
     page, log = open_page("/")
     row = page.locator(f"#runs-body tr[data-run='{run_id}']")
     row.locator("button[data-act='reprocess']").click()
-    page.wait_for_function("document.getElementById('banner').textContent.includes('reprocessing job')")
+    page.wait_for_function("() => document.getElementById('banner').textContent.includes('reprocessing job')")
     banner = page.inner_text("#banner")
     job_id = int(banner.split("reprocessing job ", 1)[1].split(" ", 1)[0])
     cancel = page.locator(f"#runs-body tr[data-run='{run_id}'] button[data-act='cancel']")
     cancel.wait_for()
     cancel.click()
     page.wait_for_function(
-        "document.getElementById('banner').textContent.includes('Cancel requested') || "
+        "() => document.getElementById('banner').textContent.includes('Cancel requested') || "
         "document.getElementById('banner').textContent.includes('already')"
     )
     job = httpx.get(f"{dashboard.base_url}/api/v1/jobs/{job_id}", headers=dashboard.service.headers).json()
@@ -182,7 +179,7 @@ def test_reprocess_and_cancel_from_the_runs_page(open_page, dashboard):
     assert job["status"] in ("cancelled", "done") and job["cancel_requested"] in (True, job["status"] == "done")
     badge = page.locator(f"#runs-body tr[data-run='{run_id}'] .job-status .badge")
     page.wait_for_function(
-        f"document.querySelector(\"#runs-body tr[data-run='{run_id}'] .job-status .badge\").textContent === '{job['status']}'"
+        f"() => document.querySelector(\"#runs-body tr[data-run='{run_id}'] .job-status .badge\").textContent === '{job['status']}'"
     )
     assert badge.inner_text() == job["status"]
     if "already" in page.inner_text("#banner"):  # the job finished before the cancel reached it

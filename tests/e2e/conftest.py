@@ -127,7 +127,13 @@ class Service:
 
 @contextmanager
 def running_service(
-    workdir: Path, database_url: str | None = None, *, backend: str = "sqlite", pg: PgCluster | None = None
+    workdir: Path,
+    database_url: str | None = None,
+    *,
+    backend: str = "sqlite",
+    pg: PgCluster | None = None,
+    run_store: Path | None = None,
+    env_overrides: dict[str, str] | None = None,
 ) -> Iterator[Service]:
     """The real service (API started, workers on demand) on a fresh database with an
     admin API key (``api_key``); stopped on exit. Shared by the ``service`` fixture
@@ -142,6 +148,10 @@ def running_service(
     backend : {"sqlite", "postgresql"}
     pg : PgCluster, optional
         The PostgreSQL cluster of ``database_url`` (for restart tests).
+    run_store : Path, optional
+        Run store directory (default ``workdir / "runs"``).
+    env_overrides : dict, optional
+        Further ``TRACKVKF_*`` settings of the API and workers.
     """
     db_url = database_url or f"sqlite:///{workdir / 'service.sqlite'}"
     migrate.upgrade(db_url)
@@ -152,12 +162,13 @@ def running_service(
     env.update(
         {
             "TRACKVKF_DATABASE_URL": db_url,
-            "TRACKVKF_RUN_STORE": str(workdir / "runs"),
+            "TRACKVKF_RUN_STORE": str(run_store or workdir / "runs"),
             "TRACKVKF_WORKER_POLL_INTERVAL_S": "0.2",
             "TRACKVKF_WORKER_HEARTBEAT_S": "0.5",
             "TRACKVKF_WORKER_STALE_AFTER_S": "3",
             "TRACKVKF_LOG_LEVEL": "INFO",
             "PYTHONUNBUFFERED": "1",
+            **(env_overrides or {}),
         }
     )
     svc = Service(
@@ -166,7 +177,7 @@ def running_service(
         backend=backend,
         workdir=workdir,
         database_url=db_url,
-        run_store=workdir / "runs",
+        run_store=run_store or workdir / "runs",
         api_key=api_key,
         pg=pg,
     )

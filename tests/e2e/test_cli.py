@@ -71,3 +71,67 @@ def test_migrate_command(tmp_path, monkeypatch):
 
     head = ScriptDirectory.from_config(migrate.alembic_config(url)).get_current_head()
     assert result.output.strip().endswith(f"at {head}")
+
+
+def test_help_shows_no_bool_placeholders():
+    """`trackvkf --help` and a command's help read as plain options (no "<bool>" for flags)."""
+    for args in (["--help"], ["demo", "--help"], ["key", "--help"], ["worker", "--help"]):
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, result.output
+        assert "<bool>" not in result.output, result.output
+        assert "--help" in result.output and "Show this message and exit." in result.output
+
+
+@pytest.mark.parametrize("command", [["key", "list"], ["user", "list"], ["serve"], ["worker", "--once"]])
+def test_commands_outside_the_project_give_a_hint_and_create_nothing(tmp_path, monkeypatch, command):
+    """From another directory the default relative SQLite URL names no database: one line of
+    advice and exit status 2, no traceback, no ./var created."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("TRACKVKF_DATABASE_URL", raising=False)
+    get_settings.cache_clear()
+    try:
+        result = runner.invoke(app, command)
+    finally:
+        get_settings.cache_clear()
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    out = result.output.strip()
+    assert out.startswith("error: no database at ") and "trackvkf migrate" in out, out
+    assert str(tmp_path) in out
+    assert len(out.splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unmigrated_database_asks_for_migrate(tmp_path, monkeypatch):
+    import sqlite3
+
+    path = tmp_path / "empty.db"
+    sqlite3.connect(path).close()
+    monkeypatch.setenv("TRACKVKF_DATABASE_URL", f"sqlite:///{path}")
+    get_settings.cache_clear()
+    try:
+        result = runner.invoke(app, ["key", "list"])
+    finally:
+        get_settings.cache_clear()
+    assert result.exit_code == 2, result.output
+    assert "is not migrated: run `trackvkf migrate` first" in result.output
+
+
+def test_engine_warnings_are_one_line_each_and_kept_in_meta():
+    """Warnings inside the block reach the writer once per distinct message, without a source
+    line, and are counted."""
+    import warnings
+
+    from app.analysis.vkf import VKFWarning
+    from app.cli._warnings import engine_warnings
+
+    lines: list[str] = []
+    with engine_warnings(lines.append) as seen:
+        for _ in range(3):
+            warnings.warn("orders [(1, 2)] come closer than their bandwidth", VKFWarning, stacklevel=1)
+        warnings.warn("other", UserWarning, stacklevel=1)
+    assert lines[0] == "warning: VKFWarning: orders [(1, 2)] come closer than their bandwidth"
+    assert lines[1] == "warning: UserWarning: other"
+    assert lines[2].startswith("warning: VKFWarning repeated 3 times")
+    assert not any("warnings.warn" in line or ".py:" in line for line in lines)
+    assert seen.as_list()[0] == {"category": "VKFWarning", "message": "orders [(1, 2)] come closer than their bandwidth", "count": 3}

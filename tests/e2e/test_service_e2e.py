@@ -59,7 +59,9 @@ def test_upload_process_and_query_against_truth(service, sim_run):
             merged = merged[np.isfinite(merged["sleeper_amp"]) & (merged["sleeper_amp"] > 0)]
             assert len(merged) > 0.8 * len(tb)
             r_log = np.corrcoef(np.log(merged["sleeper_amp"]), np.log(merged["true_amp"]))[0, 1]
-            assert r_log >= 0.95, f"wheel {wheel}: Pearson(log amp) = {r_log:.3f}"
+            # 0.93: the default 3 m track resolution (issue 15) follows the truth along the track but
+            # lets ~7x the noise bandwidth of the old ~21 m band into each 25 cm bin (measured 0.944)
+            assert r_log >= 0.93, f"wheel {wheel}: Pearson(log amp) = {r_log:.3f}"
             # force amplitude follows m_u * acceleration amplitude
             ratio = np.nanmedian(merged["sleeper_force_amp"] * 1000 / merged["sleeper_amp"])
             assert ratio == pytest.approx(truth.unsprung_mass_kg, rel=0.15)

@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 
 from app.analysis import recipe
+from app.analysis.settings import ProcessingSettings
 from app.db.session import Database
 from worker.runner import LocalWorker
 
@@ -64,7 +65,9 @@ def test_profile_and_spectrogram_follow_the_recipe(client, tiny_run, monkeypatch
     monkeypatch.setattr(recipe, "order_bandwidths", wider)
     wide_profile, wide_spec = _process(client, run_id, {})
     monkeypatch.undo()
-    asked_profile, asked_spec = _process(client, run_id, {"bandwidth_orders": 0.15})
+    # 1.5x every bandwidth: wheel orders 0.15 orders, track orders 3 m / 1.5 = 2 m resolution
+    asked = {"bandwidth_orders": 0.15, "track_resolution_m": ProcessingSettings().track_resolution_m / 1.5}
+    asked_profile, asked_spec = _process(client, run_id, asked)
 
     # the recipe's change reached the stored profile and the spectrogram's components ...
     assert len(profile) > 1000 and len(wide_profile) == len(profile)
@@ -73,7 +76,7 @@ def test_profile_and_spectrogram_follow_the_recipe(client, tiny_run, monkeypatch
     assert np.max(np.abs(wide_comp - comp)) > 1.0
     np.testing.assert_array_equal(_db(wide_spec, "raw_db"), _db(spec, "raw_db"))  # the raw signal did not
     # ... as the same bandwidth asked for through the job's settings does
-    for column in ("sleeper_amp", "order_amp_01", "order_amp_11", "residual_rms"):
+    for column in ("sleeper_amp", "sleeper_rms", "order_amp_01", "order_amp_11", "residual_rms"):
         np.testing.assert_allclose(wide_profile[column], asked_profile[column], rtol=1e-6, err_msg=column)
     np.testing.assert_allclose(wide_comp, _db(asked_spec, "components_db"), atol=0.011)
     assert asked_spec["settings"]["bandwidth_orders"] == 0.15 and wide_spec["settings"]["bandwidth_orders"] == 0.1

@@ -29,6 +29,7 @@ PUBLIC = {
     ("GET", "/api/v1/health"),
     ("POST", "/api/v1/auth/login"),
     ("GET", "/login"),
+    ("GET", "/favicon.ico"),
 }
 #: State-changing routes any authenticated principal may use (their own session).
 SELF_SERVICE = {("POST", "/api/v1/auth/logout"), ("POST", "/api/v1/auth/password")}

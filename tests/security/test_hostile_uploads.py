@@ -51,7 +51,7 @@ def _assert_rejected_without_trace(client, response, status: int, field: str, wo
 
 
 def _base_h5(path: Path) -> h5py.File:
-    data = runfiles.channels(n=4000)
+    data = runfiles.channels(n=10_000)
     h5 = h5py.File(path, "w")
     for name in ("Z11", "speed"):
         h5.create_dataset(name, data=data[name])

@@ -104,7 +104,10 @@ def test_libpq_url_and_mode_selection():
     assert not Settings(database_url=url).is_sqlite
 
 
-def test_worker_health_file(tmp_path):
+def test_worker_health_file(tmp_path, monkeypatch):
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # no other worker's files
     path = alive_file(os.getpid())
     path.unlink(missing_ok=True)
     try:

@@ -15,6 +15,7 @@ from app.db import crud, results_reader
 from app.db.models import Job, JobStatus, ProfileBin
 from app.db.session import Database
 from tests.api.support import store_files
+from worker import runner
 from worker.runner import LocalWorker
 
 pytestmark = pytest.mark.timeout(300)
@@ -58,7 +59,7 @@ def _wait(predicate, timeout_s: float = 120.0) -> None:
     raise AssertionError("timed out")
 
 
-def test_graceful_stop_requeues_and_resume_reuses_chunks(queued):
+def test_graceful_stop_requeues_and_resume_reuses_chunks(queued, monkeypatch):
     client, run_id, job_id = queued
     settings = client.settings
     db = Database(settings.database_url)
@@ -72,16 +73,22 @@ def test_graceful_stop_requeues_and_resume_reuses_chunks(queued):
         job = _job(db, job_id)
         assert job.status == JobStatus.QUEUED and job.worker_id is None
         job_dir = settings.run_store / str(run_id) / "jobs" / str(job_id)
-        kept = {p.name: p.stat().st_mtime_ns for p in job_dir.glob("chunk-*.npz")}
+        kept = {int(p.name[6:11]) for p in job_dir.glob("chunk-*.npz")}
         assert len(kept) >= 2
 
+        computed: list[int] = []
+        real = runner.process_chunk
+
+        def recording(run_path, settings, chunk, out, should_cancel):
+            computed.append(chunk.index)
+            return real(run_path, settings, chunk, out, should_cancel=should_cancel)
+
+        monkeypatch.setattr(runner, "process_chunk", recording)
         assert LocalWorker(settings, db=db).run(exit_when_idle=True) == 1
         job = _job(db, job_id)
         assert job.status == JobStatus.DONE and job.attempts == 2
-        after = {p.name: p.stat().st_mtime_ns for p in job_dir.glob("chunk-*.npz")}
-        assert len(after) == job.n_chunks
-        assert all(after[name] == mtime for name, mtime in kept.items())  # not recomputed
-        assert not [p for p in job_dir.iterdir() if not p.name.startswith("chunk-")]
+        assert sorted(computed) == sorted(set(range(job.n_chunks)) - kept)  # kept chunks not recomputed
+        assert not job_dir.exists()  # published: the job's chunk files are no longer needed
     finally:
         db.dispose()
 

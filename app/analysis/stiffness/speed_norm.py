@@ -19,7 +19,14 @@ import numpy as np
 from app.analysis._checks import check_positive, paired_1d
 from app.analysis.stiffness.regression import LinearFit, linear_fit
 
-__all__ = ["SpeedFit", "fit_speed_exponent", "normalise_amplitude"]
+__all__ = ["SpeedFit", "fit_speed_exponent", "normalise_amplitude", "PLAUSIBLE_SPEED_EXPONENT"]
+
+#: Speed exponents a track can have. The excitation of the sleeper passage has a fixed
+#: displacement and a frequency proportional to the speed, so its acceleration grows about
+#: like v**2 (less where the track yields, a little more near a resonance); an estimate
+#: outside this range comes from something else that varies with the speed along the runs
+#: (stiffer sections passed faster, e.g.), typically in a pooled fit over one pass.
+PLAUSIBLE_SPEED_EXPONENT = (0.0, 3.0)
 
 #: Smallest spread of ln(v) (within locations or pooled) for an estimate.
 _MIN_LOG_SPEED_STD = 0.02
@@ -51,6 +58,23 @@ class SpeedFit:
     n_samples: int
     amplitude_at_ref: float
     fit: LinearFit
+
+    @property
+    def plausible(self) -> bool:
+        """The exponent lies in :data:`PLAUSIBLE_SPEED_EXPONENT` (False when NaN)."""
+        lo, hi = PLAUSIBLE_SPEED_EXPONENT
+        return bool(lo <= self.exponent <= hi)
+
+    @property
+    def warning(self) -> str | None:
+        """Why the exponent should not be trusted, or None."""
+        if not np.isfinite(self.exponent) or self.plausible:
+            return None
+        lo, hi = PLAUSIBLE_SPEED_EXPONENT
+        hint = (" (pooled over locations passed once: stiffness varying with the speed along the "
+                "line biases it; runs passing the same bins at other speeds give a within estimate)"
+                if self.method == "pooled" else "")
+        return f"exponent {self.exponent:.2f} is outside the physical range {lo:g}…{hi:g}{hint}"
 
 
 def _check(amplitude, speed_mps, reference_speed_mps, min_speed_mps):

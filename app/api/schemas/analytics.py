@@ -138,6 +138,8 @@ class SpeedType(BaseModel):
     method: str = Field(description="within (same bins at several speeds), pooled or none")
     n_samples: int
     amplitude_at_ref: float | None = Field(description="median normalised amplitude, m/s²")
+    plausible: bool = Field(description="exponent within the physical range (0 … 3); false when unknown")
+    warning: str | None = Field(None, description="why the exponent should not be trusted")
 
 
 class SpeedNormOut(BaseModel):

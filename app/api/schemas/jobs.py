@@ -22,6 +22,11 @@ class JobOut(BaseModel):
     meta: dict[str, Any] | None = Field(
         None, description="Provenance written by the pipeline (software version, engine)"
     )
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="What the results cannot be trusted for (a record too short for its filters, orders "
+        "dropped because they collide), in plain words; empty when none",
+    )
     n_chunks: int | None = None
     chunks_done: int = 0
     attempts: int = Field(0, description="Number of times a worker claimed the job")
@@ -52,6 +57,17 @@ class ProcessingSettingsIn(BaseModel):
     n_wheel_orders: int | None = Field(None, description="Wheel orders tracked, 1..11")
     bandwidth_orders: float | None = Field(
         None, description="-3 dB bandwidth of each order's filter, in wheel orders (0.01..1)"
+    )
+    track_resolution_m: float | None = Field(
+        None,
+        description="Spatial resolution of the sleeper-passage orders: 10–90 % width of a stiffness step "
+        "in their profiles, m (0.5..100); sets their bandwidth (c_q·v/resolution Hz)",
+    )
+    sleeper_harmonics: int | None = Field(
+        None, description="Highest sleeper-passage harmonic extracted: 1 (f_s only), 2 or 3 (also 2·f_s, 3·f_s)"
+    )
+    force_mean_window_m: float | None = Field(
+        None, description="Moving mean removed from the force channels (static load), m; 0: off"
     )
     filter_order: int | None = Field(None, description="VKF structural order q: 1, 2 or 3")
     bin_length_m: float | None = Field(None, description="Profile bin length, m")

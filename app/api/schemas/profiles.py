@@ -36,4 +36,12 @@ class ProfileOut(BaseModel):
     n_rows: int
     truncated: bool = Field(False, description="True if more rows matched than returned")
     columns: list[str]
-    rows: list[dict[str, Any]]
+    rows: list[dict[str, Any]] = Field(
+        default_factory=list, description="The rows as objects (layout=rows, the default)"
+    )
+    data: dict[str, list[Any]] | None = Field(
+        None,
+        description="layout=columns: one array per column (same order as `columns`, the wheel "
+        "left out), numbers rounded to fixed decimals: km to 6 (1 mm), others to 5 significant "
+        "digits of the column's largest magnitude; null for missing values",
+    )

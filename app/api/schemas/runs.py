@@ -5,11 +5,14 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from app.api.schemas.jobs import JobOut
 
-__all__ = ["RunSummaryOut", "RunOut", "RunDetail", "RunList"]
+__all__ = [
+    "RunSummaryOut", "RunOut", "RunDetail", "RunList", "RunMetadataPatch", "RunMetadataChange",
+    "RunMetadataOut",
+]
 
 
 class RunSummaryOut(BaseModel):
@@ -69,3 +72,29 @@ class RunList(BaseModel):
     total: int
     limit: int
     offset: int
+
+
+class RunMetadataPatch(BaseModel):
+    """Corrected metadata fields of a run (the others keep their values)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    metadata: dict[str, Any] = Field(
+        description="metadata fields to change, e.g. {\"line_id\": \"4010\", \"km_start\": 12.5}",
+        min_length=1, max_length=64,
+    )
+
+
+class RunMetadataChange(BaseModel):
+    """One corrected metadata field."""
+
+    field: str
+    old: Any
+    new: Any
+
+
+class RunMetadataOut(RunDetail):
+    """The run after a metadata correction: the changed fields and the reprocessing job."""
+
+    changed: list[RunMetadataChange]
+    reprocess_job_id: int | None = Field(description="the queued job; null when nothing changed")

@@ -1,11 +1,20 @@
-"""CSV input: a header row, one column per channel, optional ``time`` column."""
+"""CSV input: a header row, one column per channel, optional ``time`` column.
+
+The text after the header is read in pieces of about
+``IngestLimits.csv_block_bytes`` cut at line ends, each checked (no NUL byte,
+valid UTF-8, no line longer than ``IngestLimits.max_line_bytes``) before
+pandas parses it: the parser's memory is bounded by the piece, whatever the
+file holds (a 200 MB single-line file is refused after reading 8 MiB of it).
+"""
 
 from __future__ import annotations
 
 import gzip
 import io
+import re
 from collections.abc import Iterator
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 import pandas as pd
@@ -15,7 +24,7 @@ from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
 from app.io.sources.base import Source, SourceInfo, map_channel_names
 
-__all__ = ["CsvSource", "BoundedGzipReader"]
+__all__ = ["CsvSource", "BoundedGzipReader", "text_pieces"]
 
 
 class BoundedGzipReader(io.RawIOBase):
@@ -139,33 +148,133 @@ class CsvSource(Source):
             handle = _open(self._path, self._compression, self._limits)
         except (OSError, gzip.BadGzipFile) as exc:
             raise RunFileError("file", f"cannot read CSV file: {exc}") from None
+        row = 0
         try:
-            reader = pd.read_csv(
-                handle,
-                sep=self._sep,
-                header=0,
-                names=self._columns,
-                chunksize=size,
-                skipinitialspace=True,
-                encoding="utf-8-sig",
-                engine="c",
-            )
-            row = 0
-            with reader:
-                for chunk in reader:
-                    block: dict[str, np.ndarray] = {}
-                    for orig, canon in self._names.items():
-                        block[canon] = _numeric(chunk[orig], orig, row)
-                    row += len(chunk)
-                    yield block
+            for text, first_line in text_pieces(handle, self._limits):
+                frame = self._parse(text, first_line)
+                for a in range(0, len(frame), size):
+                    part = frame.iloc[a : a + size]
+                    yield {canon: _numeric(part[orig], orig, row) for orig, canon in self._names.items()}
+                    row += len(part)
         except RunFileError:
             raise
-        except pd.errors.EmptyDataError:
-            return
-        except (pd.errors.ParserError, UnicodeDecodeError, OSError, EOFError, ValueError) as exc:
-            raise RunFileError("file", f"cannot parse CSV: {exc}") from None
+        except (OSError, EOFError, gzip.BadGzipFile) as exc:
+            raise RunFileError("file", f"cannot read CSV file: {_cut(str(exc))}") from None
         finally:
             handle.close()
+
+    def _parse(self, text: bytes, first_line: int) -> pd.DataFrame:
+        """Parse one piece of complete lines (numbered from ``first_line``) into a frame."""
+        try:
+            return pd.read_csv(
+                io.BytesIO(text),
+                sep=self._sep,
+                header=None,
+                names=self._columns,
+                skipinitialspace=True,
+                engine="c",
+            )
+        except pd.errors.EmptyDataError:
+            return pd.DataFrame(columns=self._columns)
+        except (pd.errors.ParserError, ValueError) as exc:
+            message = _LINE_IN_MESSAGE.sub(
+                lambda m: f"line {int(m.group(1)) + first_line - 1}", str(exc)
+            )
+            raise RunFileError("file", f"cannot parse CSV: {_cut(message)}") from None
+
+
+_NEWLINE = b"\n"
+#: "line N" in pandas' parser errors (N counted from the start of a piece)
+_LINE_IN_MESSAGE = re.compile(r"line (\d+)")
+
+
+def _cut(text: str, limit: int = 200) -> str:
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def text_pieces(handle: IO[bytes], limits: IngestLimits) -> Iterator[tuple[bytes, int]]:
+    """The text after a CSV's header line in checked pieces of complete lines.
+
+    Parameters
+    ----------
+    handle : binary file
+        The CSV text from its first byte (the header line).
+    limits : IngestLimits
+        ``csv_block_bytes`` (size of a piece) and ``max_line_bytes``.
+
+    Yields
+    ------
+    text : bytes
+        At most ``csv_block_bytes`` bytes ending at a line end (or the end of
+        the file).
+    first_line : int
+        Number of the piece's first line (the header is line 1).
+
+    Raises
+    ------
+    RunFileError
+        ``field == "file"``, naming the byte offset and line: a NUL byte, bytes
+        that are not UTF-8, or a line longer than ``max_line_bytes``.
+    """
+    pending = b""  # the unfinished last line of what was read
+    pos = 0  # offset of pending[0] in the text
+    line = 1  # number of pending's first line
+    header = True
+    eof = False
+    while not eof:
+        data = handle.read(limits.csv_block_bytes - len(pending))
+        eof = not data
+        buf = pending + data
+        _check_text(buf, pos, line, eof)
+        codes = np.frombuffer(buf, dtype=np.uint8)
+        ends = np.flatnonzero(codes == 0x0A)
+        starts = np.concatenate(([0], ends + 1))
+        lengths = np.concatenate((ends, [len(buf)])) - starts  # the last: unfinished unless eof
+        long = np.flatnonzero(lengths > limits.max_line_bytes)
+        if long.size:
+            i = int(long[0])
+            raise RunFileError(
+                "file",
+                f"line {line + i} (from byte {pos + int(starts[i])}) is longer than "
+                f"{limits.max_line_bytes} bytes; a run has at most 64 numeric columns",
+            )
+        cut = len(buf) if eof else (int(ends[-1]) + 1 if ends.size else 0)
+        piece, pending = buf[:cut], buf[cut:]
+        first_line = line
+        if header and ends.size:  # the header line was read by CsvSource itself
+            skip = int(ends[0]) + 1
+            piece, first_line, header = piece[skip:], line + 1, False
+        elif header:
+            piece = b""
+        if piece.strip():
+            yield piece, first_line
+        line += int(ends.size)  # every line end lies before the cut
+        pos += cut
+
+
+def _check_text(buf: bytes, pos: int, line: int, eof: bool) -> None:
+    """No NUL byte and valid UTF-8 in ``buf`` (text offset ``pos``, first line ``line``).
+
+    A multi-byte character cut by the end of ``buf`` is left for the next
+    piece unless ``eof``.
+    """
+    nul = buf.find(b"\x00")
+    if nul >= 0:
+        where = line + buf.count(_NEWLINE, 0, nul)
+        raise RunFileError(
+            "file", f"NUL byte at byte {pos + nul} (line {where}): a CSV file must be UTF-8 text"
+        )
+    try:
+        buf.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if not eof and exc.reason == "unexpected end of data":
+            return
+        where = line + buf.count(_NEWLINE, 0, exc.start)
+        raise RunFileError(
+            "file",
+            f"not UTF-8 text: byte 0x{buf[exc.start]:02x} at byte {pos + exc.start} (line {where}); "
+            "save the file as UTF-8",
+        ) from None
 
 
 def _numeric(col: pd.Series, name: str, row0: int) -> np.ndarray:
@@ -178,6 +287,6 @@ def _numeric(col: pd.Series, name: str, row0: int) -> np.ndarray:
     if bad.any():
         i = int(np.flatnonzero(bad.to_numpy())[0])
         raise RunFileError(
-            name, f"wrong dtype: non-numeric value {col.iloc[i]!r} in data row {row0 + i + 1}"
+            name, f"wrong dtype: non-numeric value {_cut(repr(col.iloc[i]), 60)} in data row {row0 + i + 1}"
         )
     return values.to_numpy(dtype=np.float64, na_value=np.nan)

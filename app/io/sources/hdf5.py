@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +14,7 @@ from app.io.canonical import check_hdf5_tree
 from app.io.channels import TIME_COLUMN, UNIT_SYNONYMS, UNITS
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
+from app.io.metadata import load_metadata_json
 from app.io.sources.base import Source, SourceInfo, map_channel_names
 
 __all__ = ["Hdf5Source", "ALLOWED_FILTERS"]
@@ -85,6 +85,7 @@ class Hdf5Source(Source):
     def __init__(self, path: Path, limits: IngestLimits = DEFAULT_LIMITS) -> None:
         self._limits = limits
         self._file_bytes = Path(path).stat().st_size
+        self._outside_bytes = self._file_bytes
         try:
             self._h5 = h5py.File(path, "r")
         except (OSError, ValueError) as exc:
@@ -100,6 +101,8 @@ class Hdf5Source(Source):
                 "(one dataset per channel)",
             )
         members = check_hdf5_tree(self._h5)
+        # what the file holds besides the datasets' data bounds its variable-length attributes
+        self._outside_bytes = self._file_bytes - sum(int(d.id.get_storage_size()) for d in members.values())
         names = map_channel_names(members)
         self._ds: dict[str, h5py.Dataset] = {}
         calibration: dict[str, dict[str, float]] = {}
@@ -110,15 +113,15 @@ class Hdf5Source(Source):
             if ds.dtype.kind not in "iuf":
                 raise RunFileError(orig, f"wrong dtype {ds.dtype}: channels must be numeric")
             _check_filters(orig, ds)
-            units = ds.attrs.get("units")
+            units = self._attr(ds, "units", f"{orig}.units")
             if units is not None:
                 text = _attr_text(units).strip()
                 want = UNITS[canon]
                 if text.lower() not in {u.lower() for u in UNIT_SYNONYMS[want]}:
                     raise RunFileError(orig, f"units {text!r} not accepted; expected {want}")
             if canon != TIME_COLUMN and ("gain" in ds.attrs or "offset" in ds.attrs):
-                gain = _attr_float(ds.attrs.get("gain", 1.0), f"{orig}.gain")
-                offset = _attr_float(ds.attrs.get("offset", 0.0), f"{orig}.offset")
+                gain = _attr_float(self._attr(ds, "gain", f"{orig}.gain", 1.0), f"{orig}.gain")
+                offset = _attr_float(self._attr(ds, "offset", f"{orig}.offset", 0.0), f"{orig}.offset")
                 if (gain, offset) != (1.0, 0.0):
                     calibration[canon] = {"gain": gain, "offset": offset}
             self._ds[canon] = ds
@@ -138,19 +141,13 @@ class Hdf5Source(Source):
             )
         attrs = self._h5.attrs
         file_meta: dict[str, Any] = {}
-        if "metadata" in attrs:
-            try:
-                file_meta = json.loads(_attr_text(attrs["metadata"]))
-            except json.JSONDecodeError as exc:
-                raise RunFileError(
-                    "metadata", f"metadata attribute is not valid JSON: {exc}"
-                ) from None
-            if not isinstance(file_meta, dict):
-                raise RunFileError("metadata", "metadata attribute must be a JSON object")
+        raw_meta = self._attr(self._h5, "metadata", "metadata", max_bytes=self._limits.max_metadata_bytes)
+        if raw_meta is not None:
+            file_meta = load_metadata_json(_attr_text(raw_meta), field="metadata")
         fs_hint = None
         for key in ("sample_rate_hz", "sample_rate"):
             if key in attrs:
-                fs_hint = _attr_float(attrs[key], "sample_rate_hz")
+                fs_hint = _attr_float(self._attr(self._h5, key, "sample_rate_hz"), "sample_rate_hz")
                 break
         self.info = SourceInfo(
             channels=[c for c in self._ds if c != TIME_COLUMN],
@@ -160,6 +157,38 @@ class Hdf5Source(Source):
             fs_hint=fs_hint,
             calibration=calibration,
         )
+
+    def _attr(
+        self, obj: h5py.HLObject, name: str, field: str, default: Any = None, *, max_bytes: int | None = None
+    ) -> Any:
+        """Attribute ``name`` of ``obj`` (``default`` if absent), its size checked before it is read.
+
+        A fixed-size attribute larger than ``max_bytes`` (default
+        ``limits.max_attribute_bytes``) is refused from its stored size. A
+        variable-length one (a string) is read only when everything the file
+        holds outside its datasets' data (the attributes, among others) is at
+        most ``limits.max_attribute_read_bytes``: that bounds what reading it costs.
+        """
+        if name not in obj.attrs:
+            return default
+        limit = self._limits.max_attribute_bytes if max_bytes is None else max_bytes
+        aid = obj.attrs.get_id(name)
+        if h5py.check_vlen_dtype(aid.dtype) is not None or aid.dtype.kind == "O":
+            if self._outside_bytes > self._limits.max_attribute_read_bytes:
+                raise RunFileError(
+                    field,
+                    f"variable-length attribute in a file with {self._outside_bytes} bytes outside its "
+                    f"datasets (attributes or unused space); at most {self._limits.max_attribute_read_bytes} "
+                    "bytes are read (repack the file, e.g. with h5repack)",
+                )
+        elif int(aid.get_storage_size()) > limit:
+            raise RunFileError(
+                field, f"attribute of {int(aid.get_storage_size())} bytes exceeds {limit} bytes"
+            )
+        value = obj.attrs[name]
+        if isinstance(value, str | bytes) and len(value) > limit:
+            raise RunFileError(field, f"attribute of {len(value)} characters exceeds {limit} bytes")
+        return value
 
     def blocks(self, size: int) -> Iterator[dict[str, np.ndarray]]:
         n = self.info.n_samples or 0

@@ -18,6 +18,7 @@ __all__ = ["ParquetSource"]
 
 _PANDAS_INDEX = "__index_level_0__"
 _MAGIC = b"PAR1"
+_READ_BUFFER_BYTES = 1 << 20
 
 
 def _check_footer(path: Path, file_bytes: int, limits: IngestLimits) -> None:
@@ -60,7 +61,8 @@ class ParquetSource(Source):
         file_bytes = path.stat().st_size
         _check_footer(path, file_bytes, limits)
         try:
-            self._pf = pq.ParquetFile(path)
+            # read page by page through a small buffer: memory does not grow with the row groups
+            self._pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=_READ_BUFFER_BYTES)
         except (pa.ArrowException, OSError) as exc:
             raise RunFileError("file", f"cannot open Parquet file: {exc}") from None
         self._set_up_or_close(lambda: self._setup(file_bytes, limits))

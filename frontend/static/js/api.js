@@ -106,6 +106,26 @@
     });
   });
 
+  /* A profile (GET /runs/{id}/profile) in the compact column layout, returned as the row layout:
+   * {...head, rows: [{km, sleeper_amp, ...}, ...]} with the wheel on every row. The server sends one
+   * array per column with fixed decimals (about a third of the bytes, gzip-compressed on the wire),
+   * an ETag the browser revalidates with, and keeps recent answers in memory. */
+  async function profile(path, params) {
+    const body = await request("GET", path, { params: Object.assign({}, params, { layout: "columns" }) });
+    const names = body.columns;
+    const cols = names.map((c) => body.data[c]);
+    const n = body.n_rows;
+    const rows = new Array(n);
+    for (let i = 0; i < n; i++) {
+      const row = { wheel: body.wheel };
+      for (let j = 0; j < names.length; j++) row[names[j]] = cols[j][i];
+      rows[i] = row;
+    }
+    delete body.data;
+    body.rows = rows;
+    return body;
+  }
+
   window.trackvkf = Object.assign(window.trackvkf || {}, {
     boot,
     ApiError,
@@ -115,6 +135,7 @@
       del: (path) => request("DELETE", path),
       upload,
       url,
+      profile,
       /* GET that answers null for 404 (a resource or feature that does not exist yet). */
       async optional(path, params) {
         try { return await request("GET", path, { params }); }

@@ -10,10 +10,12 @@
   const HOWTO = `<p>Import reference data with <code>POST /api/v1/reference/subsidence</code>,
     <code>/maintenance</code> or <code>/superstructure</code> (CSV or Parquet), then reload this page.</p>`;
   let fit = null;
+  // markers per wheel and plot (SVG markers are slow by the ten thousand), asked of the server
+  // as max_points; the fits use every sample
+  const DRAW_POINTS = 1500;
 
   function query() {
-    const key = document.getElementById("line-track").value;
-    const [line_id, track] = key ? key.split("\u0001") : [undefined, undefined];
+    const { line_id, track } = T.lineOf("line-track");
     return { line_id, track, km_from: document.getElementById("km-from").value, km_to: document.getElementById("km-to").value };
   }
 
@@ -31,7 +33,7 @@
       document.getElementById("fit-csv").disabled = true;
       return;
     }
-    const ci = (v) => (v && Number.isFinite(v[0]) && Number.isFinite(v[1]) ? ` <span class="muted">[${T.fmt(v[0], 3)}, ${T.fmt(v[1], 3)}]</span>` : "");
+    const ci = (v) => (v && Number.isFinite(v[0]) && Number.isFinite(v[1]) ? `<br><span class="muted ci">[${T.fmt(v[0], 3)}, ${T.fmt(v[1], 3)}]</span>` : "");
     const row = (label, f) => `<tr><th>${label}</th>${ws.map((w) => `<td class="num">${f(w)}</td>`).join("")}</tr>`;
     table.innerHTML = `<thead><tr><th>Regressor</th>${ws.map((w) => `<th class="num">Wheel ${T.esc(T.wheelId(w.wheel))}</th>`).join("")}</tr></thead><tbody>` +
       row("Intercept b (mm)", (w) => T.fmt(w.intercept, 3) + ci(w.intercept_ci)) +
@@ -70,7 +72,7 @@
       }
     }
     await T.plot(el, traces, {
-      xaxis: T.axis("Sleeper-passage amplitude Z (m/s², log scale)", { type: "log" }),
+      xaxis: T.axis("Sleeper-passage amplitude Z (m/s², log scale)", { type: "log", tickformat: "~g", dtick: "D2" }),
       yaxis: T.axis("Subsidence u (mm)"),
     }, {
       filename: "subsidence-vs-amplitude",
@@ -83,24 +85,34 @@
     return true;
   }
 
+  /* One panel per wheel (2 x 2, shared axes): the wheels of a vehicle have nearly the same
+   * unsprung mass, so in one panel their points and lines would hide each other. */
   async function drawMass(res) {
     const el = document.getElementById("mass-plot");
     const ws = ((res && res.wheels) || []).filter((w) => w.points && w.points.acceleration && w.points.acceleration.length);
     if (!ws.length) { T.emptyState(el, "No force channels or no data yet.", "<p>Runs with vertical force channels Q11…Q42 give the unsprung mass.</p>"); return false; }
-    const traces = [];
-    for (const w of ws) {
-      const amax = Math.max(...w.points.acceleration.filter(Number.isFinite));
-      traces.push({ type: "scatter", mode: "markers", name: `${T.wheelLabel(w.wheel)}: ${T.fmt(w.mass_kg, 0)} kg${w.plausible ? "" : " (implausible)"}`,
-        legendgroup: w.wheel, x: w.points.acceleration, y: w.points.force_kn, marker: { color: T.wheelColor(w.wheel), size: 4, opacity: 0.35 },
+    const traces = [], lay = {
+      grid: { rows: 2, columns: 2, pattern: "independent", xgap: 0.12, ygap: 0.22 },
+      showlegend: false, annotations: [], margin: { l: 70, r: 20, t: 30, b: 60 },
+    };
+    const amax = Math.max(...ws.flatMap((w) => w.points.acceleration.filter(Number.isFinite)));
+    const fmax = Math.max(...ws.flatMap((w) => w.points.force_kn.filter(Number.isFinite)));
+    ws.forEach((w, i) => {
+      const n = i === 0 ? "" : String(i + 1), xa = "x" + n, ya = "y" + n;
+      const name = `${T.wheelLabel(w.wheel)}: ${T.fmt(w.mass_kg, 0)} kg${w.plausible ? "" : " (implausible)"}`;
+      traces.push({ type: "scatter", mode: "markers", name, xaxis: xa, yaxis: ya,
+        x: w.points.acceleration, y: w.points.force_kn,
+        marker: { color: T.wheelColor(w.wheel), size: 4, opacity: 0.35 },
         hovertemplate: `${T.wheelLabel(w.wheel)}<br>%{x:.3f} m/s²<br>%{y:.3f} kN<extra></extra>` });
-      traces.push({ type: "scatter", mode: "lines", showlegend: false, legendgroup: w.wheel, x: [0, amax], y: [0, w.mass_kg * amax / 1000],
-        line: { color: T.wheelColor(w.wheel), width: 2.5 }, hovertemplate: `F = ${T.fmt(w.mass_kg, 0)} kg × a<extra></extra>` });
-    }
-    await T.plot(el, traces, {
-      xaxis: T.axis("Acceleration amplitude (m/s²)", { rangemode: "tozero" }),
-      yaxis: T.axis("Force amplitude (kN)", { rangemode: "tozero" }),
-      legend: { orientation: "v", x: 0.01, y: 0.99, bgcolor: "rgba(255,255,255,0.8)" },
-    }, {
+      traces.push({ type: "scatter", mode: "lines", showlegend: false, xaxis: xa, yaxis: ya, x: [0, amax], y: [0, w.mass_kg * amax / 1000],
+        line: { color: "#1d2733", width: 2, dash: "dash" }, hovertemplate: `F = ${T.fmt(w.mass_kg, 0)} kg × a<extra></extra>` });
+      const bottom = i >= ws.length - 2, left = i % 2 === 0;
+      lay["xaxis" + n] = T.axis(bottom ? "Acceleration amplitude (m/s²)" : "", { range: [0, amax * 1.05] });
+      lay["yaxis" + n] = T.axis(left ? "Force amplitude (kN)" : "", { range: [0, fmax * 1.08] });
+      lay.annotations.push({ xref: `${xa} domain`, yref: `${ya} domain`, x: 0.02, y: 0.98, xanchor: "left", yanchor: "top",
+        showarrow: false, text: `<b>${T.esc(name)}</b>`, font: { color: T.wheelColor(w.wheel) }, bgcolor: "rgba(255,255,255,0.8)" });
+    });
+    await T.plot(el, traces, lay, {
       filename: "force-vs-acceleration",
       csv: () => {
         const rows = [];
@@ -125,7 +137,9 @@
       xaxis: T.axis("Maintenance actions per 25 cm bin (count)", { type: "category" }),
       yaxis: T.axis("Sleeper-passage amplitude (m/s²)", { rangemode: "tozero" }),
       showlegend: false,
-      annotations: Number.isFinite(reg.slope) ? [{ xref: "paper", yref: "paper", x: 0.02, y: 0.98, showarrow: false, xanchor: "left",
+      margin: { l: 70, r: 20, t: 44, b: 60 },
+      // above the plot area, not over the boxes
+      annotations: Number.isFinite(reg.slope) ? [{ xref: "paper", yref: "paper", x: 0, y: 1.02, yanchor: "bottom", showarrow: false, xanchor: "left",
         text: `slope ${T.fmt(reg.slope, 3)} m/s² per action · r = ${T.fmt(reg.r, 2)} · p = ${Number(reg.p_value).toExponential(1)} · n = ${reg.n}` }] : [],
     }, {
       filename: "maintenance-vs-amplitude",
@@ -155,10 +169,17 @@
       return;
     }
     const q = query();
+    if (!q.line_id) {
+      for (const id of PLOTS) T.emptyState(id, "No runs yet.", "<p>Upload runs on the Runs page.</p>");
+      fit = null; fitTable();
+      showEmpty(`<strong>No lines yet.</strong><p>The correlations compare the processed runs of one line and track with its reference data.</p>${HOWTO}`);
+      return;
+    }
+    T.rememberLine(q);
     try {
       const [sub, mass, maint] = await Promise.all([
-        F.analytics_subsidence ? T.api.optional("/analytics/subsidence-fit", q) : null,
-        F.analytics_unsprung_mass ? T.api.optional("/analytics/unsprung-mass", q) : null,
+        F.analytics_subsidence ? T.api.optional("/analytics/subsidence-fit", Object.assign({ max_points: DRAW_POINTS }, q)) : null,
+        F.analytics_unsprung_mass ? T.api.optional("/analytics/unsprung-mass", Object.assign({ max_points: DRAW_POINTS }, q)) : null,
         F.analytics_maintenance ? T.api.optional("/analytics/maintenance", Object.assign({ type: document.getElementById("mtype").value }, q)) : null,
       ]);
       fit = sub;
@@ -171,14 +192,11 @@
   }
 
   document.getElementById("corr-controls").addEventListener("submit", (ev) => { ev.preventDefault(); show(); });
+  document.getElementById("line-track").addEventListener("change", () => show());
 
   (async () => {
     try {
-      const runs = await T.allRuns();
-      const keys = [...new Set(runs.filter((r) => r.line_id).map((r) => `${r.line_id}\u0001${r.track}`))].sort();
-      document.getElementById("line-track").innerHTML = `<option value="">all lines</option>` +
-        keys.map((k) => { const [l, t] = k.split("\u0001"); return `<option value="${T.esc(k)}">line ${T.esc(l)} / track ${T.esc(t)}</option>`; }).join("");
-      if (keys.length === 1) document.getElementById("line-track").value = keys[0];
+      T.fillLinePicker("line-track", await T.allRuns());
       await show();
     } catch (e) {
       T.banner(`Could not load the correlations: ${e.detail || e.message}`);

@@ -8,7 +8,7 @@
   let runs = [], seg = null, profiles = [];
   const SEG_M = 100;
 
-  function lineKey(r) { return `${r.line_id}\u0001${r.track}`; }
+  const lineKey = T.lineKey;
   function runLabel(r) { return `${T.date(r.start_time)} · run ${r.run_id}`; }
 
   /* runs × km matrix from the runs' own 100 m profiles */
@@ -72,7 +72,7 @@
   async function drawProfiles(doneRuns, wheel) {
     const el = document.getElementById("profiles-plot");
     profiles = await Promise.all(doneRuns.map(async (r) => {
-      try { return { run: r, rows: (await T.api.get(`/runs/${r.id}/profile`, { wheel, level: 10, max_points: 3000, columns: "sleeper_amp" })).rows }; }
+      try { return { run: r, rows: (await T.api.profile(`/runs/${r.id}/profile`, { wheel, level: 10, max_points: 3000, columns: "sleeper_amp" })).rows }; }
       catch (_) { return { run: r, rows: [] }; }
     }));
     profiles = profiles.filter((p) => p.rows.length);
@@ -106,7 +106,7 @@
     const el = document.getElementById("trend-plot");
     const km = parseFloat(document.getElementById("trend-km").value);
     const wheel = document.getElementById("wheel").value;
-    const [line_id, track] = document.getElementById("line-track").value.split("\u0001");
+    const { line_id, track } = T.lineOf("line-track");
     if (!seg || !Number.isFinite(km)) { T.emptyState(el, "Choose a segment.", "<p>Click a cell of the heat map or enter a km.</p>"); return; }
     let points = null;
     if (F.analytics_segment_trend) {
@@ -122,11 +122,11 @@
     document.getElementById("trend-title").textContent = `Trend of segment km ${k0.toFixed(3)}–${(k0 + seg.segment_m / 1000).toFixed(3)} across run dates`;
     if (!points.length) { T.emptyState(el, "No runs cover this segment.", ""); return; }
     await T.plot(el, [{
-      type: "scatter", mode: "lines+markers", name: T.wheelLabel(wheel), x: points.map((p) => p.start_time), y: points.map((p) => p.amplitude),
+      type: "scatter", mode: T.trendMode(points.map((p) => p.start_time)), name: T.wheelLabel(wheel), x: points.map((p) => p.start_time), y: points.map((p) => p.amplitude),
       customdata: points.map((p) => p.run_id), line: { color: T.wheelColor(wheel), width: 2 }, marker: { size: 9 },
       hovertemplate: "%{x|%Y-%m-%d}<br>%{y:.3f} m/s²<br>run %{customdata}<extra></extra>",
     }], {
-      xaxis: T.axis("Run start (date)", { type: "date" }),
+      xaxis: T.dateAxis("Run start (date)", points.map((p) => p.start_time)),
       yaxis: T.axis("Segment mean (m/s²)", { rangemode: "tozero" }),
       margin: { l: 75, r: 20, t: 20, b: 55 }, showlegend: true,
     }, {
@@ -139,7 +139,8 @@
     T.banner(null);
     const key = document.getElementById("line-track").value;
     const wheel = document.getElementById("wheel").value;
-    const [line_id, track] = key.split("\u0001");
+    const { line_id, track } = T.lineOf("line-track");
+    T.rememberLine({ line_id, track });
     const doneRuns = runs.filter((r) => lineKey(r) === key && r.latest_job && r.latest_job.status === "done")
       .sort((a, b) => String(a.start_time).localeCompare(String(b.start_time)));
     seg = null;
@@ -163,9 +164,7 @@
   (async () => {
     try {
       runs = await T.allRuns();
-      const keys = [...new Set(runs.filter((r) => r.line_id).map(lineKey))].sort();
-      const sel = document.getElementById("line-track");
-      sel.innerHTML = keys.map((k) => { const [l, t] = k.split("\u0001"); return `<option value="${T.esc(k)}">line ${T.esc(l)} / track ${T.esc(t)}</option>`; }).join("");
+      const keys = T.fillLinePicker("line-track", runs);
       document.getElementById("wheel").innerHTML = T.WHEELS.map((w) => `<option value="${w}">${T.wheelLabel(w)}</option>`).join("");
       document.getElementById("wheel").value = "12";
       if (!keys.length) {

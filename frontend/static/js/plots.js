@@ -11,6 +11,12 @@
   function wheelId(w) { return String(w).replace(/^Z/, ""); }
   function wheelLabel(w) { return "Z" + wheelId(w); }
   function wheelColor(w) { return WHEEL_COLORS[wheelId(w)] || "#555"; }
+  /* "Z11 · axle 1 right": channel name with axle and side (side 1 right, 2 left; docs/run-format.md). */
+  function wheelName(w) {
+    const id = wheelId(w);
+    const side = { "1": "right", "2": "left" }[id.slice(-1)];
+    return side ? `${wheelLabel(id)} · axle ${id.slice(0, -1)} ${side}` : wheelLabel(id);
+  }
 
   function axis(title, extra) {
     return Object.assign({ title: { text: title }, gridcolor: "#e6ebf0", zerolinecolor: "#c9d2dc",
@@ -130,8 +136,68 @@
     return out;
   }
 
+  /* A date axis with ISO dates: days as ticks, and a range of at least `minDays` around the
+   * dates (one run date would otherwise give sub-millisecond ticks). */
+  function dateAxis(title, dates, extra, minDays) {
+    const ms = (dates || []).map((d) => Date.parse(d)).filter(Number.isFinite);
+    const out = { type: "date", tickformat: "%Y-%m-%d", hoverformat: "%Y-%m-%d %H:%M" };
+    if (ms.length) {
+      const day = 86400000, pad = (minDays || 60) * day;
+      let lo = Math.min(...ms), hi = Math.max(...ms);
+      if (hi - lo < pad) { const mid = (lo + hi) / 2; lo = mid - pad / 2; hi = mid + pad / 2; }
+      else { const m = (hi - lo) * 0.05; lo -= m; hi += m; }
+      out.range = [new Date(lo).toISOString(), new Date(hi).toISOString()];
+    }
+    return axis(title, Object.assign(out, extra || {}));
+  }
+
+  /* "lines+markers" for a trend over run dates, "markers" when two points share a time (a line
+   * between them would be a vertical stroke that means nothing). */
+  function trendMode(dates) {
+    const ms = (dates || []).map((d) => Date.parse(d));
+    return new Set(ms).size < ms.length ? "markers" : "lines+markers";
+  }
+
+  /* Line/track picker: one option per line and track of the runs ("line L / track T · n runs"),
+   * chosen from the page URL (?line_id=&track=) or else the one with the most processed runs.
+   * Returns the keys (line_id + "\u0001" + track). */
+  const LINE_SEP = "\u0001";
+  function lineKey(r) { return `${r.line_id}${LINE_SEP}${r.track}`; }
+  function fillLinePicker(select, runs) {
+    select = typeof select === "string" ? document.getElementById(select) : select;
+    const count = new Map(), done = new Map();
+    for (const r of runs.filter((x) => x.line_id)) {
+      const k = lineKey(r);
+      count.set(k, (count.get(k) || 0) + 1);
+      if (r.latest_job && r.latest_job.status === "done") done.set(k, (done.get(k) || 0) + 1);
+    }
+    const keys = [...count.keys()].sort();
+    select.innerHTML = keys.map((k) => {
+      const [l, t] = k.split(LINE_SEP), n = count.get(k);
+      return `<option value="${esc(k)}">line ${esc(l)} / track ${esc(t)} · ${n} run${n === 1 ? "" : "s"}</option>`;
+    }).join("");
+    const asked = param("line_id") !== null ? `${param("line_id")}${LINE_SEP}${param("track") || ""}` : null;
+    const best = keys.slice().sort((a, b) => (done.get(b) || 0) - (done.get(a) || 0) || (count.get(b) - count.get(a)))[0];
+    if (asked && keys.includes(asked)) select.value = asked;
+    else if (best) select.value = best;
+    return keys;
+  }
+  function lineOf(select) {
+    select = typeof select === "string" ? document.getElementById(select) : select;
+    const [line_id, track] = (select.value || "").split(LINE_SEP);
+    return { line_id: line_id || undefined, track: track || undefined };
+  }
+  /* Put the chosen line into the page URL (reload and links keep it). */
+  function rememberLine(line) {
+    const u = new URL(window.location.href);
+    if (line.line_id) u.searchParams.set("line_id", line.line_id); else u.searchParams.delete("line_id");
+    if (line.track) u.searchParams.set("track", line.track); else u.searchParams.delete("track");
+    window.history.replaceState(null, "", u.pathname + u.search);
+  }
+
   Object.assign(T, {
-    WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelColor, axis, layout, config, plot, emptyState,
-    banner, downloadCSV, csvText, esc, fmt, date, datetime, ready, param, allRuns,
+    WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelName, wheelColor, axis, dateAxis, trendMode, layout, config, plot,
+    emptyState, banner, downloadCSV, csvText, esc, fmt, date, datetime, ready, param, allRuns,
+    lineKey, fillLinePicker, lineOf, rememberLine,
   });
 })();

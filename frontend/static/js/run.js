@@ -6,7 +6,16 @@
   const T = window.trackvkf;
   const runId = T.boot.run_id;
   const el = document.getElementById("stiffness-plot");
-  const SECTION_COLORS = ["rgba(31,95,168,0.07)", "rgba(224,123,0,0.08)", "rgba(46,139,87,0.08)", "rgba(142,68,173,0.07)"];
+  // superstructure shading: the colour follows the type's name (not the order in which types
+  // appear in the visible range), so a type keeps its colour when zooming and across runs
+  const SECTION_COLORS = ["rgba(31,95,168,0.10)", "rgba(224,123,0,0.12)", "rgba(46,139,87,0.11)", "rgba(142,68,173,0.10)",
+    "rgba(0,131,143,0.11)", "rgba(176,137,0,0.13)", "rgba(93,64,55,0.10)", "rgba(120,144,156,0.14)"];
+  const MAINT_COLOR = "rgba(198,40,40,0.55)";
+  function sectionColor(type) {
+    let h = 0;
+    for (const ch of String(type)) h = (h * 31 + ch.codePointAt(0)) >>> 0;
+    return SECTION_COLORS[h % SECTION_COLORS.length];
+  }
   let run = null, wheels = [], full = null, current = null, data = {}, shapes = [], annotations = [];
   let busy = false, pending = null, seq = 0;
   const COLUMNS = "sleeper_amp,speed_mean,sleeper_force_amp"; // what the map draws and exports
@@ -40,39 +49,58 @@
     warn.innerHTML = list.length ? "<b>Ingest warnings</b><ul>" + list.map((w) => `<li>${T.esc(w)}</li>`).join("") + "</ul>" : "";
   }
 
+  /* Shading and marks of the reference data in [a, b] km, and their legend below the plot:
+   * one swatch per superstructure type, the maintenance mark with the action types. */
   async function loadReference(a, b) {
     shapes = []; annotations = [];
-    const info = [];
+    const info = [], legend = [];
     const q = { line_id: run.line_id, track: run.track, km_from: a, km_to: b };
     if (T.boot.features.reference_superstructure) {
       const res = await T.api.optional("/reference/superstructure", q);
-      const types = [];
-      for (const s of (res && res.items) || []) {
-        if (!types.includes(s.type)) types.push(s.type);
+      const items = (res && res.items) || [];
+      const types = new Map();
+      for (const s of items) {
+        types.set(s.type, s.details || "");
         shapes.push({ type: "rect", xref: "x", yref: "paper", x0: s.km_from, x1: s.km_to, y0: 0, y1: 1,
-          fillcolor: SECTION_COLORS[types.indexOf(s.type) % SECTION_COLORS.length], line: { width: 0 }, layer: "below" });
-        annotations.push({ x: (s.km_from + s.km_to) / 2, y: 1, xref: "x", yref: "paper", yanchor: "bottom",
-          text: T.esc(s.type), showarrow: false, font: { size: 11, color: "#5d6b7a" } });
+          fillcolor: sectionColor(s.type), line: { width: 0 }, layer: "below" });
+        // the label sits in the middle of the section's visible part, so it stays on screen
+        const lo = Math.max(s.km_from, a), hi = Math.min(s.km_to, b);
+        if (hi > lo && (hi - lo) >= 0.04 * (b - a)) {
+          annotations.push({ x: (lo + hi) / 2, y: 1, xref: "x", yref: "paper", yanchor: "bottom",
+            text: T.esc(s.type), showarrow: false, font: { size: 11, color: "#5d6b7a" } });
+        }
       }
-      info.push(types.length ? `${(res.items || []).length} superstructure sections` : "no superstructure data");
+      for (const [type, details] of types) {
+        legend.push(`<span class="swatch-item" title="${T.esc(details)}"><span class="swatch" style="background:${sectionColor(type)}"></span>${T.esc(type)}</span>`);
+      }
+      info.push(items.length ? `${items.length} superstructure section${items.length === 1 ? "" : "s"}` : "no superstructure data");
     }
     if (T.boot.features.reference_maintenance) {
       const res = await T.api.optional("/reference/maintenance", q);
-      for (const m of (res && res.items) || []) {
+      const items = (res && res.items) || [];
+      for (const m of items) {
         shapes.push({ type: "rect", xref: "x", yref: "paper", x0: m.km_from, x1: Math.max(m.km_to, m.km_from + 0.0005),
-          y0: 0, y1: 0.04, fillcolor: "rgba(198,40,40,0.55)", line: { width: 0 } });
+          y0: 0, y1: 0.04, fillcolor: MAINT_COLOR, line: { width: 0 } });
       }
-      info.push(`${((res && res.items) || []).length} maintenance actions (red marks)`);
+      if (items.length) {
+        const kinds = [...new Set(items.map((m) => m.type))].sort().join(", ");
+        legend.push(`<span class="swatch-item"><span class="swatch mark" style="background:${MAINT_COLOR}"></span>maintenance action (${T.esc(kinds)}), mark at the bottom over its km range</span>`);
+      }
+      info.push(`${items.length} maintenance action${items.length === 1 ? "" : "s"}`);
     }
     if (!info.length) info.push("superstructure and maintenance shading appear when reference data are available");
     document.getElementById("sections-info").textContent = info.join(" · ");
+    const box = document.getElementById("map-legend");
+    box.innerHTML = legend.length ? `<span class="muted">Shading:</span> ${legend.join("")}` : "";
+    box.hidden = !legend.length;
   }
 
   async function fetchRange(a, b) {
-    const mp = maxPoints();
+    // in steps of 200 points: plots of about the same width ask the same question (server and browser caches)
+    const mp = Math.ceil(maxPoints() / 200) * 200;
     const out = {};
     await Promise.all(wheels.map(async (w) => {
-      out[w] = await T.api.get(`/runs/${runId}/profile`, { wheel: w, km_from: a, km_to: b, max_points: mp, columns: COLUMNS });
+      out[w] = await T.api.profile(`/runs/${runId}/profile`, { wheel: w, km_from: a, km_to: b, max_points: mp, columns: COLUMNS });
     }));
     return out;
   }
@@ -84,7 +112,7 @@
       const rows = data[w].rows;
       if (!speedSrc && rows.length) speedSrc = rows;
       tr.push({
-        type: "scatter", mode: "lines", name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 1.3 },
+        type: "scatter", mode: "lines", name: T.wheelName(w), line: { color: T.wheelColor(w), width: 1.3 },
         x: rows.map((r) => r.km), y: rows.map((r) => r.sleeper_amp),
         customdata: rows.map((r) => (r.speed_mean ?? NaN) * 3.6),
         hovertemplate: `${T.wheelLabel(w)}<br>km %{x:.4f}<br>amplitude %{y:.3f} m/s²<br>speed %{customdata:.1f} km/h<extra></extra>`,

@@ -60,8 +60,8 @@
         <td class="num">${r.id}</td><td>${T.datetime(r.start_time)}</td><td>${T.esc(r.vehicle_id)}</td>
         <td>${T.esc(r.line_id)} / ${T.esc(r.track)}</td><td>${T.esc(r.direction)}</td>
         <td class="num">${T.fmt(a)}</td><td class="num">${T.fmt(b)}</td><td class="num">${T.fmt(len, 2)}</td>
-        <td class="muted" title="${T.esc(r.sha256)}">${T.esc(r.original_filename || "")}</td>
-        <td class="job-status">${badge}</td><td>${bar}</td><td>${actions(r)}</td></tr>`;
+        <td class="muted file" title="${T.esc(r.original_filename || "")} · sha256 ${T.esc(r.sha256)}">${T.esc(r.original_filename || "")}</td>
+        <td class="job-status">${badge}</td><td>${bar}</td><td class="actions"><div class="btns">${actions(r)}</div></td></tr>`;
     }).join("");
   }
 

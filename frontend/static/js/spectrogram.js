@@ -12,7 +12,8 @@
       type: "scatter", mode: "lines", x: spec.km, y: o.freq_hz, xaxis: "x", yaxis,
       name: o.label === "sleeper" ? "sleeper passage" : "wheel orders 1–" + (spec.orders.length - 1),
       legendgroup: o.label === "sleeper" ? "sleeper" : "wheel", showlegend: showlegend && (i === 0 || i === 1),
-      line: o.label === "sleeper" ? { color: "#ff3b3b", width: 1.8, dash: "dash" } : { color: "#ff9db0", width: 1, dash: "dot" },
+      // the tracked orders lie on the bright bands: dark dashes show on green and yellow alike
+      line: o.label === "sleeper" ? { color: "#ff1744", width: 2.4, dash: "dash" } : { color: "#000000", width: 1.6, dash: "dash" },
       hovertemplate: (o.label === "sleeper" ? "sleeper passage" : "wheel order " + o.label) + "<br>km %{x:.4f}<br>%{y:.1f} Hz<extra></extra>",
     }));
   }

@@ -11,15 +11,19 @@
     const el = document.getElementById("polar-plot");
     let lim = 10;
     for (const w of wheels.items) for (const v of w.profile_um) if (finite(v)) lim = Math.max(lim, Math.abs(v));
-    lim = Math.ceil(lim * 1.15 / 10) * 10;
+    lim = Math.ceil(lim * 1.15 / 20) * 20;  // rings every lim / 2: whole µm
     const traces = wheels.items.map((w) => ({
       type: "scatterpolar", mode: "lines", name: T.wheelLabel(w.wheel), theta: w.angles_deg.concat([w.angles_deg[0]]),
       r: w.profile_um.concat([w.profile_um[0]]), line: { color: T.wheelColor(w.wheel), width: 2 },
       hovertemplate: `${T.wheelLabel(w.wheel)}<br>θ %{theta:.0f}°<br>%{r:.1f} µm<extra></extra>`,
     }));
     await T.plot(el, traces, {
-      polar: { radialaxis: { range: [-lim, lim], ticksuffix: " µm", angle: 90, tickangle: 90, gridcolor: "#e6ebf0" },
+      // ring labels would sit on the curves: the rings are explained in a note instead
+      polar: { radialaxis: { range: [-lim, lim], dtick: lim / 2, showticklabels: false, ticks: "", gridcolor: "#e6ebf0" },
         angularaxis: { direction: "clockwise", rotation: 90, ticksuffix: "°", gridcolor: "#e6ebf0" } },
+      annotations: [{ xref: "paper", yref: "paper", x: 0, y: 0, xanchor: "left", yanchor: "bottom", showarrow: false,
+        align: "left", font: { size: 11, color: "#5b6b7b" },
+        text: `centre −${T.fmt(lim, 0)} µm · rim +${T.fmt(lim, 0)} µm<br>rings every ${T.fmt(lim / 2, 0)} µm (middle ring 0 µm)` }],
       margin: { l: 40, r: 40, t: 40, b: 30 },
       legend: { orientation: "v", x: 0, y: 1, yanchor: "top" },
     }, {
@@ -100,14 +104,14 @@
     const traces = T.WHEELS.filter((w) => trend.items.some((i) => i.wheel === w)).map((w) => {
       const items = trend.items.filter((i) => i.wheel === w);
       return {
-        type: "scatter", mode: "lines+markers", name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 2 },
+        type: "scatter", mode: T.trendMode(items.map((i) => i.start_time)), name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 2 },
         marker: { size: 8 }, x: items.map((i) => i.start_time), y: items.map((i) => trendValue(i, q)),
         customdata: items.map((i) => i.run_id),
         hovertemplate: `${T.wheelLabel(w)}<br>%{x|%Y-%m-%d %H:%M}<br>%{y:.1f} µm<br>run %{customdata}<extra></extra>`,
       };
     });
     await T.plot(el, traces, {
-      xaxis: T.axis("Run start (date)", { type: "date" }),
+      xaxis: T.dateAxis("Run start (date)", trend.items.map((i) => i.start_time)),
       yaxis: T.axis(label, { rangemode: "tozero" }),
       margin: { l: 70, r: 20, t: 30, b: 55 },
     }, {

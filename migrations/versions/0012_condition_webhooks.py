@@ -1,7 +1,7 @@
 """Alerts: webhooks and webhook_deliveries (the delivery log and outbox).
 
-Revision ID: 0011_condition_webhooks
-Revises: 0009_segment_condition
+Revision ID: 0012_condition_webhooks
+Revises: 0011_segment_condition
 Create Date: 2026-11-24
 """
 
@@ -11,8 +11,8 @@ import sqlalchemy as sa
 from alembic import op
 from sqlalchemy.dialects import postgresql
 
-revision: str = "0011_condition_webhooks"
-down_revision: str | None = "0009_segment_condition"
+revision: str = "0012_condition_webhooks"
+down_revision: str | None = "0011_segment_condition"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -1,6 +1,6 @@
 """Recorder input: channel_maps (per vehicle), line_geometries (per line and track), runs.ingest_report.
 
-Revision ID: 0010_channel_maps
+Revision ID: 0007_channel_maps
 Revises: 0006_partial_display_index
 Create Date: 2026-11-24
 """
@@ -11,7 +11,7 @@ import sqlalchemy as sa
 from alembic import op
 from sqlalchemy.dialects import postgresql
 
-revision: str = "0010_channel_maps"
+revision: str = "0007_channel_maps"
 down_revision: str | None = "0006_partial_display_index"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None

@@ -5,8 +5,8 @@ Rows are written when a job is published (the 25 cm profile rows stay the
 source; these are kept for ever). Runs already processed get theirs when they
 are reprocessed.
 
-Revision ID: 0009_segment_condition
-Revises: 0010_channel_maps
+Revision ID: 0011_segment_condition
+Revises: 0009_sleeper_harmonics
 Create Date: 2026-11-24
 """
 
@@ -15,8 +15,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0009_segment_condition"
-down_revision: str | None = "0010_channel_maps"
+revision: str = "0011_segment_condition"
+down_revision: str | None = "0009_sleeper_harmonics"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

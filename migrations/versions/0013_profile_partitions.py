@@ -11,8 +11,8 @@ upgrade costs one scan of the old rows, no rewrite. SQLite is unchanged (the
 sweep deletes rows there). The downgrade copies the rows back into a plain
 table.
 
-Revision ID: 0012_profile_partitions
-Revises: 0011_condition_webhooks
+Revision ID: 0013_profile_partitions
+Revises: 0012_condition_webhooks
 Create Date: 2026-11-24
 """
 
@@ -21,8 +21,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0012_profile_partitions"
-down_revision: str | None = "0011_condition_webhooks"
+revision: str = "0013_profile_partitions"
+down_revision: str | None = "0012_condition_webhooks"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -1,0 +1,150 @@
+"""The demo's data set: several runs of two lines at different dates plus reference data.
+
+``trackvkf demo`` uploads it so that every dashboard page has content out of the box: three
+runs of line ``SIM`` track 1 by vehicle ``SIM-1`` half a year apart (the same line model and
+the same wheels, so the line view, the run alignment and the wheel trend compare like with
+like; the later runs carry a few metres of odometry error), one run of line ``SIM-B`` track 2
+by vehicle ``SIM-2``, subsidence, maintenance and superstructure records of line ``SIM``
+track 1 (CSV, as an asset manager would export them) and the geometry of both lines (GeoJSON
+with km stations, for the map).
+
+Files are written once into a directory and reused (same bytes, same sha256: the demo's second
+start uploads nothing new).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from app.simulate.geometry import synthetic_line, write_geometry
+from app.simulate.reference import simulate_reference
+from app.simulate.run import DEFAULT_TRUE_DIAMETERS_M, simulate_run
+from app.simulate.track import LineModel, generate_line
+from app.simulate.wheels import random_wheel_oor
+
+__all__ = ["DemoRun", "DemoDataset", "DEMO_RUNS", "DEMO_KM_START", "REFERENCE_KINDS", "write_demo_dataset"]
+
+#: km of the position reference at the start of every demo run
+DEMO_KM_START = 12.0
+#: reference data kinds, in the order they are imported
+REFERENCE_KINDS = ("superstructure", "maintenance", "subsidence")
+
+
+@dataclass(frozen=True)
+class DemoRun:
+    """One simulated run of the demo (metadata and seeds)."""
+
+    line_id: str
+    track: str
+    vehicle_id: str
+    start_time: str
+    seed: int
+    line_seed: int
+    vehicle_seed: int
+    km_error_m: float = 0.0
+
+    def file_name(self, length_km: float, fs: float) -> str:
+        """Name of the run file (changes with the demo options)."""
+        day = self.start_time[:10]
+        return f"{self.line_id}-{self.track}-{day}-{length_km:g}km-{fs:g}Hz.h5"
+
+
+#: the demo's runs: line SIM track 1 three times (the reference data's line), SIM-B once
+DEMO_RUNS: tuple[DemoRun, ...] = (
+    DemoRun("SIM", "1", "SIM-1", "2024-05-01T08:00:00+02:00", seed=7, line_seed=7, vehicle_seed=1),
+    DemoRun("SIM", "1", "SIM-1", "2024-11-05T09:30:00+01:00", seed=8, line_seed=7, vehicle_seed=1,
+            km_error_m=4.0),
+    DemoRun("SIM", "1", "SIM-1", "2025-05-06T08:15:00+02:00", seed=9, line_seed=7, vehicle_seed=1,
+            km_error_m=-3.0),
+    DemoRun("SIM-B", "2", "SIM-2", "2025-02-03T14:00:00+01:00", seed=21, line_seed=21, vehicle_seed=2),
+)
+
+
+@dataclass
+class DemoDataset:
+    """Paths of the demo's files: ``runs`` in the order of :data:`DEMO_RUNS`, ``reference``
+    by kind (:data:`REFERENCE_KINDS`), ``geometry`` one GeoJSON per line and track, all under
+    ``directory``."""
+
+    directory: Path
+    runs: list[Path] = field(default_factory=list)
+    reference: dict[str, Path] = field(default_factory=dict)
+    geometry: list[Path] = field(default_factory=list)
+    reference_line: tuple[str, str] = ("SIM", "1")
+    written: list[Path] = field(default_factory=list)
+
+
+def _line(line_seed: int, length_km: float) -> LineModel:
+    """The line model of ``line_seed`` covering every demo run of ``length_km`` (with margins
+    for the trailing axle and the odometry errors)."""
+    start = 1000.0 * DEMO_KM_START
+    end = start + 1000.0 * length_km
+    return generate_line(start - 100.0, end + 100.0, np.random.default_rng([line_seed, 7]),
+                         anomaly_range_m=(start + 20.0, end - 40.0))
+
+
+def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: float = 10_000.0,
+                       runs: tuple[DemoRun, ...] = DEMO_RUNS) -> DemoDataset:
+    """Write the demo's run files and reference files into ``directory`` (missing ones only).
+
+    Parameters
+    ----------
+    directory : Path or str
+        Where the files go (created).
+    length_km : float
+        Length of every run, km (> 0).
+    fs : float
+        Sample rate of the runs, Hz.
+    runs : tuple of DemoRun
+        The runs (default :data:`DEMO_RUNS`); the reference data belong to the first run's
+        line and track.
+
+    Returns
+    -------
+    DemoDataset
+        The paths; ``written`` lists the files made by this call.
+    """
+    if not length_km > 0:
+        raise ValueError(f"length_km: must be > 0, got {length_km!r}")
+    if not runs:
+        raise ValueError("runs: at least one run is needed")
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    first = runs[0]
+    data = DemoDataset(directory=out, reference_line=(first.line_id, first.track))
+    lines: dict[int, LineModel] = {}
+    for run in runs:
+        path = out / run.file_name(length_km, fs)
+        data.runs.append(path)
+        if path.is_file():
+            continue
+        line = lines.setdefault(run.line_seed, _line(run.line_seed, length_km))
+        rng = np.random.default_rng([run.vehicle_seed, 3])
+        wheels = {w: random_wheel_oor(rng, w, d) for w, d in DEFAULT_TRUE_DIAMETERS_M.items()}
+        simulate_run(path, length_km=length_km, fs=fs, seed=run.seed, line=line, wheels=wheels,
+                     start_time=run.start_time, vehicle_id=run.vehicle_id, line_id=run.line_id,
+                     track=run.track, km_start=DEMO_KM_START, km_error_m=run.km_error_m,
+                     with_forces=True)
+        data.written.append(path)
+    ref_dir = out / f"reference-{first.line_id}-{first.track}-{length_km:g}km"
+    files = {kind: ref_dir / f"{kind}.csv" for kind in REFERENCE_KINDS}
+    if not all(p.is_file() for p in files.values()):
+        line = lines.setdefault(first.line_seed, _line(first.line_seed, length_km))
+        ref = simulate_reference(line, ref_dir, line_id=first.line_id, track=first.track,
+                                 seed=first.seed)
+        files = {kind: Path(ref.files[kind]) for kind in REFERENCE_KINDS}
+        data.written.extend(files.values())
+    data.reference = files
+    for line_id, track, seed in dict.fromkeys((r.line_id, r.track, r.line_seed) for r in runs):
+        path = out / f"geometry-{line_id}-{track}-{length_km:g}km.geojson"
+        data.geometry.append(path)
+        if not path.is_file():
+            # a margin for the odometry errors and the trailing axle
+            _, doc = synthetic_line(DEMO_KM_START - 0.1, DEMO_KM_START + length_km + 0.1, seed=seed,
+                                    line_id=line_id, track=track)
+            write_geometry(path, doc)
+            data.written.append(path)
+    return data

@@ -1,0 +1,93 @@
+"""Canonical run files built from the physics reference runs (../shared/physics), for benches and tests.
+
+The physics files are short uniform-track records (14.4 m, 0.3–0.9 s) from an independent
+vehicle–track model. :func:`steady_unit` cuts the steady part (the last ``n_bays_steady`` whole
+sleeper bays of cases.csv, where the lock-in amplitudes were taken) and resamples it by cubic
+interpolation in x onto a whole number of samples, so that it tiles seamlessly: a tiled record is
+periodic with exactly the lock-in's content (A_lockin, A2, A3 at f_s, 2 f_s, 3 f_s). Splicing units
+of two stiffnesses at a bay boundary (a sleeper) gives an instantaneous stiffness step whose truth
+on either side is known; the physical transition length of a real step is left out on purpose, so
+the measured width is the indicator's own. :func:`write_run` writes the signal as Z11 of a canonical
+run (constant speed, position x) that the real pipeline processes.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import h5py
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+PHYSICS = Path(__file__).resolve().parents[2] / "shared" / "physics"
+for _cand in (PHYSICS, Path("/work/shared/physics")):
+    if (_cand / "cases.csv").is_file():
+        PHYSICS = _cand
+        break
+D_S = 0.6
+
+
+def cases() -> dict[str, dict[str, float]]:
+    """Rows of cases.csv by file name (numbers as float)."""
+    with open(PHYSICS / "cases.csv", newline="") as fh:
+        return {r["file"]: {k: (float(v) if k != "file" else v) for k, v in r.items()} for r in csv.DictReader(fh)}
+
+
+def steady_unit(name: str, fs: float | None = None) -> tuple[np.ndarray, float, float, int]:
+    """The steady bays of a physics run resampled to a whole number of samples per bay.
+
+    Returns
+    -------
+    unit : ndarray
+        a_axle over ``n_bays`` whole bays, m/s², tiling seamlessly; bay ``i`` is
+        ``unit[i*m:(i+1)*m]`` with ``m = unit.size // n_bays``.
+    speed : float
+        Speed of the resampled unit, m/s (the file's within 0.3 %: a whole number of samples per bay).
+    fs : float
+        Sample rate, Hz.
+    n_bays : int
+    """
+    d = np.load(PHYSICS / name)
+    x, a = d["x"], d["a_axle"]
+    fs = float(d["fs"]) if fs is None else fs
+    v = float(d["speed"])
+    nb = int(cases()[name]["n_bays_steady"])
+    x1 = np.floor(x[-1] / D_S + 1e-9) * D_S
+    x0 = x1 - nb * D_S
+    m = int(round(D_S * fs / v))
+    n = nb * m
+    grid = x0 + np.arange(n) * (nb * D_S / n)
+    unit = CubicSpline(x, a)(grid)
+    return unit, nb * D_S * fs / n, fs, nb
+
+
+def write_run(path: Path, z: np.ndarray, fs: float, speed: float, wheel_diameter: float = 0.92) -> Path:
+    """A canonical run with ``z`` as Z11 (and Z12, Z41, Z42), constant ``speed``, position from 0."""
+    from app.io import parse_metadata
+    from app.io.canonical import CanonicalWriter
+
+    n = z.size
+    meta = parse_metadata({"vehicle_id": "PHYS", "line_id": "PHYS", "km_start": 0.0, "km_increasing": True,
+                           "start_time": "2024-01-01T00:00:00+00:00", "track": "1", "direction": "up",
+                           "sleeper_spacing": D_S, "sample_rate_hz": fs,
+                           "wheel_diameters": {w: wheel_diameter for w in ("11", "12", "41", "42")}})
+    with h5py.File(path, "w") as h5:
+        w = CanonicalWriter(h5, fs=fs, metadata=meta, channels=["Z11", "speed", "position"], n_samples=n,
+                            compression=None, source_format="simulated")
+        w.write("Z11", 0, z)
+        w.write("speed", 0, np.full(n, speed))
+        w.write("position", 0, np.arange(n) * speed / fs)
+        w.finish(n)
+    return path
+
+
+def polygon(n: int, fs: float, speed: float, rho_um: float = 90.0, order: int = 5,
+            wheel_diameter: float = 0.92, phase: float = 0.3) -> np.ndarray:
+    """Axle-box acceleration of a wheel polygon of ``rho_um`` at ``order`` at constant speed, m/s².
+
+    ``ρ ω_l² cos(l θ + ψ)`` with ``θ = 2x/d_w``, ``ω_l = 2 l v / d_w``.
+    """
+    x = np.arange(n) * speed / fs
+    omega = 2.0 * order * speed / wheel_diameter
+    return rho_um * 1e-6 * omega**2 * np.cos(order * 2.0 * x / wheel_diameter + phase)

@@ -1,0 +1,31 @@
+/* The login form: posts the credentials as JSON and goes on to the page asked for
+ * (a file, not an inline script: the Content-Security-Policy allows scripts only from the server's files). */
+(function () {
+  const form = document.getElementById("login");
+  const error = document.getElementById("error");
+  form.addEventListener("submit", async function (event) {
+    event.preventDefault();
+    error.textContent = "";
+    const body = JSON.stringify({
+      username: form.username.value, password: form.password.value,
+    });
+    let response;
+    try {
+      response = await fetch("/api/v1/auth/login", {
+        method: "POST", headers: {"Content-Type": "application/json"}, body: body,
+        credentials: "same-origin",
+      });
+    } catch (e) {
+      error.textContent = "The server cannot be reached.";
+      return;
+    }
+    if (response.ok) {
+      window.location.assign(form.dataset.next || "/");
+      return;
+    }
+    let message = "Login failed (" + response.status + ").";
+    if (response.status === 401) message = "Wrong user name or password.";
+    if (response.status === 429) message = "Too many attempts; wait a minute and try again.";
+    error.textContent = message;
+  });
+})();
