@@ -91,7 +91,7 @@ def fetch_array(session: Session, stmt, n_columns: int) -> np.ndarray:
 
 
 def list_lines(session: Session) -> list[LineSummary]:
-    """Every line and track of the store, by line id and track."""
+    """Every line and track of the store with runs, by line id and track."""
     stats = {
         key: (n, first, last)
         for key, n, first, last in session.execute(
@@ -101,7 +101,9 @@ def list_lines(session: Session) -> list[LineSummary]:
     }
     out = []
     for line in session.scalars(select(ConditionLine).order_by(ConditionLine.line_id, ConditionLine.track)):
-        n, first, last = stats.get(line.id, (0, None, None))
+        if line.id not in stats:  # its runs were deleted or moved to another line
+            continue
+        n, first, last = stats[line.id]
         newest = newest_run(session, line.id)
         out.append(LineSummary(line, int(n), first, last, newest.run_id if newest else None,
                                newest.n_flags if newest else 0))
@@ -109,8 +111,9 @@ def list_lines(session: Session) -> list[LineSummary]:
 
 
 def find_lines(session: Session, line_id: str, track: str | None) -> list[ConditionLine]:
-    """The store's lines of ``line_id`` (and ``track`` when given)."""
-    stmt = select(ConditionLine).where(ConditionLine.line_id == line_id)
+    """The store's lines of ``line_id`` (and ``track`` when given) that hold runs."""
+    has_runs = select(ConditionRun.run_id).where(ConditionRun.line_key == ConditionLine.id).exists()
+    stmt = select(ConditionLine).where(ConditionLine.line_id == line_id, has_runs)
     if track is not None:
         stmt = stmt.where(ConditionLine.track == track)
     return list(session.scalars(stmt.order_by(ConditionLine.track)))

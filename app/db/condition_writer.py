@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import and_, delete, select, text
+from sqlalchemy import and_, delete, select, text, update
 from sqlalchemy.orm import Session
 
 from app.analysis.condition import (
@@ -176,11 +176,22 @@ def line_of(session: Session, line_id: str, track: str, bin_length_m: float = 0.
 
 
 def delete_run_condition(session: Session, run_id: int) -> None:
-    """Delete a run's segment rows, overview, flags and entry (reprocessing, deletion)."""
+    """Delete a run's segment rows, overview, flags and entry (reprocessing, deletion).
+
+    A line left without runs loses its alignment reference (the next run stored
+    becomes it): the run may have left because its line was wrong
+    (``PATCH /runs/{id}`` of the metadata), so its signature must not stay the
+    reference of that line.
+    """
+    line_key = session.scalar(select(ConditionRun.line_key).where(ConditionRun.run_id == run_id))
     session.execute(delete(SegmentCondition).where(SegmentCondition.run_id == run_id))
     session.execute(delete(ConditionOverview).where(ConditionOverview.run_id == run_id))
     session.execute(delete(ConditionFlag).where(ConditionFlag.run_id == run_id))
     session.execute(delete(ConditionRun).where(ConditionRun.run_id == run_id))
+    if line_key is not None and session.scalar(
+            select(ConditionRun.run_id).where(ConditionRun.line_key == line_key).limit(1)) is None:
+        session.execute(update(ConditionLine).where(ConditionLine.id == line_key).values(
+            ref_run_id=None, ref_first_bin=None, ref_signature=None, km_min=None, km_max=None))
 
 
 def _job_bins(session: Session, job_id: int, profiles: pd.DataFrame | None) -> dict[str, RunBins]:
