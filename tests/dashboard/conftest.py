@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +27,11 @@ CHROMIUM_ARGS = [
     "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
     "--disable-background-networking", "--disable-component-update", "--disable-sync",
 ]
-SCREENSHOTS = Path(__file__).resolve().parents[2] / "docs" / "screenshots"
+#: where the walk's screenshots go: a scratch folder, so that a test run leaves the checkout as it
+#: was; ``TRACKVKF_SCREENSHOT_DIR=docs/screenshots scripts/test.sh tests/dashboard`` refreshes the
+#: README's pictures
+SCREENSHOTS = Path(os.environ.get("TRACKVKF_SCREENSHOT_DIR")
+                   or Path(tempfile.gettempdir()) / f"trackvkf-screenshots-{os.getuid()}")
 #: the demo data set, with runs of this length (km) and sample rate (Hz)
 RUN_LENGTH_KM = 1.2
 RUN_FS = 10_000.0
@@ -204,7 +209,7 @@ def open_page(context, dashboard):
 
 
 def save_screenshot(page, name: str) -> Path:
-    """Full-page screenshot to docs/screenshots/<name>.png."""
+    """Full-page screenshot to ``SCREENSHOTS/<name>.png`` (read them: the walk's record of each page)."""
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     path = SCREENSHOTS / f"{name}.png"
     page.wait_for_timeout(300)  # let Plotly finish its transitions

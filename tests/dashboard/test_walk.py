@@ -2,7 +2,8 @@
 docs, at 1280 and 1600 px, against the demo data (two lines, several runs of a line, reference
 data). Each page shows its content (plots with data, table rows, the operations list), no
 error banner, nothing wider than the window, no console error and no failed request. The walk
-at 1280 px writes docs/screenshots/ (the README's pictures; the pages, not the docs).
+at 1280 px writes a screenshot of each page (to a scratch folder; with
+TRACKVKF_SCREENSHOT_DIR=docs/screenshots it refreshes the README's pictures).
 """
 
 from __future__ import annotations
