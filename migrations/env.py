@@ -51,12 +51,18 @@ def run_migrations_online() -> None:
         engine.dispose()
 
 
+def include_name(name, type_, parent_names) -> bool:  # noqa: ARG001 - Alembic's signature
+    """Leave the partitions of profile_bins (PostgreSQL, app.db.partitions) out of comparisons."""
+    return not (type_ == "table" and name is not None and name.startswith("profile_bins_"))
+
+
 def _run(connection) -> None:
     context.configure(
         connection=connection,
         target_metadata=target_metadata,
         render_as_batch=connection.dialect.name == "sqlite",
         compare_type=True,
+        include_name=include_name,
     )
     with context.begin_transaction():
         context.run_migrations()

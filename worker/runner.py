@@ -40,6 +40,7 @@ from app.db import queue
 from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
 from app.pipeline import ChunkSpec, PipelineCancelled, assemble, process_chunk
+from worker.background import Background
 from worker.chunkstore import ChunkStore
 from worker.steps import (
     JobRecord,
@@ -280,7 +281,8 @@ class LocalWorker:
             meta = job_meta(settings, len(chunks), worker_id=self.worker_id, run_sha256=record.run.sha256,
                             warnings=results.meta.get("warnings", ()), compute_s=time.perf_counter() - t0)
             stored = queue.complete_job(
-                self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id
+                self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id,
+                condition=rt.condition,
             )
             if stored:
                 discard_job_files(rt, run_id)  # its chunk files, and those of the jobs it supersedes
@@ -441,6 +443,7 @@ def run_worker(
         Number of jobs processed.
     """
     worker = LocalWorker(settings)
+    background = Background(settings)  # webhook deliveries, retention sweep: beside the jobs
 
     def _graceful(signum: int, frame: object) -> None:  # noqa: ARG001
         if worker.stopping:
@@ -452,9 +455,11 @@ def run_worker(
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             previous[sig] = signal.signal(sig, _graceful)
+    background.start()
     try:
         return worker.run(once=once, exit_when_idle=exit_when_idle)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        background.stop()
         worker.runtime.close()

@@ -41,6 +41,7 @@ from app.core.config import Settings
 from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
+from app.db.condition_writer import ConditionConfig
 from app.db.models import ChunkStatus, Job, JobStatus, Run
 from app.db.reference_curves import CurveParams, refresh_reference
 from app.db.session import Database
@@ -88,6 +89,8 @@ class WorkerRuntime:
     stopping : threading.Event
         Set when the worker process shuts down: running chunks stop at their
         next sub-block.
+    condition : ConditionConfig
+        How published runs become segment condition rows (from the settings).
     """
 
     def __init__(self, settings: Settings, db: Database | None = None) -> None:
@@ -96,6 +99,7 @@ class WorkerRuntime:
         self.store = RunStore(settings.run_store, settings.shared_store)
         self.chunks = ChunkStore(self.store)
         self.stopping = threading.Event()
+        self.condition = ConditionConfig.from_settings(settings)
 
     @property
     def db(self) -> Database:

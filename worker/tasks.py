@@ -80,6 +80,7 @@ from app.db import crud, queue
 from app.db.models import ChunkStatus
 from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel, run_warnings
 from app.pipeline import process_chunk as compute_chunk
+from worker.background import start_background
 from worker.health import alive_file
 from worker.steps import (
     WorkerRuntime,
@@ -421,7 +422,7 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     )
     t0 = time.perf_counter()
     wheels = [r["result"] for r in stored_wheels if r["result"] is not None]
-    stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None)
+    stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None, condition=rt.condition)
     log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
              time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
     discard_job_files(rt, run_id)  # its chunk and wheel files, and those of the jobs it supersedes
@@ -503,7 +504,11 @@ def run_worker_process(settings: Settings | None = None, *, wait: bool = True) -
         Exit status (0 after a graceful stop, 130 after a second signal).
     """
     settings = settings or get_settings()
-    return asyncio.run(_supervise(settings, wait))
+    background = start_background(settings)  # webhook deliveries, retention sweep: beside the tasks
+    try:
+        return asyncio.run(_supervise(settings, wait))
+    finally:
+        background.stop()
 
 
 async def _supervise(settings: Settings, wait: bool) -> int:

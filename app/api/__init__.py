@@ -1,7 +1,7 @@
 """REST API of trackvkf under ``/api/v1``.
 
 Routers by resource: runs, jobs, profiles, wheels, reference data, analytics,
-channel maps, line geometry, health, auth, audit. Every
+condition (the segment condition store), channel maps, line geometry, webhooks (admin), health, auth, audit. Every
 route declares its access policy through a dependency (see
 :func:`app.api.deps.route_policy`): ``public`` (health, login), or
 ``require_role(role)`` — the resource routers below get ``viewer`` for all their
@@ -18,6 +18,8 @@ from app.api import (
     audit,
     auth,
     channel_maps,
+    condition,
+    condition_effects,
     geometry,
     health,
     jobs,
@@ -25,6 +27,7 @@ from app.api import (
     reference,
     runs,
     spectrogram,
+    webhooks,
     wheels,
 )
 from app.api.deps import public, require_role
@@ -41,8 +44,8 @@ def build_api_router() -> APIRouter:
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
-        runs, jobs, profiles, wheels, spectrogram, reference, analytics, analytics_index, auth, audit,
-        channel_maps, geometry,
+        runs, jobs, profiles, wheels, spectrogram, reference, analytics, analytics_index, condition,
+        condition_effects, auth, audit, channel_maps, geometry, webhooks,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

@@ -48,6 +48,9 @@ ACTIONS: tuple[str, ...] = (
     "job.cancel",
     "reference.import",
     "reference.delete",
+    "webhook.create",
+    "webhook.update",
+    "webhook.delete",
 )
 
 router = APIRouter(tags=["audit"], dependencies=[Depends(require_role("admin"))])

@@ -158,9 +158,13 @@ def _index_context(db: Database, settings, run_id: int, bin_length: float) -> In
 
 
 def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int, float, list[str]]:
-    """Job id and bin length of the stored results and the wheels; 404/409 if none."""
+    """Job id and bin length of the stored results and the wheels; 404/409 if none, 410 when swept."""
     with db.read() as session:
-        _, job = run_with_results(session, run_id)
+        run, job = run_with_results(session, run_id)
+        if run.profiles_swept_at is not None:
+            raise ApiError(410, "profile", f"the 25 cm rows of run {run_id} were removed by the retention sweep on "
+                                           f"{run.profiles_swept_at.date().isoformat()} (TRACKVKF_PROFILE_RETENTION_DAYS); "
+                                           "its 10 m / 100 m condition rows remain: GET /api/v1/condition/…")
         wheels = results_reader.stored_profile_wheels(session, job.id)
     if wheel is not None and wheel not in wheels:
         raise ApiError(

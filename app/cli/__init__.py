@@ -1,17 +1,19 @@
 """Command line of trackvkf: ``serve``, ``worker``, ``migrate``, ``demo``, ``simulate``,
-``process``, ``user`` (create, set-password, list) and ``key`` (create, revoke, list).
+``process``, ``simulate-fleet``, ``sweep-profiles``, ``user`` (create, set-password, list) and
+``key`` (create, revoke, list).
 
 Every command reads the service settings from ``TRACKVKF_*`` environment
 variables (see :class:`app.core.config.Settings`). The commands live by group:
 :mod:`app.cli.service` (serve, worker, migrate), :mod:`app.cli.processing`
-(simulate, process), :mod:`app.cli.accounts` (user, key), :mod:`app.cli.demo`.
+(simulate, process), :mod:`app.cli.condition` (simulate-fleet, sweep-profiles),
+:mod:`app.cli.accounts` (user, key), :mod:`app.cli.demo`.
 """
 
 from __future__ import annotations
 
 import typer
 
-from app.cli import accounts, demo, processing, service
+from app.cli import accounts, condition, demo, processing, service
 
 __all__ = ["app", "main"]
 
@@ -27,6 +29,8 @@ app.command()(service.worker)
 app.command()(service.migrate)
 app.command()(processing.simulate)
 app.command()(processing.process)
+app.command("simulate-fleet")(condition.simulate_fleet)
+app.command("sweep-profiles")(condition.sweep_profiles)
 app.add_typer(accounts.user_app, name="user")
 app.add_typer(accounts.key_app, name="key")
 app.command()(demo.demo)

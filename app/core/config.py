@@ -132,12 +132,49 @@ class Settings(BaseSettings):
         The first and last metres of every run's profile left out of the
         analytics (filter end transients).
     analytics_speed_tolerance : float
-        Matched-speed rule of the stiffness index: the reference amplitude at
-        speed v is estimated from passes within ±this fraction of v (0.1 =
-        ±10 %), and exists only where such passes are.
+        The matched-speed rule, wherever runs are compared: the reference
+        amplitude at speed v is estimated from passes within ±this fraction of
+        v (0.1 = ±10 %) and exists only where such passes are; two runs'
+        segments are compared, and a condition change is tested against
+        earlier runs, only where their speeds differ by less than this.
     analytics_section_margin_m : float
         Bins within this distance of a change of superstructure type get no
         stiffness index and do not enter the reference curves, m.
+    condition_step_z, condition_trend_z : float
+        Scores (repeatability units, wheels combined) beyond which the
+        condition store flags a sudden change (step) or a gradual trend.
+    condition_agree_z : float
+        A wheel agrees with a flag when its own score reaches this.
+    condition_min_history : int
+        Fewest speed-matched earlier runs a change test needs.
+    condition_history_runs : int
+        Most recent speed-matched earlier runs the step test compares each
+        segment with.
+    condition_history_scan_runs : int
+        Most recent earlier runs of the line looked at to find them.
+    condition_trend_window_days : float
+        Days of history the trend test regresses over.
+    condition_level_block_m : float
+        Length of the blocks whose median change is taken as a run's level
+        (calibration, temperature), m.
+    condition_max_shift_m : float
+        Largest alignment shift of a run onto its line's reference, m.
+    condition_min_shift_confidence : float
+        Alignments less clear than this are not applied.
+    webhook_timeout_s : float
+        Time a webhook receiver has to answer, s.
+    webhook_max_attempts : int
+        Attempts of a delivery before it is given up.
+    webhook_retry_base_s, webhook_retry_max_s : float
+        Back-off after the n-th failed attempt: ``base · 2^(n−1)`` seconds, at most ``max``.
+    webhook_poll_s : float
+        Pause of a worker's delivery loop when nothing is due, s.
+    profile_retention_days : int, optional
+        Keep the 25 cm profile rows of runs measured in the last this many
+        days; the workers remove older ones every ``profile_sweep_interval_s``
+        (segment condition rows are kept for ever). Default: none (keep all).
+    profile_sweep_interval_s : float
+        Seconds between two retention sweeps of a worker.
     map_tile_url : str, optional
         Raster tile URL template (``https://tiles.example/{z}/{x}/{y}.png``) of
         a basemap under the map page's line geometry. Default: none (the page
@@ -187,6 +224,23 @@ class Settings(BaseSettings):
     analytics_edge_trim_m: float = Field(default=50.0, ge=0)
     analytics_speed_tolerance: float = Field(default=0.1, gt=0, le=1)
     analytics_section_margin_m: float = Field(default=50.0, ge=0)
+    condition_step_z: float = Field(default=4.5, gt=0)
+    condition_trend_z: float = Field(default=4.5, gt=0)
+    condition_agree_z: float = Field(default=2.0, gt=0)
+    condition_min_history: int = Field(default=8, ge=2)
+    condition_history_runs: int = Field(default=30, ge=2, le=1000)
+    condition_history_scan_runs: int = Field(default=60, ge=2, le=2000)
+    condition_trend_window_days: float = Field(default=180.0, gt=0)
+    condition_level_block_m: float = Field(default=1000.0, gt=0)
+    condition_max_shift_m: float = Field(default=50.0, gt=0)
+    condition_min_shift_confidence: float = Field(default=0.2, ge=0, le=1)
+    webhook_timeout_s: float = Field(default=5.0, gt=0, le=120)
+    webhook_max_attempts: int = Field(default=8, ge=1, le=100)
+    webhook_retry_base_s: float = Field(default=5.0, gt=0)
+    webhook_retry_max_s: float = Field(default=3600.0, gt=0)
+    webhook_poll_s: float = Field(default=1.0, gt=0)
+    profile_retention_days: int | None = Field(default=None, ge=1)
+    profile_sweep_interval_s: float = Field(default=3600.0, gt=0)
     map_tile_url: str | None = Field(default=None, max_length=500)
     map_tile_attribution: str = Field(default="", max_length=300)
 

@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 from sqlalchemy import ColumnElement, and_, delete, func, select, update
 from sqlalchemy.orm import Session
 
+from app.db.condition_writer import delete_run_condition
 from app.db.models import Job, JobChunk, JobStatus, ProfileBin, Run, WheelOOR, utcnow
 
 __all__ = [
@@ -116,6 +117,7 @@ def delete_run(session: Session, run_id: int) -> bool:
     if session.scalar(select(Run.id).where(Run.id == run_id).with_for_update()) is None:
         return False
     job_ids = select(Job.id).where(Job.run_id == run_id).scalar_subquery()
+    delete_run_condition(session, run_id)
     session.execute(delete(ProfileBin).where(ProfileBin.job_id.in_(job_ids)))
     session.execute(delete(WheelOOR).where(WheelOOR.run_id == run_id))
     session.execute(delete(JobChunk).where(JobChunk.job_id.in_(job_ids)))

@@ -175,6 +175,8 @@ class Run(Base):
     ingest_report: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
     created_by: Mapped[str | None] = mapped_column(String(128))
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    #: when the retention sweep removed the run's 25 cm rows (its segment condition rows stay)
+    profiles_swept_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
 
     jobs: Mapped[list[Job]] = relationship(
         back_populates="run", passive_deletes=True, order_by="Job.id"
@@ -313,6 +315,8 @@ class WheelOOR(Base):
     extra: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
 
 from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessions, api_keys, audit_log)
+from app.db import condition_models as _condition_models  # noqa: E402,F401  (segment condition store)
 from app.db import curve_models as _curve_models  # noqa: E402,F401  (reference_curves in Base.metadata)
 from app.db import recorder_models as _recorder_models  # noqa: E402,F401  (channel maps, line geometries)
 from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)
+from app.db import webhook_models as _webhook_models  # noqa: E402,F401  (webhooks, delivery log)

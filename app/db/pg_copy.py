@@ -31,9 +31,11 @@ _BLOCK_ROWS = 8192
 
 #: PostgreSQL type name -> big-endian numpy dtype of its binary value (None: text bytes)
 PG_BINARY_TYPES: dict[str, str | None] = {
+    "bool": ">u1",
     "int2": ">i2",
     "int4": ">i4",
     "int8": ">i8",
+    "float4": ">f4",
     "float8": ">f8",
     "text": None,  # also varchar / char: their binary form is the UTF-8 bytes
 }

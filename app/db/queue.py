@@ -24,7 +24,8 @@ import pandas as pd
 from sqlalchemy import and_, case, func, literal, or_, select, update
 
 from app.core.jsonable import jsonable
-from app.db import results_writer
+from app.db import partitions, results_writer
+from app.db.condition_writer import DEFAULT_CONDITION_CONFIG, ConditionConfig
 from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
 from app.db.session import Database
 
@@ -283,6 +284,7 @@ def complete_job(
     meta: dict[str, Any],
     *,
     worker_id: str | None,
+    condition: ConditionConfig = DEFAULT_CONDITION_CONFIG,
 ) -> bool:
     """Store (unless already stored) and publish a job's results and mark it done, in one transaction.
 
@@ -299,12 +301,17 @@ def complete_job(
         already (:func:`store_wheel_rows`, fan-out mode).
     worker_id : str or None
         Owner of the job; None: any owner (fan-out mode).
+    condition : ConditionConfig
+        How the run's segment condition rows are made; their summary is kept
+        in the job's metadata (``meta["condition"]``).
 
     Returns
     -------
     bool
         True if the results were published.
     """
+    if profiles is not None:
+        partitions.ensure_for_job(db, job_id)  # PostgreSQL: before the rows, in its own transaction
     with db.write() as session:
         # the run first, then the job: the order delete_run locks them in (no deadlock)
         if not results_writer.lock_run_for_results(session, run_id):
@@ -318,7 +325,9 @@ def complete_job(
             return False
         if profiles is not None:
             results_writer.store_profile_rows(session, run_id, job_id, profiles)
-        results_writer.publish_results(session, run_id, job_id, wheels)
+        summary = results_writer.publish_results(session, run_id, job_id, wheels, condition=condition,
+                                                 profiles=profiles)
+        meta = {**meta, "condition": summary}
         session.execute(
             update(Job)
             .where(Job.id == job_id)
@@ -348,6 +357,7 @@ def store_wheel_rows(db: Database, job_id: int, run_id: int, profiles: pd.DataFr
     bool
         True if the rows were written (the job is running, no cancel requested).
     """
+    partitions.ensure_for_job(db, job_id)  # PostgreSQL: before the rows, in its own transaction
     with db.write() as session:
         if not results_writer.lock_run_for_results(session, run_id):
             return False

@@ -9,7 +9,7 @@ those of a job that failed or was cancelled. Every writer takes the run's lock
 first (:func:`lock_run_for_results`).
 
 Profile rows go in as a binary ``COPY`` on PostgreSQL (the stream laid out by
-:mod:`app.db.pg_copy`), as batched inserts elsewhere. They are read by
+:mod:`app.db.pg_copy`), as batched inserts elsewhere (:mod:`app.db.bulk`). They are read by
 :mod:`app.db.results_reader` and :mod:`app.db.display`.
 """
 
@@ -20,13 +20,14 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import delete, insert, select
+from sqlalchemy import delete, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import display_levels
 from app.core.jsonable import jsonable
+from app.db.bulk import insert_frame
+from app.db.condition_writer import DEFAULT_CONDITION_CONFIG, ConditionConfig, store_run_condition
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, ProfileBin, Run, WheelOOR
-from app.db.pg_copy import binary_copy_stream
 
 __all__ = [
     "lock_run_for_results",
@@ -73,51 +74,9 @@ def _profile_frame(profiles: pd.DataFrame, run_id: int, job_id: int) -> pd.DataF
     return pd.DataFrame(out)
 
 
-def _profile_columns(frame: pd.DataFrame) -> dict[str, list[Any]]:
-    """Column lists of a :func:`_profile_frame` (NaN as None)."""
-    data: dict[str, list[Any]] = {}
-    for col in frame.columns:
-        values = frame[col].to_numpy()
-        if values.dtype.kind == "f":
-            column = values.astype(object)
-            column[np.isnan(values)] = None
-            data[col] = column.tolist()
-        else:
-            data[col] = values.tolist()
-    return data
-
-
 def _insert_profiles(session: Session, frame: pd.DataFrame) -> None:
-    """Bulk insert: binary ``COPY`` on PostgreSQL with psycopg 3 (the stream laid out by
-    numpy, :mod:`app.db.pg_copy`), plain ``executemany`` on SQLite (3-4x faster than
-    Core), Core elsewhere."""
-    names = list(frame.columns)
-    if session.get_bind().dialect.name == "postgresql":
-        dbapi = session.connection().connection.dbapi_connection
-        with dbapi.cursor() as cursor:
-            if hasattr(cursor, "copy"):  # psycopg 3; same connection and transaction
-                stream = binary_copy_stream([(frame[c].to_numpy(), _PG_COPY_TYPES[c]) for c in names])
-                sql = f"COPY {ProfileBin.__tablename__} ({', '.join(names)}) FROM STDIN (FORMAT BINARY)"
-                with cursor.copy(sql) as copy:
-                    copy.write(stream)
-                return
-    data = _profile_columns(frame)
-    rows = zip(*data.values(), strict=True)
-    if session.get_bind().dialect.name == "sqlite":
-        sql = (
-            f"INSERT INTO {ProfileBin.__tablename__} ({', '.join(names)}) "
-            f"VALUES ({', '.join('?' * len(names))})"
-        )
-        session.connection().exec_driver_sql(sql, list(rows))
-        return
-    batch: list[dict[str, Any]] = []
-    for row in rows:
-        batch.append(dict(zip(names, row, strict=True)))
-        if len(batch) == _INSERT_BATCH:
-            session.execute(insert(ProfileBin), batch)
-            batch = []
-    if batch:
-        session.execute(insert(ProfileBin), batch)
+    """Bulk insert (:func:`app.db.bulk.insert_frame`: binary ``COPY`` on PostgreSQL)."""
+    insert_frame(session, ProfileBin.__table__, frame, _PG_COPY_TYPES)
 
 
 def lock_run_for_results(session: Session, run_id: int) -> bool:
@@ -184,17 +143,35 @@ def store_profile_rows(session: Session, run_id: int, job_id: int, profiles: pd.
     return len(profiles)
 
 
-def publish_results(session: Session, run_id: int, job_id: int, wheels: Sequence[dict[str, Any]]) -> None:
-    """Make a job's results the run's: wheel rows replaced, other jobs' profile rows deleted.
+def publish_results(
+    session: Session,
+    run_id: int,
+    job_id: int,
+    wheels: Sequence[dict[str, Any]],
+    *,
+    condition: ConditionConfig = DEFAULT_CONDITION_CONFIG,
+    profiles: pd.DataFrame | None = None,
+) -> dict[str, Any]:
+    """Make a job's results the run's: wheel rows replaced, other jobs' profile rows deleted,
+    the run's segment condition rows written (:func:`app.db.condition_writer.store_run_condition`).
 
     Run it in the transaction that marks the job done (that is what readers
     go by, :func:`app.db.results_reader.results_job_id`), with the run locked
-    (:func:`lock_run_for_results`).
+    (:func:`lock_run_for_results`), after the job's profile rows are stored.
 
     Parameters
     ----------
     wheels : sequence of dict
         ``RunResults.wheels`` (one dict per wheel with a ``wheel`` key).
+    condition : ConditionConfig
+        How the segment condition rows are made (service settings).
+    profiles : pandas.DataFrame, optional
+        The job's profile rows when at hand (else read back from the database).
+
+    Returns
+    -------
+    dict
+        The condition store's summary of the run (provenance for the job's metadata).
 
     Raises
     ------
@@ -229,6 +206,8 @@ def publish_results(session: Session, run_id: int, job_id: int, wheels: Sequence
         session.execute(insert(WheelOOR), wheel_rows)
     other_jobs = select(Job.id).where(Job.run_id == run_id, Job.id != job_id).scalar_subquery()
     session.execute(delete(ProfileBin).where(ProfileBin.job_id.in_(other_jobs)))
+    session.execute(update(Run).where(Run.id == run_id).values(profiles_swept_at=None))  # rows again
+    return store_run_condition(session, run_id, job_id, config=condition, profiles=profiles)
 
 
 def discard_profile_rows(session: Session, job_id: int) -> None:

@@ -41,6 +41,7 @@ _FEATURES = {
 NAV = (
     ("runs", "/", "Runs"),
     ("lines", "/lines", "Line view"),
+    ("condition", "/condition", "Condition"),
     ("map", "/map", "Map"),
     ("wheels", "/wheels", "Wheels"),
     ("correlations", "/correlations", "Correlations"),
@@ -101,6 +102,10 @@ def build_pages_router(templates: Jinja2Templates) -> APIRouter:
         settings = request.app.state.settings
         tiles = {"url": settings.map_tile_url, "attribution": settings.map_tile_attribution}
         return page(request, "map.html", "map", "Map", tiles=tiles if settings.map_tile_url else None)
+
+    @router.get("/condition", response_class=HTMLResponse)
+    def condition_page(request: Request) -> HTMLResponse:
+        return page(request, "condition.html", "condition", "Condition")
 
     @router.get("/wheels", response_class=HTMLResponse)
     def wheels_page(request: Request) -> HTMLResponse:

@@ -149,7 +149,8 @@ def test_run_detail_shows_done_job_and_provenance(processed):
     client, run_id, _ = processed
     job = client.get(f"/api/v1/runs/{run_id}").json()["latest_job"]
     assert job["status"] == "done" and job["progress"] == 1.0
-    assert job["meta"] == {"software": "t"}
+    assert set(job["meta"]) == {"software", "condition"} and job["meta"]["software"] == "t"
+    assert job["meta"]["condition"]["stored"] is True  # publishing wrote the run's segment condition rows
     jobs = client.get(f"/api/v1/runs/{run_id}/jobs").json()
     assert jobs["total"] == 1
 

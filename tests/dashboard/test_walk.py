@@ -17,7 +17,7 @@ pytestmark = pytest.mark.timeout(600)
 
 WIDTHS = (1280, 1600)
 #: screenshot name per navigation key (the README's file names)
-SHOT_NAMES = {"runs": "runs", "lines": "line-view"}
+SHOT_NAMES = {"runs": "runs", "lines": "line-view", "condition": "condition-demo"}  # condition.png: a year of runs (test_condition_page)
 
 
 def walk_pages(dashboard) -> list[tuple[str, str]]:

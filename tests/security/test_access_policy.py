@@ -6,7 +6,7 @@ dependencies declare (:func:`app.api.deps.route_policy`: ``public``,
 declared policy fails the test, so routes added later are covered
 automatically. The declared policies are checked against the rules of the
 issue (viewer reads; engineer uploads, reprocesses, cancels, imports reference
-data; admin manages users, keys, deletions and reads the audit log), and each
+data; admin manages users, keys, webhooks, deletions and reads the audit log), and each
 route is then requested as anonymous, viewer, engineer and admin.
 """
 
@@ -41,7 +41,8 @@ EXPLICIT = {
     ("DELETE", "/api/v1/runs/{run_id}"): "admin",
     ("GET", "/api/v1/audit"): "admin",
 }
-_ADMIN_PREFIXES = ("/api/v1/auth/users", "/api/v1/auth/keys", "/api/v1/audit")
+_ADMIN_PREFIXES = ("/api/v1/auth/users", "/api/v1/auth/keys", "/api/v1/audit",
+                   "/api/v1/webhooks")  # issue 16: an admin configures the alert receivers
 _ENGINEER_PREFIXES = ("/api/v1/reference",)
 _SAFE = {"GET", "HEAD", "OPTIONS"}
 

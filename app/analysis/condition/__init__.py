@@ -1,0 +1,68 @@
+"""Track condition over time (pure numpy): segment statistics of a run, change detection
+against a segment's history, hotspot ranking and the effect of maintenance actions.
+
+Modules: :mod:`segments` (25 cm bins → 10 m / 100 m segment rows), :mod:`change`
+(step and trend tests against the repeatability of the history), :mod:`assess` (a run's
+tests per wheel and its flags per place; the in-memory history of generated runs),
+:mod:`hotspots` (segments ranked by where to act first), :mod:`index` (the provisional index).
+"""
+
+from app.analysis.condition.assess import (
+    TREND_SEGMENT_M,
+    Flag,
+    HistoryMatrix,
+    HistorySource,
+    RollingHistory,
+    RunAssessment,
+    assess_run,
+)
+from app.analysis.condition.change import (
+    DEFAULT_CHANGE_PARAMS,
+    ChangeParams,
+    SpeedMatch,
+    StepResult,
+    TrendResult,
+    WheelChange,
+    combine_wheels,
+    detect_changes,
+    level_offsets,
+    nan_median,
+    pooled_spread,
+    robust_spread,
+    speed_matched,
+    step_change,
+    trend_change,
+)
+from app.analysis.condition.hotspots import DEFAULT_ANOMALY_Z, HotspotTable, rank_segments
+from app.analysis.condition.segments import SEGMENT_LENGTHS_M, SegmentStats, segment_stats
+
+__all__ = [
+    "SEGMENT_LENGTHS_M",
+    "SegmentStats",
+    "segment_stats",
+    "ChangeParams",
+    "DEFAULT_CHANGE_PARAMS",
+    "SpeedMatch",
+    "StepResult",
+    "TrendResult",
+    "WheelChange",
+    "combine_wheels",
+    "detect_changes",
+    "level_offsets",
+    "nan_median",
+    "pooled_spread",
+    "robust_spread",
+    "speed_matched",
+    "step_change",
+    "trend_change",
+    "TREND_SEGMENT_M",
+    "Flag",
+    "HistoryMatrix",
+    "HistorySource",
+    "RollingHistory",
+    "RunAssessment",
+    "assess_run",
+    "DEFAULT_ANOMALY_Z",
+    "HotspotTable",
+    "rank_segments",
+]

@@ -1,0 +1,637 @@
+"""Change detection of segment condition: the newest run against the segment's history.
+
+Two tests, vectorised over segments (rows of a history matrix; NaN = no
+speed-matched value of that run):
+
+**Step** (:func:`step_change`) — a sudden change (a new soft spot, a broken
+support, a repair). The baseline is the median of the segment's history, the
+repeatability its robust spread ``1.4826 · MAD`` (consistent with σ for normal
+noise, with a small-sample correction, and never below ``min_spread``). The
+score
+
+    z = (x − median) / (spread · √(1 + π / (2 n)))
+
+counts the change in repeatability units, the second term being the
+uncertainty of the median of ``n`` values. ``|z| ≥ step_z`` flags it.
+
+**Trend** (:func:`trend_change`) — a gradual degradation. Over the last
+``trend_window_days`` (history and the newest run), the index is winsorised at
+``median ± 3 · spread`` and regressed on time; the score is the slope over its
+standard error from the robust residual spread. A step inside the window tilts
+that line too, so the score counts (else it is 0) only where the slope over the
+recent half of the window's data has the same sign and reaches ``trend_recent_z``: the
+change is still going on. ``|z| ≥ trend_z`` flags it, and
+``rate_per_year`` (index units per year; ×100 ≈ % per year for a log index) says
+how fast.
+
+**Speed matching** (:func:`speed_matched`) comes first: history values count
+only where the run passed within ``speed_tolerance`` of the newest run's
+speed, and they are moved to that speed with the exponent of ``index`` on
+``ln v`` estimated within segments over the whole history (a raw log amplitude
+grows with speed; a speed-conditioned index does not, and its exponent comes
+out near 0).
+
+**Run level** (:func:`level_offsets`): every run (history and newest) is
+brought to the history's level block by block (``level_block_m``, and at least
+``level_block_segments`` segments; the median deviation of the block's
+segments from their baselines), so that what moves a
+whole kilometre at once — a sensor's calibration, rail temperature, a speed
+law the exponent does not catch — is not taken for a change of the segments.
+A change that covers a whole block in one run is therefore not seen by these
+tests: they look for places that depart from their surroundings.
+
+**Wheels** (:func:`combine_wheels`): the wheels see the same place; their
+scores combine as ``Σ z / √n`` (Stouffer), and the wheels *agreeing* are those
+whose own score has the combined sign and at least ``agree_z``.
+
+The direction is the sign: ``+1`` the index rose (stiffer / higher amplitude),
+``-1`` it fell. Both tests need ``min_history`` matched runs; otherwise their
+score is NaN (no test). :func:`detect_changes` runs it all for one wheel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "ChangeParams",
+    "DEFAULT_CHANGE_PARAMS",
+    "StepResult",
+    "TrendResult",
+    "SpeedMatch",
+    "speed_matched",
+    "step_change",
+    "trend_change",
+    "robust_spread",
+    "nan_median",
+    "pooled_spread",
+    "level_offsets",
+    "WheelChange",
+    "detect_changes",
+    "combine_wheels",
+]
+
+_MAD_TO_SD = 1.4826
+_DAYS_PER_YEAR = 365.25
+
+
+@dataclass(frozen=True)
+class ChangeParams:
+    """Thresholds and windows of the change detection.
+
+    Attributes
+    ----------
+    step_z : float
+        Step score beyond which a change is flagged (repeatability units).
+    trend_z : float
+        Trend score beyond which a degradation is flagged.
+    trend_recent_z : float
+        The slope over the recent half of the trend window must reach this
+        score (same sign) for a trend to count: a step inside the window is
+        not a trend.
+    min_history : int
+        Fewest speed-matched history runs a test needs.
+    history_runs : int
+        Most recent speed-matched runs the step test compares each segment with.
+    history_scan_runs : int
+        Most recent runs of the line looked at to find them.
+    trend_window_days : float
+        Days of history the trend test regresses over.
+    min_spread : float
+        Floor of the repeatability (log units): a perfectly repeatable
+        history does not turn every rounding difference into a flag.
+    agree_z : float
+        A wheel agrees with a combined change when its own score reaches this.
+    speed_tolerance : float
+        History values count only where the run passed within this relative
+        speed difference, ``|v / v_new − 1| ≤ speed_tolerance``.
+    level_block_m : float
+        Length of the blocks whose median deviation is taken as a run's level, m.
+    level_block_segments : int
+        Blocks hold at least this many segments (longer blocks for long
+        segments), so that a local change of a few segments does not move
+        their median.
+    min_level_segments : int
+        Fewest segments with a value a block needs for a level correction.
+    spread_prior_runs : float
+        Weight, in runs, of the block's typical spread in each segment's
+        repeatability (:func:`pooled_spread`).
+    """
+
+    step_z: float = 4.5
+    trend_z: float = 4.5
+    trend_recent_z: float = 1.0
+    agree_z: float = 2.0
+    min_history: int = 8
+    history_runs: int = 30
+    history_scan_runs: int = 60
+    trend_window_days: float = 180.0
+    min_spread: float = 0.005
+    speed_tolerance: float = 0.10
+    level_block_m: float = 1000.0
+    level_block_segments: int = 50
+    min_level_segments: int = 5
+    spread_prior_runs: float = 10.0
+
+    def block_m(self, segment_m: float) -> float:
+        """Block length for segments of ``segment_m``, m."""
+        return max(self.level_block_m, self.level_block_segments * segment_m)
+
+    def __post_init__(self) -> None:
+        for name in ("step_z", "trend_z", "trend_recent_z", "agree_z", "trend_window_days", "min_spread", "speed_tolerance",
+                     "level_block_m"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
+        if not (np.isfinite(self.spread_prior_runs) and self.spread_prior_runs >= 0):
+            raise ValueError(f"spread_prior_runs: must be >= 0, got {self.spread_prior_runs!r}")
+        if self.level_block_segments < 1:
+            raise ValueError(f"level_block_segments: must be >= 1, got {self.level_block_segments!r}")
+        if self.min_level_segments < 1:
+            raise ValueError(f"min_level_segments: must be >= 1, got {self.min_level_segments!r}")
+        if self.min_history < 2:
+            raise ValueError(f"min_history: must be >= 2, got {self.min_history!r}")
+        if self.history_runs < self.min_history:
+            raise ValueError(f"history_runs: must be >= min_history ({self.min_history}), got {self.history_runs!r}")
+        if self.history_scan_runs < self.history_runs:
+            raise ValueError(f"history_scan_runs: must be >= history_runs ({self.history_runs}), "
+                             f"got {self.history_scan_runs!r}")
+
+
+#: The default thresholds and windows.
+DEFAULT_CHANGE_PARAMS = ChangeParams()
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Step test per segment (arrays of the segments' length).
+
+    Attributes
+    ----------
+    baseline : numpy.ndarray
+        Median of the history (log units).
+    spread : numpy.ndarray
+        Robust repeatability (log units).
+    change : numpy.ndarray
+        Newest value minus baseline.
+    z : numpy.ndarray
+        Score (NaN: fewer than ``min_history`` runs).
+    n_history : numpy.ndarray
+        int64 number of history values used.
+    """
+
+    baseline: np.ndarray
+    spread: np.ndarray
+    change: np.ndarray
+    z: np.ndarray
+    n_history: np.ndarray
+
+
+@dataclass(frozen=True)
+class TrendResult:
+    """Trend test per segment.
+
+    Attributes
+    ----------
+    rate_per_year : numpy.ndarray
+        Slope of the index, log units per year (NaN: no test, or the recent half
+        of the data does not go on in the same direction).
+    z : numpy.ndarray
+        Slope over its standard error (NaN: no test).
+    n_runs : numpy.ndarray
+        int64 number of values regressed (history in the window + newest).
+    """
+
+    rate_per_year: np.ndarray
+    z: np.ndarray
+    n_runs: np.ndarray
+
+
+def _matrix(history: object, n_segments: int | None = None) -> np.ndarray:
+    h = np.asarray(history, dtype=np.float64)
+    if h.ndim != 2:
+        raise ValueError(f"history: must be 2-D (segments × runs), got shape {h.shape}")
+    if n_segments is not None and h.shape[0] != n_segments:
+        raise ValueError(f"history: must have one row per segment ({n_segments}), got {h.shape[0]}")
+    return h
+
+
+def nan_median(values: np.ndarray, axis: int = 1) -> np.ndarray:
+    """Median along ``axis`` ignoring NaN (NaN where a slice has none).
+
+    ``numpy.nanmedian`` takes a masked-array path for small slices that is
+    ~20x slower than sorting: the change tests take thousands of medians per run.
+    """
+    v = np.moveaxis(np.asarray(values, dtype=np.float64), axis, -1)
+    if v.shape[-1] == 0:
+        return np.full(v.shape[:-1], np.nan)
+    s = np.sort(v, axis=-1)  # NaN last
+    n = np.isfinite(v).sum(axis=-1)
+    lo = np.clip((n - 1) // 2, 0, v.shape[-1] - 1)[..., None]
+    hi = np.clip(n // 2, 0, v.shape[-1] - 1)[..., None]
+    med = 0.5 * (np.take_along_axis(s, lo, -1) + np.take_along_axis(s, hi, -1))[..., 0]
+    return np.where(n > 0, med, np.nan)
+
+
+def robust_spread(history: np.ndarray, *, min_spread: float = 0.0, axis: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Median and robust spread (1.4826 · MAD, small-sample corrected) along ``axis``, NaN ignored.
+
+    Returns
+    -------
+    median, spread : numpy.ndarray
+        NaN where fewer than two values; ``spread`` at least ``min_spread``.
+    """
+    h = np.asarray(history, dtype=np.float64)
+    n = np.isfinite(h).sum(axis=axis)
+    with np.errstate(invalid="ignore"):
+        med = nan_median(h, axis=axis)
+        mad = nan_median(np.abs(h - np.expand_dims(med, axis)), axis=axis)
+    spread = _MAD_TO_SD * mad * n / np.maximum(n - 0.8, 0.2)
+    spread = np.where(n >= 2, np.maximum(spread, min_spread), np.nan)
+    return np.where(n >= 1, med, np.nan), spread
+
+
+@dataclass(frozen=True)
+class SpeedMatch:
+    """History moved to the newest run's speed.
+
+    Attributes
+    ----------
+    history : numpy.ndarray
+        (segments, runs) adjusted index; NaN where missing or not speed-matched.
+    exponent : float
+        Slope of the index on ``ln v`` within segments (0 when the speeds do not vary).
+    n_matched : numpy.ndarray
+        int64 matched history values per segment.
+    """
+
+    history: np.ndarray
+    exponent: float
+    n_matched: np.ndarray
+
+
+def speed_matched(
+    history: np.ndarray, history_speed: np.ndarray, speed: np.ndarray, tolerance: float
+) -> SpeedMatch:
+    """Keep the history values passed at a speed close to the newest run's, moved to that speed.
+
+    Parameters
+    ----------
+    history, history_speed : numpy.ndarray
+        (segments, runs) index and speed (m/s) of earlier runs (NaN = none).
+    speed : numpy.ndarray
+        (segments,) speed of the newest run, m/s.
+    tolerance : float
+        Largest relative speed difference kept, ``|v / v_new - 1|`` (> 0).
+
+    Returns
+    -------
+    SpeedMatch
+    """
+    v = np.asarray(speed, dtype=np.float64)
+    h = _matrix(history, v.size)
+    hv = _matrix(history_speed, v.size)
+    if hv.shape != h.shape:
+        raise ValueError(f"history_speed: must have the shape of history {h.shape}, got {hv.shape}")
+    if not (np.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"tolerance: must be a finite number > 0, got {tolerance!r}")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lv = np.log(np.where(hv > 0, hv, np.nan))
+        ok = np.isfinite(h) & np.isfinite(lv)
+        n = ok.sum(axis=1)
+        mean_h = np.where(ok, h, 0.0).sum(axis=1) / n
+        mean_v = np.where(ok, lv, 0.0).sum(axis=1) / n
+        dx = np.where(ok, lv - mean_v[:, None], 0.0)
+        dy = np.where(ok, h - mean_h[:, None], 0.0)
+        sxx = float((dx * dx).sum())
+        exponent = float((dx * dy).sum() / sxx) if sxx > 1e-6 * max(int(ok.sum()), 1) else 0.0
+        lv_new = np.log(np.where(v > 0, v, np.nan))[:, None]
+        matched = ok & (np.abs(hv / v[:, None] - 1.0) <= tolerance)
+        adjusted = np.where(matched, h + exponent * (lv_new - lv), np.nan)
+    return SpeedMatch(history=adjusted, exponent=exponent, n_matched=matched.sum(axis=1).astype(np.int64))
+
+
+def _blocks(seg: np.ndarray, segment_m: float, block_m: float) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Rows of each block of ``block_m`` (as index arrays), in block order."""
+    block = np.floor(np.asarray(seg, dtype=np.int64) * (segment_m / block_m)).astype(np.int64)
+    order = np.argsort(block, kind="stable")
+    _, start = np.unique(block[order], return_index=True)
+    bounds = np.r_[start, order.size]
+    return block, [order[bounds[k]: bounds[k + 1]] for k in range(start.size)]
+
+
+def pooled_spread(spread: np.ndarray, n: np.ndarray, seg: np.ndarray, *, segment_m: float, block_m: float,
+                  prior_runs: float) -> np.ndarray:
+    """Each segment's spread shrunk towards its block's typical spread.
+
+    A spread from a few runs is itself uncertain (from 8 runs, ±45 %), which
+    would make the scores heavy-tailed. The repeatability is mostly a property
+    of the line, the vehicle and the run, so each segment's spread is combined
+    with the median spread of the segments of its block as if that were
+    ``prior_runs`` more runs: ``√((n s² + k s_block²) / (n + k))``.
+
+    Parameters
+    ----------
+    spread : numpy.ndarray
+        (segments,) own spread (NaN where unknown).
+    n : numpy.ndarray
+        (segments,) runs it comes from.
+    seg : numpy.ndarray
+        (segments,) segment numbers.
+    segment_m, block_m : float
+        Segment and block length, m.
+    prior_runs : float
+        Weight of the block's spread, runs (0: own spread only).
+    """
+    s = np.asarray(spread, dtype=np.float64)
+    if prior_runs <= 0 or s.size == 0:
+        return s
+    block_spread = np.full_like(s, np.nan)
+    for rows in _blocks(seg, segment_m, block_m)[1]:
+        block_spread[rows] = nan_median(s[rows][None, :], axis=1)[0]
+    nn = np.asarray(n, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        pooled = np.sqrt((nn * s**2 + prior_runs * block_spread**2) / (nn + prior_runs))
+    return np.where(np.isfinite(pooled), pooled, s)
+
+
+def step_change(
+    history: np.ndarray,
+    value: np.ndarray,
+    params: ChangeParams = DEFAULT_CHANGE_PARAMS,
+    *,
+    seg: np.ndarray | None = None,
+    segment_m: float | None = None,
+) -> StepResult:
+    """Step test of the newest value of each segment against its history.
+
+    Parameters
+    ----------
+    history : numpy.ndarray
+        (segments, runs) index of earlier speed-matched runs (NaN = none); at
+        most ``params.history_runs`` columns are expected (the most recent).
+    value : numpy.ndarray
+        (segments,) index of the newest run.
+    params : ChangeParams
+    seg, segment_m : numpy.ndarray and float, optional
+        Segment numbers and length (m): with them, the spreads are pooled
+        within blocks (:func:`pooled_spread`).
+
+    Returns
+    -------
+    StepResult
+    """
+    x = np.asarray(value, dtype=np.float64)
+    if x.ndim != 1:
+        raise ValueError("value: must be 1-D")
+    h = _matrix(history, x.size)
+    n = np.isfinite(h).sum(axis=1)
+    med, spread = robust_spread(h, min_spread=params.min_spread)
+    if seg is not None and segment_m is not None:
+        spread = pooled_spread(spread, n, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
+                               prior_runs=params.spread_prior_runs)
+    change = x - med
+    se = spread * np.sqrt(1.0 + np.pi / (2.0 * np.maximum(n, 1)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = np.where((n >= params.min_history) & np.isfinite(x), change / se, np.nan)
+    return StepResult(baseline=med, spread=spread, change=change, z=z, n_history=n.astype(np.int64))
+
+
+def trend_change(
+    times_days: np.ndarray,
+    history: np.ndarray,
+    value: np.ndarray,
+    now_days: float,
+    params: ChangeParams = DEFAULT_CHANGE_PARAMS,
+    *,
+    seg: np.ndarray | None = None,
+    segment_m: float | None = None,
+) -> TrendResult:
+    """Trend test over the last ``params.trend_window_days`` of each segment's history and its newest value.
+
+    Parameters
+    ----------
+    times_days : numpy.ndarray
+        (runs,) time of each history column, days (any origin, the same as ``now_days``).
+    history : numpy.ndarray
+        (segments, runs) index of earlier speed-matched runs (NaN = none).
+    value : numpy.ndarray
+        (segments,) index of the newest run.
+    now_days : float
+        Time of the newest run, days.
+    params : ChangeParams
+    seg, segment_m : numpy.ndarray and float, optional
+        Segment numbers and length (m): with them, the residual spreads are
+        pooled within blocks (:func:`pooled_spread`).
+
+    Returns
+    -------
+    TrendResult
+    """
+    x = np.asarray(value, dtype=np.float64)
+    if x.ndim != 1:
+        raise ValueError("value: must be 1-D")
+    h = _matrix(history, x.size)
+    t = np.asarray(times_days, dtype=np.float64)
+    if t.shape != (h.shape[1],):
+        raise ValueError(f"times_days: must have one time per history column ({h.shape[1]}), got shape {t.shape}")
+    if not np.isfinite(now_days):
+        raise ValueError(f"now_days: must be finite, got {now_days!r}")
+    inside = (t >= now_days - params.trend_window_days) & (t < now_days) & np.isfinite(t)
+    y = np.concatenate([h[:, inside], x[:, None]], axis=1)
+    tt = np.concatenate([t[inside], [now_days]]) - now_days
+    ok = np.isfinite(y)
+    n = ok.sum(axis=1)
+    med, spread = robust_spread(y, min_spread=params.min_spread)
+    lo, hi = (med - 3 * spread)[:, None], (med + 3 * spread)[:, None]
+    yw = np.where(ok, np.clip(y, lo, hi), np.nan)
+
+    def fit(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Slope, score and count of the least-squares line over the columns ``keep``."""
+        yy, tk = yw[:, keep], tt[keep]
+        okk = np.isfinite(yy)
+        nk = okk.sum(axis=1)
+        w = okk.astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t_mean = (tk[None, :] * w).sum(axis=1) / nk
+            y_mean = np.where(okk, yy, 0.0).sum(axis=1) / nk
+            dt = (tk[None, :] - t_mean[:, None]) * w
+            sxx = (dt * dt).sum(axis=1)
+            slope = (dt * np.where(okk, yy - y_mean[:, None], 0.0)).sum(axis=1) / sxx
+            resid = np.where(okk, yy - y_mean[:, None] - slope[:, None] * dt, np.nan)
+            _, r_spread = robust_spread(resid, min_spread=params.min_spread)
+            if seg is not None and segment_m is not None:
+                r_spread = pooled_spread(r_spread, nk, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
+                                         prior_runs=params.spread_prior_runs)
+            z_k = np.where(sxx > 0, slope / (r_spread / np.sqrt(sxx)), np.nan)
+        return slope, z_k, nk
+
+    slope, z, _ = fit(np.ones(tt.size, dtype=bool))
+    # a step inside the window also tilts the line: a trend must go on in the recent half of the data
+    recent_slope, recent_z, n_recent = fit(tt >= tt.min() / 2)
+    consistent = (np.sign(recent_slope) == np.sign(slope)) & (np.abs(recent_z) >= params.trend_recent_z)
+    z = np.where(consistent, z, 0.0)
+    # the newest value and at least min_history earlier ones, spread over some time
+    testable = (n >= params.min_history + 1) & (n_recent >= params.min_history // 2 + 1) & np.isfinite(x) & np.isfinite(slope)
+    return TrendResult(
+        rate_per_year=np.where(testable & consistent, slope * _DAYS_PER_YEAR, np.nan),
+        z=np.where(testable, z, np.nan),
+        n_runs=n.astype(np.int64),
+    )
+
+
+def level_offsets(
+    deviation: np.ndarray, seg: np.ndarray, *, segment_m: float, block_m: float, min_segments: int = 5
+) -> np.ndarray:
+    """Level of each run column: the median deviation of the segments of each block.
+
+    Parameters
+    ----------
+    deviation : numpy.ndarray
+        (segments, runs) index minus the segment's baseline (NaN = none).
+    seg : numpy.ndarray
+        (segments,) segment numbers (position ``seg · segment_m``, m).
+    segment_m, block_m : float
+        Segment and block length, m.
+    min_segments : int
+        Blocks with fewer values in a column get offset 0 there.
+
+    Returns
+    -------
+    numpy.ndarray
+        (segments, runs) offset to subtract (0 where unknown).
+    """
+    d = _matrix(deviation)
+    s = np.asarray(seg, dtype=np.int64)
+    if s.shape != (d.shape[0],):
+        raise ValueError(f"seg: must have one number per row of deviation ({d.shape[0]}), got shape {s.shape}")
+    out = np.zeros_like(d)
+    if d.size == 0:
+        return out
+    with np.errstate(invalid="ignore"):
+        for rows in _blocks(s, segment_m, block_m)[1]:
+            part = d[rows]
+            med = nan_median(part, axis=0)
+            enough = np.isfinite(part).sum(axis=0) >= min_segments
+            out[rows] = np.where(enough & np.isfinite(med), med, 0.0)[None, :]
+    return out
+
+
+@dataclass(frozen=True)
+class WheelChange:
+    """Change tests of one wheel's segments (arrays of the segments' length).
+
+    Attributes
+    ----------
+    n_history : numpy.ndarray
+        int64 speed-matched history runs.
+    baseline : numpy.ndarray
+        Median of the matched, levelled history (log units).
+    change, change_z : numpy.ndarray
+        Newest value minus baseline, and its step score.
+    trend_rate, trend_z : numpy.ndarray
+        Trend per year and its score (NaN when no trend test was asked or possible).
+    exponent : float
+        Speed exponent used to move the history to the newest run's speed.
+    """
+
+    n_history: np.ndarray
+    baseline: np.ndarray
+    change: np.ndarray
+    change_z: np.ndarray
+    trend_rate: np.ndarray
+    trend_z: np.ndarray
+    exponent: float
+
+
+def detect_changes(
+    history: np.ndarray,
+    history_speed: np.ndarray,
+    history_days: np.ndarray,
+    value: np.ndarray,
+    speed: np.ndarray,
+    now_days: float,
+    seg: np.ndarray,
+    *,
+    segment_m: float,
+    params: ChangeParams = DEFAULT_CHANGE_PARAMS,
+    trend: bool = True,
+) -> WheelChange:
+    """The newest run of one wheel against its history: speed matching, run level, step and trend.
+
+    Parameters
+    ----------
+    history, history_speed : numpy.ndarray
+        (segments, runs) index and speed (m/s) of earlier runs, oldest column first (NaN = none);
+        the step test takes each segment's ``params.history_runs`` most recent speed-matched values.
+    history_days : numpy.ndarray
+        (runs,) time of each history run, days.
+    value, speed : numpy.ndarray
+        (segments,) index and speed of the newest run.
+    now_days : float
+        Time of the newest run, days.
+    seg : numpy.ndarray
+        (segments,) segment numbers.
+    segment_m : float
+        Segment length, m.
+    params : ChangeParams
+    trend : bool
+        Also run the trend test.
+
+    Returns
+    -------
+    WheelChange
+    """
+    x = np.asarray(value, dtype=np.float64)
+    matched = speed_matched(history, history_speed, speed, params.speed_tolerance)
+    h = matched.history
+    times = np.asarray(history_days, dtype=np.float64)
+    finite = np.isfinite(h)
+    # per segment the history_runs most recent matched values (columns are oldest first)
+    recent = finite & (np.cumsum(finite[:, ::-1], axis=1)[:, ::-1] <= params.history_runs)
+    base = nan_median(np.where(recent, h, np.nan), axis=1)
+    y = np.concatenate([h, x[:, None]], axis=1)
+    dev = y - base[:, None]
+    y = y - level_offsets(dev, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
+                          min_segments=params.min_level_segments)
+    h_lev, x_lev = y[:, :-1], y[:, -1]
+    step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m)
+    if trend and h.shape[1]:
+        tr = trend_change(times, h_lev, x_lev, now_days, params, seg=seg, segment_m=segment_m)
+        rate, tz = tr.rate_per_year, tr.z
+    else:
+        rate = tz = np.full(x.size, np.nan)
+    return WheelChange(
+        n_history=step.n_history, baseline=step.baseline, change=step.change, change_z=step.z,
+        trend_rate=rate, trend_z=tz, exponent=matched.exponent,
+    )
+
+
+def combine_wheels(z: np.ndarray, agree_z: float) -> tuple[np.ndarray, np.ndarray]:
+    """Combined score over wheels (Stouffer: ``Σ z / √n`` over the wheels with a score) and who agrees.
+
+    Parameters
+    ----------
+    z : numpy.ndarray
+        (wheels, segments) scores (NaN = no test).
+    agree_z : float
+        A wheel agrees when its score has the combined sign and ``|z| ≥ agree_z``.
+
+    Returns
+    -------
+    combined : numpy.ndarray
+        (segments,) combined score (NaN where no wheel has one).
+    agree : numpy.ndarray
+        (wheels, segments) bool: the wheel agrees.
+    """
+    zz = np.asarray(z, dtype=np.float64)
+    if zz.ndim != 2:
+        raise ValueError(f"z: must be 2-D (wheels × segments), got shape {zz.shape}")
+    ok = np.isfinite(zz)
+    n = ok.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        combined = np.where(n > 0, np.where(ok, zz, 0.0).sum(axis=0) / np.sqrt(n), np.nan)
+    agree = ok & (np.sign(zz) == np.sign(combined)[None, :]) & (np.abs(np.where(ok, zz, 0.0)) >= agree_z)
+    return combined, agree

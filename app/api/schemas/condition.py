@@ -1,0 +1,165 @@
+"""Schemas of the condition endpoints (index in natural-log units, km in km, speeds in km/h)."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, Field
+
+__all__ = [
+    "ConditionLineOut",
+    "ConditionLinesOut",
+    "HeatmapRun",
+    "HeatmapOut",
+    "TrendWheel",
+    "TrendPoint",
+    "TrendAction",
+    "TrendOut",
+    "FlagOut",
+    "ChangesOut",
+    "FlagFeedOut",
+    "HotspotOut",
+    "HotspotsOut",
+]
+
+
+class ConditionLineOut(BaseModel):
+    line_id: str
+    track: str
+    km_min: float | None = Field(description="start of the stored segments, km")
+    km_max: float | None = Field(description="end of the stored segments, km")
+    n_runs: int
+    first_run: str | None
+    last_run: str | None
+    last_run_id: int | None
+    last_run_flags: int
+    reference_run_id: int | None = Field(description="run whose signature the other runs are aligned onto")
+
+
+class ConditionLinesOut(BaseModel):
+    items: list[ConditionLineOut]
+
+
+class HeatmapRun(BaseModel):
+    run_id: int
+    start_time: str
+    shift_m: float = Field(description="alignment shift applied to the run, m")
+    n_flags: int
+
+
+class HeatmapOut(BaseModel):
+    line_id: str
+    track: str
+    segment_m: int
+    wheel: str | None = Field(description="null: mean over the wheels")
+    index: str = Field(description="what the index is (provenance)")
+    km: list[float] = Field(description="segment starts, km")
+    runs: list[HeatmapRun]
+    matrix: list[list[float | None]] = Field(description="index per run (row, oldest first) and segment")
+    flagged: list[list[int]] = Field(description="[row, column] of cells holding a flag of the run")
+
+
+class TrendWheel(BaseModel):
+    wheel: str
+    index: float
+    index_sd: float | None
+    amp_mean: float = Field(description="m/s²")
+    amp_p95: float = Field(description="m/s²")
+    speed_kmh: float
+    n_valid: int
+    n_history: int
+    change: float | None
+    change_z: float | None
+    trend_rate_per_year: float | None
+    trend_z: float | None
+
+
+class TrendPoint(BaseModel):
+    run_id: int
+    start_time: str
+    index: float | None = Field(description="mean over the wheels")
+    relative: float | None = Field(description="index minus the run's mean over the surrounding ±1 km (log units)")
+    flagged: bool
+    wheels: list[TrendWheel]
+
+
+class TrendAction(BaseModel):
+    id: int
+    type: str
+    date: str
+    km_from: float
+    km_to: float
+
+
+class TrendOut(BaseModel):
+    line_id: str
+    track: str
+    segment_m: int
+    segment_km: list[float] = Field(description="[from, to], km")
+    points: list[TrendPoint]
+    maintenance: list[TrendAction] = Field(description="maintenance actions over the segment")
+
+
+class FlagOut(BaseModel):
+    id: int = Field(description="feed cursor: increases in commit order")
+    run_id: int
+    line_id: str
+    track: str
+    km_from: float
+    km_to: float
+    segment_m: int
+    kind: str = Field(description="step (sudden change) or trend (gradual)")
+    direction: str = Field(description="up (index rose: stiffer / higher amplitude) or down")
+    score: float = Field(description="combined score over the wheels, in repeatability units")
+    change: float | None = Field(description="change of the index against the baseline (log units)")
+    change_pct: float | None = Field(description="the same as a percentage of the amplitude")
+    rate_per_year: float | None = Field(description="trend, log units per year")
+    wheels: list[str] = Field(description="wheels that agree")
+    is_new: bool = Field(description="not flagged by the same test and direction in the line's previous run")
+    created_at: str
+
+
+class ChangesOut(BaseModel):
+    run_id: int
+    line_id: str
+    track: str
+    start_time: str
+    shift_m: float
+    history_runs: int | None
+    items: list[FlagOut]
+
+
+class FlagFeedOut(BaseModel):
+    items: list[FlagOut]
+    next_since: int = Field(description="pass as since= to get the flags after these")
+
+
+class HotspotOut(BaseModel):
+    rank: int
+    line_id: str
+    track: str
+    km_from: float
+    km_to: float
+    segment_m: int
+    superstructure: str = Field(description="class of the segment ('' outside the imported sections)")
+    index: float | None = Field(description="mean over the wheels (log units)")
+    anomaly_z: float | None = Field(description="robust z against the segments of its class")
+    change: float | None = Field(description="newest run against the history (log units)")
+    change_pct: float | None
+    change_z: float | None = Field(description="step score, wheels combined")
+    rate_per_year: float | None = Field(description="trend, log units per year")
+    rate_pct_per_year: float | None
+    trend_z: float | None = Field(description="trend score, wheels combined")
+    wheels_agreeing: int
+    n_wheels: int
+    priority: float = Field(description=">= 1: at least one criterion beyond its threshold")
+    direction: str = Field(description="up (stiffer / higher amplitude) or down")
+    reasons: list[str]
+    run_id: int = Field(description="the run the evidence comes from (the line's newest)")
+    run_time: str
+    map_url: str | None = Field(description="the stiffness map of the line's newest run with 25 cm rows there")
+
+
+class HotspotsOut(BaseModel):
+    segment_m: int
+    min_priority: float
+    total: int = Field(description="segments matching the filters (before limit)")
+    items: list[HotspotOut]

@@ -1,0 +1,516 @@
+"""A synthetic fleet history: many runs over one simulated line, with planted changes.
+
+Simulating and processing the raw accelerations of a year of daily runs over a
+50 km line would take days; the condition store only needs what the pipeline
+leaves of each run: per wheel, the sleeper-passage amplitude and the speed
+along the track. :class:`FleetSimulator` writes those directly from the
+simulator's truth (:class:`~app.simulate.track.LineModel`) on a grid of
+``grid_m`` (default 1 m):
+
+    A(x, day) = K_type(x) · f_side(x) · (v(x) / v_ref) ** alpha · planted(x, day) · exp(ε)
+
+with ``v(x)`` the run's speed (its own level, ± ``speed_spread``, and a smooth
+variation along the line), ``planted`` the changes of a :class:`FleetPlan`
+(steps, gradual trends, maintenance actions with their recovery and the
+degradation after it) and ``ε`` the repeatability noise of :class:`FleetNoise`:
+a per-run and wheel offset plus noise along the track that is smooth over
+``correlation_m``. Its defaults are about twice what the real pipeline gives
+on simulated runs at equal speed (``bench/bench_condition_noise.py``: 0.018
+per 10 m segment, 0.011 per 100 m, wheels independent), because the field adds
+what the simulator leaves out (rail temperature, wheel wear, sensor mounting).
+
+Everything is reproducible from the seed; :meth:`FleetPlan.factor` is the
+truth a detection is scored against.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from app.analysis.condition import (
+    DEFAULT_CHANGE_PARAMS,
+    SEGMENT_LENGTHS_M,
+    ChangeParams,
+    Flag,
+    RollingHistory,
+    RunAssessment,
+    SegmentStats,
+    assess_run,
+    segment_stats,
+)
+from app.analysis.condition.index import log_amplitude_index
+from app.simulate.track import LineModel
+
+__all__ = [
+    "FleetNoise",
+    "PlantedStep",
+    "PlantedTrend",
+    "PlantedAction",
+    "FleetPlan",
+    "random_plan",
+    "WheelTrack",
+    "FleetSimulator",
+    "FLEET_WHEELS",
+    "run_segments",
+    "FleetDay",
+    "fleet_history",
+    "FleetScore",
+    "FleetScorer",
+    "score_history",
+]
+
+#: Wheels of the simulated vehicle: axle 1 and 4, sides 1 (right) and 2 (left).
+FLEET_WHEELS: tuple[str, ...] = ("11", "12", "41", "42")
+_DAYS_PER_YEAR = 365.25
+
+
+@dataclass(frozen=True)
+class FleetNoise:
+    """Run-to-run repeatability of the simulated amplitude (natural log units).
+
+    Attributes
+    ----------
+    segment_sd : float
+        Standard deviation of a 10 m segment's mean log amplitude between runs
+        at equal speed, from the noise along the track.
+    correlation_m : float
+        Correlation length of that noise along the track, m.
+    run_sd : float
+        Standard deviation of a per-run and wheel offset (calibration, temperature).
+    speed_spread : float
+        Runs pass at the nominal speed times ``1 ± speed_spread`` (uniform).
+    speed_wobble : float
+        Relative variation of the speed along the line (smooth over kilometres).
+    """
+
+    segment_sd: float = 0.04
+    correlation_m: float = 20.0
+    run_sd: float = 0.02
+    speed_spread: float = 0.08
+    speed_wobble: float = 0.04
+
+    def __post_init__(self) -> None:
+        for name in ("segment_sd", "run_sd", "speed_spread", "speed_wobble"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and 0 <= value < 1):
+                raise ValueError(f"{name}: must be in [0, 1), got {value!r}")
+        if not (np.isfinite(self.correlation_m) and self.correlation_m > 0):
+            raise ValueError(f"correlation_m: must be > 0 m, got {self.correlation_m!r}")
+
+
+@dataclass(frozen=True)
+class PlantedStep:
+    """The amplitude over ``[track_from_m, track_to_m)`` is multiplied by ``factor`` from ``day`` on."""
+
+    track_from_m: float
+    track_to_m: float
+    day: float
+    factor: float
+
+    def factor_at(self, x: np.ndarray, day: float) -> np.ndarray:
+        """Multiplicative factor at positions ``x`` (m) on ``day``."""
+        inside = (x >= self.track_from_m) & (x < self.track_to_m)
+        return np.where(inside & (day >= self.day), self.factor, 1.0)
+
+
+@dataclass(frozen=True)
+class PlantedTrend:
+    """From ``day`` on the amplitude over the extent grows by ``rate_per_year`` (relative) per year."""
+
+    track_from_m: float
+    track_to_m: float
+    day: float
+    rate_per_year: float
+
+    def factor_at(self, x: np.ndarray, day: float) -> np.ndarray:
+        """Multiplicative factor at positions ``x`` (m) on ``day``."""
+        inside = (x >= self.track_from_m) & (x < self.track_to_m)
+        years = max(day - self.day, 0.0) / _DAYS_PER_YEAR
+        return np.where(inside, (1.0 + self.rate_per_year) ** years, 1.0)
+
+
+@dataclass(frozen=True)
+class PlantedAction:
+    """A maintenance action: on ``day`` the amplitude over the extent drops by ``recovery``
+    (relative), then grows back by ``regrowth_per_year`` (relative to the level before) until it
+    is where it was."""
+
+    track_from_m: float
+    track_to_m: float
+    day: float
+    type: str = "tamping"
+    recovery: float = 0.15
+    regrowth_per_year: float = 0.10
+
+    def factor_at(self, x: np.ndarray, day: float) -> np.ndarray:
+        """Multiplicative factor at positions ``x`` (m) on ``day``."""
+        if day < self.day:
+            return np.ones_like(x, dtype=np.float64)
+        years = (day - self.day) / _DAYS_PER_YEAR
+        level = min(1.0 - self.recovery + self.regrowth_per_year * years, 1.0)
+        inside = (x >= self.track_from_m) & (x < self.track_to_m)
+        return np.where(inside, level, 1.0)
+
+    @property
+    def half_life_days(self) -> float:
+        """Days until half the recovery is lost again."""
+        if self.regrowth_per_year <= 0:
+            return float("inf")
+        return 0.5 * self.recovery / self.regrowth_per_year * _DAYS_PER_YEAR
+
+
+@dataclass(frozen=True)
+class FleetPlan:
+    """The planted changes of a fleet history (positions in m on the km axis, days from day 0)."""
+
+    steps: tuple[PlantedStep, ...] = ()
+    trends: tuple[PlantedTrend, ...] = ()
+    actions: tuple[PlantedAction, ...] = ()
+
+    def factor(self, x: np.ndarray, day: float) -> np.ndarray:
+        """Product of all planted factors at positions ``x`` (m) on ``day``."""
+        out = np.ones(np.shape(x), dtype=np.float64)
+        for event in (*self.steps, *self.trends, *self.actions):
+            out *= event.factor_at(np.asarray(x, dtype=np.float64), day)
+        return out
+
+
+def random_plan(
+    track_from_m: float,
+    track_to_m: float,
+    n_days: int,
+    seed: int | np.random.Generator = 0,
+    *,
+    n_steps: int = 6,
+    n_trends: int = 3,
+    n_actions: int = 4,
+    step_length_m: float = 20.0,
+    step_size: float = 0.2,
+    trend_rate_per_year: float = 0.10,
+    trend_length_m: tuple[float, float] = (200.0, 500.0),
+    action_length_m: tuple[float, float] = (100.0, 400.0),
+    gap_m: float = 300.0,
+) -> FleetPlan:
+    """Random planted changes that do not overlap (at least ``gap_m`` apart; the long ones are
+    placed first, fewer are placed where they do not fit).
+
+    Steps (``step_size`` up or down over ``step_length_m``) happen in the second
+    half of the history, trends (``trend_rate_per_year``, up) start in its
+    middle third, maintenance actions (tamping) anywhere after the first
+    quarter.
+    """
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    placed: list[tuple[float, float]] = []
+
+    def place(length: float) -> tuple[float, float] | None:
+        for _ in range(1000):
+            a = float(rng.uniform(track_from_m + gap_m, track_to_m - gap_m - length))
+            b = a + length
+            if all(b + gap_m <= lo or hi + gap_m <= a for lo, hi in placed):
+                placed.append((a, b))
+                return a, b
+        return None
+
+    steps, trends, actions = [], [], []
+    for _ in range(n_trends):
+        where = place(float(rng.uniform(*trend_length_m)))
+        if where is not None:
+            trends.append(PlantedTrend(*where, day=float(rng.uniform(1 / 3, 2 / 3) * n_days),
+                                       rate_per_year=trend_rate_per_year))
+    for _ in range(n_actions):
+        where = place(float(rng.uniform(*action_length_m)))
+        if where is not None:
+            actions.append(PlantedAction(*where, day=float(rng.uniform(0.25, 0.8) * n_days)))
+    for i in range(n_steps):
+        where = place(step_length_m)
+        if where is not None:
+            sign = 1.0 if i % 2 == 0 else -1.0
+            day = float(rng.uniform(0.5, 0.95) * n_days)
+            steps.append(PlantedStep(*where, day=day, factor=1.0 + sign * step_size))
+    return FleetPlan(tuple(steps), tuple(trends), tuple(actions))
+
+
+@dataclass(frozen=True)
+class WheelTrack:
+    """What the pipeline leaves of one wheel of a run: amplitude and speed along the track.
+
+    Attributes
+    ----------
+    position_m : numpy.ndarray
+        Grid positions on the km axis, m (cell centres).
+    amplitude : numpy.ndarray
+        Sleeper-passage amplitude, m/s².
+    speed_mps : numpy.ndarray
+        Speed, m/s.
+    """
+
+    position_m: np.ndarray
+    amplitude: np.ndarray
+    speed_mps: np.ndarray
+
+
+def _smooth(rng: np.random.Generator, n: int, corr_cells: float) -> np.ndarray:
+    """Unit-variance noise with a Gaussian autocorrelation of ``corr_cells`` cells (FFT convolution)."""
+    if corr_cells < 0.5:
+        return rng.standard_normal(n)
+    half = int(np.ceil(3 * corr_cells))
+    k = np.arange(-half, half + 1)
+    kernel = np.exp(-0.5 * (k / corr_cells) ** 2)
+    kernel /= np.sqrt(np.sum(kernel**2))
+    white = rng.standard_normal(n + 2 * half)
+    size = 1 << int(np.ceil(np.log2(white.size + kernel.size)))
+    out = np.fft.irfft(np.fft.rfft(white, size) * np.fft.rfft(kernel, size), size)
+    return out[2 * half: 2 * half + n]
+
+
+@dataclass
+class FleetSimulator:
+    """Runs of a fleet over one line (see the module docstring).
+
+    Parameters
+    ----------
+    line : LineModel
+        The line (stiffness truth).
+    plan : FleetPlan
+        Planted changes.
+    noise : FleetNoise
+        Repeatability.
+    speed_kmh : float
+        Nominal speed of the runs, km/h.
+    alpha : float
+        Speed exponent of the amplitude.
+    v_ref_kmh : float
+        Speed at which ``K_type`` holds, km/h.
+    grid_m : float
+        Grid step of the simulated tracks, m (a multiple of the line's bin length).
+    """
+
+    line: LineModel
+    plan: FleetPlan = field(default_factory=FleetPlan)
+    noise: FleetNoise = field(default_factory=FleetNoise)
+    speed_kmh: float = 120.0
+    alpha: float = 1.5
+    v_ref_kmh: float = 100.0
+    grid_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        ratio = self.grid_m / self.line.bin_length
+        self._k = int(round(ratio))
+        if self._k < 1 or abs(ratio - self._k) > 1e-9:
+            raise ValueError(f"grid_m: must be a multiple of the line's bin length {self.line.bin_length}")
+        if not (np.isfinite(self.speed_kmh) and self.speed_kmh > 0):
+            raise ValueError(f"speed_kmh: must be > 0, got {self.speed_kmh!r}")
+        n = self.line.n_bins // self._k
+        self._position = self.line.track_from_m + (np.arange(n) + 0.5) * self.grid_m
+        self._base = {side: self.line.amplitude_grid(side)[: n * self._k].reshape(n, self._k).mean(axis=1)
+                      for side in (1, 2)}
+        # the point noise's sd that gives segment_sd for a 10 m mean
+        probe = np.random.default_rng(12345)
+        corr = self.noise.correlation_m / self.grid_m
+        cells = max(int(round(10.0 / self.grid_m)), 1)
+        sample = _smooth(probe, cells * 4000, corr)
+        self._point_sd = 1.0 / max(float(sample.reshape(-1, cells).mean(axis=1).std()), 1e-12)
+
+    @property
+    def position_m(self) -> np.ndarray:
+        """Grid positions on the km axis, m."""
+        return self._position
+
+    def run(self, day: float, seed: int | np.random.Generator) -> tuple[float, dict[str, WheelTrack]]:
+        """One run on ``day``: its nominal speed (km/h) and each wheel's track."""
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        x = self._position
+        n = x.size
+        nz = self.noise
+        v_run = self.speed_kmh * (1.0 + rng.uniform(-nz.speed_spread, nz.speed_spread))
+        wobble = 1.0 + nz.speed_wobble * np.clip(_smooth(rng, n, 2000.0 / self.grid_m), -2.5, 2.5)
+        v = v_run / 3.6 * wobble
+        speed_law = (v / (self.v_ref_kmh / 3.6)) ** self.alpha
+        planted = self.plan.factor(x, day)
+        corr = nz.correlation_m / self.grid_m
+        tracks = {}
+        for wheel in FLEET_WHEELS:
+            eps = nz.run_sd * rng.standard_normal() + nz.segment_sd * self._point_sd * _smooth(rng, n, corr)
+            amp = self._base[int(wheel[1])] * speed_law * planted * np.exp(eps)
+            tracks[wheel] = WheelTrack(x, amp, v)
+        return v_run, tracks
+
+
+def run_segments(
+    tracks: dict[str, WheelTrack],
+    *,
+    segment_lengths_m: tuple[float, ...] = SEGMENT_LENGTHS_M,
+    grid_m: float = 1.0,
+    bin_length_m: float = 0.25,
+) -> dict[float, dict[str, SegmentStats]]:
+    """Segment statistics of a generated run with the provisional index (ln amplitude).
+
+    ``n_valid`` counts bins of ``bin_length_m`` (the grid cells stand for
+    ``grid_m / bin_length_m`` bins each).
+    """
+    out: dict[float, dict[str, SegmentStats]] = {}
+    per_cell = int(round(grid_m / bin_length_m))
+    for seg_m in segment_lengths_m:
+        out[seg_m] = {}
+        for wheel, t in tracks.items():
+            index, index_sd = log_amplitude_index(t.amplitude)
+            st = segment_stats(t.position_m, t.amplitude, t.speed_mps, index, index_sd,
+                               segment_m=seg_m, bin_length_m=grid_m)
+            out[seg_m][wheel] = replace(st, n_valid=st.n_valid * per_cell)
+    return out
+
+
+@dataclass(frozen=True)
+class FleetDay:
+    """One generated run with its assessment (what :func:`fleet_history` yields)."""
+
+    number: int
+    day: float
+    speed_kmh: float
+    tracks: dict[str, WheelTrack]
+    segments: dict[float, dict[str, SegmentStats]]
+    assessment: RunAssessment
+
+
+def fleet_history(
+    sim: FleetSimulator,
+    n_runs: int,
+    *,
+    every_days: float = 1.0,
+    seed: int = 0,
+    params: ChangeParams = DEFAULT_CHANGE_PARAMS,
+) -> Iterator[FleetDay]:
+    """Generate ``n_runs`` runs ``every_days`` apart (day 0 first) and assess each against the
+    ones before it (:func:`~app.analysis.condition.assess_run` over a
+    :class:`~app.analysis.condition.RollingHistory`), in date order."""
+    if n_runs < 1:
+        raise ValueError(f"n_runs: must be >= 1, got {n_runs!r}")
+    history = RollingHistory(params)
+    for i in range(n_runs):
+        day = i * every_days
+        speed, tracks = sim.run(day, np.random.default_rng([seed, i]))
+        segs = run_segments(tracks, grid_m=sim.grid_m, bin_length_m=sim.line.bin_length)
+        assessment = assess_run(segs, history, day, params=params, previous_flags=history.flags)
+        history.append(day, segs, assessment.flags)
+        yield FleetDay(i, day, speed, tracks, segs, assessment)
+
+
+@dataclass
+class FleetScore:
+    """How the flags of a generated history compare with its plan.
+
+    Attributes
+    ----------
+    unchanged_tested : int
+        (run, place) pairs away from every planted change with a step score, runs after the first
+        ``min_history``.
+    unchanged_flagged : int
+        Of those, how many were flagged (any test).
+    newest_unchanged_rate : float
+        The same fraction in the newest run only.
+    steps_found, steps_total : int
+        Planted steps flagged (10 m step test, right direction, overlapping the extent) by the first
+        run on or after their day.
+    trend_delays_days : list of float
+        Per planted trend, days from its start until the first trend flag over it (inf: never).
+    """
+
+    unchanged_tested: int = 0
+    unchanged_flagged: int = 0
+    newest_unchanged_rate: float = float("nan")
+    steps_found: int = 0
+    steps_total: int = 0
+    trend_delays_days: list[float] = field(default_factory=list)
+
+    @property
+    def false_flag_rate(self) -> float:
+        """Fraction of unchanged places flagged."""
+        return self.unchanged_flagged / self.unchanged_tested if self.unchanged_tested else float("nan")
+
+    @property
+    def step_detection_rate(self) -> float:
+        """Fraction of planted steps found."""
+        return self.steps_found / self.steps_total if self.steps_total else float("nan")
+
+    def trends_found_within(self, days: float) -> float:
+        """Fraction of planted trends flagged within ``days`` of their start."""
+        d = np.asarray(self.trend_delays_days, dtype=np.float64)
+        return float(np.mean(d <= days)) if d.size else float("nan")
+
+
+def _overlaps(flag: Flag, lo: float, hi: float, margin_m: float = 0.0) -> bool:
+    a, b = flag.seg * flag.seg_m, (flag.seg + 1) * flag.seg_m
+    return a < hi + margin_m and lo - margin_m < b
+
+
+class FleetScorer:
+    """Scores the flags of generated runs against the planted changes, one run at a time
+    (:meth:`add` each :class:`FleetDay` in date order, then :meth:`score`).
+
+    Places within ``margin_m`` of a planted extent (steps, trends, actions) do not
+    count as unchanged; runs before ``min_history`` are not counted.
+    """
+
+    def __init__(self, plan: FleetPlan, *, min_history: int = 8, margin_m: float = 100.0) -> None:
+        self.plan, self.min_history, self.margin_m = plan, min_history, margin_m
+        self._extents = [(e.track_from_m, e.track_to_m) for e in (*plan.steps, *plan.trends, *plan.actions)]
+        self._step_found = [False] * len(plan.steps)
+        self._step_checked = [False] * len(plan.steps)
+        self._trend_delay = [float("inf")] * len(plan.trends)
+        self._tested = self._flagged = 0
+        self._newest = (0, 0)
+
+    def add(self, fd: FleetDay) -> None:
+        """Score one run."""
+        flags = fd.assessment.flags
+        for k, st in enumerate(self.plan.steps):
+            if not self._step_checked[k] and fd.day >= st.day:
+                self._step_checked[k] = True
+                want = 1 if st.factor > 1 else -1
+                self._step_found[k] = any(f.kind == "step" and f.seg_m == 10.0 and f.direction == want
+                                          and _overlaps(f, st.track_from_m, st.track_to_m) for f in flags)
+        for k, tr in enumerate(self.plan.trends):
+            if np.isinf(self._trend_delay[k]) and fd.day >= tr.day and any(
+                    f.kind == "trend" and f.direction == 1 and _overlaps(f, tr.track_from_m, tr.track_to_m)
+                    for f in flags):
+                self._trend_delay[k] = fd.day - tr.day
+        if fd.number < self.min_history:
+            return
+        tested = flagged = 0
+        m = self.margin_m
+        for seg_m, changes in fd.assessment.changes.items():
+            flagged_segs = {f.seg for f in flags if f.seg_m == seg_m}
+            segs = np.unique(np.concatenate([fd.segments[seg_m][w].seg[np.isfinite(c.change_z)]
+                                             for w, c in changes.items()] or [np.zeros(0, np.int64)]))
+            lo, hi = segs * seg_m, (segs + 1) * seg_m
+            away = np.ones(segs.size, dtype=bool)
+            for a, b in self._extents:
+                away &= ~((lo < b + m) & (a - m < hi))
+            tested += int(away.sum())
+            flagged += int(sum(1 for s, ok in zip(segs.tolist(), away.tolist(), strict=True)
+                               if ok and s in flagged_segs))
+        self._tested += tested
+        self._flagged += flagged
+        self._newest = (tested, flagged)
+
+    def score(self) -> FleetScore:
+        """The score of the runs added so far."""
+        tested, flagged = self._newest
+        return FleetScore(
+            unchanged_tested=self._tested, unchanged_flagged=self._flagged,
+            newest_unchanged_rate=flagged / tested if tested else float("nan"),
+            steps_found=int(sum(self._step_found)), steps_total=int(sum(self._step_checked)),
+            trend_delays_days=list(self._trend_delay),
+        )
+
+
+def score_history(plan: FleetPlan, days: Iterator[FleetDay] | list[FleetDay], *, min_history: int = 8,
+                  margin_m: float = 100.0) -> FleetScore:
+    """Score the flags of :func:`fleet_history` against the planted changes (:class:`FleetScorer`)."""
+    scorer = FleetScorer(plan, min_history=min_history, margin_m=margin_m)
+    for fd in days:
+        scorer.add(fd)
+    return scorer.score()

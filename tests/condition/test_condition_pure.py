@@ -1,0 +1,200 @@
+"""The pure numerics of the condition store: segment statistics and the change tests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.analysis.condition import (
+    ChangeParams,
+    combine_wheels,
+    detect_changes,
+    level_offsets,
+    nan_median,
+    pooled_spread,
+    robust_spread,
+    segment_stats,
+    speed_matched,
+    step_change,
+    trend_change,
+)
+
+
+def test_segment_stats_match_a_brute_force_per_segment():
+    rng = np.random.default_rng(0)
+    pos = (np.arange(2000) + 0.5) * 0.25 + 1000.0
+    amp = rng.lognormal(0, 0.3, pos.size)
+    amp[rng.random(pos.size) < 0.1] = np.nan
+    amp[300:420] = -1.0  # not valid: a gap of 30 m
+    speed = rng.uniform(20, 40, pos.size)
+    index = np.log(np.where(amp > 0, amp, np.nan))
+    st = segment_stats(pos, amp, speed, index, np.full(pos.size, 0.01), segment_m=10.0, min_valid_fraction=0.5)
+    seg = np.floor(pos / 10.0)
+    for k, s in enumerate(st.seg):
+        m = (seg == s) & np.isfinite(amp) & (amp > 0)
+        assert st.n_valid[k] == m.sum() >= 20
+        assert st.amp_mean[k] == pytest.approx(amp[m].mean())
+        assert st.amp_p95[k] == pytest.approx(np.percentile(amp[m], 95))
+        assert st.speed_mean[k] == pytest.approx(speed[m].mean())
+        assert st.index[k] == pytest.approx(np.log(amp[m]).mean())
+        within = np.log(amp[m]).std(ddof=1)
+        assert st.index_sd[k] == pytest.approx(np.sqrt(within**2 / 1.0 + 0.01**2))  # 10 m = one sample
+    covered = {int(s) for s in np.unique(seg)}
+    assert set(st.seg.tolist()) < covered  # the gap's segments are left out
+    with pytest.raises(ValueError, match="segment_m"):
+        segment_stats(pos, amp, speed, index, segment_m=0.0)
+    with pytest.raises(ValueError, match="speed_mps"):
+        segment_stats(pos, amp, speed[:-1], index, segment_m=10.0)
+
+
+def test_nan_median_and_robust_spread_agree_with_numpy():
+    rng = np.random.default_rng(1)
+    h = rng.normal(0, 0.05, (300, 25))
+    h[rng.random(h.shape) < 0.3] = np.nan
+    h[0] = np.nan
+    with pytest.warns(RuntimeWarning):
+        want = np.nanmedian(h, axis=1)
+    np.testing.assert_allclose(nan_median(h), want, equal_nan=True)
+    med, spread = robust_spread(rng.normal(0, 0.05, (2000, 40)))
+    assert np.median(spread) == pytest.approx(0.05, rel=0.05)  # consistent with σ for normal noise
+    assert np.all(np.isnan(robust_spread(h)[1][0:1]))
+
+
+def test_speed_matching_recovers_the_exponent_and_keeps_close_runs():
+    rng = np.random.default_rng(2)
+    n_seg, n_run = 400, 30
+    level = rng.normal(0, 0.3, n_seg)[:, None]
+    v = 30 * (1 + rng.uniform(-0.2, 0.2, (n_seg, n_run)))
+    h = level + 1.5 * np.log(v) + rng.normal(0, 0.02, (n_seg, n_run))
+    m = speed_matched(h, v, np.full(n_seg, 30.0), tolerance=0.1)
+    assert m.exponent == pytest.approx(1.5, abs=0.05)
+    kept = np.isfinite(m.history)
+    assert np.all(np.abs(v[kept] / 30.0 - 1) <= 0.1) and kept.sum() == m.n_matched.sum()
+    moved = m.history[kept] - np.broadcast_to(level, h.shape)[kept]
+    assert np.std(moved - 1.5 * np.log(30.0)) < 0.03  # moved to 30 m/s
+
+
+def test_step_scores_are_calibrated_and_find_a_change():
+    rng = np.random.default_rng(3)
+    p = ChangeParams(min_history=8)
+    h = rng.normal(0, 0.04, (20_000, 30))
+    x = rng.normal(0, 0.04, 20_000)
+    x[:100] += 0.18
+    r = step_change(h, x, p)
+    null = r.z[100:]
+    assert np.std(null) == pytest.approx(1.0, abs=0.1)
+    assert np.mean(np.abs(null) >= p.step_z) < 1e-3
+    assert np.mean(r.z[:100] >= p.step_z) > 0.2  # one wheel alone: weak; the wheels together are strong
+    assert np.all(np.isnan(step_change(h[:, :5], x, p).z))  # too little history: no test
+
+
+def test_pooled_spread_tames_small_histories():
+    rng = np.random.default_rng(4)
+    h = rng.normal(0, 0.04, (5000, 8))
+    x = rng.normal(0, 0.04, 5000)
+    seg = np.arange(5000)
+    p = ChangeParams(min_history=8)
+    own = step_change(h, x, p)
+    pooled = step_change(h, x, p, seg=seg, segment_m=10.0)
+    assert np.mean(np.abs(own.z) >= 4.5) > 3 * np.mean(np.abs(pooled.z) >= 4.5)
+    s = pooled_spread(np.array([0.01, 0.04, 0.04]), np.array([8, 8, 8]), np.array([0, 1, 2]), segment_m=10.0,
+                      block_m=1000.0, prior_runs=8)
+    assert s[0] == pytest.approx(np.sqrt((0.01**2 + 0.04**2) / 2))
+
+
+def test_level_offsets_remove_a_run_wide_offset_but_not_a_local_change():
+    seg = np.arange(300)
+    dev = np.zeros((300, 3))
+    dev[:, 1] = 0.05  # run 1 is 5 % higher everywhere (calibration)
+    dev[10:12, 2] = 0.2  # run 2 changed locally
+    off = level_offsets(dev, seg, segment_m=10.0, block_m=1000.0)
+    np.testing.assert_allclose(off[:, 1], 0.05)
+    np.testing.assert_allclose(off[:, 2], 0.0)
+
+
+def test_trend_finds_a_steady_degradation_and_not_noise():
+    rng = np.random.default_rng(5)
+    days = np.arange(200.0)
+    n = 2000
+    h = rng.normal(0, 0.02, (n, 200))
+    h[:100] += 0.10 / 365.25 * np.clip(days - 100, 0, None)  # 10 %/year from day 100
+    x = rng.normal(0, 0.02, n)
+    x[:100] += 0.10 / 365.25 * 100
+    r = trend_change(days, h, x, 200.0, ChangeParams())
+    assert np.median(r.z[:100]) > 4.5  # one wheel after 100 days; the wheels combined find it surely
+    assert np.mean(np.abs(r.z[100:]) >= 4.5) < 0.005
+    assert np.nanmedian(r.rate_per_year[:100]) == pytest.approx(0.075, abs=0.02)  # half the window flat
+    assert np.isnan(r.rate_per_year[100:]).mean() > 0.5  # no rate where nothing goes on
+
+
+def test_detect_changes_and_combining_wheels():
+    rng = np.random.default_rng(6)
+    seg = np.arange(1000, 1500)
+    zs = []
+    for _ in range(4):
+        v = np.full((seg.size, 30), 30.0)
+        h = rng.normal(0, 0.03, v.shape)
+        x = rng.normal(0, 0.03, seg.size) + 0.02  # this run is 2 % higher everywhere
+        x[100] += 0.18
+        c = detect_changes(h, v, np.arange(30.0), x, np.full(seg.size, 30.0), 30.0, seg, segment_m=10.0)
+        zs.append(c.change_z)
+        assert abs(np.median(c.change)) < 0.01  # the run's level is taken out
+    combined, agree = combine_wheels(np.array(zs), 2.0)
+    assert combined[100] > 8 and agree[:, 100].sum() >= 3
+    assert np.mean(np.abs(np.delete(combined, 100)) >= 4.5) < 0.01
+    with pytest.raises(ValueError, match="z"):
+        combine_wheels(np.zeros(3), 2.0)
+
+
+def test_change_params_are_validated():
+    with pytest.raises(ValueError, match="step_z"):
+        ChangeParams(step_z=0)
+    with pytest.raises(ValueError, match="history_runs"):
+        ChangeParams(min_history=10, history_runs=5)
+
+
+def test_rank_segments_weighs_the_evidence_and_the_wheels():
+    from app.analysis.condition import rank_segments
+
+    rng = np.random.default_rng(7)
+    n = 200
+    seg = np.arange(n)
+    classes = np.where(seg < 100, "slab", "b91_pads")
+    level = np.where(seg < 100, 1.0, -0.2)
+    idx = level + rng.normal(0, 0.05, (4, n))
+    idx[:, 10] += 0.6  # a hard spot on every wheel: an anomaly against the slab segments
+    chg = rng.normal(0, 0.03, (4, n))
+    cz = rng.normal(0, 1, (4, n))
+    cz[:2, 150] = 8.0  # a change on two wheels
+    rate = np.zeros((4, n))
+    tz = rng.normal(0, 1, (4, n))
+    t = rank_segments(seg, classes, idx, chg, cz, rate, tz)
+    order = np.argsort(-t.priority)
+    assert set(order[:2]) == {10, 150}
+    assert t.reasons[10] == ("anomaly",) and t.direction[10] == 1 and t.agreeing[10] == 4
+    assert "change" in t.reasons[150] and t.agreeing[150] == 2
+    assert t.priority[10] == pytest.approx(abs(t.anomaly_z[10]) / 3.5 * 1.5)
+    assert np.all((t.priority >= 1) == np.array([bool(r) for r in t.reasons]))
+    assert abs(t.anomaly_z[120]) < 4  # the pads are judged against pads, not against slab
+    with pytest.raises(ValueError, match="classes"):
+        rank_segments(seg, classes[:5], idx, chg, cz, rate, tz)
+
+
+def test_action_effect_before_after_and_how_long_it_lasted():
+    from app.analysis.condition.maintenance_effect import action_effect
+
+    rng = np.random.default_rng(8)
+    days = np.arange(0.0, 400.0)
+    level = np.where(days < 100, 0.0, np.minimum(-0.2 + 0.4 * (days - 100) / 365.25, 0.0))
+    values = level + rng.normal(0, 0.01, days.size)
+    e = action_effect(days, values, 99.5)
+    assert e.n_before == 90 and e.n_after == 30
+    assert e.recovery == pytest.approx(-0.2 + 0.4 * 15 / 365.25, abs=0.01)  # median of the first 30 days
+    assert e.slope_after_per_year == pytest.approx(0.3, abs=0.1)  # the regrowth, levelling off at 0
+    half = 0.5 * abs(e.recovery) / 0.4 * 365.25 + 15  # the level halfway back
+    assert e.lasted_days_observed == pytest.approx(half, abs=10)
+    assert e.lasted_days_projected is not None and e.lasted_days_projected > 0
+    none = action_effect(days[:90], values[:90], 99.5)  # no run after: no recovery
+    assert none.recovery is None and none.n_after == 0
+    with pytest.raises(ValueError, match="regain_fraction"):
+        action_effect(days, values, 99.5, regain_fraction=0)
