@@ -33,6 +33,7 @@ from app.core.bytecache import ByteLRU
 from app.core.config import Settings
 from app.db import crud, results_reader
 from app.db.display import display_rows, km_extent
+from app.db.display_arrays import DisplayArrays
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, Run
 from app.db.session import Database
 
@@ -325,9 +326,11 @@ class _ProfileQuery:
 _Computed = tuple[bytes, tuple[bytes, bytes | None] | None]
 
 
-def _compute(db: Database, settings: Settings, query: _ProfileQuery, keep_bytes: int) -> _Computed:
+def _compute(
+    db: Database, settings: Settings, query: _ProfileQuery, keep_bytes: int, arrays: DisplayArrays | None
+) -> _Computed:
     """The answer's body and, if at most ``keep_bytes`` long, its cache entry (body, gzip body)."""
-    body = _profile_body(db, settings, query)
+    body = _profile_body(db, settings, query, arrays)
     return body, _encoded(body) if len(body) <= keep_bytes else None
 
 
@@ -356,7 +359,8 @@ async def _compute_once(
     try:
         cache: ByteLRU[tuple[bytes, bytes | None]] = request.app.state.profile_cache
         result = await anyio.to_thread.run_sync(
-            _compute, db, settings, query, cache.max_bytes // 4, limiter=request.app.state.profile_limiter
+            _compute, db, settings, query, cache.max_bytes // 4, request.app.state.display_arrays,
+            limiter=request.app.state.profile_limiter,
         )
         if result[1] is not None:
             cache.put(etag, result[1], len(result[1][0]) + len(result[1][1] or b""))
@@ -373,22 +377,35 @@ async def _compute_once(
         del pending[etag]
 
 
-def _profile_body(db: Database, settings: Settings, query: _ProfileQuery) -> bytes:
-    """The encoded profile answer of :func:`get_profile` (read, aggregate, decimate, encode)."""
+def _profile_body(
+    db: Database, settings: Settings, query: _ProfileQuery, arrays: DisplayArrays | None = None
+) -> bytes:
+    """The encoded profile answer of :func:`get_profile` (read, aggregate, decimate, encode).
+
+    ``arrays``: the process' display arrays, which answer display queries
+    (``max_points`` at the stored bins) from memory where they can.
+    """
     q = query
     run_id, job_id, bin_length, k, wheel = q.run_id, q.job_id, q.bin_length, q.k, q.wheel
     km_from, km_to, level, max_points, values = q.km_from, q.km_to, q.level, q.max_points, q.values
     read = {"wheel": wheel, "km_from": km_from, "km_to": km_to, "columns": values}
-    with db.read() as session:  # one snapshot: the extent and the rows of the same job
-        extent = km_extent(session, job_id, wheel)
-        if max_points is not None and k == 1:
-            # a few thousand rows of the stored display pyramid, whatever the range
-            df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,
-                              columns=results_reader.profile_columns(values), extent=extent)
-        elif max_points is None and k == 1:
-            df = results_reader.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
-        else:
-            df = results_reader.job_profile_frame(session, job_id, **read)
+    in_memory = None
+    if arrays is not None and max_points is not None and k == 1:  # a published job's arrays
+        in_memory = arrays.display_rows(db, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,
+                                        columns=results_reader.profile_columns(values))
+    if in_memory is not None:
+        df, extent = in_memory
+    else:
+        with db.read() as session:  # one snapshot: the extent and the rows of the same job
+            extent = km_extent(session, job_id, wheel)
+            if max_points is not None and k == 1:
+                # a few thousand rows of the stored display pyramid, whatever the range
+                df = display_rows(session, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,
+                                  columns=results_reader.profile_columns(values), extent=extent)
+            elif max_points is None and k == 1:
+                df = results_reader.job_profile_frame(session, job_id, limit=settings.max_profile_rows + 1, **read)
+            else:
+                df = results_reader.job_profile_frame(session, job_id, **read)
     truncated = False
     if max_points is not None and k > 1:
         df = _decimate(_aggregate(df, level, bin_length, values), max_points, "sleeper_amp_max")
