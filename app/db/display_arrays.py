@@ -17,6 +17,7 @@ whose km does not grow strictly with the bin, is answered by SQL.
 
 from __future__ import annotations
 
+import logging
 import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -33,6 +34,8 @@ from app.db.results_reader import fetch_numeric, profile_where
 from app.db.session import Database
 
 __all__ = ["WheelArrays", "DisplayArrays"]
+
+_log = logging.getLogger(__name__)
 
 #: bytes per row of a wheel's entry besides its indicator columns: bin (int64), km (float64),
 #: display level (int16) and the positions of the levels >= 1 (int64, at most half the rows
@@ -128,6 +131,10 @@ class DisplayArrays:
         Budget, bytes (0 turns it off: every display query reads the
         database). A wheel whose entry would take more than a quarter of it is
         not kept (its queries read the database).
+    background : bool, optional
+        Read a wheel's arrays in a background thread and answer from the
+        database meanwhile (default; no query waits for a read of ~10⁶ rows),
+        or read them in the asking thread (queries of a wheel being read wait).
 
     Notes
     -----
@@ -137,7 +144,8 @@ class DisplayArrays:
     them while the others asking for it wait.
     """
 
-    def __init__(self, max_bytes: int) -> None:
+    def __init__(self, max_bytes: int, *, background: bool = True) -> None:
+        self._background = background
         # False: a wheel known not to be served from memory (see display_rows)
         self._lru: ByteLRU[WheelArrays | bool] = ByteLRU(max_bytes)
         self._guard = threading.Lock()
@@ -175,8 +183,9 @@ class DisplayArrays:
         -------
         (pandas.DataFrame, (float, float)) or None
             The rows and the wheel's km extent; None where the wheel cannot be
-            answered from memory (no rows, too large for the budget, km not
-            strictly increasing with the bin, cache off): ask the database.
+            answered from memory (not read yet, no rows, too large for the
+            budget, km not strictly increasing with the bin, cache off): ask
+            the database.
         """
         numeric = [c for c in columns if c != "wheel"]
         wanted = [c for c in numeric if c not in ("bin", "km")]
@@ -188,8 +197,19 @@ class DisplayArrays:
         values = arrays.values(arrays.positions(level, km_from, km_to), numeric)
         return display_frame(values, numeric, columns, wheel, max_points), extent
 
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait until no wheel is being read (tests, benchmarks); whether none is."""
+        with self._guard:
+            pending = list(self._reading.values())
+        return all(event.wait(timeout) for event in pending)
+
     def _arrays(self, db: Database, job_id: int, wheel: str, wanted: Sequence[str]) -> WheelArrays | None:
-        """The wheel's entry holding ``wanted`` columns (read once: single flight), or None."""
+        """The wheel's entry holding ``wanted`` columns, or None (then being read, or not to be).
+
+        A wheel is read once at a time (single flight). In the background
+        (the default) a query never waits for it: until the arrays are there
+        the database answers, as fast as without them.
+        """
         if self.max_bytes == 0:
             return None
         key = f"{job_id}:{wheel}"
@@ -205,7 +225,18 @@ class DisplayArrays:
                 if reading is None:
                     reading = self._reading[key] = threading.Event()
                     break
+            if self._background:
+                return None
             reading.wait()  # another thread reads this wheel: then look again
+        args = (key, db, job_id, wheel, entry, wanted, reading)
+        if self._background:
+            threading.Thread(target=self._fill, args=args, name=f"display-arrays-{key}", daemon=True).start()
+            return None
+        return self._fill(*args)
+
+    def _fill(self, key: str, db: Database, job_id: int, wheel: str, entry: WheelArrays | None,
+              wanted: Sequence[str], reading: threading.Event) -> WheelArrays | None:
+        """Read and keep the wheel's entry (or the columns ``entry`` lacks); then wake the waiters."""
         try:
             read = self._read(db, job_id, wheel, entry, wanted)
             if read is not None:
@@ -213,6 +244,11 @@ class DisplayArrays:
             elif entry is None:  # remembered (a small marker): not read again
                 self._lru.put(key, False, _MARKER_BYTES)
             return read
+        except Exception:  # the database answers meanwhile; a later query tries again
+            if not self._background:
+                raise
+            _log.warning("reading display arrays of job %s wheel %s failed", job_id, wheel, exc_info=True)
+            return None
         finally:
             with self._guard:
                 del self._reading[key]
