@@ -95,7 +95,7 @@ _KM_COLUMNS = frozenset({"km", "km_from", "km_to"})
 _KM_DECIMALS = 6
 _SIGNIFICANT = 5
 _GZIP_MIN_BYTES = 1024
-_GZIP_LEVEL = 5
+_GZIP_LEVEL = 1  # 0.7 ms for a map's 87 kB (level 5: 2.4 ms, 10 % fewer bytes)
 
 
 Columns = Annotated[
@@ -137,16 +137,27 @@ def run_with_results(session: Session, run_id: int) -> tuple[Run, Job]:
     return run, job
 
 
-def _results_context(db: Database, run_id: int, wheel: str | None) -> tuple[int, float, list[str]]:
-    """Job id and bin length of the stored results and the wheels; 404/409 if none."""
+def _results_context(
+    db: Database, run_id: int, wheel: str | None, arrays: DisplayArrays | None = None
+) -> tuple[int, float, list[str]]:
+    """Job id and bin length of the stored results and the wheels; 404/409 if none.
+
+    With the process' ``arrays`` one query (the job shown) where the run has results.
+    """
     with db.read() as session:
-        _, job = run_with_results(session, run_id)
-        wheels = results_reader.stored_profile_wheels(session, job.id)
+        job_id = results_reader.results_job_id(session, run_id) if arrays is not None else None
+        if arrays is not None and job_id is not None:
+            bin_length, stored = arrays.job_layout(session, job_id)
+            wheels = list(stored)
+        else:
+            _, job = run_with_results(session, run_id)
+            job_id, bin_length = job.id, results_reader.bin_length_of(job)
+            wheels = results_reader.stored_profile_wheels(session, job.id)
     if wheel is not None and wheel not in wheels:
         raise ApiError(
             404, "wheel", f"run {run_id} has no profile for wheel {wheel!r} (wheels: {', '.join(wheels)})"
         )
-    return job.id, results_reader.bin_length_of(job), wheels
+    return job_id, bin_length, wheels
 
 
 def _level_ratio(level_m: float, bin_length: float) -> int:
@@ -206,7 +217,8 @@ def _columns_json(head: dict, df: pd.DataFrame) -> bytes:
     for name in names:
         col = df[name]
         if pd.api.types.is_float_dtype(col.dtype):
-            col = col.replace([np.inf, -np.inf], np.nan)
+            if np.isinf(col.to_numpy()).any():
+                col = col.replace([np.inf, -np.inf], np.nan)
             text = col.to_json(orient="values", double_precision=_decimals(name, col))
         elif pd.api.types.is_numeric_dtype(col.dtype) or pd.api.types.is_bool_dtype(col.dtype):
             text = col.to_json(orient="values")
@@ -283,7 +295,9 @@ async def get_profile(
     """
     check_km(km_from, km_to)
     values = _columns(columns, max_points)
-    job_id, bin_length, _ = await run_in_threadpool(_results_context, db, run_id, wheel)
+    job_id, bin_length, _ = await run_in_threadpool(
+        _results_context, db, run_id, wheel, request.app.state.display_arrays
+    )
     k = _level_ratio(level, bin_length)
     if max_points is not None and max_points > settings.max_profile_rows:
         raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")

@@ -111,7 +111,7 @@ def display_frame(
     df = numeric_frame(values, numeric)
     if "wheel" in columns:
         df.insert(0, "wheel", np.full(len(df), wheel, dtype=object))
-    return df[list(columns)]
+    return df if list(df.columns) == list(columns) else df[list(columns)]
 
 
 def display_rows(

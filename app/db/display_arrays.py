@@ -19,18 +19,25 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import DISPLAY_LEVEL_BASE
 from app.core.bytecache import ByteLRU
 from app.db.display import display_frame, display_level_of
 from app.db.models import ProfileBin
-from app.db.results_reader import fetch_numeric, profile_where
+from app.db.results_reader import (
+    fetch_numeric,
+    job_bin_length,
+    profile_where,
+    stored_profile_wheels,
+)
 from app.db.session import Database
 
 __all__ = ["WheelArrays", "DisplayArrays"]
@@ -43,6 +50,8 @@ _log = logging.getLogger(__name__)
 _BASE_ROW_BYTES = 8 + 8 + 2 + 6
 #: what the marker of a wheel not served from memory counts in the budget, bytes
 _MARKER_BYTES = 64
+#: published jobs whose bin length and wheels are kept (:meth:`DisplayArrays.job_layout`)
+_MAX_LAYOUTS = 4096
 
 
 @dataclass(frozen=True)
@@ -150,6 +159,7 @@ class DisplayArrays:
         self._lru: ByteLRU[WheelArrays | bool] = ByteLRU(max_bytes)
         self._guard = threading.Lock()
         self._reading: dict[str, threading.Event] = {}
+        self._layouts: OrderedDict[int, tuple[float, tuple[str, ...]]] = OrderedDict()
 
     @property
     def max_bytes(self) -> int:
@@ -196,6 +206,24 @@ class DisplayArrays:
         level = display_level_of(extent, km_from, km_to, max_points, bin_length_m)
         values = arrays.values(arrays.positions(level, km_from, km_to), numeric)
         return display_frame(values, numeric, columns, wheel, max_points), extent
+
+    def job_layout(self, session: Session, job_id: int) -> tuple[float, tuple[str, ...]]:
+        """Bin length (m) and wheels of a published job's profile, read once per process.
+
+        They never change once the job is published (its rows are stored
+        before it is marked done); the last :data:`_MAX_LAYOUTS` jobs asked are kept.
+        """
+        with self._guard:
+            layout = self._layouts.get(job_id)
+            if layout is not None:
+                self._layouts.move_to_end(job_id)
+                return layout
+        layout = (job_bin_length(session, job_id), tuple(stored_profile_wheels(session, job_id)))
+        with self._guard:
+            self._layouts[job_id] = layout
+            while len(self._layouts) > _MAX_LAYOUTS:
+                self._layouts.popitem(last=False)
+        return layout
 
     def wait(self, timeout: float | None = None) -> bool:
         """Wait until no wheel is being read (tests, benchmarks); whether none is."""
