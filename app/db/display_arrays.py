@@ -50,6 +50,8 @@ _log = logging.getLogger(__name__)
 _BASE_ROW_BYTES = 8 + 8 + 2 + 6
 #: what the marker of a wheel not served from memory counts in the budget, bytes
 _MARKER_BYTES = 64
+#: bins read per query when a wheel is read (bounds the memory of the Python rows: ~10 MB)
+_PAGE_BINS = 50_000
 #: published jobs whose bin length and wheels are kept (:meth:`DisplayArrays.job_layout`)
 _MAX_LAYOUTS = 4096
 
@@ -159,6 +161,7 @@ class DisplayArrays:
         self._lru: ByteLRU[WheelArrays | bool] = ByteLRU(max_bytes)
         self._guard = threading.Lock()
         self._reading: dict[str, threading.Event] = {}
+        self._one_read = threading.Lock()
         self._layouts: OrderedDict[int, tuple[float, tuple[str, ...]]] = OrderedDict()
 
     @property
@@ -266,7 +269,8 @@ class DisplayArrays:
               wanted: Sequence[str], reading: threading.Event) -> WheelArrays | None:
         """Read and keep the wheel's entry (or the columns ``entry`` lacks); then wake the waiters."""
         try:
-            read = self._read(db, job_id, wheel, entry, wanted)
+            with self._one_read:  # one wheel at a time: bounded memory and CPU taken from answers
+                read = self._read(db, job_id, wheel, entry, wanted)
             if read is not None:
                 self._lru.put(key, read, read.nbytes)
             elif entry is None:  # remembered (a small marker): not read again
@@ -301,7 +305,11 @@ class DisplayArrays:
             else:
                 names = ["bin", *missing]
             stmt = select(*(getattr(ProfileBin, c) for c in names)).where(where).order_by(ProfileBin.bin)
-            rows = fetch_numeric(session, stmt, len(names))
+            pages = []  # in pages of bins: the DBAPI rows of a page are Python objects (~200 B each)
+            for start in range(int(lo), int(hi) + 1, _PAGE_BINS):
+                page = stmt.where(ProfileBin.bin.between(start, start + _PAGE_BINS - 1))
+                pages.append(fetch_numeric(session, page, len(names)))
+        rows = np.concatenate(pages)
         read = {name: np.ascontiguousarray(rows[:, j]) for j, name in enumerate(names)}
         bins = read.pop("bin").astype(np.int64)
         if entry is not None:
