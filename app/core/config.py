@@ -122,7 +122,7 @@ class Settings(BaseSettings):
         Memory each API process keeps for the display query's columns of
         published jobs' profiles (numpy arrays per job and wheel, LRU), bytes:
         zooms are sliced from them instead of read from the database (about
-        17 MB per wheel of a 100 km run for three columns); 0 turns it off.
+        19 MB per wheel of a 100 km run for three columns); 0 turns it off.
     profile_concurrency : int
         Profile answers each API process computes at once; further requests
         wait their turn without holding up uploads, logins and other requests.
