@@ -42,6 +42,19 @@ def stored(any_db: Database) -> tuple[Database, int, pd.DataFrame]:
     return any_db, _published(any_db, profiles), profiles
 
 
+def _count_reads(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The wheels :class:`DisplayArrays` reads from the database from now on, in order."""
+    reads: list[str] = []
+    original = DisplayArrays._read
+
+    def counted(self, *args):
+        reads.append(args[2])
+        return original(self, *args)
+
+    monkeypatch.setattr(DisplayArrays, "_read", counted)
+    return reads
+
+
 def _windows(km: np.ndarray) -> list[tuple[float | None, float | None]]:
     rng = np.random.default_rng(7)
     out: list[tuple[float | None, float | None]] = [
@@ -131,14 +144,7 @@ def test_a_wheel_is_read_in_the_background_once(stored, monkeypatch):
 def test_concurrent_queries_of_a_wheel_read_it_once(stored, monkeypatch):
     db, job_id, _ = stored
     arrays = DisplayArrays(64 * 1024 * 1024, background=False)
-    reads: list[str] = []
-    original = DisplayArrays._read
-
-    def counted(self, *args):
-        reads.append(args[2])
-        return original(self, *args)
-
-    monkeypatch.setattr(DisplayArrays, "_read", counted)
+    reads = _count_reads(monkeypatch)
     answers: list[object] = []
     threads = [threading.Thread(target=lambda: answers.append(
         arrays.display_rows(db, job_id, "12", 500, 0.25, km_from=0.5, columns=MAP_COLUMNS))) for _ in range(6)]
@@ -171,14 +177,7 @@ def test_lru_drops_the_least_recently_used_wheel(db, monkeypatch):
     wheels = ("11", "12", "21", "22", "31", "32")
     job_id = _published(db, profile_table(wheels, n_bins=2_000, seed=9))
     arrays = DisplayArrays(4 * 2_000 * (8 + 8 + 2 + 6 + 8 * 3), background=False)  # room for 4 of them
-    reads: list[str] = []
-    original = DisplayArrays._read
-
-    def counted(self, *args):
-        reads.append(args[2])
-        return original(self, *args)
-
-    monkeypatch.setattr(DisplayArrays, "_read", counted)
+    reads = _count_reads(monkeypatch)
     for wheel in wheels:
         assert arrays.display_rows(db, job_id, wheel, 100, 0.25, columns=MAP_COLUMNS) is not None
         assert arrays.size <= arrays.max_bytes
