@@ -24,6 +24,7 @@ from app.core.config import ProductionConfigError, Settings, get_settings
 from app.core.logging import configure_logging
 from app.core.ratelimit import RateLimiter
 from app.core.runstore import RunStore
+from app.db.display_arrays import DisplayArrays
 from app.db.session import Database
 from app.web import install_pages
 
@@ -93,6 +94,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     app.state.profile_cache = ByteLRU(settings.profile_cache_bytes)
     # profile answers computed at once in this process (the others wait: app.api.profiles)
+    app.state.display_arrays = DisplayArrays(settings.display_cache_bytes)  # zooms sliced from memory
     app.state.profile_limiter = anyio.CapacityLimiter(settings.profile_concurrency)
     app.state.profile_pending = {}  # answers being computed: asked again, awaited once
     app.add_middleware(GZipMiddleware, minimum_size=1024, compresslevel=5, exclude_content_types=_NOT_GZIPPED)

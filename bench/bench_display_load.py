@@ -13,7 +13,8 @@ Scenarios:
     browser asks when the map opens; answered from the per-process answer cache after the first);
 ``zoom``
     every request a random km window (0.1–20 km, log-uniform) of a random wheel: nearly every
-    answer is computed afresh (read from the database, decimated, encoded);
+    answer is computed afresh (sliced from the wheel's arrays in memory, or read from the database
+    until they are read, decimated, encoded);
 ``revalidate``
     the ``map`` requests sent with the ETag the browser holds (``If-None-Match``: 304).
 
@@ -131,6 +132,21 @@ def _group_cpu_s(pgid: int) -> float:
         if int(fields[2]) == pgid:  # field 5 of stat: process group
             total += (int(fields[11]) + int(fields[12])) / tick  # fields 14, 15: utime, stime
     return total
+
+
+def _group_rss_mb(pgid: int) -> float:
+    """Resident memory (MB) of the live processes of process group ``pgid`` (the API processes)."""
+    total = 0
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+            if int(text[text.rindex(")") + 2:].split()[2]) != pgid:
+                continue
+            status = (stat.parent / "status").read_text()
+        except (OSError, ValueError):
+            continue
+        total += next((int(x.split()[1]) for x in status.splitlines() if x.startswith("VmRSS:")), 0)
+    return total / 1024
 
 
 def _probe(base_url: str, key: str, files: list[str], out: str, stop_file: str) -> None:
@@ -296,8 +312,9 @@ def main(argv: list[str] | None = None) -> int:
               f"{args.duration} s per scenario, {args.km:g} km run, max_points={MAX_POINTS}, "
               f"columns={COLUMNS}, layout=columns, gzip; load average before: {os.getloadavg()[0]:.1f}")
         print("\n| scenario | req/s | p50 ms | p90 ms | p99 ms | max ms | 5xx | other errors | MB/s | "
-              "login max s | upload max s | writes | API CPU ms per request | machine busy % | stolen CPU s |")
-        print("|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|")
+              "login max s | upload max s | writes | API CPU ms per request | API RSS MB | machine busy % | "
+              "stolen CPU s | load avg |")
+        print("|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|")
         for scenario in scenarios:
             probe_out, stop = tmp / f"probe-{scenario}.json", tmp / f"stop-{scenario}"
             probe = subprocess.Popen(
@@ -327,8 +344,9 @@ def main(argv: list[str] | None = None) -> int:
                   f"{max(logins):.2f} | {max(uploads) if uploads else float('nan'):.2f} | "
                   f"{len(logins)} logins + {len(uploads)} uploads"
                   f"{f', {len(bad_writes)} failed' if bad_writes else ''} | "
-                  f"{1000 * (api1 - api0) / max(result['requests'], 1):.1f} | "
-                  f"{100 * (busy1 - busy0) / (wall * os.cpu_count()):.0f} | {steal1 - steal0:.1f} |",
+                  f"{1000 * (api1 - api0) / max(result['requests'], 1):.1f} | {_group_rss_mb(server.pid):.0f} | "
+                  f"{100 * (busy1 - busy0) / (wall * os.cpu_count()):.0f} | {steal1 - steal0:.1f} | "
+                  f"{os.getloadavg()[0]:.1f} |",
                   flush=True)
             if bad_writes:
                 print(f"  failed writes: {bad_writes[:5]}")

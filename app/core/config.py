@@ -118,6 +118,11 @@ class Settings(BaseSettings):
     profile_cache_bytes : int
         Memory each API process keeps for encoded profile answers of published
         jobs (immutable; LRU), bytes; 0 turns the cache off.
+    display_cache_bytes : int
+        Memory each API process keeps for the display query's columns of
+        published jobs' profiles (numpy arrays per job and wheel, LRU), bytes:
+        zooms are sliced from them instead of read from the database (about
+        19 MB per wheel of a 100 km run for three columns); 0 turns it off.
     profile_concurrency : int
         Profile answers each API process computes at once; further requests
         wait their turn without holding up uploads, logins and other requests.
@@ -218,6 +223,7 @@ class Settings(BaseSettings):
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
     max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
     profile_cache_bytes: int = Field(default=64 * 1024 * 1024, ge=0)
+    display_cache_bytes: int = Field(default=256 * 1024 * 1024, ge=0)
     profile_concurrency: int = Field(default=2, ge=1, le=64)
     analytics_min_speed_kmh: float = Field(default=25.0, ge=0)
     analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)

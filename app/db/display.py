@@ -26,7 +26,7 @@ from app.db.results_reader import (
     profile_where,
 )
 
-__all__ = ["display_rows", "km_extent"]
+__all__ = ["display_rows", "km_extent", "display_level_of", "display_frame"]
 
 #: a level is read when it holds at most this many times ``max_points`` rows in the range;
 #: the final decimation to ``max_points`` then chooses among the peaks of buckets
@@ -54,6 +54,64 @@ def _display_level(n_bins: float, max_points: int) -> int:
     while min(n_bins, 2 * (n_bins / DISPLAY_LEVEL_BASE**k + 2)) > _OVERSAMPLE * max_points and k < 30:
         k += 1
     return k
+
+
+def display_level_of(
+    extent: tuple[float, float],
+    km_from: float | None,
+    km_to: float | None,
+    max_points: int,
+    bin_length_m: float,
+) -> int:
+    """The pyramid level a display query reads: from the bins of the range (km span / bin length).
+
+    Parameters
+    ----------
+    extent : (float, float)
+        The profile's :func:`km_extent`, km.
+    km_from, km_to : float or None
+        The asked range, km (None: the profile's end).
+    max_points : int
+        Rows wanted.
+    bin_length_m : float
+        Bin length of the stored profile, m.
+    """
+    lo = extent[0] if km_from is None else max(extent[0], km_from)
+    hi = extent[1] if km_to is None else min(extent[1], km_to)
+    n_bins = max(hi - lo, 0.0) * 1000.0 / bin_length_m + 1.0
+    return _display_level(n_bins, max_points)
+
+
+def display_frame(
+    values: np.ndarray, numeric: Sequence[str], columns: Sequence[str], wheel: str, max_points: int
+) -> pd.DataFrame:
+    """The answer of a display query from the rows read for it (one rule for SQL and memory).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        (n, len(numeric)) float rows read for the query (a bin may come twice).
+    numeric : sequence of str
+        Names of ``values``' columns (must hold ``bin``, ``km`` and ``sleeper_amp``).
+    columns : sequence of str
+        Columns of the answer (``numeric``, with ``wheel`` if asked).
+    wheel : str
+        The wheel (the same on every row).
+    max_points : int
+        Rows wanted: each bin once, ordered by km, decimated keeping the peaks
+        of ``sleeper_amp`` (:func:`~app.analysis.aggregate.display_indices`).
+    """
+    i_bin, i_km = numeric.index("bin"), numeric.index("km")
+    _, first = np.unique(values[:, i_bin], return_index=True)  # each bin once
+    values = values[first]
+    values = values[np.argsort(values[:, i_km], kind="stable")]
+    if len(values) > max_points:
+        keep = display_indices(values[:, i_km], values[:, numeric.index("sleeper_amp")], max_points)
+        values = values[keep]
+    df = numeric_frame(values, numeric)
+    if "wheel" in columns:
+        df.insert(0, "wheel", np.full(len(df), wheel, dtype=object))
+    return df if list(df.columns) == list(columns) else df[list(columns)]
 
 
 def display_rows(
@@ -104,10 +162,7 @@ def display_rows(
         extent = km_extent(session, job_id, wheel)
     if extent is None:
         return profile_frame([], columns)
-    lo = extent[0] if km_from is None else max(extent[0], km_from)
-    hi = extent[1] if km_to is None else min(extent[1], km_to)
-    n_bins = max(hi - lo, 0.0) * 1000.0 / bin_length_m + 1.0
-    level = _display_level(n_bins, max_points)
+    level = display_level_of(extent, km_from, km_to, max_points, bin_length_m)
     # numbers only, straight from the cursor into one array (the wheel is the same on every row)
     numeric = [c for c in columns if c != "wheel"]
     cols = [getattr(ProfileBin, c) for c in numeric]
@@ -134,15 +189,4 @@ def display_rows(
                 start = (int(edge) // span) * span
                 stmt = select(*cols).where(by_bin, ProfileBin.bin.between(start, start + span - 1))
                 parts.append(fetch_numeric(session, stmt, len(cols)))
-    values = np.concatenate(parts)
-    i_bin, i_km = numeric.index("bin"), numeric.index("km")
-    _, first = np.unique(values[:, i_bin], return_index=True)  # each bin once
-    values = values[first]
-    values = values[np.argsort(values[:, i_km], kind="stable")]
-    if len(values) > max_points:
-        keep = display_indices(values[:, i_km], values[:, numeric.index("sleeper_amp")], max_points)
-        values = values[keep]
-    df = numeric_frame(values, numeric)
-    if "wheel" in columns:
-        df.insert(0, "wheel", np.full(len(df), wheel, dtype=object))
-    return df[list(columns)]
+    return display_frame(np.concatenate(parts), numeric, columns, wheel, max_points)

@@ -194,11 +194,11 @@ def fetch_numeric(session: Session, stmt: Select, n_columns: int) -> np.ndarray:
 
 def numeric_frame(values: np.ndarray, names: Sequence[str]) -> pd.DataFrame:
     """DataFrame of numeric profile columns from :func:`fetch_numeric`'s array (``bin``, ``n_samples`` as integers)."""
-    frame = pd.DataFrame(values, columns=list(names))
-    for col in ("bin", "n_samples"):
-        if col in frame:
-            frame[col] = frame[col].astype(np.int64)
-    return frame
+    integer = ("bin", "n_samples")
+    return pd.DataFrame(
+        {name: values[:, j].astype(np.int64) if name in integer else values[:, j] for j, name in enumerate(names)},
+        columns=list(names),
+    )
 
 
 def job_profile_frame(

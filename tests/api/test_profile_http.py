@@ -203,3 +203,20 @@ def test_concurrent_requests_for_one_answer_compute_it_once(processed, monkeypat
     assert len(bodies) == 4 and len(set(bodies)) == 1
     assert len(calls) == 1
     assert client.app.state.profile_pending == {}
+
+
+def test_zooms_from_memory_are_the_answers_of_the_database(processed):  # noqa: F811
+    from app.db.display_arrays import DisplayArrays
+
+    client, run_id, _ = processed
+    state = client.app.state
+    windows = [{}, {"km_from": 12.5005}, {"km_to": 12.61}, {"km_from": 12.55, "km_to": 12.5501},
+               {"km_from": 12.6, "km_to": 12.7}, {"km_from": 13.5}]
+    params = [{"max_points": mp, "layout": layout, **w} for mp in (4, 150, 3000) for layout in ("rows", "columns")
+              for w in windows]
+    state.display_arrays = DisplayArrays(0)  # off: the database answers
+    from_db = [_get(client, run_id, headers={"Accept-Encoding": "identity"}, **p).content for p in params]
+    state.profile_cache.clear()
+    state.display_arrays = DisplayArrays(64 * 1024 * 1024, background=False)
+    from_memory = [_get(client, run_id, headers={"Accept-Encoding": "identity"}, **p).content for p in params]
+    assert state.display_arrays.size > 0 and from_memory == from_db
