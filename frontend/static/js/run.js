@@ -40,7 +40,7 @@
       ["Speed", `${T.fmt((r.summary.speed_min || 0) * 3.6, 0)} – ${T.fmt((r.summary.speed_max || 0) * 3.6, 0)} km/h`],
       ["Sample rate", `${T.fmt(r.summary.fs / 1000, 1)} kHz`],
       ["Job", `${job.id ?? "–"} (${job.status ?? "none"})`],
-      ["Bandwidth", `${s.bandwidth_orders ?? "–"} orders, q = ${s.filter_order ?? "–"}`],
+      ["Bandwidth", `wheel orders ${s.bandwidth_orders ?? "–"} orders · track ${s.track_resolution_m ?? "–"} m resolution · q = ${s.filter_order ?? "–"}`],
       ["Wheel diameters", Object.entries((r.metadata || {}).wheel_diameters || {}).map(([w, d]) => `${T.wheelLabel(w)} ${d} m`).join(", ")],
       ["File sha256", (r.sha256 || "").slice(0, 16) + "…"],
     ];
