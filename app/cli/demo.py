@@ -177,6 +177,7 @@ def _where_to_look(base: str, runs: list[dict], line: tuple[str, str]) -> str:
         f"  dashboard (runs)         {base}/\n"
         f"  stiffness map, run {first:<5} {base}/runs/{first}\n"
         f"  line view                {base}/lines\n"
+        f"  condition (work list)    {base}/condition\n"
         f"  map                      {base}/map\n"
         f"  wheels                   {base}/wheels\n"
         f"  correlations             {base}/correlations\n"

@@ -130,12 +130,20 @@
       T.emptyState("cond-effect", "No maintenance action.", "");
       return;
     }
-    body.innerHTML = res.items.map((a) => `<tr data-action="${a.action_id}" style="cursor:pointer">
+    // an action no run of the line passed over (before or after) has no before/after view
+    const covered = (a) => a.n_runs_before + a.n_runs_after > 0;
+    body.innerHTML = res.items.map((a) => `<tr ${covered(a) ? `data-action="${a.action_id}" style="cursor:pointer"` : `class="muted" title="no run of this line covers it"`}>
       <td>${T.esc(a.date)}</td><td>${T.esc(a.type)}</td><td>${a.km_from.toFixed(3)}–${a.km_to.toFixed(3)}</td>
       <td class="num">${a.n_runs_before} / ${a.n_runs_after}</td><td class="num">${pct(a.recovery_pct)}</td>
       <td class="num">${a.slope_after_per_year === null ? "–" : pct(100 * a.slope_after_per_year)}</td>
       <td class="num">${a.lasted_days_observed !== null ? T.fmt(a.lasted_days_observed, 0) : a.lasted_days_projected !== null ? "≈ " + T.fmt(a.lasted_days_projected, 0) : "–"}</td></tr>`).join("");
-    const best = res.items.find((a) => a.recovery !== null) || res.items[0];
+    const best = res.items.find((a) => a.recovery !== null) || res.items.find(covered);
+    if (!best) {
+      $("effect-title").textContent = "Before / after";
+      T.emptyState("cond-effect", "No run of this line covers its maintenance actions yet.",
+        "<p>The before/after view needs runs over the action's km range.</p>");
+      return;
+    }
     await drawEffect(best.action_id);
   }
 
