@@ -44,6 +44,7 @@ class EffectOut(BaseModel):
     date: str
     km_from: float
     km_to: float
+    n_runs: int = Field(description="runs of the line over the action's extent (0: no before/after view)")
     n_runs_before: int
     n_runs_after: int
     index_before: float | None = Field(description="median index over the extent before, relative to the "
@@ -86,10 +87,10 @@ def _effect_of(db: Database, line: ConditionLine, a: MaintenanceAction, *, befor
     return effect, runs, values
 
 
-def _out(a: MaintenanceAction, line: ConditionLine, e: ActionEffect) -> dict:
+def _out(a: MaintenanceAction, line: ConditionLine, e: ActionEffect, n_runs: int) -> dict:
     return {
         "action_id": a.id, "line_id": line.line_id, "track": line.track, "type": a.type, "date": a.date.isoformat(),
-        "km_from": a.km_from, "km_to": a.km_to, "n_runs_before": e.n_before, "n_runs_after": e.n_after,
+        "km_from": a.km_from, "km_to": a.km_to, "n_runs": n_runs, "n_runs_before": e.n_before, "n_runs_after": e.n_after,
         "index_before": e.index_before, "index_after": e.index_after, "recovery": e.recovery,
         "recovery_pct": 100.0 * math.expm1(e.recovery) if e.recovery is not None else None,
         "slope_after_per_year": e.slope_after_per_year, "lasted_days_observed": e.lasted_days_observed,
@@ -118,8 +119,8 @@ def maintenance_effects(
         rows = [session.get(MaintenanceAction, int(i)) for i in actions["id"]]
     items = []
     for a in sorted(rows, key=lambda r: (r.date, r.km_from)):
-        effect, _, _ = _effect_of(db, line, a, before_days=before_days, after_days=after_days, regain=regain_fraction)
-        items.append(_out(a, line, effect))
+        effect, runs, _ = _effect_of(db, line, a, before_days=before_days, after_days=after_days, regain=regain_fraction)
+        items.append(_out(a, line, effect, len(runs)))
     return {"regain_fraction": regain_fraction, "items": items}
 
 
@@ -155,7 +156,7 @@ def maintenance_effect(
     if not runs:
         raise ApiError(409, "action_id", f"no run of line {line.line_id!r} covers action {action_id}")
     return {
-        **_out(a, line, effect),
+        **_out(a, line, effect, len(runs)),
         "series": [{"run_id": r.run_id, "start_time": r.run_time.isoformat(), "index": float(v)}
                    for r, v in zip(runs, values, strict=True)],
         "profile_km": km.tolist(), "profile_before": on(km_b, v_b), "profile_after": on(km_a, v_a),

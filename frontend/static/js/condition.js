@@ -131,7 +131,7 @@
       return;
     }
     // an action no run of the line passed over (before or after) has no before/after view
-    const covered = (a) => a.n_runs_before + a.n_runs_after > 0;
+    const covered = (a) => a.n_runs > 0;
     body.innerHTML = res.items.map((a) => `<tr ${covered(a) ? `data-action="${a.action_id}" style="cursor:pointer"` : `class="muted" title="no run of this line covers it"`}>
       <td>${T.esc(a.date)}</td><td>${T.esc(a.type)}</td><td>${a.km_from.toFixed(3)}–${a.km_to.toFixed(3)}</td>
       <td class="num">${a.n_runs_before} / ${a.n_runs_after}</td><td class="num">${pct(a.recovery_pct)}</td>
