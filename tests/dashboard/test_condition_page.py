@@ -96,11 +96,12 @@ def test_condition_page_shows_the_line_with_data(admin_page, condition_service):
     assert "tamping" in page.inner_text("#effect-title")
     rows.first.locator("button[data-act='trend']").click()
     first_km = float(rows.first.get_attribute("data-km"))
-    page.wait_for_function(f"document.getElementById('cond-trend-title').textContent.includes('{first_km:.3f}')")
+    page.wait_for_function("(km) => document.getElementById('cond-trend-title').textContent.includes(km)",
+                           arg=f"{first_km:.3f}")
     assert page.locator("#webhooks-card").is_visible()
     page.fill("#webhook-url", "http://127.0.0.1:9/hook")
     page.click("#webhook-form button[type=submit]")
-    page.wait_for_function("document.getElementById('webhook-secret').textContent.includes('whsec_')")
+    page.wait_for_function("() => document.getElementById('webhook-secret').textContent.includes('whsec_')")
     page.wait_for_selector("#webhooks-body tr[data-hook]")
     assert page.locator("#webhooks-body tr[data-hook]").count() == 1
     assert page.locator("#banner").is_hidden()
@@ -117,7 +118,8 @@ def test_the_work_list_link_opens_the_stiffness_map_at_that_km(admin_page, condi
     page.goto(href)
     page.wait_for_selector("body[data-ready='1']")
     km_from = float(href.split("km_from=")[1].split("&")[0])
-    page.wait_for_function(f"Math.abs(parseFloat(document.querySelector('#km-from').value) - {km_from}) < 0.002")
+    page.wait_for_function("(km) => Math.abs(parseFloat(document.querySelector('#km-from').value) - km) < 0.002",
+                           arg=km_from)
     log.assert_clean()
 
 

@@ -111,7 +111,7 @@ def test_stiffness_map_zoom_refetches_decimated_range(open_page, dashboard):
     assert "index" in page.evaluate("document.getElementById('stiffness-plot').layout.yaxis.title.text")
     assert "Reference curves of line" in page.inner_text("#reference-info")
     page.select_option("#map-value", "amplitude")
-    page.wait_for_function("document.getElementById('stiffness-plot').layout.yaxis.title.text.includes('m/s')")
+    page.wait_for_function("() => document.getElementById('stiffness-plot').layout.yaxis.title.text.includes('m/s')")
     page.select_option("#amp-scale", "log")
     page.wait_for_function("() => document.getElementById('stiffness-plot').layout.yaxis.type === 'log'")
     with page.expect_download() as dl:
