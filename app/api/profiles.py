@@ -23,7 +23,6 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import StreamingResponse
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
@@ -37,7 +36,7 @@ from app.core.config import Settings
 from app.db import crud, results_reader
 from app.db.display import display_rows, km_extent
 from app.db.display_arrays import DisplayArrays
-from app.db.models import PROFILE_VALUE_COLUMNS, Job, JobStatus, Run
+from app.db.models import PROFILE_VALUE_COLUMNS, Job, Run
 from app.db.session import Database
 
 __all__ = ["router", "AGGREGATED_COLUMNS", "PROFILE_CACHE_CONTROL"]
@@ -176,10 +175,7 @@ def _results_context(
     was swept) where the run has results.
     """
     with db.read() as session:
-        shown = session.execute(
-            select(Job.id, Run.profiles_swept_at).join(Run, Run.id == Job.run_id)
-            .where(Job.run_id == run_id, Job.status == JobStatus.DONE).order_by(Job.id.desc()).limit(1)
-        ).first() if arrays is not None else None
+        shown = results_reader.results_job_and_sweep(session, run_id) if arrays is not None else None
         if shown is not None and arrays is not None:
             job_id, swept_at = shown
             if swept_at is not None:

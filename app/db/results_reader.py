@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
+from datetime import datetime
 from typing import Any
 
 import numpy as np
@@ -21,11 +22,12 @@ import pandas as pd
 from sqlalchemy import ColumnElement, Select, and_, select
 from sqlalchemy.orm import Session
 
-from app.db.models import PROFILE_VALUE_COLUMNS, Job, JobStatus, ProfileBin, WheelOOR
+from app.db.models import PROFILE_VALUE_COLUMNS, Job, JobStatus, ProfileBin, Run, WheelOOR
 
 __all__ = [
     "PROFILE_COLUMNS",
     "results_job_id",
+    "results_job_and_sweep",
     "results_job",
     "bin_length_of",
     "job_bin_length",
@@ -52,12 +54,20 @@ def results_job_id(session: Session, run_id: int) -> int | None:
     jobs' rows are deleted in the transaction that marks it done, so this job
     is the one with rows.
     """
-    return session.scalar(
-        select(Job.id)
-        .where(Job.run_id == run_id, Job.status == JobStatus.DONE)
-        .order_by(Job.id.desc())
-        .limit(1)
-    )
+    return session.scalar(_shown_job(select(Job.id), run_id))
+
+
+def results_job_and_sweep(session: Session, run_id: int) -> tuple[int, datetime | None] | None:
+    """:func:`results_job_id` and when the run's 25 cm rows were swept (None: kept), in one query."""
+    row = session.execute(
+        _shown_job(select(Job.id, Run.profiles_swept_at).join(Run, Run.id == Job.run_id), run_id)
+    ).first()
+    return (row[0], row[1]) if row is not None else None
+
+
+def _shown_job(stmt: Select, run_id: int) -> Select:
+    """``stmt`` narrowed to the run's latest done job: the job whose results the run shows."""
+    return stmt.where(Job.run_id == run_id, Job.status == JobStatus.DONE).order_by(Job.id.desc()).limit(1)
 
 
 def results_job(session: Session, run_id: int) -> Job | None:
