@@ -1,0 +1,369 @@
+"""Which criterion turns the condition store into a work list of places: measured on fleet histories
+through the real pipeline.
+
+Two histories of :mod:`app.simulate.history` (12 runs of a 2.4 km line two weeks apart, each a full
+4-wheel signal uploaded, processed by the local worker and published into the condition store; speed
+ramps 65 → cruise over the first 500 m and cruise → 60 km/h over the last 400 m, cruise speeds spread
+over ±10 %, start odometry errors N(0, 5 m)):
+
+* ``uniform``: one superstructure type, nothing planted — every place is a false one;
+* ``planted``: three sections, a lasting soft and hard spot, two new changes (−20 %, +25 % over 20 m),
+  a developing place and a tamping over it.
+
+For every run (as the publish step would see it: the curves fitted on the runs up to it) the anomaly
+criteria below are evaluated per 10 m segment (mean over the wheels), the exceeding segments merged into
+places (:func:`app.analysis.condition.places.merge_places`, gap 10 m) and scored against the truth
+(:meth:`app.simulate.history.HistorySpec.truth_places`; a place is *real* when it overlaps a planted
+feature present that day, ±10 m):
+
+``lnA_z``   the current work list's anomaly: robust z of ``ln A`` against the segments of its class in
+            the same run, at whatever speed (threshold 3.5);
+``idx_z``   the same robust z of the speed-conditioned stiffness index ``ln(A / A_ref(class, v))``;
+``idx_lvl`` the index itself beyond a level (ln units) — a tier limit;
+``step``    the stored matched-speed step test (|Σz/√n| ≥ 4.5, the store's flags);
+``trend``   the stored trend test of the 100 m holding the segment.
+
+It also prints the distribution of the index of healthy segments per class (for the tier and
+section-class defaults) and what the current work list (``/condition/hotspots``) answers on the newest
+runs.
+
+Usage::
+
+    .venv/bin/python bench/bench_places.py [--workdir /tmp/places-bench] [--seeds 0] [--runs 12]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from sqlalchemy import select
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from app.analysis.condition.change import combine_wheels  # noqa: E402
+from app.analysis.condition.hotspots import _class_z  # noqa: E402
+from app.analysis.condition.lifecycle import (  # noqa: E402
+    LifecycleParams,
+    PlaceState,
+    advance_places,
+    severity_trend,
+)
+from app.analysis.condition.outlook import time_to_limit  # noqa: E402
+from app.analysis.condition.places import merge_places  # noqa: E402
+from app.analysis.condition.run_places import PlaceParams, find_places, segment_index  # noqa: E402
+from app.analysis.condition.tiers import TierLimits, TierTable, rank_places  # noqa: E402
+from app.analysis.stiffness.reference_curve import fit_reference_from_rows  # noqa: E402
+from app.analysis.stiffness.superstructure import section_classes  # noqa: E402
+from app.simulate.history import HistorySpec, TruthPlace, planted_history, uniform_history  # noqa: E402
+
+SEG_M = 10.0
+
+
+@dataclass
+class RunData:
+    run_id: int
+    day: float
+    shift_m: float
+    seg: np.ndarray            # (S,)
+    wheels: list[str]
+    log_amp: np.ndarray        # (W, S)
+    speed: np.ndarray          # (W, S) m/s
+    change_z: np.ndarray       # (W, S)
+    change: np.ndarray         # (W, S)
+    trend_z: np.ndarray        # (W, S) of the 100 m parent
+
+
+def build(which: str, seed: int, n_runs: int, workdir: Path) -> tuple[HistorySpec, str]:
+    """The history's database (made once per spec; reused)."""
+    from tests.condition.history_support import history_service, process_history
+
+    spec = (planted_history if which == "planted" else uniform_history)(seed=seed, n_runs=n_runs)
+    root = workdir / f"db-{which}-{seed}-{spec.fingerprint()}"
+    url = f"sqlite:///{root / 'db.sqlite'}"
+    if (root / "done").is_file():
+        return spec, url
+    shutil.rmtree(root, ignore_errors=True)
+    root.mkdir(parents=True)
+    t0 = time.perf_counter()
+    with history_service(root) as client:
+        process_history(client, spec, workdir / "files")
+    (root / "done").write_text(f"{time.perf_counter() - t0:.0f} s\n")
+    print(f"  {which} seed {seed}: {n_runs} runs through the pipeline in {time.perf_counter() - t0:.0f} s",
+          flush=True)
+    return spec, url
+
+
+def load(url: str, spec: HistorySpec) -> tuple[list[RunData], pd.DataFrame, pd.DataFrame]:
+    """Segment rows per run (10 m, all wheels), the 25 cm rows of every run and the sections."""
+    from app.db import line_profiles, reference_crud
+    from app.db.condition_models import ConditionLine, ConditionRun
+    from app.db.condition_models import SegmentCondition as SC
+    from app.db.session import Database
+
+    db = Database(url)
+    try:
+        with db.read() as s:
+            line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == spec.line_id))
+            runs = s.execute(select(ConditionRun.run_id, ConditionRun.run_time, ConditionRun.shift_m)
+                             .where(ConditionRun.line_key == line.id).order_by(ConditionRun.run_time)).all()
+            out = []
+            for run_id, when, shift in runs:
+                day = (when.replace(tzinfo=spec.start.tzinfo) - spec.start).total_seconds() / 86400.0
+                rows = pd.DataFrame(s.execute(select(SC.seg_m, SC.wheel, SC.seg, SC.index, SC.speed_mean,
+                                                     SC.change_z, SC.change, SC.trend_z)
+                                              .where(SC.run_id == run_id)).all(),
+                                    columns=["seg_m", "wheel", "seg", "index", "speed", "change_z", "change",
+                                             "trend_z"])
+                r10, r100 = rows[rows.seg_m == 10], rows[rows.seg_m == 100]
+                seg = np.sort(r10.seg.unique())
+                wheels = sorted(r10.wheel.unique())
+                mats = {k: np.full((len(wheels), seg.size), np.nan) for k in
+                        ("index", "speed", "change_z", "change", "trend_z")}
+                for i, w in enumerate(wheels):
+                    a = r10[r10.wheel == w]
+                    j = np.searchsorted(seg, a.seg.to_numpy())
+                    for k in ("index", "speed", "change_z", "change"):
+                        mats[k][i, j] = a[k].to_numpy(dtype=float)
+                    b = r100[r100.wheel == w].set_index("seg")["trend_z"]
+                    mats["trend_z"][i] = b.reindex(seg * 10 // 100).to_numpy(dtype=float)
+                out.append(RunData(run_id, day, float(shift), seg, wheels, mats["index"], mats["speed"],
+                                   mats["change_z"], mats["change"], mats["trend_z"]))
+            jobs = line_profiles.result_jobs(s, line_profiles.runs_with_results(s, spec.line_id, spec.track))
+            bins = line_profiles.analytics_frame(s, jobs, bin_length_m=0.25, min_speed_kmh=25.0, edge_trim_m=50.0,
+                                                 columns=("speed_mean", "sleeper_amp"))
+            sections = reference_crud.reference_frame(s, "superstructure", line_id=spec.line_id, track=spec.track)
+    finally:
+        db.dispose()
+    return out, bins, sections
+
+
+def classes_of(sections: pd.DataFrame, pos: np.ndarray, margin_m: float = 50.0) -> np.ndarray:
+    return section_classes(pos, sections["km_from"].to_numpy() * 1000.0, sections["km_to"].to_numpy() * 1000.0,
+                           sections["type"].to_numpy(dtype=object), boundary_margin_m=margin_m)
+
+
+def _on(src: RunData, dst: RunData, values: np.ndarray) -> np.ndarray:
+    """(W, S) values of run ``src`` on the segments and wheels of ``dst`` (NaN where none)."""
+    out = np.full((len(dst.wheels), dst.seg.size), np.nan)
+    j = np.minimum(np.searchsorted(src.seg, dst.seg), src.seg.size - 1)
+    hit = src.seg[j] == dst.seg
+    for i, w in enumerate(dst.wheels):
+        if w in src.wheels:
+            out[i, hit] = values[src.wheels.index(w), j[hit]]
+    return out
+
+
+def mean_w(a: np.ndarray) -> np.ndarray:
+    ok = np.isfinite(a)
+    n = ok.sum(axis=0)
+    with np.errstate(invalid="ignore"):
+        return np.where(n > 0, np.where(ok, a, 0).sum(axis=0) / np.maximum(n, 1), np.nan)
+
+
+def overlaps(a: float, b: float, t: TruthPlace, tol_m: float = 10.0) -> bool:
+    return t.track_from_m < b + tol_m and a - tol_m < t.track_to_m
+
+
+def variants() -> dict[str, PlaceParams]:
+    """The work-list designs compared (level limits per class on |index|, change limits on |change|)."""
+    change = TierLimits(0.10, 0.30, 0.50)
+    out = {}
+    for lvl in (0.25,):
+        out[f"level {lvl:.2f} + step"] = PlaceParams(TierTable(TierLimits(lvl, 1.5 * lvl, 2.5 * lvl)), change)
+    out["per class + step"] = PlaceParams(DEFAULT_LEVELS, change)
+    out["per class + step 0.15"] = PlaceParams(DEFAULT_LEVELS, TierLimits(0.15, 0.25, 0.45))
+    return out
+
+
+#: the per-class level limits the measurement suggests (module docstring of app.analysis.condition.run_places)
+DEFAULT_LEVELS = TierTable(TierLimits(0.25, 0.375, 0.625), {
+    "slab": TierLimits(0.20, 0.30, 0.50), "b91_no_pads": TierLimits(0.25, 0.375, 0.625),
+    "b91_pads": TierLimits(0.30, 0.45, 0.75)})
+
+
+def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[dict], healthy: list[pd.DataFrame],
+             centre_err: list[dict]) -> None:
+    runs, bins, sections = load(url, spec)
+    life: dict[str, tuple[list[PlaceState], int, list[int]]] = {}
+    ramp_lo = spec.km_start * 1000 + spec.ramp_in_m
+    ramp_hi = spec.km_start * 1000 + spec.length_km * 1000 - spec.ramp_out_m
+    for k, run in enumerate(runs):
+        truth = spec.truth_places(run.day)
+        centres = (run.seg + 0.5) * SEG_M
+        cls = classes_of(sections, centres)
+        cls_lbl = np.array(["-" if c is None else c for c in cls.tolist()], dtype=object)
+        curves = fit_curves(bins, sections, [r.run_id for r in runs[:k + 1]])
+        idx = segment_index(run.log_amp, run.speed, cls, curves)
+        hist = np.stack([_on(runs[j], run, segment_index(runs[j].log_amp, runs[j].speed,
+                                                         classes_of(sections, (runs[j].seg + 0.5) * SEG_M), curves))
+                         for j in range(k)], axis=2) if k else np.zeros((*idx.shape, 0))
+        days = np.array([r.day for r in runs[:k]])
+        level = mean_w(idx)
+        ln_a = mean_w(run.log_amp)
+        found_by: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        # the current work list's anomaly and the stored matched-speed step test
+        z_a = _class_z(ln_a, cls_lbl)
+        p = merge_places(run.seg, z_a, np.abs(z_a) >= 3.5, segment_m=SEG_M, gap_m=10.0)
+        found_by["current: lnA z 3.5"] = (p.start_m, p.end_m, p.centre_m, np.argsort(-np.abs(p.peak)))
+        cz, _ = combine_wheels(run.change_z, 2.0)
+        p = merge_places(run.seg, cz, np.abs(np.nan_to_num(cz)) >= 4.5, segment_m=SEG_M, gap_m=10.0)
+        found_by["stored step (lnA, matched speed)"] = (p.start_m, p.end_m, p.centre_m, np.argsort(-np.abs(p.peak)))
+        covered = (float(run.seg.min() * SEG_M), float((run.seg.max() + 1) * SEG_M))
+        for name, params in variants().items():
+            rp = find_places(run.seg, idx, hist, days, run.day, cls, segment_m=SEG_M, params=params)
+            order = rank_places(rp.tier, np.full(len(rp), np.nan), rp.severity)
+            found_by[name] = (rp.places.start_m, rp.places.end_m, rp.places.centre_m, order)
+            # the same design with the lifecycle: the work list holds the listed, active places
+            known, next_id, n_alerts = life.setdefault(name, ([], 1, [0]))
+            events, _, next_id = advance_places(known, rp, run_id=run.run_id, day=run.day, covered_m=covered,
+                                                params=LIFECYCLE, next_id=next_id)
+            life[name] = (known, next_id, n_alerts)
+            n_alerts[0] += len(events)
+            listed = [kp for kp in known if kp.listed and kp.active]
+            tiers = np.array([kp.tier for kp in listed], dtype=np.int64)
+            sev = np.array([kp.observations[-1].severity for kp in listed])
+            days_next = np.array([time_to_limit(severity_trend(kp), float(
+                DEFAULT_LEVELS.next_limit(np.array([kp.tier]), np.array([kp.cls], dtype=object))[0])).days
+                for kp in listed])
+            order = rank_places(tiers, days_next, sev) if listed else np.zeros(0, np.int64)
+            found_by[name + " | listed"] = (np.array([kp.start_m for kp in listed]),
+                                            np.array([kp.end_m for kp in listed]),
+                                            np.array([kp.observations[-1].centre_m for kp in listed]), order)
+            alerts_by[(which, seed, name)] = n_alerts[0]
+        for name, (a, b, c, order) in found_by.items():
+            real = np.array([any(overlaps(a[i], b[i], t) for t in truth) for i in range(a.size)], dtype=bool)
+            ramp = (a < ramp_lo) | (b > ramp_hi)
+            top = real[order[:10]]
+            row = {"history": which, "seed": seed, "run": k, "day": run.day, "design": name, "places": int(a.size),
+                   "false": int((~real).sum()), "false_on_ramps": int((~real & ramp).sum()),
+                   "top10_real": float(top.mean()) if top.size else np.nan,
+                   "tested_step": float(np.isfinite(cz).mean()) if name.startswith("stored") else np.nan}
+            for kind in ("anomaly", "change", "developing"):
+                ts = [t for t in truth if t.kind == kind]
+                if ts:
+                    row[f"found_{kind}"] = float(np.mean([any(overlaps(a[i], b[i], t) for i in range(a.size))
+                                                          for t in ts]))
+            for t in truth:
+                if t.kind == "change":
+                    hit = [i for i in range(a.size) if overlaps(a[i], b[i], t)]
+                    if hit:
+                        centre_err.append({"design": name, "history": which, "seed": seed, "run": k,
+                                           "err_m": min(abs(c[i] - t.centre_m) for i in hit), "n_places": len(hit)})
+            results.append(row)
+        # healthy segments: 30 m away from every planted feature, ever
+        far = np.ones(run.seg.size, bool)
+        for t in [*spec.truth_places(1e9), *[TruthPlace(c.kind, c.track_from_m, c.track_to_m, 0.0, c.day)
+                                            for c in spec.changes]]:
+            far &= ~((centres > t.track_from_m - 30) & (centres < t.track_to_m + 30))
+        on_ramp = (centres < ramp_lo) | (centres > ramp_hi)
+        healthy.append(pd.DataFrame({"history": which, "seed": seed, "run": k, "cls": cls_lbl[far],
+                                     "index": level[far], "ramp": on_ramp[far], "seg": run.seg[far]}))
+
+
+alerts_by: dict[tuple[str, int, str], int] = {}
+LIFECYCLE = LifecycleParams()
+
+
+def fit_curves(bins: pd.DataFrame, sections: pd.DataFrame, upto: list[int]) -> dict:
+    """The reference curves of the runs ``upto`` (what the publish step of the last of them has)."""
+    df = bins[bins.run_id.isin(upto)]
+    pos = (df["bin"].to_numpy(dtype=float) + 0.5) * 0.25
+    wheel = df["wheel"].astype(str).to_numpy(dtype=object)
+    ref = fit_reference_from_rows(df["sleeper_amp"].to_numpy(), df["speed_mean"].to_numpy(), pos,
+                                  df["run_id"].to_numpy(), wheel, np.array([w[-1:] for w in wheel], dtype=object),
+                                  classes_of(sections, pos), bin_length_m=0.25, speed_tolerance=0.1, n_boot=0)
+    return dict(ref.curves)
+
+
+def current_work_list(url: str, spec: HistorySpec) -> dict:
+    """What the current /condition/hotspots answers on the newest run: rows, the first 10, where."""
+    from app.db.condition_hotspots import line_hotspots
+    from app.db.condition_models import ConditionLine
+    from app.db.session import Database
+
+    db = Database(url)
+    try:
+        with db.read() as s:
+            line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == spec.line_id))
+            hs = line_hotspots(s, line, 10)
+    finally:
+        db.dispose()
+    t = hs.table
+    keep = t.priority >= 1.0
+    order = np.argsort(-t.priority[keep])
+    seg = t.seg[keep][order]
+    reasons = [t.reasons[i] for i in np.flatnonzero(keep)[order]]
+    truth = spec.truth_places(spec.runs[-1].day)
+    x = (seg + 0.5) * SEG_M
+    real = np.array([any(tp.track_from_m - 10 < xi < tp.track_to_m + 10 for tp in truth) for xi in x])
+    ramp = (x < spec.km_start * 1000 + spec.ramp_in_m) | (x > spec.km_start * 1000 + spec.length_km * 1000 - spec.ramp_out_m)
+    return {"rows": int(keep.sum()), "first10_real": int(real[:10].sum()), "first10_on_ramps": int(ramp[:10].sum()),
+            "first10_reasons": [",".join(r) for r in reasons[:10]], "rows_real": int(real.sum())}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--workdir", type=Path, default=Path("/tmp/places-bench"))
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0])
+    ap.add_argument("--runs", type=int, default=12)
+    ap.add_argument("--json", type=Path, help="write the per-run results here")
+    args = ap.parse_args(argv)
+    args.workdir.mkdir(parents=True, exist_ok=True)
+    results: list[dict] = []
+    healthy: list[pd.DataFrame] = []
+    centre_err: list[dict] = []
+    for seed in args.seeds:
+        for which in ("uniform", "planted"):
+            spec, url = build(which, seed, args.runs, args.workdir)
+            print(f"{which} seed {seed}: the current work list on the newest run: {current_work_list(url, spec)}",
+                  flush=True)
+            evaluate(which, seed, spec, url, results, healthy, centre_err)
+    df = pd.DataFrame(results)
+    pd.set_option("display.width", 250)
+    later = df[df.run >= 5]  # from the 6th run on: a history of 5 runs to compare with
+    cols = {c: (c, "mean") for c in ("places", "false", "false_on_ramps", "top10_real", "found_anomaly",
+                                     "found_change", "found_developing", "tested_step") if c in df.columns}
+    print(f"\nPer run from the 6th on (mean over {later.groupby(['history', 'seed', 'run']).ngroups} runs of "
+          f"{len(args.seeds)} seed(s)):")
+    print(later.groupby(["history", "design"]).agg(**cols).round(2).to_string())
+    h = pd.concat(healthy, ignore_index=True)
+    h = h[h.cls != "-"]
+
+    def q(s: pd.Series) -> pd.Series:
+        a = np.abs(s.dropna().to_numpy())
+        return pd.Series(np.r_[np.quantile(a, [0.5, 0.99, 0.999]), a.max()] if a.size else [np.nan] * 4,
+                         index=["p50", "p99", "p99.9", "max"])
+
+    print("\nHealthy 10 m segments (30 m from anything planted), |index| per class and ramp/cruise, ln units:")
+    print(h.groupby(["cls", "ramp"])["index"].apply(q).unstack().round(3).to_string())
+    h["sec"] = h["seg"] // 20
+    sec = h.groupby(["history", "seed", "run", "sec"]).agg(level=("index", "mean"), spread=("index", "std"),
+                                                           n=("index", "count"))
+    sec = sec[sec.n >= 10]
+    rms = np.sqrt(sec.level**2 + sec.spread**2)
+    print("Healthy 200 m sections, rms of the index:",
+          {k: round(float(v), 3) for k, v in zip(["p20", "p50", "p80", "p95", "p99", "max"],
+                                                 np.r_[np.quantile(rms, [0.2, 0.5, 0.8, 0.95, 0.99]), rms.max()],
+                                                 strict=True)})
+    if centre_err:
+        ce = pd.DataFrame(centre_err)
+        print("\nNew 20 m changes after their day: |place centre − change centre|, m; places over one change:")
+        print(ce.groupby("design").agg(err_mean=("err_m", "mean"), err_max=("err_m", "max"),
+                                       places_max=("n_places", "max"), n=("err_m", "count")).round(2).to_string())
+    print("\nAlerts (events of the lifecycle) over the whole history:")
+    print(pd.Series({f"{h} seed {sd}: {n}": v for (h, sd, n), v in alerts_by.items()}).to_string())
+    if args.json:
+        args.json.write_text(json.dumps({"results": results, "centre_err": centre_err}, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

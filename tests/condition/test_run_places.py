@@ -1,0 +1,178 @@
+"""A run's places from the speed-conditioned index (anomaly against the class, step against the own
+history) and their lifecycle over runs (listing, tier changes, misses, alerts), on synthetic truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.analysis.condition.lifecycle import LifecycleParams, advance_places, severity_trend
+from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP
+from app.analysis.condition.run_places import PlaceParams, find_places, segment_index
+from app.analysis.condition.tiers import TierLimits, TierTable
+from app.analysis.stiffness.reference_curve import ReferenceCurve
+
+PARAMS = PlaceParams(TierTable(TierLimits(0.25, 0.375, 0.625), {"slab": TierLimits(0.2, 0.3, 0.5)}),
+                     TierLimits(0.10, 0.30, 0.50))
+SEG = np.arange(1000, 1300)  # 3 km of 10 m segments
+W = 4
+NOISE = 0.02  # run-to-run repeatability of a 10 m segment, ln units
+
+
+def _track(rng: np.random.Generator) -> np.ndarray:
+    """A line's own index per segment: smooth natural variation, |x| < 0.15."""
+    x = np.convolve(rng.normal(0, 0.05, SEG.size + 4), np.ones(5) / np.sqrt(5), mode="valid")
+    return np.clip(x, -0.15, 0.15)
+
+
+def _runs(rng: np.random.Generator, track: np.ndarray, n: int, extra=None) -> np.ndarray:
+    """(W, S, n) index of n runs: the track + per-run level + noise (+ extra(run) added)."""
+    out = np.empty((W, SEG.size, n))
+    for r in range(n):
+        out[:, :, r] = track[None, :] + rng.normal(0, 0.01) + rng.normal(0, NOISE, (W, SEG.size))
+        if extra is not None:
+            out[:, :, r] += extra(r)[None, :]
+    return out
+
+
+def _box(a_m: float, b_m: float, size: float) -> np.ndarray:
+    lo, hi = SEG * 10.0, (SEG + 1) * 10.0
+    return size * np.clip(np.minimum(hi, b_m) - np.maximum(lo, a_m), 0, None) / 10.0
+
+
+def test_a_new_20m_change_is_one_step_place_at_its_km():
+    rng = np.random.default_rng(1)
+    track = _track(rng)
+    hist = _runs(rng, track, 8)
+    new = _runs(rng, track, 1, lambda r: _box(11_503.0, 11_523.0, np.log(0.8)))[:, :, 0]
+    cls = np.full(SEG.size, "b91", dtype=object)
+    rp = find_places(SEG, new, hist, np.arange(8) * 14.0, 8 * 14.0, cls, segment_m=10.0, params=PARAMS)
+    assert len(rp) == 1
+    p = rp.places
+    assert p.direction[0] == -1 and p.evidence[0] & EVIDENCE_STEP
+    assert abs(p.centre_m[0] - 11_513.0) < 5.0
+    assert rp.change_tier[0] == 1 and rp.tier[0] == 1  # 0.10 ≤ |ln 0.8| = 0.223 < 0.30
+    assert rp.n_agreeing[0] == 4 and p.wheels[0] == 0b1111
+    assert rp.change[0] == pytest.approx(np.log(0.8), abs=0.06)
+
+
+def test_uniform_history_gives_no_place_and_no_history_no_step():
+    rng = np.random.default_rng(2)
+    track = _track(rng)
+    hist = _runs(rng, track, 10)
+    new = _runs(rng, track, 1)[:, :, 0]
+    cls = np.full(SEG.size, "b91", dtype=object)
+    assert len(find_places(SEG, new, hist, np.arange(10.0), 10.0, cls, segment_m=10.0, params=PARAMS)) == 0
+    # a step-sized change with too little history is not a step (level below the limit)
+    new2 = new + _box(11_500.0, 11_520.0, 0.2)[None, :]
+    rp = find_places(SEG, new2, hist[:, :, :3], np.arange(3.0), 3.0, cls, segment_m=10.0, params=PARAMS)
+    assert all(not (e & EVIDENCE_STEP) for e in rp.places.evidence)
+
+
+def test_a_lasting_anomaly_is_graded_by_the_limits_of_its_class():
+    rng = np.random.default_rng(3)
+    track = _track(rng) * 0.5 + _box(11_000.0, 11_030.0, 0.33)  # lasting, in history too
+    hist = _runs(rng, track, 8)
+    new = _runs(rng, track, 1)[:, :, 0]
+    cls = np.where(SEG < 1150, "slab", "b91").astype(object)
+    rp = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls, segment_m=10.0, params=PARAMS)
+    assert len(rp) == 1 and rp.places.evidence[0] == EVIDENCE_ANOMALY
+    assert rp.cls[0] == "slab" and rp.level_tier[0] == 2  # 0.33 ≥ slab's 0.3
+    cls_b = np.full(SEG.size, "b91", dtype=object)
+    rp_b = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls_b, segment_m=10.0, params=PARAMS)
+    assert rp_b.level_tier[0] == 1  # the default limits: 0.25 ≤ 0.33 < 0.375
+    assert rp_b.severity[0] == pytest.approx(abs(rp_b.level[0]) / 0.25)
+    none = np.full(SEG.size, None, dtype=object)  # no class (a superstructure change): no level test
+    assert len(find_places(SEG, new, hist, np.arange(8.0), 8.0, none, segment_m=10.0, params=PARAMS)) == 0
+
+
+def test_find_places_checks_arguments():
+    x = np.zeros((W, SEG.size))
+    h = np.zeros((W, SEG.size, 2))
+    cls = np.full(SEG.size, "b91", dtype=object)
+    with pytest.raises(ValueError, match="history"):
+        find_places(SEG, x, np.zeros((W, 3, 2)), np.arange(2.0), 2.0, cls, segment_m=10.0, params=PARAMS)
+    with pytest.raises(ValueError, match="history_days"):
+        find_places(SEG, x, h, np.arange(3.0), 2.0, cls, segment_m=10.0, params=PARAMS)
+    with pytest.raises(ValueError, match="classes"):
+        find_places(SEG, x, h, np.arange(2.0), 2.0, cls[:5], segment_m=10.0, params=PARAMS)
+    with pytest.raises(TypeError, match="params"):
+        find_places(SEG, x, h, np.arange(2.0), 2.0, cls, segment_m=10.0, params=None)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="min_history"):
+        PlaceParams(PARAMS.levels, PARAMS.changes, min_history=1)
+
+
+def test_segment_index_uses_the_curve_of_each_class():
+    nodes = np.log(np.array([10.0, 20.0, 40.0]))
+    curve = ReferenceCurve("slab", nodes, np.array([0.0, 1.0, 2.0]), np.zeros(3), np.zeros(3), np.zeros(3),
+                           np.full(3, 100), np.full(3, 5), 0.1, "within", 10, 10, 5, 0.05)
+    la = np.array([[1.0, 1.0, 1.0]])
+    v = np.array([[20.0, 20.0, 20.0]])
+    got = segment_index(la, v, np.array(["slab", "b91", None], dtype=object), {"slab": curve})
+    assert got[0, 0] == pytest.approx(0.0) and np.isnan(got[0, 1]) and np.isnan(got[0, 2])
+
+
+# --- lifecycle ---------------------------------------------------------------------------------
+
+
+def _found(rng, track_extra_by_run, n_hist=8):
+    """find_places of consecutive runs on one line with the given extra per run (in its history too:
+    the places are graded by their level, not by a step)."""
+    track = _track(np.random.default_rng(10)) * 0.5
+    cls = np.full(SEG.size, "b91", dtype=object)
+    for r, extra in enumerate(track_extra_by_run):
+        hist = _runs(rng, track + extra, n_hist)
+        new = _runs(rng, track + extra, 1)[:, :, 0]
+        yield r, find_places(SEG, new, hist, np.arange(n_hist, dtype=float) - n_hist, 0.0, cls, segment_m=10.0,
+                             params=PARAMS)
+
+
+def test_lifecycle_lists_after_two_runs_and_alerts_only_on_new_tier_and_back():
+    rng = np.random.default_rng(4)
+    spot = _box(12_000.0, 12_030.0, 1.0)
+    # runs: nothing, 0.28 (alert tier, seen once: candidate), 0.28 (listed: "new"), 0.30, 0.45 (tier up),
+    # 0.30, 0.30 (tier down after two lower runs), gone, gone (inactive), 0.30 (back)
+    sizes = [0.0, 0.28, 0.28, 0.30, 0.45, 0.30, 0.30, 0.0, 0.0, 0.30]
+    known, next_id, log = [], 1, []
+    params = LifecycleParams()
+    for r, rp in _found(rng, [s * spot for s in sizes]):
+        events, ids, next_id = advance_places(known, rp, run_id=r, day=14.0 * r, covered_m=(10_000.0, 13_000.0),
+                                              params=params, next_id=next_id)
+        log.append([(e.kind, e.old_tier, e.new_tier) for e in events])
+    assert log == [[], [], [("new", 0, 1)], [], [("tier", 1, 2)], [], [("tier", 2, 1)], [], [], [("back", 1, 1)]]
+    assert len(known) == 1 and known[0].id == 1 and known[0].confirmations == 7
+    assert known[0].first_seen_day == 14.0 and known[0].last_confirmed_day == 126.0
+
+
+def test_a_single_run_candidate_is_forgotten_and_an_intervention_place_is_listed_at_once():
+    rng = np.random.default_rng(5)
+    spot = _box(12_000.0, 12_030.0, 1.0)
+    other = _box(11_000.0, 11_020.0, 1.0)
+    sizes = [(0.28, 0.0), (0.0, 0.45), (0.0, 0.45), (0.0, 0.0)]
+    known, next_id, log = [], 1, []
+    for r, rp in _found(rng, [a * spot + b * other for a, b in sizes]):
+        events, ids, next_id = advance_places(known, rp, run_id=r, day=float(r), covered_m=(10_000.0, 13_000.0),
+                                              params=LifecycleParams(), next_id=next_id)
+        log.append([(e.place_id, e.kind) for e in events])
+    assert log == [[], [(2, "new")], [], []]
+    assert [k.id for k in known] == [2]  # the candidate 1 missed twice: forgotten
+    assert known[0].misses == 1 and known[0].active
+
+
+def test_a_run_that_does_not_cover_a_place_does_not_miss_it_and_trend_of_a_growing_place():
+    rng = np.random.default_rng(6)
+    spot = _box(12_000.0, 12_040.0, 1.0)
+    sizes = [0.30, 0.33, 0.36, 0.39, 0.42, 0.45]
+    known, next_id = [], 1
+    for r, rp in _found(rng, [s * spot for s in sizes]):
+        _, _, next_id = advance_places(known, rp, run_id=r, day=14.0 * r, covered_m=(10_000.0, 13_000.0),
+                                       params=LifecycleParams(), next_id=next_id)
+    tr = severity_trend(known[0])
+    assert tr.significant and tr.rate_per_year == pytest.approx(0.03 / 14 * 365.25, rel=0.25)
+    empty = next(_found(rng, [0.0 * spot]))[1]
+    advance_places(known, empty, run_id=99, day=100.0, covered_m=(10_000.0, 11_500.0), params=LifecycleParams(),
+                   next_id=next_id)
+    assert known[0].misses == 0
+    with pytest.raises(ValueError, match="covered_m"):
+        advance_places(known, empty, run_id=100, day=101.0, covered_m=(2.0, 1.0), params=LifecycleParams(),
+                       next_id=next_id)
