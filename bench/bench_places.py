@@ -56,6 +56,7 @@ from app.analysis.condition.lifecycle import (  # noqa: E402
     advance_places,
     severity_trend,
 )
+from app.analysis.condition.maintenance_effect import action_effect  # noqa: E402
 from app.analysis.condition.outlook import time_to_limit  # noqa: E402
 from app.analysis.condition.places import merge_places  # noqa: E402
 from app.analysis.condition.run_places import PlaceParams, find_places, segment_index  # noqa: E402
@@ -238,6 +239,18 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
                                             np.array([kp.end_m for kp in listed]),
                                             np.array([kp.observations[-1].centre_m for kp in listed]), order)
             alerts_by[(which, seed, name)] = n_alerts[0]
+            tamp = [c.day for c in spec.changes if c.kind == "tamping"]
+            if name == CHOSEN and tamp and k + 1 < len(runs) and runs[k + 1].day > tamp[0] > run.day:
+                for t in (t for t in truth if t.kind == "developing"):
+                    for kp in listed:
+                        if overlaps(kp.start_m, kp.end_m, t):
+                            tr = severity_trend(kp)
+                            nxt = float(DEFAULT_LEVELS.next_limit(np.array([kp.tier]),
+                                                                   np.array([kp.cls], dtype=object))[0])
+                            trends.append({"history": which, "seed": seed, "run": k, "truth_per_year": 1.2,
+                                           "rate": tr.rate_per_year, "low": tr.low_per_year,
+                                           "high": tr.high_per_year, "runs": tr.n, "tier": kp.tier,
+                                           "days_to_next": time_to_limit(tr, nxt).days})
         for name, (a, b, c, order) in found_by.items():
             real = np.array([any(overlaps(a[i], b[i], t) for t in truth) for i in range(a.size)], dtype=bool)
             ramp = (a < ramp_lo) | (b > ramp_hi)
@@ -266,6 +279,40 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         on_ramp = (centres < ramp_lo) | (centres > ramp_hi)
         healthy.append(pd.DataFrame({"history": which, "seed": seed, "run": k, "cls": cls_lbl[far],
                                      "index": level[far], "ramp": on_ramp[far], "seg": run.seg[far]}))
+    for t in (c for c in spec.changes if c.kind == "tamping"):
+        effects.append({"history": which, "seed": seed, "truth_pct": 100 * np.expm1(spec.tamping_effect(t)),
+                        **tamping_effect(runs, bins, sections, t)})
+
+
+def tamping_effect(runs: list[RunData], bins: pd.DataFrame, sections: pd.DataFrame, action) -> dict[str, float]:
+    """The tamping's effect (% of the amplitude) from ``ln A`` and from the index, each relative to the
+    surrounding ±1 km of the same run or absolute; the index with the curves of all runs."""
+    curves = fit_curves(bins, sections, [r.run_id for r in runs])
+    days = np.array([r.day for r in runs])
+    out = {}
+    for name in ("lnA relative", "index relative", "index absolute"):
+        vals = []
+        for run in runs:
+            centres = (run.seg + 0.5) * SEG_M
+            if name.startswith("index"):
+                x = mean_w(segment_index(run.log_amp, run.speed, classes_of(sections, centres), curves))
+            else:
+                x = mean_w(run.log_amp)
+            inside = (centres >= action.track_from_m) & (centres < action.track_to_m)
+            around = (np.abs(centres - 0.5 * (action.track_from_m + action.track_to_m)) < 1000.0) & \
+                ~((centres >= action.track_from_m - 50) & (centres < action.track_to_m + 50))
+            v = np.nanmedian(x[inside])
+            if name.endswith("relative"):
+                v -= np.nanmean(x[around])
+            vals.append(v)
+        eff = action_effect(days, np.array(vals), action.day)
+        out[name] = 100 * np.expm1(eff.recovery) if eff.recovery is not None else np.nan
+    return out
+
+
+effects: list[dict] = []
+trends: list[dict] = []
+CHOSEN = "per class + step"
 
 
 alerts_by: dict[tuple[str, int, str], int] = {}
@@ -360,6 +407,12 @@ def main(argv: list[str] | None = None) -> int:
                                        places_max=("n_places", "max"), n=("err_m", "count")).round(2).to_string())
     print("\nAlerts (events of the lifecycle) over the whole history:")
     print(pd.Series({f"{h} seed {sd}: {n}": v for (h, sd, n), v in alerts_by.items()}).to_string())
+    if trends:
+        print("\nThe developing place (truth +1.2 ln units / year) on the run before the tamping: its trend:")
+        print(pd.DataFrame(trends).round(2).to_string(index=False))
+    if effects:
+        print("\nTamping effect, % of the amplitude (truth: the action's own factor on the typical track of its extent):")
+        print(pd.DataFrame(effects).round(1).to_string(index=False))
     if args.json:
         args.json.write_text(json.dumps({"results": results, "centre_err": centre_err}, indent=1, default=float))
     return 0
