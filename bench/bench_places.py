@@ -59,7 +59,15 @@ from app.analysis.condition.lifecycle import (  # noqa: E402
 from app.analysis.condition.maintenance_effect import action_effect  # noqa: E402
 from app.analysis.condition.outlook import time_to_limit  # noqa: E402
 from app.analysis.condition.places import merge_places  # noqa: E402
-from app.analysis.condition.run_places import PlaceParams, find_places, segment_index  # noqa: E402
+from app.analysis.condition.run_places import (  # noqa: E402
+    DEFAULT_CHANGE_LIMITS,
+    DEFAULT_LEVEL_LIMITS,
+    DEFAULT_PLACE_PARAMS,
+    PlaceParams,
+    find_places,
+    segment_index,
+)
+from app.analysis.condition.segment_curves import fit_segment_curves  # noqa: E402
 from app.analysis.condition.tiers import TierLimits, TierTable, rank_places  # noqa: E402
 from app.analysis.stiffness.reference_curve import fit_reference_from_rows  # noqa: E402
 from app.analysis.stiffness.superstructure import section_classes  # noqa: E402
@@ -174,20 +182,19 @@ def overlaps(a: float, b: float, t: TruthPlace, tol_m: float = 10.0) -> bool:
 
 
 def variants() -> dict[str, PlaceParams]:
-    """The work-list designs compared (level limits per class on |index|, change limits on |change|)."""
-    change = TierLimits(0.10, 0.30, 0.50)
-    out = {}
-    for lvl in (0.25,):
-        out[f"level {lvl:.2f} + step"] = PlaceParams(TierTable(TierLimits(lvl, 1.5 * lvl, 2.5 * lvl)), change)
-    out["per class + step"] = PlaceParams(DEFAULT_LEVELS, change)
-    out["per class + step 0.15"] = PlaceParams(DEFAULT_LEVELS, TierLimits(0.15, 0.25, 0.45))
-    return out
+    """The work-list designs compared (level limits per class on |index|, change limits on |change|); a
+    name ending in "(store curves)" uses the curves fitted to the store's 10 m rows, the others the curves
+    of the 25 cm rows."""
+    return {
+        "level 0.25 + step": PlaceParams(TierTable(TierLimits(0.25, 0.375, 0.625)), DEFAULT_CHANGE_LIMITS),
+        "per class + step": DEFAULT_PLACE_PARAMS,
+        CHOSEN: DEFAULT_PLACE_PARAMS,
+        "per class + step 0.15 (store curves)": PlaceParams(DEFAULT_LEVEL_LIMITS, TierLimits(0.15, 0.30, 0.50)),
+    }
 
 
-#: the per-class level limits the measurement suggests (module docstring of app.analysis.condition.run_places)
-DEFAULT_LEVELS = TierTable(TierLimits(0.25, 0.375, 0.625), {
-    "slab": TierLimits(0.20, 0.30, 0.50), "b91_no_pads": TierLimits(0.25, 0.375, 0.625),
-    "b91_pads": TierLimits(0.30, 0.45, 0.75)})
+DEFAULT_LEVELS = DEFAULT_LEVEL_LIMITS
+CHOSEN = "per class + step (store curves)"
 
 
 def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[dict], healthy: list[pd.DataFrame],
@@ -202,10 +209,16 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         cls = classes_of(sections, centres)
         cls_lbl = np.array(["-" if c is None else c for c in cls.tolist()], dtype=object)
         curves = fit_curves(bins, sections, [r.run_id for r in runs[:k + 1]])
+        store_curves = fit_store_curves(runs[:k + 1], sections)
         idx = segment_index(run.log_amp, run.speed, cls, curves)
         hist = np.stack([_on(runs[j], run, segment_index(runs[j].log_amp, runs[j].speed,
                                                          classes_of(sections, (runs[j].seg + 0.5) * SEG_M), curves))
                          for j in range(k)], axis=2) if k else np.zeros((*idx.shape, 0))
+        idx_s = segment_index(run.log_amp, run.speed, cls, store_curves)
+        hist_s = np.stack([_on(runs[j], run, segment_index(runs[j].log_amp, runs[j].speed,
+                                                           classes_of(sections, (runs[j].seg + 0.5) * SEG_M),
+                                                           store_curves))
+                           for j in range(k)], axis=2) if k else np.zeros((*idx.shape, 0))
         days = np.array([r.day for r in runs[:k]])
         level = mean_w(idx)
         ln_a = mean_w(run.log_amp)
@@ -219,7 +232,10 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         found_by["stored step (lnA, matched speed)"] = (p.start_m, p.end_m, p.centre_m, np.argsort(-np.abs(p.peak)))
         covered = (float(run.seg.min() * SEG_M), float((run.seg.max() + 1) * SEG_M))
         for name, params in variants().items():
-            rp = find_places(run.seg, idx, hist, days, run.day, cls, segment_m=SEG_M, params=params)
+            if name.endswith("(store curves)"):
+                rp = find_places(run.seg, idx_s, hist_s, days, run.day, cls, segment_m=SEG_M, params=params)
+            else:
+                rp = find_places(run.seg, idx, hist, days, run.day, cls, segment_m=SEG_M, params=params)
             order = rank_places(rp.tier, np.full(len(rp), np.nan), rp.severity)
             found_by[name] = (rp.places.start_m, rp.places.end_m, rp.places.centre_m, order)
             # the same design with the lifecycle: the work list holds the listed, active places
@@ -312,11 +328,21 @@ def tamping_effect(runs: list[RunData], bins: pd.DataFrame, sections: pd.DataFra
 
 effects: list[dict] = []
 trends: list[dict] = []
-CHOSEN = "per class + step"
 
 
 alerts_by: dict[tuple[str, int, str], int] = {}
 LIFECYCLE = LifecycleParams()
+
+
+def fit_store_curves(runs: list[RunData], sections: pd.DataFrame) -> dict:
+    """The reference curves from the store's 10 m rows of ``runs`` (:mod:`app.analysis.condition.segment_curves`)."""
+    parts = []
+    for r in runs:
+        cls = classes_of(sections, (r.seg + 0.5) * SEG_M)
+        for i, w in enumerate(r.wheels):
+            parts.append((r.seg, r.log_amp[i], r.speed[i], np.full(r.seg.size, r.run_id), np.full(r.seg.size, w), cls))
+    cols = [np.concatenate([p[j] for p in parts]) for j in range(6)]
+    return dict(fit_segment_curves(*cols).curves)
 
 
 def fit_curves(bins: pd.DataFrame, sections: pd.DataFrame, upto: list[int]) -> dict:

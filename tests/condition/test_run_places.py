@@ -176,3 +176,29 @@ def test_a_run_that_does_not_cover_a_place_does_not_miss_it_and_trend_of_a_growi
     with pytest.raises(ValueError, match="covered_m"):
         advance_places(known, empty, run_id=100, day=101.0, covered_m=(2.0, 1.0), params=LifecycleParams(),
                        next_id=next_id)
+
+
+def test_segment_curves_recover_the_speed_law_of_segment_rows():
+    from app.analysis.condition.segment_curves import fit_segment_curves, segment_samples
+
+    rng = np.random.default_rng(7)
+    seg = np.arange(400)
+    location = rng.normal(0, 0.08, (2, seg.size))  # per rail
+    rows = []
+    for run in range(8):
+        v = 30.0 * (1 + 0.1 * rng.uniform(-1, 1)) * (1 + 0.3 * np.clip((seg - 350) / 50, 0, 1))
+        for w in ("11", "12", "41", "42"):
+            la = 1.5 * np.log(v / 30.0) + location[int(w[1]) - 1] + rng.normal(0, 0.03, seg.size)
+            rows.append((seg, la, v, np.full(seg.size, run), np.full(seg.size, w), np.full(seg.size, "slab", object)))
+    cols = [np.concatenate([r[j] for r in rows]) for j in range(6)]
+    ref = fit_segment_curves(*cols)
+    curve = ref.curves["slab"]
+    g, _ = curve.evaluate(np.array([30.0, 33.0]))
+    assert g[1] - g[0] == pytest.approx(1.5 * np.log(1.1), abs=0.03)  # the within-location slope
+    s = segment_samples(*cols)
+    assert len(s) == cols[0].size and len(np.unique(s.location)) == 2 * seg.size
+    cls = cols[5].copy()
+    cls[:10] = None
+    assert len(segment_samples(cols[0], cols[1], cols[2], cols[3], cols[4], cls)) == cols[0].size - 10
+    with pytest.raises(ValueError, match="equal length"):
+        segment_samples(cols[0], cols[1][:5], cols[2], cols[3], cols[4], cols[5])

@@ -41,7 +41,32 @@ from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP, Place
 from app.analysis.condition.tiers import TierLimits, TierTable
 from app.analysis.stiffness.reference_curve import ReferenceCurve
 
-__all__ = ["PlaceParams", "RunPlaces", "segment_index", "find_places"]
+__all__ = [
+    "DEFAULT_LEVEL_LIMITS",
+    "DEFAULT_CHANGE_LIMITS",
+    "DEFAULT_PLACE_PARAMS",
+    "PlaceParams",
+    "RunPlaces",
+    "segment_index",
+    "find_places",
+]
+
+#: Limits of ``|index|`` per superstructure class (ln units), measured (``bench/bench_places.py``, three
+#: seeds of a uniform and a planted history through the real pipeline): the alert limit lies above the
+#: largest ``|index|`` of healthy 10 m segments of the class outside the ramps (slab 0.20 → 0.20, B91
+#: without pads 0.22 → 0.25, with pads 0.22 → 0.30; soft track has the lower signal-to-noise ratio),
+#: intervention and immediate action at 1.5 and 2.5 times it (the ratios of EN 13848-5's limits for
+#: isolated defects). Classes without their own row use the default (B91 without pads).
+DEFAULT_LEVEL_LIMITS = TierTable(
+    TierLimits(0.25, 0.375, 0.625),
+    {"slab": TierLimits(0.20, 0.30, 0.50), "b91_no_pads": TierLimits(0.25, 0.375, 0.625),
+     "b91_pads": TierLimits(0.30, 0.45, 0.75)},
+)
+#: Limits of ``|change|`` against the own history (ln units): 0.10 is above the largest significant
+#: step of healthy segments between runs at different speeds (0.05–0.10: the VKF's resolution along
+#: the track changes with speed) and below the changes to find (a 20 % change is 0.22: alert); a sudden
+#: change of +35 % / −26 % is an intervention, of +65 % / −40 % immediate action.
+DEFAULT_CHANGE_LIMITS = TierLimits(0.10, 0.30, 0.50)
 
 
 @dataclass(frozen=True)
@@ -145,6 +170,10 @@ class RunPlaces:
 
     def __len__(self) -> int:
         return len(self.places)
+
+
+#: The measured defaults (step score 4.5 as the store's change tests, 5 earlier runs, gap 10 m).
+DEFAULT_PLACE_PARAMS = PlaceParams(DEFAULT_LEVEL_LIMITS, DEFAULT_CHANGE_LIMITS)
 
 
 def segment_index(log_amp: np.ndarray, speed_mps: np.ndarray, classes: np.ndarray,
