@@ -342,7 +342,7 @@ def fit_store_curves(runs: list[RunData], sections: pd.DataFrame) -> dict:
         for i, w in enumerate(r.wheels):
             parts.append((r.seg, r.log_amp[i], r.speed[i], np.full(r.seg.size, r.run_id), np.full(r.seg.size, w), cls))
     cols = [np.concatenate([p[j] for p in parts]) for j in range(6)]
-    return dict(fit_segment_curves(*cols).curves)
+    return fit_segment_curves(*cols)
 
 
 def fit_curves(bins: pd.DataFrame, sections: pd.DataFrame, upto: list[int]) -> dict:

@@ -191,8 +191,7 @@ def test_segment_curves_recover_the_speed_law_of_segment_rows():
             la = 1.5 * np.log(v / 30.0) + location[int(w[1]) - 1] + rng.normal(0, 0.03, seg.size)
             rows.append((seg, la, v, np.full(seg.size, run), np.full(seg.size, w), np.full(seg.size, "slab", object)))
     cols = [np.concatenate([r[j] for r in rows]) for j in range(6)]
-    ref = fit_segment_curves(*cols)
-    curve = ref.curves["slab"]
+    curve = fit_segment_curves(*cols)["slab"]
     g, _ = curve.evaluate(np.array([30.0, 33.0]))
     assert g[1] - g[0] == pytest.approx(1.5 * np.log(1.1), abs=0.03)  # the within-location slope
     s = segment_samples(*cols)

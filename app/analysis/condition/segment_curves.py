@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.analysis.stiffness.reference_curve import BlockSamples, ReferenceSet, fit_reference_set
+from app.analysis.stiffness.reference_curve import BlockSamples, ReferenceCurve, fit_reference_curve
 
 __all__ = ["segment_samples", "fit_segment_curves"]
 
@@ -70,12 +70,14 @@ def segment_samples(seg: np.ndarray, log_amp: np.ndarray, speed_mps: np.ndarray,
 
 def fit_segment_curves(seg: np.ndarray, log_amp: np.ndarray, speed_mps: np.ndarray, run: np.ndarray,
                        wheel: np.ndarray, classes: np.ndarray, *, speed_tolerance: float = 0.1,
-                       min_support: int = 20) -> ReferenceSet:
-    """The line's reference curves from segment rows (arguments as :func:`segment_samples`).
+                       min_support: int = 20) -> dict[str, ReferenceCurve]:
+    """The line's reference curve per class from segment rows (arguments as :func:`segment_samples`).
 
     ``speed_tolerance`` and ``min_support`` as
-    :func:`~app.analysis.stiffness.reference_curve.fit_reference_curve`; no bootstrap band
-    (the places need the curve, not its band).
+    :func:`~app.analysis.stiffness.reference_curve.fit_reference_curve`; no bootstrap band and no
+    wheel diagnostics (the places need the curve only).
     """
     samples = segment_samples(seg, log_amp, speed_mps, run, wheel, classes)
-    return fit_reference_set(samples, speed_tolerance=speed_tolerance, min_support=min_support, n_boot=0)
+    return {c: fit_reference_curve(samples.take(samples.cls == c), c, speed_tolerance=speed_tolerance,
+                                   min_support=min_support, n_boot=0)
+            for c in sorted(set(samples.cls.tolist()))}
