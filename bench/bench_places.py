@@ -67,10 +67,11 @@ from app.analysis.condition.run_places import (  # noqa: E402
     find_places,
     segment_index,
 )
+from app.analysis.condition.section_class import DEFAULT_SECTION_LIMITS, section_classes  # noqa: E402
 from app.analysis.condition.segment_curves import fit_segment_curves  # noqa: E402
 from app.analysis.condition.tiers import TierLimits, TierTable, rank_places  # noqa: E402
 from app.analysis.stiffness.reference_curve import fit_reference_from_rows  # noqa: E402
-from app.analysis.stiffness.superstructure import section_classes  # noqa: E402
+from app.analysis.stiffness.superstructure import section_classes as superstructure_classes  # noqa: E402
 from app.simulate.history import HistorySpec, TruthPlace, planted_history, uniform_history  # noqa: E402
 
 SEG_M = 10.0
@@ -155,7 +156,7 @@ def load(url: str, spec: HistorySpec) -> tuple[list[RunData], pd.DataFrame, pd.D
 
 
 def classes_of(sections: pd.DataFrame, pos: np.ndarray, margin_m: float = 50.0) -> np.ndarray:
-    return section_classes(pos, sections["km_from"].to_numpy() * 1000.0, sections["km_to"].to_numpy() * 1000.0,
+    return superstructure_classes(pos, sections["km_from"].to_numpy() * 1000.0, sections["km_to"].to_numpy() * 1000.0,
                            sections["type"].to_numpy(dtype=object), boundary_margin_m=margin_m)
 
 
@@ -188,13 +189,15 @@ def variants() -> dict[str, PlaceParams]:
     return {
         "level 0.25 + step": PlaceParams(TierTable(TierLimits(0.25, 0.375, 0.625)), DEFAULT_CHANGE_LIMITS),
         "per class + step": DEFAULT_PLACE_PARAMS,
+        "per class + step (store curves)": DEFAULT_PLACE_PARAMS,
+        "per class + step (store curves, ≥ 40 locations)": DEFAULT_PLACE_PARAMS,
         CHOSEN: DEFAULT_PLACE_PARAMS,
-        "per class + step 0.15 (store curves)": PlaceParams(DEFAULT_LEVEL_LIMITS, TierLimits(0.15, 0.30, 0.50)),
     }
 
 
 DEFAULT_LEVELS = DEFAULT_LEVEL_LIMITS
-CHOSEN = "per class + step (store curves)"
+MIN_LOCATIONS = (0, 40, 80)
+CHOSEN = "per class + step (store curves, ≥ 80 locations)"
 
 
 def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[dict], healthy: list[pd.DataFrame],
@@ -209,18 +212,19 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         cls = classes_of(sections, centres)
         cls_lbl = np.array(["-" if c is None else c for c in cls.tolist()], dtype=object)
         curves = fit_curves(bins, sections, [r.run_id for r in runs[:k + 1]])
-        store_curves = fit_store_curves(runs[:k + 1], sections)
+        store_curves = {n: fit_store_curves(runs[:k + 1], sections, n) for n in MIN_LOCATIONS}
         idx = segment_index(run.log_amp, run.speed, cls, curves)
         hist = np.stack([_on(runs[j], run, segment_index(runs[j].log_amp, runs[j].speed,
                                                          classes_of(sections, (runs[j].seg + 0.5) * SEG_M), curves))
                          for j in range(k)], axis=2) if k else np.zeros((*idx.shape, 0))
-        idx_s = segment_index(run.log_amp, run.speed, cls, store_curves)
-        hist_s = np.stack([_on(runs[j], run, segment_index(runs[j].log_amp, runs[j].speed,
-                                                           classes_of(sections, (runs[j].seg + 0.5) * SEG_M),
-                                                           store_curves))
-                           for j in range(k)], axis=2) if k else np.zeros((*idx.shape, 0))
+        idx_s, hist_s = {}, {}
+        for n, sc in store_curves.items():
+            idx_s[n] = segment_index(run.log_amp, run.speed, cls, sc)
+            hist_s[n] = np.stack([_on(runs[j], run, segment_index(runs[j].log_amp, runs[j].speed,
+                                                                  classes_of(sections, (runs[j].seg + 0.5) * SEG_M),
+                                                                  sc))
+                                  for j in range(k)], axis=2) if k else np.zeros((*idx.shape, 0))
         days = np.array([r.day for r in runs[:k]])
-        level = mean_w(idx)
         ln_a = mean_w(run.log_amp)
         found_by: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         # the current work list's anomaly and the stored matched-speed step test
@@ -232,8 +236,9 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         found_by["stored step (lnA, matched speed)"] = (p.start_m, p.end_m, p.centre_m, np.argsort(-np.abs(p.peak)))
         covered = (float(run.seg.min() * SEG_M), float((run.seg.max() + 1) * SEG_M))
         for name, params in variants().items():
-            if name.endswith("(store curves)"):
-                rp = find_places(run.seg, idx_s, hist_s, days, run.day, cls, segment_m=SEG_M, params=params)
+            if "store curves" in name:
+                n = int(name.split("≥ ")[1].split(" ")[0]) if "≥" in name else 0
+                rp = find_places(run.seg, idx_s[n], hist_s[n], days, run.day, cls, segment_m=SEG_M, params=params)
             else:
                 rp = find_places(run.seg, idx, hist, days, run.day, cls, segment_m=SEG_M, params=params)
             order = rank_places(rp.tier, np.full(len(rp), np.nan), rp.severity)
@@ -241,7 +246,7 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
             # the same design with the lifecycle: the work list holds the listed, active places
             known, next_id, n_alerts = life.setdefault(name, ([], 1, [0]))
             events, _, next_id = advance_places(known, rp, run_id=run.run_id, day=run.day, covered_m=covered,
-                                                params=LIFECYCLE, next_id=next_id)
+                                                params=LIFECYCLE, next_id=next_id, place_params=params)
             life[name] = (known, next_id, n_alerts)
             n_alerts[0] += len(events)
             listed = [kp for kp in known if kp.listed and kp.active]
@@ -294,16 +299,26 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
             far &= ~((centres > t.track_from_m - 30) & (centres < t.track_to_m + 30))
         on_ramp = (centres < ramp_lo) | (centres > ramp_hi)
         healthy.append(pd.DataFrame({"history": which, "seed": seed, "run": k, "cls": cls_lbl[far],
-                                     "index": level[far], "ramp": on_ramp[far], "seg": run.seg[far]}))
+                                     "index": mean_w(idx_s[MIN_LOCATIONS[-1]])[far], "ramp": on_ramp[far], "seg": run.seg[far]}))
+    # section classes of the newest run: the class of the sections holding a planted feature, and the others
+    run = runs[-1]
+    sc = section_classes(run.seg, mean_w(idx_s[MIN_LOCATIONS[-1]]), segment_m=SEG_M, limits=DEFAULT_SECTION_LIMITS)
+    planted = np.zeros(len(sc), bool)
+    for t in spec.truth_places(run.day):
+        if t.kind != "tamping":
+            planted |= (sc.start_m < t.track_to_m) & (t.track_from_m < sc.end_m)
+    sections_out.append({"history": which, "seed": seed,
+                         "healthy": " ".join(sorted(c or "-" for c in sc.cls[~planted])),
+                         "with a planted place": " ".join(c or "-" for c in sc.cls[planted])})
     for t in (c for c in spec.changes if c.kind == "tamping"):
         effects.append({"history": which, "seed": seed, "truth_pct": 100 * np.expm1(spec.tamping_effect(t)),
-                        **tamping_effect(runs, bins, sections, t)})
+                        **tamping_effect(runs, sections, t)})
 
 
-def tamping_effect(runs: list[RunData], bins: pd.DataFrame, sections: pd.DataFrame, action) -> dict[str, float]:
+def tamping_effect(runs: list[RunData], sections: pd.DataFrame, action) -> dict[str, float]:
     """The tamping's effect (% of the amplitude) from ``ln A`` and from the index, each relative to the
-    surrounding ±1 km of the same run or absolute; the index with the curves of all runs."""
-    curves = fit_curves(bins, sections, [r.run_id for r in runs])
+    surrounding ±1 km of the same run or absolute; the index with the curves of the store's rows of all runs."""
+    curves = fit_store_curves(runs, sections, MIN_LOCATIONS[-1])
     days = np.array([r.day for r in runs])
     out = {}
     for name in ("lnA relative", "index relative", "index absolute"):
@@ -327,6 +342,7 @@ def tamping_effect(runs: list[RunData], bins: pd.DataFrame, sections: pd.DataFra
 
 
 effects: list[dict] = []
+sections_out: list[dict] = []
 trends: list[dict] = []
 
 
@@ -334,7 +350,7 @@ alerts_by: dict[tuple[str, int, str], int] = {}
 LIFECYCLE = LifecycleParams()
 
 
-def fit_store_curves(runs: list[RunData], sections: pd.DataFrame) -> dict:
+def fit_store_curves(runs: list[RunData], sections: pd.DataFrame, min_locations: int = 0) -> dict:
     """The reference curves from the store's 10 m rows of ``runs`` (:mod:`app.analysis.condition.segment_curves`)."""
     parts = []
     for r in runs:
@@ -342,7 +358,7 @@ def fit_store_curves(runs: list[RunData], sections: pd.DataFrame) -> dict:
         for i, w in enumerate(r.wheels):
             parts.append((r.seg, r.log_amp[i], r.speed[i], np.full(r.seg.size, r.run_id), np.full(r.seg.size, w), cls))
     cols = [np.concatenate([p[j] for p in parts]) for j in range(6)]
-    return fit_segment_curves(*cols)
+    return fit_segment_curves(*cols, min_locations=min_locations)
 
 
 def fit_curves(bins: pd.DataFrame, sections: pd.DataFrame, upto: list[int]) -> dict:
@@ -415,7 +431,8 @@ def main(argv: list[str] | None = None) -> int:
         return pd.Series(np.r_[np.quantile(a, [0.5, 0.99, 0.999]), a.max()] if a.size else [np.nan] * 4,
                          index=["p50", "p99", "p99.9", "max"])
 
-    print("\nHealthy 10 m segments (30 m from anything planted), |index| per class and ramp/cruise, ln units:")
+    print("\nHealthy 10 m segments (30 m from anything planted), |index| per class and ramp/cruise, ln units"
+          f" (curves of the store's rows, ≥ {MIN_LOCATIONS[-1]} locations):")
     print(h.groupby(["cls", "ramp"])["index"].apply(q).unstack().round(3).to_string())
     h["sec"] = h["seg"] // 20
     sec = h.groupby(["history", "seed", "run", "sec"]).agg(level=("index", "mean"), spread=("index", "std"),
@@ -433,6 +450,8 @@ def main(argv: list[str] | None = None) -> int:
                                        places_max=("n_places", "max"), n=("err_m", "count")).round(2).to_string())
     print("\nAlerts (events of the lifecycle) over the whole history:")
     print(pd.Series({f"{h} seed {sd}: {n}": v for (h, sd, n), v in alerts_by.items()}).to_string())
+    print("\n200 m section classes of the newest run (A best … E):")
+    print(pd.DataFrame(sections_out).to_string(index=False))
     if trends:
         print("\nThe developing place (truth +1.2 ln units / year) on the run before the tamping: its trend:")
         print(pd.DataFrame(trends).round(2).to_string(index=False))

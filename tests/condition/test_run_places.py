@@ -201,3 +201,49 @@ def test_segment_curves_recover_the_speed_law_of_segment_rows():
     assert len(segment_samples(cols[0], cols[1], cols[2], cols[3], cols[4], cls)) == cols[0].size - 10
     with pytest.raises(ValueError, match="equal length"):
         segment_samples(cols[0], cols[1][:5], cols[2], cols[3], cols[4], cols[5])
+
+
+def test_a_growing_place_below_the_limits_is_found_by_its_trend():
+    from app.analysis.condition.places import EVIDENCE_TREND
+
+    rng = np.random.default_rng(8)
+    track = _track(rng) * 0.3
+    spot = _box(12_000.0, 12_040.0, 1.0)
+    days = np.arange(9) * 14.0  # 8 earlier runs and the new one, growing 0.6 per year
+    runs = _runs(rng, track, 9, lambda r: spot * 0.6 * days[r] / 365.25)
+    cls = np.full(SEG.size, "b91", dtype=object)
+    rp = find_places(SEG, runs[:, :, -1], runs[:, :, :-1], days[:-1], days[-1], cls, segment_m=10.0, params=PARAMS)
+    assert len(rp) == 1
+    assert rp.places.evidence[0] & EVIDENCE_TREND and rp.tier[0] == 0  # level 0.18 < 0.25: watch
+    assert rp.rate_per_year[0] == pytest.approx(0.6, rel=0.2)
+    assert 12_000.0 <= rp.places.centre_m[0] <= 12_040.0
+    # a place recovering towards typical track (negative rate on a positive level) is not a trend place
+    back = _runs(rng, track, 9, lambda r: spot * (0.2 - 0.6 * days[r] / 365.25))
+    rp2 = find_places(SEG, back[:, :, -1], back[:, :, :-1], days[:-1], days[-1], cls, segment_m=10.0, params=PARAMS)
+    assert all(not (e & EVIDENCE_TREND) or d < 0 for e, d in zip(rp2.places.evidence, rp2.places.direction,
+                                                                   strict=True))
+
+
+def test_a_lasting_step_is_held_against_its_baseline_and_a_repair_drops_it():
+    rng = np.random.default_rng(9)
+    track = _track(np.random.default_rng(11)) * 0.5
+    spot = _box(12_000.0, 12_020.0, np.log(1.2))  # +20 % from run 6 on, repaired (gone) from run 14
+    cls = np.full(SEG.size, "b91", dtype=object)
+    all_runs = _runs(rng, track, 18, lambda r: spot if 6 <= r < 14 else 0.0 * spot)
+    days = np.arange(18) * 7.0
+    known, next_id, active = [], 1, []
+    for r in range(5, 18):
+        rp = find_places(SEG, all_runs[:, :, r], all_runs[:, :, :r], days[:r], days[r], cls, segment_m=10.0,
+                         params=PARAMS)
+        advance_places(known, rp, run_id=r, day=days[r], covered_m=(10_000.0, 13_000.0), params=LifecycleParams(),
+                       next_id=next_id, place_params=PARAMS)
+        next_id = max([k.id for k in known], default=0) + 1
+        spot_places = [k for k in known if k.start_m < 12_030 and k.end_m > 11_990]
+        active.append(bool(spot_places) and spot_places[0].active and spot_places[0].listed)
+        if spot_places and r == 13:
+            k = spot_places[0]
+            assert k.baseline is not None and k.observations[-1].change == pytest.approx(np.log(1.2), abs=0.07)
+            assert k.confirmations == 8  # runs 6 … 13: found by the step, then held against its baseline
+    # runs 5 … 17: nothing; found on 6 (alert tier: not listed yet); listed from 7 and held to 13; back at
+    # its baseline from 14: missed by 14 (still active) and 15 (inactive from then on)
+    assert active == [False, False] + [True] * 7 + [True, False, False, False]

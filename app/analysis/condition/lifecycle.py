@@ -6,11 +6,18 @@ every known place whatever its workflow status, so a place that comes back
 after it was marked fixed keeps its id and history). Then:
 
 * a known place found again is **confirmed** by the run: its extent becomes
-  today's, its observation (day, level, change, tier) is added; a place not found
-  by a run that covered its extent is **missed** by it (``misses`` counts the
-  consecutive ones), and after ``drop_after`` misses it is no longer
-  **active** (not on the list until found again; a place never listed is
-  then forgotten);
+  today's, its observation (day, level, change, tier) is added;
+* a place keeps the index it had **before it appeared** (its *baseline*: the
+  level minus the change of the run that first found it by a step). Its
+  change is measured against that baseline from then on, not against a
+  rolling history that slowly absorbs a lasting change; a known place the
+  run's tests did not flag is still **held** (confirmed) while its extent
+  stays ``hold_change`` away from its baseline in its direction;
+* a place neither found nor held by a run that covered its extent is
+  **missed** by it (``misses`` counts the consecutive ones), and after
+  ``drop_after`` misses it is no longer **active** (not on the list until
+  found again; a place never listed is then forgotten) — a repaired place
+  goes back to its baseline and drops out this way;
 * a place is **listed** (on the work list, and alerted) once ``min_confirmations``
   runs found it — a single run's exceedance that the next run does not repeat
   is noise of that run — or at once when its tier reaches ``confirm_tier``
@@ -31,7 +38,8 @@ import numpy as np
 
 from app.analysis.condition.identity import match_places
 from app.analysis.condition.outlook import Trend, linear_trend
-from app.analysis.condition.run_places import RunPlaces
+from app.analysis.condition.places import EVIDENCE_STEP
+from app.analysis.condition.run_places import PlaceParams, RunPlaces
 from app.analysis.condition.tiers import TIER_INTERVENTION
 
 __all__ = ["LifecycleParams", "Observation", "PlaceState", "PlaceEvent", "advance_places", "severity_trend"]
@@ -53,6 +61,8 @@ class LifecycleParams:
         Consecutive covering runs without it after which a place is not active.
     tier_down_runs : int
         Consecutive confirming runs at a lower tier before the tier falls.
+    hold_change : float
+        Departure from its baseline (ln units) that holds a known place the run's tests did not flag.
     """
 
     tolerance_m: float = 10.0
@@ -60,8 +70,11 @@ class LifecycleParams:
     confirm_tier: int = TIER_INTERVENTION
     drop_after: int = 2
     tier_down_runs: int = 2
+    hold_change: float = 0.10
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.hold_change) and self.hold_change > 0):
+            raise ValueError(f"hold_change: must be > 0, got {self.hold_change!r}")
         if not (np.isfinite(self.tolerance_m) and self.tolerance_m >= 0):
             raise ValueError(f"tolerance_m: must be >= 0, got {self.tolerance_m!r}")
         for name in ("min_confirmations", "confirm_tier", "drop_after", "tier_down_runs"):
@@ -101,6 +114,8 @@ class PlaceState:
         Extent and peak of the latest observation, m.
     cls : str or None
         Superstructure class at the peak (latest observation).
+    baseline : float or None
+        The index before the place appeared (ln units; None: first found without a step).
     tier : int
         Current tier (with the falling rule of the module docstring).
     listed : bool
@@ -121,6 +136,7 @@ class PlaceState:
     end_m: float
     peak_m: float
     cls: str | None = None
+    baseline: float | None = None
     tier: int = 0
     listed: bool = False
     active: bool = True
@@ -171,6 +187,36 @@ def severity_trend(state: PlaceState, *, now_day: float | None = None, window_da
     return linear_trend(days, vals, now_day=now_day)
 
 
+def _apply_tier(state: PlaceState, new_tier: int, params: LifecycleParams, events: list[PlaceEvent]) -> None:
+    """The tier rises at once and falls after ``tier_down_runs`` lower runs; events for a listed place."""
+    if new_tier > state.tier:
+        old = state.tier
+        state.tier, state.lower_runs = new_tier, 0
+        if state.listed:
+            events.append(PlaceEvent(state.id, "tier", old, state.tier))
+    elif new_tier < state.tier:
+        state.lower_runs += 1
+        if state.lower_runs >= params.tier_down_runs:
+            old = state.tier
+            state.tier, state.lower_runs = new_tier, 0
+            if state.listed:
+                events.append(PlaceEvent(state.id, "tier", old, state.tier))
+    else:
+        state.lower_runs = 0
+
+
+def _graded(place_params: PlaceParams | None, cls: str | None, level: float, change: float,
+            direction: int, tier: int) -> int:
+    """The tier of an observation from its level and its change against the place's baseline."""
+    if place_params is None:
+        return tier
+    if not np.isfinite(change):
+        return tier
+    lt = int(place_params.levels.limits_for(cls).grade(np.array([abs(level)]))[0]) if cls is not None else 0
+    ct = int(place_params.changes.grade(np.array([direction * change]))[0])
+    return max(lt, ct)
+
+
 def advance_places(
     known: list[PlaceState],
     found: RunPlaces,
@@ -180,6 +226,7 @@ def advance_places(
     covered_m: tuple[float, float],
     params: LifecycleParams,
     next_id: int,
+    place_params: PlaceParams | None = None,
 ) -> tuple[list[PlaceEvent], list[int], int]:
     """Apply one run to the known places (in place) and add its new ones.
 
@@ -188,15 +235,18 @@ def advance_places(
     known : list of PlaceState
         The line's known places; updated, and new places appended.
     found : RunPlaces
-        The run's places.
+        The run's places (and its per-segment index, for the places it did not flag).
     run_id : int
     day : float
         Time of the run, days.
     covered_m : (float, float)
-        Extent the run has data for, m (known places inside it and not found are missed).
+        Extent the run has data for, m (known places inside it and not found are held or missed).
     params : LifecycleParams
     next_id : int
         Id of the next new place.
+    place_params : PlaceParams, optional
+        The limits: with them a known place's tier is graded on its change against its baseline
+        (else the run's tier stands).
 
     Returns
     -------
@@ -218,53 +268,86 @@ def advance_places(
     ids: list[int] = []
     matched = set()
     for i in range(len(p)):
-        obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),
-                          centre_m=float(p.centre_m[i]), peak_m=float(found.peak_m[i]), level=float(found.level[i]), change=float(found.change[i]),
-                          tier=int(found.tier[i]), severity=float(found.severity[i]), evidence=int(p.evidence[i]),
-                          wheels=int(p.wheels[i]))
+        level, change = float(found.level[i]), float(found.change[i])
         j = int(match.known[i])
-        if j < 0:
+        state = known[j] if j >= 0 else None
+        if state is not None and state.baseline is not None:
+            change = level - state.baseline
+        tier = _graded(place_params, found.cls[i], level, change, int(p.direction[i]), int(found.tier[i]))
+        obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),
+                          centre_m=float(p.centre_m[i]), peak_m=float(found.peak_m[i]), level=level, change=change,
+                          tier=tier, severity=float(found.severity[i]), evidence=int(p.evidence[i]),
+                          wheels=int(p.wheels[i]))
+        if state is None:
             state = PlaceState(id=next_id, direction=int(p.direction[i]), start_m=obs.start_m, end_m=obs.end_m,
-                               peak_m=obs.peak_m, cls=found.cls[i], tier=obs.tier)
+                               peak_m=obs.peak_m, cls=found.cls[i], tier=obs.tier,
+                               baseline=level - change if np.isfinite(change) and (p.evidence[i] & EVIDENCE_STEP)
+                               else None)
             next_id += 1
             known.append(state)
             was_active = True
         else:
-            state = known[j]
             matched.add(j)
             was_active = state.active
             state.start_m, state.end_m, state.peak_m = obs.start_m, obs.end_m, obs.peak_m
             state.cls = found.cls[i]
-            # the tier rises at once and falls after tier_down_runs lower runs
-            if obs.tier > state.tier:
-                old = state.tier
-                state.tier, state.lower_runs = obs.tier, 0
-                if state.listed:
-                    events.append(PlaceEvent(state.id, "tier", old, state.tier))
-            elif obs.tier < state.tier:
-                state.lower_runs += 1
-                if state.lower_runs >= params.tier_down_runs:
-                    old = state.tier
-                    state.tier, state.lower_runs = obs.tier, 0
-                    if state.listed:
-                        events.append(PlaceEvent(state.id, "tier", old, state.tier))
-            else:
-                state.lower_runs = 0
-        state.observations.append(obs)
-        state.misses = 0
-        state.active = True
-        if state.listed and not was_active:
-            events.append(PlaceEvent(state.id, "back", state.tier, state.tier))
-        if not state.listed and (state.confirmations >= params.min_confirmations or state.tier >= params.confirm_tier):
-            state.listed = True
-            events.append(PlaceEvent(state.id, "new", 0, state.tier))
+            if state.baseline is None and np.isfinite(found.change[i]) and (p.evidence[i] & EVIDENCE_STEP):
+                state.baseline = level - float(found.change[i])
+            _apply_tier(state, obs.tier, params, events)
+        _confirm(state, obs, was_active, params, events)
         ids.append(state.id)
     for j, state in enumerate(known):
         if j in matched or state.observations[-1].run_id == run_id:
             continue
-        if lo <= state.start_m and state.end_m <= hi:
-            state.misses += 1
-            if state.misses >= params.drop_after:
-                state.active = False
+        if not (lo <= state.start_m and state.end_m <= hi):
+            continue
+        held = _held(state, found, run_id, day, params, place_params)
+        if held is not None:
+            was_active = state.active
+            _apply_tier(state, held.tier, params, events)
+            _confirm(state, held, was_active, params, events)
+            continue
+        state.misses += 1
+        if state.misses >= params.drop_after:
+            state.active = False
     known[:] = [k for k in known if k.listed or k.active]  # a candidate never confirmed is forgotten
     return events, ids, next_id
+
+
+def _confirm(state: PlaceState, obs: Observation, was_active: bool, params: LifecycleParams,
+             events: list[PlaceEvent]) -> None:
+    state.observations.append(obs)
+    state.misses = 0
+    state.active = True
+    if state.listed and not was_active:
+        events.append(PlaceEvent(state.id, "back", state.tier, state.tier))
+    if not state.listed and (state.confirmations >= params.min_confirmations or state.tier >= params.confirm_tier):
+        state.listed = True
+        events.append(PlaceEvent(state.id, "new", 0, state.tier))
+
+
+def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: LifecycleParams,
+          place_params: PlaceParams | None) -> Observation | None:
+    """The observation that holds a known place the run did not flag (None: it is back at its baseline)."""
+    if state.baseline is None or found.seg.size == 0:
+        return None
+    a = np.searchsorted(found.seg, int(np.floor(state.start_m / found.segment_m)), side="left")
+    b = np.searchsorted(found.seg, int(np.ceil(state.end_m / found.segment_m)), side="left")
+    vals = found.seg_index[a:b]
+    if vals.size == 0 or not np.isfinite(vals).any():
+        return None
+    dev = state.direction * (np.nan_to_num(vals, nan=-np.inf) - state.baseline)
+    k = int(np.argmax(dev))
+    if not dev[k] >= params.hold_change:
+        return None
+    level = float(vals[k])
+    change = level - state.baseline
+    cls = found.seg_class[a + k]
+    tier = _graded(place_params, cls, level, change, state.direction, state.tier)
+    lvl_alert = place_params.levels.limits_for(cls).alert if place_params is not None and cls is not None else np.inf
+    chg_alert = place_params.changes.alert if place_params is not None else np.inf
+    severity = max(abs(level) / lvl_alert, abs(change) / chg_alert) if place_params is not None else 0.0
+    peak = (float(found.seg[a + k]) + 0.5) * found.segment_m
+    return Observation(run_id=run_id, day=float(day), start_m=state.start_m, end_m=state.end_m, centre_m=peak,
+                       peak_m=peak, level=level, change=change, tier=tier, severity=float(severity),
+                       evidence=EVIDENCE_STEP, wheels=0)

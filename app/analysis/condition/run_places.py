@@ -14,11 +14,17 @@ stiffness index** ``ln(A / A_ref(class, v))`` of the run and of its history
   combined (:func:`~app.analysis.condition.change.detect_changes`,
   :func:`~app.analysis.condition.change.combine_wheels`); a step counts where
   ``|z| ≥ step_z`` **and** the change reaches the alert limit of ``changes``
-  (a significant change too small to act on is not a place).
+  (a significant change too small to act on is not a place);
+* **trend** — the index's slope over the last ``trend_window_days`` of the
+  segment's history (:func:`~app.analysis.condition.change.trend_change`, the
+  same levelled history), wheels combined: ``|z| ≥ trend_z`` and a rate of at
+  least ``min_rate_per_year`` away from the class's typical track. A place
+  growing steadily has a history too spread for the step test and may not
+  have reached a limit yet: the trend finds it (tier *watch* until it does).
 
 Exceeding segments merge into places (:func:`~app.analysis.condition.places.merge_places`;
-a step segment's direction is that of its change, an anomaly's that of its
-index). A place's **level** is the index at its peak segment, its **change**
+a step segment's direction is that of its change, a trend's that of its rate,
+an anomaly's that of its index). A place's **level** is the index at its peak segment, its **change**
 the change there; its tier is the higher of the level's tier (limits of its
 class) and the change's (``changes``), and its severity in tier units
 (``magnitude / alert limit`` of whichever is higher) orders places of one tier.
@@ -37,7 +43,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes
-from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP, PlaceTable, merge_places
+from app.analysis.condition.places import (
+    EVIDENCE_ANOMALY,
+    EVIDENCE_STEP,
+    EVIDENCE_TREND,
+    PlaceTable,
+    merge_places,
+)
 from app.analysis.condition.tiers import TierLimits, TierTable
 from app.analysis.stiffness.reference_curve import ReferenceCurve
 
@@ -51,15 +63,15 @@ __all__ = [
     "find_places",
 ]
 
-#: Limits of ``|index|`` per superstructure class (ln units), measured (``bench/bench_places.py``, three
-#: seeds of a uniform and a planted history through the real pipeline): the alert limit lies above the
-#: largest ``|index|`` of healthy 10 m segments of the class outside the ramps (slab 0.20 → 0.20, B91
-#: without pads 0.22 → 0.25, with pads 0.22 → 0.30; soft track has the lower signal-to-noise ratio),
-#: intervention and immediate action at 1.5 and 2.5 times it (the ratios of EN 13848-5's limits for
-#: isolated defects). Classes without their own row use the default (B91 without pads).
+#: Limits of ``|index|`` per superstructure class (ln units), measured (``bench/bench_places.py``: three
+#: seeds of a uniform and a planted history, 12 runs each, through the real pipeline; BENCHMARKS.md): the
+#: alert limit is about 3.3 standard deviations of the class's healthy 10 m index (slab 0.073, B91 without
+#: pads 0.076, with pads 0.098: soft track has the lower signal-to-noise ratio) and above every healthy
+#: 10 m segment measured (largest: 0.20, 0.24, 0.23); intervention and immediate action at 1.5 and 2.5
+#: times it, the ratios of EN 13848-5's limits for isolated defects. Classes without a row use the default.
 DEFAULT_LEVEL_LIMITS = TierTable(
     TierLimits(0.25, 0.375, 0.625),
-    {"slab": TierLimits(0.20, 0.30, 0.50), "b91_no_pads": TierLimits(0.25, 0.375, 0.625),
+    {"slab": TierLimits(0.25, 0.375, 0.625), "b91_no_pads": TierLimits(0.25, 0.375, 0.625),
      "b91_pads": TierLimits(0.30, 0.45, 0.75)},
 )
 #: Limits of ``|change|`` against the own history (ln units): 0.10 is above the largest significant
@@ -81,6 +93,13 @@ class PlaceParams:
         Limits of ``|change|`` against the segment's own history (ln units).
     step_z : float
         Step score a change needs (repeatability units).
+    trend_z : float
+        Trend score a growth needs.
+    min_rate_per_year : float
+        Rate a trend needs, ln units per year (0.25: healthy track would reach the alert
+        limit within a year).
+    trend_window_days : float
+        Days of history the trend is fitted over.
     agree_z : float
         A wheel agrees when its own score reaches this.
     min_history : int
@@ -96,6 +115,9 @@ class PlaceParams:
     levels: TierTable
     changes: TierLimits
     step_z: float = 4.5
+    trend_z: float = 4.5
+    min_rate_per_year: float = 0.25
+    trend_window_days: float = 180.0
     agree_z: float = 2.0
     min_history: int = 5
     history_runs: int = 30
@@ -107,7 +129,7 @@ class PlaceParams:
             raise TypeError("levels: must be a TierTable")
         if not isinstance(self.changes, TierLimits):
             raise TypeError("changes: must be a TierLimits")
-        for name in ("step_z", "agree_z", "level_block_m"):
+        for name in ("step_z", "trend_z", "min_rate_per_year", "trend_window_days", "agree_z", "level_block_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
@@ -120,7 +142,8 @@ class PlaceParams:
 
     def change_params(self) -> ChangeParams:
         """The step test's parameters (no speed matching: the index is speed-conditioned)."""
-        return ChangeParams(step_z=self.step_z, agree_z=self.agree_z, min_history=self.min_history,
+        return ChangeParams(step_z=self.step_z, trend_z=self.trend_z, trend_window_days=self.trend_window_days,
+                            agree_z=self.agree_z, min_history=self.min_history,
                             history_runs=self.history_runs, history_scan_runs=max(self.history_runs, 60),
                             speed_tolerance=1e6, level_block_m=self.level_block_m)
 
@@ -146,8 +169,14 @@ class RunPlaces:
         The place's magnitude in units of the alert limit that gives its tier.
     n_agreeing : numpy.ndarray
         int64 wheels agreeing at the peak segment.
+    rate_per_year, trend_z : numpy.ndarray
+        Per place at its peak segment: the index's rate (ln units per year) and its combined trend score.
+    seg : numpy.ndarray
+        int64 segment numbers of the per-segment arrays; ``segment_m`` their length, m.
     seg_index, seg_change, seg_change_z : numpy.ndarray
         Per segment: index (mean over wheels), change and combined step score.
+    seg_class : numpy.ndarray
+        Per segment: superstructure class (object; None: none).
     seg_evidence : numpy.ndarray
         int64 evidence bits per segment.
     """
@@ -163,9 +192,14 @@ class RunPlaces:
     tier: np.ndarray
     severity: np.ndarray
     n_agreeing: np.ndarray
+    rate_per_year: np.ndarray
+    trend_z: np.ndarray
+    seg: np.ndarray
+    segment_m: float
     seg_index: np.ndarray
     seg_change: np.ndarray
     seg_change_z: np.ndarray
+    seg_class: np.ndarray
     seg_evidence: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def __len__(self) -> int:
@@ -291,38 +325,52 @@ def find_places(
     # step against the segment's own history, every wheel
     wz = np.full(x.shape, np.nan)
     wchange = np.full(x.shape, np.nan)
+    wtz = np.full(x.shape, np.nan)
+    wrate = np.full(x.shape, np.nan)
     if h.shape[2] >= params.min_history:
         cp = params.change_params()
         ones = np.ones(h.shape[1:])
         for w in range(n_w):
             ch = detect_changes(h[w], ones, days, x[w], np.ones(s.size), float(now_day), s, segment_m=segment_m,
-                                params=cp, trend=False)
-            wz[w], wchange[w] = ch.change_z, ch.change
+                                params=cp, trend=True)
+            wz[w], wchange[w], wtz[w], wrate[w] = ch.change_z, ch.change, ch.trend_z, ch.trend_rate
     cz, agree = combine_wheels(wz, params.agree_z)
+    tz, t_agree = combine_wheels(wtz, params.agree_z)
+    rate = _mean_over_wheels(wrate)
+    trend = (np.abs(np.nan_to_num(tz)) >= params.trend_z) & (np.abs(np.nan_to_num(rate)) >= params.min_rate_per_year) \
+        & (np.sign(np.nan_to_num(tz)) == np.sign(np.nan_to_num(rate)))
     change = _mean_over_wheels(wchange)
     change_tier = params.changes.grade(np.abs(change))
     step = (np.abs(np.nan_to_num(cz)) >= params.step_z) & (change_tier >= 1) & (np.sign(np.nan_to_num(cz))
                                                                                == np.sign(np.nan_to_num(change)))
     change_tier = np.where(step, change_tier, 0)
     anomaly = level_tier >= 1
-    evidence = np.where(anomaly, EVIDENCE_ANOMALY, 0) | np.where(step, EVIDENCE_STEP, 0)
-    # a step segment goes the way of its change; an anomaly the way of its index
-    value = np.where(step, change, level)
+    # a trend counts where the index grows away from the class's typical track (a place recovering
+    # towards it is no work)
+    trend &= ~anomaly | (np.sign(np.nan_to_num(rate)) == np.sign(np.nan_to_num(level)))
+    evidence = (np.where(anomaly, EVIDENCE_ANOMALY, 0) | np.where(step, EVIDENCE_STEP, 0)
+                | np.where(trend, EVIDENCE_TREND, 0))
+    # a step segment goes the way of its change, a trend the way of its rate, an anomaly the way of its index
+    # (a trend segment weighs by its change against the history, the growth so far, where that goes its way)
+    tiny = 1e-9 * np.sign(np.nan_to_num(rate))
+    trend_value = np.where(np.sign(np.nan_to_num(change)) == np.sign(np.nan_to_num(rate)), change, tiny)
+    value = np.where(step, change, np.where(anomaly, level, np.where(trend, trend_value, level)))
+    hot = anomaly | step | trend
     # agreeing wheels: on the step where there is one, else those whose own index reaches the level limit
     own_tier = np.zeros(x.shape, np.int64)
     for w in range(n_w):
         if has_class.any():
             own_tier[w, has_class] = params.levels.grade(np.abs(np.nan_to_num(x[w, has_class])), cls[has_class])
     level_agree = (own_tier >= 1) & (np.sign(np.nan_to_num(x)) == np.sign(np.nan_to_num(level))[None, :])
-    agree_any = np.where(step[None, :], agree, level_agree)
+    agree_any = np.where(step[None, :], agree, np.where(anomaly[None, :], level_agree, t_agree))
     wheel_mask = (agree_any * bits[:, None]).sum(axis=0).astype(np.int64)
-    places = merge_places(s, value, anomaly | step, segment_m=segment_m, gap_m=params.gap_m, evidence=evidence,
+    places = merge_places(s, value, hot, segment_m=segment_m, gap_m=params.gap_m, evidence=evidence,
                           wheels=wheel_mask)
     n = len(places)
     peak = np.zeros(n, np.int64)
     for p in range(n):
         rows = np.arange(places.first[p], places.last[p] + 1)
-        rows = rows[(anomaly | step)[rows]]
+        rows = rows[hot[rows]]
         tier_rows = np.maximum(level_tier[rows], change_tier[rows])
         mag = places.direction[p] * np.nan_to_num(value[rows])
         peak[p] = rows[np.lexsort((-mag, -tier_rows))[0]]
@@ -335,6 +383,7 @@ def find_places(
     return RunPlaces(
         places=places, peak_m=(s[peak] + 0.5) * segment_m, level=level[peak], change=change[peak], change_z=cz[peak], cls=cls[peak],
         level_tier=lt, change_tier=ct, tier=tier, severity=np.maximum(sev_level, sev_change),
-        n_agreeing=agree_any[:, peak].sum(axis=0).astype(np.int64),
-        seg_index=level, seg_change=change, seg_change_z=cz, seg_evidence=evidence.astype(np.int64),
+        n_agreeing=agree_any[:, peak].sum(axis=0).astype(np.int64), rate_per_year=rate[peak], trend_z=tz[peak],
+        seg=s, segment_m=float(segment_m), seg_index=level, seg_change=change, seg_change_z=cz, seg_class=cls,
+        seg_evidence=evidence.astype(np.int64),
     )

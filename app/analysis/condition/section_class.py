@@ -25,7 +25,7 @@ import numpy as np
 
 from app.analysis._checks import check_positive
 
-__all__ = ["SECTION_CLASSES", "SectionClassLimits", "SectionClasses", "section_classes"]
+__all__ = ["SECTION_CLASSES", "DEFAULT_SECTION_LIMITS", "SectionClassLimits", "SectionClasses", "section_classes"]
 
 #: Class labels, best first.
 SECTION_CLASSES: tuple[str, ...] = ("A", "B", "C", "D", "E")
@@ -49,6 +49,13 @@ class SectionClassLimits:
     def limits(self) -> np.ndarray:
         """``[a, b, c, d]``."""
         return np.array([self.a, self.b, self.c, self.d])
+
+
+#: Measured (``bench/bench_places.py``, healthy 200 m sections of the simulated histories: rms quantiles
+#: p20 0.048, p50 0.066, p80 0.096, p99 0.147, largest 0.165): A is the best fifth of healthy track, B the
+#: next three fifths, C the rest of healthy track, D beyond anything healthy measured, E a section whose
+#: rms reaches a place's alert limit (0.25).
+DEFAULT_SECTION_LIMITS = SectionClassLimits(0.05, 0.10, 0.17, 0.25)
 
 
 @dataclass(frozen=True)

@@ -14,11 +14,18 @@ matched-speed rule) to segment rows, a location being a segment of one rail.
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
+
 import numpy as np
 
 from app.analysis.stiffness.reference_curve import BlockSamples, ReferenceCurve, fit_reference_curve
 
-__all__ = ["segment_samples", "fit_segment_curves"]
+__all__ = ["DEFAULT_MIN_LOCATIONS", "segment_samples", "fit_segment_curves"]
+
+#: Distinct locations (10 m of one rail) a speed needs for the curve there: 400 m of track, both rails
+#: (measured: ``bench/bench_places.py``; 40 left false places at the braking end of a uniform line).
+DEFAULT_MIN_LOCATIONS = 80
 
 
 def segment_samples(seg: np.ndarray, log_amp: np.ndarray, speed_mps: np.ndarray, run: np.ndarray,
@@ -70,14 +77,39 @@ def segment_samples(seg: np.ndarray, log_amp: np.ndarray, speed_mps: np.ndarray,
 
 def fit_segment_curves(seg: np.ndarray, log_amp: np.ndarray, speed_mps: np.ndarray, run: np.ndarray,
                        wheel: np.ndarray, classes: np.ndarray, *, speed_tolerance: float = 0.1,
-                       min_support: int = 20) -> dict[str, ReferenceCurve]:
+                       min_support: int = 20, min_locations: int = DEFAULT_MIN_LOCATIONS,
+                       ) -> dict[str, ReferenceCurve]:
     """The line's reference curve per class from segment rows (arguments as :func:`segment_samples`).
 
     ``speed_tolerance`` and ``min_support`` as
     :func:`~app.analysis.stiffness.reference_curve.fit_reference_curve`; no bootstrap band and no
     wheel diagnostics (the places need the curve only).
+
+    ``min_locations``: the curve is left out (NaN) at speeds where fewer distinct locations (segments
+    of one rail) were passed within the matched-speed window. Where every train brakes at the same
+    place, the speeds of a class's low end come from a few hundred metres of track, and a speed law
+    fitted there cannot be told from those locations' own stiffness: no index (no anomaly test)
+    there rather than a wrong one; the step and trend tests, which compare a segment with itself,
+    still watch it.
     """
+    if int(min_locations) != min_locations or min_locations < 0:
+        raise ValueError(f"min_locations: must be an integer >= 0, got {min_locations!r}")
     samples = segment_samples(seg, log_amp, speed_mps, run, wheel, classes)
-    return {c: fit_reference_curve(samples.take(samples.cls == c), c, speed_tolerance=speed_tolerance,
-                                   min_support=min_support, n_boot=0)
-            for c in sorted(set(samples.cls.tolist()))}
+    out = {}
+    for c in sorted(set(samples.cls.tolist())):
+        part = samples.take(samples.cls == c)
+        curve = fit_reference_curve(part, c, speed_tolerance=speed_tolerance, min_support=min_support, n_boot=0)
+        if min_locations > 0 and curve.log_speed.size:
+            n_loc = _locations_per_node(part, curve.log_speed, math.log1p(speed_tolerance))
+            curve = replace(curve, log_amp=np.where(n_loc >= min_locations, curve.log_amp, np.nan))
+        out[c] = curve
+    return out
+
+
+def _locations_per_node(samples: BlockSamples, nodes: np.ndarray, h: float) -> np.ndarray:
+    """Distinct locations with a pass within ``±h`` (ln v) of each node."""
+    order = np.argsort(samples.log_speed, kind="stable")
+    u, loc = samples.log_speed[order], samples.location[order]
+    lo = np.searchsorted(u, nodes - h, side="left")
+    hi = np.searchsorted(u, nodes + h, side="right")
+    return np.array([np.unique(loc[a:b]).size for a, b in zip(lo, hi, strict=True)], dtype=np.int64)

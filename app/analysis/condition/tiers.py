@@ -9,6 +9,7 @@ against) — against the limits of its superstructure class:
 ==========  ==========================================================================
 tier        action
 ==========  ==========================================================================
+watch       (below the alert limit, listed because it grows) watch the time to limit
 alert       analyse: confirm on the next runs, look at it at the next inspection, plan
 intervention plan the repair before the place would reach the immediate-action limit
             (the time to limit says by when)
@@ -47,10 +48,10 @@ __all__ = [
 
 TIER_NONE, TIER_ALERT, TIER_INTERVENTION, TIER_IMMEDIATE = 0, 1, 2, 3
 #: Name of each tier (index = tier).
-TIER_NAMES: tuple[str, ...] = ("none", "alert", "intervention", "immediate")
+TIER_NAMES: tuple[str, ...] = ("watch", "alert", "intervention", "immediate")
 #: The action each tier implies.
 TIER_ACTIONS: dict[str, str] = {
-    "none": "no action: below the alert limit",
+    "watch": "below the alert limit but growing: the time to limit says when it will reach it",
     "alert": "analyse: confirm on the next runs, look at it at the next inspection, plan",
     "intervention": "plan the repair before the place reaches the immediate-action limit (see time to limit)",
     "immediate": "act now: inspect on site, restrict speed until it is understood",
