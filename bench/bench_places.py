@@ -51,6 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from app.analysis.condition.change import combine_wheels  # noqa: E402
 from app.analysis.condition.hotspots import _class_z  # noqa: E402
 from app.analysis.condition.lifecycle import (  # noqa: E402
+    Action,
     LifecycleParams,
     PlaceState,
     advance_places,
@@ -204,6 +205,8 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
              centre_err: list[dict]) -> None:
     runs, bins, sections = load(url, spec)
     life: dict[str, tuple[list[PlaceState], int, list[int]]] = {}
+    actions = [Action(i + 1, c.track_from_m, c.track_to_m, c.day) for i, c in enumerate(spec.changes)
+               if c.kind == "tamping"]
     ramp_lo = spec.km_start * 1000 + spec.ramp_in_m
     ramp_hi = spec.km_start * 1000 + spec.length_km * 1000 - spec.ramp_out_m
     for k, run in enumerate(runs):
@@ -246,7 +249,14 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
             # the same design with the lifecycle: the work list holds the listed, active places
             known, next_id, n_alerts = life.setdefault(name, ([], 1, [0]))
             events, _, next_id = advance_places(known, rp, run_id=run.run_id, day=run.day, covered_m=covered,
-                                                params=LIFECYCLE, next_id=next_id, place_params=params)
+                                                params=LIFECYCLE, next_id=next_id, place_params=params,
+                                                actions=actions)
+            for e in events:
+                if e.kind == "repaired" and name == CHOSEN:
+                    kp = next(x for x in known if x.id == e.place_id)
+                    repaired.append({"history": which, "seed": seed, "run": k, "place km": f"{kp.start_m / 1000:.3f}"
+                                     f"–{kp.end_m / 1000:.3f}", "action": e.action_id,
+                                     "effect places explained": sum(1 for x in known if x.explained_by == e.action_id)})
             life[name] = (known, next_id, n_alerts)
             n_alerts[0] += len(events)
             listed = [kp for kp in known if kp.listed and kp.active]
@@ -343,6 +353,7 @@ def tamping_effect(runs: list[RunData], sections: pd.DataFrame, action) -> dict[
 
 effects: list[dict] = []
 sections_out: list[dict] = []
+repaired: list[dict] = []
 trends: list[dict] = []
 
 
@@ -452,6 +463,9 @@ def main(argv: list[str] | None = None) -> int:
     print(pd.Series({f"{h} seed {sd}: {n}": v for (h, sd, n), v in alerts_by.items()}).to_string())
     print("\n200 m section classes of the newest run (A best … E):")
     print(pd.DataFrame(sections_out).to_string(index=False))
+    if repaired:
+        print("\nPlaces repaired by a maintenance action (the lifecycle's 'repaired' events):")
+        print(pd.DataFrame(repaired).to_string(index=False))
     if trends:
         print("\nThe developing place (truth +1.2 ln units / year) on the run before the tamping: its trend:")
         print(pd.DataFrame(trends).round(2).to_string(index=False))

@@ -247,3 +247,35 @@ def test_a_lasting_step_is_held_against_its_baseline_and_a_repair_drops_it():
     # runs 5 … 17: nothing; found on 6 (alert tier: not listed yet); listed from 7 and held to 13; back at
     # its baseline from 14: missed by 14 (still active) and 15 (inactive from then on)
     assert active == [False, False] + [True] * 7 + [True, False, False, False]
+
+
+def test_a_tamping_repairs_the_place_it_covers_and_its_own_effect_is_not_a_new_place():
+    from app.analysis.condition.lifecycle import Action
+
+    rng = np.random.default_rng(12)
+    track = _track(np.random.default_rng(13)) * 0.5
+    cls = np.full(SEG.size, "b91", dtype=object)
+    days = np.arange(16) * 14.0
+    tamping = Action(id=77, start_m=11_900.0, end_m=12_100.0, day=150.0)
+    spot = _box(12_000.0, 12_040.0, 1.0)
+    extent = _box(tamping.start_m, tamping.end_m, 1.0)
+
+    def extra(r: int) -> np.ndarray:
+        if days[r] < tamping.day:  # a hard place growing 1.2 a year from 0.2
+            return spot * (0.2 + 1.2 * days[r] / 365.25)
+        return extent * np.log(0.8)  # repaired, the whole extent 20 % lower
+
+    runs = _runs(rng, track, days.size, extra)
+    known, next_id, log = [], 1, []
+    for r in range(5, days.size):
+        rp = find_places(SEG, runs[:, :, r], runs[:, :, :r], days[:r], days[r], cls, segment_m=10.0, params=PARAMS)
+        events, _, next_id = advance_places(known, rp, run_id=r, day=days[r], covered_m=(10_000.0, 13_000.0),
+                                            params=LifecycleParams(), next_id=next_id, place_params=PARAMS,
+                                            actions=[tamping])
+        log += [(r, e.kind, e.place_id, e.action_id) for e in events]
+    hard = next(k for k in known if k.direction == 1 and k.start_m <= 12_020 <= k.end_m)
+    assert hard.listed and not hard.active and hard.actions == [77]
+    assert (11, "repaired", hard.id, 77) in log  # day 154: the first run after the tamping
+    effect = [k for k in known if k.direction == -1 and k.start_m < tamping.end_m and k.end_m > tamping.start_m]
+    assert effect and all(k.explained_by == 77 and not k.listed for k in effect)
+    assert not [e for e in log if e[2] in {k.id for k in effect}]  # its effect raised no alert

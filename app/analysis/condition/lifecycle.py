@@ -25,24 +25,47 @@ after it was marked fixed keeps its id and history). Then:
 * its **tier** rises at once; it falls only when ``tier_down_runs`` consecutive
   confirming runs put it lower (no alert ping-pong for a place at a limit).
 
+**Maintenance** (:class:`Action`: the imported actions of the line):
+
+* a place that appears within ``explain_days`` after an action covering at
+  least half of it is that action's **effect** (``explained_by``): a tamping
+  lowers the amplitude over its extent, a grinding changes the rail's share of
+  it — neither is a new defect of the track's support. It is kept, with its
+  observations, but never listed or alerted;
+* an action dated after a known place was first seen and covering at least
+  half of it is **linked** to it; when the first run after the action finds
+  the place neither flagged nor held, the action **repaired** it (event
+  ``repaired`` with the action, the place is no longer active at once). A
+  place the action did not repair stays, linked.
+
 Events (:class:`PlaceEvent`) — ``new`` when a place becomes listed, ``tier``
 when a listed place's tier changes, ``back`` when an inactive place is found
-again — are what alerts are sent for; nothing else in a run raises one.
+again, ``repaired`` when an action repaired it — are what alerts are sent for;
+nothing else in a run raises one.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.analysis.condition.identity import match_places
+from app.analysis.condition.identity import covering_actions, match_places
 from app.analysis.condition.outlook import Trend, linear_trend
 from app.analysis.condition.places import EVIDENCE_STEP
 from app.analysis.condition.run_places import PlaceParams, RunPlaces
 from app.analysis.condition.tiers import TIER_INTERVENTION
 
-__all__ = ["LifecycleParams", "Observation", "PlaceState", "PlaceEvent", "advance_places", "severity_trend"]
+__all__ = [
+    "LifecycleParams",
+    "Observation",
+    "PlaceState",
+    "PlaceEvent",
+    "Action",
+    "advance_places",
+    "severity_trend",
+]
 
 
 @dataclass(frozen=True)
@@ -63,6 +86,8 @@ class LifecycleParams:
         Consecutive confirming runs at a lower tier before the tier falls.
     hold_change : float
         Departure from its baseline (ln units) that holds a known place the run's tests did not flag.
+    explain_days : float
+        A place appearing this many days or fewer after an action over it is the action's effect.
     """
 
     tolerance_m: float = 10.0
@@ -71,8 +96,11 @@ class LifecycleParams:
     drop_after: int = 2
     tier_down_runs: int = 2
     hold_change: float = 0.10
+    explain_days: float = 60.0
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.explain_days) and self.explain_days >= 0):
+            raise ValueError(f"explain_days: must be >= 0, got {self.explain_days!r}")
         if not (np.isfinite(self.hold_change) and self.hold_change > 0):
             raise ValueError(f"hold_change: must be > 0, got {self.hold_change!r}")
         if not (np.isfinite(self.tolerance_m) and self.tolerance_m >= 0):
@@ -116,6 +144,10 @@ class PlaceState:
         Superstructure class at the peak (latest observation).
     baseline : float or None
         The index before the place appeared (ln units; None: first found without a step).
+    explained_by : int or None
+        The maintenance action whose effect the place is (never listed then).
+    actions : list of int
+        Maintenance actions over the place after it was first seen (linked to it).
     tier : int
         Current tier (with the falling rule of the module docstring).
     listed : bool
@@ -137,6 +169,8 @@ class PlaceState:
     peak_m: float
     cls: str | None = None
     baseline: float | None = None
+    explained_by: int | None = None
+    actions: list[int] = field(default_factory=list)
     tier: int = 0
     listed: bool = False
     active: bool = True
@@ -164,14 +198,28 @@ class PlaceEvent:
     Attributes
     ----------
     place_id : int
-    kind : {"new", "tier", "back"}
+    kind : {"new", "tier", "back", "repaired"}
     old_tier, new_tier : int
+    action_id : int or None
+        The maintenance action of a ``repaired`` event.
     """
 
     place_id: int
     kind: str
     old_tier: int
     new_tier: int
+    action_id: int | None = None
+
+
+@dataclass(frozen=True)
+class Action:
+    """A maintenance action of the line: id, extent on the aligned km axis (m), day, type."""
+
+    id: int
+    start_m: float
+    end_m: float
+    day: float
+    kind: str = "tamping"
 
 
 def severity_trend(state: PlaceState, *, now_day: float | None = None, window_days: float | None = None) -> Trend:
@@ -227,6 +275,7 @@ def advance_places(
     params: LifecycleParams,
     next_id: int,
     place_params: PlaceParams | None = None,
+    actions: Sequence[Action] = (),
 ) -> tuple[list[PlaceEvent], list[int], int]:
     """Apply one run to the known places (in place) and add its new ones.
 
@@ -247,6 +296,8 @@ def advance_places(
     place_params : PlaceParams, optional
         The limits: with them a known place's tier is graded on its change against its baseline
         (else the run's tier stands).
+    actions : sequence of Action
+        The line's maintenance actions (those after ``day`` are ignored).
 
     Returns
     -------
@@ -260,6 +311,9 @@ def advance_places(
     lo, hi = covered_m
     if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
         raise ValueError(f"covered_m: must be finite with from <= to, got {covered_m!r}")
+    acts = [a for a in actions if a.day <= day]
+    a_start = np.array([a.start_m for a in acts], dtype=np.float64)
+    a_end = np.array([a.end_m for a in acts], dtype=np.float64)
     p = found.places
     match = match_places(p.start_m, p.end_m, p.direction,
                          np.array([k.start_m for k in known]), np.array([k.end_m for k in known]),
@@ -286,6 +340,10 @@ def advance_places(
             next_id += 1
             known.append(state)
             was_active = True
+            recent = [acts[k] for k in covering_actions(obs.start_m, obs.end_m, a_start, a_end)
+                      if 0.0 <= day - acts[k].day <= params.explain_days]
+            if recent:
+                state.explained_by = max(recent, key=lambda a: a.day).id
         else:
             matched.add(j)
             was_active = state.active
@@ -297,6 +355,10 @@ def advance_places(
         _confirm(state, obs, was_active, params, events)
         ids.append(state.id)
     for j, state in enumerate(known):
+        if state.explained_by is None and acts:
+            for k in covering_actions(state.start_m, state.end_m, a_start, a_end):
+                if acts[k].day > state.first_seen_day and acts[k].id not in state.actions:
+                    state.actions.append(acts[k].id)
         if j in matched or state.observations[-1].run_id == run_id:
             continue
         if not (lo <= state.start_m and state.end_m <= hi):
@@ -308,9 +370,16 @@ def advance_places(
             _confirm(state, held, was_active, params, events)
             continue
         state.misses += 1
-        if state.misses >= params.drop_after:
+        repair = [a for a in acts if a.id in state.actions and state.last_confirmed_day < a.day <= day]
+        if repair and state.active and state.explained_by is None:
             state.active = False
-    known[:] = [k for k in known if k.listed or k.active]  # a candidate never confirmed is forgotten
+            if state.listed:
+                events.append(PlaceEvent(state.id, "repaired", state.tier, state.tier,
+                                         action_id=max(repair, key=lambda a: a.day).id))
+        elif state.misses >= params.drop_after:
+            state.active = False
+    # a candidate never confirmed is forgotten (an action's effect is kept as its record)
+    known[:] = [k for k in known if k.listed or k.active or k.explained_by is not None]
     return events, ids, next_id
 
 
@@ -321,6 +390,8 @@ def _confirm(state: PlaceState, obs: Observation, was_active: bool, params: Life
     state.active = True
     if state.listed and not was_active:
         events.append(PlaceEvent(state.id, "back", state.tier, state.tier))
+    if state.explained_by is not None:
+        return
     if not state.listed and (state.confirmations >= params.min_confirmations or state.tier >= params.confirm_tier):
         state.listed = True
         events.append(PlaceEvent(state.id, "new", 0, state.tier))
