@@ -228,3 +228,22 @@ def test_section_classes_from_level_and_spread():
         section_classes(seg, x, segment_m=10.0, limits=limits, section_m=205.0)
     with pytest.raises(ValueError, match="a, b, c, d"):
         SectionClassLimits(0.1, 0.1, 0.2, 0.3)
+
+
+# --- known discontinuities -----------------------------------------------------------------------
+
+
+def test_assets_at_labels_places_within_the_buffer():
+    from app.analysis.condition.discontinuities import assets_at
+
+    hits = assets_at(np.array([100.0, 500.0, 900.0]), np.array([120.0, 530.0, 910.0]),
+                     np.array([125.0, 300.0, 480.0, 505.0, 2000.0]), np.array([125.0, 400.0, 480.0, 600.0, 2000.0]),
+                     buffer_m=20.0)
+    assert list(hits.of(0)) == [0]  # a weld 5 m after the place
+    assert list(hits.of(1)) == [2, 3]  # a point 20 m before (at the buffer), a bridge overlapping
+    assert list(hits.of(2)) == []
+    assert hits.distance_m[hits.place == 1].tolist() == [20.0, 0.0]
+    with pytest.raises(ValueError, match="buffer_m"):
+        assets_at(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), buffer_m=-1.0)
+    with pytest.raises(ValueError, match="asset_from_m"):
+        assets_at(np.zeros(1), np.zeros(1), np.array([2.0]), np.array([1.0]))
