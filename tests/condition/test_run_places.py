@@ -169,6 +169,12 @@ def test_a_run_that_does_not_cover_a_place_does_not_miss_it_and_trend_of_a_growi
                                        params=LifecycleParams(), next_id=next_id)
     tr = severity_trend(known[0])
     assert tr.significant and tr.rate_per_year == pytest.approx(0.03 / 14 * 365.25, rel=0.25)
+    from app.analysis.condition.lifecycle import place_outlook
+
+    out = place_outlook(known[0], PARAMS.levels)
+    assert out.tendency == "growing" and out.next_limit == 0.625  # intervention now (0.45): next immediate
+    # the last level ~0.45 grows ~0.78 a year: ~0.175 / 0.78 years to 0.625
+    assert out.projection.days == pytest.approx((0.625 - tr.level) / tr.rate_per_year * 365.25)
     empty = next(_found(rng, [0.0 * spot]))[1]
     advance_places(known, empty, run_id=99, day=100.0, covered_m=(10_000.0, 11_500.0), params=LifecycleParams(),
                    next_id=next_id)

@@ -51,11 +51,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.analysis.condition.identity import covering_actions, match_places
-from app.analysis.condition.outlook import Trend, linear_trend
+from app.analysis.condition.identity import covering_actions, match_places, tendency
+from app.analysis.condition.outlook import Projection, Trend, linear_trend, time_to_limit
 from app.analysis.condition.places import EVIDENCE_STEP
 from app.analysis.condition.run_places import PlaceParams, RunPlaces
-from app.analysis.condition.tiers import TIER_INTERVENTION
+from app.analysis.condition.tiers import TIER_INTERVENTION, TierTable
 
 __all__ = [
     "LifecycleParams",
@@ -63,6 +63,8 @@ __all__ = [
     "PlaceState",
     "PlaceEvent",
     "Action",
+    "PlaceOutlook",
+    "place_outlook",
     "advance_places",
     "severity_trend",
 ]
@@ -233,6 +235,36 @@ def severity_trend(state: PlaceState, *, now_day: float | None = None, window_da
         keep = days >= days.max() - window_days
         days, vals = days[keep], vals[keep]
     return linear_trend(days, vals, now_day=now_day)
+
+
+@dataclass(frozen=True)
+class PlaceOutlook:
+    """A place's trend, the next tier's limit and when it reaches it.
+
+    Attributes
+    ----------
+    trend : Trend
+        Of ``direction · level`` over the observations (ln units per year).
+    next_limit : float
+        The level limit of the tier above the place's (NaN at the immediate tier or without a class).
+    projection : Projection
+        Days from the last observation to ``next_limit`` (NaN: not projected).
+    tendency : str
+        ``new`` / ``growing`` / ``stable`` / ``shrinking``.
+    """
+
+    trend: Trend
+    next_limit: float
+    projection: Projection
+    tendency: str
+
+
+def place_outlook(state: PlaceState, levels: TierTable, *, window_days: float | None = None) -> PlaceOutlook:
+    """Trend, next limit, time to it and tendency of a place (the limits of its class in ``levels``)."""
+    tr = severity_trend(state, window_days=window_days)
+    nxt = float(levels.limits_for(state.cls).next_limit(np.array([state.tier]))[0]) if state.cls is not None \
+        else float("nan")
+    return PlaceOutlook(trend=tr, next_limit=nxt, projection=time_to_limit(tr, nxt), tendency=tendency(tr))
 
 
 def _apply_tier(state: PlaceState, new_tier: int, params: LifecycleParams, events: list[PlaceEvent]) -> None:
