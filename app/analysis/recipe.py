@@ -54,16 +54,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
 from app.analysis.orders import OrderTrack, railway_multipliers
+from app.analysis.recipe_solve import RecipeSolution, solve_recipe
 from app.analysis.settings import MAX_SLEEPER_HARMONIC, ProcessingSettings
-from app.analysis.vkf import vkf, vkf_overlap
-
-if TYPE_CHECKING:
-    from app.analysis.vkf import VKFResult
+from app.analysis.vkf import vkf_overlap
 
 __all__ = [
     "SLEEPER",
@@ -236,8 +234,13 @@ class OrderRecipe:
         """Phase of every order at a start position ``start_m`` (m), rad."""
         return 2.0 * np.pi * self.multipliers * float(start_m)
 
-    def solve(self, y: Any, fs: float, speed: np.ndarray, start_m: float = 0.0) -> VKFResult:
-        """Extract the orders of a signal with the VKF (one unchunked solve).
+    def solve(self, y: Any, fs: float, speed: np.ndarray, start_m: float = 0.0) -> RecipeSolution:
+        """Extract the orders of a signal with the VKF (unchunked).
+
+        Wheel orders that lie inside a track order's band are taken as
+        stationary (a function of speed) and the track orders solved on what
+        is left (:mod:`app.analysis.recipe_solve`, issue 26); a recipe without
+        such wheel orders is one joint solve.
 
         Parameters
         ----------
@@ -253,11 +256,11 @@ class OrderRecipe:
 
         Returns
         -------
-        VKFResult
-            Envelopes of the orders (rows as :attr:`labels`).
+        RecipeSolution
+            Envelopes of the orders (rows as :attr:`labels`; ``envelope_at``).
         """
-        return vkf(y, fs, self.frequencies(speed), self.bandwidths(speed), self.filter_order,
-                   chunk_duration=np.inf, phase0=self.phase0(start_m))
+        v = np.abs(np.asarray(speed, dtype=np.float64))
+        return solve_recipe(self, y, fs, v, self.phase0(start_m), travel_phase(v, fs, start_m))
 
     def order_phases(self, psi: np.ndarray) -> np.ndarray:
         """Phases of the orders, ``multipliers ⊗ psi``, rad, shape (s, len(psi))."""
