@@ -54,14 +54,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from app.analysis.orders import OrderTrack, railway_multipliers
-from app.analysis.recipe_solve import RecipeSolution, solve_recipe
 from app.analysis.settings import MAX_SLEEPER_HARMONIC, ProcessingSettings
-from app.analysis.vkf import vkf_overlap
+from app.analysis.vkf import vkf, vkf_overlap
+
+if TYPE_CHECKING:
+    from app.analysis.vkf import VKFResult
 
 __all__ = [
     "SLEEPER",
@@ -69,6 +71,7 @@ __all__ = [
     "harmonic_label",
     "track_bandwidth_per_speed",
     "order_collisions",
+    "in_band_wheel_orders",
     "CHUNK_JOIN_TOL",
     "OrderRecipe",
     "WheelGeometry",
@@ -234,13 +237,23 @@ class OrderRecipe:
         """Phase of every order at a start position ``start_m`` (m), rad."""
         return 2.0 * np.pi * self.multipliers * float(start_m)
 
-    def solve(self, y: Any, fs: float, speed: np.ndarray, start_m: float = 0.0) -> RecipeSolution:
-        """Extract the orders of a signal with the VKF (unchunked).
+    @property
+    def stationary(self) -> np.ndarray:
+        """Rows solved as stationary orders (bool, shape (s,)): the wheel orders inside a
+        track order's band (:func:`in_band_wheel_orders`)."""
+        rows = in_band_wheel_orders(self.labels, self.multipliers, self.bandwidth_per_speed)
+        mask = np.zeros(len(self.labels), dtype=bool)
+        mask[rows] = True
+        return mask
 
-        Wheel orders that lie inside a track order's band are taken as
-        stationary (a function of speed) and the track orders solved on what
-        is left (:mod:`app.analysis.recipe_solve`, issue 26); a recipe without
-        such wheel orders is one joint solve.
+    def solve(self, y: Any, fs: float, speed: np.ndarray, start_m: float = 0.0) -> VKFResult:
+        """Extract the orders of a signal with the VKF (one unchunked solve).
+
+        The wheel orders inside a track order's band are *stationary* orders of
+        the engine (a wheel's out-of-roundness responds to the speed, not to the
+        place: their envelopes are functions of frequency, see
+        :mod:`app.analysis._vkf_stationary` and docs/indicator.md), so that they
+        do not take the track orders' changes at their lines (issue 26).
 
         Parameters
         ----------
@@ -256,11 +269,13 @@ class OrderRecipe:
 
         Returns
         -------
-        RecipeSolution
-            Envelopes of the orders (rows as :attr:`labels`; ``envelope_at``).
+        VKFResult
+            Envelopes of the orders (rows as :attr:`labels`).
         """
-        v = np.abs(np.asarray(speed, dtype=np.float64))
-        return solve_recipe(self, y, fs, v, self.phase0(start_m), travel_phase(v, fs, start_m))
+        stationary = self.stationary
+        return vkf(y, fs, self.frequencies(speed), self.bandwidths(speed), self.filter_order,
+                   chunk_duration=np.inf, phase0=self.phase0(start_m),
+                   stationary=stationary if stationary.any() else None)
 
     def order_phases(self, psi: np.ndarray) -> np.ndarray:
         """Phases of the orders, ``multipliers ⊗ psi``, rad, shape (s, len(psi))."""
@@ -330,6 +345,35 @@ def order_bandwidths(
         track = track_bandwidth_per_speed(float(settings.track_resolution_m), int(settings.filter_order))
     per_speed = np.array([wheel if x.isdigit() else track for x in labels], dtype=np.float64)
     return per_speed, max(float(settings.min_speed_kmh) / 3.6, 1.0)
+
+
+def in_band_wheel_orders(labels: Sequence[str], multipliers: np.ndarray,
+                         bandwidth_per_speed: np.ndarray) -> np.ndarray:
+    """Rows of the wheel orders that lie inside a (wider) track order's band.
+
+    A wheel order is inside the band of a track order when their frequencies
+    are closer than the track order's full -3 dB bandwidth (both scale with
+    speed, so this holds at every speed or at none): the track filter still
+    passes ≥ 13 % there (q = 2). At the default 3 m resolution on 0.92 m wheels:
+    wheel order 5 (0.18 orders from f_s), 9 and 10 (0.63 and 0.37 from 2·f_s);
+    with ``track_resolution_m`` None (every order 0.1 orders wide): none.
+
+    Parameters
+    ----------
+    labels : sequence of str
+        Order labels (:attr:`OrderRecipe.labels`).
+    multipliers, bandwidth_per_speed : ndarray, shape (s,)
+        Hz per m/s.
+
+    Returns
+    -------
+    ndarray of int
+    """
+    track = [i for i, x in enumerate(labels) if not x.isdigit()]
+    rows = [j for j, x in enumerate(labels) if x.isdigit()
+            and any(abs(float(multipliers[j]) - float(multipliers[i])) < float(bandwidth_per_speed[i])
+                    and bandwidth_per_speed[i] > bandwidth_per_speed[j] for i in track)]
+    return np.array(rows, dtype=np.int64)
 
 
 def order_collisions(

@@ -34,10 +34,9 @@ from app.analysis.recipe import (
     travel_phase,
     wheel_recipe,
 )
-from app.analysis.recipe_solve import RecipeSolution
 from app.analysis.settings import ProcessingSettings
 from app.analysis.static_load import remove_static_load
-from app.analysis.vkf import VKFWarning
+from app.analysis.vkf import VKFResult, VKFWarning
 from app.analysis.wheel_oor import radius_phasor
 from app.io import WHEELS, open_run
 from app.pipeline.chunkfile import wheel_members, write_chunk_file
@@ -132,7 +131,7 @@ def sleeper_rms(amplitudes: np.ndarray) -> np.ndarray:
 
 
 def solve_logged(recipe: OrderRecipe, y: np.ndarray, fs: float, speed: np.ndarray, start_m: float,
-                 notes: list[str]) -> RecipeSolution:
+                 notes: list[str]) -> VKFResult:
     """:meth:`OrderRecipe.solve` with the engine's warnings sent to the log and to ``notes``.
 
     Orders closer than their bandwidth are the recipe's design (wide track
