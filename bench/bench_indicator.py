@@ -327,7 +327,8 @@ def diagnose() -> None:
 
 
 def plot_transitions(path: Path) -> None:
-    """The two transition runs: per-bay truth, the product, and wheel order 5 solved jointly (before issue 26)."""
+    """The two transition runs as they are (left) and inside 1000 m of their own track (right): per-bay
+    truth, the product, and wheel order 5 solved jointly with the track orders (before issue 26)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -336,33 +337,39 @@ def plot_transitions(path: Path) -> None:
     from app.analysis.vkf import vkf
 
     recipe = order_recipe(0.92, D_S, ProcessingSettings())
-    fig, axes = plt.subplots(2, 1, figsize=(11, 7))
-    for ax, name in zip(axes, ("trans2_v30.npz", "trans2_v42.npz"), strict=True):
-        run = physics_run(name)
-        v = np.full(run.z.size, run.speed)
-        step = max(1, int(run.fs * 0.05 / run.speed))
-        idx = np.arange(0, run.z.size, step)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            now = recipe.solve(run.z, run.fs, v).envelope_at(idx)[recipe.sleeper_row]
-            joint = vkf(run.z, run.fs, recipe.frequencies(v), recipe.bandwidths(v), recipe.filter_order,
-                        chunk_duration=np.inf, phase0=recipe.phase0(0.0)).envelope_at(idx)[recipe.sleeper_row]
-        x = idx * run.speed / run.fs
-        ax.plot(run.x_bay, run.a_bay, "k.", ms=3, label="physics: per-bay amplitude (A_bay)")
-        ax.plot(x, np.abs(joint), ":", lw=1.3, label="wheel order 5 solved jointly (before issue 26)")
-        ax.plot(x, np.abs(now), "-", lw=1.5, label="product (wheel orders in the track band stationary)")
-        for lo, hi, lv in zip(run.bounds[:-1], run.bounds[1:], run.levels, strict=True):
-            ax.hlines(lv, lo, hi, colors="r", lw=0.6)
-        ax.set_title(f"{name}: {run.speed:g} m/s, edges at 40 / 80 / 120 m (red: steady lock-in per segment)")
-        ax.set_ylabel("sleeper-passage amplitude, m/s²")
-        ax.grid(alpha=0.3)
-        if "v42" in name:
-            ax.set_yscale("log")
-    axes[1].set_xlabel("position along the track, m")
-    axes[0].legend(fontsize=8)
+    fig, axes = plt.subplots(2, 2, figsize=(14, 7.5), sharey="row")
+    for row, name in enumerate(("trans2_v30.npz", "trans2_v42.npz")):
+        for col, run in enumerate((physics_run(name), embedded_run(name))):
+            ax = axes[row, col]
+            v = np.full(run.z.size, run.speed)
+            step = max(1, int(run.fs * 0.05 / run.speed))
+            x0 = run.edges[0] - 40.0
+            idx = np.arange(0, run.z.size, step)
+            idx = idx[(idx * run.speed / run.fs > x0) & (idx * run.speed / run.fs < x0 + 160.0)]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                now = recipe.solve(run.z, run.fs, v).envelope_at(idx)[recipe.sleeper_row]
+                joint = vkf(run.z, run.fs, recipe.frequencies(v), recipe.bandwidths(v), recipe.filter_order,
+                            chunk_duration=np.inf, phase0=recipe.phase0(0.0)).envelope_at(idx)[recipe.sleeper_row]
+            x = idx * run.speed / run.fs - x0
+            ax.plot(run.x_bay - x0, run.a_bay, "k.", ms=3, label="physics: per-bay amplitude (A_bay)")
+            ax.plot(x, np.abs(joint), ":", lw=1.3, label="wheel order 5 solved jointly (before issue 26)")
+            ax.plot(x, np.abs(now), "-", lw=1.5, label="product: wheel orders in the track band stationary")
+            for lo, hi, lv in zip(run.bounds[:-1], run.bounds[1:], run.levels, strict=True):
+                ax.hlines(lv, max(lo - x0, 0.0), min(hi - x0, 160.0), colors="r", lw=0.6)
+            where = "the 160 m run as it is" if col == 0 else "inside 1000 m of its own track (constructed)"
+            ax.set_title(f"{name} ({run.speed:.3g} m/s): {where}", fontsize=10)
+            ax.set_xlim(0, 160)
+            ax.grid(alpha=0.3)
+            if "v42" in name:
+                ax.set_yscale("log")
+        axes[row, 0].set_ylabel("sleeper-passage amplitude, m/s²")
+    for ax in axes[1]:
+        ax.set_xlabel("position along the transition run, m (edges at 40 / 80 / 120 m; red: steady lock-in)")
+    axes[0, 0].legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=90)
 
 
 def main() -> None:
