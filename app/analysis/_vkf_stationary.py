@@ -11,23 +11,25 @@ its estimate is the projection of the signal on the line over the filter's
 memory — and the wide order loses that piece: a beat between the two orders
 that decays over the narrow filter's memory. On railway data the sleeper
 passage (wide, a 3 m spatial resolution) holds wheel order 5 in its band; a
-stiffness step rang at 12–14 % of the step over ~30 m (issue 26).
+stiffness step rang at 11–14 % of the step over ~30 m (issue 26).
 
-A stationary order is therefore solved in two steps within a segment:
+A segment with stationary orders is therefore solved in three steps:
 
-1. the stationary orders together with every order whose band reaches them
-   (or that lies within :data:`_NEAR_BW` of their bandwidths), all at the
-   stationary orders' narrow bandwidth: the lines separated by frequency;
-   Eq. 20 as written (equal narrow bands reject the mirror images);
+1. every order at the stationary orders' (narrowest) bandwidth, Eq. 20 as
+   written (equal narrow bands reject the mirror images): the lines separated
+   by frequency. All orders take part, not only those near the stationary
+   ones: at a record's ends a narrow filter sees one side only and a strong
+   line one order away (a wheel polygon) would otherwise leak in;
 2. each stationary envelope is replaced by its **function of frequency**: a
    local-linear regression over log-frequency with a Gaussian kernel
    :data:`STATIONARY_KERNEL_REL` wide (:func:`fit_over_log_frequency`). At a
    steady frequency that is one phasor over the whole segment, so what the
    other orders' changes put on the line averages out over the segment
    (falling like 1/length) instead of staying with the line locally;
-3. the other orders are solved on the baseband signal less the stationary
-   orders' fitted components (and their mirror images), at their own
-   bandwidths, with the real-signal model if asked.
+3. the orders wider than the stationary ones are solved again at their own
+   bandwidths, with the real-signal model if asked, on the baseband signal
+   less every other order's component (and mirror image); the other narrow
+   orders keep their step-1 envelopes.
 
 Why the kernel is 1 % of the frequency wide: at a steady speed (a train holds
 its speed within ~1 %) the whole segment counts, which is what removes the

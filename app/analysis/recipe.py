@@ -44,9 +44,19 @@ harmonic is dropped for that wheel; where the fundamental collides, the wheel
 order is dropped instead (:func:`order_collisions`). The recipe keeps what it
 dropped and why (:attr:`OrderRecipe.notes`), for the job's warnings.
 
+Stationary wheel orders (issue 26): the wheel orders inside a track order's
+band (:func:`in_band_wheel_orders`: 5, 9 and 10 by default) are solved as
+stationary orders of the engine (:attr:`OrderRecipe.stationary`): a wheel's
+out-of-roundness responds to the speed, not to the place, so their envelopes
+are fitted as functions of frequency over the stretch solved and the track
+orders are solved on what is left; otherwise a stiffness change would lose
+its share at their lines (a 15.8 m ripple, docs/indicator.md).
+
 Overlap: a stretch solved on its own agrees with a longer solve inside it
 when it is padded by the impulse-response length of its narrowest filter
-(:func:`order_overlap`); chunk seams use :data:`CHUNK_JOIN_TOL`.
+(:func:`order_overlap`); chunk seams use :data:`CHUNK_JOIN_TOL`. The
+stationary wheel orders are fitted per stretch, so there the agreement is
+that of the two fits (a steady wheel: the same phasor).
 """
 
 from __future__ import annotations
