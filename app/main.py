@@ -26,6 +26,7 @@ from app.core.ratelimit import RateLimiter
 from app.core.runstore import RunStore
 from app.db.display_arrays import DisplayArrays
 from app.db.session import Database
+from app.observability.routes import install_metrics
 from app.web import install_pages
 
 __all__ = ["create_app", "check_production_database"]
@@ -46,7 +47,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         omitted. The database must be migrated (``trackvkf migrate``).
     """
     settings = settings or get_settings()
-    configure_logging(settings.log_level)
+    configure_logging(settings.log_level, settings.log_format)
     settings.check_production()
     db = Database(settings.database_url)
     if settings.is_production:
@@ -103,6 +104,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(login_page_router)
     install_protected_docs(app, {f"{API_PREFIX}/health", f"{API_PREFIX}/auth/login"})
     install_pages(app)  # dashboard: HTML pages at /, /runs/{id}, ..., /static, Plotly.js
+    install_metrics(app)  # GET /metrics (admin), every request counted (outermost middleware)
 
     return app
 

@@ -70,19 +70,10 @@ def send_one(db: Database, settings: Settings, d: webhooks.Claimed, *, resolver:
     # the attempt is recorded at its start: how long it took is not shown (a timing oracle for ports)
     status = webhooks.finish_attempt(db, d.id, ok=attempt.ok, status_code=attempt.status_code,
                                      error=attempt.summary, policy=retry_policy(settings), now=started)
-    _observe(attempt)
     if not attempt.ok:
         log.warning("webhook %s delivery %s attempt %d: %s, %s (now %s)", d.webhook_id, d.id, d.attempts + 1,
                     attempt.outcome, attempt.detail, status)
     return attempt
-
-
-def _observe(attempt: Attempt) -> None:
-    try:
-        from app.observability.metrics import observe_webhook_attempt
-    except ImportError:  # pragma: no cover - metrics are optional in a stripped install
-        return
-    observe_webhook_attempt(attempt.outcome, attempt.seconds)
 
 
 def deliver_due(db: Database, settings: Settings, *, resolver: Resolver | None = None) -> int:

@@ -81,6 +81,9 @@ class Settings(BaseSettings):
         Role of that principal (viewer, engineer or admin).
     log_level : str
         Python logging level name for the service loggers.
+    log_format : str
+        ``text`` (default) or ``json``: one JSON object per log line (time,
+        level, logger, message, pid, exception), uvicorn's logs too.
     max_page_size : int
         Largest page a list endpoint returns.
     max_profile_rows : int
@@ -227,6 +230,7 @@ class Settings(BaseSettings):
     anonymous_principal: str = "local"
     anonymous_role: str = "admin"
     log_level: str = "INFO"
+    log_format: str = Field(default="text", pattern="^(text|json)$")
     max_page_size: int = Field(default=500, ge=1)
     max_profile_rows: int = Field(default=200_000, ge=1)
     env: str = "development"
