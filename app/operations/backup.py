@@ -81,6 +81,10 @@ SQLITE_FILE = "database.sqlite"
 PG_FILE = "database.dump"
 RUNS_DIR = "runs"
 _BLOCK = 1024 * 1024
+#: ids handed out after a restore start this far above the backup's (see :func:`_skip_ids`)
+ID_GAP = 1_000_000
+#: tables whose ids leave the service (API answers, feed cursors, delivery ids receivers deduplicate by)
+_ID_TABLES = ("runs", "jobs", "condition_flags", "webhook_deliveries", "webhooks", "audit_log")
 
 
 class BackupError(RuntimeError):
@@ -548,4 +552,33 @@ def _after_restore(settings: Settings, manifest: dict[str, Any]) -> list[int]:
                 s.execute(update(Job).where(Job.id.in_(running)).values(
                     status=JobStatus.QUEUED, worker_id=None, heartbeat_at=None, progress=0.0, n_chunks=None))
             s.execute(delete(WorkerHeartbeat))
+            _skip_ids(s)
     return running
+
+
+def _skip_ids(session) -> None:
+    """Move the id sequences of :data:`_ID_TABLES` :data:`ID_GAP` ahead.
+
+    The ids the lost period (after the backup) handed out were seen outside:
+    run and job ids in other systems, the flag feed's ``since`` cursors,
+    delivery ids that receivers deduplicate by. Were they handed out again for
+    other rows, a receiver would drop a new alert as a duplicate and a feed
+    reader would skip new flags. A gap keeps new ids above every id the lost
+    period can have used (fewer than a million rows per table).
+    """
+    if session.get_bind().dialect.name == "sqlite":
+        for table in _ID_TABLES:
+            found = session.execute(text("SELECT seq FROM sqlite_sequence WHERE name = :t"), {"t": table}).first()
+            if found is None:
+                session.execute(text("INSERT INTO sqlite_sequence (name, seq) VALUES (:t, :g)"),
+                                {"t": table, "g": ID_GAP})
+            else:
+                session.execute(text("UPDATE sqlite_sequence SET seq = seq + :g WHERE name = :t"),
+                                {"t": table, "g": ID_GAP})
+        return
+    for table in _ID_TABLES:
+        seq = session.execute(text("SELECT pg_get_serial_sequence(:t, 'id')"), {"t": table}).scalar()
+        if seq is None:
+            continue
+        session.execute(text(f"SELECT setval('{seq}', (SELECT CASE WHEN is_called THEN last_value ELSE "
+                             f"last_value - 1 END FROM {seq}) + :g)"), {"g": ID_GAP})

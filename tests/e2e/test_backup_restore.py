@@ -187,3 +187,7 @@ def test_force_keeps_the_replaced_run_store_aside(client, tmp_path):
     aside = [p for p in Path(settings.run_store).parent.iterdir() if ".before-restore-" in p.name]
     assert len(aside) == 1 and sorted(p.name for p in aside[0].iterdir() if p.name.isdigit()) == ["1", "2"]
     assert len(_rows(settings.database_url)["runs"]) == 1
+    # ids handed out after the restore never repeat those of the lost period (run 2 here)
+    third = hdf5_run(tmp_path, n=20_000)
+    r = client.post("/api/v1/runs", files={"file": (third.name, third.read_bytes())})
+    assert r.status_code == 201 and r.json()["id"] > 1_000_000 and r.json()["latest_job"]["id"] > 1_000_000
