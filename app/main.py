@@ -27,6 +27,7 @@ from app.core.runstore import RunStore
 from app.db.display_arrays import DisplayArrays
 from app.db.session import Database
 from app.observability.routes import install_metrics
+from app.operations.heavy import install_heavy_limiter
 from app.web import install_pages
 
 __all__ = ["create_app", "check_production_database"]
@@ -98,6 +99,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.display_arrays = DisplayArrays(settings.display_cache_bytes)  # zooms sliced from memory
     app.state.profile_limiter = anyio.CapacityLimiter(settings.profile_concurrency)
     app.state.profile_pending = {}  # answers being computed: asked again, awaited once
+    install_heavy_limiter(app, settings.upload_ingest_concurrency)  # conversions of uploads at once
     app.add_middleware(GZipMiddleware, minimum_size=1024, compresslevel=5, exclude_content_types=_NOT_GZIPPED)
     app.add_middleware(SecurityHeadersMiddleware)  # CSP, framing, sniffing, referrer: every answer
     app.include_router(build_api_router())

@@ -42,6 +42,10 @@ class Settings(BaseSettings):
         Size of the blocks an upload is read and written in, bytes.
     max_metadata_bytes : int
         Largest accepted metadata JSON document, bytes.
+    upload_ingest_concurrency : int
+        Uploads each API process validates and converts at once (the others
+        wait their turn, already received): conversion holds the GIL, and
+        more at once would starve the process's reads (:mod:`app.operations.heavy`).
     upload_stale_after_s : float
         Age (s) after which an upload directory is swept at start-up on a file
         system without ``flock`` (some network file systems). Elsewhere every
@@ -219,6 +223,7 @@ class Settings(BaseSettings):
     max_upload_bytes: int = Field(default=8 * _GIB, gt=0)
     upload_block_bytes: int = Field(default=1024 * 1024, ge=4096)
     max_metadata_bytes: int = Field(default=1024 * 1024, ge=1024)
+    upload_ingest_concurrency: int = Field(default=1, ge=1, le=64)
     upload_stale_after_s: float = Field(default=6 * 3600.0, gt=0)
     min_free_bytes: int = Field(default=_GIB, ge=0)
     worker_poll_interval_s: float = Field(default=1.0, gt=0)
