@@ -192,25 +192,33 @@ def claim_due(db: Database, *, limit: int = 20, lease_s: float = 60.0, busy_webh
     out: list[Claimed] = []
     busy = set(busy_webhooks)
     with db.write() as session:
-        stmt = (select(WebhookDelivery, Webhook).join(Webhook, Webhook.id == WebhookDelivery.webhook_id)
-                .where(_due(now)))
+        due = select(WebhookDelivery).where(_due(now))
         if busy:
-            stmt = stmt.where(WebhookDelivery.webhook_id.not_in(busy))
-        rows = session.execute(
-            stmt.order_by(WebhookDelivery.next_attempt_at, WebhookDelivery.id).limit(limit * 4 if one_per_webhook
-                                                                                    else limit)
-        ).all()
-        for d, hook in rows:
-            if len(out) >= limit:
-                break
-            if one_per_webhook and hook.id in busy:
+            due = due.where(WebhookDelivery.webhook_id.not_in(busy))
+        if one_per_webhook:
+            # the webhooks with something due, longest waiting first, then each one's oldest delivery:
+            # a webhook with a long backlog does not keep the others from their turn
+            waiting = select(WebhookDelivery.webhook_id).where(_due(now))
+            if busy:
+                waiting = waiting.where(WebhookDelivery.webhook_id.not_in(busy))
+            hook_ids = session.scalars(
+                waiting.group_by(WebhookDelivery.webhook_id)
+                .order_by(func.min(WebhookDelivery.next_attempt_at), WebhookDelivery.webhook_id).limit(limit)
+            ).all()
+            candidates = [session.scalars(due.where(WebhookDelivery.webhook_id == h).order_by(
+                WebhookDelivery.next_attempt_at, WebhookDelivery.id).limit(1)).first() for h in hook_ids]
+        else:
+            candidates = list(session.scalars(
+                due.order_by(WebhookDelivery.next_attempt_at, WebhookDelivery.id).limit(limit)))
+        for d in candidates:
+            if d is None or len(out) >= limit:
                 continue
+            hook = session.get(Webhook, d.webhook_id)
             result = session.execute(
                 update(WebhookDelivery).where(WebhookDelivery.id == d.id, _due(now))
                 .values(status=DeliveryStatus.SENDING, locked_until=now + dt.timedelta(seconds=lease_s))
             )
-            if result.rowcount == 1:
-                busy.add(hook.id)
+            if result.rowcount == 1 and hook is not None:
                 out.append(Claimed(d.id, hook.id, hook.url, signing_secrets(hook, now), d.event, dict(d.payload),
                                    d.attempts))
     return out

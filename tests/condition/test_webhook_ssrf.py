@@ -427,3 +427,22 @@ def test_the_transport_validates_its_arguments():
         transport.post("http://8.8.8.8/", b"", {}, policy=AddressPolicy(), timeout_s=0, max_answer_bytes=1)
     with pytest.raises(ValueError, match="max_answer_bytes"):
         transport.post("http://8.8.8.8/", b"", {}, policy=AddressPolicy(), timeout_s=1, max_answer_bytes=-1)
+
+
+def test_a_backlog_of_one_webhook_does_not_keep_the_others_waiting(admin):
+    db = Database(admin.settings.database_url)
+    try:
+        with db.write() as s:
+            backlog = webhooks.create_webhook(s, "http://127.0.0.1:9/a").id
+            other = webhooks.create_webhook(s, "http://127.0.0.1:9/b").id
+            for _ in range(30):
+                webhooks.enqueue(s, webhooks.EVENT_PING, {"event": "ping"}, webhook_ids=[backlog])
+            time.sleep(0.01)
+            (late,) = webhooks.enqueue(s, webhooks.EVENT_PING, {"event": "ping"}, webhook_ids=[other])
+        claimed = webhooks.claim_due(db, limit=2, one_per_webhook=True)
+        assert sorted(c.webhook_id for c in claimed) == [backlog, other]
+        assert late in {c.id for c in claimed}
+        assert webhooks.claim_due(db, limit=2, one_per_webhook=True, busy_webhooks=[backlog, other]) == []
+        assert len(webhooks.claim_due(db, limit=5)) == 5  # without the rule: the oldest five
+    finally:
+        db.dispose()
