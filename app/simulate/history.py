@@ -78,6 +78,7 @@ __all__ = [
     "ramp_profile",
     "planted_history",
     "uniform_history",
+    "demo_history",
     "write_history",
 ]
 
@@ -523,6 +524,38 @@ def uniform_history(*, seed: int = 0, n_runs: int = 12, every_days: float = 14.0
     runs = _runs(seed, n_runs, every_days, cruise_kmh, cruise_spread, km_error_sd_m)
     return HistorySpec(line=line, runs=runs, km_start=km_start, length_km=length_km, line_id=line_id,
                        track=track, fs=fs, vehicle_seed=seed + 1)
+
+
+def demo_history(line: LineModel, *, km_start: float, length_km: float, n_runs: int = 10,
+                 every_days: float = 14.0, start: dt.datetime = dt.datetime(2025, 3, 3, 8, 0, tzinfo=dt.UTC),
+                 line_id: str = "SIM", track: str = "1", vehicle_id: str = "SIM-1", fs: float = 10_000.0,
+                 seed: int = 7) -> HistorySpec:
+    """A short history of the demo's line: something for every part of the Condition page.
+
+    On ``line`` (the demo's line model, with its lasting anomalies): a place developing softer
+    (−1 ln unit a year) from the start, a place developing harder (+1.2 a year) that a tamping over
+    200 m around it repairs two thirds through (×0.85, maintenance record written), and a new
+    change of −20 % over 20 m half way; cruise speeds over 100 km/h ± 10 % with ramps at both ends,
+    start odometry errors N(0, 4 m). Positions are chosen at fixed fractions of the run so any
+    demo length ≥ 2 km works.
+    """
+    if not length_km >= 2.0:
+        raise ValueError(f"length_km: the demo history needs >= 2 km, got {length_km!r}")
+    x0, L = 1000.0 * km_start, 1000.0 * length_km
+    span = (n_runs - 1) * every_days
+    half = round(0.5 * span / every_days) * every_days - every_days / 2
+    t_tamp = round(0.65 * span / every_days) * every_days - every_days / 2
+    soft, hard = x0 + 0.55 * L, x0 + 0.85 * L
+    changes = (
+        TrackChange("developing", soft, soft + 40.0, -every_days, 1.0, rate_per_year=-1.0, taper_m=8.0),
+        TrackChange("developing", hard, hard + 40.0, -every_days, 1.0, rate_per_year=1.2, taper_m=8.0),
+        TrackChange("tamping", hard - 80.0, hard + 120.0, t_tamp, 0.85, rate_per_year=0.1, taper_m=10.0),
+        TrackChange("change", x0 + 0.35 * L + 4.0, x0 + 0.35 * L + 24.0, half, 0.8, taper_m=2.0),
+    )
+    runs = _runs(seed, n_runs, every_days, 100.0, 0.10, 4.0)
+    return HistorySpec(line=line, runs=runs, changes=changes, km_start=km_start, length_km=length_km,
+                       start=start, line_id=line_id, track=track, vehicle_id=vehicle_id, fs=fs,
+                       v_start_kmh=50.0, v_end_kmh=45.0, ramp_in_m=400.0, ramp_out_m=300.0, vehicle_seed=seed)
 
 
 def write_history(spec: HistorySpec, directory: Path | str) -> HistoryFiles:

@@ -108,3 +108,18 @@ def test_write_history_writes_runs_of_their_day_and_reuses_them(tmp_path):
     assert f1 / f0 == pytest.approx(0.8, rel=1e-6)
     again = write_history(short, tmp_path)
     assert again.written == [] and again.runs == files.runs
+
+
+def test_demo_history_on_the_demo_line():
+    from app.simulate.history import demo_history
+
+    line = generate_line(11_850.0, 15_150.0, seed=3)
+    spec = demo_history(line, km_start=12.0, length_km=3.0)
+    assert len(spec.runs) == 10 and spec.line_id == "SIM"
+    kinds = sorted(c.kind for c in spec.changes)
+    assert kinds == ["change", "developing", "developing", "tamping"]
+    tamping = next(c for c in spec.changes if c.kind == "tamping")
+    assert spec.runs[0].day < tamping.day < spec.runs[-1].day
+    assert len(spec.maintenance()) == 1
+    with pytest.raises(ValueError, match="length_km"):
+        demo_history(line, km_start=12.0, length_km=1.0)
