@@ -49,6 +49,7 @@ from sqlalchemy import select
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from app.analysis.condition.change import combine_wheels  # noqa: E402
+from app.analysis.condition.extent_level import extent_level  # noqa: E402
 from app.analysis.condition.hotspots import _class_z  # noqa: E402
 from app.analysis.condition.lifecycle import (  # noqa: E402
     Action,
@@ -334,18 +335,13 @@ def tamping_effect(runs: list[RunData], sections: pd.DataFrame, action) -> dict[
     for name in ("lnA relative", "index relative", "index absolute"):
         vals = []
         for run in runs:
-            centres = (run.seg + 0.5) * SEG_M
             if name.startswith("index"):
+                centres = (run.seg + 0.5) * SEG_M
                 x = mean_w(segment_index(run.log_amp, run.speed, classes_of(sections, centres), curves))
             else:
                 x = mean_w(run.log_amp)
-            inside = (centres >= action.track_from_m) & (centres < action.track_to_m)
-            around = (np.abs(centres - 0.5 * (action.track_from_m + action.track_to_m)) < 1000.0) & \
-                ~((centres >= action.track_from_m - 50) & (centres < action.track_to_m + 50))
-            v = np.nanmedian(x[inside])
-            if name.endswith("relative"):
-                v -= np.nanmean(x[around])
-            vals.append(v)
+            vals.append(extent_level(run.seg, x, action.track_from_m, action.track_to_m, segment_m=SEG_M,
+                                     relative=name.endswith("relative")))
         eff = action_effect(days, np.array(vals), action.day)
         out[name] = 100 * np.expm1(eff.recovery) if eff.recovery is not None else np.nan
     return out

@@ -9,35 +9,11 @@ import pytest
 from app.analysis.condition.lifecycle import LifecycleParams, advance_places, severity_trend
 from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP
 from app.analysis.condition.run_places import PlaceParams, find_places, segment_index
-from app.analysis.condition.tiers import TierLimits, TierTable
 from app.analysis.stiffness.reference_curve import ReferenceCurve
-
-PARAMS = PlaceParams(TierTable(TierLimits(0.25, 0.375, 0.625), {"slab": TierLimits(0.2, 0.3, 0.5)}),
-                     TierLimits(0.10, 0.30, 0.50))
-SEG = np.arange(1000, 1300)  # 3 km of 10 m segments
-W = 4
-NOISE = 0.02  # run-to-run repeatability of a 10 m segment, ln units
-
-
-def _track(rng: np.random.Generator) -> np.ndarray:
-    """A line's own index per segment: smooth natural variation, |x| < 0.15."""
-    x = np.convolve(rng.normal(0, 0.05, SEG.size + 4), np.ones(5) / np.sqrt(5), mode="valid")
-    return np.clip(x, -0.15, 0.15)
-
-
-def _runs(rng: np.random.Generator, track: np.ndarray, n: int, extra=None) -> np.ndarray:
-    """(W, S, n) index of n runs: the track + per-run level + noise (+ extra(run) added)."""
-    out = np.empty((W, SEG.size, n))
-    for r in range(n):
-        out[:, :, r] = track[None, :] + rng.normal(0, 0.01) + rng.normal(0, NOISE, (W, SEG.size))
-        if extra is not None:
-            out[:, :, r] += extra(r)[None, :]
-    return out
-
-
-def _box(a_m: float, b_m: float, size: float) -> np.ndarray:
-    lo, hi = SEG * 10.0, (SEG + 1) * 10.0
-    return size * np.clip(np.minimum(hi, b_m) - np.maximum(lo, a_m), 0, None) / 10.0
+from tests.condition.places_support import PARAMS, SEG, W
+from tests.condition.places_support import box as _box
+from tests.condition.places_support import runs as _runs
+from tests.condition.places_support import track as _track
 
 
 def test_a_new_20m_change_is_one_step_place_at_its_km():

@@ -14,7 +14,11 @@ stiffness index** ``ln(A / A_ref(class, v))`` of the run and of its history
   combined (:func:`~app.analysis.condition.change.detect_changes`,
   :func:`~app.analysis.condition.change.combine_wheels`); a step counts where
   ``|z| ≥ step_z`` **and** the change reaches the alert limit of ``changes``
-  (a significant change too small to act on is not a place);
+  (a significant change too small to act on is not a place). A step back towards the typical
+  track on a segment that was an anomaly before (a hard place softening, a repair) is that anomaly
+  shrinking, not a new place the other way: no step, unless the segment overshoots into an anomaly
+  of the other side (without this rule a shrinking hard place was listed as a new soft place at its
+  km, "growing");
 * **trend** — the index's slope over the last ``trend_window_days`` of the
   segment's history (:func:`~app.analysis.condition.change.trend_change`, the
   same levelled history), wheels combined: ``|z| ≥ trend_z`` and a rate of at
@@ -343,8 +347,18 @@ def find_places(
     change_tier = params.changes.grade(np.abs(change))
     step = (np.abs(np.nan_to_num(cz)) >= params.step_z) & (change_tier >= 1) & (np.sign(np.nan_to_num(cz))
                                                                                == np.sign(np.nan_to_num(change)))
-    change_tier = np.where(step, change_tier, 0)
     anomaly = level_tier >= 1
+    # a step back towards the class's typical track on a segment that was an anomaly before it is that
+    # anomaly shrinking (or repaired), not a new place the other way: the anomaly, while it lasts, stays
+    # graded by its level; only where the segment overshoots into an anomaly of the other side is it one
+    before = level - change
+    before_tier = np.zeros(s.size, np.int64)
+    if has_class.any():
+        before_tier[has_class] = params.levels.grade(np.abs(np.nan_to_num(before[has_class])), cls[has_class])
+    back = (before_tier >= 1) & (np.sign(np.nan_to_num(change)) == -np.sign(np.nan_to_num(before))) \
+        & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(change))))
+    step &= ~back
+    change_tier = np.where(step, change_tier, 0)
     # a trend counts where the index grows away from the class's typical track (a place recovering
     # towards it is no work)
     trend &= ~anomaly | (np.sign(np.nan_to_num(rate)) == np.sign(np.nan_to_num(level)))
