@@ -247,3 +247,49 @@ def test_assets_at_labels_places_within_the_buffer():
         assets_at(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), buffer_m=-1.0)
     with pytest.raises(ValueError, match="asset_from_m"):
         assets_at(np.zeros(1), np.zeros(1), np.array([2.0]), np.array([1.0]))
+
+
+def test_section_class_values_are_exact_and_boundaries_belong_to_the_better_class():
+    limits = SectionClassLimits(0.05, 0.10, 0.17, 0.25)
+    seg = np.arange(-20, 40)  # three 200 m sections, the first at km −0.2 (negative segment numbers)
+    x = np.empty(60)
+    x[0:20] = 0.03 + np.where(np.arange(20) % 2 == 0, 0.04, -0.04)  # level 0.03, spread 0.04·√(20/19)
+    x[20:40] = 0.10                                                 # rms exactly at B's upper limit: B
+    x[40:60] = -0.2
+    x[[41, 43]] = np.nan                                            # 18 of 20 with data
+    sc = section_classes(seg, x, segment_m=10.0, limits=limits)
+    assert list(sc.section) == [-1, 0, 1] and list(sc.start_m) == [-200.0, 0.0, 200.0]
+    spread0 = 0.04 * np.sqrt(20 / 19)
+    assert sc.level[0] == pytest.approx(0.03) and sc.spread[0] == pytest.approx(spread0)
+    assert sc.rms[0] == pytest.approx(np.hypot(0.03, spread0))  # 0.051: B
+    assert list(sc.cls) == ["B", "B", "D"]
+    assert list(sc.n_segments) == [20, 20, 18] and sc.level[2] == pytest.approx(-0.2)  # soft counts as departure
+    # 100 m sections (a setting): the first 200 m splits into two sections with the same level and spread
+    sc100 = section_classes(seg, x, segment_m=10.0, limits=limits, section_m=100.0)
+    assert len(sc100) == 6 and sc100.spread[0] == pytest.approx(0.04 * np.sqrt(10 / 9))
+    # a section with too few values has no class (and no level), but is listed
+    sparse = np.full(60, np.nan)
+    sparse[:9] = 0.0
+    one = section_classes(seg, sparse, segment_m=10.0, limits=limits, min_fill=0.5)
+    assert list(one.cls) == ["", "", ""] and np.isnan(one.level).all()
+    assert section_classes(seg, sparse, segment_m=10.0, limits=limits, min_fill=0.45).cls[0] == "A"
+    with pytest.raises(ValueError, match="min_fill"):
+        section_classes(seg, x, segment_m=10.0, limits=limits, min_fill=0.0)
+    with pytest.raises(TypeError, match="limits"):
+        section_classes(seg, x, segment_m=10.0, limits=(0.05, 0.1, 0.17, 0.25))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="seg, index"):
+        section_classes(seg, x[:5], segment_m=10.0, limits=limits)
+
+
+def test_section_class_lengths_follow_a_line_that_degrades():
+    limits = SectionClassLimits(0.05, 0.10, 0.17, 0.25)
+    rng = np.random.default_rng(9)
+    seg = np.arange(200)  # 2 km, ten sections
+    before = rng.normal(0, 0.03, 200)
+    after = before.copy()
+    after[40:80] += 0.2  # two sections 20 % stiffer a year later
+    a = section_classes(seg, before, segment_m=10.0, limits=limits).length_by_class()
+    b = section_classes(seg, after, segment_m=10.0, limits=limits).length_by_class()
+    assert a["A"] == 2000.0
+    assert b["A"] == 1600.0 and b["D"] == 400.0
+    assert sum(b.values()) == 2000.0

@@ -10,7 +10,7 @@ from app.analysis.condition.lifecycle import LifecycleParams, advance_places, se
 from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP
 from app.analysis.condition.run_places import PlaceParams, find_places, segment_index
 from app.analysis.stiffness.reference_curve import ReferenceCurve
-from tests.condition.places_support import PARAMS, SEG, W
+from tests.condition.places_support import NOISE, PARAMS, SEG, W
 from tests.condition.places_support import box as _box
 from tests.condition.places_support import runs as _runs
 from tests.condition.places_support import track as _track
@@ -261,3 +261,65 @@ def test_a_tamping_repairs_the_place_it_covers_and_its_own_effect_is_not_a_new_p
     effect = [k for k in known if k.direction == -1 and k.start_m < tamping.end_m and k.end_m > tamping.start_m]
     assert effect and all(k.explained_by == 77 and not k.listed for k in effect)
     assert not [e for e in log if e[2] in {k.id for k in effect}]  # its effect raised no alert
+
+
+def _ramp_line_runs(seed: int, n_runs: int, change=None):
+    """Segment rows of ``n_runs`` runs over km 10–13 with speed ramps (65 → cruise over the first 500 m,
+    cruise → 60 km/h over the last 400 m, cruise 120 km/h ± 10 %): ``ln A`` follows a curved speed law
+    plus the track's own variation per rail and noise; ``change(run)`` adds to the track."""
+    rng = np.random.default_rng(seed)
+    x = (SEG + 0.5) * 10.0
+    rails = {w: _track(np.random.default_rng(seed + 100 + int(w[1]))) for w in ("11", "12", "41", "42")}
+    la, speed = np.empty((W, SEG.size, n_runs)), np.empty((W, SEG.size, n_runs))
+    cruise = 120.0 * (1 + 0.1 * np.linspace(-1, 1, n_runs))[rng.permutation(n_runs)]
+    for r in range(n_runs):
+        v_in = 65.0 + (cruise[r] - 65.0) * np.clip((x - 10_000.0) / 500.0, 0, 1)
+        v = np.where(x < 12_600.0, v_in, cruise[r] + (60.0 - cruise[r]) * np.clip((x - 12_600.0) / 400.0, 0, 1))
+        v = v / 3.6
+        law = 1.4 * np.log(v / 30.0) + 0.3 * np.log(v / 30.0) ** 2
+        level = rng.normal(0, 0.02)
+        for i, w in enumerate(rails):
+            la[i, :, r] = law + rails[w] + level + rng.normal(0, NOISE, SEG.size) + (0 if change is None else change(r))
+            speed[i, :, r] = v * (1 + rng.normal(0, 0.003, SEG.size))
+    return la, speed
+
+
+def _index_of_runs(la, speed, upto: int):
+    from app.analysis.condition.segment_curves import fit_segment_curves
+
+    cls = np.full(SEG.size, "b91", dtype=object)
+    wheels = ("11", "12", "41", "42")
+    cols = [np.concatenate(c) for c in zip(*[(SEG, la[i, :, r], speed[i, :, r], np.full(SEG.size, r),
+                                              np.full(SEG.size, w), cls) for r in range(upto) for i, w in
+                                             enumerate(wheels)], strict=True)]
+    curves = fit_segment_curves(*cols)
+    runs_last = np.moveaxis(segment_index(np.moveaxis(la[:, :, :upto], 2, 1), np.moveaxis(speed[:, :, :upto], 2, 1),
+                                          cls, curves), 1, 2)
+    return runs_last, cls
+
+
+def test_a_uniform_line_with_speed_ramps_gives_no_place_but_ln_a_would():
+    la, speed = _ramp_line_runs(41, 12)
+    index, cls = _index_of_runs(la, speed, 12)
+    days = np.arange(12) * 14.0
+    for r in (6, 9, 11):
+        rp = find_places(SEG, index[:, :, r], index[:, :, :r], days[:r], days[r], cls, segment_m=10.0, params=PARAMS)
+        assert len(rp) == 0, (r, rp.places.start_m)
+    # without the speed conditioning (ln A against its own median over the line) the ramps read as track
+    raw = la - np.median(la[:, :, :12], axis=(0, 1))[None, None, :]
+    rp = find_places(SEG, raw[:, :, 11], raw[:, :, :11], days[:11], days[11], cls, segment_m=10.0, params=PARAMS)
+    assert len(rp) >= 2 and rp.places.start_m.min() < 10_500.0 and rp.places.end_m.max() > 12_600.0
+
+
+@pytest.mark.parametrize(("start", "size"), [(10_203.0, np.log(0.8)), (11_507.5, np.log(0.8)),
+                                             (11_995.0, np.log(1.25))])
+def test_a_20m_change_on_a_ramp_or_at_cruise_is_one_place_within_5m(start, size):
+    la, speed = _ramp_line_runs(42, 12, lambda r: _box(start, start + 20.0, size) if r == 11 else 0.0)
+    index, cls = _index_of_runs(la, speed, 12)
+    days = np.arange(12) * 14.0
+    rp = find_places(SEG, index[:, :, 11], index[:, :, :11], days[:11], days[11], cls, segment_m=10.0, params=PARAMS)
+    assert len(rp) == 1
+    assert rp.places.direction[0] == np.sign(size) and rp.places.evidence[0] & EVIDENCE_STEP
+    assert abs(rp.places.centre_m[0] - (start + 10.0)) < 5.0
+    assert rp.change[0] == pytest.approx(size, abs=0.07)
+    assert rp.tier[0] == 1  # |change| 0.22 in [0.10, 0.30): alert

@@ -154,7 +154,8 @@ def section_classes(
     level = np.where(enough, level, np.nan)
     spread = np.where(enough, spread, np.nan)
     rms = np.sqrt(level**2 + spread**2)
-    k = np.searchsorted(limits.limits, np.nan_to_num(rms, nan=0.0), side="left")
+    # a class holds its upper limit (a section exactly at it is not pushed over by rounding of the mean)
+    k = np.searchsorted(limits.limits, np.nan_to_num(rms, nan=0.0) - 1e-12, side="left")
     labels = np.array(SECTION_CLASSES, dtype=object)[np.minimum(k, len(SECTION_CLASSES) - 1)]
     cls = np.where(enough, labels, "").astype(object)
     return SectionClasses(section=ids.astype(np.int64), start_m=ids * section_m, end_m=(ids + 1) * section_m,
