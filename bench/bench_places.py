@@ -248,7 +248,7 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
             order = rank_places(rp.tier, np.full(len(rp), np.nan), rp.severity)
             found_by[name] = (rp.places.start_m, rp.places.end_m, rp.places.centre_m, order)
             # the same design with the lifecycle: the work list holds the listed, active places
-            known, next_id, n_alerts = life.setdefault(name, ([], 1, [0]))
+            known, next_id, n_alerts = life.setdefault(name, ([], 1, {}))
             events, _, next_id = advance_places(known, rp, run_id=run.run_id, day=run.day, covered_m=covered,
                                                 params=LIFECYCLE, next_id=next_id, place_params=params,
                                                 actions=actions)
@@ -259,7 +259,14 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
                                      f"–{kp.end_m / 1000:.3f}", "action": e.action_id,
                                      "effect places explained": sum(1 for x in known if x.explained_by == e.action_id)})
             life[name] = (known, next_id, n_alerts)
-            n_alerts[0] += len(events)
+            for e in events:
+                n_alerts[e.kind] = n_alerts.get(e.kind, 0) + 1
+                if name == CHOSEN:
+                    kp = next(x for x in known if x.id == e.place_id)
+                    alert_log.append({"history": which, "seed": seed, "run": k, "kind": e.kind, "place": e.place_id,
+                                      "km": f"{kp.start_m / 1000:.3f}–{kp.end_m / 1000:.3f}",
+                                      "tier": f"{e.old_tier}→{e.new_tier}",
+                                      "real": any(overlaps(kp.start_m, kp.end_m, t) for t in truth)})
             listed = [kp for kp in known if kp.listed and kp.active]
             tiers = np.array([kp.tier for kp in listed], dtype=np.int64)
             sev = np.array([kp.observations[-1].severity for kp in listed])
@@ -270,7 +277,7 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
             found_by[name + " | listed"] = (np.array([kp.start_m for kp in listed]),
                                             np.array([kp.end_m for kp in listed]),
                                             np.array([kp.observations[-1].centre_m for kp in listed]), order)
-            alerts_by[(which, seed, name)] = n_alerts[0]
+            alerts_by[(which, seed, name)] = dict(n_alerts)
             tamp = [c.day for c in spec.changes if c.kind == "tamping"]
             if name == CHOSEN and tamp and k + 1 < len(runs) and runs[k + 1].day > tamp[0] > run.day:
                 for t in (t for t in truth if t.kind == "developing"):
@@ -353,7 +360,8 @@ repaired: list[dict] = []
 trends: list[dict] = []
 
 
-alerts_by: dict[tuple[str, int, str], int] = {}
+alerts_by: dict[tuple[str, int, str], dict[str, int]] = {}
+alert_log: list[dict] = []
 LIFECYCLE = LifecycleParams()
 
 
@@ -456,7 +464,10 @@ def main(argv: list[str] | None = None) -> int:
         print(ce.groupby("design").agg(err_mean=("err_m", "mean"), err_max=("err_m", "max"),
                                        places_max=("n_places", "max"), n=("err_m", "count")).round(2).to_string())
     print("\nAlerts (events of the lifecycle) over the whole history:")
-    print(pd.Series({f"{h} seed {sd}: {n}": v for (h, sd, n), v in alerts_by.items()}).to_string())
+    print(pd.Series({f"{h} seed {sd}: {n}": v or "none" for (h, sd, n), v in alerts_by.items()}).to_string())
+    if alert_log:
+        print(f"\nEvery alert of the default design ({CHOSEN} | listed), with whether its place is real:")
+        print(pd.DataFrame(alert_log).to_string(index=False))
     print("\n200 m section classes of the newest run (A best … E):")
     print(pd.DataFrame(sections_out).to_string(index=False))
     if repaired:
