@@ -88,6 +88,21 @@ def test_places_keep_their_id_through_alignment_residuals_growth_and_a_run_that_
     assert abs(soft.observations[-1].centre_m - (11_105.0 + offset[15])) < 5.0
 
 
+def test_runs_without_an_index_over_a_place_do_not_miss_it():
+    spot = box(12_500.0, 12_530.0, 0.45)  # an intervention-tier hard place, listed at once
+    index = _history(23, 12, lambda r: spot)
+    # runs 7 and 8 passed km 12.4–12.7 at a speed without a reference curve: no index there
+    index[:, (SEG >= 1240) & (SEG < 1270), 7:9] = np.nan
+    known, events, ids = _advance(index)
+    assert [k.id for k in known] == [1] and known[0].active and known[0].misses == 0
+    assert _kinds(events) == [(5, "new", 1)]  # no 'back' after the runs that could not see it
+    assert ids[7] == ids[8] == [] and known[0].confirmations == 5
+    # a run with an index there that does not find it misses it
+    index[:, :, 9:] -= spot[None, :, None]  # repaired from run 9 on (no action recorded)
+    known, events, _ = _advance(index)
+    assert not known[0].active and _kinds(events) == [(5, "new", 1)]
+
+
 # --- growing / stable / shrinking ---------------------------------------------------------------------
 
 

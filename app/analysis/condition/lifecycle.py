@@ -13,8 +13,9 @@ after it was marked fixed keeps its id and history). Then:
   rolling history that slowly absorbs a lasting change; a known place the
   run's tests did not flag is still **held** (confirmed) while its extent
   stays ``hold_change`` away from its baseline in its direction;
-* a place neither found nor held by a run that covered its extent is
-  **missed** by it (``misses`` counts the consecutive ones), and after
+* a place neither found nor held by a run that covered its extent with an
+  index (a run without one there — no reference curve at the speed it passed
+  the place — could not see it) is **missed** by it (``misses`` counts the consecutive ones), and after
   ``drop_after`` misses it is no longer **active** (not on the list until
   found again; a place never listed is then forgotten) — a repaired place
   goes back to its baseline and drops out this way;
@@ -359,7 +360,10 @@ def advance_places(
         state = known[j] if j >= 0 else None
         if state is not None and state.baseline is not None:
             change = level - state.baseline
-        tier = _graded(place_params, found.cls[i], level, change, int(p.direction[i]), int(found.tier[i]))
+        # the change grades a place against its baseline, or where the run's step test fired
+        graded_change = change if (state is not None and state.baseline is not None) \
+            or (p.evidence[i] & EVIDENCE_STEP) else float("nan")
+        tier = _graded(place_params, found.cls[i], level, graded_change, int(p.direction[i]), int(found.tier[i]))
         obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),
                           centre_m=float(p.centre_m[i]), peak_m=float(found.peak_m[i]), level=level, change=change,
                           tier=tier, severity=float(found.severity[i]), evidence=int(p.evidence[i]),
@@ -393,7 +397,7 @@ def advance_places(
                     state.actions.append(acts[k].id)
         if j in matched or state.observations[-1].run_id == run_id:
             continue
-        if not (lo <= state.start_m and state.end_m <= hi):
+        if not (lo <= state.start_m and state.end_m <= hi) or not _observed(state, found):
             continue
         held = _held(state, found, run_id, day, params, place_params)
         if held is not None:
@@ -429,6 +433,16 @@ def _confirm(state: PlaceState, obs: Observation, was_active: bool, params: Life
         events.append(PlaceEvent(state.id, "new", 0, state.tier))
 
 
+def _observed(state: PlaceState, found: RunPlaces) -> bool:
+    """The run has an index over the place's extent (where it has none — no reference curve at the speed
+    it passed there, no valid bins — it could not see the place, and does not miss it)."""
+    if found.seg.size == 0:
+        return False
+    a = np.searchsorted(found.seg, int(np.floor(state.start_m / found.segment_m)), side="left")
+    b = np.searchsorted(found.seg, int(np.ceil(state.end_m / found.segment_m)), side="left")
+    return bool(np.isfinite(found.seg_index[a:b]).any())
+
+
 def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: LifecycleParams,
           place_params: PlaceParams | None) -> Observation | None:
     """The observation that holds a known place the run did not flag (None: it is back at its baseline)."""
@@ -451,6 +465,7 @@ def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: 
     chg_alert = place_params.changes.alert if place_params is not None else np.inf
     severity = max(abs(level) / lvl_alert, abs(change) / chg_alert) if place_params is not None else 0.0
     peak = (float(found.seg[a + k]) + 0.5) * found.segment_m
-    return Observation(run_id=run_id, day=float(day), start_m=state.start_m, end_m=state.end_m, centre_m=peak,
-                       peak_m=peak, level=level, change=change, tier=tier, severity=float(severity),
+    # held, not found: the place keeps its extent and the centre the run that last found it located
+    return Observation(run_id=run_id, day=float(day), start_m=state.start_m, end_m=state.end_m,
+                       centre_m=state.observations[-1].centre_m, peak_m=peak, level=level, change=change, tier=tier, severity=float(severity),
                        evidence=EVIDENCE_STEP, wheels=0)

@@ -360,8 +360,11 @@ def find_places(
     step &= ~back
     change_tier = np.where(step, change_tier, 0)
     # a trend counts where the index grows away from the class's typical track (a place recovering
-    # towards it is no work)
+    # towards it is no work): not against an anomaly's own side, nor back from a former anomaly unless
+    # it overshoots into an anomaly of the other side
     trend &= ~anomaly | (np.sign(np.nan_to_num(rate)) == np.sign(np.nan_to_num(level)))
+    trend &= ~((before_tier >= 1) & (np.sign(np.nan_to_num(rate)) == -np.sign(np.nan_to_num(before)))
+               & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(rate)))))
     evidence = (np.where(anomaly, EVIDENCE_ANOMALY, 0) | np.where(step, EVIDENCE_STEP, 0)
                 | np.where(trend, EVIDENCE_TREND, 0))
     # a step segment goes the way of its change, a trend the way of its rate, an anomaly the way of its index
