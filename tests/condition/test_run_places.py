@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from app.analysis.condition.lifecycle import LifecycleParams, advance_places, severity_trend
-from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP
+from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP, EVIDENCE_TREND
 from app.analysis.condition.run_places import PlaceParams, find_places, segment_index
 from app.analysis.stiffness.reference_curve import ReferenceCurve
 from tests.condition.places_support import NOISE, PARAMS, SEG, W
@@ -323,3 +323,32 @@ def test_a_20m_change_on_a_ramp_or_at_cruise_is_one_place_within_5m(start, size)
     assert abs(rp.places.centre_m[0] - (start + 10.0)) < 5.0
     assert rp.change[0] == pytest.approx(size, abs=0.07)
     assert rp.tier[0] == 1  # |change| 0.22 in [0.10, 0.30): alert
+
+
+def test_a_trend_alone_makes_a_watch_place_only_where_it_reaches_the_alert_limit_soon():
+    rng = np.random.default_rng(14)
+    base = _track(rng) * 0.2
+    spot = _box(12_000.0, 12_040.0, 1.0)
+    days = np.arange(13) * 14.0
+    cls = np.full(SEG.size, "b91", dtype=object)
+
+    def newest(start: float) -> object:
+        runs = _runs(rng, base, 13, lambda r: spot * (start + 0.35 * (days[r] - days[-1]) / 365.25))
+        return find_places(SEG, runs[:, :, -1], runs[:, :, :-1], days[:-1], days[-1], cls, segment_m=10.0,
+                           params=PARAMS)
+
+    # growing 0.35 a year (0.08 over the history's median: no step): at 0.16 it reaches b91's 0.25 in
+    # ~95 days (watch); at 0.05 in ~210 days (not yet, unless the horizon is a year)
+    soon = newest(0.16)
+    assert len(soon) == 1 and soon.places.evidence[0] == EVIDENCE_TREND and soon.tier[0] == 0
+    assert soon.rate_per_year[0] == pytest.approx(0.35, rel=0.2)
+    assert len(newest(0.05)) == 0
+    assert len(find_places(*_trend_args(rng, base, spot, days, cls), segment_m=10.0,
+                           params=PlaceParams(PARAMS.levels, PARAMS.changes, watch_days=365.0))) == 1
+    with pytest.raises(ValueError, match="watch_days"):
+        PlaceParams(PARAMS.levels, PARAMS.changes, watch_days=0.0)
+
+
+def _trend_args(rng, base, spot, days, cls):
+    runs = _runs(rng, base, days.size, lambda r: spot * (0.05 + 0.35 * (days[r] - days[-1]) / 365.25))
+    return SEG, runs[:, :, -1], runs[:, :, :-1], days[:-1], days[-1], cls

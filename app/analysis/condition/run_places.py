@@ -22,7 +22,8 @@ stiffness index** ``ln(A / A_ref(class, v))`` of the run and of its history
 * **trend** — the index's slope over the last ``trend_window_days`` of the
   segment's history (:func:`~app.analysis.condition.change.trend_change`, the
   same levelled history), wheels combined: ``|z| ≥ trend_z`` and a rate of at
-  least ``min_rate_per_year`` away from the class's typical track. A place
+  least ``min_rate_per_year`` away from the class's typical track, reaching the class's alert
+  limit within ``watch_days`` at that rate where it is the only evidence. A place
   growing steadily has a history too spread for the step test and may not
   have reached a limit yet: the trend finds it (tier *watch* until it does).
 
@@ -114,6 +115,8 @@ class PlaceParams:
         Gap tolerance of the merge, m.
     level_block_m : float
         Block of the run-level correction, m.
+    watch_days : float
+        A trend alone makes a place (tier watch) where it reaches the alert limit within so many days.
     """
 
     levels: TierTable
@@ -127,13 +130,15 @@ class PlaceParams:
     history_runs: int = 30
     gap_m: float = 10.0
     level_block_m: float = 1000.0
+    watch_days: float = 180.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.levels, TierTable):
             raise TypeError("levels: must be a TierTable")
         if not isinstance(self.changes, TierLimits):
             raise TypeError("changes: must be a TierLimits")
-        for name in ("step_z", "trend_z", "min_rate_per_year", "trend_window_days", "agree_z", "level_block_m"):
+        for name in ("step_z", "trend_z", "min_rate_per_year", "trend_window_days", "agree_z", "level_block_m",
+                     "watch_days"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
@@ -365,6 +370,13 @@ def find_places(
     trend &= ~anomaly | (np.sign(np.nan_to_num(rate)) == np.sign(np.nan_to_num(level)))
     trend &= ~((before_tier >= 1) & (np.sign(np.nan_to_num(rate)) == -np.sign(np.nan_to_num(before)))
                & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(rate)))))
+    # a trend alone (no anomaly, no step: tier watch) counts where the segment reaches its class's alert
+    # limit within watch_days at its rate: a segment at typical track with a trend is a year or more away
+    # from any limit, and where the curve is thin (a braking end) such trends were noise (measured)
+    alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        to_alert = (alert - np.sign(np.nan_to_num(rate)) * level) / np.abs(rate) * 365.25
+    trend &= anomaly | step | (np.nan_to_num(to_alert, nan=np.inf) <= params.watch_days)
     evidence = (np.where(anomaly, EVIDENCE_ANOMALY, 0) | np.where(step, EVIDENCE_STEP, 0)
                 | np.where(trend, EVIDENCE_TREND, 0))
     # a step segment goes the way of its change, a trend the way of its rate, an anomaly the way of its index
