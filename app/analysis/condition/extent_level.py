@@ -18,7 +18,7 @@ out; the margin keeps out the tapers at the extent's ends (the work of a
 tamping machine ramps in and out over some metres).
 
 Measured on histories through the real pipeline (``bench/bench_places.py``): a
-tamping of −20.0 % reads −18.4 / −19.4 / −20.1 % this way, −18.1 / −14.6 / −31.5 %
+tamping of −20.0 % reads −18.5 / −19.4 / −20.1 % this way, −18.2 / −14.6 / −31.4 %
 from ``ln A`` over the extent as the store's maintenance effect reads it today.
 """
 
