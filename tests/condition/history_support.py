@@ -108,3 +108,63 @@ def process_history(client: Any, spec: HistorySpec, file_dir: Path, *, runs: sli
     finally:
         db.dispose()
     return out
+
+
+@dataclass
+class StoredRun:
+    """A run's 10 m segment rows as the condition store holds them (wheels × segments).
+
+    ``log_amp`` is the store's condition index ``ln(A / 1 m/s²)``, ``speed`` m/s; ``classes`` the
+    superstructure class per segment (None near a change of class or outside the sections).
+    """
+
+    run_id: int
+    day: float
+    seg: Any
+    wheels: list[str]
+    log_amp: Any
+    speed: Any
+    classes: Any
+
+
+def stored_runs(database_url: str, spec: HistorySpec, *, margin_m: float = 50.0) -> list[StoredRun]:
+    """The history's runs in the store, oldest first (days from ``spec.start``)."""
+    import numpy as np
+    import pandas as pd
+    from sqlalchemy import select
+
+    from app.analysis.stiffness.superstructure import section_classes
+    from app.db import reference_crud
+    from app.db.condition_models import ConditionLine, ConditionRun
+    from app.db.condition_models import SegmentCondition as SC
+    from app.db.session import Database
+
+    db = Database(database_url)
+    out: list[StoredRun] = []
+    try:
+        with db.read() as s:
+            sections = reference_crud.reference_frame(s, "superstructure", line_id=spec.line_id, track=spec.track)
+            line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == spec.line_id))
+            runs = s.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(ConditionRun.line_key == line.id)
+                             .order_by(ConditionRun.run_time)).all()
+            for run_id, when in runs:
+                rows = pd.DataFrame(s.execute(select(SC.wheel, SC.seg, SC.index, SC.speed_mean)
+                                              .where(SC.run_id == run_id, SC.seg_m == 10)).all(),
+                                    columns=["wheel", "seg", "index", "speed"])
+                seg = np.sort(rows.seg.unique())
+                wheels = sorted(rows.wheel.unique())
+                la = np.full((len(wheels), seg.size), np.nan)
+                v = np.full((len(wheels), seg.size), np.nan)
+                for i, w in enumerate(wheels):
+                    a = rows[rows.wheel == w]
+                    j = np.searchsorted(seg, a.seg.to_numpy())
+                    la[i, j] = a["index"].to_numpy(dtype=float)
+                    v[i, j] = a["speed"].to_numpy(dtype=float)
+                day = (when.replace(tzinfo=spec.start.tzinfo) - spec.start).total_seconds() / 86400.0
+                cls = section_classes((seg + 0.5) * 10.0, sections["km_from"].to_numpy() * 1000.0,
+                                      sections["km_to"].to_numpy() * 1000.0, sections["type"].to_numpy(dtype=object),
+                                      boundary_margin_m=margin_m)
+                out.append(StoredRun(int(run_id), day, seg, wheels, la, v, cls))
+    finally:
+        db.dispose()
+    return out
