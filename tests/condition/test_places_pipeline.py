@@ -31,6 +31,11 @@ def _curves(runs: list[StoredRun]) -> dict:
     return fit_segment_curves(*[np.concatenate([p[j] for p in parts]) for j in range(6)])
 
 
+def _wheel_mean(a: np.ndarray) -> np.ndarray:
+    n = np.isfinite(a).sum(axis=0)
+    return np.where(n > 0, np.nansum(a, axis=0) / np.maximum(n, 1), np.nan)
+
+
 def _on(src: StoredRun, dst: StoredRun, values: np.ndarray) -> np.ndarray:
     out = np.full((len(dst.wheels), dst.seg.size), np.nan)
     j = np.minimum(np.searchsorted(src.seg, dst.seg), src.seg.size - 1)
@@ -130,7 +135,7 @@ def test_the_tamping_closes_its_place_and_its_effect_is_within_5_points(history)
     assert all(not p.listed for p in effect)
     # its effect: the extent against the track around it, run by run, with the curves of all runs
     curves = _curves(runs)
-    vals = [extent_level(r.seg, np.nanmean(segment_index(r.log_amp, r.speed, r.classes, curves), axis=0),
+    vals = [extent_level(r.seg, _wheel_mean(segment_index(r.log_amp, r.speed, r.classes, curves)),
                          tamping.start_m, tamping.end_m, segment_m=SEG_M) for r in runs]
     eff = action_effect(np.array([r.day for r in runs]), np.array(vals), tamping.day)
     truth = 100 * math.expm1(spec.tamping_effect(next(c for c in spec.changes if c.kind == "tamping")))
