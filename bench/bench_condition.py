@@ -70,9 +70,8 @@ def main() -> None:
     from app.core.config import Settings
     from app.db import migrate
     from app.db.condition_fleet import ingest_fleet
-    from app.db.condition_models import ConditionLine
     from app.db.condition_writer import ConditionConfig, store_run_condition
-    from app.db.models import Job, JobStatus, Run, utcnow
+    from app.db.models import ConditionLine, Job, JobStatus, Run, utcnow
     from app.db.session import Database
     from app.main import create_app
     from app.simulate.fleet import FleetScorer, FleetSimulator, random_plan

@@ -12,7 +12,7 @@ from app.api.deps import DbDep, EngineerDep, require_role
 from app.api.errors import ApiError, not_found
 from app.api.schemas.recorder import ChannelMapIn, ChannelMapList, ChannelMapOut
 from app.db import recorder_crud
-from app.db.recorder_models import ChannelMapRow
+from app.db.models import ChannelMapRow
 from app.db.session import Database
 from app.io import RunFileError
 from app.io.channel_map import ChannelMap, parse_channel_map

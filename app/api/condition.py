@@ -43,9 +43,8 @@ from app.db.condition_fleet import FLEET_SOURCE_FORMAT
 from app.db.condition_hotspots import line_hotspots
 from app.db.condition_index import index_name
 from app.db.condition_maintenance import run_levels
-from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun
 from app.db.condition_writer import ConditionConfig
-from app.db.models import Job, JobStatus, Run
+from app.db.models import ConditionFlag, ConditionLine, ConditionRun, Job, JobStatus, Run
 from app.db.session import Database
 
 __all__ = ["router", "resolve_line", "check_line_km", "segment_length"]

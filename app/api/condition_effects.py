@@ -21,9 +21,8 @@ from app.api.errors import ApiError, not_found
 from app.api.reference import parse_types
 from app.db import reference_crud
 from app.db.condition_maintenance import extent_profile, extent_series
-from app.db.condition_models import ConditionLine
 from app.db.condition_writer import days_of
-from app.db.reference_models import MaintenanceAction
+from app.db.models import ConditionLine, MaintenanceAction
 from app.db.session import Database
 
 __all__ = ["router"]

@@ -20,8 +20,7 @@ from app.api.schemas.recorder import (
     IndicatorSegment,
 )
 from app.db import crud, recorder_crud, results_reader
-from app.db.models import PROFILE_VALUE_COLUMNS
-from app.db.recorder_models import LineGeometryRow
+from app.db.models import PROFILE_VALUE_COLUMNS, LineGeometryRow
 from app.io import RunFileError
 from app.io.channels import UNITS
 from app.io.geometry import parse_geojson

@@ -19,7 +19,7 @@ from app.api.deps import AdminDep, DbDep, PageOffset, SettingsDep, check_page_si
 from app.api.errors import ApiError, not_found
 from app.db import webhooks
 from app.db.condition_reader import iso_time
-from app.db.webhook_models import DeliveryStatus, Webhook, WebhookDelivery
+from app.db.models import DeliveryStatus, Webhook, WebhookDelivery
 
 __all__ = ["router"]
 

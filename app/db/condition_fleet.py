@@ -28,9 +28,8 @@ from sqlalchemy import func, select
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams, RollingHistory, assess_run
 from app.analysis.settings import ProcessingSettings
 from app.db import reference_crud
-from app.db.condition_models import SegmentCondition
 from app.db.condition_writer import days_of, line_of, wheel_segments, write_assessed_run
-from app.db.models import Job, JobStatus, Run, utcnow
+from app.db.models import Job, JobStatus, Run, SegmentCondition, utcnow
 from app.db.session import Database
 from app.simulate.fleet import FLEET_WHEELS, FleetDay, FleetSimulator
 

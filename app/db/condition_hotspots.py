@@ -18,8 +18,8 @@ from app.analysis.condition import (
 )
 from app.analysis.stiffness.superstructure import assign_sections
 from app.db import reference_crud
-from app.db.condition_models import ConditionLine, ConditionRun, SegmentCondition
 from app.db.condition_reader import fetch_array, newest_run
+from app.db.models import ConditionLine, ConditionRun, SegmentCondition
 
 __all__ = ["LineHotspots", "line_hotspots", "UNCLASSIFIED"]
 

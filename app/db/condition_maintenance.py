@@ -18,8 +18,8 @@ import numpy as np
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.db.condition_models import ConditionLine, ConditionOverview, ConditionRun, SegmentCondition
 from app.db.condition_reader import OVERVIEW_M, fetch_array, line_runs
+from app.db.models import ConditionLine, ConditionOverview, ConditionRun, SegmentCondition
 from app.io import WHEELS
 
 __all__ = ["NEIGHBOURHOOD_KM", "GAP_KM", "extent_segments", "run_levels", "extent_series", "extent_profile"]

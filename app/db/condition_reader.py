@@ -1,6 +1,6 @@
 """Queries of the segment condition store: lines, heat maps, trends, change lists, the flag feed.
 
-Everything here reads the segment rows (:mod:`app.db.condition_models`),
+Everything here reads the segment rows (:mod:`app.db.models`),
 never the 25 cm profile rows: a year of daily runs over a line is a few
 hundred thousand rows at 100 m, read straight from the database cursor into
 numpy arrays.
@@ -17,7 +17,7 @@ import numpy as np
 from sqlalchemy import func, literal, select
 from sqlalchemy.orm import Session
 
-from app.db.condition_models import (
+from app.db.models import (
     ConditionFlag,
     ConditionLine,
     ConditionOverview,
@@ -149,7 +149,7 @@ def heatmap(session: Session, runs: Sequence[ConditionRun], seg_m: int, *, wheel
     """Index of every run and segment of ``seg_m`` in a km range (mean over wheels unless ``wheel``).
 
     The line overview (100 m, mean over the wheels) reads the runs' overview rows
-    (:class:`~app.db.condition_models.ConditionOverview`); other views the segment rows.
+    (:class:`~app.db.models.ConditionOverview`); other views the segment rows.
     """
     run_ids = [r.run_id for r in runs]
     if not run_ids:

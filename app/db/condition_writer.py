@@ -9,7 +9,7 @@ with a line id it
    (``edge_trim_m``), bins slower than ``min_speed_mps`` and bins without
    amplitude;
 2. aligns the run to its line's reference signature (the first run stored for
-   the line, :class:`~app.db.condition_models.ConditionLine`;
+   the line, :class:`~app.db.models.ConditionLine`;
    :func:`app.analysis.stiffness.alignment.align_runs`);
 3. computes the condition index of every bin (:func:`app.db.condition_index.condition_index`,
    the one place that decides it) and the 10 m and 100 m segments of every wheel
@@ -52,14 +52,14 @@ from app.analysis.stiffness.alignment import align_runs
 from app.db import results_reader, webhooks
 from app.db.bulk import insert_frame
 from app.db.condition_index import condition_index, index_name
-from app.db.condition_models import (
+from app.db.models import (
     ConditionFlag,
     ConditionLine,
     ConditionOverview,
     ConditionRun,
+    Run,
     SegmentCondition,
 )
-from app.db.models import Run
 
 __all__ = [
     "ConditionConfig",
@@ -78,7 +78,7 @@ __all__ = [
 #: advisory lock key of the flag feed (PostgreSQL): flag ids become visible in order
 _FLAG_FEED_LOCK = 0x7476_6B66_16
 _EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
-#: PostgreSQL binary types of a segment row (app.db.condition_models.SegmentCondition)
+#: PostgreSQL binary types of a segment row (app.db.models.SegmentCondition)
 _SEGMENT_PG_TYPES: dict[str, str] = {
     "run_id": "int4", "seg_m": "int2", "wheel": "text", "seg": "int4", "line_key": "int4", "job_id": "int4",
     "n_valid": "int4", "amp_mean": "float4", "amp_p95": "float4", "speed_mean": "float4", "index": "float4",
@@ -87,7 +87,7 @@ _SEGMENT_PG_TYPES: dict[str, str] = {
 }
 
 
-#: PostgreSQL binary types of an overview row (app.db.condition_models.ConditionOverview)
+#: PostgreSQL binary types of an overview row (app.db.models.ConditionOverview)
 _OVERVIEW_PG_TYPES: dict[str, str] = {
     "run_id": "int4", "seg": "int4", "line_key": "int4", "index": "float4", "n_wheels": "int2", "flagged": "bool",
 }

@@ -13,8 +13,7 @@ import pandas as pd
 from sqlalchemy import and_, delete, insert, select, tuple_
 from sqlalchemy.orm import Session
 
-from app.db.models import utcnow
-from app.db.reference_models import MaintenanceAction, SubsidenceMeasurement, SuperstructureSection
+from app.db.models import MaintenanceAction, SubsidenceMeasurement, SuperstructureSection, utcnow
 
 __all__ = ["MODELS", "insert_reference", "delete_reference", "reference_frame"]
 

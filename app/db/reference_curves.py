@@ -34,8 +34,7 @@ from app.analysis.stiffness.stiffness_index import StiffnessIndex, stiffness_ind
 from app.analysis.stiffness.superstructure import section_classes
 from app.core.config import Settings
 from app.db import line_profiles, reference_crud, results_reader
-from app.db.curve_models import ReferenceCurveRow
-from app.db.models import utcnow
+from app.db.models import ReferenceCurveRow, utcnow
 from app.db.session import Database
 
 __all__ = [

@@ -23,11 +23,17 @@ from urllib.parse import urlsplit
 from sqlalchemy import and_, func, or_, select, update
 from sqlalchemy.orm import Session
 
-from app.db.condition_models import ConditionFlag, ConditionLine
 from app.db.condition_reader import flag_dict, iso_time
-from app.db.models import Run, utcnow
+from app.db.models import (
+    ConditionFlag,
+    ConditionLine,
+    DeliveryStatus,
+    Run,
+    Webhook,
+    WebhookDelivery,
+    utcnow,
+)
 from app.db.session import Database
-from app.db.webhook_models import DeliveryStatus, Webhook, WebhookDelivery
 
 __all__ = [
     "EVENT_FLAGS",

@@ -6,8 +6,7 @@ import json
 
 from sqlalchemy import select
 
-from app.db.auth_models import AuditEntry
-from app.db.models import Job, Run
+from app.db.models import AuditEntry, Job, Run
 from app.db.session import Database
 from tests.api import runfiles
 from tests.api.support import store_files

@@ -9,7 +9,7 @@ import pytest
 from sqlalchemy import func, select
 
 from app.db import crud
-from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun, SegmentCondition
+from app.db.models import ConditionFlag, ConditionLine, ConditionRun, SegmentCondition
 from app.simulate.fleet import FleetNoise, FleetPlan, FleetSimulator, PlantedStep
 from app.simulate.track import generate_line
 from tests.condition.support import DAY0, profile_frame_of, publish_history, publish_tracks

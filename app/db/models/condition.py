@@ -38,7 +38,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import Mapped, mapped_column
 
-from app.db.models import Base, UTCDateTime, utcnow
+from app.db.models.base import Base, UTCDateTime, utcnow
 
 __all__ = ["ConditionLine", "ConditionRun", "SegmentCondition", "ConditionOverview", "ConditionFlag", "FLAG_KINDS"]
 

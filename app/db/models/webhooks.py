@@ -17,7 +17,7 @@ from typing import Any
 from sqlalchemy import Boolean, ForeignKey, Index, Integer, String, Text
 from sqlalchemy.orm import Mapped, mapped_column
 
-from app.db.models import Base, JSONType, UTCDateTime, utcnow
+from app.db.models.base import Base, JSONType, UTCDateTime, utcnow
 
 __all__ = ["Webhook", "WebhookDelivery", "DeliveryStatus"]
 

@@ -20,7 +20,7 @@ from typing import Any
 from sqlalchemy import Boolean, ForeignKey, Index, Integer, String
 from sqlalchemy.orm import Mapped, mapped_column
 
-from app.db.models import Base, JSONType, UTCDateTime, utcnow
+from app.db.models.base import Base, JSONType, UTCDateTime, utcnow
 
 __all__ = ["User", "UserSession", "ApiKey", "AuditEntry"]
 

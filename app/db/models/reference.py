@@ -11,7 +11,7 @@ import datetime as dt
 from sqlalchemy import Date, Float, Index, Integer, SmallInteger, String, Text
 from sqlalchemy.orm import Mapped, mapped_column
 
-from app.db.models import Base, UTCDateTime, utcnow
+from app.db.models.base import Base, UTCDateTime, utcnow
 
 __all__ = ["SubsidenceMeasurement", "MaintenanceAction", "SuperstructureSection", "MAINTENANCE_TYPES"]
 

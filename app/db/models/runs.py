@@ -1,4 +1,4 @@
-"""SQLAlchemy 2.0 models of the service (portable: SQLite and PostgreSQL).
+"""Tables of runs and what processing made of them (portable: SQLite and PostgreSQL).
 
 Tables
 ------
@@ -21,27 +21,23 @@ import datetime as dt
 from typing import Any
 
 from sqlalchemy import (
-    JSON,
     BigInteger,
     Boolean,
-    DateTime,
     Float,
     ForeignKey,
     Index,
     Integer,
-    MetaData,
     SmallInteger,
     String,
     Text,
-    TypeDecorator,
     UniqueConstraint,
     text,
 )
-from sqlalchemy.dialects.postgresql import JSONB
-from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+from sqlalchemy.orm import Mapped, mapped_column, relationship
+
+from app.db.models.base import Base, JSONType, UTCDateTime, utcnow
 
 __all__ = [
-    "Base",
     "Run",
     "Job",
     "JobChunk",
@@ -53,7 +49,6 @@ __all__ = [
     "ORDER_COLUMNS",
     "N_ORDER_COLUMNS",
     "PROFILE_VALUE_COLUMNS",
-    "utcnow",
 ]
 
 N_ORDER_COLUMNS = 11
@@ -96,49 +91,6 @@ class ChunkStatus:
     RUNNING = "running"
     DONE = "done"
     FAILED = "failed"
-
-
-def utcnow() -> dt.datetime:
-    """Current time, timezone-aware UTC."""
-    return dt.datetime.now(dt.UTC)
-
-
-class UTCDateTime(TypeDecorator):
-    """Timezone-aware datetime stored as naive UTC (portable across SQLite/PostgreSQL)."""
-
-    impl = DateTime
-    cache_ok = True
-
-    def process_bind_param(self, value: dt.datetime | None, dialect: Any) -> dt.datetime | None:
-        if value is None:
-            return None
-        if value.tzinfo is None:
-            raise ValueError(f"naive datetime {value!r}: give a timezone")
-        return value.astimezone(dt.UTC).replace(tzinfo=None)
-
-    def process_result_value(self, value: dt.datetime | None, dialect: Any) -> dt.datetime | None:
-        if value is None:
-            return None
-        if value.tzinfo is None:
-            return value.replace(tzinfo=dt.UTC)
-        return value.astimezone(dt.UTC)
-
-
-JSONType = JSON().with_variant(JSONB(), "postgresql")
-
-NAMING = {
-    "ix": "ix_%(table_name)s_%(column_0_N_name)s",
-    "uq": "uq_%(table_name)s_%(column_0_N_name)s",
-    "ck": "ck_%(table_name)s_%(constraint_name)s",
-    "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
-    "pk": "pk_%(table_name)s",
-}
-
-
-class Base(DeclarativeBase):
-    """Declarative base with a naming convention (needed by Alembic batch mode)."""
-
-    metadata = MetaData(naming_convention=NAMING)
 
 
 class Run(Base):
@@ -313,10 +265,3 @@ class WheelOOR(Base):
     profile_p05_um: Mapped[list[float] | None] = mapped_column(JSONType)
     profile_p95_um: Mapped[list[float] | None] = mapped_column(JSONType)
     extra: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
-
-from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessions, api_keys, audit_log)
-from app.db import condition_models as _condition_models  # noqa: E402,F401  (segment condition store)
-from app.db import curve_models as _curve_models  # noqa: E402,F401  (reference_curves in Base.metadata)
-from app.db import recorder_models as _recorder_models  # noqa: E402,F401  (channel maps, line geometries)
-from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)
-from app.db import webhook_models as _webhook_models  # noqa: E402,F401  (webhooks, delivery log)

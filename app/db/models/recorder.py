@@ -8,7 +8,7 @@ from typing import Any
 from sqlalchemy import Float, Integer, String, UniqueConstraint
 from sqlalchemy.orm import Mapped, mapped_column
 
-from app.db.models import Base, JSONType, UTCDateTime, utcnow
+from app.db.models.base import Base, JSONType, UTCDateTime, utcnow
 
 __all__ = ["ChannelMapRow", "LineGeometryRow"]
 
