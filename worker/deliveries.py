@@ -1,7 +1,7 @@
 """The webhook delivery loop of a worker process (both worker modes).
 
 Deliveries are queued by the publish step in the transaction that publishes
-a run with new condition flags (:func:`app.db.webhooks.enqueue_condition_flags`);
+a run with new condition flags (:func:`app.condition.alerts.enqueue_new_flags`);
 this loop, a daemon thread of every worker process, claims the due ones
 (:func:`app.db.webhooks.claim_due`), sends each as an HMAC-signed JSON POST
 (:mod:`app.core.signing`) and records the outcome: 2xx is delivered, anything

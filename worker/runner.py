@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from app import publish
 from app.analysis.settings import ProcessingSettings
 from app.core.config import Settings
 from app.db import queue
@@ -280,7 +281,7 @@ class LocalWorker:
                 results = assemble(run_path, settings, paths)
             meta = job_meta(settings, len(chunks), worker_id=self.worker_id, run_sha256=record.run.sha256,
                             warnings=results.meta.get("warnings", ()), compute_s=time.perf_counter() - t0)
-            stored = queue.complete_job(
+            stored = publish.publish_job(
                 self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id,
                 condition=rt.condition,
             )

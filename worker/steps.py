@@ -37,11 +37,11 @@ from pathlib import Path
 from typing import Any
 
 from app.analysis.settings import ProcessingSettings
+from app.condition.config import ConditionConfig
 from app.core.config import Settings
 from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
-from app.db.condition_writer import ConditionConfig
 from app.db.models import ChunkStatus, Job, JobStatus, Run
 from app.db.reference_curves import CurveParams, refresh_reference
 from app.db.session import Database

@@ -74,6 +74,7 @@ import sqlalchemy.exc
 from procrastinate import exceptions as pexc
 from sqlalchemy.engine import make_url
 
+from app import publish
 from app.core.config import Settings, get_settings
 from app.core.jsonable import jsonable
 from app.db import crud, queue
@@ -382,7 +383,7 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
             return "failed"
         profiles, result = done if done is not None else (None, None)  # None: no data of the wheel
         t1 = time.perf_counter()
-        if profiles is not None and not queue.store_wheel_rows(rt.db, job_id, run_id, profiles):
+        if profiles is not None and not publish.store_wheel_rows(rt.db, job_id, run_id, profiles):
             return "job not running"
         t2 = time.perf_counter()
         record_ = {"result": result, "rows": 0 if profiles is None else len(profiles),
@@ -400,7 +401,7 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
 def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     """Publish a job whose wheels are all stored: wheel rows, old rows dropped, job done.
 
-    One transaction (:func:`app.db.queue.complete_job`), guarded by the
+    One transaction (:func:`app.publish.publish_job`), guarded by the
     job's state: a second publish of a done job changes nothing.
     """
     rt = runtime_of(context)
@@ -422,7 +423,7 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     )
     t0 = time.perf_counter()
     wheels = [r["result"] for r in stored_wheels if r["result"] is not None]
-    stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None, condition=rt.condition)
+    stored = publish.publish_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None, condition=rt.condition)
     log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
              time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
     discard_job_files(rt, run_id)  # its chunk and wheel files, and those of the jobs it supersedes

@@ -36,14 +36,14 @@ from app.api.schemas.condition import (
     HotspotsOut,
     TrendOut,
 )
+from app.condition import readers as reader
+from app.condition.config import ConditionConfig
+from app.condition.fleet import FLEET_SOURCE_FORMAT
+from app.condition.hotspots import line_hotspots
+from app.condition.index import index_name
+from app.condition.maintenance import run_levels
 from app.core.config import Settings
-from app.db import condition_reader as reader
 from app.db import recorder_crud, reference_crud
-from app.db.condition_fleet import FLEET_SOURCE_FORMAT
-from app.db.condition_hotspots import line_hotspots
-from app.db.condition_index import index_name
-from app.db.condition_maintenance import run_levels
-from app.db.condition_writer import ConditionConfig
 from app.db.models import ConditionFlag, ConditionLine, ConditionRun, Job, JobStatus, Run
 from app.db.session import Database
 

@@ -1,7 +1,7 @@
 """Maintenance effect, from the segment condition store: what each imported action did to the
 condition index over its extent (before, after, recovery, how long it lasted) and the
 before/after view of one action. The index is taken relative to the surrounding track of the
-same run (:mod:`app.db.condition_maintenance`), so runs at other speeds compare. The paper's correlation of amplitude with the number of
+same run (:mod:`app.condition.maintenance`), so runs at other speeds compare. The paper's correlation of amplitude with the number of
 actions stays at ``GET /analytics/maintenance``."""
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from app.api.condition import LineIdQ, TrackQ, check_line_km, resolve_line
 from app.api.deps import DbDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.reference import parse_types
+from app.condition.maintenance import extent_profile, extent_series
+from app.condition.writer import days_of
 from app.db import reference_crud
-from app.db.condition_maintenance import extent_profile, extent_series
-from app.db.condition_writer import days_of
 from app.db.models import ConditionLine, MaintenanceAction
 from app.db.session import Database
 

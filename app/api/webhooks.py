@@ -17,8 +17,8 @@ from pydantic import BaseModel, Field
 from app.api.audit import record
 from app.api.deps import AdminDep, DbDep, PageOffset, SettingsDep, check_page_size, require_role
 from app.api.errors import ApiError, not_found
+from app.core.jsonable import iso_time
 from app.db import webhooks
-from app.db.condition_reader import iso_time
 from app.db.models import DeliveryStatus, Webhook, WebhookDelivery
 
 __all__ = ["router"]

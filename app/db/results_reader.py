@@ -23,6 +23,7 @@ from sqlalchemy import ColumnElement, Select, and_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, JobStatus, ProfileBin, Run, WheelOOR
+from app.db.numeric import fetch_numeric
 
 __all__ = [
     "PROFILE_COLUMNS",
@@ -36,7 +37,6 @@ __all__ = [
     "profile_frame",
     "profile_where",
     "profile_rows",
-    "fetch_numeric",
     "numeric_frame",
     "job_profile_frame",
     "iter_profile_pages",
@@ -187,19 +187,6 @@ def profile_rows(
     return job_profile_frame(
         session, job_id, wheel=wheel, km_from=km_from, km_to=km_to, limit=limit, columns=columns
     )
-
-
-def fetch_numeric(session: Session, stmt: Select, n_columns: int) -> np.ndarray:
-    """The rows of a query of ``n_columns`` numeric columns as one float array (NULL -> NaN).
-
-    Straight from the DBAPI cursor: no Python row object per row.
-    """
-    result = session.connection().execute(stmt)
-    try:
-        rows = result.cursor.fetchall()  # DBAPI tuples: no row processing needed for numbers
-    finally:
-        result.close()
-    return np.array(rows, dtype=np.float64).reshape(len(rows), n_columns)
 
 
 def numeric_frame(values: np.ndarray, names: Sequence[str]) -> pd.DataFrame:

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from app import publish
 from app.db import queue
 from app.db.session import Database
 from tests.api.test_profiles_api import _synthetic, processed  # noqa: F401 - the fixture
@@ -92,7 +93,7 @@ def test_etag_revalidation_answers_304_until_a_new_job_is_published(processed): 
         job_id = queue.claim_next_job(db, "test", 30)
         df, wheels = _synthetic()
         df["sleeper_amp"] *= 2.0
-        assert queue.complete_job(db, job_id, run_id, df, wheels, {"software": "t"}, worker_id="test")
+        assert publish.publish_job(db, job_id, run_id, df, wheels, {"software": "t"}, worker_id="test")
     finally:
         db.dispose()
     fresh = _get(client, run_id, headers={"If-None-Match": etag}, **params)

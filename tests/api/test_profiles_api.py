@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from app import publish
 from app.db import queue
 from app.db.session import Database
 from tests.api import runfiles
@@ -48,7 +49,7 @@ def processed(client, tmp_path):
         job_id = queue.claim_next_job(db, "test", 30)
         assert job_id == run["latest_job"]["id"]
         df, wheels = _synthetic()
-        assert queue.complete_job(db, job_id, run["id"], df, wheels, {"software": "t"}, worker_id="test")
+        assert publish.publish_job(db, job_id, run["id"], df, wheels, {"software": "t"}, worker_id="test")
     finally:
         db.dispose()
     return client, run["id"], df

@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 from sqlalchemy import func, select, update
 
+from app import publish
 from app.db import crud, queue, results_reader
 from app.db.models import Job, JobStatus, ProfileBin, Run, WheelOOR, utcnow
 from app.db.session import Database
@@ -81,8 +82,8 @@ def test_stale_job_is_reclaimed_and_old_worker_loses_it(db):
     assert queue.heartbeat(db, job_id, "dead").owned is False
     assert queue.mark_chunk(db, job_id, 0, "done", worker_id="dead") is None
     profiles, wheels = _results(4, 1.0)
-    assert not queue.complete_job(db, job_id, run_id, profiles, wheels, {}, worker_id="dead")
-    assert queue.complete_job(db, job_id, run_id, profiles, wheels, {"v": 1}, worker_id="other")
+    assert not publish.publish_job(db, job_id, run_id, profiles, wheels, {}, worker_id="dead")
+    assert publish.publish_job(db, job_id, run_id, profiles, wheels, {"v": 1}, worker_id="other")
     with db.read() as s:
         job = s.get(Job, job_id)
         assert job.status == JobStatus.DONE and job.attempts == 2 and job.progress == 1.0
@@ -125,7 +126,7 @@ def test_cancel_requested_blocks_storing_results(db):
     with db.write() as s:
         crud.request_cancel(s, job_id)
     profiles, wheels = _results(2, 1.0)
-    assert not queue.complete_job(db, job_id, run_id, profiles, wheels, {}, worker_id="w")
+    assert not publish.publish_job(db, job_id, run_id, profiles, wheels, {}, worker_id="w")
     with db.read() as s:
         assert s.scalar(select(func.count()).select_from(ProfileBin)) == 0
 
@@ -134,12 +135,12 @@ def test_results_are_replaced_not_duplicated(db):
     run_id, job_id = _make_run(db)
     queue.claim_next_job(db, "w", 30)
     profiles, wheels = _results(10, 1.0)
-    assert queue.complete_job(db, job_id, run_id, profiles, wheels, {}, worker_id="w")
+    assert publish.publish_job(db, job_id, run_id, profiles, wheels, {}, worker_id="w")
     with db.write() as s:
         job2 = crud.create_job(s, run_id, {"n_wheel_orders": 11}).id
     assert queue.claim_next_job(db, "w", 30) == job2
     profiles2, wheels2 = _results(6, 2.0)
-    assert queue.complete_job(db, job2, run_id, profiles2, wheels2, {}, worker_id="w")
+    assert publish.publish_job(db, job2, run_id, profiles2, wheels2, {}, worker_id="w")
     with db.read() as s:
         assert s.scalar(select(func.count()).select_from(ProfileBin)) == 12
         assert set(s.scalars(select(ProfileBin.sleeper_amp)).all()) == {2.0}
@@ -161,7 +162,7 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
     run_id, job1 = _make_run(db)
     queue.claim_next_job(db, "w", 30)
     old, old_wheels = _results(4, 1.0)
-    assert queue.complete_job(db, job1, run_id, old, old_wheels, {}, worker_id="w")
+    assert publish.publish_job(db, job1, run_id, old, old_wheels, {}, worker_id="w")
 
     def amps() -> set[float]:
         with db.read() as s:
@@ -173,23 +174,23 @@ def test_wheels_stored_one_by_one_are_published_at_once(db):
     new, new_wheels = _results(6, 2.0)
     for wheel in ("11", "12"):
         part = new[new["wheel"] == wheel]
-        assert queue.store_wheel_rows(db, job2, run_id, part)
-        assert queue.store_wheel_rows(db, job2, run_id, part)  # a retried task: replaced, not doubled
+        assert publish.store_wheel_rows(db, job2, run_id, part)
+        assert publish.store_wheel_rows(db, job2, run_id, part)  # a retried task: replaced, not doubled
         assert amps() == {1.0}  # readers still see the published job
     with db.read() as s:
         assert results_reader.stored_profile_wheels(s, job2) == ["11", "12"]
         assert results_reader.results_job_id(s, run_id) == job1
-    assert queue.complete_job(db, job2, run_id, None, new_wheels, {"v": 2}, worker_id=None)
+    assert publish.publish_job(db, job2, run_id, None, new_wheels, {"v": 2}, worker_id=None)
     assert amps() == {2.0}
     with db.read() as s:
         assert s.scalar(select(func.count()).select_from(ProfileBin)) == 12  # job 1's rows dropped
         assert results_reader.results_job_id(s, run_id) == job2
-    assert not queue.store_wheel_rows(db, job2, run_id, new)  # done: nothing more is written
+    assert not publish.store_wheel_rows(db, job2, run_id, new)  # done: nothing more is written
 
     with db.write() as s:
         job3 = crud.create_job(s, run_id, {"n_wheel_orders": 11}).id
     assert queue.claim_next_job(db, "w", 30) == job3
-    assert queue.store_wheel_rows(db, job3, run_id, _results(3, 5.0)[0])
+    assert publish.store_wheel_rows(db, job3, run_id, _results(3, 5.0)[0])
     assert queue.finish_job(db, job3, JobStatus.FAILED, "boom", worker_id="w")
     assert amps() == {2.0}
     with db.read() as s:

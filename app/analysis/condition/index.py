@@ -4,7 +4,7 @@ Until the speed-conditioned stiffness index (issue 15: ``ln(A / A_ref(class, v))
 from a reference curve per superstructure class) is available, the condition
 store keeps ``ln(A / 1 m/s²)``: comparable between runs only at matched speed,
 which the change detection enforces (:func:`app.analysis.condition.change.speed_matched`).
-:func:`app.db.condition_index.condition_index` is the one place that decides
+:func:`app.condition.index.condition_index` is the one place that decides
 which index the store holds.
 """
 

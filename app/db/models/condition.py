@@ -16,7 +16,7 @@ condition_flags      changes beyond the repeatability, one row per run, segment
                      and test (wheels combined); ``id`` is the feed cursor (``since=``)
 
 Rows are written when a job is published, in the transaction that marks it
-done (:func:`app.db.condition_writer.store_run_condition`); a run's rows are
+done (:func:`app.condition.writer.store_run_condition`); a run's rows are
 replaced when it is reprocessed and deleted with it.
 """
 

@@ -1,8 +1,8 @@
 """The condition writer: a published job's segment rows, change tests and flags.
 
-Called by :func:`app.db.results_writer.publish_results`, in the transaction that
-marks the job done (both worker modes), and by the synthetic fleet. For a run
-with a line id it
+Called by the publish step (:func:`app.publish.publish_job`), in the transaction
+that marks the job done (both worker modes), and by the synthetic fleet
+(:mod:`app.condition.fleet`). For a run with a line id it
 
 1. takes the job's 25 cm rows (the frame the local worker just stored, or the
    rows the fan-out tasks stored), leaves out the run's ends
@@ -11,16 +11,16 @@ with a line id it
 2. aligns the run to its line's reference signature (the first run stored for
    the line, :class:`~app.db.models.ConditionLine`;
    :func:`app.analysis.stiffness.alignment.align_runs`);
-3. computes the condition index of every bin (:func:`app.db.condition_index.condition_index`,
+3. computes the condition index of every bin (:func:`app.condition.index.condition_index`,
    the one place that decides it) and the 10 m and 100 m segments of every wheel
    (:func:`app.analysis.condition.segment_stats`);
 4. tests every segment against the earlier runs of the line read from the
    store (:class:`DbHistory`, :func:`app.analysis.condition.assess_run`) and
    writes the rows, the flags and the run's entry, replacing the run's earlier
-   ones;
-5. queues a webhook delivery of the new flags for every active webhook
-   (:func:`app.db.webhooks.enqueue_condition_flags`; sent by the workers'
-   delivery loop after the commit, never in the way of processing).
+   ones.
+
+The publish step then queues the alerts of the new flags (:mod:`app.condition.alerts`)
+in the same transaction.
 
 Flags are inserted under a transaction-level advisory lock on PostgreSQL, so
 their ids (the feed cursor) become visible in increasing order.
@@ -30,16 +30,15 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import and_, delete, select, text, update
+from sqlalchemy import and_, select, text
 from sqlalchemy.orm import Session
 
 from app.analysis.condition import (
-    DEFAULT_CHANGE_PARAMS,
     SEGMENT_LENGTHS_M,
     ChangeParams,
     HistoryMatrix,
@@ -49,9 +48,11 @@ from app.analysis.condition import (
     segment_stats,
 )
 from app.analysis.stiffness.alignment import align_runs
-from app.db import results_reader, webhooks
+from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
+from app.condition.index import condition_index, index_name
+from app.db import results_reader
 from app.db.bulk import insert_frame
-from app.db.condition_index import condition_index, index_name
+from app.db.condition_store import delete_run_condition, line_of
 from app.db.models import (
     ConditionFlag,
     ConditionLine,
@@ -62,16 +63,13 @@ from app.db.models import (
 )
 
 __all__ = [
-    "ConditionConfig",
-    "DEFAULT_CONDITION_CONFIG",
     "RunBins",
     "DbHistory",
-    "line_of",
+    "RunCondition",
     "run_time_of",
     "days_of",
     "store_run_condition",
     "write_assessed_run",
-    "delete_run_condition",
     "wheel_segments",
 ]
 
@@ -96,55 +94,6 @@ OVERVIEW_SEGMENT_M = 100.0
 
 
 @dataclass(frozen=True)
-class ConditionConfig:
-    """How runs become condition rows (from the service settings, :meth:`from_settings`).
-
-    Attributes
-    ----------
-    change : ChangeParams
-        Change-detection thresholds and windows.
-    min_speed_mps : float
-        Bins slower than this are not valid, m/s.
-    edge_trim_m : float
-        Metres at each end of a run's wheel profile left out.
-    max_shift_m : float
-        Largest alignment shift searched, m.
-    min_shift_confidence : float
-        An alignment less clear than this is not applied (shift 0).
-    """
-
-    change: ChangeParams = field(default_factory=lambda: DEFAULT_CHANGE_PARAMS)
-    min_speed_mps: float = 25.0 / 3.6
-    edge_trim_m: float = 50.0
-    max_shift_m: float = 50.0
-    min_shift_confidence: float = 0.2
-
-    @classmethod
-    def from_settings(cls, settings: Any) -> ConditionConfig:
-        """From :class:`app.core.config.Settings` (``condition_*`` and ``analytics_*`` settings)."""
-        return cls(
-            change=ChangeParams(
-                step_z=settings.condition_step_z,
-                trend_z=settings.condition_trend_z,
-                agree_z=settings.condition_agree_z,
-                min_history=settings.condition_min_history,
-                history_runs=settings.condition_history_runs,
-                history_scan_runs=settings.condition_history_scan_runs,
-                trend_window_days=settings.condition_trend_window_days,
-                speed_tolerance=settings.analytics_speed_tolerance,
-                level_block_m=settings.condition_level_block_m,
-            ),
-            min_speed_mps=settings.analytics_min_speed_kmh / 3.6,
-            edge_trim_m=settings.analytics_edge_trim_m,
-            max_shift_m=settings.condition_max_shift_m,
-            min_shift_confidence=settings.condition_min_shift_confidence,
-        )
-
-
-DEFAULT_CONDITION_CONFIG = ConditionConfig()
-
-
-@dataclass(frozen=True)
 class RunBins:
     """One wheel of a run on the 25 cm grid: bin numbers, amplitude (m/s²) and speed (m/s)."""
 
@@ -161,37 +110,6 @@ def run_time_of(run: Run) -> dt.datetime:
 def days_of(when: dt.datetime) -> float:
     """Days since 1970-01-01 UTC (the time axis of the change tests)."""
     return (when - _EPOCH).total_seconds() / 86400.0
-
-
-def line_of(session: Session, line_id: str, track: str, bin_length_m: float = 0.25) -> ConditionLine:
-    """The store's entry of a line and track, created when missing."""
-    line = session.scalar(
-        select(ConditionLine).where(ConditionLine.line_id == line_id, ConditionLine.track == track)
-    )
-    if line is None:
-        line = ConditionLine(line_id=line_id, track=track, bin_length_m=bin_length_m)
-        session.add(line)
-        session.flush()
-    return line
-
-
-def delete_run_condition(session: Session, run_id: int) -> None:
-    """Delete a run's segment rows, overview, flags and entry (reprocessing, deletion).
-
-    A line left without runs loses its alignment reference (the next run stored
-    becomes it): the run may have left because its line was wrong
-    (``PATCH /runs/{id}`` of the metadata), so its signature must not stay the
-    reference of that line.
-    """
-    line_key = session.scalar(select(ConditionRun.line_key).where(ConditionRun.run_id == run_id))
-    session.execute(delete(SegmentCondition).where(SegmentCondition.run_id == run_id))
-    session.execute(delete(ConditionOverview).where(ConditionOverview.run_id == run_id))
-    session.execute(delete(ConditionFlag).where(ConditionFlag.run_id == run_id))
-    session.execute(delete(ConditionRun).where(ConditionRun.run_id == run_id))
-    if line_key is not None and session.scalar(
-            select(ConditionRun.run_id).where(ConditionRun.line_key == line_key).limit(1)) is None:
-        session.execute(update(ConditionLine).where(ConditionLine.id == line_key).values(
-            ref_run_id=None, ref_first_bin=None, ref_signature=None, km_min=None, km_max=None))
 
 
 def _job_bins(session: Session, job_id: int, profiles: pd.DataFrame | None) -> dict[str, RunBins]:
@@ -427,6 +345,40 @@ def write_assessed_run(
     return flags
 
 
+@dataclass(frozen=True)
+class RunCondition:
+    """What :func:`store_run_condition` wrote for a run (``stored`` False: nothing, and why).
+
+    Attributes
+    ----------
+    stored : bool
+    reason : str or None
+        Why nothing was stored (the run has no line id, the job no profile rows).
+    line : ConditionLine or None
+    flags : list of ConditionFlag
+        The run's flags (``is_new``: the alerts to send).
+    details : dict
+        Provenance of the rows (:meth:`summary`).
+    """
+
+    stored: bool
+    reason: str | None = None
+    line: ConditionLine | None = None
+    flags: tuple[ConditionFlag, ...] = ()
+    details: dict[str, Any] | None = None
+
+    def summary(self, webhook_deliveries: int = 0) -> dict[str, Any]:
+        """Provenance for the job's metadata (``meta["condition"]``): ``index``, ``shift_m``,
+        ``shift_confidence``, ``segments``, ``flags``, ``new_flag_ids``, ``webhook_deliveries``,
+        ``speed_exponent`` (per segment length, mean over wheels); or ``{"stored": False,
+        "reason": ...}``."""
+        if not self.stored:
+            return {"stored": False, "reason": self.reason}
+        d = dict(self.details or {})
+        exponents = d.pop("speed_exponent")
+        return {"stored": True, **d, "webhook_deliveries": webhook_deliveries, "speed_exponent": exponents}
+
+
 def store_run_condition(
     session: Session,
     run_id: int,
@@ -434,7 +386,7 @@ def store_run_condition(
     *,
     config: ConditionConfig = DEFAULT_CONDITION_CONFIG,
     profiles: pd.DataFrame | None = None,
-) -> dict[str, Any]:
+) -> RunCondition:
     """Segment rows, change tests and flags of a published job (see the module docstring).
 
     Run it in the publish transaction, after the job's profile rows are stored.
@@ -447,22 +399,20 @@ def store_run_condition(
 
     Returns
     -------
-    dict
-        Provenance for the job's metadata: ``index``, ``shift_m``,
-        ``shift_confidence``, ``segments``, ``flags``, ``new_flag_ids``,
-        ``speed_exponent`` (per segment length, mean over wheels); or
-        ``{"stored": False, "reason": ...}`` for a run without a line id.
+    RunCondition
+        The flags written and the provenance of the rows; not stored for a run
+        without a line id or a job without profile rows.
     """
     run = session.get(Run, run_id)
     delete_run_condition(session, run_id)
     if run is None or not run.line_id:
-        return {"stored": False, "reason": "the run has no line_id"}
+        return RunCondition(False, "the run has no line_id")
     bin_length = results_reader.job_bin_length(session, job_id)
     line = line_of(session, run.line_id, run.track or "", bin_length)
     wheels = _job_bins(session, job_id, profiles)
     amps = {w: _valid(b, bin_length, config) for w, b in wheels.items()}
     if not wheels:
-        return {"stored": False, "reason": "the job has no profile rows"}
+        return RunCondition(False, "the job has no profile rows")
     sig_bins, sig_amp = _signature(wheels, amps)
     shift, confidence = _align(line, run_id, sig_bins, sig_amp, bin_length, config)
     positions = {w: ((b.bins + 0.5) * bin_length + shift, amps[w], b.speed_mps) for w, b in wheels.items()}
@@ -473,14 +423,13 @@ def store_run_condition(
                             previous_flags=history.previous_flags())
     flags = write_assessed_run(session, run_id=run_id, job_id=job_id, line=line, when=when, segments=segments,
                                assessment=assessment, shift_m=shift, shift_confidence=confidence)
-    new_ids = [f.id for f in flags if f.is_new]
-    deliveries = webhooks.enqueue_condition_flags(session, run_id, line, flags)
     exponents = {f"{s:g}": float(np.mean(list(e.values()))) if e else None
                  for s, e in assessment.exponents.items()}
-    return {
-        "stored": True, "index": index_name(session, line.line_id, line.track), "line_key": line.id,
+    details = {
+        "index": index_name(session, line.line_id, line.track), "line_key": line.id,
         "shift_m": round(shift, 3), "shift_confidence": confidence,
         "segments": int(sum(len(st) for w in segments.values() for st in w.values())),
-        "history_runs": len(history.step_runs), "flags": len(flags), "new_flag_ids": new_ids,
-        "webhook_deliveries": len(deliveries), "speed_exponent": exponents,
+        "history_runs": len(history.step_runs), "flags": len(flags), "new_flag_ids": [f.id for f in flags if f.is_new],
+        "speed_exponent": exponents,
     }
+    return RunCondition(True, None, line, tuple(flags), details)

@@ -4,11 +4,11 @@ Each generated run (:class:`app.simulate.fleet.FleetSimulator`) becomes a run
 row and a done job (source format ``fleet``: no run file and no 25 cm rows,
 marked like a run whose profile rows the retention sweep removed), and its segment
 rows, change tests and flags are written exactly as the publish step writes a
-processed run's (:func:`app.db.condition_writer.wheel_segments`: the store's one
-index function; :func:`app.db.condition_writer.write_assessed_run`), one
+processed run's (:func:`app.condition.writer.wheel_segments`: the store's one
+index function; :func:`app.condition.writer.write_assessed_run`), one
 transaction per run. The change tests read the history from an in-memory
 window (:class:`app.analysis.condition.RollingHistory`, the same matrices
-:class:`~app.db.condition_writer.DbHistory` builds from the store), so a year
+:class:`~app.condition.writer.DbHistory` builds from the store), so a year
 is written in minutes. The planted maintenance actions and the line's
 superstructure sections are imported as reference data, replacing the line's.
 Generated runs send no webhook alerts (a year of history at once is not news).
@@ -27,8 +27,9 @@ from sqlalchemy import func, select
 
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams, RollingHistory, assess_run
 from app.analysis.settings import ProcessingSettings
+from app.condition.writer import days_of, wheel_segments, write_assessed_run
 from app.db import reference_crud
-from app.db.condition_writer import days_of, line_of, wheel_segments, write_assessed_run
+from app.db.condition_store import line_of
 from app.db.models import Job, JobStatus, Run, SegmentCondition, utcnow
 from app.db.session import Database
 from app.simulate.fleet import FLEET_WHEELS, FleetDay, FleetSimulator

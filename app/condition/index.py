@@ -1,7 +1,7 @@
 """THE place that decides the condition index of the store's segment rows.
 
 Everything that writes segment condition rows — the publish step of a job
-(:mod:`app.db.condition_writer`) and the synthetic fleet (``trackvkf
+(:mod:`app.condition.writer`) and the synthetic fleet (``trackvkf
 simulate-fleet``) — gets the index of its 25 cm bins from
 :func:`condition_index`. It is ``ln A`` compared at matched speed
 (:func:`app.analysis.condition.index.log_amplitude_index`), not the stiffness

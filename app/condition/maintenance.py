@@ -18,8 +18,9 @@ import numpy as np
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.db.condition_reader import OVERVIEW_M, fetch_array, line_runs
+from app.condition.readers import OVERVIEW_M, line_runs
 from app.db.models import ConditionLine, ConditionOverview, ConditionRun, SegmentCondition
+from app.db.numeric import fetch_numeric
 from app.io import WHEELS
 
 __all__ = ["NEIGHBOURHOOD_KM", "GAP_KM", "extent_segments", "run_levels", "extent_series", "extent_profile"]
@@ -48,7 +49,7 @@ def run_levels(session: Session, runs: list[int], km_from: float, km_to: float) 
     if not runs:
         return {}
     o = ConditionOverview
-    values = fetch_array(session, select(o.run_id, func.avg(o.index)).where(
+    values = fetch_numeric(session, select(o.run_id, func.avg(o.index)).where(
         o.run_id.in_(runs), o.seg >= a, o.seg <= b, (o.seg < ea) | (o.seg > eb)).group_by(o.run_id), 2)
     return dict(zip(values[:, 0].astype(int).tolist(), values[:, 1].tolist(), strict=True))
 
@@ -59,7 +60,7 @@ def _wheel_rows(session: Session, runs: list[int], seg_m: int, a: int, b: int, *
     keys = (sc.run_id, sc.seg) if by_seg else (sc.run_id,)
     stmt = select(*keys, func.avg(sc.index)).where(
         sc.run_id.in_(runs), sc.seg_m == seg_m, sc.wheel.in_(list(WHEELS)), sc.seg >= a, sc.seg <= b).group_by(*keys)
-    return fetch_array(session, stmt, len(keys) + 1)
+    return fetch_numeric(session, stmt, len(keys) + 1)
 
 
 def extent_series(session: Session, line: ConditionLine, km_from: float, km_to: float,

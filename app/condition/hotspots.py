@@ -17,9 +17,10 @@ from app.analysis.condition import (
     rank_segments,
 )
 from app.analysis.stiffness.superstructure import assign_sections
+from app.condition.readers import newest_run
 from app.db import reference_crud
-from app.db.condition_reader import fetch_array, newest_run
 from app.db.models import ConditionLine, ConditionRun, SegmentCondition
+from app.db.numeric import fetch_numeric
 
 __all__ = ["LineHotspots", "line_hotspots", "UNCLASSIFIED"]
 
@@ -57,7 +58,7 @@ def _wheel_matrices(session: Session, run_id: int, seg_m: int) -> tuple[np.ndarr
     wheels = sorted(session.scalars(select(sc.wheel).where(sc.run_id == run_id, sc.seg_m == seg_m).distinct()))
     per = {}
     for w in wheels:
-        per[w] = fetch_array(session, select(sc.seg, *(getattr(sc, c) for c in _COLUMNS)).where(
+        per[w] = fetch_numeric(session, select(sc.seg, *(getattr(sc, c) for c in _COLUMNS)).where(
             sc.run_id == run_id, sc.seg_m == seg_m, sc.wheel == w).order_by(sc.seg), 1 + len(_COLUMNS))
     segs = np.unique(np.concatenate([a[:, 0] for a in per.values()])).astype(np.int64) if per else np.zeros(0, np.int64)
     values = np.full((len(_COLUMNS), len(wheels), segs.size), np.nan)

@@ -17,6 +17,7 @@ import numpy as np
 from sqlalchemy import func, literal, select
 from sqlalchemy.orm import Session
 
+from app.core.jsonable import finite_or_none, iso_time
 from app.db.models import (
     ConditionFlag,
     ConditionLine,
@@ -24,6 +25,7 @@ from app.db.models import (
     ConditionRun,
     SegmentCondition,
 )
+from app.db.numeric import fetch_numeric
 
 __all__ = [
     "LineSummary",
@@ -36,9 +38,7 @@ __all__ = [
     "run_flags",
     "flags_since",
     "newest_run",
-    "fetch_array",
     "flag_dict",
-    "iso_time",
 ]
 
 
@@ -78,16 +78,6 @@ class Heatmap:
     seg: np.ndarray
     matrix: np.ndarray
     flagged: list[tuple[int, int]]
-
-
-def fetch_array(session: Session, stmt, n_columns: int) -> np.ndarray:
-    """Rows of a numeric query as a float array (DBAPI tuples, no row objects; NULL -> NaN)."""
-    result = session.connection().execute(stmt)
-    try:
-        rows = result.cursor.fetchall()
-    finally:
-        result.close()
-    return np.array(rows, dtype=np.float64).reshape(len(rows), n_columns)
 
 
 def list_lines(session: Session) -> list[LineSummary]:
@@ -172,7 +162,7 @@ def heatmap(session: Session, runs: Sequence[ConditionRun], seg_m: int, *, wheel
         stmt = select(t.run_id, t.seg, func.avg(t.index), literal(0)).where(*conds).group_by(t.run_id, t.seg)
     else:
         stmt = select(t.run_id, t.seg, t.index, literal(0)).where(*conds)
-    values = fetch_array(session, stmt, 4)
+    values = fetch_numeric(session, stmt, 4)
     segs = np.unique(values[:, 1].astype(np.int64)) if len(values) else np.zeros(0, np.int64)
     order = np.argsort(run_ids)
     sorted_ids = np.asarray(run_ids, dtype=np.int64)[order]
@@ -184,7 +174,7 @@ def heatmap(session: Session, runs: Sequence[ConditionRun], seg_m: int, *, wheel
         hit = values[:, 3] > 0
         flagged = set(zip(rows[hit].tolist(), cols[hit].tolist(), strict=True))
     else:
-        fl = fetch_array(session, select(ConditionFlag.run_id, ConditionFlag.seg_m, ConditionFlag.seg).where(
+        fl = fetch_numeric(session, select(ConditionFlag.run_id, ConditionFlag.seg_m, ConditionFlag.seg).where(
             ConditionFlag.run_id.in_(run_ids), ConditionFlag.seg_m <= seg_m), 3)
         cell = np.floor(fl[:, 2] * fl[:, 1] / seg_m).astype(np.int64)
         j = np.minimum(np.searchsorted(segs, cell), max(segs.size - 1, 0))
@@ -229,25 +219,14 @@ def flags_since(session: Session, since: int, limit: int, *, line_keys: Sequence
     return list(session.scalars(stmt.order_by(ConditionFlag.id).limit(limit)))
 
 
-def iso_time(t: dt.datetime | None) -> str | None:
-    """ISO 8601 with the UTC offset (naive times are UTC)."""
-    if t is None:
-        return None
-    return (t if t.tzinfo else t.replace(tzinfo=dt.UTC)).isoformat()
-
-
-def _finite(v: float | None) -> float | None:
-    return float(v) if v is not None and math.isfinite(float(v)) else None
-
-
 def flag_dict(f: ConditionFlag, line: ConditionLine) -> dict:
     """A flag as the API answers it and the webhooks send it (km in km, change also in %)."""
-    change = _finite(f.change)
+    change = finite_or_none(f.change)
     return {
         "id": f.id, "run_id": f.run_id, "line_id": line.line_id, "track": line.track,
         "km_from": f.seg * f.seg_m / 1000.0, "km_to": (f.seg + 1) * f.seg_m / 1000.0, "segment_m": f.seg_m,
         "kind": f.kind, "direction": "up" if f.direction > 0 else "down", "score": float(f.score),
         "change": change, "change_pct": 100.0 * math.expm1(change) if change is not None else None,
-        "rate_per_year": _finite(f.rate_per_year), "wheels": [w for w in f.wheels.split(",") if w],
+        "rate_per_year": finite_or_none(f.rate_per_year), "wheels": [w for w in f.wheels.split(",") if w],
         "is_new": bool(f.is_new), "created_at": iso_time(f.created_at),
     }
