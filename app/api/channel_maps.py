@@ -14,7 +14,6 @@ from app.api.schemas.recorder import ChannelMapIn, ChannelMapList, ChannelMapOut
 from app.db import recorder_crud
 from app.db.models import ChannelMapRow
 from app.db.session import Database
-from app.io import RunFileError
 from app.io.channel_map import ChannelMap, parse_channel_map
 
 __all__ = ["router", "load_channel_map"]
@@ -31,10 +30,7 @@ def _out(row: ChannelMapRow) -> ChannelMapOut:
 
 
 def _validated(body: ChannelMapIn) -> dict:
-    try:
-        cmap = parse_channel_map({"name": body.name, "channels": body.channels})
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    cmap = parse_channel_map({"name": body.name, "channels": body.channels})  # RunFileError: 422
     return cmap.model_dump(mode="json", exclude_none=True)["channels"]
 
 

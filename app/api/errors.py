@@ -1,7 +1,9 @@
 """Error responses of the API: ``{"detail": "<field>: <message>", "field": "<field>"}``.
 
-Every error the API answers takes this form: :class:`ApiError` raised by the
-routes and their dependencies, and FastAPI's own validation of query, path
+Every error the API answers takes this form: :class:`~app.core.errors.ApiError` raised by the
+routes, their dependencies and the services they call, :class:`~app.io.RunFileError` (a run
+or reference file, metadata or channel map that is not valid: 422 naming the field,
+:func:`run_file_error`), and FastAPI's own validation of query, path
 and body parameters (:class:`fastapi.exceptions.RequestValidationError`),
 whose list of problems is reduced to the first one, naming its parameter, and
 PostgreSQL's refusal of NUL characters in text (a query filter holding one).
@@ -18,18 +20,19 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import DataError
 
+from app.core.errors import MAX_MESSAGE_CHARS, ApiError, cut_message, not_found
+from app.io import RunFileError
+
 __all__ = [
     "ApiError",
     "MAX_MESSAGE_CHARS",
     "ERROR_SCHEMA",
     "not_found",
+    "run_file_error",
     "validation_error",
     "document_error_responses",
     "install_error_handlers",
 ]
-
-#: Longest message of an error answer, characters (longer ones are cut, ending in "…").
-MAX_MESSAGE_CHARS = 500
 
 #: OpenAPI schema of an error answer.
 ERROR_SCHEMA: dict[str, Any] = {
@@ -45,43 +48,8 @@ ERROR_SCHEMA: dict[str, Any] = {
 _PARAMETER_KINDS = ("query", "path", "body", "header", "cookie")
 
 
-def _cut(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
-    return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
-class ApiError(Exception):
-    """An error answered with ``status_code`` and a message naming the problem.
-
-    Parameters
-    ----------
-    status_code : int
-        HTTP status (4xx; 507 when the run store is full).
-    field : str
-        What is wrong: a channel, a metadata field, a query parameter,
-        ``format``, ``file`` ...
-    message : str
-        Human-readable explanation; cut to :data:`MAX_MESSAGE_CHARS` characters.
-    headers : dict, optional
-        Extra response headers (``WWW-Authenticate``, ``Retry-After``).
-    """
-
-    def __init__(
-        self, status_code: int, field: str, message: str, headers: dict[str, str] | None = None
-    ) -> None:
-        self.status_code = status_code
-        self.field = _cut(str(field), 200)
-        self.message = _cut(str(message))
-        self.headers = headers
-        super().__init__(f"{self.field}: {self.message}")
-
-
-def not_found(what: str, ident: object) -> ApiError:
-    """A 404 error for ``what`` (``"run"``, ``"job"``) with id ``ident``."""
-    return ApiError(404, f"{what}_id", f"{what} {ident} not found")
-
-
 def _shown(value: Any) -> str:
-    return _cut(repr(value), 60)
+    return cut_message(repr(value), 60)
 
 
 def validation_error(errors: Sequence[dict[str, Any]]) -> ApiError:
@@ -131,6 +99,16 @@ async def _api_error_handler(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+def run_file_error(exc: RunFileError) -> ApiError:
+    """The 422 of an invalid file, metadata or channel map, naming its field (the one mapping)."""
+    return ApiError(422, exc.field, exc.message)
+
+
+async def _run_file_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RunFileError)
+    return await _api_error_handler(request, run_file_error(exc))
+
+
 async def _validation_error_handler(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
     return await _api_error_handler(request, validation_error(exc.errors()))
@@ -171,7 +149,8 @@ def document_error_responses(schema: dict[str, Any]) -> dict[str, Any]:
 
 
 def install_error_handlers(app: FastAPI) -> None:
-    """Register the handlers that render :class:`ApiError` and request validation errors."""
+    """Register the handlers that render :class:`ApiError`, :class:`RunFileError` and request validation errors."""
     app.add_exception_handler(ApiError, _api_error_handler)
+    app.add_exception_handler(RunFileError, _run_file_error_handler)
     app.add_exception_handler(RequestValidationError, _validation_error_handler)
     app.add_exception_handler(DataError, _data_error_handler)

@@ -21,7 +21,6 @@ from app.api.schemas.recorder import (
 )
 from app.db import crud, recorder_crud, results_reader
 from app.db.models import PROFILE_VALUE_COLUMNS, LineGeometryRow
-from app.io import RunFileError
 from app.io.channels import UNITS
 from app.io.geometry import parse_geojson
 
@@ -66,10 +65,7 @@ async def import_geometry(
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    try:
-        geometries = await run_in_threadpool(parse_geojson, data)
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    geometries = await run_in_threadpool(parse_geojson, data)  # RunFileError: 422 naming the feature
 
     def write() -> list[GeometrySummary]:
         with db.write() as session:

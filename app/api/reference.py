@@ -26,7 +26,6 @@ from app.api.schemas.reference import (
     SuperstructureList,
 )
 from app.db import reference_crud
-from app.io import RunFileError
 from app.io.reference import MAINTENANCE_TYPES, read_reference
 
 __all__ = ["router"]
@@ -70,10 +69,7 @@ async def import_reference(
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    try:
-        rows = await run_in_threadpool(read_reference, data, kind, format, file.filename)
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    rows = await run_in_threadpool(read_reference, data, kind, format, file.filename)  # RunFileError: 422
 
     def write() -> tuple[int, int]:
         with db.write() as session:

@@ -27,7 +27,7 @@ from app.core.runstore import RunStore
 from app.db import crud
 from app.db.models import Run
 from app.db.session import Database
-from app.io import RunFileError, RunSummary, ingest, parse_metadata
+from app.io import RunSummary, ingest, parse_metadata
 
 __all__ = ["metadata_differences", "describe_differences", "run_fields", "revise_run_metadata",
            "RevisionOutcome"]
@@ -57,10 +57,7 @@ def metadata_differences(stored: Mapping[str, Any], given: Mapping[str, Any]) ->
     ApiError
         422 naming the metadata field when the merged metadata are invalid.
     """
-    try:
-        new = parse_metadata({**stored, **given})
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    new = parse_metadata({**stored, **given})  # RunFileError: 422 naming the field
     old = parse_metadata(stored)
     old_json, new_json = old.model_dump(mode="json"), new.model_dump(mode="json")
     return {k: (old_json.get(k, stored.get(k)), new_json.get(k))
@@ -134,11 +131,8 @@ def revise_run_metadata(db: Database, store: RunStore, run_id: int, given: Mappi
         return RevisionOutcome({}, None)
     new_relative = store.revised_run_file(old_relative)
     new_path = store.resolve(new_relative)
-    try:
-        summary = ingest(store.local_file(old_relative), "hdf5",
-                         {k: new for k, (_, new) in changed.items()}, new_path)
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    summary = ingest(store.local_file(old_relative), "hdf5",
+                     {k: new for k, (_, new) in changed.items()}, new_path)  # RunFileError: 422
     try:
         with db.write() as session:
             run = session.get(Run, run_id, with_for_update=True)

@@ -39,7 +39,7 @@ from app.analysis.settings import ProcessingSettings
 from app.api.audit import record, record_now
 from app.api.channel_maps import load_channel_map
 from app.api.deps import Principal
-from app.api.errors import ApiError
+from app.api.errors import ApiError, run_file_error
 from app.api.run_metadata import describe_differences, metadata_differences, run_fields
 from app.api.views import API_PREFIX
 from app.core.config import Settings
@@ -373,10 +373,7 @@ def infer_format(
 def _parse_metadata(text: str | None) -> dict[str, Any] | None:
     if text is None or not text.strip():
         return None
-    try:
-        return load_metadata_json(text, field="metadata")
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    return load_metadata_json(text, field="metadata")  # RunFileError: 422 naming the field
 
 
 def _channel_map_id(text: str | None) -> int | None:
@@ -524,8 +521,9 @@ async def receive_and_create_run(
                 log.warning("upload refused: %s", exc)
                 raise _storage_full(exc) from None
             raise
-    except ApiError as exc:
-        await run_in_threadpool(_record_rejection, db, request, principal, exc, "rejected")
+    except (ApiError, RunFileError) as exc:
+        rejection = exc if isinstance(exc, ApiError) else run_file_error(exc)
+        await run_in_threadpool(_record_rejection, db, request, principal, rejection, "rejected")
         raise
     except Exception as exc:
         # not the client's fault (a bug, the database away): answered 500, audited all the same
@@ -609,15 +607,12 @@ async def _receive_and_create(
                 return recorder_crud.to_line_geometry(row) if row is not None else None
 
         dest = upload_dir / "run.h5"
-        try:
-            summary = await run_in_threadpool(
-                lambda: ingest(
-                    path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry,
-                    reserve_bytes=settings.min_free_bytes,
-                )
+        summary = await run_in_threadpool(  # RunFileError: 422 naming the field
+            lambda: ingest(
+                path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry,
+                reserve_bytes=settings.min_free_bytes,
             )
-        except RunFileError as exc:
-            raise ApiError(422, exc.field, exc.message) from None
+        )
         await run_in_threadpool(path.unlink)
 
         try:
