@@ -19,7 +19,7 @@ take a job through the same steps, written once here:
 * :func:`job_meta`: the provenance stored with the results (pipeline and
   worker metadata, ``meta["worker"]``);
 * :func:`refresh_line_reference`: after a publish, recompute the reference
-  curves of the run's line (stiffness index; :mod:`app.db.reference_curves`).
+  curves of the run's line (stiffness index; :mod:`app.analytics.reference_curves`).
 
 Every write goes through :mod:`app.db.queue`, guarded by the job's owner:
 ``worker_id`` is the local worker's id, or None for the fan-out tasks (any
@@ -37,13 +37,13 @@ from pathlib import Path
 from typing import Any
 
 from app.analysis.settings import ProcessingSettings
+from app.analytics.reference_curves import CurveParams, refresh_reference
 from app.condition.config import ConditionConfig
 from app.core.config import Settings
 from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
 from app.db.models import ChunkStatus, Job, JobStatus, Run
-from app.db.reference_curves import CurveParams, refresh_reference
 from app.db.session import Database
 from app.io import WHEELS
 from app.pipeline import ChunkSpec, plan_chunks, results_meta

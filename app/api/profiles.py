@@ -23,21 +23,21 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import StreamingResponse
-from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
 from app.analysis.aggregate import aggregate_profile, display_indices
-from app.api.analytics_index import INDEX_COLUMNS, IndexContext, index_context
+from app.analytics.stiffness_index import INDEX_COLUMNS, IndexContext, index_context
 from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
-from app.api.errors import ApiError, not_found
+from app.api.errors import ApiError
 from app.api.schemas.profiles import ProfileOut
 from app.core.bytecache import ByteLRU
 from app.core.config import Settings
 from app.db import crud, results_reader
 from app.db.display import display_rows, km_extent
 from app.db.display_arrays import DisplayArrays
-from app.db.models import PROFILE_VALUE_COLUMNS, Job, Run
+from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
+from app.runs.lookup import run_with_results
 
 __all__ = ["router", "AGGREGATED_COLUMNS", "PROFILE_CACHE_CONTROL"]
 
@@ -136,19 +136,6 @@ def _columns(value: str | None, max_points: int | None) -> tuple[str, ...] | Non
         return results_reader.profile_columns(names)[3:]
     except ValueError as exc:
         raise ApiError(422, "columns", str(exc).removeprefix("columns: ")) from None
-
-
-def run_with_results(session: Session, run_id: int) -> tuple[Run, Job]:
-    """The run and the job whose results are stored; 404 without the run, 409 without results."""
-    run = crud.get_run(session, run_id)
-    if run is None:
-        raise not_found("run", run_id)
-    job = results_reader.results_job(session, run_id)
-    if job is None:
-        latest = crud.latest_job(session, run_id)
-        state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
-        raise ApiError(409, "profile", f"run {run_id} has no results yet ({state})")
-    return run, job
 
 
 def _index_context(db: Database, settings, run_id: int, bin_length: float) -> IndexContext:

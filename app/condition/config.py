@@ -8,7 +8,10 @@ from typing import Any
 
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams
 
-__all__ = ["ConditionConfig", "DEFAULT_CONDITION_CONFIG"]
+__all__ = ["ConditionConfig", "DEFAULT_CONDITION_CONFIG", "FLEET_SOURCE_FORMAT"]
+
+#: ``runs.source_format`` of generated fleet runs (:mod:`app.condition.fleet`: condition rows, no 25 cm rows)
+FLEET_SOURCE_FORMAT = "fleet"
 
 
 @dataclass(frozen=True)

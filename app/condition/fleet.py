@@ -27,6 +27,7 @@ from sqlalchemy import func, select
 
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams, RollingHistory, assess_run
 from app.analysis.settings import ProcessingSettings
+from app.condition.config import FLEET_SOURCE_FORMAT
 from app.condition.writer import days_of, wheel_segments, write_assessed_run
 from app.db import reference_crud
 from app.db.condition_store import line_of
@@ -36,8 +37,6 @@ from app.simulate.fleet import FLEET_WHEELS, FleetDay, FleetSimulator
 
 __all__ = ["FleetIngest", "FLEET_SOURCE_FORMAT", "ingest_fleet"]
 
-#: ``runs.source_format`` of generated fleet runs
-FLEET_SOURCE_FORMAT = "fleet"
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ Everything that writes segment condition rows — the publish step of a job
 simulate-fleet``) — gets the index of its 25 cm bins from
 :func:`condition_index`. It is ``ln A`` compared at matched speed
 (:func:`app.analysis.condition.index.log_amplitude_index`), not the stiffness
-index ``ln(A / A_ref(class, v))`` of :mod:`app.db.reference_curves`: the
+index ``ln(A / A_ref(class, v))`` of :mod:`app.analytics.reference_curves`: the
 reference curves are re-estimated whenever a run of the line is published, so
 rows stored with the index of their day would move against each other as the
 curves move, and the change tests would see the curves' history instead of the

@@ -1,6 +1,7 @@
 """The results reader: which job's results a run shows, and its profile and wheel rows.
 
-A run shows the results of its latest done job (:func:`results_job_id`).
+A run shows the results of its latest done job (:func:`results_job_id`); the runs of
+a line with results and their result jobs are :func:`runs_with_results` and :func:`result_jobs`.
 Profile rows (one per wheel and bin of :data:`PROFILE_COLUMNS`) are read
 straight from the database cursor into numpy arrays (:func:`job_profile_frame`),
 a wheel at a time, through the primary key ``(job_id, wheel, bin)``
@@ -30,6 +31,8 @@ __all__ = [
     "results_job_id",
     "results_job_and_sweep",
     "results_job",
+    "runs_with_results",
+    "result_jobs",
     "bin_length_of",
     "job_bin_length",
     "stored_profile_wheels",
@@ -68,6 +71,23 @@ def results_job_and_sweep(session: Session, run_id: int) -> tuple[int, datetime 
 def _shown_job(stmt: Select, run_id: int) -> Select:
     """``stmt`` narrowed to the run's latest done job: the job whose results the run shows."""
     return stmt.where(Job.run_id == run_id, Job.status == JobStatus.DONE).order_by(Job.id.desc()).limit(1)
+
+
+def runs_with_results(session: Session, line_id: str, track: str | None) -> list[Run]:
+    """Runs of a line (and track, if given) with a done job, by start time (then id)."""
+    with_results = select(Job.run_id).where(Job.status == JobStatus.DONE)
+    stmt = select(Run).where(Run.line_id == line_id, Run.id.in_(with_results))
+    if track is not None:
+        stmt = stmt.where(Run.track == track)
+    runs = list(session.scalars(stmt).all())
+    runs.sort(key=lambda r: (r.start_time is None, r.start_time, r.id))
+    return runs
+
+
+def result_jobs(session: Session, runs: Sequence[Run]) -> list[tuple[int, int]]:
+    """``(run_id, job_id)`` of the job holding each run's results (runs without results left out)."""
+    pairs = [(run.id, results_job_id(session, run.id)) for run in runs]
+    return [(run_id, job_id) for run_id, job_id in pairs if job_id is not None]
 
 
 def results_job(session: Session, run_id: int) -> Job | None:

@@ -2,7 +2,7 @@
 
 Computing the curves reads every 25 cm row of every run of a line, so they
 are kept here and refreshed when a job of the line is published (the worker)
-or on demand (:mod:`app.db.reference_curves`).
+or on demand (:mod:`app.analytics.reference_curves`).
 """
 
 from __future__ import annotations

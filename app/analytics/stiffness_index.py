@@ -1,36 +1,30 @@
-"""The stiffness index and its reference curves (speed conditioning without a speed law).
+"""The stiffness index of stored rows and the answers about its reference curves.
 
-``GET /analytics/reference-curves`` answers the curves ``A_ref(class, v)`` of a
-line and track (computed from all its runs, cached in SQL and refreshed when
-stale: :mod:`app.db.reference_curves`); ``POST
-/analytics/reference-curves/refresh`` recomputes them. The index itself,
-``ln(A / A_ref(class, v))``, is a column of the profile answers and exports
-(``index=true``), computed row by row here (:class:`IndexContext`).
+The index ``ln(A / A_ref(class, v))`` (:func:`app.analysis.stiffness.stiffness_index.stiffness_index`)
+against the line's current reference curves (computed from all its runs, cached in SQL
+and refreshed when stale: :mod:`app.analytics.reference_curves`) is a column of the
+profile answers and exports (``index=true``), computed row by row here
+(:class:`IndexContext`). :func:`reference_curves_answer` is what
+``GET /analytics/reference-curves`` (and its ``refresh``) answer.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Annotated
 
 import numpy as np
 import pandas as pd
-from fastapi import APIRouter, Query
 
 from app.analysis.stiffness.speed_norm import power_law_misfit
-from app.api import analytics_data as data
-from app.api.deps import DbDep, EngineerDep, SettingsDep
-from app.api.errors import ApiError
-from app.api.reference import LineQ, TrackQ
-from app.api.schemas.analytics import ReferenceCurvesOut
+from app.analytics import reference_curves as curves_db
+from app.analytics.frames import select_runs
 from app.core.config import Settings
-from app.db import reference_curves as curves_db
+from app.core.errors import ApiError
+from app.core.jsonable import finite_list, finite_or_none
 from app.db.session import Database
 
-__all__ = ["router", "INDEX_COLUMNS", "IndexContext", "index_context", "curve_misfits"]
-
-router = APIRouter(tags=["analytics"])
+__all__ = ["INDEX_COLUMNS", "IndexContext", "index_context", "curve_misfits", "reference_curves_answer"]
 
 #: Columns the profile answers and exports add with ``index=true``.
 INDEX_COLUMNS: tuple[str, ...] = ("stiffness_index", "stiffness_index_se", "reference_amp")
@@ -130,47 +124,34 @@ def _curve_body(stored: curves_db.StoredReference | None, line_id: str, track: s
         classes.append({
             "class": c, "label": c or "line (no superstructure section)", "method": cu.method,
             "n_runs": cu.n_runs, "n_samples": cu.n_samples, "n_locations": cu.n_locations,
-            "spread": data.num(cu.spread), "repeatability": data.num(cu.repeatability),
+            "spread": finite_or_none(cu.spread), "repeatability": finite_or_none(cu.repeatability),
             "confidence": cu.confidence,
-            "speed_range_kmh": [data.num(lo * 3.6), data.num(hi * 3.6)],
-            "speed_kmh": data.nums(np.exp(cu.log_speed[ok]) * 3.6),
-            "amplitude": data.nums(np.exp(cu.log_amp[ok])),
-            "low": data.nums(np.exp(cu.log_amp_low[ok])), "high": data.nums(np.exp(cu.log_amp_high[ok])),
-            "log_se": data.nums(cu.log_amp_se[ok]),
+            "speed_range_kmh": [finite_or_none(lo * 3.6), finite_or_none(hi * 3.6)],
+            "speed_kmh": finite_list(np.exp(cu.log_speed[ok]) * 3.6),
+            "amplitude": finite_list(np.exp(cu.log_amp[ok])),
+            "low": finite_list(np.exp(cu.log_amp_low[ok])), "high": finite_list(np.exp(cu.log_amp_high[ok])),
+            "log_se": finite_list(cu.log_amp_se[ok]),
             "support": [int(s) for s in cu.support[ok]], "support_runs": [int(s) for s in cu.support_runs[ok]],
         })
-    offsets = [{"wheel": o.wheel, "offset": data.num(o.offset), "low": data.num(o.low), "high": data.num(o.high),
+    offsets = [{"wheel": o.wheel, "offset": finite_or_none(o.offset), "low": finite_or_none(o.low), "high": finite_or_none(o.high),
                 "n_samples": o.n_samples} for o in ref.wheel_offsets]
     return {**base, "track": stored.track or track, "run_ids": stored.run_ids, "computed_at": stored.computed_at,
             "compute_s": stored.compute_s, "classes": classes, "wheel_offsets": offsets,
-            "rail_difference": data.num(ref.rail_difference)}
+            "rail_difference": finite_or_none(ref.rail_difference)}
 
 
 def _line(db: Database, line_id: str | None, track: str | None) -> tuple[str, str | None]:
     if line_id is None:
         raise ApiError(422, "line_id", "is required")
-    sel = data.select_runs(db, line_id, track, None)
+    sel = select_runs(db, line_id, track, None)
     return line_id, sel.track
 
 
-@router.get("/analytics/reference-curves", response_model=ReferenceCurvesOut,
-            summary="Reference curves of the stiffness index: expected amplitude against speed per class")
-def reference_curves(db: DbDep, settings: SettingsDep, line_id: LineQ = None, track: TrackQ = None) -> dict:
-    """``A_ref(class, v)`` with its confidence band, from all runs of the line and track with
-    results (classes: superstructure types, ``""`` = no section). Computed and cached when missing
-    or stale (new results, reprocessing, imported sections)."""
+def reference_curves_answer(db: Database, settings: Settings, line_id: str | None, track: str | None, *,
+                            refresh: bool = False) -> dict:
+    """The reference curves of a line and track with their provenance: the current ones (computed
+    and cached when missing or stale), or recomputed now (``refresh``)."""
     line_id, track = _line(db, line_id, track)
-    stored = curves_db.current_reference(db, line_id, track, curves_db.CurveParams.from_settings(settings))
+    params = curves_db.CurveParams.from_settings(settings)
+    stored = (curves_db.refresh_reference if refresh else curves_db.current_reference)(db, line_id, track, params)
     return _curve_body(stored, line_id, track, settings)
-
-
-@router.post("/analytics/reference-curves/refresh", response_model=ReferenceCurvesOut,
-             summary="Recompute the reference curves of a line and track")
-def refresh_reference_curves(principal: EngineerDep, db: DbDep, settings: SettingsDep,
-                             line_id: Annotated[str | None, Query(max_length=128)] = None,
-                             track: TrackQ = None) -> dict:
-    """Recompute the curves from all runs of the line now (also when they are current)."""
-    line_id, track = _line(db, line_id, track)
-    stored = curves_db.refresh_reference(db, line_id, track, curves_db.CurveParams.from_settings(settings))
-    return _curve_body(stored, line_id, track, settings)
-

@@ -32,8 +32,9 @@ from sqlalchemy.orm import Session
 from app.analysis.stiffness.reference_curve import ReferenceSet, fit_reference_from_rows
 from app.analysis.stiffness.stiffness_index import StiffnessIndex, stiffness_index
 from app.analysis.stiffness.superstructure import section_classes
+from app.analytics.frames import analytics_frame
 from app.core.config import Settings
-from app.db import line_profiles, reference_crud, results_reader
+from app.db import reference_crud, results_reader
 from app.db.models import ReferenceCurveRow, utcnow
 from app.db.session import Database
 
@@ -115,8 +116,8 @@ def classes_at(sections: pd.DataFrame, position_m: np.ndarray, margin_m: float) 
 
 
 def _fingerprint(session: Session, line_id: str, track: str | None, params: CurveParams) -> tuple[str, list, list]:
-    runs = line_profiles.runs_with_results(session, line_id, track)
-    pairs = sorted(line_profiles.result_jobs(session, runs))
+    runs = results_reader.runs_with_results(session, line_id, track)
+    pairs = sorted(results_reader.result_jobs(session, runs))
     sec = line_sections(session, line_id, track)
     sections = [] if sec.empty else sorted(
         [int(i), float(a), float(b), str(t)] for i, a, b, t in
@@ -150,10 +151,10 @@ def refresh_reference(db: Database, line_id: str, track: str | None, params: Cur
     t0 = time.perf_counter()
     with db.read() as session:
         fp, run_ids, job_ids = _fingerprint(session, line_id, track, params)
-        runs = line_profiles.runs_with_results(session, line_id, track)
+        runs = results_reader.runs_with_results(session, line_id, track)
         bin_length = max((results_reader.bin_length_of(results_reader.results_job(session, r.id)) for r in runs),
                          default=0.25)
-        df = line_profiles.analytics_frame(session, line_profiles.result_jobs(session, runs), bin_length_m=bin_length,
+        df = analytics_frame(session, results_reader.result_jobs(session, runs), bin_length_m=bin_length,
                                            min_speed_kmh=params.min_speed_kmh, edge_trim_m=params.edge_trim_m,
                                            columns=("speed_mean", "sleeper_amp"))
         sections = line_sections(session, line_id, track)

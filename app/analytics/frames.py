@@ -1,30 +1,40 @@
-"""Data of the analytics endpoints: run selection, profile frames, reference frames.
+"""The frames the analyses read: the selected runs, their profile rows, the line's reference data.
 
-Kept apart from the routes so each route reads like its analysis.
+:func:`select_runs` picks the runs of a line and track with results (or the runs
+asked for); :func:`analytics_frame` reads their result jobs' 25 cm rows without the
+run ends (``edge_trim_m``: filter end transients), bins slower than a minimum speed
+and bins without amplitude; :func:`load_profiles` does so through a per-process
+cache (a job's rows never change once published). The analytics endpoints and the
+reference curves of the stiffness index (:mod:`app.analytics.reference_curves`) read
+the same rows through here.
 """
 
 from __future__ import annotations
 
-import math
 import threading
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
 
 from app.analysis.stiffness.speed_norm import SpeedFit, fit_speed_exponent, normalise_amplitude
 from app.analysis.stiffness.superstructure import assign_sections
-from app.api.errors import ApiError
 from app.core.config import Settings
-from app.db import crud, line_profiles, reference_crud, results_reader
-from app.db.models import Run
+from app.core.errors import ApiError
+from app.db import crud, reference_crud, results_reader
+from app.db.models import ProfileBin, Run
 from app.db.session import Database
 
-__all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
-           "speed_exponents", "normalised", "section_types", "num", "nums", "PROFILE_CACHE_ROWS"]
+__all__ = ["Selection", "RunsQuery", "hac_lag", "ANALYTICS_COLUMNS", "parse_run_ids", "select_runs", "analytics_frame", "load_profiles",
+           "reference", "speed_exponents", "normalised", "section_types", "PROFILE_CACHE_ROWS"]
 
-_COLS = ["run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
+#: Columns of :func:`analytics_frame` (and of :func:`load_profiles`).
+ANALYTICS_COLUMNS: tuple[str, ...] = ("run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp")
+_COLS = list(ANALYTICS_COLUMNS)
 #: rows of analytics profile frames kept in memory per API process (about 60 MB)
 PROFILE_CACHE_ROWS = 1_000_000
 
@@ -43,16 +53,25 @@ class Selection:
         return [r.id for r in self.runs]
 
 
-def num(value) -> float | None:
-    """JSON number or None (NaN, inf)."""
-    if value is None:
-        return None
-    v = float(value)
-    return v if math.isfinite(v) else None
+@dataclass(frozen=True)
+class RunsQuery:
+    """The common query of the analytics over runs: line, track, explicit run ids, km range, wheel."""
+
+    line_id: str | None
+    track: str | None
+    run_ids: list[int] | None
+    km_from: float | None
+    km_to: float | None
+    wheel: str | None
+
+    def select(self, db: Database) -> Selection:
+        """The selected runs (:func:`select_runs`)."""
+        return select_runs(db, self.line_id, self.track, self.run_ids)
 
 
-def nums(values) -> list[float | None]:
-    return [num(v) for v in np.asarray(values, dtype=np.float64).tolist()]
+def hac_lag(sel: Selection) -> int:
+    """Newey–West lag of the fits over the selection's bins: 100 m of bins."""
+    return int(round(100.0 / sel.bin_length))
 
 
 def parse_run_ids(value: str | None) -> list[int] | None:
@@ -92,7 +111,7 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
         else:
             if line_id is None:
                 raise ApiError(422, "line_id", "is required unless run_ids are given")
-            runs = line_profiles.runs_with_results(session, line_id, track)
+            runs = results_reader.runs_with_results(session, line_id, track)
             tracks = {r.track for r in runs}
             if track is None and len(tracks) > 1:
                 raise ApiError(422, "track", f"line {line_id!r} has runs on tracks {sorted(map(str, tracks))}: choose one")
@@ -105,6 +124,64 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
                 bin_length = results_reader.bin_length_of(job)
     runs.sort(key=lambda r: (r.start_time is None, r.start_time, r.id))
     return Selection(line_id, track, runs, bin_length)
+
+
+def _wheel_extents(session: Session, job_id: int) -> dict[str, tuple[int, int]]:
+    """First and last bin of each wheel of a job (index lookups, not a scan of its rows)."""
+    out = {}
+    for w in results_reader.stored_profile_wheels(session, job_id):
+        where = (ProfileBin.job_id == job_id) & (ProfileBin.wheel == w)
+        lo = session.scalar(select(func.min(ProfileBin.bin)).where(where))
+        hi = session.scalar(select(func.max(ProfileBin.bin)).where(where))
+        out[w] = (int(lo), int(hi))
+    return out
+
+
+def analytics_frame(
+    session: Session,
+    jobs: Sequence[tuple[int, int]],
+    *,
+    bin_length_m: float,
+    min_speed_kmh: float,
+    edge_trim_m: float,
+    km_from: float | None = None,
+    km_to: float | None = None,
+    wheel: str | None = None,
+    columns: Sequence[str] = ("speed_mean", "sleeper_amp", "sleeper_force_amp"),
+) -> pd.DataFrame:
+    """Profile rows of the result jobs ``jobs`` (``(run_id, job_id)`` pairs, :func:`result_jobs`),
+    columns ``run_id, wheel, bin, km`` and ``columns``.
+
+    Left out: the first and last ``edge_trim_m`` of each wheel's profile,
+    bins slower than ``min_speed_kmh`` and bins without a positive
+    ``sleeper_amp``.
+    """
+    min_v = min_speed_kmh / 3.6
+    values = list(dict.fromkeys(["speed_mean", "sleeper_amp", *columns]))
+    out_cols = ["run_id", "wheel", "bin", "km", *values]
+    k = edge_trim_m / bin_length_m
+    frames = []
+    for run_id, job_id in jobs:
+        ext = _wheel_extents(session, job_id)
+        df = results_reader.job_profile_frame(session, job_id, wheel=wheel, km_from=km_from, km_to=km_to,
+                                              columns=values)
+        if df.empty:
+            continue
+        wheels = df["wheel"].to_numpy(dtype=object)
+        bins = df["bin"].to_numpy()
+        lo = np.zeros(len(df), dtype=np.int64)
+        hi = np.zeros(len(df), dtype=np.int64)
+        for w, (b0, b1) in ext.items():
+            m = wheels == w
+            lo[m], hi[m] = b0, b1
+        keep = (bins >= lo + k) & (bins <= hi - k)
+        keep &= (df["speed_mean"].to_numpy() >= min_v) & (df["sleeper_amp"].to_numpy() > 0)
+        df = df[keep]
+        df.insert(0, "run_id", run_id)
+        frames.append(df[out_cols])
+    if not frames:
+        return pd.DataFrame({c: pd.Series(dtype=object if c == "wheel" else float) for c in out_cols})
+    return pd.concat(frames, ignore_index=True)
 
 
 class _FrameCache:
@@ -153,7 +230,7 @@ def load_profiles(
 ) -> pd.DataFrame:
     """Profile rows of the selected runs (columns ``_COLS``), without the run ends
     (``analytics_edge_trim_m``), bins slower than the minimum speed and bins without amplitude
-    (:func:`app.db.line_profiles.analytics_frame`).
+    (:func:`analytics_frame`).
 
     Frames are kept per API process (:data:`PROFILE_CACHE_ROWS`), keyed by the runs' result
     jobs and the arguments; treat the returned frame as read-only.
@@ -161,11 +238,11 @@ def load_profiles(
     min_v = settings.analytics_min_speed_kmh if min_speed_kmh is None else min_speed_kmh
     trim = settings.analytics_edge_trim_m
     with db.read() as session:
-        jobs = line_profiles.result_jobs(session, sel.runs)
+        jobs = results_reader.result_jobs(session, sel.runs)
 
     def load() -> pd.DataFrame:
         with db.read() as session:
-            return line_profiles.analytics_frame(
+            return analytics_frame(
                 session, jobs, bin_length_m=sel.bin_length, min_speed_kmh=min_v, edge_trim_m=trim,
                 km_from=km_from, km_to=km_to, wheel=wheel,
             )[_COLS]
