@@ -93,7 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.upload_limiter = RateLimiter(settings.upload_rate_limit, settings.upload_rate_window_s)
     install_error_handlers(app)
     app.state.profile_cache = ByteLRU(settings.profile_cache_bytes)
-    # profile answers computed at once in this process (the others wait: app.api.profiles)
+    # profile answers computed at once in this process (the others wait: app.profiles.cache)
     app.state.display_arrays = DisplayArrays(settings.display_cache_bytes)  # zooms sliced from memory
     app.state.profile_limiter = anyio.CapacityLimiter(settings.profile_concurrency)
     app.state.profile_pending = {}  # answers being computed: asked again, awaited once

@@ -135,12 +135,12 @@ def test_profile_computations_wait_their_turn_without_blocking_other_requests(pr
 
     import anyio
 
-    from app.api import profiles
+    from app.profiles import answer as profiles
 
     client, run_id, _ = processed
     client.app.state.profile_limiter = anyio.CapacityLimiter(1)
     release, running, peak = threading.Event(), [], []
-    original = profiles._profile_body
+    original = profiles.profile_body
 
     def slow(*args, **kwargs):
         running.append(1)
@@ -151,7 +151,7 @@ def test_profile_computations_wait_their_turn_without_blocking_other_requests(pr
         finally:
             running.pop()
 
-    monkeypatch.setattr(profiles, "_profile_body", slow)
+    monkeypatch.setattr(profiles, "profile_body", slow)
     answers: list[int] = []
     threads = [threading.Thread(target=lambda n=n: answers.append(
         _get(client, run_id, max_points=100 + n, layout="columns").status_code)) for n in range(3)]
@@ -175,19 +175,19 @@ def test_profile_computations_wait_their_turn_without_blocking_other_requests(pr
 def test_concurrent_requests_for_one_answer_compute_it_once(processed, monkeypatch):  # noqa: F811
     import threading
 
-    from app.api import profiles
+    from app.profiles import answer as profiles
 
     client, run_id, _ = processed
     client.app.state.profile_cache.clear()
     release, calls = threading.Event(), []
-    original = profiles._profile_body
+    original = profiles.profile_body
 
     def slow(*args, **kwargs):
         calls.append(1)
         assert release.wait(30)
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(profiles, "_profile_body", slow)
+    monkeypatch.setattr(profiles, "profile_body", slow)
     bodies: list[bytes] = []
     threads = [threading.Thread(target=lambda: bodies.append(
         _get(client, run_id, max_points=321, layout="columns").content)) for _ in range(4)]
