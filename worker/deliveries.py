@@ -27,7 +27,7 @@ from app.core.config import Settings
 from app.core.signing import SIGNATURE_HEADER, signature_header
 from app.db import webhooks
 from app.db.session import Database
-from worker.background import PeriodicLoop
+from worker.loops import PeriodicLoop
 
 __all__ = ["DeliveryLoop", "deliver_due", "retry_policy", "EVENT_HEADER", "DELIVERY_HEADER"]
 
