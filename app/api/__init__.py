@@ -30,10 +30,10 @@ from app.api import (
     wheels,
 )
 from app.api.deps import public, require_role
+from app.core.config import API_PREFIX
 
 __all__ = ["build_api_router", "API_PREFIX"]
 
-API_PREFIX = "/api/v1"
 
 
 def build_api_router() -> APIRouter:

@@ -13,9 +13,12 @@ from pathlib import Path
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "get_settings", "DEFAULT_SECRET_KEY", "ProductionConfigError"]
+__all__ = ["Settings", "get_settings", "DEFAULT_SECRET_KEY", "ProductionConfigError", "API_PREFIX"]
 
 _GIB = 1024**3
+
+#: URL prefix of the REST API (routes, links in answers, hints in messages).
+API_PREFIX = "/api/v1"
 
 #: The development secret key; production mode refuses to start with it.
 DEFAULT_SECRET_KEY = "trackvkf-insecure-development-key-change-me"

@@ -17,17 +17,16 @@ import logging
 from collections.abc import Mapping
 from typing import Any
 
-from starlette.requests import Request
-
-from app.api.audit import record
-from app.api.deps import Principal
-from app.api.errors import ApiError, not_found
-from app.api.jobs import settings_from_request
+from app.audit import record
+from app.core.errors import ApiError, not_found
+from app.core.jsonable import finite_or_none
 from app.core.runstore import RunStore
+from app.core.security import Principal
 from app.db import crud
 from app.db.models import Run
 from app.db.session import Database
 from app.io import RunSummary, ingest, parse_metadata
+from app.runs.jobs import settings_from_request
 
 __all__ = ["metadata_differences", "describe_differences", "run_fields", "revise_run_metadata",
            "RevisionOutcome"]
@@ -77,17 +76,10 @@ def run_fields(summary: RunSummary) -> dict[str, Any]:
         "direction": md.direction, "start_time": md.start_time, "km_start": md.km_start,
         "km_increasing": md.km_increasing, "fs": float(summary.fs),
         "n_samples": int(summary.n_samples), "duration_s": float(summary.duration_s),
-        "distance_m": _finite(summary.distance_m), "speed_min": _finite(summary.speed_min),
-        "speed_max": _finite(summary.speed_max), "channels": list(summary.channels),
+        "distance_m": finite_or_none(summary.distance_m), "speed_min": finite_or_none(summary.speed_min),
+        "speed_max": finite_or_none(summary.speed_max), "channels": list(summary.channels),
         "meta": md.model_dump(mode="json"),
     }
-
-
-def _finite(value: Any) -> float | None:
-    if value is None:
-        return None
-    value = float(value)
-    return value if value == value and abs(value) != float("inf") else None
 
 
 class RevisionOutcome:
@@ -106,7 +98,7 @@ def _check_no_active_job(session, run_id: int) -> None:
 
 
 def revise_run_metadata(db: Database, store: RunStore, run_id: int, given: Mapping[str, Any],
-                        principal: Principal, request: Request | None = None) -> RevisionOutcome:
+                        principal: Principal, request: Any = None) -> RevisionOutcome:
     """Correct a run's metadata: re-ingest, update, audit and queue its reprocessing.
 
     Runs in a worker thread (file work). Nothing changes when the given fields equal the

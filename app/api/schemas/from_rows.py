@@ -1,15 +1,14 @@
-"""Conversions from database rows to response schemas."""
+"""Response models built from database rows: a job, a run in a list, a run's detail (with links)."""
 
 from __future__ import annotations
 
 from app.analysis.settings import ProcessingSettings
 from app.api.schemas.jobs import JobOut
 from app.api.schemas.runs import RunDetail, RunOut, RunSummaryOut
+from app.core.config import API_PREFIX
 from app.db.models import ChunkStatus, Job, Run
 
 __all__ = ["job_out", "run_out", "run_detail"]
-
-API_PREFIX = "/api/v1"
 
 
 def _settings_shown(stored: dict | None) -> dict:
