@@ -255,8 +255,8 @@ def test_concurrent_duplicate_commit_leaves_no_directory(client, tmp_path):
 
     from app.core.runstore import RunStore
     from app.core.security import Principal
-    from app.runs.create import UploadedFile, insert_run
     from app.io import ingest
+    from app.runs.create import UploadedFile, insert_run
 
     path = runfiles.write_hdf5(tmp_path / "good.h5")
     first = _post_file(client, path).json()
