@@ -29,6 +29,7 @@ from sqlalchemy import delete, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE
 from app.analysis.stiffness.reference_curve import ReferenceSet, fit_reference_from_rows
 from app.analysis.stiffness.stiffness_index import StiffnessIndex, stiffness_index
 from app.analysis.stiffness.superstructure import section_classes
@@ -58,7 +59,7 @@ CURVE_VERSION = 1
 class CurveParams:
     """Settings the curves depend on (from :class:`~app.core.config.Settings`)."""
 
-    speed_tolerance: float = 0.1
+    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE
     section_margin_m: float = 50.0
     min_speed_kmh: float = 25.0
     edge_trim_m: float = 50.0
