@@ -4,7 +4,7 @@
    writes 365 generated runs (4 wheels, 10 m and 100 m segments, change tests, flags);
    wall time, time inside database transactions, rows, bytes per run-km.
 2. Detection on that history, scored against the planted changes
-   (:class:`app.simulate.fleet.FleetScorer`): unchanged places flagged, planted 20 % / 20 m
+   (:class:`app.simulate.fleet_scoring.FleetScorer`): unchanged places flagged, planted 20 % / 20 m
    steps found, days until each planted 10 %/year trend is flagged.
 3. Queries through the ASGI app (median of ``--repeat``): the heat map runs × km (100 m, mean
    over the wheels, and one wheel), one segment's trend over the year, the change list of the
@@ -75,7 +75,8 @@ def main() -> None:
     from app.db.models import ConditionLine, Job, JobStatus, Run, utcnow
     from app.db.session import Database
     from app.main import create_app
-    from app.simulate.fleet import FleetScorer, FleetSimulator, random_plan
+    from app.simulate.fleet import FleetSimulator, random_plan
+    from app.simulate.fleet_scoring import FleetScorer
     from app.simulate.track import generate_line
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-condition-"))

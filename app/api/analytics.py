@@ -14,6 +14,7 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Depends, Query
 
+from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
 from app.analytics import correlations, speed
 from app.analytics import segments as segments_service
 from app.analytics.correlations import MAX_POINTS
@@ -186,7 +187,7 @@ def run_alignment(run_id: RunId, db: DbDep, settings: SettingsDep,
 
 @router.get("/analytics/segments", response_model=SegmentsOut,
             summary="Per-segment mean amplitude per run, mean, spread and change over runs")
-def segments(db: DbDep, settings: SettingsDep, runs: RunsQ, segment_m: SegmentQ = 100.0,
+def segments(db: DbDep, settings: SettingsDep, runs: RunsQ, segment_m: SegmentQ = DEFAULT_SEGMENT_M,
              align: bool = True, max_shift_m: MaxShiftQ = 50.0, value: ValueQ = "amplitude") -> dict:
     """Runs (by start time) are aligned to the first one (``align``), then averaged per
     segment; ``spread`` is the standard deviation over runs, ``change`` last minus first
@@ -199,7 +200,7 @@ def segments(db: DbDep, settings: SettingsDep, runs: RunsQ, segment_m: SegmentQ 
             summary="Amplitude of one segment over runs (dates)")
 def segment_trend(db: DbDep, settings: SettingsDep, km: Annotated[float, km_query()],
                   line_id: LineQ = None, track: TrackQ = None, run_ids: RunIdsQ = None, wheel: WheelQ = None,
-                  segment_m: SegmentQ = 100.0, align: bool = True,
+                  segment_m: SegmentQ = DEFAULT_SEGMENT_M, align: bool = True,
                   max_shift_m: MaxShiftQ = 50.0, value: ValueQ = "amplitude") -> dict:
     """The mean amplitude (or stiffness index) of the segment holding ``km`` in each run, by start
     time, with the run's mean speed there."""

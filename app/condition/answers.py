@@ -21,7 +21,7 @@ from sqlalchemy import select
 from app.condition import readers as reader
 from app.condition.config import FLEET_SOURCE_FORMAT, ConditionConfig
 from app.condition.hotspots import line_hotspots
-from app.condition.index import index_name
+from app.condition.index import STORE_INDEX
 from app.condition.lines import check_line_km, resolve_line
 from app.condition.maintenance import run_levels
 from app.core.config import Settings
@@ -58,10 +58,9 @@ def heatmap(db: Database, line_id: str, track: str | None, *, segment_m: int, wh
     with db.read() as session:
         runs = reader.line_runs(session, line.id, date_from, date_to)
         hm = reader.heatmap(session, runs, segment_m, wheel=wheel, km_from=km_from, km_to=km_to)
-        name = index_name(session, line.line_id, line.track)
     matrix = np.where(np.isfinite(hm.matrix), np.round(hm.matrix, 5), np.nan)
     return {
-        "line_id": line.line_id, "track": line.track, "segment_m": segment_m, "wheel": wheel, "index": name,
+        "line_id": line.line_id, "track": line.track, "segment_m": segment_m, "wheel": wheel, "index": STORE_INDEX,
         "km": (hm.seg * segment_m / 1000.0).tolist(),
         "runs": [{"run_id": r.run_id, "start_time": iso_time(r.run_time), "shift_m": r.shift_m, "n_flags": r.n_flags}
                  for r in hm.runs],

@@ -89,7 +89,7 @@ def ingest_fleet(
     are kept and skipped (their history is regenerated in memory, so the runs
     after them are judged against the same history). ``on_run`` sees every
     generated run with its assessment (e.g. to score the flags against the plan,
-    :func:`app.simulate.fleet.score_history`).
+    :func:`app.simulate.fleet_scoring.score_history`).
     """
     if n_runs < 1:
         raise ValueError(f"n_runs: must be >= 1, got {n_runs!r}")
@@ -111,7 +111,7 @@ def ingest_fleet(
         with db.write() as session:
             line = line_of(session, line_id, track, sim.line.bin_length)
             positions = {w: (t.position_m, t.amplitude, t.speed_mps) for w, t in tracks.items()}
-            segments = wheel_segments(session, line, positions, bin_length_m=sim.grid_m, bins_per_cell=cells)
+            segments = wheel_segments(positions, bin_length_m=sim.grid_m, bins_per_cell=cells)
             assessment = assess_run(segments, history, days_of(when), params=params, previous_flags=history.flags)
             if session.scalar(select(Run.id).where(Run.sha256 == sha)) is not None:
                 skipped += 1

@@ -12,6 +12,7 @@ from sqlalchemy.orm import Session
 from app.analysis.condition import (
     DEFAULT_ANOMALY_Z,
     DEFAULT_CHANGE_PARAMS,
+    TREND_SEGMENT_M,
     ChangeParams,
     HotspotTable,
     rank_segments,
@@ -83,11 +84,12 @@ def line_hotspots(
         return None
     segs, wheels, v = _wheel_matrices(session, run.run_id, seg_m)
     idx, chg, cz, rate, tz = v
-    if seg_m != 100 and segs.size:  # the trend of the 100 m segment holding each segment
-        parent, parent_wheels, pv = _wheel_matrices(session, run.run_id, 100)
+    trend_m = int(TREND_SEGMENT_M)
+    if seg_m != trend_m and segs.size:  # the trend of the trend-test segment holding each segment
+        parent, parent_wheels, pv = _wheel_matrices(session, run.run_id, trend_m)
         rate, tz = np.full_like(idx, np.nan), np.full_like(idx, np.nan)
         if parent.size:
-            up = segs * seg_m // 100
+            up = segs * seg_m // trend_m
             j = np.minimum(np.searchsorted(parent, up), parent.size - 1)
             hit = parent[j] == up
             for i, w in enumerate(wheels):

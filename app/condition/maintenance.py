@@ -5,7 +5,7 @@ Values are *relative to the surrounding track of the same run*: the index over
 the stretch minus the run's mean over the ``NEIGHBOURHOOD_KM`` either side
 (the stretch and ``GAP_KM`` either side left out; from the runs' 100 m overview
 rows). What the whole neighbourhood shares in one run — the speed the train
-passed at (the provisional index is not speed-conditioned), a sensor's
+passed at (the condition index, ln A, is not speed-conditioned), a sensor's
 calibration, the season — cancels, and what happened to the stretch remains.
 The rows are read run by run through the primary keys (a stretch of a year of
 daily runs: a few thousand rows).

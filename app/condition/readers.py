@@ -17,6 +17,7 @@ import numpy as np
 from sqlalchemy import func, literal, select
 from sqlalchemy.orm import Session
 
+from app.analysis.condition import OVERVIEW_SEGMENT_M
 from app.core.jsonable import finite_or_none, iso_time
 from app.db.models import (
     ConditionFlag,
@@ -42,8 +43,8 @@ __all__ = [
 ]
 
 
-#: Segment length of the overview rows, m.
-OVERVIEW_M = 100
+#: Segment length of the overview rows, m (:data:`app.analysis.condition.OVERVIEW_SEGMENT_M`).
+OVERVIEW_M = int(OVERVIEW_SEGMENT_M)
 
 
 @dataclass(frozen=True)

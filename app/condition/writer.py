@@ -11,7 +11,7 @@ that marks the job done (both worker modes), and by the synthetic fleet
 2. aligns the run to its line's reference signature (the first run stored for
    the line, :class:`~app.db.models.ConditionLine`;
    :func:`app.analysis.stiffness.alignment.align_runs`);
-3. computes the condition index of every bin (:func:`app.condition.index.condition_index`,
+3. computes the condition index of every bin (:func:`app.condition.index.store_index`,
    the one place that decides it) and the 10 m and 100 m segments of every wheel
    (:func:`app.analysis.condition.segment_stats`);
 4. tests every segment against the earlier runs of the line read from the
@@ -39,6 +39,7 @@ from sqlalchemy import and_, select, text
 from sqlalchemy.orm import Session
 
 from app.analysis.condition import (
+    OVERVIEW_SEGMENT_M,
     SEGMENT_LENGTHS_M,
     ChangeParams,
     HistoryMatrix,
@@ -49,7 +50,7 @@ from app.analysis.condition import (
 )
 from app.analysis.stiffness.alignment import align_runs
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
-from app.condition.index import condition_index, index_name
+from app.condition.index import STORE_INDEX, store_index
 from app.db import results_reader
 from app.db.bulk import insert_frame
 from app.db.condition_store import delete_run_condition, line_of
@@ -89,8 +90,6 @@ _SEGMENT_PG_TYPES: dict[str, str] = {
 _OVERVIEW_PG_TYPES: dict[str, str] = {
     "run_id": "int4", "seg": "int4", "line_key": "int4", "index": "float4", "n_wheels": "int2", "flagged": "bool",
 }
-#: Segment length of the overview rows, m.
-OVERVIEW_SEGMENT_M = 100.0
 
 
 @dataclass(frozen=True)
@@ -168,18 +167,19 @@ def _align(line: ConditionLine, run_id: int, bins: np.ndarray, amp: np.ndarray, 
 
 
 def wheel_segments(
-    session: Session, line: ConditionLine, wheels: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    wheels: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     *, bin_length_m: float, segment_lengths_m: tuple[float, ...] = SEGMENT_LENGTHS_M, bins_per_cell: int = 1,
 ) -> dict[float, dict[str, SegmentStats]]:
     """Segments of every wheel from its bins: ``{wheel: (position_m, amplitude, speed_mps)}``
-    (positions aligned, amplitude NaN where not valid), with the index of :func:`condition_index`.
+    (positions aligned, amplitude NaN where not valid), with the store's index
+    (:func:`app.condition.index.store_index`).
 
     ``bins_per_cell``: each value stands for that many bins (a generated fleet
     on a coarser grid); ``n_valid`` counts bins.
     """
     out: dict[float, dict[str, SegmentStats]] = {s: {} for s in segment_lengths_m}
     for wheel, (pos, amp, speed) in wheels.items():
-        index, index_sd = condition_index(session, line.line_id, line.track, pos, amp, speed)
+        index, index_sd = store_index(amp)
         for seg_m in segment_lengths_m:
             st = segment_stats(pos, amp, speed, index, index_sd, segment_m=seg_m, bin_length_m=bin_length_m)
             out[seg_m][wheel] = replace(st, n_valid=st.n_valid * bins_per_cell) if bins_per_cell != 1 else st
@@ -416,7 +416,7 @@ def store_run_condition(
     sig_bins, sig_amp = _signature(wheels, amps)
     shift, confidence = _align(line, run_id, sig_bins, sig_amp, bin_length, config)
     positions = {w: ((b.bins + 0.5) * bin_length + shift, amps[w], b.speed_mps) for w, b in wheels.items()}
-    segments = wheel_segments(session, line, positions, bin_length_m=bin_length)
+    segments = wheel_segments(positions, bin_length_m=bin_length)
     when = run_time_of(run)
     history = DbHistory(session, line.id, run_id, when, config.change)
     assessment = assess_run(segments, history, days_of(when), params=config.change,
@@ -426,7 +426,7 @@ def store_run_condition(
     exponents = {f"{s:g}": float(np.mean(list(e.values()))) if e else None
                  for s, e in assessment.exponents.items()}
     details = {
-        "index": index_name(session, line.line_id, line.track), "line_key": line.id,
+        "index": STORE_INDEX, "line_key": line.id,
         "shift_m": round(shift, 3), "shift_confidence": confidence,
         "segments": int(sum(len(st) for w in segments.values() for st in w.values())),
         "history_runs": len(history.step_runs), "flags": len(flags), "new_flag_ids": [f.id for f in flags if f.is_new],

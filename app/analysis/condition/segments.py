@@ -28,10 +28,12 @@ import numpy as np
 
 from app.analysis._checks import check_positive
 
-__all__ = ["SEGMENT_LENGTHS_M", "SegmentStats", "segment_stats"]
+__all__ = ["SEGMENT_LENGTHS_M", "OVERVIEW_SEGMENT_M", "SegmentStats", "segment_stats"]
 
 #: Segment lengths of the condition store, m.
 SEGMENT_LENGTHS_M: tuple[float, ...] = (10.0, 100.0)
+#: Segment length of a run's overview rows (the line's heat map: mean over the wheels), m.
+OVERVIEW_SEGMENT_M: float = SEGMENT_LENGTHS_M[-1]
 
 
 @dataclass(frozen=True)

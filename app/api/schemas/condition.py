@@ -1,4 +1,10 @@
-"""Schemas of the condition endpoints (index in natural-log units, km in km, speeds in km/h)."""
+"""Schemas of the condition endpoints (index in natural-log units, km in km, speeds in km/h).
+
+``index`` in these answers is the store's **condition index**, ``ln(A / 1 m/s²)`` of the
+sleeper-passage amplitude, compared at matched speed (the heat map names it: ``"ln_amplitude"``);
+it is not the **stiffness index** ``ln(A / A_ref(class, v))`` of the profiles (``stiffness_index``
+with ``index=true``) and the analytics (``value=index``). The key stays ``index`` for integrations.
+"""
 
 from __future__ import annotations
 
@@ -50,7 +56,8 @@ class HeatmapOut(BaseModel):
     track: str
     segment_m: int
     wheel: str | None = Field(description="null: mean over the wheels")
-    index: str = Field(description="what the index is (provenance)")
+    index: str = Field(description="which index the values are (provenance): \"ln_amplitude\", the condition "
+                       "index ln(A / 1 m/s²) compared at matched speed")
     km: list[float] = Field(description="segment starts, km")
     runs: list[HeatmapRun]
     matrix: list[list[float | None]] = Field(description="index per run (row, oldest first) and segment")
