@@ -140,11 +140,12 @@ class Settings(BaseSettings):
         The first and last metres of every run's profile left out of the
         analytics (filter end transients).
     analytics_speed_tolerance : float
-        The matched-speed rule, wherever runs are compared: the reference
-        amplitude at speed v is estimated from passes within ±this fraction of
-        v (0.1 = ±10 %) and exists only where such passes are; two runs'
-        segments are compared, and a condition change is tested against
-        earlier runs, only where their speeds differ by less than this.
+        The matched-speed rule, wherever runs are compared: two passes are at
+        matched speed when ``|ln(v / v0)| <= ln(1 + tol)`` (within a factor
+        1 + tol either way; 0.1 = ±10 %; :mod:`app.analysis.speed_match`). The
+        reference amplitude at speed v is estimated from such passes and exists
+        only where they are; two runs' segments are compared, and a condition
+        change is tested against earlier runs, only at matched speed.
     analytics_section_margin_m : float
         Bins within this distance of a change of superstructure type get no
         stiffness index and do not enter the reference curves, m.
