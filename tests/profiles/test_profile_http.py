@@ -14,7 +14,7 @@ import pytest
 from app import publish
 from app.db import queue
 from app.db.session import Database
-from tests.api.test_profiles_api import _synthetic, processed  # noqa: F401 - the fixture
+from tests.profiles.test_profiles_api import _synthetic, processed  # noqa: F401 - the fixture
 
 URL = "/api/v1/runs/{}/profile"
 
