@@ -8,7 +8,6 @@ primitives of :mod:`app.core.security` and the rows of :mod:`app.db.auth_crud`.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Annotated, Any, TypeVar
 from urllib.parse import quote
 
@@ -16,6 +15,7 @@ from fastapi import Depends, HTTPException, Request
 
 from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.routing import iter_routes
 from app.core.security import ROLES, Principal, csrf_matches, role_allows, role_rank
 from app.db import auth_crud
 from app.db.session import Database
@@ -227,20 +227,6 @@ def require_page_login(role: str = "viewer") -> PageLogin:
 
 def public() -> None:
     """Marker dependency of routes that need no authentication (health, login)."""
-
-
-def iter_routes(app) -> Iterator[Any]:
-    """Every route of an app with its effective dependencies (included routers flattened).
-
-    Items have ``path``, ``methods`` and, for FastAPI routes, ``dependant``
-    (None for mounts and plain Starlette routes).
-    """
-    try:
-        from fastapi.routing import iter_route_contexts
-    except ImportError:  # older FastAPI: included routes are flattened into app.routes
-        yield from app.routes
-        return
-    yield from iter_route_contexts(app.routes)
 
 
 def route_policy(route: Any) -> tuple[str, str | None] | None:

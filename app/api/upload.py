@@ -43,7 +43,8 @@ from app.core.diskspace import DiskFullError, is_disk_full, require_free
 from app.core.runstore import RunStore
 from app.db.session import Database
 from app.io import RunFileError, load_metadata_json
-from app.runs.create import UploadedFile, UploadOutcome, create_run_from_file
+from app.operations.heavy import run_heavy
+from app.runs.create import UploadedFile, UploadOutcome, create_run_from_file, existing_outcome
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
 
@@ -487,10 +488,15 @@ async def _receive_and_create(
         metadata = _parse_metadata(_one_of("metadata", received.fields.get("metadata"), query_metadata))
 
         file = UploadedFile(path, received.sha256, received.size, received.filename)
-        return await run_in_threadpool(
+        existing = await run_in_threadpool(existing_outcome, db, file.sha256, metadata)
+        if existing is not None:
+            return existing
+        # ingest and create: a few at a time per process, so reads keep their share (issue 24)
+        return await run_heavy(
+            request.app,
             lambda: create_run_from_file(
                 db, store, upload_dir, file, fmt=fmt, metadata=metadata,
                 channel_map=_one_of("channel_map", received.fields.get("channel_map"), query_channel_map),
                 principal=principal, request=request, reserve_bytes=settings.min_free_bytes,
-            )
+            ),
         )

@@ -32,7 +32,7 @@ from app.io.channel_map import ChannelMap, parse_channel_map
 from app.io.geometry import LineGeometry
 from app.runs.metadata import describe_differences, metadata_differences, run_fields
 
-__all__ = ["UploadedFile", "UploadOutcome", "create_run_from_file", "existing_run_id",
+__all__ = ["UploadedFile", "UploadOutcome", "create_run_from_file", "existing_outcome", "existing_run_id",
            "check_same_metadata", "insert_run", "load_channel_map", "channel_map_id"]
 
 log = logging.getLogger(__name__)
@@ -164,6 +164,16 @@ def insert_run(
         raise
 
 
+def existing_outcome(db: Database, sha256: str, metadata: dict[str, Any] | None) -> UploadOutcome | None:
+    """The existing run of a file uploaded before (409 naming ``metadata`` when the given metadata
+    differ from the run's), or None for a new file."""
+    existing = existing_run_id(db, sha256)
+    if existing is None:
+        return None
+    check_same_metadata(db, existing, metadata)
+    return UploadOutcome(run_id=existing, created=False)
+
+
 def create_run_from_file(
     db: Database,
     store: RunStore,
@@ -189,10 +199,9 @@ def create_run_from_file(
         409 (``metadata``) for the same file with other metadata; 422 (``channel_map``) for a
         channel map that is not stored or belongs to another vehicle.
     """
-    existing = existing_run_id(db, file.sha256)
+    existing = existing_outcome(db, file.sha256, metadata)
     if existing is not None:
-        check_same_metadata(db, existing, metadata)
-        return UploadOutcome(run_id=existing, created=False)
+        return existing
 
     map_id = channel_map_id(channel_map)
     cmap = None

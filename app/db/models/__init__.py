@@ -15,6 +15,7 @@ module                 tables
 ``reference``          reference data: ref_subsidence, ref_maintenance, ref_superstructure
 ``recorder``           channel_maps, line_geometries
 ``webhooks``           webhooks and their delivery log (the alerts outbox)
+``operations``         worker_heartbeats (the liveness of worker processes)
 ``auth``               users, sessions, api_keys, audit_log
 =====================  ==============================================================
 """
@@ -30,6 +31,7 @@ from app.db.models.condition import (
     SegmentCondition,
 )
 from app.db.models.curves import ReferenceCurveRow
+from app.db.models.operations import WorkerHeartbeat
 from app.db.models.recorder import ChannelMapRow, LineGeometryRow
 from app.db.models.reference import (
     MAINTENANCE_TYPES,
@@ -89,4 +91,5 @@ __all__ = [
     "Webhook",
     "WebhookDelivery",
     "WheelOOR",
+    "WorkerHeartbeat",
 ]
