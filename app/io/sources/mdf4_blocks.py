@@ -689,6 +689,9 @@ def _channel(w: _Walker, cn: _Block, data_bytes: int, inval_bytes: int,
     if flags & ~_CN_KNOWN_FLAGS:
         raise _fail(cn.where, f"cn_flags 0x{flags:x} has unknown bits")
     virtual = ctype in (3, 6)
+    if bit_offset and dtype not in _INT_TYPES:
+        raise _fail(cn.where, f"cn_bit_offset {bit_offset} for cn_data_type {dtype}: only integers "
+                    "may start inside a byte")
     if not virtual:
         if not _bits_ok(dtype, bits):
             raise _fail(cn.where, f"cn_bit_count {bits} does not fit cn_data_type {dtype}")
