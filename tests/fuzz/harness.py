@@ -69,7 +69,7 @@ def run_corpus(parse: Callable[[Path], str], files: Sequence[Path], per_file_s: 
     start = 0
     while start < len(files):
         receive, send = ctx.Pipe(duplex=False)
-        proc = ctx.Process(target=_child, args=(send, parse, files, start), daemon=True)
+        proc = ctx.Process(target=_child, args=(send, parse, files, start))  # may start children
         proc.start()
         send.close()
         current, t0 = None, time.perf_counter()
@@ -108,13 +108,14 @@ def run_corpus(parse: Callable[[Path], str], files: Sequence[Path], per_file_s: 
     return [o if o is not None else Outcome("crash", "no outcome", 0.0) for o in out]
 
 
-def ingest_digest(src: Path, dest: Path, metadata: dict[str, Any], **kwargs: Any) -> str:
+def ingest_digest(src: Path, dest: Path, metadata: dict[str, Any], *,
+                  ingest_fn: Callable[..., Any] | None = None, **kwargs: Any) -> str:
     """Ingest ``src`` and return a digest of what was stored: rate, length, every channel's samples."""
     import numpy as np
 
     from app.io import ingest, open_run
 
-    summary = ingest(src, None, metadata, dest, **kwargs)
+    summary = (ingest_fn or ingest)(src, None, metadata, dest, **kwargs)
     h = hashlib.sha256(f"{summary.fs!r} {summary.n_samples} {summary.channels}".encode())
     with open_run(dest) as run:
         for c in run.channels:

@@ -248,4 +248,101 @@ def hdf5_values(base: bytes, raw: list[tuple[int, int]], texts: list[bytes]) -> 
 
 def hdf5_mutants(tag: str, base: bytes, values: np.ndarray, rng: np.random.Generator) -> Iterator[Mutant]:
     """Byte flips (structure and data), storms, cuts and a tail of an HDF5 file."""
-    yield from byte_mutants(tag, base, values, rng, n_structure=40, n_value=8, n_storms=2)
+    yield from byte_mutants(tag, base, values, rng, n_structure=70, n_value=10, n_storms=3)
+
+
+# --- GeoJSON ------------------------------------------------------------------------------
+
+#: Hostile values put in place of a node of a valid document (JSON text).
+HOSTILE_JSON = [
+    "null", "true", '""', '"\\u0000"', '"40\\u000010"', "1e400", "-1e400", "NaN", "Infinity", "-0.0",
+    "7" * 5000, "-" + "9" * 400, "0." + "0" * 5000 + "1", "[]", "{}", "[[[[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]]",
+    "[" * 100_000 + "]" * 100_000, '"' + "x" * 200_000 + '"', "[" + ",".join(["0"] * 100_000) + "]",
+    '{"type": "Feature"}', "[1e308, 1e308]", "[null, null]", '["9", "48"]', "[true, false]",
+]
+#: CRS names no line geometry can use (another body, geocentric, vertical, compound, nonsense).
+HOSTILE_CRS = [
+    "IAU_2015:49900", "IAU_2015:30100", "ESRI:104971", "EPSG:4978", "EPSG:5714", "EPSG:4326+5714",
+    "EPSG:4979", "EPSG:99999999", "+proj=longlat +a=1 +b=1", "+proj=pipeline +step +proj=axisswap +order=2,1",
+    "+proj=geos +h=35785831 +lon_0=0", "LOCAL_CS[\"x\",LOCAL_DATUM[\"y\",0],UNIT[\"m\",1]]",
+    'GEOGCS["' + "A" * 100_000 + '"]', "", "EPSG:", "urn:ogc:def:crs:EPSG::0", "EPSG:3857",
+    "urn:ogc:def:crs:OGC:1.3:CRS84",
+]
+
+
+def geojson_base() -> dict:
+    """A valid collection in ETRS89/UTM 32N: tracks 1 and 2 of a line, km stations along them."""
+    x = 512_340.0 + np.arange(6) * 200.0
+    y = 5_401_200.0 + np.arange(6) * 50.0
+    km = 12.0 + np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y))))) / 1000
+    return {
+        "type": "FeatureCollection",
+        "crs": {"type": "name", "properties": {"name": "EPSG:25832"}},
+        "features": [
+            {"type": "Feature", "properties": {"line_id": "4010", "track": track, "km": km.tolist()},
+             "geometry": {"type": "LineString", "coordinates": np.column_stack((x, y + dy)).tolist()}}
+            for track, dy in (("1", 0.0), ("2", 4.0))
+        ],
+    }
+
+
+def _paths(node, path=()):  # noqa: ANN001, ANN202 - any JSON value
+    yield path
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from _paths(v, (*path, k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _paths(v, (*path, i))
+
+
+_MARK = "\u241fHOSTILE\u241f"
+
+
+def _set(doc, path, value):  # noqa: ANN001, ANN202
+    if not path:
+        return value
+    node = doc
+    for p in path[:-1]:
+        node = node[p]
+    node[path[-1]] = value
+    return doc
+
+
+def geojson_mutants(rng: np.random.Generator) -> Iterator[tuple[str, bytes]]:
+    """Valid GeoJSON with one node replaced, removed or duplicated, hostile CRS, text flips."""
+    import copy
+    import json
+
+    base = geojson_base()
+    yield "geojson/base", json.dumps(base).encode()
+    paths = list(_paths(base))
+    for k in range(60):
+        path = _pick(rng, paths)
+        doc = _set(copy.deepcopy(base), path, _MARK)
+        text = json.dumps(doc).replace(json.dumps(_MARK), _pick(rng, HOSTILE_JSON))
+        yield f"geojson/replace{k}@{'/'.join(map(str, path))}", text.encode()
+    for k in range(20):
+        path = _pick(rng, [p for p in paths if p])
+        doc = copy.deepcopy(base)
+        parent = doc
+        for p in path[:-1]:
+            parent = parent[p]
+        if isinstance(parent, dict):
+            del parent[path[-1]]
+        else:
+            parent.insert(path[-1], copy.deepcopy(parent[path[-1]]))  # a duplicated element
+        yield f"geojson/drop-or-dup{k}@{'/'.join(map(str, path))}", json.dumps(doc).encode()
+    for crs in HOSTILE_CRS:
+        doc = copy.deepcopy(base)
+        doc["crs"]["properties"]["name"] = crs
+        yield f"geojson/crs={crs[:40]}", json.dumps(doc).encode()
+    text = json.dumps(base).encode()
+    for k in range(30):
+        data = bytearray(text)
+        for pos in rng.choice(len(data), size=int(rng.integers(1, 4)), replace=False):
+            data[pos] = int(rng.integers(0, 256))
+        yield f"geojson/flip{k}", bytes(data)
+    yield "geojson/features-dup", json.dumps({**base, "features": base["features"] * 2}).encode()
+    yield "geojson/many-features", json.dumps({**base, "features": base["features"][:1] * 1001}).encode()
+    yield "geojson/not-utf8", b"\xff\xfe" + text
