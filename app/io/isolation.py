@@ -153,8 +153,10 @@ def _child(conn: Any, fn: Callable[..., Any] | str, args: tuple, kwargs: dict, m
         fn = _resolve(fn)
         kwargs = {k: _RemoteCall(conn, v.name) if isinstance(v, Callback) else v for k, v in kwargs.items()}
         msg: tuple = ("ok", fn(*args, **kwargs))
-    except (RunFileError, DiskFullError) as exc:
+    except RunFileError as exc:
         msg = ("raise", exc)
+    except DiskFullError as exc:  # not picklable as it is: rebuilt in the parent
+        msg = ("disk", str(exc.filename), exc.message)
     except MemoryError:
         msg = ("memory", "")
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, with its traceback
@@ -326,6 +328,10 @@ def _result(msg: tuple, budget: ParseBudget, what: str) -> Any:
         return msg[1]
     if kind == "raise":
         raise msg[1]
+    if kind == "disk":
+        from app.core.diskspace import DiskFullError
+
+        raise DiskFullError(msg[1], msg[2])
     if kind == "memory":
         raise RunFileError(
             "file", f"reading {what} needs more than {budget.memory_bytes / 2**20:.0f} MiB of memory "

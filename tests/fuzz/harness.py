@@ -37,8 +37,11 @@ class Outcome:
 
 
 def _child(conn, parse: Callable[[Path], str], files: Sequence[Path], start: int) -> None:  # noqa: ANN001
+    import faulthandler
+
     from app.io.errors import RunFileError
 
+    faulthandler.disable()  # a crash is an outcome here, not a report for the test log
     for i in range(start, len(files)):
         conn.send(("start", i))
         t0 = time.perf_counter()
