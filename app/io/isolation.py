@@ -57,6 +57,7 @@ __all__ = [
     "ingest_upload",
     "parse_geojson_upload",
     "read_reference_upload",
+    "warm_up",
 ]
 
 log = logging.getLogger(__name__)
@@ -417,3 +418,22 @@ def read_reference_upload(settings: Any, data: bytes, kind: str, fmt: str | None
 
         return read_reference(data, kind, fmt, filename)  # type: ignore[arg-type]
     return read_reference_bounded(data, kind, fmt, filename, budget=budget_from(settings, len(data)))
+
+
+def warm_up() -> None:
+    """Start this process's fork server in the background (the first parse then need not wait).
+
+    Starting it imports the parsing libraries once (seconds); without this the
+    first upload after a start pays for it.
+    """
+
+    def start() -> None:
+        try:
+            _context()
+            from multiprocessing import forkserver
+
+            forkserver.ensure_running()
+        except Exception:  # noqa: BLE001 - the first parse starts it again and reports
+            log.warning("could not start the parse fork server in advance", exc_info=True)
+
+    threading.Thread(target=start, name="parse-forkserver", daemon=True).start()
