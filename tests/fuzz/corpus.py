@@ -100,7 +100,7 @@ def _run_bounded_corpus(parse: Callable[[Path], str], files: list[Path]) -> list
 
 def _mdf4(tmp: Path, rng: np.random.Generator) -> Iterator[tuple[str, bytes, Iterator[mu.Mutant]]]:
     for tag, kwargs in (("mdf4-plain", {}), ("mdf4-deflate-dl", {"compression": 1, "fragment": 4096}),
-                        ("mdf4-transposed", {"compression": 2})):
+                        ("mdf4-transposed", {"compression": 2}), ("mdf4-rich", {"rich": True})):
         base = rb.write_mdf4(tmp / f"{tag}.mf4", **kwargs).read_bytes()
         yield tag, base, mu.mdf4_mutants(tag, base, rng)
 

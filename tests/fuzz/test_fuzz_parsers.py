@@ -19,7 +19,7 @@ from tests.fuzz import mutations as mu
 from tests.fuzz.harness import Outcome, run_corpus
 
 #: Least number of mutants per format (the corpus is deterministic; this guards against shrinking).
-MIN_MUTANTS = {"mdf4": 450, "tdms": 150, "hdf5": 100, "geojson": 120}
+MIN_MUTANTS = {"mdf4": 650, "tdms": 150, "hdf5": 100, "geojson": 120}
 
 
 @pytest.mark.timeout(600)

@@ -36,11 +36,13 @@ def signals() -> dict[str, np.ndarray]:
     }
 
 
-def write_mdf4(path: Path, *, compression: int = 0, fragment: int | None = None) -> Path:
+def write_mdf4(path: Path, *, compression: int = 0, fragment: int | None = None, rich: bool = False) -> Path:
     """A small MDF4 run: group ABA (two float32 channels, 2 kHz), group CAN (speed, 100 Hz).
 
     ``compression`` as asammdf's ``save`` (0 plain, 1 deflate, 2 transposed
-    deflate); ``fragment`` splits the data into blocks of that many bytes (DL lists).
+    deflate); ``fragment`` splits the data into blocks of that many bytes (DL lists);
+    ``rich`` adds what recorders add: a linear conversion (factor 1), a string channel
+    (variable-length signal data), a value-to-text channel, a group comment and an attachment.
     """
     from asammdf import MDF, Signal
 
@@ -48,8 +50,19 @@ def write_mdf4(path: Path, *, compression: int = 0, fragment: int | None = None)
     mdf = MDF(version="4.10")
     if fragment is not None:
         mdf.configure(write_fragment_size=fragment)
-    mdf.append([Signal(s["AccZ_1R"], s["t"], name="AccZ_1R", unit="g"),
-                Signal(s["AccZ_1L"], s["t"], name="AccZ_1L", unit="m/s^2")], acq_name="ABA")
+    extra = []
+    if rich:
+        extra = [
+            Signal(np.array([b"ok"] * N), s["t"], name="status", encoding="utf-8"),
+            Signal(np.arange(N) % 3, s["t"], name="mode",
+                   conversion={"val_0": 0, "text_0": "a", "val_1": 1, "text_1": "b", "default": "c"}),
+        ]
+    conversion = {"a": 1.0, "b": 0.0} if rich else None
+    mdf.append([Signal(s["AccZ_1R"], s["t"], name="AccZ_1R", unit="g", conversion=conversion),
+                Signal(s["AccZ_1L"], s["t"], name="AccZ_1L", unit="m/s^2"), *extra], acq_name="ABA",
+               comment="<CGcomment><TX>axle box</TX></CGcomment>" if rich else "")
+    if rich:
+        mdf.attach(b"recorder notes\n" * 64, file_name="notes.txt", embedded=True)
     mdf.append([Signal(s["v_train"], s["t2"], name="v_train", unit="km/h")], acq_name="CAN")
     mdf.save(path, overwrite=True, compression=compression)
     mdf.close()

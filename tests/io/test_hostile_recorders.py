@@ -51,6 +51,7 @@ def test_valid_files_are_accepted(tmp_path: Path) -> None:
         ("plain", rb.write_mdf4(tmp_path / "plain.mf4")),
         ("deflate-dl", rb.write_mdf4(tmp_path / "dl.mf4", compression=1, fragment=4096)),
         ("transposed", rb.write_mdf4(tmp_path / "tr.mf4", compression=2)),
+        ("rich", rb.write_mdf4(tmp_path / "rich.mf4", rich=True)),
         ("tdms", rb.write_tdms(tmp_path / "run.tdms")),
     ):
         summary = _ingest(path, tmp_path / f"{name}.h5")
@@ -260,3 +261,19 @@ def test_two_hundred_random_byte_flips_are_refused(tmp_path: Path) -> None:
             bad.write_bytes(bytes(data))
             with pytest.raises(RunFileError):
                 call_with_deadline(_ingest, bad, tmp_path / "out.h5", seconds=LIMIT_S)
+
+
+def test_hdf5_corrupt_metadata_is_a_4xx_not_a_runtime_error(tmp_path: Path) -> None:
+    """Found by the fuzz corpus: flipped bytes in an HDF5 file's metadata made h5py raise
+    RuntimeError (a 500): "bad coordinate offset", "ran off end of input buffer", "bad heap free list"."""
+    from tests.fuzz import corpus
+
+    mutants, _, files, _ = corpus.build("hdf5", tmp_path)
+    names = {"hdf5-contiguous/flip-struct@1981", "hdf5-contiguous/flip-struct@1072",
+             "hdf5-contiguous/storm1", "hdf5-gzip/flip-struct@1501"}
+    chosen = [f for m, f in zip(mutants, files, strict=True) if m.name in names]
+    assert len(chosen) == len(names)
+    for path in chosen:
+        with pytest.raises(RunFileError) as exc:
+            call_with_deadline(ingest, path, None, base_meta(), tmp_path / "out.h5", seconds=LIMIT_S)
+        assert exc.value.field in ("file", "Z11", "Z12", "speed"), exc.value

@@ -58,6 +58,9 @@ _READ_BYTES = 1 << 20
 _MAX_META_BLOCK = 16 << 20
 _PAYLOAD = frozenset({"DT", "SD", "RD", "DV", "DI", "RV", "RI"})
 _TEXT = frozenset({"TX", "MD"})
+#: Blocks whose data section is read only up to here (a DZ header, an AT header before its
+#: embedded data); the rest is streamed (DZ) or never read (AT).
+_HEAD_ONLY = {"DZ": 24, "AT": 40}
 _KNOWN = frozenset(
     {"HD", "FH", "CH", "AT", "EV", "DG", "CG", "SI", "CN", "CC", "CA", "TX", "MD", "DT", "SD",
      "RD", "DZ", "DL", "HL", "SR", "RV", "RI", "DV", "DI", "LD"}
@@ -157,6 +160,7 @@ class _Walker:
     def __init__(self, fh: BinaryIO, size: int, limits: IngestLimits) -> None:
         self.fh, self.size, self.limits = fh, size, limits
         self.blocks: dict[int, _Block] = {}
+        self.held = 0
         self.owner: dict[int, str] = {}
         self.text_bytes = 0
         self.checked_text: set[int] = set()
@@ -204,15 +208,22 @@ class _Walker:
         if n_links > (length - _HEADER) // 8 or length < _HEADER:
             raise _fail(where, f"block_length {length} cannot hold the header and {n_links} links")
         data_len = length - _HEADER - 8 * n_links
-        links = struct.unpack(f"<{n_links}q", self.read(offset + _HEADER, 8 * n_links))
+        if 8 * n_links > _MAX_META_BLOCK:
+            raise _fail(where, f"{n_links} links (at most {_MAX_META_BLOCK // 8})")
         if kind in _PAYLOAD:
-            data = b""
-        elif kind == "DZ":
-            data = self.read(offset + _HEADER + 8 * n_links, min(data_len, 24))
+            keep = 0
+        elif kind in _HEAD_ONLY:
+            keep = min(data_len, _HEAD_ONLY[kind])
         else:
             if data_len > _MAX_META_BLOCK:
                 raise _fail(where, f"a data section of {data_len} bytes (at most {_MAX_META_BLOCK})")
-            data = self.read(offset + _HEADER + 8 * n_links, data_len)
+            keep = data_len
+        # blocks do not overlap (checked at the end): what they hold cannot exceed the file
+        self.held += 8 * n_links + keep
+        if self.held > self.size:
+            raise _fail(where, "the blocks read so far hold more bytes than the file: blocks overlap")
+        links = struct.unpack(f"<{n_links}q", self.read(offset + _HEADER, 8 * n_links))
+        data = self.read(offset + _HEADER + 8 * n_links, keep) if keep else b""
         blk = _Block(offset, kind, length, links, data)
         want = _DATA_SIZE.get(kind)
         if want is not None and data_len != want and kind != "CN":
@@ -589,7 +600,7 @@ def _attachment(w: _Walker, at: _Block) -> None:
     embedded = struct.unpack_from("<Q", at.data, 32)[0]
     if flags & ~0x7:
         raise _fail(at.where, f"at_flags 0x{flags:04x} has unknown bits")
-    if len(at.data) != 40 + embedded:
+    if at.length - _HEADER - 8 * len(at.links) != 40 + embedded:
         raise _fail(at.where, f"at_embedded_size {embedded} does not match the block_length {at.length}")
     for j in (1, 2, 3):
         w.text(at, j, kinds=frozenset({"TX"}) if j < 3 else _TEXT)
