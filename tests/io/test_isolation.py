@@ -130,3 +130,12 @@ def test_budget_scales_with_the_file() -> None:
     assert b.seconds == pytest.approx(146.0) and b.memory_bytes == 1 << 32
     with pytest.raises(ValueError):
         ParseBudget.for_file(1, base_s=0, min_bytes_per_s=1, memory_bytes=1)
+
+
+def test_a_failing_callback_is_the_parents_error_not_the_files() -> None:
+    def lookup(line: str, track: str) -> str:
+        raise ConnectionError("the database is gone")
+
+    with pytest.raises(ConnectionError):
+        run_bounded(ask_parent, (), {"lookup": Callback("lookup")}, budget=BUDGET, what="x",
+                    callbacks={"lookup": lookup})
