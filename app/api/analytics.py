@@ -31,7 +31,7 @@ from app.analysis.stiffness.superstructure import flag_segments, type_distributi
 from app.analysis.stiffness.unsprung_mass import fit_unsprung_mass
 from app.api import analytics_data as data
 from app.api.analytics_index import curve_misfits, index_context
-from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
+from app.api.deps import DbDep, IdQuery, RunId, SettingsDep, check_km, km_query
 from app.api.errors import ApiError, not_found
 from app.api.profiles import run_with_results
 from app.api.reference import KmFromQ, KmToQ, LineQ, TrackQ, parse_types
@@ -400,7 +400,7 @@ MaxShiftQ = Annotated[float, Query(gt=0, le=5000, description="largest shift sea
 @router.get("/runs/{run_id}/alignment", response_model=AlignmentOut,
             summary="km shift of a run against a reference run")
 def run_alignment(run_id: RunId, db: DbDep, settings: SettingsDep,
-                  reference_run_id: Annotated[int | None, Query(ge=1)] = None,
+                  reference_run_id: IdQuery = None,
                   max_shift_m: MaxShiftQ = 50.0,
                   detrend_m: Annotated[float, Query(gt=0, le=10_000)] = 50.0) -> dict:
     """Cross-correlate the run's amplitude signature (mean over wheels) with the reference

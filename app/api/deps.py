@@ -53,6 +53,7 @@ __all__ = [
     "KM_BOUND",
     "km_query",
     "JobId",
+    "IdQuery",
     "PageOffset",
     "check_page_size",
     "parse_time",
@@ -354,9 +355,12 @@ ViewerDep = Annotated[Principal, Depends(require_role("viewer"))]
 EngineerDep = Annotated[Principal, Depends(require_role("engineer"))]
 AdminDep = Annotated[Principal, Depends(require_role("admin"))]
 
+#: Largest id of a row (32-bit integer keys; PostgreSQL ``integer``): every id parameter is bounded by it.
 _MAX_ID = 2**31 - 1
 RunId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Run id")]
 JobId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Job id")]
+#: An optional id in the query string (``?reference_run_id=``), bounded like the path ids.
+IdQuery = Annotated[int | None, Query(ge=1, le=_MAX_ID)]
 PageOffset = Annotated[int, Query(ge=0, le=10**9)]
 
 

@@ -24,7 +24,7 @@ from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.recorder_models import LineGeometryRow
 from app.io import RunFileError
 from app.io.channels import UNITS
-from app.io.geometry import parse_geojson
+from app.io.isolation import parse_geojson_upload
 
 __all__ = ["router", "INDICATOR_UNITS"]
 
@@ -68,7 +68,7 @@ async def import_geometry(
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
     try:
-        geometries = await run_in_threadpool(parse_geojson, data)
+        geometries = await run_in_threadpool(parse_geojson_upload, settings, data)
     except RunFileError as exc:
         raise ApiError(422, exc.field, exc.message) from None
 

@@ -27,7 +27,8 @@ from app.api.schemas.reference import (
 )
 from app.db import reference_crud
 from app.io import RunFileError
-from app.io.reference import MAINTENANCE_TYPES, read_reference
+from app.io.isolation import read_reference_upload
+from app.io.reference import MAINTENANCE_TYPES
 
 __all__ = ["router"]
 
@@ -71,7 +72,7 @@ async def import_reference(
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
     try:
-        rows = await run_in_threadpool(read_reference, data, kind, format, file.filename)
+        rows = await run_in_threadpool(read_reference_upload, settings, data, kind, format, file.filename)
     except RunFileError as exc:
         raise ApiError(422, exc.field, exc.message) from None
 

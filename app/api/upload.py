@@ -49,8 +49,9 @@ from app.core.runstore import RunStore
 from app.db import crud, recorder_crud
 from app.db.models import Run, utcnow
 from app.db.session import Database
-from app.io import RunFileError, RunSummary, ingest, load_metadata_json
+from app.io import RunFileError, RunSummary, load_metadata_json
 from app.io.geometry import LineGeometry
+from app.io.isolation import ingest_upload
 from app.operations.heavy import run_heavy
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
@@ -613,8 +614,8 @@ async def _receive_and_create(
         try:
             summary = await run_heavy(  # a few at a time per process: reads keep their share (issue 24)
                 request.app,
-                lambda: ingest(
-                    path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry,
+                lambda: ingest_upload(  # in a child process with a time and memory budget
+                    settings, path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry,
                     reserve_bytes=settings.min_free_bytes,
                 ),
             )
