@@ -70,6 +70,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             revision = None
         if revision is None:
             log.warning("database %s is not migrated: run `trackvkf migrate`", settings.database_url)
+        if settings.parse_isolated:
+            from app.io.isolation import warm_up
+
+            warm_up()  # the fork server of the upload parsers, started in the background
         yield
         db.dispose()
 

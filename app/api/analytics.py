@@ -23,6 +23,7 @@ from app.analytics.stiffness_index import reference_curves_answer
 from app.api.deps import (
     DbDep,
     EngineerDep,
+    IdQuery,
     RunId,
     SettingsDep,
     WheelQ,
@@ -176,7 +177,7 @@ def speed_normalised_profile(run_id: RunId, db: DbDep, settings: SettingsDep,
 @router.get("/runs/{run_id}/alignment", response_model=AlignmentOut,
             summary="km shift of a run against a reference run")
 def run_alignment(run_id: RunId, db: DbDep, settings: SettingsDep,
-                  reference_run_id: Annotated[int | None, Query(ge=1)] = None,
+                  reference_run_id: IdQuery = None,
                   max_shift_m: MaxShiftQ = 50.0,
                   detrend_m: Annotated[float, Query(gt=0, le=10_000)] = 50.0) -> dict:
     """Cross-correlate the run's amplitude signature (mean over wheels) with the reference

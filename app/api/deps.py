@@ -31,6 +31,7 @@ from app.api.access import (
 )
 from app.api.params import (
     KM_BOUND,
+    IdQuery,
     JobId,
     PageOffset,
     RunId,
@@ -75,6 +76,7 @@ __all__ = [
     # from app.api.params
     "KM_BOUND",
     "JobId",
+    "IdQuery",
     "PageOffset",
     "RunId",
     "WheelQ",

@@ -19,7 +19,7 @@ from app.api.schemas.recorder import (
 )
 from app.db import recorder_crud
 from app.db.models import LineGeometryRow
-from app.io.geometry import parse_geojson
+from app.io.isolation import parse_geojson_upload
 from app.maps import indicator as map_indicator
 from app.maps.indicator import INDICATOR_UNITS
 
@@ -56,7 +56,7 @@ async def import_geometry(
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    geometries = await run_in_threadpool(parse_geojson, data)  # RunFileError: 422 naming the feature
+    geometries = await run_in_threadpool(parse_geojson_upload, settings, data)  # RunFileError: 422 naming the feature
 
     def write() -> list[GeometrySummary]:
         with db.write() as session:

@@ -20,6 +20,7 @@ from app.io import WHEELS
 __all__ = [
     "RunId",
     "JobId",
+    "IdQuery",
     "PageOffset",
     "KM_BOUND",
     "km_query",
@@ -31,9 +32,12 @@ __all__ = [
     "wheel_param",
 ]
 
+#: Largest id of a row (32-bit integer keys; PostgreSQL ``integer``): every id parameter is bounded by it.
 _MAX_ID = 2**31 - 1
 RunId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Run id")]
 JobId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Job id")]
+#: An optional id in the query string (``?reference_run_id=``), bounded like the path ids.
+IdQuery = Annotated[int | None, Query(ge=1, le=_MAX_ID)]
 PageOffset = Annotated[int, Query(ge=0, le=10**9)]
 
 

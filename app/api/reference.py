@@ -26,7 +26,8 @@ from app.api.schemas.reference import (
     SuperstructureList,
 )
 from app.db import reference_crud
-from app.io.reference import MAINTENANCE_TYPES, read_reference
+from app.io.isolation import read_reference_upload
+from app.io.reference import MAINTENANCE_TYPES
 
 __all__ = ["router"]
 
@@ -69,7 +70,7 @@ async def import_reference(
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    rows = await run_in_threadpool(read_reference, data, kind, format, file.filename)  # RunFileError: 422
+    rows = await run_in_threadpool(read_reference_upload, settings, data, kind, format, file.filename)  # RunFileError: 422
 
     def write() -> tuple[int, int]:
         with db.write() as session:

@@ -497,6 +497,6 @@ async def _receive_and_create(
             lambda: create_run_from_file(
                 db, store, upload_dir, file, fmt=fmt, metadata=metadata,
                 channel_map=_one_of("channel_map", received.fields.get("channel_map"), query_channel_map),
-                principal=principal, request=request, reserve_bytes=settings.min_free_bytes,
+                principal=principal, request=request, settings=settings,
             ),
         )

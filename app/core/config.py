@@ -142,6 +142,18 @@ class Settings(BaseSettings):
     max_reference_bytes : int
         Largest accepted reference data file (subsidence, maintenance,
         superstructure), bytes.
+    parse_isolated : bool
+        Parse uploaded run files, geometries and reference files in a child
+        process with a time and memory budget (default true; see
+        docs/security.md, "Parsers").
+    parse_seconds : float
+        Wall-clock budget of one parse, s, plus the file size divided by
+        ``parse_min_bytes_per_s`` (default 120 s).
+    parse_min_bytes_per_s : float
+        Slowest accepted parse rate, bytes/s (default 1 MB/s; a 26 MB MDF4
+        file ingests at about 10–20 MB/s on one busy core).
+    parse_memory_bytes : int
+        Growth of a parse child's data segment, bytes (default 4 GiB).
     analytics_min_speed_kmh : float
         Profile bins slower than this (km/h) are left out of the analytics.
     analytics_reference_speed_kmh : float
@@ -255,6 +267,10 @@ class Settings(BaseSettings):
     upload_rate_limit: int = Field(default=60, ge=1)
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
     max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
+    parse_isolated: bool = True
+    parse_seconds: float = Field(default=120.0, gt=0)
+    parse_min_bytes_per_s: float = Field(default=1_000_000.0, gt=0)
+    parse_memory_bytes: int = Field(default=4 * _GIB, ge=64 * 1024 * 1024)
     profile_cache_bytes: int = Field(default=64 * 1024 * 1024, ge=0)
     display_cache_bytes: int = Field(default=256 * 1024 * 1024, ge=0)
     profile_concurrency: int = Field(default=2, ge=1, le=64)

@@ -47,7 +47,7 @@ def _default(value: Any) -> str:
         size = f"{value // _GIB} GiB" if value % _GIB == 0 else f"{value // _MIB} MiB"
         return f"`{value}` ({size})"
     if isinstance(value, float) and value.is_integer():
-        return f"`{value:g}`"
+        return f"`{int(value)}`"
     return f"`{value}`" if value != "" else "(empty)"
 
 

@@ -19,7 +19,7 @@ from sqlalchemy.exc import IntegrityError
 
 from app.analysis.settings import ProcessingSettings
 from app.audit import record
-from app.core.config import API_PREFIX
+from app.core.config import API_PREFIX, Settings
 from app.core.errors import ApiError
 from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
@@ -27,9 +27,10 @@ from app.core.security import Principal
 from app.db import crud, recorder_crud
 from app.db.models import Run, utcnow
 from app.db.session import Database
-from app.io import RunSummary, ingest
+from app.io import RunSummary
 from app.io.channel_map import ChannelMap, parse_channel_map
 from app.io.geometry import LineGeometry
+from app.io.isolation import ingest_upload
 from app.runs.metadata import describe_differences, metadata_differences, run_fields
 
 __all__ = ["UploadedFile", "UploadOutcome", "create_run_from_file", "existing_outcome", "existing_run_id",
@@ -184,14 +185,16 @@ def create_run_from_file(
     metadata: dict[str, Any] | None,
     channel_map: str | None,
     principal: Principal,
+    settings: Settings,
     request: Any = None,
-    reserve_bytes: int = 0,
 ) -> UploadOutcome:
     """The run of a received file: the existing one (same sha256), or a new one with its queued job.
 
     ``channel_map``: the id of a stored channel map as given (recorder files). The file is
-    ingested into ``upload_dir / "run.h5"`` (:func:`app.io.ingest`; a :class:`~app.io.RunFileError`
-    names the field at fault), the upload itself then removed. Runs in a worker thread.
+    ingested into ``upload_dir / "run.h5"`` in a child process with a time and memory budget
+    (:func:`app.io.isolation.ingest_upload`, ``TRACKVKF_PARSE_*``; a :class:`~app.io.RunFileError`
+    names the field at fault), the upload itself then removed; ``settings.min_free_bytes`` stay
+    free on the disk. Runs in a worker thread.
 
     Raises
     ------
@@ -214,8 +217,10 @@ def create_run_from_file(
             row = recorder_crud.find_geometry(session, line_id, track)
             return recorder_crud.to_line_geometry(row) if row is not None else None
 
-    summary = ingest(file.path, fmt, metadata, upload_dir / "run.h5", channel_map=cmap, geometry=geometry,
-                     reserve_bytes=reserve_bytes)
+    summary = ingest_upload(  # in a child process with a time and memory budget
+        settings, file.path, fmt, metadata, upload_dir / "run.h5", channel_map=cmap, geometry=geometry,
+        reserve_bytes=settings.min_free_bytes,
+    )
     file.path.unlink()
     try:
         run_id = insert_run(db, store, upload_dir, summary, file, fmt, principal, request)

@@ -105,7 +105,7 @@ def test_unexpected_errors_are_audited_too(client, tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise RuntimeError("simulated bug")
 
-    monkeypatch.setattr(upload, "ingest", boom)
+    monkeypatch.setattr(upload, "ingest_upload", boom)  # the upload's parse (app.io.isolation)
     from fastapi.testclient import TestClient
 
     quiet = TestClient(client.app, headers=dict(client.headers), raise_server_exceptions=False)
