@@ -49,6 +49,8 @@ def setting_help(name: str, *, valid: str | None = None) -> str:
     f = {f.name: f for f in dataclasses.fields(ProcessingSettings)}[name]
     default = "none" if f.default is None else f"{f.default:g}" if isinstance(f.default, float) else f.default
     return f"{f.metadata['help']} ({valid or f.metadata['valid']}; default {default})"
+
+
 #: what a stored settings dict without these keys meant (before issue 15)
 LEGACY_VALUES: dict[str, Any] = {
     "track_resolution_m": None,

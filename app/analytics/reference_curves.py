@@ -35,6 +35,7 @@ from app.analysis.stiffness.stiffness_index import StiffnessIndex, stiffness_ind
 from app.analysis.stiffness.superstructure import section_classes
 from app.analytics.frames import analytics_frame
 from app.core.config import Settings
+from app.core.jsonable import finite_or_none
 from app.db import reference_crud, results_reader
 from app.db.models import ReferenceCurveRow, utcnow
 from app.db.session import Database
@@ -91,8 +92,8 @@ class StoredReference:
         for c, cu in self.reference.curves.items():
             lo, hi = cu.speed_range_mps
             classes.append({"class": c, "method": cu.method, "n_runs": cu.n_runs,
-                            "speed_range_kmh": [None if not np.isfinite(lo) else lo * 3.6,
-                                                None if not np.isfinite(hi) else hi * 3.6]})
+                            "speed_range_kmh": [None if v is None else v * 3.6
+                                                for v in (finite_or_none(lo), finite_or_none(hi))]})
         return {"line_id": self.line_id, "track": self.track, "run_ids": self.run_ids,
                 "computed_at": self.computed_at, "speed_tolerance": self.params.speed_tolerance,
                 "classes": classes}

@@ -15,6 +15,7 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, Depends, Query
 
 from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
+from app.analysis.stiffness.superstructure import OUTLIER_SEGMENT_M
 from app.analytics import correlations, speed
 from app.analytics import segments as segments_service
 from app.analytics.correlations import MAX_POINTS
@@ -26,6 +27,7 @@ from app.api.deps import (
     IdQuery,
     RunId,
     SettingsDep,
+    Wheel,
     WheelQ,
     check_km,
     km_query,
@@ -91,7 +93,7 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, runs: RunsQ,
 @router.get("/runs/{run_id}/predicted-subsidence", response_model=PredictedSubsidenceOut,
             summary="Subsidence predicted from a run's amplitude")
 def predicted_subsidence(run_id: RunId, db: DbDep, settings: SettingsDep,
-                         wheel: Annotated[str, Query(description="wheel")] = "12",
+                         wheel: Wheel = "12",
                          km_from: KmFromQ = None, km_to: KmToQ = None,
                          fit_run_ids: RunIdsQ = None) -> dict:
     """u = a ln(Z) + b with a, b fitted per wheel over ``fit_run_ids`` (default all runs of
@@ -129,7 +131,7 @@ def maintenance(db: DbDep, settings: SettingsDep, runs: RunsQ,
 @router.get("/analytics/superstructure", response_model=SuperstructureOut,
             summary="Amplitude per superstructure type and outlying segments")
 def superstructure(db: DbDep, settings: SettingsDep, runs: RunsQ,
-                   segment_m: SegmentQ = 100.0,
+                   segment_m: SegmentQ = OUTLIER_SEGMENT_M,
                    z_threshold: Annotated[float, Query(gt=0, le=100)] = 3.5,
                    normalise: Annotated[bool, Query(description="use the amplitude conditioned to "
                                                     "reference_speed_kmh (see conditioning)")] = True,
@@ -163,7 +165,7 @@ def speed_normalisation(db: DbDep, settings: SettingsDep, runs: RunsQ,
 @router.get("/runs/{run_id}/speed-normalised-profile", response_model=NormalisedProfileOut,
             summary="A run's amplitude normalised to a reference speed")
 def speed_normalised_profile(run_id: RunId, db: DbDep, settings: SettingsDep,
-                             wheel: Annotated[str, Query()] = "12", km_from: KmFromQ = None,
+                             wheel: Wheel = "12", km_from: KmFromQ = None,
                              km_to: KmToQ = None, reference_speed_kmh: RefSpeedQ = None,
                              min_speed_kmh: MinSpeedQ = None, fit_run_ids: RunIdsQ = None) -> dict:
     """A · (v_ref / v) ** exponent per bin, the exponent of the bin's superstructure type

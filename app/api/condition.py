@@ -21,7 +21,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Query
 from fastapi.responses import JSONResponse, Response
 
-from app.analysis.condition import SEGMENT_LENGTHS_M
+from app.analysis.condition import FINE_SEGMENT_M, OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
 from app.api.deps import (
     DbDep,
     RunId,
@@ -50,7 +50,9 @@ router = APIRouter(prefix="/condition", tags=["condition"])
 
 LineIdQ = Annotated[str, Query(min_length=1, max_length=128, description="Line id")]
 TrackQ = Annotated[str | None, Query(max_length=64, description="Track (default: the line's only track)")]
-SegmentQ = Annotated[int, Query(description="segment length, m: 10 or 100")]
+SegmentQ = Annotated[int, Query(description="segment length, m: " + " or ".join(f"{s:g}" for s in SEGMENT_LENGTHS_M))]
+#: Default segment of the heat map (the overview rows) and of a trend or the work list (the finest), m.
+_OVERVIEW_M, _FINE_M = int(OVERVIEW_SEGMENT_M), int(FINE_SEGMENT_M)
 _MAX_FEED = 1000
 
 
@@ -67,7 +69,7 @@ def lines(db: DbDep) -> dict:
 
 
 @router.get("/heatmap", response_model=HeatmapOut, summary="Index per run × segment of a line")
-def heatmap(db: DbDep, line_id: LineIdQ, track: TrackQ = None, segment_m: SegmentQ = 100, wheel: WheelQ = None,
+def heatmap(db: DbDep, line_id: LineIdQ, track: TrackQ = None, segment_m: SegmentQ = _OVERVIEW_M, wheel: WheelQ = None,
             km_from: Annotated[float | None, km_query("Lower km bound")] = None,
             km_to: Annotated[float | None, km_query("Upper km bound")] = None,
             date_from: Annotated[str | None, Query(description="ISO date or datetime")] = None,
@@ -84,7 +86,7 @@ def heatmap(db: DbDep, line_id: LineIdQ, track: TrackQ = None, segment_m: Segmen
 
 @router.get("/trend", response_model=TrendOut, summary="One segment over every run of a line")
 def trend(db: DbDep, line_id: LineIdQ, km: Annotated[float, km_query("A km inside the segment")],
-          track: TrackQ = None, segment_m: SegmentQ = 10, wheel: WheelQ = None) -> dict:
+          track: TrackQ = None, segment_m: SegmentQ = _FINE_M, wheel: WheelQ = None) -> dict:
     """Per run (oldest first) the segment's index (mean over the wheels), the same relative to
     the surrounding track of the run (±1 km: what the run's speed and level share cancels) and
     each wheel's row, with the maintenance actions that cover the segment."""
@@ -122,7 +124,7 @@ def _hotspot_query(
     km_to: Annotated[float | None, km_query("Upper km bound (needs line_id)")] = None,
     superstructure: Annotated[str | None, Query(alias="class", max_length=64,
                                                 description="superstructure class ('' = outside the sections)")] = None,
-    segment_m: SegmentQ = 10,
+    segment_m: SegmentQ = _FINE_M,
     min_priority: Annotated[float, Query(ge=0, le=1000, description="least priority listed (1: beyond a threshold)")] = 1.0,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 200,
 ) -> HotspotQuery:

@@ -21,7 +21,7 @@ from app.db import recorder_crud
 from app.db.models import LineGeometryRow
 from app.io.isolation import parse_geojson_upload
 from app.maps import indicator as map_indicator
-from app.maps.indicator import INDICATOR_UNITS
+from app.maps.indicator import DEFAULT_MAP_SEGMENT_M, INDICATOR_UNITS
 
 __all__ = ["router", "INDICATOR_UNITS"]
 
@@ -107,7 +107,7 @@ def geometry_indicator(
     db: DbDep,
     quantity: Annotated[str, Query(max_length=64, description="Profile column to colour the line by")] = "sleeper_amp",
     run_id: Annotated[int | None, Query(ge=1, le=2**31 - 1, description="Default: the latest processed run of the line and track")] = None,
-    segment_m: Annotated[float, Query(ge=10.0, le=10_000.0, description="Segment length, m")] = 100.0,
+    segment_m: Annotated[float, Query(ge=10.0, le=10_000.0, description="Segment length, m")] = DEFAULT_MAP_SEGMENT_M,
 ) -> IndicatorOut:
     """Mean of ``quantity`` over the bins and wheels of each segment of the run, placed on the line.
 

@@ -28,6 +28,8 @@ __all__ = [
     "check_page_size",
     "parse_time",
     "parse_time_range",
+    "WHEEL_PATTERN",
+    "Wheel",
     "WheelQ",
     "wheel_param",
 ]
@@ -120,7 +122,12 @@ def parse_time_range(
     return start, end
 
 
-WheelQ = Annotated[str | None, Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="wheel: 11, 12, 41 or 42 (or Z11 …)")]
+#: What a wheel parameter may look like before :func:`wheel_param` checks it (short, no odd characters).
+WHEEL_PATTERN = r"^[0-9A-Za-z]{1,8}$"
+#: An optional wheel (None: every wheel, or their mean); pass it through :func:`wheel_param`.
+WheelQ = Annotated[str | None, Query(pattern=WHEEL_PATTERN, description="wheel: 11, 12, 41 or 42 (or Z11 …)")]
+#: A wheel that must be given (or has a default); pass it through :func:`wheel_param`.
+Wheel = Annotated[str, Query(pattern=WHEEL_PATTERN, description="wheel: 11, 12, 41 or 42 (or Z11 …)")]
 
 
 def wheel_param(value: str | None) -> str | None:

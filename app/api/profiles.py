@@ -15,6 +15,7 @@ from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
 from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
+from app.api.params import WHEEL_PATTERN
 from app.api.schemas.profiles import ProfileOut
 from app.profiles.cache import ProfileAnswers
 from app.profiles.encoding import CACHE_CONTROL, accepts_gzip, matches
@@ -29,12 +30,14 @@ router = APIRouter(tags=["profiles"])
 PROFILE_CACHE_CONTROL = CACHE_CONTROL
 _MAX_LEVEL_M = 10_000.0
 
+#: the profile routes name a stored wheel: one the run has no rows of is a 404 naming ``wheel``
+#: (app.profiles.query), not :func:`app.api.params.wheel_param`'s 422
 Wheel = Annotated[
-    str, Query(pattern=r"^[0-9A-Za-z]{1,8}$", description='Wheel: "11", "12", "41" or "42"')
+    str, Query(pattern=WHEEL_PATTERN, description='Wheel: "11", "12", "41" or "42"')
 ]
 OptionalWheel = Annotated[
     str | None,
-    Query(pattern=r"^[0-9A-Za-z]{1,8}$", description="Wheel; all wheels when omitted"),
+    Query(pattern=WHEEL_PATTERN, description="Wheel; all wheels when omitted"),
 ]
 KmFrom = Annotated[float | None, km_query("Lower km bound of the bin centres")]
 KmTo = Annotated[float | None, km_query("Upper km bound of the bin centres")]

@@ -6,7 +6,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query
 
-from app.api.deps import DbDep, RunId, StoreDep, km_query, wheel_param
+from app.api.deps import DbDep, RunId, StoreDep, Wheel, km_query, wheel_param
 from app.spectrogram import spectrogram_answer
 
 __all__ = ["router"]
@@ -23,7 +23,7 @@ def get_spectrogram(
     run_id: RunId,
     db: DbDep,
     store: StoreDep,
-    wheel: Annotated[str, Query(pattern=r"^[0-9A-Za-z]{1,8}$", description='Wheel: "11" … "42" (or "Z11")')],
+    wheel: Wheel,
     km_from: Annotated[float, km_query("Window start, km")],
     km_to: Annotated[float, km_query("Window end, km")],
     revolutions: Annotated[

@@ -64,7 +64,7 @@ def heatmap(db: Database, line_id: str, track: str | None, *, segment_m: int, wh
         "km": (hm.seg * segment_m / 1000.0).tolist(),
         "runs": [{"run_id": r.run_id, "start_time": iso_time(r.run_time), "shift_m": r.shift_m, "n_flags": r.n_flags}
                  for r in hm.runs],
-        "matrix": [[None if math.isnan(v) else v for v in row] for row in matrix.tolist()],
+        "matrix": [[finite_or_none(v) for v in row] for row in matrix.tolist()],
         "flagged": [list(c) for c in hm.flagged],
     }
 

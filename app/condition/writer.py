@@ -51,6 +51,7 @@ from app.analysis.condition import (
 from app.analysis.stiffness.alignment import align_runs
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
 from app.condition.index import STORE_INDEX, store_index
+from app.core.jsonable import finite_or_none
 from app.db import results_reader
 from app.db.bulk import insert_frame
 from app.db.condition_store import delete_run_condition, line_of
@@ -310,8 +311,7 @@ def _insert_flags(session: Session, run_id: int, job_id: int, line_key: int,
         row = ConditionFlag(
             run_id=run_id, line_key=line_key, job_id=job_id, wheels=",".join(f.wheels), n_wheels=len(f.wheels),
             seg_m=int(round(f.seg_m)), seg=f.seg, kind=f.kind, direction=f.direction, score=f.score,
-            change=f.change if np.isfinite(f.change) else None,
-            rate_per_year=f.rate_per_year if np.isfinite(f.rate_per_year) else None,
+            change=finite_or_none(f.change), rate_per_year=finite_or_none(f.rate_per_year),
             is_new=f.is_new, created_at=now,
         )
         session.add(row)

@@ -10,12 +10,16 @@ from __future__ import annotations
 import numpy as np
 
 from app.core.errors import ApiError, not_found
+from app.core.jsonable import finite_or_none
 from app.db import crud, recorder_crud, results_reader
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
 from app.io.channels import UNITS
 
-__all__ = ["INDICATOR_UNITS", "segment_means", "geometry_indicator"]
+__all__ = ["INDICATOR_UNITS", "DEFAULT_MAP_SEGMENT_M", "segment_means", "geometry_indicator"]
+
+#: Default segment length of the map's indicator along a line, m.
+DEFAULT_MAP_SEGMENT_M = 100.0
 
 #: Quantities the map can colour the line by (profile columns) and their units.
 INDICATOR_UNITS: dict[str, str] = {
@@ -74,7 +78,7 @@ def geometry_indicator(db: Database, geometry_id: int, *, quantity: str, run_id:
     lon, lat = geom.lonlat_at_km(centres)
     x, y = geom.to_local(lon, lat)
     segments = [
-        {"km_from": float(a), "km_to": float(b), "km": float(c), "value": None if not np.isfinite(val) else float(val),
+        {"km_from": float(a), "km_to": float(b), "km": float(c), "value": finite_or_none(val),
          "lon": float(lo_), "lat": float(la), "x_m": float(xx), "y_m": float(yy)}
         for a, b, c, val, lo_, la, xx, yy in zip(edges[:-1], edges[1:], centres, values, lon, lat, x, y, strict=True)
     ]

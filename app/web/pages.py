@@ -15,6 +15,7 @@ from app.analysis.condition import OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
 from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
 from app.api import API_PREFIX
 from app.api.deps import RunId, public, require_page_login
+from app.maps.indicator import DEFAULT_MAP_SEGMENT_M
 
 __all__ = [
     "FRONTEND_DIR", "PLOTLY_JS", "FAVICON", "build_pages_router", "build_public_router",
@@ -87,7 +88,8 @@ def build_pages_router(templates: Jinja2Templates) -> APIRouter:
     def map_page(request: Request) -> HTMLResponse:
         settings = request.app.state.settings
         tiles = {"url": settings.map_tile_url, "attribution": settings.map_tile_attribution}
-        return page(request, "map.html", "map", "Map", tiles=tiles if settings.map_tile_url else None)
+        return page(request, "map.html", "map", "Map", tiles=tiles if settings.map_tile_url else None,
+                    map_segment_m=int(DEFAULT_MAP_SEGMENT_M))
 
     @router.get("/condition", response_class=HTMLResponse)
     def condition_page(request: Request) -> HTMLResponse:

@@ -35,6 +35,7 @@ from app.analysis.condition.change import (
 )
 from app.analysis.condition.hotspots import DEFAULT_ANOMALY_Z, HotspotTable, rank_segments
 from app.analysis.condition.segments import (
+    FINE_SEGMENT_M,
     OVERVIEW_SEGMENT_M,
     SEGMENT_LENGTHS_M,
     SegmentStats,
@@ -44,6 +45,7 @@ from app.analysis.condition.segments import (
 __all__ = [
     "SEGMENT_LENGTHS_M",
     "OVERVIEW_SEGMENT_M",
+    "FINE_SEGMENT_M",
     "SegmentStats",
     "segment_stats",
     "ChangeParams",
