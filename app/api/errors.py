@@ -1,16 +1,16 @@
 """Error responses of the API: ``{"detail": "<field>: <message>", "field": "<field>"}``.
 
-Every error the API answers takes this form: :class:`ApiError` raised by the
-routes and their dependencies, FastAPI's own validation of query, path and
-body parameters (:class:`fastapi.exceptions.RequestValidationError`), whose
-list of problems is reduced to the first one, naming its parameter,
-Starlette's HTTP errors (unknown path → ``path``, method → ``method``, a body
-that cannot be parsed → ``body``), PostgreSQL's refusal of NUL characters in
-text (a query filter holding one) and, last, any exception a route did not
-expect: answered ``500`` with ``"field": "server"`` (its traceback goes to the
-log, never to the client) by :class:`CatchAllMiddleware`, on a connection
-that stays open. Messages are cut to :data:`MAX_MESSAGE_CHARS`: no answer
-echoes a large input.
+Every error the API answers takes this form: :class:`~app.core.errors.ApiError` raised by the
+routes, their dependencies and the services they call, :class:`~app.io.RunFileError` (a run
+or reference file, metadata or channel map that is not valid: 422 naming the field,
+:func:`run_file_error`), FastAPI's own validation of query, path and body parameters
+(:class:`fastapi.exceptions.RequestValidationError`), whose list of problems is reduced to
+the first one, naming its parameter, Starlette's HTTP errors (unknown path → ``path``,
+method → ``method``, a body that cannot be parsed → ``body``), PostgreSQL's refusal of NUL
+characters in text (a query filter holding one) and, last, any exception a route did not
+expect: answered ``500`` with ``"field": "server"`` (its traceback goes to the log, never to
+the client) by :class:`CatchAllMiddleware`, on a connection that stays open. Messages are
+cut to :data:`MAX_MESSAGE_CHARS`: no answer echoes a large input.
 """
 
 from __future__ import annotations
@@ -27,11 +27,15 @@ from sqlalchemy.exc import DataError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from app.core.errors import MAX_MESSAGE_CHARS, ApiError, cut_message, not_found
+from app.io import RunFileError
+
 __all__ = [
     "ApiError",
     "MAX_MESSAGE_CHARS",
     "ERROR_SCHEMA",
     "not_found",
+    "run_file_error",
     "validation_error",
     "document_error_responses",
     "install_error_handlers",
@@ -40,9 +44,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-#: Longest message of an error answer, characters (longer ones are cut, ending in "…").
-MAX_MESSAGE_CHARS = 500
 
 #: OpenAPI schema of an error answer.
 ERROR_SCHEMA: dict[str, Any] = {
@@ -63,43 +64,8 @@ INTERNAL_ERROR: dict[str, str] = {"detail": "server: internal error (logged on t
 _BODY_PARSE_ERROR = "There was an error parsing the body"
 
 
-def _cut(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
-    return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
-class ApiError(Exception):
-    """An error answered with ``status_code`` and a message naming the problem.
-
-    Parameters
-    ----------
-    status_code : int
-        HTTP status (4xx; 507 when the run store is full).
-    field : str
-        What is wrong: a channel, a metadata field, a query parameter,
-        ``format``, ``file`` ...
-    message : str
-        Human-readable explanation; cut to :data:`MAX_MESSAGE_CHARS` characters.
-    headers : dict, optional
-        Extra response headers (``WWW-Authenticate``, ``Retry-After``).
-    """
-
-    def __init__(
-        self, status_code: int, field: str, message: str, headers: dict[str, str] | None = None
-    ) -> None:
-        self.status_code = status_code
-        self.field = _cut(str(field), 200)
-        self.message = _cut(str(message))
-        self.headers = headers
-        super().__init__(f"{self.field}: {self.message}")
-
-
-def not_found(what: str, ident: object) -> ApiError:
-    """A 404 error for ``what`` (``"run"``, ``"job"``) with id ``ident``."""
-    return ApiError(404, f"{what}_id", f"{what} {ident} not found")
-
-
 def _shown(value: Any) -> str:
-    return _cut(repr(value), 60)
+    return cut_message(repr(value), 60)
 
 
 def validation_error(errors: Sequence[dict[str, Any]]) -> ApiError:
@@ -147,6 +113,16 @@ async def _api_error_handler(request: Request, exc: Exception) -> JSONResponse:
         content={"detail": f"{exc.field}: {exc.message}", "field": exc.field},
         headers=exc.headers,
     )
+
+
+def run_file_error(exc: RunFileError) -> ApiError:
+    """The 422 of an invalid file, metadata or channel map, naming its field (the one mapping)."""
+    return ApiError(422, exc.field, exc.message)
+
+
+async def _run_file_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RunFileError)
+    return await _api_error_handler(request, run_file_error(exc))
 
 
 async def _validation_error_handler(request: Request, exc: Exception) -> JSONResponse:
@@ -249,6 +225,7 @@ def document_error_responses(schema: dict[str, Any]) -> dict[str, Any]:
 def install_error_handlers(app: FastAPI) -> None:
     """Register the handlers of every error (call before adding the other middlewares)."""
     app.add_exception_handler(ApiError, _api_error_handler)
+    app.add_exception_handler(RunFileError, _run_file_error_handler)
     app.add_exception_handler(RequestValidationError, _validation_error_handler)
     app.add_exception_handler(DataError, _data_error_handler)
     app.add_exception_handler(StarletteHTTPException, _http_error_handler)

@@ -13,9 +13,12 @@ from pathlib import Path
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "get_settings", "DEFAULT_SECRET_KEY", "ProductionConfigError"]
+__all__ = ["Settings", "get_settings", "DEFAULT_SECRET_KEY", "ProductionConfigError", "API_PREFIX"]
 
 _GIB = 1024**3
+
+#: URL prefix of the REST API (routes, links in answers, hints in messages).
+API_PREFIX = "/api/v1"
 
 #: The development secret key; production mode refuses to start with it.
 DEFAULT_SECRET_KEY = "trackvkf-insecure-development-key-change-me"
@@ -159,11 +162,12 @@ class Settings(BaseSettings):
         The first and last metres of every run's profile left out of the
         analytics (filter end transients).
     analytics_speed_tolerance : float
-        The matched-speed rule, wherever runs are compared: the reference
-        amplitude at speed v is estimated from passes within ±this fraction of
-        v (0.1 = ±10 %) and exists only where such passes are; two runs'
-        segments are compared, and a condition change is tested against
-        earlier runs, only where their speeds differ by less than this.
+        The matched-speed rule, wherever runs are compared: two passes are at
+        matched speed when ``|ln(v / v0)| <= ln(1 + tol)`` (within a factor
+        1 + tol either way; 0.1 = ±10 %; :mod:`app.analysis.speed_match`). The
+        reference amplitude at speed v is estimated from such passes and exists
+        only where they are; two runs' segments are compared, and a condition
+        change is tested against earlier runs, only at matched speed.
     analytics_section_margin_m : float
         Bins within this distance of a change of superstructure type get no
         stiffness index and do not enter the reference curves, m.
@@ -309,7 +313,7 @@ class Settings(BaseSettings):
     @field_validator("webhook_allowed_networks")
     @classmethod
     def _check_networks(cls, value: str) -> str:
-        from app.alerts.url_policy import parse_networks
+        from app.core.url_policy import parse_networks
 
         parse_networks(value)  # ValueError naming the entry
         return value

@@ -64,7 +64,7 @@ def test_concurrent_uploads_are_converted_one_at_a_time(make_client, tmp_path, m
             with lock:
                 active[0] -= 1
 
-    monkeypatch.setattr("app.api.upload.ingest_upload", counting_ingest)  # the parse child's launcher
+    monkeypatch.setattr("app.runs.create.ingest_upload", counting_ingest)  # the parse child's launcher
     files = [hdf5_run(tmp_path, n=20_000) for _ in range(4)]
     with ThreadPoolExecutor(4) as pool:
         codes = [r.status_code for r in pool.map(lambda p: upload_file(client, p), files)]
