@@ -17,6 +17,7 @@ TABLES = {
     "condition_lines", "condition_runs", "segment_condition", "condition_flags",
     "webhooks", "webhook_deliveries", "condition_overview",
     "channel_maps", "line_geometries", "worker_heartbeats",
+    "places", "place_observations", "place_events", "place_status_history", "place_actions", "place_runs",
 }
 
 
@@ -33,7 +34,7 @@ def test_upgrade_downgrade_upgrade(tmp_path):
     migrate.upgrade(url)
     assert _tables(url) == TABLES
     head = migrate.current_revision(url)
-    assert head == "0014_operations"  # one chain: the newest migration is the head
+    assert head == "0017_places"  # one chain: the newest migration is the head
 
     migrate.downgrade(url, "base")
     assert _tables(url) == set()
