@@ -22,6 +22,7 @@ from app.api import (
     geometry,
     health,
     jobs,
+    places,
     profiles,
     reference,
     runs,
@@ -44,7 +45,7 @@ def build_api_router() -> APIRouter:
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
         runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition,
-        condition_effects, auth, audit, channel_maps, geometry, webhooks,
+        condition_effects, places, auth, audit, channel_maps, geometry, webhooks,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

@@ -51,6 +51,9 @@ class PlacesConfig:
         Asset types whose places are muted.
     effect_around_m, effect_margin_m : float
         An action's effect: surroundings and margin, m.
+    section_margin_m : float
+        Segments this close to a change of superstructure class have no class (no index), m
+        (``TRACKVKF_ANALYTICS_SECTION_MARGIN_M``).
     """
 
     place: PlaceParams = field(default_factory=lambda: PlaceParams(tier_table(_DEFAULT_LEVELS),
@@ -63,6 +66,7 @@ class PlacesConfig:
     muted_asset_types: frozenset[str] = frozenset()
     effect_around_m: float = 1000.0
     effect_margin_m: float = 50.0
+    section_margin_m: float = 50.0
 
     @property
     def levels(self) -> TierTable:
@@ -115,7 +119,8 @@ class PlacesConfig:
                    section_m=settings.places_section_m, section_limits=tuple(settings.places_section_limits),
                    asset_buffer_m=settings.places_asset_buffer_m, muted_asset_types=muted,
                    effect_around_m=settings.places_effect_around_m,
-                   effect_margin_m=settings.places_effect_margin_m)
+                   effect_margin_m=settings.places_effect_margin_m,
+                   section_margin_m=settings.analytics_section_margin_m)
 
 
 DEFAULT_PLACES_CONFIG = PlacesConfig()

@@ -86,6 +86,7 @@ class Place(Base):
     severity: Mapped[float] = mapped_column(Float, default=0.0)
     evidence: Mapped[int] = mapped_column(Integer, default=0)
     wheels: Mapped[int] = mapped_column(Integer, default=0)
+    wheel_labels: Mapped[str] = mapped_column(String(200), default="")
     runs_confirming: Mapped[int] = mapped_column(Integer, default=0)
     tendency: Mapped[str] = mapped_column(String(16), default="new")
     rate_per_year: Mapped[float | None] = mapped_column(Float)
@@ -128,6 +129,7 @@ class PlaceObservation(Base):
     severity: Mapped[float] = mapped_column(Float)
     evidence: Mapped[int] = mapped_column(Integer)
     wheels: Mapped[int] = mapped_column(Integer)
+    wheel_labels: Mapped[str] = mapped_column(String(200), default="")
     speed_kmh: Mapped[float | None] = mapped_column(Float)
     method_version: Mapped[str] = mapped_column(String(80))
 
