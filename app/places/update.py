@@ -371,9 +371,9 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
         if was_active and not st.active and "repaired" not in kinds and was_listed:
             event(st.id, "inactive", st.tier, st.tier)
         # a place marked fixed that a run finds again after it was marked reopens with its history
+        # (found by the run's tests, not merely held near its level; the run is applied after the mark)
         if new_obs and row.status == "fixed" and "back" not in kinds and "repaired" not in kinds \
-                and row.status_at is not None and row.status_at < when and st.listed and st.active \
-                and any(o.evidence and o.wheels for o in new_obs):
+                and st.listed and st.active and any(o.evidence and o.wheels for o in new_obs):
             event(st.id, "back", st.tier, st.tier, alerted=True)
             _set_status(session, row, "open", f"marked fixed, found again by run {run_id}", when)
     session.flush()
@@ -387,3 +387,30 @@ def _set_status(session: Session, row: Place, status: str, comment: str, when: d
     session.add(PlaceStatusChange(place_id=row.id, by=SYSTEM_USER, at=utcnow(), old=row.status, new=status,
                                   comment=comment))
     row.status, row.status_comment, row.status_by, row.status_at = status, comment, SYSTEM_USER, utcnow()
+
+
+def apply_stored_runs(db: Any, line_id: str, track: str, *, config: PlacesConfig = DEFAULT_PLACES_CONFIG,
+                      alerts: bool = False) -> list[PlacesUpdate]:
+    """Apply every run of a line in the condition store that its places have not seen, oldest first, one
+    transaction each (runs published before the places existed, a generated fleet history). Alerts are
+    off by default: a history replayed at once is not news."""
+    from sqlalchemy import select
+
+    from app.db.models import ConditionRun
+
+    out = []
+    with db.read() as session:
+        line = session.scalar(select(ConditionLine).where(ConditionLine.line_id == line_id,
+                                                          ConditionLine.track == track))
+        if line is None:
+            return out
+        runs = session.execute(select(ConditionRun.run_id, ConditionRun.job_id).where(
+            ConditionRun.line_key == line.id).order_by(ConditionRun.run_time, ConditionRun.run_id)).all()
+        done = set(session.scalars(select(PlaceRun.run_id).where(PlaceRun.line_key == line.id)))
+    for run_id, job_id in runs:
+        if run_id in done:
+            continue
+        with db.write() as session:
+            ln = session.get(ConditionLine, line.id)
+            out.append(update_places(session, int(run_id), ln, int(job_id), config=config, alerts=alerts))
+    return out
