@@ -9,6 +9,7 @@ import csv
 import io
 
 import numpy as np
+import pytest
 from sqlalchemy import select, update
 
 from app.analysis.condition.tiers import TIER_NAMES
@@ -205,3 +206,21 @@ def test_alerts_only_for_new_places_and_tier_changes_and_a_fixed_place_back(plac
     assert [h["new"] for h in back["status_history"]][-2:] == ["fixed", "open"]
     assert len(back["observations"]) > p["runs_confirming"]
     assert any(x == ("back", p["id"]) for x in sent)
+
+
+def test_run_segment_index_is_what_the_places_are_graded_on(places_fleet):
+    from app.db.models import ConditionLine, Place
+    from app.places.update import run_segment_index
+
+    db, runs = places_fleet.db, places_fleet.run_ids
+    with db.read() as s:
+        line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == LINE))
+        seg, index = run_segment_index(s, line, runs[APPLIED - 1])
+        assert seg.size and np.isfinite(index).mean() > 0.5
+        found = [p for p in s.scalars(select(Place).where(Place.last_run_id == runs[APPLIED - 1]))
+                 if p.runs_confirming and p.level is not None]
+        assert found
+        for p in found:
+            k = int(np.searchsorted(seg, int(p.peak_m // 10)))
+            if seg[k] == int(p.peak_m // 10) and np.isfinite(index[k]):
+                assert index[k] == pytest.approx(p.level, abs=1e-9)
