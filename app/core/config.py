@@ -228,6 +228,15 @@ class Settings(BaseSettings):
         draws the geometry alone and requests nothing outside the server).
     map_tile_attribution : str
         Attribution text shown with the basemap.
+    places_asset_buffer_m : float
+        A place is labelled with the known discontinuities (assets) within this
+        many metres of it, m (default 20: a filtered amplitude smears an abrupt
+        change over some metres, positions carry alignment residuals).
+    places_muted_asset_types : str
+        Asset types (comma separated, e.g. ``weld,insulated_joint``) whose places
+        are muted in the work list: still listed, labelled muted with the
+        reason, never dropped. Default: none (a railway decides). Types:
+        switch, crossing, bridge, level_crossing, insulated_joint, weld, other.
     """
 
     model_config = SettingsConfigDict(
@@ -302,6 +311,9 @@ class Settings(BaseSettings):
     profile_sweep_interval_s: float = Field(default=3600.0, gt=0)
     map_tile_url: str | None = Field(default=None, max_length=500)
     map_tile_attribution: str = Field(default="", max_length=300)
+    # known discontinuities (app.assets)
+    places_asset_buffer_m: float = Field(default=20.0, ge=0, le=1000)
+    places_muted_asset_types: str = Field(default="", max_length=500)
 
     @field_validator("anonymous_role")
     @classmethod

@@ -17,9 +17,11 @@ module                 tables
 ``webhooks``           webhooks and their delivery log (the alerts outbox)
 ``operations``         worker_heartbeats (the liveness of worker processes)
 ``auth``               users, sessions, api_keys, audit_log
+``assets``             assets (known discontinuities: switches, bridges, joints, ...)
 =====================  ==============================================================
 """
 
+from app.db.models.assets import Asset
 from app.db.models.auth import ApiKey, AuditEntry, User, UserSession
 from app.db.models.base import NAMING, Base, JSONType, UTCDateTime, utcnow
 from app.db.models.condition import (
@@ -56,6 +58,7 @@ from app.db.models.webhooks import DeliveryStatus, Webhook, WebhookDelivery
 
 __all__ = [
     "ApiKey",
+    "Asset",
     "AuditEntry",
     "Base",
     "ChannelMapRow",
