@@ -24,6 +24,7 @@ from app.api import (
     geometry,
     health,
     jobs,
+    places,
     profiles,
     reference,
     runs,
@@ -46,7 +47,7 @@ def build_api_router() -> APIRouter:
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
         runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition,
-        condition_effects, condition_sections, auth, audit, channel_maps, geometry, webhooks, assets,
+        condition_effects, condition_sections, places, auth, audit, channel_maps, geometry, webhooks, assets,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

@@ -1,7 +1,7 @@
 """Known discontinuities: the assets table (switches, crossings, bridges, level crossings, joints, welds).
 
 Revision ID: 0018_assets
-Revises: 0014_operations
+Revises: 0017_places
 Create Date: 2026-11-26
 """
 
@@ -11,7 +11,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "0018_assets"
-down_revision: str | None = "0014_operations"
+down_revision: str | None = "0017_places"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -16,7 +16,9 @@ TABLES = {
     "ref_subsidence", "ref_maintenance", "ref_superstructure", "reference_curves",
     "condition_lines", "condition_runs", "segment_condition", "condition_flags",
     "webhooks", "webhook_deliveries", "condition_overview",
-    "channel_maps", "line_geometries", "worker_heartbeats", "assets",
+    "channel_maps", "line_geometries", "worker_heartbeats",
+    "places", "place_observations", "place_events", "place_status_history", "place_actions", "place_runs",
+    "assets",
 }
 
 
