@@ -53,10 +53,11 @@ async def sections(
     settings: SettingsDep,
     line_id: LineIdQ,
     track: TrackQ = None,
-    section_m: Annotated[int, Query(ge=SEGMENT_M, le=10_000, description="section length, m (a multiple of 10)")] = 200,
+    section_m: Annotated[int | None, Query(ge=SEGMENT_M, le=10_000, description="section length, m (a multiple of "
+                                                                                "10; default TRACKVKF_PLACES_SECTION_M)")] = None,
 ) -> SectionsOut:
     """Per section of the newest run: level, spread and rms of the index, class A … E."""
-    if section_m % SEGMENT_M:
+    if section_m is not None and section_m % SEGMENT_M:
         raise ApiError(422, "section_m", f"must be a multiple of {SEGMENT_M} m, got {section_m}")
-    out = await run_in_threadpool(line_sections, db, settings, line_id, track, section_m=float(section_m))
+    out = await run_in_threadpool(line_sections, db, settings, line_id, track, section_m=section_m)
     return SectionsOut(**out)

@@ -4,7 +4,7 @@ run and for the newest run at least a year before it, with the length per class.
 
 The index is ``ln(A / A_ref(class, v))`` per 10 m segment, mean over the wheels — the quantity the
 places are graded on (docs/places.md): ``A_ref`` is fitted from the 10 m rows of the line's last
-``history_runs`` runs up to the run classed (:func:`app.analysis.condition.segment_curves.fit_segment_curves`,
+``TRACKVKF_PLACES_HISTORY_RUNS`` runs up to the run classed (:func:`app.analysis.condition.segment_curves.fit_segment_curves`,
 superstructure classes from the reference data with ``TRACKVKF_ANALYTICS_SECTION_MARGIN_M`` left
 out around a change of type); the classes come from
 :func:`app.analysis.condition.section_class.section_classes`.
@@ -26,7 +26,7 @@ from app.analysis.condition.section_class import (
     SectionClassLimits,
     section_classes,
 )
-from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS, fit_segment_curves
+from app.analysis.condition.segment_curves import fit_segment_curves
 from app.analysis.stiffness.superstructure import section_classes as superstructure_at
 from app.condition import readers as reader
 from app.condition.lines import resolve_line
@@ -34,12 +34,10 @@ from app.db import reference_crud
 from app.db.models import ConditionLine, ConditionRun, SegmentCondition
 from app.db.session import Database
 
-__all__ = ["SEGMENT_M", "HISTORY_RUNS", "line_sections"]
+__all__ = ["SEGMENT_M", "line_sections", "section_limits"]
 
 #: the store's fine segments the classes are read from, m
 SEGMENT_M = 10
-#: runs (up to the classed one) the reference curves are fitted on
-HISTORY_RUNS = 30
 _YEAR = dt.timedelta(days=365)
 
 
@@ -81,9 +79,10 @@ def _classes(session: Session, line: ConditionLine, segs: np.ndarray, margin_m: 
 
 
 def _run_index(session: Session, line: ConditionLine, runs: list[ConditionRun], k: int, *,
-               speed_tolerance: float, margin_m: float) -> tuple[np.ndarray, np.ndarray]:
+               speed_tolerance: float, margin_m: float, history_runs: int,
+               min_locations: int) -> tuple[np.ndarray, np.ndarray]:
     """The index of run ``runs[k]`` per 10 m segment (mean over wheels), curves from the runs up to it."""
-    used = runs[max(0, k - HISTORY_RUNS + 1): k + 1]
+    used = runs[max(0, k - history_runs + 1): k + 1]
     rows = _rows(session, [r.run_id for r in used])
     target = runs[k].run_id
     if target not in rows:
@@ -92,7 +91,7 @@ def _run_index(session: Session, line: ConditionLine, runs: list[ConditionRun], 
     parts = [(segs, a[i], v[i], np.full(segs.size, rid), np.full(segs.size, w, dtype=object), cls[rid])
              for rid, (segs, wheels, a, v) in rows.items() for i, w in enumerate(wheels)]
     curves = fit_segment_curves(*[np.concatenate([p[j] for p in parts]) for j in range(6)],
-                                speed_tolerance=speed_tolerance, min_locations=DEFAULT_MIN_LOCATIONS)
+                                speed_tolerance=speed_tolerance, min_locations=min_locations)
     segs, _, a, v = rows[target]
     idx = segment_index(a, v, cls[target], curves)
     n = np.isfinite(idx).sum(axis=0)
@@ -104,21 +103,27 @@ def _finite(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
-def line_sections(db: Database, settings: Any, line_id: str, track: str | None, *, section_m: float = 200.0,
-                  limits: SectionClassLimits = DEFAULT_SECTION_LIMITS) -> dict[str, Any]:
+def section_limits(settings: Any) -> SectionClassLimits:
+    """``TRACKVKF_PLACES_SECTION_LIMITS`` (default :data:`~app.analysis.condition.section_class.DEFAULT_SECTION_LIMITS`)."""
+    lim = getattr(settings, "places_section_limits", None)
+    return SectionClassLimits(*lim) if lim else DEFAULT_SECTION_LIMITS
+
+
+def line_sections(db: Database, settings: Any, line_id: str, track: str | None, *,
+                  section_m: float | None = None) -> dict[str, Any]:
     """The section classes of a line's newest run, and the length per class now and a year before.
 
     Parameters
     ----------
     db : Database
     settings : Settings
-        ``analytics_speed_tolerance`` (the matched-speed window of the curves) and
-        ``analytics_section_margin_m``.
+        ``analytics_speed_tolerance`` (the matched-speed window of the curves),
+        ``analytics_section_margin_m``, ``places_history_runs`` (runs the curves are fitted on),
+        ``places_curve_min_locations``, ``places_section_m`` and ``places_section_limits``.
     line_id, track : str
         The store's line (404 naming ``line_id`` without runs, 422 naming ``track`` when ambiguous).
-    section_m : float
-        Section length, m (a whole multiple of 10 m).
-    limits : SectionClassLimits
+    section_m : float, optional
+        Section length, m (a whole multiple of 10 m; default ``places_section_m``).
 
     Returns
     -------
@@ -128,17 +133,22 @@ def line_sections(db: Database, settings: Any, line_id: str, track: str | None, 
         run_id_year_ago, run_time_year_ago``.
     """
     line = resolve_line(db, line_id, track)
-    tol, margin = float(settings.analytics_speed_tolerance), float(settings.analytics_section_margin_m)
+    limits = section_limits(settings)
+    section_m = float(section_m if section_m is not None else settings.places_section_m)
+    fit = {"speed_tolerance": float(settings.analytics_speed_tolerance),
+           "margin_m": float(settings.analytics_section_margin_m),
+           "history_runs": int(settings.places_history_runs),
+           "min_locations": int(settings.places_curve_min_locations)}
     with db.read() as session:
         runs = reader.line_runs(session, line.id)
         k = len(runs) - 1
-        segs, idx = _run_index(session, line, runs, k, speed_tolerance=tol, margin_m=margin)
+        segs, idx = _run_index(session, line, runs, k, **fit)
         sc = section_classes(segs, idx, segment_m=SEGMENT_M, limits=limits, section_m=section_m)
         before = [i for i, r in enumerate(runs) if r.run_time <= runs[k].run_time - _YEAR]
         old = None
         if before:
             j = before[-1]
-            osegs, oidx = _run_index(session, line, runs, j, speed_tolerance=tol, margin_m=margin)
+            osegs, oidx = _run_index(session, line, runs, j, **fit)
             old = (runs[j], section_classes(osegs, oidx, segment_m=SEGMENT_M, limits=limits, section_m=section_m))
     per = int(round(section_m / SEGMENT_M))
     sections = [
