@@ -14,11 +14,13 @@ from fastapi import APIRouter, Depends
 
 from app.api import (
     analytics,
+    assets,
     audit,
     auth,
     channel_maps,
     condition,
     condition_effects,
+    condition_sections,
     geometry,
     health,
     jobs,
@@ -45,7 +47,7 @@ def build_api_router() -> APIRouter:
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
         runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition,
-        condition_effects, places, auth, audit, channel_maps, geometry, webhooks,
+        condition_effects, condition_sections, places, auth, audit, channel_maps, geometry, webhooks, assets,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

@@ -19,9 +19,11 @@ module                 tables
 ``places``             places, place_observations, place_events, place_status_history,
                        place_actions, place_runs (the work list)
 ``auth``               users, sessions, api_keys, audit_log
+``assets``             assets (known discontinuities: switches, bridges, joints, ...)
 =====================  ==============================================================
 """
 
+from app.db.models.assets import Asset
 from app.db.models.auth import ApiKey, AuditEntry, User, UserSession
 from app.db.models.base import NAMING, Base, JSONType, UTCDateTime, utcnow
 from app.db.models.condition import (
@@ -69,6 +71,7 @@ from app.db.models.webhooks import DeliveryStatus, Webhook, WebhookDelivery
 
 __all__ = [
     "ApiKey",
+    "Asset",
     "AuditEntry",
     "Base",
     "ChannelMapRow",
