@@ -385,7 +385,8 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
         same = replace(st, observations=[o for o in st.observations if o.run_id in mine])
         look = place_outlook(same if same.observations else st, config.levels)
         last = st.observations[-1]
-        row.direction, row.start_m, row.end_m, row.peak_m = st.direction, st.start_m, st.end_m, st.peak_m
+        # the peak and level of the latest observation (a held place keeps its extent, its peak moves)
+        row.direction, row.start_m, row.end_m, row.peak_m = st.direction, st.start_m, st.end_m, last.peak_m
         row.centre_m, row.cls, row.baseline, row.explained_by = last.centre_m, st.cls, _finite(st.baseline), \
             st.explained_by
         row.tier, row.listed, row.active, row.misses, row.lower_runs = st.tier, st.listed, st.active, st.misses, \

@@ -212,15 +212,37 @@ def test_run_segment_index_is_what_the_places_are_graded_on(places_fleet):
     from app.db.models import ConditionLine, Place
     from app.places.update import run_segment_index
 
-    db, runs = places_fleet.db, places_fleet.run_ids
+    db = places_fleet.db
     with db.read() as s:
+        last = s.scalar(select(PlaceRun.run_id).order_by(PlaceRun.run_time.desc()).limit(1))
         line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == LINE))
-        seg, index = run_segment_index(s, line, runs[APPLIED - 1])
+        seg, index = run_segment_index(s, line, last)
         assert seg.size and np.isfinite(index).mean() > 0.5
-        found = [p for p in s.scalars(select(Place).where(Place.last_run_id == runs[APPLIED - 1]))
+        found = [p for p in s.scalars(select(Place).where(Place.last_run_id == last))
                  if p.runs_confirming and p.level is not None]
         assert found
         for p in found:
             k = int(np.searchsorted(seg, int(p.peak_m // 10)))
             if seg[k] == int(p.peak_m // 10) and np.isfinite(index[k]):
                 assert index[k] == pytest.approx(p.level, abs=1e-9)
+
+
+def test_places_on_known_discontinuities_are_labelled_and_muted_types_stay_listed(places_fleet):
+    from dataclasses import replace
+
+    from app.places.config import DEFAULT_PLACES_CONFIG
+    from app.places.worklist import PlaceQuery, list_places
+
+    c, e = places_fleet.clients["viewer"], places_fleet.clients["engineer"]
+    p = _step_place(_listed(c)["items"])
+    km = round((STEP_FROM_M + STEP_TO_M) / 2000.0, 3)
+    body = f"line_id,track,type,km,km_to,name\n{LINE},1,weld,{km},,W1\n".encode()
+    r = e.post("/api/v1/assets", files={"file": ("assets.csv", body, "text/csv")})
+    assert r.status_code == 201, r.text
+    got = _step_place(_listed(c)["items"])
+    assert [(a["type"], a["name"]) for a in got["assets"]] == [("weld", "W1")] and not got["muted"]
+    assert c.get(f"{URL}/{p['id']}").json()["assets"] == got["assets"]
+    muted = replace(DEFAULT_PLACES_CONFIG, muted_asset_types=frozenset({"weld"}))
+    items = list_places(places_fleet.db, PlaceQuery(line_id=LINE, limit=1000), muted)["items"]
+    m = _step_place(items)
+    assert m["muted"] and "weld" in m["muted_reason"] and len(items) == len(_listed(c)["items"])
