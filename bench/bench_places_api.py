@@ -12,6 +12,7 @@ the service writes them), and a tamping every 5 km in the maintenance table.
 Usage::
 
     .venv/bin/python bench/bench_places_api.py [--db sqlite|postgresql|both] [--places 1500] [--repeat 7]
+    .venv/bin/python bench/bench_places_api.py --db none --update 60   # the publish step's added time
 """
 
 from __future__ import annotations
@@ -201,13 +202,58 @@ def measure(url: str, n_places: int, repeat: int, tmp: Path) -> dict:
     return out
 
 
+def measure_update(url: str, n_history: int) -> dict:
+    """What the publish step's places update adds to a run: a generated 50 km fleet line
+    (:func:`app.condition.fleet.ingest_fleet`, daily runs), the first ``n_history`` runs marked applied
+    (no places: the history the step reads), then the next run applied through
+    :func:`app.places.update.update_places` as the publish step does."""
+    from sqlalchemy import select
+
+    from app.condition.fleet import ingest_fleet
+    from app.db.models import ConditionRun
+    from app.places.update import method_version, update_places
+    from app.simulate.fleet import FleetSimulator
+    from app.simulate.track import generate_line
+
+    migrate.upgrade(url)
+    db = Database(url)
+    t = time.perf_counter()
+    sim = FleetSimulator(generate_line(0.0, KM * 1000.0, seed=5))
+    ingest_fleet(db, sim, n_history + 1, line_id="U50", start=START, seed=6, reference=False)
+    ingest_s = time.perf_counter() - t
+    with db.write() as s:
+        runs = s.execute(select(ConditionRun).order_by(ConditionRun.run_time)).scalars().all()
+        from app.db.models import Job
+
+        version = method_version(s.get(Job, runs[0].job_id).settings)
+        s.execute(insert(PlaceRun), [{"run_id": r.run_id, "line_key": r.line_key, "run_time": r.run_time,
+                                      "method_version": version, "start_m": 0.0, "end_m": KM * 1000,
+                                      "n_places": 0, "n_events": 0, "applied_at": r.run_time} for r in runs[:-1]])
+    last = runs[-1]
+    t = time.perf_counter()
+    with db.write() as s:
+        line = s.get(ConditionLine, last.line_key)
+        up = update_places(s, last.run_id, line, last.job_id)
+    upd_s = time.perf_counter() - t
+    db.dispose()
+    assert up.applied, up.reason
+    return {"ingest_s": round(ingest_s, 1), "history_runs": n_history, "update_s": round(upd_s, 2),
+            "places_found": up.n_found}
+
+
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--db", choices=("sqlite", "postgresql", "both"), default="both")
+    ap.add_argument("--db", choices=("sqlite", "postgresql", "both", "none"), default="both")
     ap.add_argument("--places", type=int, default=1500)
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--update", type=int, default=0, metavar="N",
+                    help="also time the publish step's places update of a 50 km run with N history runs (SQLite)")
     args = ap.parse_args(argv)
     results = {}
+    if args.update:
+        with tempfile.TemporaryDirectory() as tmp:
+            print("== publish step's places update, SQLite, 50 km:",
+                  measure_update(f"sqlite:///{Path(tmp) / 'update.sqlite'}", args.update))
     with tempfile.TemporaryDirectory() as tmp:
         if args.db in ("sqlite", "both"):
             results["sqlite"] = measure(f"sqlite:///{Path(tmp) / 'bench.sqlite'}", args.places, args.repeat,
