@@ -1,0 +1,43 @@
+"""The publish step applies a run to its line's places in the same transaction, and a failure of the
+places leaves the run's results, condition rows and flags published (both databases)."""
+
+from __future__ import annotations
+
+import numpy as np
+from sqlalchemy import func, select
+
+from app.db.models import ConditionRun, PlaceRun
+from app.simulate.fleet import FleetSimulator
+from app.simulate.track import generate_line
+from tests.condition.conftest import any_db, db  # noqa: F401  (fixtures)
+from tests.condition.support import DAY0, publish_tracks
+
+
+def test_publish_applies_places_and_survives_their_failure(any_db, monkeypatch):  # noqa: F811
+    import datetime as dt
+
+    import app.places.update as update
+
+    sim = FleetSimulator(generate_line(12_000.0, 13_500.0, seed=7), grid_m=0.25)  # 25 cm rows, as a processed run
+    _, tracks = sim.run(0.0, np.random.default_rng(1))
+    run1, _, summary = publish_tracks(any_db, tracks, DAY0)
+    assert summary["stored"] and summary["places"]["applied"], summary["places"]
+    assert summary["places"]["method_version"].startswith("trackvkf-pipeline/")
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("places broke")
+
+    monkeypatch.setattr(update, "apply_run", broken)
+    _, tracks = sim.run(1.0, np.random.default_rng(2))
+    run2, _, summary = publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=1))
+    assert summary["stored"] and summary["places"] == {"applied": False,
+                                                       "reason": "error: RuntimeError: places broke"}
+    monkeypatch.undo()
+    with any_db.read() as s:
+        assert s.get(ConditionRun, run2) is not None  # the run's condition rows are published
+        assert sorted(s.scalars(select(PlaceRun.run_id))) == [run1]
+    _, tracks = sim.run(2.0, np.random.default_rng(3))
+    run3, _, summary = publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=2))
+    assert summary["places"]["applied"]
+    with any_db.read() as s:
+        assert s.scalar(select(func.count()).select_from(PlaceRun)) == 2
