@@ -41,3 +41,25 @@ def test_publish_applies_places_and_survives_their_failure(any_db, monkeypatch):
     assert summary["places"]["applied"]
     with any_db.read() as s:
         assert s.scalar(select(func.count()).select_from(PlaceRun)) == 2
+
+
+def test_apply_places_command_applies_the_stored_runs_once(db, monkeypatch):  # noqa: F811
+    from typer.testing import CliRunner
+
+    from app.cli import app
+    from app.condition.fleet import ingest_fleet
+    from app.core.config import get_settings
+
+    sim = FleetSimulator(generate_line(0.0, 2_000.0, seed=3))
+    ingest_fleet(db, sim, 6, line_id="C1", start=DAY0, seed=4, reference=False)
+    monkeypatch.setenv("TRACKVKF_DATABASE_URL", str(db.engine.url))
+    get_settings.cache_clear()
+    try:
+        first = CliRunner().invoke(app, ["apply-places", "--line-id", "C1"])
+        again = CliRunner().invoke(app, ["apply-places", "--line-id", "C1"])
+    finally:
+        get_settings.cache_clear()
+    assert first.exit_code == 0 and "6 run(s) applied" in first.output, first.output
+    assert again.exit_code == 0 and "0 run(s) applied" in again.output, again.output
+    with db.read() as s:
+        assert s.scalar(select(func.count()).select_from(PlaceRun)) == 6
