@@ -422,7 +422,6 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
                                          wheel_labels=row.wheel_labels if o.wheels else "",
                                          speed_kmh=_speed(seg, speed_kmh, o.start_m, o.end_m),
                                          method_version=version))
-        session.flush()
         was_active, was_listed, was_actions = before.get(st.id, (True, False, []))
         # action links
         relation = {}
