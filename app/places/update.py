@@ -115,7 +115,7 @@ def update_places(session: Session, run_id: int, line: ConditionLine, job_id: in
             job = session.get(Job, job_id)
             version = method_version(job.settings if job is not None else None)
             out = apply_run(session, run_id, line, version, config=config)
-            if alerts and out.applied:
+            if alerts and config.alerts and out.applied:
                 from app.places.alerts import enqueue_place_events
 
                 out.deliveries = enqueue_place_events(session, run_id, line, out.events)

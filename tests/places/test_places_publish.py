@@ -63,3 +63,27 @@ def test_apply_places_command_applies_the_stored_runs_once(db, monkeypatch):  # 
     assert again.exit_code == 0 and "0 run(s) applied" in again.output, again.output
     with db.read() as s:
         assert s.scalar(select(func.count()).select_from(PlaceRun)) == 6
+
+
+def test_places_alerts_can_be_switched_off(db):  # noqa: F811
+    from dataclasses import replace
+
+    from app.core.config import Settings
+    from app.db.models import WebhookDelivery
+    from app.db.webhooks import EVENT_PLACES, create_webhook
+    from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
+
+    assert not PlacesConfig.from_settings(Settings(places_alerts=False)).alerts
+    with db.write() as s:
+        create_webhook(s, "https://hooks.example.com/x")
+    sim = FleetSimulator(generate_line(12_000.0, 13_500.0, seed=7), grid_m=0.25)
+    for i, alerts in enumerate((False, True)):
+        import datetime as dt
+
+        _, tracks = sim.run(float(i), np.random.default_rng(i))
+        publish_tracks(db, tracks, DAY0 + dt.timedelta(days=i), places=replace(DEFAULT_PLACES_CONFIG, alerts=alerts))
+        with db.read() as s:
+            n = s.scalar(select(func.count()).select_from(WebhookDelivery).where(WebhookDelivery.event == EVENT_PLACES))
+        if not alerts:
+            assert n == 0
+    assert n >= 1  # the generated line's places at the immediate tier are listed (and alerted) at once
