@@ -22,6 +22,7 @@ from app.api import (
     condition_effects,
     geometry,
     health,
+    impacts,
     jobs,
     profiles,
     reference,
@@ -44,7 +45,7 @@ def build_api_router() -> APIRouter:
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
-        runs, jobs, profiles, wheels, spectrogram, reference, analytics, analytics_index, condition,
+        runs, jobs, profiles, impacts, wheels, spectrogram, reference, analytics, analytics_index, condition,
         condition_effects, auth, audit, channel_maps, geometry, webhooks,
     ):
         protected.include_router(module.router)

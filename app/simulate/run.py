@@ -41,7 +41,7 @@ import numpy as np
 from app.io import ACCEL_CHANNELS, FORCE_CHANNELS, WHEELS, Calibration, RunMetadata, parse_metadata
 from app.io.canonical import CanonicalWriter, Compression, atomic_output
 from app.simulate.amplitude import ResonanceResponse, SpeedResponse, speed_response
-from app.simulate.contact import ContactFilter, type_scale
+from app.simulate.contact import ContactFilter
 from app.simulate.noise import BandLimitedNoise
 from app.simulate.speed import SpeedProfile
 from app.simulate.surface import ROUGHNESS_STEP_M, RailSurface, as_date
@@ -453,9 +453,7 @@ def _surfaces(c: SimulationConfig, line: LineModel, oors: Mapping[str, WheelOOR]
     contact = {}
     for code in codes.tolist():
         name = SUPERSTRUCTURE_TYPES[code]
-        params = base.params(name)
-        scale = type_scale(params, line.amplitude_vref[name], base.v_ref_mps)
-        contact[int(code)] = ContactFilter(params, fs, scale)
+        contact[int(code)] = ContactFilter(base.params(name), fs)
     return surface, contact
 
 

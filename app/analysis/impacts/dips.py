@@ -12,8 +12,8 @@ least squares one,
 
 (``P`` the background's power spectrum): a matched filter after whitening.
 :func:`find_dips` estimates ``P`` from the surface itself (Welch, then a
-running median across wavenumbers: isolated dips hardly move it, and the
-comb of lines of a wheel flat — a dip every revolution — is not taken for
+running low percentile across wavenumbers: isolated dips hardly move it, and
+the comb of lines of a wheel flat — a dip every revolution — is not taken for
 background), runs the filter for each length of
 :data:`DIP_LENGTHS_M`, divides each output by its robust spread (1.4826 ×
 median absolute deviation, per stretch of :data:`SCALE_BLOCK_M`) and keeps
@@ -29,7 +29,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import median_filter
 from scipy.signal import find_peaks, welch
 
 from app.analysis.impacts.surface import SurfaceEstimate
@@ -46,8 +45,12 @@ MIN_DEPTH_M = 0.05e-3
 SCALE_BLOCK_M = 40.0
 #: No dips are sought this close to the ends of a valid stretch (the filters are truncated there), m.
 EDGE_M = 6.0
-#: Bins of the running median across the background spectrum (0.05 1/m each at 20 m windows).
-_PSD_MEDIAN_BINS = 15
+#: Bins and percentile of the running filter across the background spectrum (0.05 1/m a bin).
+_PSD_FILTER_BINS = 31
+_PSD_PERCENTILE = 20
+#: A dip within this of one scoring SIDE_LOBE_RATIO times more is its side lobe, m.
+SIDE_LOBE_M = 3.0
+SIDE_LOBE_RATIO = 2.0
 #: Length of the background spectrum's Welch segments, m.
 _WELCH_M = 20.48
 #: Dips this long or longer are sought on a grid _COARSE times coarser, m.
@@ -96,16 +99,31 @@ def _template(length_m: float, step: float) -> np.ndarray:
     return np.where(np.abs(u) < 0.5, -0.5 * (1.0 + np.cos(2 * np.pi * u)), 0.0)
 
 
-def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int) -> tuple[np.ndarray, np.ndarray]:
-    """Welch spectrum of the valid stretches (one-sided, per 1/m), smoothed across wavenumbers."""
+def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
+                    est: SurfaceEstimate) -> tuple[np.ndarray, np.ndarray]:
+    """Welch spectrum of the valid stretches (one-sided, per 1/m), a smooth background of it.
+
+    A running low percentile across wavenumbers, over the bins the estimate
+    kept (in its band, off its notches): the background is smooth, a wheel
+    flat's comb of lines (every 1 / circumference, each a few bins wide) is
+    not. A constant factor on it changes neither a depth nor a score.
+    """
     x = np.where(valid, h, 0.0)
     frac = float(valid.mean()) if valid.size else 0.0
     nper = min(nperseg, 1 << int(math.floor(math.log2(max(x.size, 16)))))
     k, p = welch(x, fs=1.0 / step, nperseg=nper, detrend=False)
-    # a running median across wavenumbers: the background is smooth, a wheel flat's comb of
-    # lines (every 1 / circumference) and notched lines are not
-    p = median_filter(p, size=_PSD_MEDIAN_BINS, mode="nearest")
-    return k, p / max(frac, 1e-3)  # the invalid (zeroed) cells diluted it
+    kept = est.gain(k) > 0.5
+    out = np.full(p.size, np.nan)
+    half = _PSD_FILTER_BINS // 2
+    idx = np.flatnonzero(kept)
+    for i in idx:
+        window = p[max(0, i - half) : i + half + 1][kept[max(0, i - half) : i + half + 1]]
+        out[i] = np.percentile(window, _PSD_PERCENTILE)
+    if idx.size:  # outside what the estimate kept: the nearest kept value (the weights are ~0 there)
+        out = np.interp(np.arange(p.size), idx, out[idx])
+    else:
+        out = p
+    return k, out / max(frac, 1e-3)  # the invalid (zeroed) cells diluted it
 
 
 def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
@@ -129,7 +147,7 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
           lengths: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Best score, its length and its depth per cell over a bank of matched dips on one grid."""
     n = h.size
-    k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)))
+    k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)), est)
     nfft = 1 << int(math.ceil(math.log2(n + int(max(lengths) / step) + 8)))
     kappa = np.fft.rfftfreq(nfft, step)
     gain = est.gain(kappa)
@@ -163,6 +181,25 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
         best_l = np.where(better, float(length), best_l)
         best_d = np.where(better, depth, best_d)
     return best, best_l, best_d
+
+
+def _without_side_lobes(peaks: np.ndarray, score: np.ndarray, step: float) -> np.ndarray:
+    """Peaks less those within :data:`SIDE_LOBE_M` of one scoring :data:`SIDE_LOBE_RATIO` times more.
+
+    The whitened, band-limited filters answer an isolated dip with side lobes a
+    metre or two either side; a wheel flat's hits (one circumference apart)
+    score alike and all stay.
+    """
+    if peaks.size < 2:
+        return peaks
+    order = peaks[np.argsort(-score[peaks], kind="stable")]
+    kept: list[int] = []
+    reach = SIDE_LOBE_M / step
+    for p in order:
+        if any(abs(p - k) <= reach and score[k] >= SIDE_LOBE_RATIO * score[p] for k in kept):
+            continue
+        kept.append(int(p))
+    return np.sort(np.array(kept, dtype=peaks.dtype))
 
 
 def find_dips(
@@ -199,33 +236,39 @@ def find_dips(
     step = est.step
     short = tuple(x for x in lengths_m if x < _COARSE_FROM_M)
     long = tuple(x for x in lengths_m if x >= _COARSE_FROM_M)
-    best = np.full(n, -np.inf)
-    best_l = np.zeros(n)
-    best_d = np.zeros(n)
-    if short:
-        best, best_l, best_d = _bank(est.height, est.valid, step, est, short)
-    if long:  # long dips on a grid _COARSE times coarser (box averages): a quarter of the work
-        q = _COARSE
-        m = n // q
-        hc = est.height[: m * q].reshape(m, q).mean(axis=1)
-        vc = est.valid[: m * q].reshape(m, q).all(axis=1)
-        bc, lc, dc = _bank(hc, vc, q * step, est, long)
-        bf, lf, df = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
-                      for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
-        better = bf > best
-        best = np.where(better, bf, best)
-        best_l = np.where(better, lf, best_l)
-        best_d = np.where(better, df, best_d)
     # the ends of every valid stretch see a truncated filter: no dips within EDGE_M of them
     edge = max(1, int(EDGE_M / step))
     ends = np.flatnonzero(np.diff(np.concatenate([[0], est.valid.astype(np.int8), [0]])))
-    for e in ends:
-        best[max(0, e - edge) : e + edge] = -np.inf
-    peaks, _ = find_peaks(np.where(np.isfinite(best), best, -1e300), height=threshold,
-                          distance=max(1, int(separation_m / step)))
-    peaks = peaks[best_d[peaks] >= MIN_DEPTH_M]
+    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+    # short dips (flats, joints) and long ones (welds) are sought apart: a flat's hit beside a weld
+    # is two things, not a side lobe of one
+    for bank in (short, long):
+        if not bank:
+            continue
+        if bank is short:
+            best, best_l, best_d = _bank(est.height, est.valid, step, est, bank)
+        else:  # long dips on a grid _COARSE times coarser (box averages): a quarter of the work
+            q = _COARSE
+            m = n // q
+            hc = est.height[: m * q].reshape(m, q).mean(axis=1)
+            vc = est.valid[: m * q].reshape(m, q).all(axis=1)
+            bc, lc, dc = _bank(hc, vc, q * step, est, bank)
+            best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
+                                    for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
+        for e in ends:
+            best[max(0, e - edge) : e + edge] = -np.inf
+        peaks, _ = find_peaks(np.where(np.isfinite(best), best, -1e300), height=threshold,
+                              distance=max(1, int(separation_m / step)))
+        peaks = peaks[best_d[peaks] >= MIN_DEPTH_M]
+        peaks = _without_side_lobes(peaks, best, step)
+        parts.append((peaks, best[peaks], best_l[peaks], best_d[peaks]))
+    if not parts:
+        return Dips.empty()
+    peaks = np.concatenate([p[0] for p in parts])
+    order = np.argsort(peaks, kind="stable")
+    peaks = peaks[order]
+    score, length, depth = (np.concatenate([p[k] for p in parts])[order] for k in (1, 2, 3))
     if peaks.size == 0:
         return Dips.empty()
-    s = est.s[peaks]
-    return Dips(s_m=s, length_m=best_l[peaks], depth_m=best_d[peaks], score=best[peaks],
+    return Dips(s_m=est.s[peaks], length_m=length, depth_m=depth, score=score,
                 speed_mps=np.nan_to_num(est.speed[peaks], nan=0.0))
