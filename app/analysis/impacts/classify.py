@@ -46,7 +46,7 @@ __all__ = [
 ]
 
 #: Sum over the two rails of their scores that makes a track impact seen on both rails.
-PAIR_THRESHOLD = 9.0
+PAIR_THRESHOLD = 8.0
 #: Score on one rail that makes a track impact of that rail alone.
 SINGLE_RAIL_THRESHOLD = 6.5
 #: Dips one circumference apart (chained) that make a wheel flat.
