@@ -40,7 +40,7 @@ DIP_LENGTHS_M: tuple[float, ...] = (0.04, 0.1, 0.25, 0.5, 1.0, 1.6)
 #: Score (depth over its robust spread) a dip must reach to be kept as a candidate.
 DETECTION_THRESHOLD = 3.5
 #: Shallower dips are not kept whatever their score (the short-wave roughness is tiny), m.
-MIN_DEPTH_M = 0.05e-3
+MIN_DEPTH_M = 0.1e-3
 #: Stretch over which the spread of the filter output is taken, m.
 SCALE_BLOCK_M = 40.0
 #: No dips are sought this close to the ends of a valid stretch (the filters are truncated there), m.
