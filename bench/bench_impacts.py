@@ -5,6 +5,7 @@ Usage::
     .venv/bin/python bench/bench_impacts.py                     # physics + simulator, Markdown tables
     .venv/bin/python bench/bench_impacts.py --case physics
     .venv/bin/python bench/bench_impacts.py --case sim --seeds 1,2,3 --length-km 2
+    .venv/bin/python bench/bench_impacts.py --case grinding     # a grinding action read as stiffness?
     .venv/bin/python bench/bench_impacts.py --case speed        # detection's share of the chunk step
 
 Everything goes through the real pipeline (:func:`app.pipeline.run_pipeline`, default settings).
@@ -208,6 +209,42 @@ def sim(work: Path, seeds: list[int], length_km: float) -> list[dict]:
     return rows
 
 
+def grinding(work: Path) -> None:
+    """Two runs of one rough line (same speed, same vehicle), before and after a grinding action over
+    500 m: how much the indicator's 10 m means change where the rails were ground and elsewhere. The
+    stiffness did not change anywhere: a change is roughness read as stiffness."""
+    from app.simulate.run import simulate_run
+    from app.simulate.speed import SpeedProfile
+    from app.simulate.surface import RailGrinding, generate_surface
+    from app.simulate.track import generate_line
+
+    settings = ProcessingSettings()
+    lo, hi = 11_900.0, 14_100.0
+    ground = (12_500.0, 13_000.0)
+    print("\n| track_resolution_m | 10 m means after / before: ground stretch, median [p10, p90] | elsewhere |")
+    print("|---|---|---|")
+    base = generate_surface(lo, hi, 5, weld_spacing_m=None)
+    line = generate_line(lo, hi, np.random.default_rng([5, 7]),
+                         surface=base.with_grindings([RailGrinding(*ground, "2025-01-01")]))
+    means = {}
+    for name, day in (("before", "2024-06-01T08:00:00+02:00"), ("after", "2025-06-01T08:00:00+02:00")):
+        tr = simulate_run(work / f"grind-{name}.h5", length_km=1.5, fs=10_000.0, seed=5, line=line,
+                          speed_profile=SpeedProfile.constant(35.0), start_time=day, with_forces=False)
+        p = run_pipeline(tr.run_path, settings, work / f"wgrind-{name}").profiles
+        p = p[p["wheel"] == "11"]
+        x = (p["bin"].to_numpy() + 0.5) * settings.bin_length_m
+        seg = np.floor(x / 10.0)
+        means[name] = p.groupby(seg)["sleeper_amp"].mean()
+    ratio = (means["after"] / means["before"]).dropna()
+    centre = (ratio.index.to_numpy() + 0.5) * 10.0
+    inside = (centre > ground[0] + 5) & (centre < ground[1] - 5)
+    outside = ((centre < ground[0] - 5) | (centre > ground[1] + 5)) & (centre > 12_020) & (centre < 13_480)
+    r_in, r_out = ratio.to_numpy()[inside], ratio.to_numpy()[outside]
+    print(f"| {settings.track_resolution_m:g} | {np.median(r_in):.2f} [{np.percentile(r_in, 10):.2f}, "
+          f"{np.percentile(r_in, 90):.2f}] | {np.median(r_out):.2f} [{np.percentile(r_out, 10):.2f}, "
+          f"{np.percentile(r_out, 90):.2f}] |")
+
+
 def speed(work: Path) -> None:
     """Wall time of the chunk step with and without the impact detection, one run, same process."""
     import app.pipeline.chunk as chunk
@@ -264,7 +301,7 @@ def _summary(rows: list[dict]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--case", choices=("all", "physics", "sim", "speed"), default="all")
+    ap.add_argument("--case", choices=("all", "physics", "sim", "grinding", "speed"), default="all")
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--length-km", type=float, default=2.0)
     args = ap.parse_args()
@@ -282,6 +319,8 @@ def main() -> None:
                       f"{r['indicator_at_weld_unmasked']:.2f} → {r['indicator_at_weld_masked']:.2f} |")
         if args.case in ("all", "sim"):
             _summary(sim(work, [int(s) for s in args.seeds.split(",")], args.length_km))
+        if args.case in ("all", "grinding"):
+            grinding(work)
         if args.case in ("all", "speed"):
             print("\n| run | chunk step without detection | with | share |")
             print("|---|---|---|---|")

@@ -86,14 +86,27 @@ def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarra
     rows = recipe.wheel_rows
     s_out = travelled_m[out_idx - lo]
     mult = recipe.multipliers[rows]
-    env_w = env[rows]
+    powers = recipe.powers[rows]  # order l: multiplier = l × (that of order 1)
+    base = float(mult[0] / powers[0]) if mult.size else 0.0
+    env_w = np.ascontiguousarray(env[rows])
 
     def at(s: np.ndarray) -> np.ndarray:
         s = np.asarray(s, dtype=np.float64)
         out = np.zeros(s.shape)
-        for m, e in zip(mult, env_w, strict=True):
-            c = np.interp(s, s_out, e.real) + 1j * np.interp(s, s_out, e.imag)
-            out += (c * np.exp(2j * np.pi * m * s)).real
+        if env_w.shape[0] == 0 or s_out.size < 2:
+            return out
+        # envelopes linear between the grid's points (clamped at its ends); phasors by recurrence
+        j = np.clip(np.searchsorted(s_out, s, side="right"), 1, s_out.size - 1)
+        w = np.clip((s - s_out[j - 1]) / np.maximum(s_out[j] - s_out[j - 1], 1e-12), 0.0, 1.0)
+        z1 = np.exp(2j * np.pi * base * s)
+        zl = np.ones(s.shape, dtype=np.complex128)
+        level = 0
+        for k in np.argsort(powers):
+            while level < powers[k]:
+                zl *= z1
+                level += 1
+            c = env_w[k, j - 1] * (1.0 - w) + env_w[k, j] * w
+            out += (c * zl).real
         return out
 
     return at

@@ -113,34 +113,51 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     nper = min(nperseg, 1 << int(math.floor(math.log2(max(x.size, 16)))))
     k, p = welch(x, fs=1.0 / step, nperseg=nper, detrend=False)
     kept = est.gain(k) > 0.5
-    out = np.full(p.size, np.nan)
-    half = _PSD_FILTER_BINS // 2
     idx = np.flatnonzero(kept)
-    for i in idx:
-        window = p[max(0, i - half) : i + half + 1][kept[max(0, i - half) : i + half + 1]]
-        out[i] = np.percentile(window, _PSD_PERCENTILE)
-    if idx.size:  # outside what the estimate kept: the nearest kept value (the weights are ~0 there)
-        out = np.interp(np.arange(p.size), idx, out[idx])
-    else:
-        out = p
+    if idx.size == 0:
+        return k, p / max(frac, 1e-3)
+    half = _PSD_FILTER_BINS // 2
+    padded = np.concatenate([np.full(half, np.nan), np.where(kept, p, np.nan), np.full(half, np.nan)])
+    windows = np.sort(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[idx], axis=1)  # NaN last
+    count = np.sum(np.isfinite(windows), axis=1)
+    pos = (count - 1) * (_PSD_PERCENTILE / 100.0)
+    lo_i = np.floor(pos).astype(np.int64)
+    hi_i = np.minimum(lo_i + 1, count - 1)
+    frac_i = pos - lo_i
+    rows = np.arange(windows.shape[0])
+    filtered = windows[rows, lo_i] * (1.0 - frac_i) + windows[rows, hi_i] * frac_i
+    # outside what the estimate kept: the nearest kept value (the weights are ~0 there)
+    out = np.interp(np.arange(p.size), idx, filtered)
     return k, out / max(frac, 1e-3)  # the invalid (zeroed) cells diluted it
 
 
 def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
-    """1.4826 × MAD of ``x`` per block of cells (over its valid cells, every other one), per cell."""
+    """1.4826 × MAD of ``x`` per block of cells (over its valid cells, every fourth one), per cell."""
+    sub = 4
+    xs = np.where(valid, x, np.nan)[::sub]
+    per = max(block // sub, 8)
+    nb = -(-xs.size // per)
+    grid = np.full(nb * per, np.nan)
+    grid[: xs.size] = xs
+    grid = grid.reshape(nb, per)
+    enough = np.sum(np.isfinite(grid), axis=1) >= 32
+    if nb > 1 and not enough[-1]:  # a short last block joins the one before
+        enough[-1] = False
     out = np.full(x.size, np.nan)
-    for a in range(0, x.size, block):
-        b = min(a + block, x.size)
-        if b - a < block // 2 and a > 0:  # a short last block joins the one before
-            a = max(0, b - block)
-        v = x[a:b:2][valid[a:b:2]]
-        if v.size >= 32:
-            med = np.median(v)
-            out[a:b] = _MAD * np.median(np.abs(v - med))
-    if np.all(np.isnan(out)):
+    if not enough.any():
         return out
-    good = np.flatnonzero(np.isfinite(out))
-    return np.interp(np.arange(x.size), good, out[good])
+    with np.errstate(all="ignore"):
+        med = np.nanmedian(grid[enough], axis=1)
+        mad = _MAD * np.nanmedian(np.abs(grid[enough] - med[:, None]), axis=1)
+    centres = (np.flatnonzero(enough) + 0.5) * per * sub
+    # constant within a block, the last good block's value beyond it
+    blocks = np.minimum(np.arange(x.size) // (per * sub), nb - 1)
+    good = np.flatnonzero(enough)
+    nearest = good[np.clip(np.searchsorted(good, blocks), 0, good.size - 1)]
+    left = good[np.clip(np.searchsorted(good, blocks, side="right") - 1, 0, good.size - 1)]
+    pick = np.where(np.abs(nearest - blocks) <= np.abs(left - blocks), nearest, left)
+    del centres
+    return mad[np.searchsorted(good, pick)]
 
 
 def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,

@@ -236,17 +236,21 @@ def surface_estimate(
     yp = np.concatenate([np.zeros(pad), y, np.zeros(pad + w_n)])
     vp = np.concatenate([np.full(pad, np.nan), np.where(valid, vc, np.nan), np.full(pad + w_n, np.nan)])
     out = np.zeros(yp.size + n_fft)
+    filters: dict[float, np.ndarray] = {}
     for start in range(pad - hop, n + pad, hop):
         seg_v = vp[start : start + w_n]
         if not np.any(np.isfinite(seg_v)):
             continue
-        vbar = float(np.nanmean(seg_v))
-        f = vbar * kappa
-        g = np.zeros(kappa.size, dtype=np.complex128)
-        ok = (f >= fgrid[0]) & (f <= F_MAX_HZ)
-        g[ok] = np.interp(f[ok], fgrid, inv.real) + 1j * np.interp(f[ok], fgrid, inv.imag)
-        g *= gain * np.where(f <= 0.8 * F_MAX_HZ, 1.0,
-                             0.5 * (1.0 + np.cos(np.pi * np.clip((f / F_MAX_HZ - 0.8) / 0.2, 0.0, 1.0))))
+        vbar = round(float(np.nanmean(seg_v)), 1)  # windows at one speed (to 0.1 m/s) share the filter
+        g = filters.get(vbar)
+        if g is None:
+            f = vbar * kappa
+            g = np.zeros(kappa.size, dtype=np.complex128)
+            ok = (f >= fgrid[0]) & (f <= F_MAX_HZ)
+            g[ok] = np.interp(f[ok], fgrid, inv.real) + 1j * np.interp(f[ok], fgrid, inv.imag)
+            g *= gain * np.where(f <= 0.8 * F_MAX_HZ, 1.0,
+                                 0.5 * (1.0 + np.cos(np.pi * np.clip((f / F_MAX_HZ - 0.8) / 0.2, 0.0, 1.0))))
+            filters[vbar] = g
         buf = np.zeros(n_fft)
         buf[hop : hop + w_n] = yp[start : start + w_n] * win
         res = np.fft.irfft(np.fft.rfft(buf) * g, n_fft)
