@@ -28,8 +28,9 @@ __all__ = ["ENGINE_VERSION", "TRACK_COLUMNS", "RunResults", "assemble", "assembl
            "run_warnings"]
 
 #: bump when the stored numbers would change for the same input and settings
-#: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q)
-ENGINE_VERSION = "trackvkf-pipeline/3"
+#: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q;
+#: 4: track impacts bridged out of the sleeper columns, track_impact_mm, wheel flats)
+ENGINE_VERSION = "trackvkf-pipeline/4"
 #: the sleeper-passage columns of a profile row: the fundamental (m/s²), its 2nd and
 #: 3rd harmonics (m/s², NaN where not extracted) and their RMS (the energy indicator, m/s²)
 TRACK_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms")

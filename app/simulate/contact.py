@@ -20,11 +20,13 @@ and between 0.4 and 0.5 ``fs`` (the recorder's anti-alias filter), cut where
 the impulse response has decayed; its few milliseconds of non-causal ringing
 (the band limit) are kept as a lookahead.
 
-Units. The simulator's sleeper-passage amplitude is ``K_type`` at ``v_ref``
-(:data:`app.simulate.track.SUPERSTRUCTURE_AMPLITUDE`), not the model's own
-``A(k_type, v_ref)``; the roughness response is scaled by the same
-``K_type / A(k_type, v_ref)`` so that roughness and sleeper passage keep the
-ratio the physics gives them (:func:`type_scale`).
+Units. The response is physical: m/s² per m of surface height, so the
+depths of welds and flats can be read back from it. The simulator's
+sleeper-passage amplitude is its own ``K_type`` at ``v_ref``
+(:data:`app.simulate.track.SUPERSTRUCTURE_AMPLITUDE`), which is
+:func:`type_scale` times the model's ``A(k_type, v_ref)`` (2.1 on slab, 1.25
+on B91 without pads, 0.64 with pads): roughness weighs that much less (more)
+against the sleeper passage than in the physics.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from app.analysis.stiffness.track_dynamics import (
     wheel_rail_transfer,
 )
 
-__all__ = ["ContactFilter", "contact_filter", "type_scale"]
+__all__ = ["ContactFilter", "type_scale"]
 
 #: The impulse response is cut where what is left of its energy falls below this fraction.
 _TAIL = 1e-7
@@ -137,7 +139,3 @@ class ContactFilter:
             raise ValueError(f"r: needs more than {self.history + self.lookahead} samples, got {r.size}")
         return oaconvolve(r, self.taps, mode="valid")
 
-
-def contact_filter(params: TrackParameters, fs: float, scale: float = 1.0) -> ContactFilter:
-    """A :class:`ContactFilter` (its FIR is computed once per track and sample rate)."""
-    return ContactFilter(params, fs, scale)

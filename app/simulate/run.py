@@ -4,6 +4,7 @@ Signal model (per wheel ``w`` = axle + side, see ``docs/run-format.md``)::
 
     Z_w(t) = a_s(t) cos(2 pi x_w(t) / d_s)      sleeper passage
            + z''_OOR,w(t)                          wheel out-of-roundness
+           + (h_type * r_w)(t)                     rail roughness, welds, joints, wheel flat
            + n_w(t)                                band-limited Gaussian noise
     Q_w(t) = Q_static + m_u Z_w(t) / 1000 + e_w(t) [kN]
 
@@ -19,11 +20,19 @@ Signal model (per wheel ``w`` = axle + side, see ``docs/run-format.md``)::
   ``(v / v_ref) ** alpha`` (``alpha = 1.5``) of earlier versions.
 * ``z''_OOR`` is the second time derivative of the wheel radius at the contact
   point (:func:`app.simulate.wheels.oor_acceleration`; phase convention there).
+* ``r_w`` is the height of the running surfaces under the wheel — its rail
+  at ``x_w`` (:mod:`app.simulate.surface`, fixed to the track: the line's
+  ``surface``) plus its flat at ``s`` — and ``h_type`` the impulse response of
+  the wheel–track system of the superstructure type there
+  (:mod:`app.simulate.contact`); ``confounders`` switches each part.
 * ``Q`` uses the full ``Z`` (noise included): the broadband part stands for
   real vibration of the unsprung mass.
 
-The run and the truth are generated and written block by block, so memory
-does not grow with the run length.
+:func:`simulate_run` takes a :class:`SimulationConfig` (or its fields as
+keywords) and works in stages: :func:`plan_run` (every random draw, the
+line, the wheels, the surfaces), the signals, the truth. The run and the
+truth are generated and written block by block, so memory does not grow with
+the run length.
 """
 
 from __future__ import annotations

@@ -149,14 +149,12 @@ def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
     with np.errstate(all="ignore"):
         med = np.nanmedian(grid[enough], axis=1)
         mad = _MAD * np.nanmedian(np.abs(grid[enough] - med[:, None]), axis=1)
-    centres = (np.flatnonzero(enough) + 0.5) * per * sub
-    # constant within a block, the last good block's value beyond it
+    # constant within a block; a block without enough valid cells takes its nearest good block's
     blocks = np.minimum(np.arange(x.size) // (per * sub), nb - 1)
     good = np.flatnonzero(enough)
     nearest = good[np.clip(np.searchsorted(good, blocks), 0, good.size - 1)]
     left = good[np.clip(np.searchsorted(good, blocks, side="right") - 1, 0, good.size - 1)]
     pick = np.where(np.abs(nearest - blocks) <= np.abs(left - blocks), nearest, left)
-    del centres
     return mad[np.searchsorted(good, pick)]
 
 

@@ -85,8 +85,8 @@ def bridge(x: np.ndarray, values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        A copy; masked entries with no finite unmasked value on either side stay as they were
-        when only one side has one they take its value, when none NaN.
+        A copy. A masked entry with finite unmasked values on one side only takes the nearest of
+        them; with none anywhere, NaN.
     """
     x = np.asarray(x, dtype=np.float64)
     v = np.array(values, dtype=np.float64, copy=True)
