@@ -150,7 +150,9 @@ def process(
 
     ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
     (``sleeper_amp``), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
-    (``sleeper_rms``), the wheel orders and the force amplitude; ``meta.json`` the settings and
+    (``sleeper_rms``), the wheel orders, the force amplitude and the depth of a track impact
+    (``track_impact_mm``: a dipped weld or joint, bridged out of the sleeper columns);
+    ``wheels.json`` the wheel OOR and any wheel flat (``flat``); ``meta.json`` the settings and
     the warnings (docs/indicator.md).
 
     Intermediate chunk results are kept in ``OUT/.work`` so an interrupted run
