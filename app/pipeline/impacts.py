@@ -147,7 +147,9 @@ def chunk_dip_member(
         range, with the chunk's crossfade weight there.
     """
     empty = {_member(wheel): np.zeros((len(DIP_FIELDS), 0))}
-    a, b = max(chunk.out_lo - lo, 0), min(chunk.out_hi - lo, accel.size)
+    # the whole chunk, padding included (the wheel orders are stationary: their envelopes held at the
+    # output range's ends are right there), so that the estimate's own edges lie outside the output range
+    a, b = 0, accel.size
     if b - a < 2:
         return empty
     lines = tuple(float(recipe.multipliers[r]) for r in recipe.track_rows)
