@@ -196,12 +196,15 @@ def surface_estimate(
     params = TrackParameters() if params is None else params
     fin = np.isfinite(a)
     s0 = math.floor(float(s[0]) / step_m) * step_m
-    idx = np.floor((s - s0) / step_m).astype(np.int64)
+    idx = ((s - s0) * (1.0 / step_m)).astype(np.int64)  # s >= s0: truncation is the floor
     n = int(idx[-1]) + 1
-    count = np.bincount(idx[fin], minlength=n).astype(np.float64)
+    every = np.bincount(idx, minlength=n).astype(np.float64)
+    all_finite = bool(fin.all())
+    count = every if all_finite else np.bincount(idx[fin], minlength=n).astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        y = np.bincount(idx[fin], weights=a[fin], minlength=n) / count
-        vc = np.bincount(idx, weights=v, minlength=n) / np.bincount(idx, minlength=n)
+        y = (np.bincount(idx, weights=a, minlength=n) if all_finite
+             else np.bincount(idx[fin], weights=a[fin], minlength=n)) / count
+        vc = np.bincount(idx, weights=v, minlength=n) / every
     moving = np.isfinite(vc) & (vc >= min_speed_mps)
     have = (count > 0) & moving
     v_max = float(np.nanmax(np.where(moving, vc, np.nan))) if moving.any() else min_speed_mps
