@@ -7,8 +7,8 @@ that hold one (a run's list of impacts reads them without scanning its
 ~10⁶ rows). On PostgreSQL both go onto the partitioned table and so onto
 every partition.
 
-Revision ID: 0014_track_impacts
-Revises: 0013_profile_partitions
+Revision ID: 0015_track_impacts
+Revises: 0014_operations
 Create Date: 2026-11-26
 """
 
@@ -17,8 +17,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0014_track_impacts"
-down_revision: str | None = "0013_profile_partitions"
+revision: str = "0015_track_impacts"
+down_revision: str | None = "0014_operations"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
