@@ -5,6 +5,7 @@ Usage::
     .venv/bin/python bench/bench_impacts.py                     # physics + simulator, Markdown tables
     .venv/bin/python bench/bench_impacts.py --case physics
     .venv/bin/python bench/bench_impacts.py --case sim --seeds 1,2,3 --length-km 2
+    .venv/bin/python bench/bench_impacts.py --case rough-weld   # an unfound weld on rough rail: its own effect
     .venv/bin/python bench/bench_impacts.py --case grinding     # a grinding action read as stiffness?
     .venv/bin/python bench/bench_impacts.py --case speed        # detection's share of the chunk step
 
@@ -24,6 +25,15 @@ repeatable vehicle on the same track; its first 17.5 m are zero). Truth of the i
 ``A_bay_smooth``. Reported: found or not, position error, depth (truth 0.3 mm), and the
 ``sleeper_amp`` at the weld over its truth — lowest ratio within ±5 m — without the mask (the
 wheel's own rows, :func:`app.pipeline.assemble_wheel`) and with it (the run's profile).
+
+*Rough weld alone* (``--case rough-weld``): on rough rail the weld is not found (below), so it is
+not masked; what does it do to the indicator by itself? The model is linear, so ``(3 a_1 − a_3) / 2``
+of ``rough_k80_v35`` is the smooth track's response ``S`` plus the weld's ``W``; the smooth response of a
+uniform track repeats every 7 sleeper bays (4.2 m = 1200 samples at 35 m/s, 10 kHz; to 1e-3 m/s²), so
+``S`` is that signal before the weld repeated, ``W`` the rest, and ``a_1 − W`` is the same rough rail
+without the weld. Both go through the pipeline as Z11 alone; reported: 10 m means of ``sleeper_amp``
+with / without the weld around it, against the run-to-run scatter of 10 m means that the roughness
+gives (``a_1 − W`` over the truth).
 
 **Simulator** (:func:`app.simulate.run.simulate_run`, random speed 40–200 km/h, 10 kHz, default
 noise and wheels): per seed four runs over the same random line: *smooth* rails, *smooth + welds*
@@ -209,6 +219,59 @@ def sim(work: Path, seeds: list[int], length_km: float) -> list[dict]:
     return rows
 
 
+def rough_weld(work: Path) -> None:
+    """The weld's own effect on the indicator of rough rail, where it is not found (module docstring)."""
+    settings = ProcessingSettings()
+    r1 = np.load(PHYSICS / "rough_k80_v35.npz")
+    r3 = np.load(PHYSICS / "rough_k80_v35_severe.npz")
+    fs, v = float(r1["fs"]), float(r1["speed"])
+    a1 = r1["a_axle"]
+    smooth_weld = (3.0 * a1 - r3["a_axle"]) / 2.0
+    period = int(round(7 * 0.6 / v * fs))  # 7 bays: a whole number of samples at 35 m/s, 10 kHz
+    k0 = int(60.0 / v * fs)  # steady, 40 m before the weld
+    k = np.arange(a1.size)
+    smooth = np.where(k < k0, smooth_weld, smooth_weld[k0 + (k - k0) % period])
+    weld = smooth_weld - smooth
+    x_weld = float(r1["welds"][0][0])
+    profiles = {}
+    for name, a in (("with", a1), ("without", a1 - weld)):
+        path = _write(work / f"rw-{name}.h5", {"Z11": a}, fs, v)
+        res = run_pipeline(path, settings, work / f"wrw-{name}")
+        p = res.profiles[res.profiles["wheel"] == "11"]
+        x = (p["bin"].to_numpy() + 0.5) * settings.bin_length_m
+        profiles[name] = (x, p["sleeper_amp"].to_numpy(), int(p["track_impact_mm"].notna().sum()))
+    x, with_w, n_with = profiles["with"]
+    _, without, n_without = profiles["without"]
+    truth = np.interp(x, r1["x_bay"], r1["A_bay_smooth"])
+    steady = x >= 10.0
+    seg = np.floor(x / 10.0)
+    rows = []
+    for s in np.unique(seg[steady]):
+        m = steady & (seg == s)
+        if m.sum() >= 30:
+            rows.append((s * 10.0, np.nanmean(with_w[m]), np.nanmean(without[m]), np.mean(truth[m])))
+    t = np.array(rows)
+    at = np.abs(t[:, 0] + 5.0 - x_weld) <= 5.0
+    effect = t[:, 1] / t[:, 2]
+    scatter = t[:, 2] / t[:, 3]
+    print(f"\nWeld at {x_weld:g} m on rough rail (rough_k80_v35, Z11 alone; track impacts found: {n_with} with the "
+          f"weld, {n_without} without):")
+    print("\n| 10 m mean | with weld / truth | without weld / truth | with / without |")
+    print("|---|---|---|---|")
+    for (x0, w, wo, tr), e in zip(t[at], effect[at], strict=True):
+        print(f"| {x0:g}–{x0 + 10:g} m | {w / tr:.2f} | {wo / tr:.2f} | {e:.2f} |")
+    near = np.abs(x - x_weld) <= 5.0
+    print(f"\nWithin ±5 m of the weld, bin by bin: lowest sleeper_amp / truth {np.nanmin(with_w[near] / truth[near]):.2f} "
+          f"with the weld, {np.nanmin(without[near] / truth[near]):.2f} without; with / without "
+          f"{np.nanmin(with_w[near] / without[near]):.2f} … {np.nanmax(with_w[near] / without[near]):.2f} "
+          f"(smooth rail: 0.79 of the truth, the false soft spot).")
+    away = ~at
+    print(f"\nElsewhere (10 m means without a weld, {int(away.sum())}): with / without "
+          f"{np.median(effect[away]):.3f} [{effect[away].min():.3f}, {effect[away].max():.3f}]; the roughness's own "
+          f"scatter, without weld / truth: median {np.median(scatter):.2f} [p10 {np.percentile(scatter, 10):.2f}, "
+          f"p90 {np.percentile(scatter, 90):.2f}]")
+
+
 def grinding(work: Path) -> None:
     """Two runs of one rough line (same speed, same vehicle, their own noise), before and after a grinding
     action over 500 m: how much the indicator's 10 m means change where the rails were ground and
@@ -320,7 +383,7 @@ def _summary(rows: list[dict]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--case", choices=("all", "physics", "sim", "grinding", "speed"), default="all")
+    ap.add_argument("--case", choices=("all", "physics", "rough-weld", "sim", "grinding", "speed"), default="all")
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--length-km", type=float, default=2.0)
     args = ap.parse_args()
@@ -336,6 +399,8 @@ def main() -> None:
                 dp = f"{r['depth_mm']:.3f} mm" if r["found"] else "–"
                 print(f"| {r['case']} | {'yes' if r['found'] else 'no'} | {pe} | {dp} | {r['false_impacts']} | "
                       f"{r['indicator_at_weld_unmasked']:.2f} → {r['indicator_at_weld_masked']:.2f} |")
+        if args.case in ("all", "rough-weld"):
+            rough_weld(work)
         if args.case in ("all", "sim"):
             _summary(sim(work, [int(s) for s in args.seeds.split(",")], args.length_km))
         if args.case in ("all", "grinding"):

@@ -40,8 +40,10 @@ def test_a_wheel_flat_is_listed_and_marked(open_page, dashboard):
         first -= 1
     want = "this run" if first == at else f"run {trend[first]['run_id']}"
     assert want in cells[6]
-    names = page.evaluate("document.getElementById('polar-plot').data.map(t => t.name)")
-    assert "wheel flat" in names
+    theta, r, rng = page.evaluate("(() => { const el = document.getElementById('polar-plot'); "
+                                  "const t = el.data.find(t => t.name === 'wheel flat'); "
+                                  "return [t.theta, t.r, el.layout.polar.radialaxis.range]; })()")
+    assert r[1] == rng[1] and abs(theta[1] - float(cells[1])) < 0.1  # marked on the rim at its angle
     shapes = page.evaluate("(document.getElementById('profile-plot').layout.shapes || []).length")
     assert shapes == 1
     plots = page.evaluate("Array.from(document.querySelectorAll('.plot')).map(el => [el.id, el.dataset.state, "

@@ -20,10 +20,15 @@
     }));
     const flats = wheels.items.filter((w) => w.flat);
     if (flats.length) {
+      // a spoke from the centre to the rim at the flat's angle, marked on the rim in the wheel's colour
+      const spoke = (f) => [f, f, null];
       traces.push({
-        type: "scatterpolar", mode: "markers", name: "wheel flat", theta: flats.map((w) => w.flat.angle_deg),
-        r: flats.map(() => -lim), marker: { symbol: "x", size: 12, color: flats.map((w) => T.wheelColor(w.wheel)) },
-        customdata: flats.map((w) => [T.wheelLabel(w.wheel), w.flat.depth_mm]),
+        type: "scatterpolar", mode: "lines+markers", name: "wheel flat",
+        theta: flats.flatMap((w) => spoke(w.flat.angle_deg)), r: flats.flatMap(() => [-lim, lim, null]),
+        line: { color: "#5b6b7b", width: 1, dash: "dot" },
+        marker: { symbol: "x", size: flats.flatMap(() => [0, 14, 0]),
+          color: flats.flatMap((w) => spoke(T.wheelColor(w.wheel))) },
+        customdata: flats.flatMap((w) => spoke([T.wheelLabel(w.wheel), w.flat.depth_mm])),
         hovertemplate: "wheel flat, %{customdata[0]}<br>θ %{theta:.1f}°<br>%{customdata[1]:.2f} mm deep<extra></extra>",
       });
     }
@@ -35,7 +40,8 @@
         align: "left", font: { size: 11, color: "#5b6b7b" },
         text: `centre −${T.fmt(lim, 0)} µm · rim +${T.fmt(lim, 0)} µm<br>rings every ${T.fmt(lim / 2, 0)} µm (middle ring 0 µm)` }],
       margin: { l: 40, r: 40, t: 40, b: 30 },
-      legend: { orientation: "v", x: 0, y: 1, yanchor: "top" },
+      // transparent: the box of the longest name would hide the 315° label beside it
+      legend: { orientation: "v", x: 0, y: 1, yanchor: "top", bgcolor: "rgba(0,0,0,0)" },
     }, {
       filename: `run-${wheels.run_id}-wheel-polar`,
       csv: () => {
@@ -88,7 +94,9 @@
       const at = w.flat.angle_deg / 360 * circ, half = (w.flat.length_mm || 40) / 2;
       shapes.push({ type: "rect", xref: "x", yref: "paper", x0: at - half, x1: at + half, y0: 0, y1: 1,
         fillcolor: T.wheelColor(w.wheel), opacity: 0.25, line: { width: 0 } });
-      notes.push({ xref: "x", yref: "paper", x: at, y: 1, yanchor: "bottom", showarrow: false, font: { size: 11 },
+      // inside the plot, beside the band: above it the legend sits
+      notes.push({ xref: "x", yref: "paper", x: at + half, y: 1, xanchor: "left", yanchor: "top", xshift: 4,
+        showarrow: false, font: { size: 11 }, bgcolor: "rgba(255,255,255,0.85)",
         text: `flat ${T.esc(T.wheelLabel(w.wheel))} · ${T.fmt(w.flat.depth_mm, 2)} mm` });
     }
     await T.plot(el, traces, {
