@@ -193,21 +193,29 @@ def sim(work: Path, seeds: list[int], length_km: float) -> list[dict]:
             pos_err, depth_err, ind = [], [], []
             hit = 0
             truth_bins = tr.bins["11"]
+            missed = []
+            if case == "smooth":  # the same places without the welds: the indicator's own bin-to-bin scatter
+                for x in sorted({round(im.track_m, 3) for im in base.impacts}):
+                    if a <= x <= b:
+                        ind.append([*_indicator_at(res, paths, settings, x, truth_bins.track_m,
+                                                   truth_bins.amplitude_mps2), -1.0])
             for x, depth in inside.items():
                 c = [f for f in centres if abs(f - x) <= 0.75]
+                if case == "smooth_welds":  # every weld, found or not: an unfound one keeps its false spot
+                    ind.append([*_indicator_at(res, paths, settings, x, truth_bins.track_m, truth_bins.amplitude_mps2),
+                                bool(c)])
                 if not c:
+                    missed.append(round(1e3 * depth, 3))
                     continue
                 hit += 1
                 pos_err.append(c[0] - x)
                 got = imp[np.abs((imp["bin"].to_numpy() + 0.5) * settings.bin_length_m - c[0]) <= 1.5]
                 depth_err.append(float(got["track_impact_mm"].mean()) / (1e3 * depth) - 1.0)
-                if case == "smooth_welds":
-                    ind.append(_indicator_at(res, paths, settings, x, truth_bins.track_m, truth_bins.amplitude_mps2))
             false = [f for f in centres if all(abs(f - x) > 0.75 for x in welds)]
             flat = next((w["flat"] for w in res.wheels if w["wheel"] == "11" and w.get("flat")), None)
             other_flats = [w["wheel"] for w in res.wheels if w["wheel"] != "11" and w.get("flat")]
             row = {"case": case, "seed": seed, "km": (b - a) / 1000.0, "welds": len(inside), "found": hit,
-                   "false": len(false), "false_at": [round(f, 1) for f in false],
+                   "missed_depth_mm": missed, "false": len(false), "false_at": [round(f, 1) for f in false],
                    "pos_err_m": pos_err, "depth_err": depth_err, "indicator": ind,
                    "flat_found": flat is not None if flats else None,
                    "flat_angle_err_deg": (((flat["angle_deg"] - np.degrees(angle)) + 180) % 360 - 180) if flat else None,
@@ -366,11 +374,18 @@ def _summary(rows: list[dict]) -> None:
               + (f"{np.median(pe):.2f} / {pe.max():.2f} m | {np.median(de):+.0%} [{np.percentile(de, 10):+.0%}, "
                  f"{np.percentile(de, 90):+.0%}] |" if pe.size else "– | – |") if n else
               f"| {case} | 0 | – | – | {fa / km:.2f} | – | – |")
-    ind = np.array([i for r in rows for i in r["indicator"]])
+    ind = np.array([i for r in rows for i in r["indicator"]], dtype=np.float64)
     if ind.size:
-        print(f"\nIndicator at the welds (smooth rail, lowest sleeper_amp / truth within ±5 m, {len(ind)} welds): "
-              f"without the mask median {np.median(ind[:, 0]):.2f} (min {ind[:, 0].min():.2f}), "
-              f"with it median {np.median(ind[:, 1]):.2f} (min {ind[:, 1].min():.2f})")
+        for label, m in (("found", ind[:, 2] > 0), ("not found", ind[:, 2] == 0), ("all", ind[:, 2] >= 0),
+                         ("places, run without welds", ind[:, 2] < 0)):
+            if m.any():
+                print(f"\nIndicator at the welds {label} (smooth rail, lowest sleeper_amp / truth within ±5 m, "
+                      f"{int(m.sum())} welds): without the mask median {np.median(ind[m, 0]):.2f} (min "
+                      f"{ind[m, 0].min():.2f}), with it median {np.median(ind[m, 1]):.2f} (min {ind[m, 1].min():.2f}); "
+                      f"below 0.85 with it: {int((ind[m, 1] < 0.85).sum())}")
+        for case in ("smooth_welds", "rough_welds"):
+            missed = [d for r in rows if r["case"] == case for d in r["missed_depth_mm"]]
+            print(f"\nDepths of the welds not found, {case} (mm): {sorted(missed)}")
     fl = [r for r in rows if r["flat_found"] is not None]
     if fl:
         ok = [r for r in fl if r["flat_found"]]
