@@ -1,4 +1,5 @@
-"""Track impacts of a run (dipped welds and joints found by the pipeline)."""
+"""Track impacts of a run (dipped welds and joints found by the pipeline): the route
+(:mod:`app.profiles.impacts`)."""
 
 from __future__ import annotations
 
@@ -7,10 +8,8 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from app.api.deps import DbDep, RunId
-from app.api.errors import not_found
-from app.api.schemas.impacts import TrackImpactList, TrackImpactOut
-from app.db import crud
-from app.db.track_impacts import run_track_impacts
+from app.api.schemas.impacts import TrackImpactList
+from app.profiles.impacts import run_track_impacts
 
 __all__ = ["router"]
 
@@ -27,10 +26,4 @@ def get_track_impacts(
     """Isolated impacts fixed to the track (dipped welds, joints), ascending km: where, how deep (mm) and
     which wheels met them. The profile's ``track_impact_mm`` column holds them per wheel and bin; the
     sleeper-passage columns are bridged around each (docs/indicator.md)."""
-    with db.read() as session:
-        if crud.get_run(session, run_id) is None:
-            raise not_found("run", run_id)
-        job_id, rows = run_track_impacts(session, run_id, km_from, km_to)
-    return TrackImpactList(run_id=run_id, job_id=job_id,
-                           items=[TrackImpactOut(km=r.km, depth_mm=r.depth_mm, depth_by_side_mm=r.depth_by_side_mm,
-                                                 wheels=r.wheels) for r in rows])
+    return TrackImpactList(**run_track_impacts(db, run_id, km_from, km_to))
