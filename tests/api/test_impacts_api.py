@@ -9,10 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from app import publish
 from app.db import queue
 from app.db.session import Database
 from tests.api import runfiles
-from tests.api.test_profiles_api import _synthetic
+from tests.profiles.test_profiles_api import _synthetic
 
 FLAT = {"angle_deg": 57.7, "angle_spread_deg": 0.4, "depth_mm": 0.19, "length_mm": 40.0, "n_hits": 135,
         "n_revolutions": 135, "first_km": 12.5, "last_km": 12.99}
@@ -35,7 +36,7 @@ def _run(client, tmp_path, name: str, start: str, *, impacts: dict[float, float]
                 df.loc[(df.wheel == wheel) & (df.bin == b), "track_impact_mm"] = depth + (0.02 if wheel[1] == "2" else 0)
         for w in wheels:
             w["flat"] = dict(FLAT) if w["wheel"] in flat_wheels else None
-        assert queue.complete_job(db, job_id, run["id"], df, wheels, {"software": "t"}, worker_id="test")
+        assert publish.publish_job(db, job_id, run["id"], df, wheels, {"software": "t"}, worker_id="test")
     finally:
         db.dispose()
     return run["id"], df
