@@ -73,6 +73,8 @@ PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
     *ORDER_COLUMNS,
     "residual_rms",
     "sleeper_force_amp",
+    "sleeper_amp_raw",
+    "sleeper_amp_sd",
 )
 
 
@@ -293,6 +295,10 @@ class ProfileBin(Base):
     order_amp_11: Mapped[float | None] = mapped_column(Float)
     residual_rms: Mapped[float | None] = mapped_column(Float)
     sleeper_force_amp: Mapped[float | None] = mapped_column(Float)
+    #: issue 26: the single-wheel VKF amplitude at f_s (what sleeper_amp was before: sleeper_amp is now the
+    #: roughness-corrected best estimate) and the 1-σ of sleeper_amp, m/s²; NULL in jobs before issue 26
+    sleeper_amp_raw: Mapped[float | None] = mapped_column(Float)
+    sleeper_amp_sd: Mapped[float | None] = mapped_column(Float)
 
 
 class WheelOOR(Base):

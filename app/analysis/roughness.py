@@ -1,0 +1,435 @@
+"""Rail roughness out of the sleeper-passage amplitude, as far as one pass allows, and its 1-σ.
+
+What the VKF's sleeper order holds
+----------------------------------
+The sleeper order's envelope ``E`` (peak phasor at ``f_s = v/d_s``, m/s²) is the
+sleeper-passage response ``S`` — parametric, set by the support under the
+rail, the quantity the map should show — plus whatever broadband response falls
+in the order's band: rail roughness, measurement noise, ``R``. ``R`` is not
+synchronised to the sleepers, so its phase relative to ``S`` is random and
+``E|E|² = |S|² + F`` with the **floor** ``F = E|R|²``. On rough rail ``F`` is of
+the order of ``|S|²`` (the roughness response passes the same wheel–track
+resonance as the sleeper response), so ``|E|`` reads high and scatters.
+
+Three things in the data separate them (physics, not tuning):
+
+* **The band beside the order** (:func:`sideband_floor`): roughness is
+  broadband, so the residual (the signal less every extracted order) beside the
+  sleeper order holds roughness response of about the density inside the band.
+  Two side bands of the order's own bandwidth B, centred
+  :data:`SIDEBAND_OFFSET` bandwidths below and above ``f_s`` (their −3 dB edges
+  B/2 outside the order's), are extracted from the residual by the VKF; with
+  the gain :func:`floor_gain` (the residual's notch under the order, computed
+  for a flat density) their mean power is the floor per bin. Phase-free and as
+  local as the amplitude itself, but a *lower bound* where the roughness
+  response peaks at ``f_s``: the wheel–track resonance that makes a track
+  respond strongly at ``f_s`` also peaks its roughness response there.
+* **The envelope's own fluctuation** (:func:`inband_floor`): over ≈ 20 m of
+  uniform track ``S`` is steady while ``R`` decorrelates every few metres
+  (:func:`app.analysis.uncertainty.envelope_correlation`), so the median of
+  ``|E(x + δ) − E(x)|²`` at the first zero δ of that correlation measures ``F``
+  inside the band. A real change of support reads as floor here (a median
+  ignores isolated steps, not steady variation), so it enters the 1-σ only,
+  never the amplitude.
+* **Two rails** (:func:`two_rail_estimate`): the wheels of one axle run over the
+  same sleepers and ballast but over rails with independent roughness, so
+  ``Re(E₁ · conj(E₂))`` has the expectation ``|S|²`` (the response common to
+  both rails) whatever ``F₁``, ``F₂`` are, and ``E|E_i|² − |S|²`` measures each
+  rail's in-band floor.
+
+Estimates (per 25 cm bin)
+-------------------------
+* single wheel (:func:`single_wheel_estimate`): ``sqrt(max(|E|² − F_side, 0))``;
+* two wheels of an axle: ``sqrt(max(Re(E₁ conj E₂), 0))`` corrected for the
+  square root's bias at low signal-to-roughness ratio (the power estimate is
+  unbiased, its square root is not: ``E sqrt(X⁺) < S`` for ``S²/σ ≳ 0.3``),
+  the same value for both wheels.
+
+The 1-σ of each follows from the Gaussian power model of
+:func:`app.analysis.uncertainty.clipped_sqrt_moments` with the floors measured
+above, smoothed over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths: the
+spread of the estimate, and for a single wheel its bias from the floor the side
+bands miss (a root mean square error). Segments: :func:`app.analysis.uncertainty.segment_sd`.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from scipy.ndimage import median_filter
+from scipy.signal import butter, sosfiltfilt
+
+from app.analysis.uncertainty import (
+    STEP_WIDTH_FACTORS,
+    _correlation_table,
+    _response_squared,
+    clipped_sqrt_moments,
+    correlation_length,
+)
+from app.analysis.vkf import vkf
+
+__all__ = [
+    "FLOOR_WINDOW_LENGTHS",
+    "SIDEBAND_OFFSET",
+    "floor_gain",
+    "increment_lag",
+    "inband_floor",
+    "sideband_floor",
+    "single_wheel_estimate",
+    "smooth_along",
+    "two_rail_estimate",
+]
+
+#: centre of each side band from f_s, in the order's full -3 dB bandwidths B: the nearest band of
+#: width B whose -3 dB edge lies B/2 outside the order's (the residual's notch under the order
+#: costs it ≈ 10 % of a flat density, restored by floor_gain)
+SIDEBAND_OFFSET = 1.5
+#: the floors and the local signal power of the 1-σ model are averaged over this many correlation
+#: lengths (≈ 20 m at 3 m resolution): ≈ 5 independent looks, local to a stiffness section
+FLOOR_WINDOW_LENGTHS = 5.0
+#: the carrier the grid series is put on for the VKF, fraction of the grid rate
+_CARRIER_OF_RATE = 0.25
+#: order of the zero-phase Butterworth low-pass (cutoff grid rate / 8) the grid series passes first
+_PREFILTER_ORDER = 4
+
+
+@lru_cache(maxsize=8)
+def floor_gain(filter_order: int = 2, offset: float = SIDEBAND_OFFSET) -> float:
+    """Power in the order's band over the power the side bands see, for a flat density.
+
+    The residual under the sleeper order is the signal less the order, i.e.
+    ``(1 − H)`` of it near ``f_s``; a side band at ``±offset·B`` sees it through
+    ``H(f ∓ offset·B)``. For a density flat around ``f_s``::
+
+        κ = ∫ H(f)² df / ∫ (1 − H(f))² H(f − offset·B)² df
+
+    (1.108 at q = 2, offset 1.5). ``κ × side-band power`` is the floor in the band.
+
+    Parameters
+    ----------
+    filter_order : int
+        q of the VKF, 1–3.
+    offset : float
+        Side-band centre from ``f_s`` in bandwidths (> 0.5).
+    """
+    if filter_order not in STEP_WIDTH_FACTORS:
+        raise ValueError(f"filter_order must be 1, 2 or 3, got {filter_order!r}")
+    if not (math.isfinite(offset) and offset > 0.5):
+        raise ValueError(f"offset must be a number > 0.5 bandwidths, got {offset!r}")
+    kappa = np.linspace(-40.0, 40.0, 160_001)
+    h2 = _response_squared(kappa, filter_order)
+    notch = (1.0 - np.sqrt(h2)) ** 2
+    side = _response_squared(kappa - offset, filter_order)
+    return float(np.sum(h2) / np.sum(notch * side))
+
+
+def sideband_floor(
+    demod: np.ndarray,
+    grid_rate: float,
+    speed: np.ndarray,
+    bandwidth_per_speed: float,
+    floor_speed: float,
+    order_multiplier: float,
+    filter_order: int = 2,
+    offset: float = SIDEBAND_OFFSET,
+) -> np.ndarray:
+    """Floor of the sleeper order from the residual's side bands, per grid point, (m/s²)².
+
+    Parameters
+    ----------
+    demod : ndarray, complex, shape (m,)
+        The residual mixed down by the sleeper phase and averaged over each grid
+        interval (:func:`app.analysis.order_residual.railway_residual` with
+        ``demodulate=True``), m/s².
+    grid_rate : float
+        Rate of the grid, Hz (sample rate / grid step).
+    speed : ndarray, shape (m,)
+        Absolute speed at the grid points, m/s.
+    bandwidth_per_speed : float
+        The sleeper order's full -3 dB bandwidth per unit speed, Hz per m/s
+        (:attr:`app.analysis.recipe.OrderRecipe.bandwidth_per_speed` of its row).
+    floor_speed : float
+        Speed below which the bandwidth keeps its value there, m/s.
+    order_multiplier : float
+        The sleeper order's frequency per unit speed, ``1/d_s``, Hz per m/s.
+    filter_order : int
+        q of the VKF.
+    offset : float
+        Side-band centre from ``f_s``, in bandwidths.
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        ``floor_gain · (|L|² + |U|²) / 2`` with ``L``, ``U`` the peak envelopes of the
+        side bands (the VKF with the order's bandwidth rule, at ``f_s ∓ offset·B``).
+        NaN where there is no room for them: the lower band's −3 dB edge below
+        ``f_s / 2`` (track resolutions under ≈ 2 m on 0.6 m sleepers).
+
+    Notes
+    -----
+    The grid series holds the residual's content around ``f_s`` at offsets
+    ``δf``; put on a carrier at a quarter of the grid rate it becomes a real
+    signal the VKF tracks two orders of, at the carrier ``∓ offset·B(v)``: the
+    same filter, speed rule and impulse response as the sleeper order's own.
+    """
+    z = np.asarray(demod)
+    v = np.abs(np.asarray(speed, dtype=np.float64))
+    if z.ndim != 1 or v.shape != z.shape:
+        raise ValueError(f"demod and speed must be 1-D of one length, got {z.shape} and {v.shape}")
+    if not (math.isfinite(grid_rate) and grid_rate > 0):
+        raise ValueError(f"grid_rate must be > 0 Hz, got {grid_rate!r}")
+    if z.size < 4:
+        return np.full(z.size, np.nan)
+    bw = float(bandwidth_per_speed) * np.maximum(v, float(floor_speed))
+    f_c = _CARRIER_OF_RATE * grid_rate
+    shift = offset * float(bandwidth_per_speed) * v
+    if float(np.max(shift + bw)) >= 0.45 * f_c / 2 or (offset + 0.5) * float(bandwidth_per_speed) >= 0.5 * float(
+            order_multiplier):
+        # no room for the side bands (the lower one would reach below f_s / 2: a resolution under ~2 m
+        # on 0.6 m sleepers), or a grid too coarse for them: no floor from the side bands
+        return np.full(z.size, np.nan)
+    # keep the grid series to |δf| < grid_rate / 8 first: on the carrier, the real signal's mirror
+    # folds δf ≈ −grid_rate/2 onto the side bands (there: images of the sleeper harmonics 4·f_s …)
+    if z.size > 3 * 2 * _PREFILTER_ORDER:
+        sos = butter(_PREFILTER_ORDER, 0.25, output="sos")  # cutoff grid_rate / 8 (Nyquist = 1)
+        z = sosfiltfilt(sos, z.real) + 1j * sosfiltfilt(sos, z.imag)
+    t = np.arange(z.size) / grid_rate
+    carrier = 2.0 * (z * np.exp(2j * np.pi * f_c * t)).real
+    freqs = np.vstack([f_c - shift, f_c + shift])
+    res = vkf(carrier, grid_rate, freqs, np.vstack([bw, bw]), filter_order, chunk_duration=np.inf)
+    env = res.envelope_at(np.arange(z.size))
+    return floor_gain(filter_order, offset) * 0.5 * (np.abs(env[0]) ** 2 + np.abs(env[1]) ** 2)
+
+
+def _dense(bins: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    b0 = int(bins.min())
+    span = int(bins.max()) - b0 + 1
+    dense = np.full(span, np.nan, dtype=values.dtype if np.iscomplexobj(values) else np.float64)
+    dense[bins - b0] = values
+    return dense, bins - b0, span
+
+
+def smooth_along(bins: np.ndarray, values: np.ndarray, window_m: float, bin_length: float = 0.25) -> np.ndarray:
+    """Moving mean over ``window_m`` of track centred on each bin, NaN (and missing bins) ignored.
+
+    Parameters
+    ----------
+    bins : ndarray of int, shape (n,)
+        Unique bin indices (any order).
+    values : ndarray, shape (n,)
+        Real or complex values; NaN counts as missing.
+    window_m : float
+        Window length, m (≥ one bin).
+    bin_length : float
+        m.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The mean of the finite values within ``±window_m/2`` of each bin; NaN where none.
+    """
+    b = np.asarray(bins, dtype=np.int64)
+    x = np.asarray(values)
+    if b.shape != x.shape or b.ndim != 1:
+        raise ValueError(f"bins and values must be 1-D of one length, got {b.shape} and {x.shape}")
+    if b.size == 0:
+        return x.astype(np.float64 if not np.iscomplexobj(x) else np.complex128)
+    half = max(0, int(round(window_m / bin_length / 2.0)))
+    dense, pos, span = _dense(b, x)
+    ok = np.isfinite(dense)
+    vals = np.where(ok, dense, 0)
+    csum = np.concatenate([[0], np.cumsum(vals)])
+    ccnt = np.concatenate([[0], np.cumsum(ok)])
+    lo = np.clip(pos - half, 0, span)
+    hi = np.clip(pos + half + 1, 0, span)
+    cnt = ccnt[hi] - ccnt[lo]
+    tot = csum[hi] - csum[lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(cnt > 0, tot / np.maximum(cnt, 1), np.nan)
+    return out
+
+
+def increment_lag(resolution_m: float = 3.0, filter_order: int = 2) -> float:
+    """First zero of the envelope correlation, m (4.25 m at 3 m, q = 2): the lag of :func:`inband_floor`."""
+    table, ds = _correlation_table(int(filter_order))
+    first = int(np.argmax(table <= 0.0))
+    return float(first * ds * resolution_m)
+
+
+def inband_floor(
+    bins: np.ndarray,
+    envelope: np.ndarray,
+    bin_length: float = 0.25,
+    resolution_m: float = 3.0,
+    filter_order: int = 2,
+) -> np.ndarray:
+    """The floor inside the order's band from the envelope's fluctuation, (m/s²)², per bin.
+
+    ``median(|E(x + δ/2) − E(x − δ/2)|²) / (2 ln 2)`` over a window of
+    :data:`FLOOR_WINDOW_LENGTHS` correlation lengths, δ = :func:`increment_lag`:
+    for ``E = S + R`` with ``S`` steady over δ and ``R`` circular Gaussian
+    (uncorrelated at δ), the increment is ``R``'s with twice its power and
+    exponentially distributed power (median = ln 2 × mean). The median ignores
+    isolated steps of ``S`` (a transition touches δ of a 20 m window).
+
+    Parameters
+    ----------
+    bins : ndarray of int, shape (n,)
+        Unique bin indices.
+    envelope : ndarray, complex, shape (n,)
+        The sleeper order's envelope, bin means, m/s².
+    bin_length, resolution_m, filter_order :
+        As in :func:`app.analysis.uncertainty.envelope_correlation`.
+    """
+    b = np.asarray(bins, dtype=np.int64)
+    e = np.asarray(envelope, dtype=np.complex128)
+    if b.shape != e.shape or b.ndim != 1:
+        raise ValueError(f"bins and envelope must be 1-D of one length, got {b.shape} and {e.shape}")
+    if b.size == 0:
+        return np.zeros(0)
+    dense, pos, span = _dense(b, e)
+    lag = max(1, int(round(increment_lag(resolution_m, filter_order) / bin_length)))
+    h = lag // 2
+    inc = np.full(span, np.nan)
+    if span > lag:
+        inc[h : span - (lag - h)] = np.abs(dense[lag:] - dense[:-lag]) ** 2
+    ok = np.isfinite(inc)
+    if not np.any(ok):
+        return np.full(b.size, np.nan)
+    # gaps take the nearest value before them (the median window then spans real data only)
+    idx = np.where(ok, np.arange(span), 0)
+    np.maximum.accumulate(idx, out=idx)
+    first = int(np.argmax(ok))
+    idx[:first] = first
+    filled = inc[idx]
+    win = max(1, int(round(FLOOR_WINDOW_LENGTHS * correlation_length(resolution_m, filter_order) / bin_length)))
+    med = median_filter(filled, size=win, mode="nearest")
+    return med[pos] / (2.0 * math.log(2.0))
+
+
+def _window_m(resolution_m: float, filter_order: int) -> float:
+    return FLOOR_WINDOW_LENGTHS * correlation_length(resolution_m, filter_order)
+
+
+def single_wheel_estimate(
+    bins: np.ndarray,
+    power: np.ndarray,
+    floor: np.ndarray,
+    envelope: np.ndarray,
+    bin_length: float = 0.25,
+    resolution_m: float = 3.0,
+    filter_order: int = 2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Floor-corrected sleeper amplitude of one wheel and its 1-σ, per bin, m/s².
+
+    Parameters
+    ----------
+    bins : ndarray of int, shape (n,)
+    power : ndarray, shape (n,)
+        Bin means of ``|E|²``, (m/s²)².
+    floor : ndarray, shape (n,)
+        Bin means of the side-band floor (:func:`sideband_floor`), (m/s²)².
+    envelope : ndarray, complex, shape (n,)
+        Bin means of ``E``, m/s².
+    bin_length, resolution_m, filter_order :
+        The run's binning and track-order settings.
+
+    Returns
+    -------
+    amp : ndarray
+        ``sqrt(max(power − floor, 0))``.
+    sd : ndarray
+        Root mean square error of ``amp`` under the power model: ``X = |E|² − F_side``
+        has the expectation ``S² + ΔF`` (``ΔF ≥ 0``: the in-band floor the side bands
+        miss, :func:`inband_floor`) and the spread
+        ``σ² = 2 S² F + F² + F_side²/2`` (``F`` the in-band floor; the last term the
+        side bands' own scatter), ``S²`` the local mean of ``X − ΔF``.
+    """
+    b = np.asarray(bins, dtype=np.int64)
+    p = np.asarray(power, dtype=np.float64)
+    f_side = np.asarray(floor, dtype=np.float64)
+    e = np.asarray(envelope, dtype=np.complex128)
+    if not (b.shape == p.shape == f_side.shape == e.shape) or b.ndim != 1:
+        raise ValueError("bins, power, floor and envelope must be 1-D of one length")
+    f_side = np.where(np.isfinite(f_side), np.maximum(f_side, 0.0), 0.0)
+    x = p - f_side
+    amp = np.sqrt(np.maximum(x, 0.0))
+    amp[~np.isfinite(p)] = np.nan
+    if b.size == 0:
+        return amp, amp.copy()
+    w = _window_m(resolution_m, filter_order)
+    f_side_w = np.nan_to_num(smooth_along(b, f_side, w, bin_length))
+    f_in = np.maximum(np.nan_to_num(inband_floor(b, e, bin_length, resolution_m, filter_order)), f_side_w)
+    missed = f_in - f_side_w
+    s2 = np.maximum(np.nan_to_num(smooth_along(b, x, w, bin_length)) - missed, 0.0)
+    sigma = np.sqrt(2.0 * s2 * f_in + f_in**2 + 0.5 * f_side_w**2)
+    mean_sqrt, mean_pos = clipped_sqrt_moments(s2 + missed, sigma)
+    s = np.sqrt(s2)
+    sd = np.sqrt(np.maximum(mean_pos - 2.0 * s * mean_sqrt + s2, 0.0))
+    sd[~np.isfinite(amp)] = np.nan
+    return amp, sd
+
+
+def two_rail_estimate(
+    bins: np.ndarray,
+    cross: np.ndarray,
+    power: np.ndarray,
+    power_other: np.ndarray,
+    bin_length: float = 0.25,
+    resolution_m: float = 3.0,
+    filter_order: int = 2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sleeper amplitude common to the two rails of an axle and its 1-σ, per bin, m/s².
+
+    Parameters
+    ----------
+    bins : ndarray of int, shape (n,)
+    cross : ndarray, shape (n,)
+        Bin means of ``Re(E · conj(E_other))``, (m/s²)²: the two wheels' sleeper
+        envelopes on the same bins (same axle, same phase reference).
+    power, power_other : ndarray, shape (n,)
+        Bin means of ``|E|²`` and ``|E_other|²``, (m/s²)².
+    bin_length, resolution_m, filter_order :
+        The run's binning and track-order settings.
+
+    Returns
+    -------
+    amp : ndarray
+        ``sqrt(max(X, 0)) / c`` with ``X`` = ``cross`` and ``c = E[sqrt(X⁺)] / S`` of the
+        power model (``c → 1`` where the roughness is small against the sleeper response).
+    sd : ndarray
+        The spread of ``amp`` under the model: ``X`` unbiased for ``S²`` with
+        ``σ² = S²(F₁ + F₂)/2 + F₁F₂/2``, ``F_i`` the local mean of ``|E_i|² − X``
+        (each rail's in-band floor), ``S²`` the local mean of ``X``.
+
+    Notes
+    -----
+    The same for either wheel of the axle (``X`` and ``σ`` are symmetric).
+    """
+    b = np.asarray(bins, dtype=np.int64)
+    x = np.asarray(cross, dtype=np.float64)
+    p1 = np.asarray(power, dtype=np.float64)
+    p2 = np.asarray(power_other, dtype=np.float64)
+    if not (b.shape == x.shape == p1.shape == p2.shape) or b.ndim != 1:
+        raise ValueError("bins, cross, power and power_other must be 1-D of one length")
+    raw = np.sqrt(np.maximum(x, 0.0))
+    raw[~np.isfinite(x)] = np.nan
+    if b.size == 0:
+        return raw, raw.copy()
+    w = _window_m(resolution_m, filter_order)
+    f1 = np.maximum(np.nan_to_num(smooth_along(b, p1 - x, w, bin_length)), 0.0)
+    f2 = np.maximum(np.nan_to_num(smooth_along(b, p2 - x, w, bin_length)), 0.0)
+    s2 = np.maximum(np.nan_to_num(smooth_along(b, x, w, bin_length)), 0.0)
+    sigma = np.sqrt(s2 * (f1 + f2) / 2.0 + f1 * f2 / 2.0)
+    mean_sqrt, mean_pos = clipped_sqrt_moments(s2, sigma)
+    s = np.sqrt(s2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.where((s > 0) & (sigma > 0), mean_sqrt / np.where(s > 0, s, 1.0), 1.0)
+    c = np.where(np.isfinite(c) & (c > 0), c, 1.0)
+    amp = raw / c
+    spread = np.sqrt(np.maximum(mean_pos - mean_sqrt**2, 0.0))
+    sd = spread / c
+    sd[~np.isfinite(raw)] = np.nan
+    return amp, sd

@@ -1,0 +1,272 @@
+"""Uncertainty of the sleeper-passage amplitude: the power model of a bin, and segments from bins.
+
+Two pure building blocks, used by :mod:`app.analysis.roughness` (per 25 cm bin)
+and by whoever aggregates bins to segments (:func:`app.analysis.aggregate.aggregate_profile`,
+the change tests and tiers of the condition store):
+
+* **Along-track correlation.** The track orders are extracted by the VKF with a
+  bandwidth proportional to speed, i.e. a fixed spatial resolution Δx
+  (``track_resolution_m``, :func:`app.analysis.recipe.track_bandwidth_per_speed`).
+  For a stationary order the VKF is the zero-phase low-pass
+  ``H(k) = 1 / (1 + (√2−1)(2k/b)^(2q))`` of the complex envelope, ``b = c_q/Δx``
+  cycles per m. Whatever broadband response (rail roughness, noise) falls in the
+  order's band therefore reaches the envelope as a process whose along-track
+  autocorrelation is the inverse Fourier transform of ``H²``
+  (:func:`envelope_correlation`): bins 25 cm apart are almost the same
+  measurement, bins more than ≈ 1.4 Δx apart are independent. A mean over a
+  segment of length L holds about ``L / ℓ`` independent looks, with the
+  correlation length ``ℓ = ∫ρ = 1 / ∫H²`` (:func:`correlation_length`: 4.0 m at
+  the default 3 m, q = 2): that, not the number of sleeper bays or of bins, sets
+  how fast averaging helps.
+* **Power model of one bin.** An unbiased power estimate ``X`` of the sleeper
+  component (``E[X] = S²``) with a Gaussian error of σ (m²/s⁴) gives the
+  amplitude ``sqrt(max(X, 0))``, whose mean and spread follow in closed form
+  (:func:`clipped_sqrt_moments`); this is how an amplitude's bias at low
+  signal-to-roughness ratio and its 1-σ are computed.
+
+:func:`segment_sd` is the one rule for the 1-σ of a segment's mean from the 1-σ
+of its bins.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from scipy.special import ndtr, pbdv
+
+__all__ = [
+    "STEP_WIDTH_FACTORS",
+    "clipped_sqrt_moments",
+    "correlation_length",
+    "envelope_correlation",
+    "segment_sd",
+]
+
+#: c_q of :data:`app.analysis.recipe.STEP_WIDTH_FACTOR` (10–90 % width × bandwidth), repeated
+#: here so that this module imports nothing of the project; a test checks they agree
+STEP_WIDTH_FACTORS: dict[int, float] = {1: 2.0 * math.log(5.0) / math.pi * math.sqrt(math.sqrt(2.0) - 1.0),
+                                        2: 0.7205, 3: 0.7672}
+#: spectral grid of the tabulated correlation, in units of the bandwidth b
+_DK = 1.0 / 512.0
+_NK = 1 << 17
+#: lags beyond this many resolutions are treated as uncorrelated (|ρ| < 1e-4 there for q = 1..3)
+_MAX_LAG_RESOLUTIONS = 8.0
+#: above this signal-to-noise ratio mu/sigma the moments use their asymptotic series
+_T_ASYMPTOTIC = 25.0
+
+
+def _check_q(filter_order: int) -> int:
+    if filter_order not in STEP_WIDTH_FACTORS:
+        raise ValueError(f"filter_order must be 1, 2 or 3, got {filter_order!r}")
+    return int(filter_order)
+
+
+def _check_resolution(resolution_m: float) -> float:
+    try:
+        r = float(resolution_m)
+    except (TypeError, ValueError):
+        raise ValueError(f"resolution_m must be a number > 0 m, got {resolution_m!r}") from None
+    if not (math.isfinite(r) and r > 0):
+        raise ValueError(f"resolution_m must be a number > 0 m, got {resolution_m!r}")
+    return r
+
+
+def _response_squared(kappa: np.ndarray, q: int) -> np.ndarray:
+    """``H²`` of the VKF's envelope low-pass at ``kappa = k / b`` (b the full -3 dB bandwidth)."""
+    return (1.0 / (1.0 + (math.sqrt(2.0) - 1.0) * (2.0 * kappa) ** (2 * q))) ** 2
+
+
+@lru_cache(maxsize=3)
+def _correlation_table(q: int) -> tuple[np.ndarray, float]:
+    """``g(s)``: ρ at the lag ``s · Δx`` (tabulated by FFT of ``H²``), and the step of ``s``."""
+    kappa = (np.arange(_NK) - _NK // 2) * _DK
+    spectrum = _response_squared(kappa, q)
+    acf = np.fft.fftshift(np.fft.ifft(np.fft.ifftshift(spectrum))).real
+    acf = acf[_NK // 2 :] / acf[_NK // 2]
+    # lag of one step in units of 1/b is 1/(N dκ); in resolutions Δx = c_q / b: / c_q
+    ds = 1.0 / (_NK * _DK * STEP_WIDTH_FACTORS[q])
+    n = int(math.ceil(_MAX_LAG_RESOLUTIONS / ds)) + 1
+    table = acf[:n].copy()
+    table.setflags(write=False)
+    return table, ds
+
+
+def envelope_correlation(lag_m: np.ndarray | float, resolution_m: float = 3.0, filter_order: int = 2) -> np.ndarray:
+    """Along-track autocorrelation of the broadband part of a track order's envelope.
+
+    Parameters
+    ----------
+    lag_m : array_like
+        Distance between two points of the profile, m (sign ignored).
+    resolution_m : float, optional
+        The track orders' spatial resolution Δx (``track_resolution_m``), m. Default 3.
+    filter_order : int, optional
+        q of the VKF, 1–3. Default 2.
+
+    Returns
+    -------
+    ndarray
+        ρ (1 at lag 0, 0 beyond 8 Δx), shape of ``lag_m``.
+
+    Notes
+    -----
+    ``ρ(Δ) = ∫ H(k)² cos(2πkΔ) dk / ∫ H(k)² dk`` with ``H`` the envelope low-pass
+    of the module notes: the correlation of a white (or locally flat) input seen
+    through the order's filter. It has small negative side lobes (q ≥ 2).
+    """
+    q = _check_q(filter_order)
+    res = _check_resolution(resolution_m)
+    lag = np.abs(np.asarray(lag_m, dtype=np.float64)) / res
+    table, ds = _correlation_table(q)
+    s = np.arange(table.size) * ds
+    return np.interp(lag, s, table, right=0.0)
+
+
+def correlation_length(resolution_m: float = 3.0, filter_order: int = 2) -> float:
+    """``ℓ = ∫ρ(Δ) dΔ``, m: a mean over L ≫ ℓ has the variance of ``L / ℓ`` independent bins.
+
+    Equals ``1 / ∫H(k)² dk`` = ``Δx / (c_q ∫H(κ)² dκ)``: 4.01 m at Δx = 3 m, q = 2.
+    """
+    q = _check_q(filter_order)
+    res = _check_resolution(resolution_m)
+    kappa = (np.arange(_NK) - _NK // 2) * _DK
+    integral = float(np.sum(_response_squared(kappa, q)) * _DK)
+    return res / (STEP_WIDTH_FACTORS[q] * integral)
+
+
+def clipped_sqrt_moments(mu: np.ndarray | float, sigma: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Mean of ``sqrt(max(X, 0))`` and of ``max(X, 0)`` for ``X ~ N(mu, sigma²)``.
+
+    Parameters
+    ----------
+    mu : array_like
+        Expected power, e.g. (m/s²)².
+    sigma : array_like
+        Standard deviation of the power estimate, same unit, ≥ 0 (broadcast with ``mu``).
+
+    Returns
+    -------
+    mean_sqrt : ndarray
+        ``E[sqrt(X⁺)]`` (the unit of an amplitude).
+    mean_pos : ndarray
+        ``E[X⁺]``.
+
+    Notes
+    -----
+    ``E[X⁺^ν] = Γ(ν+1) σ^ν e^(−t²/4) D_(−ν−1)(−t) / √(2π)`` with ``t = μ/σ`` and ``D`` the
+    parabolic cylinder function; ν = 1/2 for the amplitude. Above ``t = 25`` the
+    series ``√μ (1 − σ²/(8μ²) − 15σ⁴/(128μ⁴))`` is used; ``σ = 0`` gives ``√max(μ, 0)``.
+    """
+    mu_a, sig_a = np.broadcast_arrays(np.asarray(mu, dtype=np.float64), np.asarray(sigma, dtype=np.float64))
+    if np.any(sig_a < 0):
+        raise ValueError("sigma must be >= 0")
+    mean_sqrt = np.sqrt(np.maximum(mu_a, 0.0))
+    mean_pos = np.maximum(mu_a, 0.0)
+    noisy = (sig_a > 0) & np.isfinite(mu_a) & np.isfinite(sig_a)
+    if np.any(noisy):
+        m, s = mu_a[noisy], sig_a[noisy]
+        t = m / s
+        pos = s * np.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi) + m * ndtr(t)
+        root = np.empty_like(t)
+        high = t > _T_ASYMPTOTIC
+        th = t[high]
+        root[high] = np.sqrt(m[high]) * (1.0 - 1.0 / (8.0 * th**2) - 15.0 / (128.0 * th**4))
+        low = ~high
+        tl = np.maximum(t[low], -38.0)  # below, E is < 1e-300: zero
+        d = pbdv(-1.5, -tl)[0]
+        root[low] = (math.sqrt(math.pi) / 2.0) * np.sqrt(s[low]) * np.exp(-0.25 * tl * tl) * d / math.sqrt(2.0 * math.pi)
+        mean_sqrt = mean_sqrt.copy()
+        mean_pos = mean_pos.copy()
+        mean_sqrt[noisy] = root
+        mean_pos[noisy] = pos
+    return mean_sqrt, mean_pos
+
+
+def segment_sd(
+    bins: np.ndarray,
+    sd: np.ndarray,
+    level_m: float,
+    bin_length: float = 0.25,
+    resolution_m: float = 3.0,
+    filter_order: int = 2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """1-σ of the mean of every segment from the 1-σ of its bins, errors correlated along the track.
+
+    Parameters
+    ----------
+    bins : array_like of int
+        (n,) bin indices ``floor(track_m / bin_length)`` of one wheel's profile, unique.
+    sd : array_like of float
+        (n,) 1-σ of each bin's value (e.g. ``sleeper_amp_sd``, m/s²); NaN: the bin has no value.
+    level_m : float
+        Segment length, m (a multiple of ``bin_length``); segment ``g`` of bin ``b`` is
+        ``floor(b · bin_length / level_m)``.
+    bin_length : float, optional
+        m (default 0.25).
+    resolution_m, filter_order : optional
+        The track orders' resolution (m) and q of the run's processing settings
+        (defaults 3 m, 2): they set the along-track correlation (:func:`envelope_correlation`).
+
+    Returns
+    -------
+    segments : ndarray of int
+        Segment indices that hold at least one bin with a finite ``sd``, sorted.
+    sd_mean : ndarray
+        1-σ of the mean of the segment's bins (the bins with a finite ``sd``),
+        ``sqrt(Σ_i Σ_j sd_i sd_j ρ(|b_i − b_j| · bin_length)) / n``, same unit as ``sd``.
+
+    Raises
+    ------
+    ValueError
+        If shapes differ, ``bins`` are not unique integers, or a length is not > 0.
+
+    Notes
+    -----
+    The rule treats every bin's error as the envelope's broadband part (roughness
+    response, noise) seen through the order's filter. Independent bins would give
+    ``sd / √n``; correlated ones give about ``sd · √(ℓ / L)`` for a segment of length
+    ``L ≫ ℓ`` (:func:`correlation_length`), and ``sd`` for ``L ≪ ℓ``.
+    """
+    b = np.asarray(bins)
+    s = np.asarray(sd, dtype=np.float64)
+    if b.ndim != 1 or s.shape != b.shape:
+        raise ValueError(f"bins and sd must be 1-D of one length, got {b.shape} and {s.shape}")
+    if b.size and b.dtype.kind not in "iu":
+        raise ValueError(f"bins must be integers, got dtype {b.dtype}")
+    bl = _check_resolution(bin_length)
+    level = _check_resolution(level_m)
+    k = int(round(level / bl))
+    if k < 1 or abs(level / bl - k) > 1e-9 * max(level / bl, 1.0):
+        raise ValueError(f"level_m must be a positive integer multiple of bin_length={bl} m, got {level_m!r}")
+    ok = np.isfinite(s)
+    b, s = b[ok].astype(np.int64), s[ok]
+    if b.size == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    order = np.argsort(b, kind="stable")
+    b, s = b[order], s[order]
+    if np.any(np.diff(b) == 0):
+        raise ValueError("bins must be unique")
+    seg = np.floor_divide(b, k)
+    segments, inv = np.unique(seg, return_inverse=True)
+    n = np.bincount(inv).astype(np.float64)
+    # dense along the bins so that a lag is an index offset; gaps hold 0 (no contribution)
+    b0 = int(b[0])
+    span = int(b[-1]) - b0 + 1
+    dense = np.zeros(span)
+    dense[b - b0] = s
+    dense_seg = np.full(span, -1, dtype=np.int64)
+    dense_seg[b - b0] = inv
+    max_lag = min(span - 1, int(math.ceil(_MAX_LAG_RESOLUTIONS * float(resolution_m) / bl)), k - 1)
+    rho = envelope_correlation(np.arange(max_lag + 1) * bl, resolution_m, filter_order)
+    acc = np.bincount(inv, weights=s * s, minlength=segments.size)
+    for lag in range(1, max_lag + 1):
+        if rho[lag] == 0.0:
+            continue
+        same = (dense_seg[:-lag] == dense_seg[lag:]) & (dense_seg[lag:] >= 0)
+        if not np.any(same):
+            continue
+        prod = dense[:-lag][same] * dense[lag:][same]
+        acc += 2.0 * rho[lag] * np.bincount(dense_seg[lag:][same], weights=prod, minlength=segments.size)
+    return segments, np.sqrt(np.maximum(acc, 0.0)) / n
