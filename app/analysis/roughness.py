@@ -67,6 +67,7 @@ from app.analysis.uncertainty import (
     _response_squared,
     clipped_sqrt_moments,
     correlation_length,
+    rice_clipped_moments,
 )
 from app.analysis.vkf import vkf
 
@@ -95,17 +96,29 @@ _CARRIER_OF_RATE = 0.25
 _PREFILTER_ORDER = 4
 
 
-@lru_cache(maxsize=8)
-def floor_gain(filter_order: int = 2, offset: float = SIDEBAND_OFFSET) -> float:
-    """Power in the order's band over the power the side bands see, for a flat density.
+def floor_gain(
+    filter_order: int = 2,
+    offset: float = SIDEBAND_OFFSET,
+    multipliers: np.ndarray | None = None,
+    bandwidths: np.ndarray | None = None,
+    sleeper_row: int = 0,
+) -> float:
+    """Power in the sleeper order's band over the power its side bands see, for a flat density.
 
-    The residual under the sleeper order is the signal less the order, i.e.
-    ``(1 − H)`` of it near ``f_s``; a side band at ``±offset·B`` sees it through
-    ``H(f ∓ offset·B)``. For a density flat around ``f_s``::
+    For a stationary signal the coupled VKF splits the content at a frequency f
+    among the orders in proportion to ``w_n(f) = H_n/(1 − H_n) = 1 / ((√2−1)(2(f − f_n)/B_n)^(2q))``
+    (the weights of its least-squares problem): order ``n`` takes
+    ``G_n = w_n / (1 + Σ_m w_m)``, the residual keeps ``R = 1 / (1 + Σ_m w_m)`` —
+    ``H_n`` and ``1 − H_n`` for an order alone, a narrow notch at every wheel
+    order, which takes a slice of the side bands and, less, of the sleeper
+    order's own band. A side band at ``±offset·B`` sees the residual through
+    ``H_s(f ∓ offset·B)``. For a density flat around ``f_s``::
 
-        κ = ∫ H(f)² df / ∫ (1 − H(f))² H(f − offset·B)² df
+        κ = ∫ G_s(f)² df / ½ Σ_± ∫ R(f)² H_s(f ∓ offset·B)² df
 
-    (1.108 at q = 2, offset 1.5). ``κ × side-band power`` is the floor in the band.
+    (1.108 at q = 2, offset 1.5 for the sleeper order alone; 1.39 with the
+    default recipe's wheel orders on 0.92 m wheels). ``κ × side-band power`` is
+    the floor in the order's band.
 
     Parameters
     ----------
@@ -113,11 +126,52 @@ def floor_gain(filter_order: int = 2, offset: float = SIDEBAND_OFFSET) -> float:
         q of the VKF, 1–3.
     offset : float
         Side-band centre from ``f_s`` in bandwidths (> 0.5).
+    multipliers, bandwidths : ndarray, shape (s,), optional
+        Every tracked order's frequency and full -3 dB bandwidth per unit speed
+        (Hz per m/s: the recipe's ``multipliers`` and ``bandwidth_per_speed``);
+        default: the sleeper order alone.
+    sleeper_row : int
+        Row of the sleeper order in them.
     """
     if filter_order not in STEP_WIDTH_FACTORS:
         raise ValueError(f"filter_order must be 1, 2 or 3, got {filter_order!r}")
     if not (math.isfinite(offset) and offset > 0.5):
         raise ValueError(f"offset must be a number > 0.5 bandwidths, got {offset!r}")
+    if multipliers is None or bandwidths is None:
+        return _lone_floor_gain(int(filter_order), float(offset))
+    mult = np.asarray(multipliers, dtype=np.float64)
+    bw = np.asarray(bandwidths, dtype=np.float64)
+    if mult.ndim != 1 or bw.shape != mult.shape or not 0 <= sleeper_row < mult.size:
+        raise ValueError("multipliers and bandwidths must be 1-D of one length holding sleeper_row")
+    if not (np.all(bw > 0) and np.all(np.isfinite(mult))):
+        raise ValueError("bandwidths must be > 0 and multipliers finite")
+    f0, b0 = float(mult[sleeper_row]), float(bw[sleeper_row])
+    # in units of the sleeper bandwidth, around f_s; fine enough for the narrowest order
+    step = min(float(bw.min()) / b0 / 40.0, 0.01)
+    kappa = np.arange(-(offset + 6.0), offset + 6.0 + step, step)
+    rel = (mult - f0) / b0
+    widths = bw / b0
+
+    def weight(k: np.ndarray, centre: float, width: float) -> np.ndarray:
+        d = (math.sqrt(2.0) - 1.0) * (2.0 * (k - centre) / width) ** (2 * filter_order)
+        return 1.0 / np.maximum(d, 1e-300)
+
+    def h(k: np.ndarray, centre: float, width: float) -> np.ndarray:
+        return 1.0 / (1.0 + (math.sqrt(2.0) - 1.0) * (2.0 * (k - centre) / width) ** (2 * filter_order))
+
+    total = np.zeros_like(kappa)
+    for i in range(mult.size):
+        if abs(rel[i]) < offset + 6.0 + 4.0 * widths[i]:
+            total += weight(kappa, rel[i], widths[i])
+    own = weight(kappa, 0.0, 1.0)
+    residual = 1.0 / (1.0 + total)
+    inside = np.sum((own * residual) ** 2)
+    side = 0.5 * sum(np.sum(residual**2 * h(kappa, sgn * offset, 1.0) ** 2) for sgn in (-1.0, 1.0))
+    return float(inside / side)
+
+
+@lru_cache(maxsize=8)
+def _lone_floor_gain(filter_order: int, offset: float) -> float:
     kappa = np.linspace(-40.0, 40.0, 160_001)
     h2 = _response_squared(kappa, filter_order)
     notch = (1.0 - np.sqrt(h2)) ** 2
@@ -134,6 +188,7 @@ def sideband_floor(
     order_multiplier: float,
     filter_order: int = 2,
     offset: float = SIDEBAND_OFFSET,
+    gain: float | None = None,
 ) -> np.ndarray:
     """Floor of the sleeper order from the residual's side bands, per grid point, (m/s²)².
 
@@ -158,11 +213,14 @@ def sideband_floor(
         q of the VKF.
     offset : float
         Side-band centre from ``f_s``, in bandwidths.
+    gain : float, optional
+        :func:`floor_gain` of the recipe the residual was made with (its wheel
+        orders notch the side bands too); default: the sleeper order's alone.
 
     Returns
     -------
     ndarray, shape (m,)
-        ``floor_gain · (|L|² + |U|²) / 2`` with ``L``, ``U`` the peak envelopes of the
+        ``gain · (|L|² + |U|²) / 2`` with ``L``, ``U`` the peak envelopes of the
         side bands (the VKF with the order's bandwidth rule, at ``f_s ∓ offset·B``).
         NaN where there is no room for them: the lower band's −3 dB edge below
         ``f_s / 2`` (track resolutions under ≈ 2 m on 0.6 m sleepers).
@@ -200,7 +258,8 @@ def sideband_floor(
     freqs = np.vstack([f_c - shift, f_c + shift])
     res = vkf(carrier, grid_rate, freqs, np.vstack([bw, bw]), filter_order, chunk_duration=np.inf)
     env = res.envelope_at(np.arange(z.size))
-    return floor_gain(filter_order, offset) * 0.5 * (np.abs(env[0]) ** 2 + np.abs(env[1]) ** 2)
+    k = floor_gain(filter_order, offset) if gain is None else float(gain)
+    return k * 0.5 * (np.abs(env[0]) ** 2 + np.abs(env[1]) ** 2)
 
 
 def _dense(bins: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -339,13 +398,18 @@ def single_wheel_estimate(
     Returns
     -------
     amp : ndarray
-        ``sqrt(max(power − floor, 0))``.
+        ``sqrt(max(X, 0)) / c``: ``X = power − F_side`` with ``F_side`` the side-band
+        floor averaged over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths (one
+        bin's side bands scatter as much as the floor itself; the floor's density
+        changes with the track, on the scale of its sections), ``c = E[sqrt(X⁺)] / S``
+        the square root's bias for that floor (exact for ``|S + R|²``,
+        :func:`app.analysis.uncertainty.rice_clipped_moments`; ``S²`` the local mean of ``X``).
     sd : ndarray
-        Root mean square error of ``amp`` under the power model: ``X = |E|² − F_side``
-        has the expectation ``S² + ΔF`` (``ΔF ≥ 0``: the in-band floor the side bands
-        miss, :func:`inband_floor`) and the spread
-        ``σ² = 2 S² F + F² + F_side²/2`` (``F`` the in-band floor; the last term the
-        side bands' own scatter), ``S²`` the local mean of ``X − ΔF``.
+        Root mean square error of ``amp`` for ``|E|² = |S + R|²`` with ``E|R|² = F``, the
+        in-band floor (:func:`inband_floor`, at least ``F_side``): what the side bands
+        miss, ``F − F_side``, stays in ``amp`` as a bias and counts; ``S²`` is the local
+        mean of ``X`` less it. The averaged side bands' own scatter (``W/ℓ`` looks)
+        adds ``(F_side / (2 amp))² ℓ/(2W)``.
     """
     b = np.asarray(bins, dtype=np.int64)
     p = np.asarray(power, dtype=np.float64)
@@ -353,23 +417,44 @@ def single_wheel_estimate(
     e = np.asarray(envelope, dtype=np.complex128)
     if not (b.shape == p.shape == f_side.shape == e.shape) or b.ndim != 1:
         raise ValueError("bins, power, floor and envelope must be 1-D of one length")
-    f_side = np.where(np.isfinite(f_side), np.maximum(f_side, 0.0), 0.0)
-    x = p - f_side
+    if b.size == 0:
+        return p.copy(), p.copy()
+    w = _window_m(resolution_m, filter_order)
+    f_side_w = np.maximum(np.nan_to_num(smooth_along(b, f_side, w, bin_length)), 0.0)
+    x = p - f_side_w
     amp = np.sqrt(np.maximum(x, 0.0))
     amp[~np.isfinite(p)] = np.nan
-    if b.size == 0:
-        return amp, amp.copy()
-    w = _window_m(resolution_m, filter_order)
-    f_side_w = np.nan_to_num(smooth_along(b, f_side, w, bin_length))
     f_in = np.maximum(np.nan_to_num(inband_floor(b, e, bin_length, resolution_m, filter_order)), f_side_w)
     missed = f_in - f_side_w
-    s2 = np.maximum(np.nan_to_num(smooth_along(b, x, w, bin_length)) - missed, 0.0)
-    sigma = np.sqrt(2.0 * s2 * f_in + f_in**2 + 0.5 * f_side_w**2)
-    mean_sqrt, mean_pos = clipped_sqrt_moments(s2 + missed, sigma)
+    looks = w / correlation_length(resolution_m, filter_order)
+    x_w = np.maximum(np.nan_to_num(smooth_along(b, x, w, bin_length)), 0.0)
+    # the square root's own bias for the floor taken off: E sqrt((|S + R|² − F)⁺) / S, E|R|² = F = F_side
+    m1, _ = rice_clipped_moments(x_w, f_side_w, f_side_w)
+    root = np.sqrt(x_w)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.where(root > 0, m1 / np.where(root > 0, root, 1.0), 1.0)
+    c = np.where(np.isfinite(c) & (c > 0), c, 1.0)
+    amp = amp / c
+    # the 1-σ: the whole in-band floor F_in (what the side bands miss stays in X as a bias), and the
+    # averaged side bands' own scatter
+    s2 = np.maximum(x_w - missed, 0.0)
+    m1, m2 = rice_clipped_moments(s2, f_in, f_side_w)
     s = np.sqrt(s2)
-    sd = np.sqrt(np.maximum(mean_pos - 2.0 * s * mean_sqrt + s2, 0.0))
+    mse = m2 / c**2 - 2.0 * s * m1 / c + s2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        floor_var = np.where(amp > 0, (0.5 / np.where(amp > 0, amp, 1.0)) ** 2 * 0.5 * f_side_w**2 / looks, 0.0)
+    sd = np.sqrt(np.maximum(mse, 0.0) + floor_var)
     sd[~np.isfinite(amp)] = np.nan
     return amp, sd
+
+
+def _sqrt_bias(mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """``E[sqrt(X⁺)] / sqrt(mu)`` for ``X ~ N(mu, sigma²)``: 1 where ``sigma`` or ``mu`` is 0."""
+    mean_sqrt, _ = clipped_sqrt_moments(mu, sigma)
+    root = np.sqrt(np.maximum(mu, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.where((root > 0) & (sigma > 0), mean_sqrt / np.where(root > 0, root, 1.0), 1.0)
+    return np.where(np.isfinite(c) & (c > 0), c, 1.0)
 
 
 def two_rail_estimate(
@@ -424,10 +509,7 @@ def two_rail_estimate(
     s2 = np.maximum(np.nan_to_num(smooth_along(b, x, w, bin_length)), 0.0)
     sigma = np.sqrt(s2 * (f1 + f2) / 2.0 + f1 * f2 / 2.0)
     mean_sqrt, mean_pos = clipped_sqrt_moments(s2, sigma)
-    s = np.sqrt(s2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        c = np.where((s > 0) & (sigma > 0), mean_sqrt / np.where(s > 0, s, 1.0), 1.0)
-    c = np.where(np.isfinite(c) & (c > 0), c, 1.0)
+    c = _sqrt_bias(s2, sigma)
     amp = raw / c
     spread = np.sqrt(np.maximum(mean_pos - mean_sqrt**2, 0.0))
     sd = spread / c

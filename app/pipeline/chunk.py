@@ -41,7 +41,7 @@ from app.analysis.wheel_oor import radius_phasor
 from app.io import WHEELS, open_run
 from app.pipeline.chunkfile import wheel_members, write_chunk_file
 from app.pipeline.plan import ChunkSpec
-from app.pipeline.roughness_sums import SleeperTrack, rough_groups
+from app.pipeline.roughness_sums import SleeperTrack, recipe_floor_gain, rough_groups
 
 __all__ = ["OOR_WINDOW_M", "SHORT_RECORD_TOL", "PipelineCancelled", "chunk_warnings", "process_chunk",
            "sleeper_rms", "solve_logged", "wheel_groups"]
@@ -324,7 +324,8 @@ def process_chunk(
                 )
                 tracks[wheel] = SleeperTrack(env[sleeper], demod, bins_of(out_idx), w_out * moving,
                                              float(recipe.bandwidth_per_speed[sleeper]), recipe.floor_speed,
-                                             float(recipe.multipliers[sleeper]), recipe.filter_order)
+                                             float(recipe.multipliers[sleeper]), recipe.filter_order,
+                                             recipe_floor_gain(recipe))
 
                 # wheel OOR: radius phasors of the wheel orders, summed per window
                 rho = radius_phasor(env[order_rows], v_abs[out_idx - lo], recipe.wheel_diameter, orders)

@@ -22,9 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.analysis.binning import BinSums
-from app.analysis.roughness import sideband_floor
+from app.analysis.recipe import OrderRecipe
+from app.analysis.roughness import floor_gain, sideband_floor
 
-__all__ = ["AXLE_PAIRS", "SleeperTrack", "rough_groups"]
+__all__ = ["AXLE_PAIRS", "SleeperTrack", "recipe_floor_gain", "rough_groups"]
 
 #: the two wheels of an axle (right, left): same sleepers, different rails
 AXLE_PAIRS: tuple[tuple[str, str], ...] = (("11", "12"), ("41", "42"))
@@ -48,6 +49,8 @@ class SleeperTrack:
         The sleeper order's bandwidth rule (Hz per m/s; m/s).
     multiplier : float
         The sleeper order's frequency per unit speed (1/d_s), Hz per m/s.
+    gain : float
+        :func:`app.analysis.roughness.floor_gain` of the wheel's recipe.
     filter_order : int
         q of the VKF.
     """
@@ -60,6 +63,13 @@ class SleeperTrack:
     floor_speed: float
     multiplier: float
     filter_order: int
+    gain: float
+
+
+def recipe_floor_gain(recipe: OrderRecipe) -> float:
+    """:func:`app.analysis.roughness.floor_gain` of a wheel's recipe (every tracked order notches the residual)."""
+    return floor_gain(recipe.filter_order, multipliers=recipe.multipliers, bandwidths=recipe.bandwidth_per_speed,
+                      sleeper_row=recipe.sleeper_row)
 
 
 def rough_groups(tracks: Mapping[str, SleeperTrack], speed: np.ndarray, grid_rate: float) -> dict[str, BinSums]:
@@ -86,7 +96,7 @@ def rough_groups(tracks: Mapping[str, SleeperTrack], speed: np.ndarray, grid_rat
             "re": e.real,
             "im": e.imag,
             "floor": sideband_floor(tr.demod, grid_rate, speed, tr.bandwidth_per_speed, tr.floor_speed,
-                                    tr.multiplier, tr.filter_order),
+                                    tr.multiplier, tr.filter_order, gain=tr.gain),
         }
     for a, b in AXLE_PAIRS:
         if a in tracks and b in tracks:

@@ -1,0 +1,119 @@
+"""app.analysis.uncertainty: along-track correlation of a track order's envelope, the power model, segments.
+
+Checked against independent references: the correlation by direct numerical integration of the
+filter's squared response, the segment rule by Monte Carlo through the real VKF, the moments by
+sampling.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from app.analysis.recipe import STEP_WIDTH_FACTOR, order_recipe
+from app.analysis.settings import ProcessingSettings
+from app.analysis.uncertainty import (
+    STEP_WIDTH_FACTORS,
+    clipped_sqrt_moments,
+    correlation_length,
+    envelope_correlation,
+    segment_sd,
+)
+
+
+def test_step_width_factors_are_the_recipes():
+    assert STEP_WIDTH_FACTORS == STEP_WIDTH_FACTOR
+
+
+@pytest.mark.parametrize("q", [1, 2, 3])
+@pytest.mark.parametrize("res", [2.0, 3.0, 6.0])
+def test_correlation_against_direct_integration(q, res):
+    b = STEP_WIDTH_FACTOR[q] / res  # full -3 dB bandwidth, cycles per m
+
+    def h2(k):
+        return (1.0 / (1.0 + (np.sqrt(2.0) - 1.0) * (2.0 * k / b) ** (2 * q))) ** 2
+
+    norm = quad(h2, 0, np.inf, limit=400)[0]
+    for lag in (0.0, 0.5, 1.3, 2.7, 4.0, 7.5):
+        ref = quad(lambda k, lag=lag: h2(k) * np.cos(2 * np.pi * k * lag), 0, 40 * b, limit=800)[0] / norm
+        assert envelope_correlation(lag, res, q) == pytest.approx(ref, abs=2e-4)
+    assert correlation_length(res, q) == pytest.approx(1.0 / (2.0 * norm), rel=1e-4)
+
+
+def test_correlation_length_of_the_default():
+    assert correlation_length() == pytest.approx(4.01, abs=0.01)
+    assert correlation_length(6.0) == pytest.approx(2 * correlation_length(3.0))
+
+
+def test_segment_sd_matches_monte_carlo_through_the_vkf():
+    """White noise through the real recipe: the scatter of 10 m and 40 m means of the sleeper envelope's
+    real part against segment_sd of its per-bin scatter."""
+    fs, v = 2000.0, 35.0
+    recipe = order_recipe(0.92, 0.6, ProcessingSettings())
+    rng = np.random.default_rng(3)
+    n = int(fs * 2000 / v)  # 2 km
+    y = rng.standard_normal(n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = recipe.solve(y, fs, np.full(n, v))
+    step = int(fs * 0.05 / v)
+    idx = np.arange(0, n, step)
+    e = res.envelope_at(idx)[recipe.sleeper_row].real
+    b = np.floor(idx * v / fs / 0.25).astype(np.int64)
+    per_bin = np.bincount(b, e) / np.bincount(b)
+    bins = np.arange(per_bin.size)
+    inner = slice(200, -200)
+    sd_bin = per_bin[inner].std()
+    for level in (10.0, 40.0):
+        k = int(level / 0.25)
+        _, g = np.unique(bins[inner] // k, return_inverse=True)
+        means = np.bincount(g, per_bin[inner]) / np.bincount(g)
+        segs, sd = segment_sd(bins[inner], np.full(bins[inner].size, sd_bin), level)
+        assert np.std(means[1:-1]) == pytest.approx(np.median(sd), rel=0.2), level
+
+
+def test_segment_sd_limits():
+    bins = np.arange(400)
+    sd = np.full(400, 2.0)
+    # one bin per segment: the bin's own sd
+    segs, s = segment_sd(bins, sd, 0.25)
+    np.testing.assert_allclose(s, 2.0)
+    # long segments: sd * sqrt(l / L)
+    segs, s = segment_sd(bins, sd, 100.0)
+    assert s[0] == pytest.approx(2.0 * np.sqrt(correlation_length() / 100.0), rel=0.02)
+    # a very fine resolution: bins independent, sd / sqrt(n)
+    segs, s = segment_sd(bins, sd, 10.0, resolution_m=0.01)
+    np.testing.assert_allclose(s, 2.0 / np.sqrt(40), rtol=1e-6)
+    # NaN bins are left out; gaps count as gaps
+    sd2 = sd.copy()
+    sd2[:40] = np.nan
+    segs, s = segment_sd(bins, sd2, 10.0)
+    assert segs[0] == 1 and s.size == 9
+
+
+def test_segment_sd_rejects_bad_input():
+    with pytest.raises(ValueError, match="one length"):
+        segment_sd(np.arange(3), np.ones(4), 1.0)
+    with pytest.raises(ValueError, match="unique"):
+        segment_sd(np.array([1, 1, 2]), np.ones(3), 1.0)
+    with pytest.raises(ValueError, match="multiple"):
+        segment_sd(np.arange(3), np.ones(3), 0.3)
+    with pytest.raises(ValueError, match="integers"):
+        segment_sd(np.arange(3.0), np.ones(3), 1.0)
+    with pytest.raises(ValueError, match="filter_order"):
+        envelope_correlation(1.0, 3.0, 4)
+    with pytest.raises(ValueError, match="resolution_m"):
+        correlation_length(0.0)
+
+
+@pytest.mark.parametrize("mu, sigma", [(3.0, 1.0), (0.5, 1.0), (-1.0, 2.0), (40.0, 1.0), (2.0, 0.0)])
+def test_clipped_sqrt_moments_against_sampling(mu, sigma):
+    x = mu + sigma * np.random.default_rng(0).standard_normal(2_000_000)
+    m_sqrt, m_pos = clipped_sqrt_moments(mu, sigma)
+    assert float(m_sqrt) == pytest.approx(np.sqrt(np.maximum(x, 0)).mean(), rel=2e-3, abs=1e-4)
+    assert float(m_pos) == pytest.approx(np.maximum(x, 0).mean(), rel=2e-3, abs=1e-4)
+    with pytest.raises(ValueError, match="sigma"):
+        clipped_sqrt_moments(1.0, -1.0)
