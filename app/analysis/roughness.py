@@ -78,6 +78,7 @@ __all__ = [
     "increment_lag",
     "inband_floor",
     "sideband_floor",
+    "side_floor",
     "single_wheel_estimate",
     "smooth_along",
     "two_rail_estimate",
@@ -219,11 +220,13 @@ def sideband_floor(
 
     Returns
     -------
-    ndarray, shape (m,)
-        ``gain · (|L|² + |U|²) / 2`` with ``L``, ``U`` the peak envelopes of the
-        side bands (the VKF with the order's bandwidth rule, at ``f_s ∓ offset·B``).
-        NaN where there is no room for them: the lower band's −3 dB edge below
-        ``f_s / 2`` (track resolutions under ≈ 2 m on 0.6 m sleepers).
+    ndarray, shape (2, m)
+        ``gain · |L|²`` and ``gain · |U|²`` with ``L``, ``U`` the peak envelopes of the
+        lower and upper side band (the VKF with the order's bandwidth rule, at
+        ``f_s ∓ offset·B``): each the floor the order's band would hold if the
+        density there were that band's. NaN where there is no room for them: the
+        lower band's −3 dB edge below ``f_s / 2`` (track resolutions under ≈ 2 m on
+        0.6 m sleepers).
 
     Notes
     -----
@@ -239,7 +242,7 @@ def sideband_floor(
     if not (math.isfinite(grid_rate) and grid_rate > 0):
         raise ValueError(f"grid_rate must be > 0 Hz, got {grid_rate!r}")
     if z.size < 4:
-        return np.full(z.size, np.nan)
+        return np.full((2, z.size), np.nan)
     bw = float(bandwidth_per_speed) * np.maximum(v, float(floor_speed))
     f_c = _CARRIER_OF_RATE * grid_rate
     shift = offset * float(bandwidth_per_speed) * v
@@ -247,7 +250,7 @@ def sideband_floor(
             order_multiplier):
         # no room for the side bands (the lower one would reach below f_s / 2: a resolution under ~2 m
         # on 0.6 m sleepers), or a grid too coarse for them: no floor from the side bands
-        return np.full(z.size, np.nan)
+        return np.full((2, z.size), np.nan)
     # keep the grid series to |δf| < grid_rate / 8 first: on the carrier, the real signal's mirror
     # folds δf ≈ −grid_rate/2 onto the side bands (there: images of the sleeper harmonics 4·f_s …)
     if z.size > 3 * 2 * _PREFILTER_ORDER:
@@ -259,7 +262,7 @@ def sideband_floor(
     res = vkf(carrier, grid_rate, freqs, np.vstack([bw, bw]), filter_order, chunk_duration=np.inf)
     env = res.envelope_at(np.arange(z.size))
     k = floor_gain(filter_order, offset) if gain is None else float(gain)
-    return k * 0.5 * (np.abs(env[0]) ** 2 + np.abs(env[1]) ** 2)
+    return k * np.abs(env) ** 2
 
 
 def _dense(bins: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -354,18 +357,59 @@ def inband_floor(
     inc = np.full(span, np.nan)
     if span > lag:
         inc[h : span - (lag - h)] = np.abs(dense[lag:] - dense[:-lag]) ** 2
-    ok = np.isfinite(inc)
+    med = _median_dense(inc, _window_m(resolution_m, filter_order), bin_length)
+    return med[pos] / (2.0 * math.log(2.0))
+
+
+def _median_dense(dense: np.ndarray, window_m: float, bin_length: float) -> np.ndarray:
+    """Moving median over ``window_m`` of a dense series (NaN: gaps, which take the value before them)."""
+    ok = np.isfinite(dense)
     if not np.any(ok):
-        return np.full(b.size, np.nan)
-    # gaps take the nearest value before them (the median window then spans real data only)
-    idx = np.where(ok, np.arange(span), 0)
+        return np.full(dense.size, np.nan)
+    idx = np.where(ok, np.arange(dense.size), 0)
     np.maximum.accumulate(idx, out=idx)
     first = int(np.argmax(ok))
     idx[:first] = first
-    filled = inc[idx]
-    win = max(1, int(round(FLOOR_WINDOW_LENGTHS * correlation_length(resolution_m, filter_order) / bin_length)))
-    med = median_filter(filled, size=win, mode="nearest")
-    return med[pos] / (2.0 * math.log(2.0))
+    win = max(1, int(round(window_m / bin_length)))
+    return median_filter(dense[idx], size=win, mode="nearest")
+
+
+def side_floor(bins: np.ndarray, floor: np.ndarray, bin_length: float = 0.25, resolution_m: float = 3.0,
+               filter_order: int = 2) -> np.ndarray:
+    """The floor under the order from its two side bands, (m/s²)², per bin.
+
+    Each side band's floor (:func:`sideband_floor`) is taken as the moving median
+    over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths divided by ln 2 (a
+    circular Gaussian band's power is exponentially distributed: median = ln 2 ×
+    mean). A median, not a mean: a step of the sleeper response (a stiffness
+    change) or an impact (a weld) spills its transient into the side bands over a
+    few metres; the median of a 20 m window ignores it, as it should: that is
+    no floor under the order. Then the lesser of the two: the roughness response
+    around ``f_s`` is one resonance peak, so the band inside holds at least the
+    density of the weaker side (more, where the peak sits at ``f_s``), whereas
+    their mean would overshoot on the peak's flank (``f_s`` above or below the
+    resonance: soft or stiff track).
+
+    Parameters
+    ----------
+    bins : ndarray of int, shape (n,)
+    floor : ndarray, shape (2, n)
+        Bin means of the lower and upper side band's floor, (m/s²)².
+    bin_length, resolution_m, filter_order :
+        The run's binning and track-order settings.
+    """
+    b = np.asarray(bins, dtype=np.int64)
+    sides = np.asarray(floor, dtype=np.float64)
+    if b.ndim != 1 or sides.shape != (2, b.size):
+        raise ValueError(f"floor must have shape (2, {b.size}) for {b.size} bins, got {sides.shape}")
+    if b.size == 0:
+        return np.zeros(0)
+    w = _window_m(resolution_m, filter_order)
+    out = []
+    for side in sides:
+        dense, pos, _ = _dense(b, side)
+        out.append(_median_dense(dense, w, bin_length)[pos] / math.log(2.0))
+    return np.maximum(np.nan_to_num(np.minimum(out[0], out[1])), 0.0)
 
 
 def _window_m(resolution_m: float, filter_order: int) -> float:
@@ -388,8 +432,9 @@ def single_wheel_estimate(
     bins : ndarray of int, shape (n,)
     power : ndarray, shape (n,)
         Bin means of ``|E|²``, (m/s²)².
-    floor : ndarray, shape (n,)
-        Bin means of the side-band floor (:func:`sideband_floor`), (m/s²)².
+    floor : ndarray, shape (2, n)
+        Bin means of the floor from the lower and the upper side band
+        (:func:`sideband_floor`), (m/s²)².
     envelope : ndarray, complex, shape (n,)
         Bin means of ``E``, m/s².
     bin_length, resolution_m, filter_order :
@@ -398,10 +443,11 @@ def single_wheel_estimate(
     Returns
     -------
     amp : ndarray
-        ``sqrt(max(X, 0)) / c``: ``X = power − F_side`` with ``F_side`` the side-band
-        floor averaged over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths (one
-        bin's side bands scatter as much as the floor itself; the floor's density
-        changes with the track, on the scale of its sections), ``c = E[sqrt(X⁺)] / S``
+        ``sqrt(max(X, 0)) / c``: ``X = power − F_side`` with ``F_side`` the floor of
+        :func:`side_floor` (over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths:
+        one bin's side band scatters as much as the floor itself, and the floor's
+        density changes with the track on the scale of its sections),
+        ``c = E[sqrt(X⁺)] / S``
         the square root's bias for that floor (exact for ``|S + R|²``,
         :func:`app.analysis.uncertainty.rice_clipped_moments`; ``S²`` the local mean of ``X``).
     sd : ndarray
@@ -413,14 +459,14 @@ def single_wheel_estimate(
     """
     b = np.asarray(bins, dtype=np.int64)
     p = np.asarray(power, dtype=np.float64)
-    f_side = np.asarray(floor, dtype=np.float64)
+    sides = np.asarray(floor, dtype=np.float64)
     e = np.asarray(envelope, dtype=np.complex128)
-    if not (b.shape == p.shape == f_side.shape == e.shape) or b.ndim != 1:
-        raise ValueError("bins, power, floor and envelope must be 1-D of one length")
+    if not (b.shape == p.shape == e.shape) or b.ndim != 1 or sides.shape != (2, b.size):
+        raise ValueError("bins, power and envelope must be 1-D of one length n, floor of shape (2, n)")
     if b.size == 0:
         return p.copy(), p.copy()
     w = _window_m(resolution_m, filter_order)
-    f_side_w = np.maximum(np.nan_to_num(smooth_along(b, f_side, w, bin_length)), 0.0)
+    f_side_w = side_floor(b, sides, bin_length, resolution_m, filter_order)
     x = p - f_side_w
     amp = np.sqrt(np.maximum(x, 0.0))
     amp[~np.isfinite(p)] = np.nan

@@ -209,7 +209,10 @@ def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                   mass_max_kg: Annotated[float, Query(gt=0)] = 600.0,
                   max_points: PointsQ = _MAX_POINTS) -> dict:
     """Slope of the sleeper-passage force amplitude (kN) on the acceleration amplitude
-    (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``."""
+    (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``.
+
+    Both amplitudes of the same wheel as measured (``sleeper_amp_raw``; ``sleeper_amp`` in jobs
+    before issue 26): the roughness response is in both, so it is not taken out of either."""
     if mass_min_kg >= mass_max_kg:
         raise ApiError(422, "mass_min_kg", "must be below mass_max_kg")
     sel = runs.select(db)
@@ -219,7 +222,9 @@ def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
     out = []
     for wh in ([w] if w else sorted(df["wheel"].unique().tolist())):
         pw = df[df["wheel"] == wh]
-        z, f = pw["sleeper_amp"].to_numpy(), pw["sleeper_force_amp"].to_numpy()
+        raw = pw["sleeper_amp_raw"].to_numpy(dtype=np.float64)
+        z = np.where(np.isfinite(raw), raw, pw["sleeper_amp"].to_numpy(dtype=np.float64))
+        f = pw["sleeper_force_amp"].to_numpy()
         mf = fit_unsprung_mass(z, f, groups=pw["run_id"].to_numpy(), hac_lag=_lag(sel),
                                plausible_kg=(mass_min_kg, mass_max_kg)) if z.size else None
         idx = decimate_indices(z.size, max_points)

@@ -24,7 +24,7 @@ from app.db.session import Database
 __all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
            "speed_exponents", "normalised", "section_types", "num", "nums", "PROFILE_CACHE_ROWS"]
 
-_COLS = ["run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp"]
+_COLS = ["run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp", "sleeper_amp_raw"]
 #: rows of analytics profile frames kept in memory per API process (about 60 MB)
 PROFILE_CACHE_ROWS = 1_000_000
 

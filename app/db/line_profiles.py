@@ -23,7 +23,8 @@ from app.db.models import Job, JobStatus, ProfileBin, Run
 __all__ = ["ANALYTICS_COLUMNS", "runs_with_results", "result_jobs", "analytics_frame"]
 
 #: Columns of :func:`analytics_frame`.
-ANALYTICS_COLUMNS: tuple[str, ...] = ("run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp")
+ANALYTICS_COLUMNS: tuple[str, ...] = ("run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp",
+                                       "sleeper_amp_raw")
 
 
 def runs_with_results(session: Session, line_id: str, track: str | None) -> list[Run]:
@@ -64,7 +65,7 @@ def analytics_frame(
     km_from: float | None = None,
     km_to: float | None = None,
     wheel: str | None = None,
-    columns: Sequence[str] = ("speed_mean", "sleeper_amp", "sleeper_force_amp"),
+    columns: Sequence[str] = ("speed_mean", "sleeper_amp", "sleeper_force_amp", "sleeper_amp_raw"),
 ) -> pd.DataFrame:
     """Profile rows of the result jobs ``jobs`` (``(run_id, job_id)`` pairs, :func:`result_jobs`),
     columns ``run_id, wheel, bin, km`` and ``columns``.

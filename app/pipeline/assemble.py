@@ -75,7 +75,7 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
     ----------
     rough : pandas.DataFrame
         The finalised ``rough`` group (:mod:`app.pipeline.roughness_sums`): ``bin``,
-        ``pow``, ``re``, ``im``, ``floor`` and, for an axle with both wheels
+        ``pow``, ``re``, ``im``, ``floor_lo``, ``floor_hi`` and, for an axle with both wheels
         measured, ``cross_re`` and ``pow_other``.
     settings : ProcessingSettings
     wheel_diameter : float
@@ -97,7 +97,8 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
                                     rough["pow_other"].to_numpy(), **kw)
     else:
         env = rough["re"].to_numpy() + 1j * rough["im"].to_numpy()
-        amp, sd = single_wheel_estimate(bins, rough["pow"].to_numpy(), rough["floor"].to_numpy(), env, **kw)
+        floor = rough[["floor_lo", "floor_hi"]].to_numpy().T
+        amp, sd = single_wheel_estimate(bins, rough["pow"].to_numpy(), floor, env, **kw)
     return pd.DataFrame({"bin": bins, "sleeper_amp": amp, "sleeper_amp_sd": sd})
 
 

@@ -6,7 +6,8 @@ writes one more group of additive per-bin sums per wheel, ``rough``:
 
 * ``pow``: ``|E|²`` of the sleeper order, (m/s²)²;
 * ``re``, ``im``: the envelope ``E`` itself, m/s²;
-* ``floor``: the floor beside the order (:func:`app.analysis.roughness.sideband_floor`), (m/s²)²;
+* ``floor_lo``, ``floor_hi``: the floor from the side band below and above the order
+  (:func:`app.analysis.roughness.sideband_floor`), (m/s²)²;
 * for the wheels of an axle whose both wheels are measured (:data:`AXLE_PAIRS`):
   ``cross_re``, ``cross_im`` = ``E · conj(E_other)`` and ``pow_other`` = ``|E_other|²``.
 
@@ -91,13 +92,9 @@ def rough_groups(tracks: Mapping[str, SleeperTrack], speed: np.ndarray, grid_rat
     values: dict[str, dict[str, np.ndarray]] = {}
     for wheel, tr in tracks.items():
         e = tr.envelope
-        values[wheel] = {
-            "pow": np.abs(e) ** 2,
-            "re": e.real,
-            "im": e.imag,
-            "floor": sideband_floor(tr.demod, grid_rate, speed, tr.bandwidth_per_speed, tr.floor_speed,
-                                    tr.multiplier, tr.filter_order, gain=tr.gain),
-        }
+        lo, hi = sideband_floor(tr.demod, grid_rate, speed, tr.bandwidth_per_speed, tr.floor_speed,
+                                tr.multiplier, tr.filter_order, gain=tr.gain)
+        values[wheel] = {"pow": np.abs(e) ** 2, "re": e.real, "im": e.imag, "floor_lo": lo, "floor_hi": hi}
     for a, b in AXLE_PAIRS:
         if a in tracks and b in tracks:
             for me, other in ((a, b), (b, a)):
