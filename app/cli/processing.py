@@ -141,7 +141,8 @@ def process(
     """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
 
     ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
-    (``sleeper_amp``), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
+    (``sleeper_amp``: rail roughness out; ``sleeper_amp_raw`` the wheel's own, ``sleeper_amp_sd`` the
+    1-σ of ``sleeper_amp``), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
     (``sleeper_rms``), the wheel orders and the force amplitude; ``meta.json`` the settings and
     the warnings (docs/indicator.md).
 

@@ -75,11 +75,11 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
     ----------
     rough : pandas.DataFrame
         The finalised ``rough`` group (:mod:`app.pipeline.roughness_sums`): ``bin``,
-        ``pow``, ``re``, ``im``, ``floor_lo``, ``floor_hi`` and, for an axle with both wheels
-        measured, ``cross_re`` and ``pow_other``.
+        ``pow``, ``re``, ``im``, ``floor_lo``, ``floor_hi``, ``res_m`` (the recipe's resolution) and,
+        for an axle with both wheels measured, ``cross_re`` and ``pow_other``.
     settings : ProcessingSettings
     wheel_diameter : float
-        m (sets the track orders' resolution where ``track_resolution_m`` is None).
+        m (the track orders' resolution from the settings, for sums without ``res_m``).
 
     Returns
     -------
@@ -90,8 +90,9 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
         floor-corrected one (:func:`app.analysis.roughness.single_wheel_estimate`).
     """
     bins = rough["bin"].to_numpy(dtype=np.int64)
-    kw = {"bin_length": settings.bin_length_m, "resolution_m": _track_resolution(settings, wheel_diameter),
-          "filter_order": int(settings.filter_order)}
+    res_m = float(np.nanmedian(rough["res_m"])) if "res_m" in rough and rough["res_m"].notna().any() \
+        else _track_resolution(settings, wheel_diameter)
+    kw = {"bin_length": settings.bin_length_m, "resolution_m": res_m, "filter_order": int(settings.filter_order)}
     if "cross_re" in rough:
         amp, sd = two_rail_estimate(bins, rough["cross_re"].to_numpy(), rough["pow"].to_numpy(),
                                     rough["pow_other"].to_numpy(), **kw)

@@ -8,6 +8,8 @@ writes one more group of additive per-bin sums per wheel, ``rough``:
 * ``re``, ``im``: the envelope ``E`` itself, m/s²;
 * ``floor_lo``, ``floor_hi``: the floor from the side band below and above the order
   (:func:`app.analysis.roughness.sideband_floor`), (m/s²)²;
+* ``res_m``: the sleeper order's spatial resolution (10–90 % step width) the recipe solved it with, m
+  (constant: assembly reads the along-track correlation from the recipe that made the sums);
 * for the wheels of an axle whose both wheels are measured (:data:`AXLE_PAIRS`):
   ``cross_re``, ``cross_im`` = ``E · conj(E_other)`` and ``pow_other`` = ``|E_other|²``.
 
@@ -25,6 +27,7 @@ import numpy as np
 from app.analysis.binning import BinSums
 from app.analysis.recipe import OrderRecipe
 from app.analysis.roughness import floor_gain, sideband_floor
+from app.analysis.uncertainty import STEP_WIDTH_FACTORS
 
 __all__ = ["AXLE_PAIRS", "SleeperTrack", "recipe_floor_gain", "rough_groups"]
 
@@ -94,7 +97,9 @@ def rough_groups(tracks: Mapping[str, SleeperTrack], speed: np.ndarray, grid_rat
         e = tr.envelope
         lo, hi = sideband_floor(tr.demod, grid_rate, speed, tr.bandwidth_per_speed, tr.floor_speed,
                                 tr.multiplier, tr.filter_order, gain=tr.gain)
-        values[wheel] = {"pow": np.abs(e) ** 2, "re": e.real, "im": e.imag, "floor_lo": lo, "floor_hi": hi}
+        res_m = STEP_WIDTH_FACTORS[int(tr.filter_order)] / float(tr.bandwidth_per_speed)
+        values[wheel] = {"pow": np.abs(e) ** 2, "re": e.real, "im": e.imag, "floor_lo": lo, "floor_hi": hi,
+                         "res_m": np.full(e.size, res_m)}
     for a, b in AXLE_PAIRS:
         if a in tracks and b in tracks:
             for me, other in ((a, b), (b, a)):

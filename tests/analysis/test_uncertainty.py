@@ -117,3 +117,35 @@ def test_clipped_sqrt_moments_against_sampling(mu, sigma):
     assert float(m_pos) == pytest.approx(np.maximum(x, 0).mean(), rel=2e-3, abs=1e-4)
     with pytest.raises(ValueError, match="sigma"):
         clipped_sqrt_moments(1.0, -1.0)
+
+
+@pytest.mark.parametrize("s2, f, t", [(1.0, 0.43, 0.43), (1.0, 3.0, 3.0), (1.0, 3.0, 1.0), (0.01, 1.0, 1.0),
+                                      (100.0, 1.0, 1.0), (0.0, 1.0, 0.5), (4.0, 0.0, 1.0)])
+def test_rice_clipped_moments_against_sampling(s2, f, t):
+    from app.analysis.uncertainty import rice_clipped_moments
+
+    rng = np.random.default_rng(1)
+    r = np.sqrt(f / 2) * (rng.standard_normal(1_000_000) + 1j * rng.standard_normal(1_000_000))
+    p = np.abs(np.sqrt(s2) + r) ** 2
+    m_sqrt, m_pos = rice_clipped_moments(s2, f, t)
+    assert float(m_sqrt) == pytest.approx(np.sqrt(np.maximum(p - t, 0)).mean(), rel=5e-3, abs=1e-4)
+    assert float(m_pos) == pytest.approx(np.maximum(p - t, 0).mean(), rel=5e-3, abs=1e-4)
+
+
+def test_aggregate_profile_gives_the_segments_sd():
+    import pandas as pd
+
+    from app.analysis.aggregate import aggregate_profile
+
+    rng = np.random.default_rng(2)
+    bins = np.arange(1000, 1400)
+    df = pd.DataFrame({"bin": bins, "sleeper_amp": rng.random(400), "sleeper_amp_sd": rng.uniform(0.1, 0.2, 400)})
+    df = df.drop(index=[5, 6, 7])  # a gap
+    out = aggregate_profile(df.sample(frac=1.0, random_state=1), 10.0, ["sleeper_amp", "sleeper_amp_sd"])
+    segs, sd = segment_sd(df["bin"].to_numpy(), df["sleeper_amp_sd"].to_numpy(), 10.0)
+    np.testing.assert_allclose(out["sleeper_amp_sd_mean"], sd)
+    np.testing.assert_allclose(out["km_from"], segs * 10.0 / 1000)
+    assert (out["sleeper_amp_sd_max"] >= out["sleeper_amp_sd_mean"]).all()
+    # another resolution, another correlation
+    wide = aggregate_profile(df, 10.0, ["sleeper_amp_sd"], resolution_m=6.0)
+    assert (wide["sleeper_amp_sd_mean"] > out["sleeper_amp_sd_mean"]).all()

@@ -26,6 +26,7 @@ def _synthetic(n_bins: int = N_BINS):
             "speed_mean": 20.0, "sleeper_amp": rng.lognormal(0, 0.3, n_bins),
             **{f"order_amp_{i:02d}": rng.random(n_bins) for i in range(1, 12)},
             "residual_rms": 0.2, "sleeper_force_amp": rng.random(n_bins),
+            "sleeper_amp_raw": rng.lognormal(0.2, 0.3, n_bins), "sleeper_amp_sd": rng.uniform(0.1, 0.3, n_bins),
         }))
     wheels = [{"wheel": w, "wheel_diameter_m": 0.92, "n_windows": 5,
                "orders": [{"order": k, "radius_um": 10.0 * k, "radius_um_p05": 9.0 * k,
@@ -133,6 +134,27 @@ def test_csv_and_parquet_exports(processed):
     r = client.get(f"/api/v1/runs/{run_id}/profile.csv", params={"wheel": "11", "level": 100})
     got = pd.read_csv(io.StringIO(r.text))
     assert len(got) == 5 and "sleeper_amp_p95" in got.columns
+
+
+def test_roughness_columns_stored_returned_and_exported(processed):
+    """sleeper_amp_raw and sleeper_amp_sd per bin, in the exports, and the segments' 1-σ at a level."""
+    from app.analysis.uncertainty import segment_sd
+
+    client, run_id, df = processed
+    want = df[df.wheel == "11"]
+    rows = pd.DataFrame(client.get(f"/api/v1/runs/{run_id}/profile", params={"wheel": "11"}).json()["rows"])
+    for col in ("sleeper_amp_raw", "sleeper_amp_sd"):
+        np.testing.assert_allclose(rows[col], want[col])
+    got = pd.read_csv(io.StringIO(client.get(f"/api/v1/runs/{run_id}/profile.csv").text), dtype={"wheel": str})
+    assert {"sleeper_amp_raw", "sleeper_amp_sd"} <= set(got.columns)
+    body = client.get(f"/api/v1/runs/{run_id}/profile",
+                      params={"wheel": "11", "level": 10, "columns": "sleeper_amp,sleeper_amp_sd"}).json()
+    agg = pd.DataFrame(body["rows"])
+    _, sd = segment_sd(want["bin"].to_numpy(), want["sleeper_amp_sd"].to_numpy(), 10.0)
+    np.testing.assert_allclose(agg["sleeper_amp_sd_mean"], sd, rtol=1e-9)
+    # correlated along the track: far above sd/sqrt(40), below the bins' mean sd
+    assert (agg["sleeper_amp_sd_mean"] < agg["sleeper_amp_sd_max"]).all()
+    assert agg["sleeper_amp_sd_mean"].mean() > 2 * want["sleeper_amp_sd"].mean() / np.sqrt(40)
 
 
 def test_wheels(processed):
