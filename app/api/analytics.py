@@ -146,12 +146,12 @@ def subsidence_fit(db: DbDep, settings: SettingsDep, runs: RunsQuery,
                        description="fit on the amplitude normalised to reference_speed_kmh")] = False,
                    reference_speed_kmh: RefSpeedQ = None, max_points: PointsQ = _MAX_POINTS) -> dict:
     """Fit u (mm) = slope · ln(Z / 1 m/s²) + intercept on 25 cm bins with both a
-    sleeper-passage amplitude Z and a subsidence value of the wheel's rail (or of
-    both rails). Intervals: ``confidence`` (default 95 %), Newey–West over 100 m.
+    sleeper-passage amplitude Z (the wheel's own: its rail's subsidence, :func:`analytics_data.own_amplitude`)
+    and a subsidence value of the wheel's rail (or of both rails). Intervals: ``confidence`` (default 95 %), Newey–West over 100 m.
     With ``normalise`` Z is the speed-normalised amplitude (runs of different speeds pool)."""
     sel = runs.select(db)
     w = _wheel(runs.wheel)
-    df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=w)
+    df = data.own_amplitude(data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=w))
     if normalise and not df.empty:
         ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
         min_v = settings.analytics_min_speed_kmh
@@ -182,12 +182,12 @@ def predicted_subsidence(run_id: RunId, db: DbDep, settings: SettingsDep,
         run, _ = run_with_results(session, run_id)
     fit_sel = data.select_runs(db, run.line_id, run.track, data.parse_run_ids(fit_run_ids)) \
         if (fit_run_ids or run.line_id is not None) else data.select_runs(db, None, None, [run_id])
-    fdf = data.load_profiles(db, settings, fit_sel, wheel=w)
+    fdf = data.own_amplitude(data.load_profiles(db, settings, fit_sel, wheel=w))
     sub = data.reference(db, "subsidence", fit_sel)
     amp, u, g, _ = _subsidence_pairs(fdf, sub, w, fit_sel.bin_length)
     model = _subsidence_wheel(w, amp, u, g, _lag(fit_sel)) if amp.size >= 3 else None
     one = data.Selection(run.line_id, run.track, [run], fit_sel.bin_length)
-    df = data.load_profiles(db, settings, one, km_from=km_from, km_to=km_to, wheel=w)
+    df = data.own_amplitude(data.load_profiles(db, settings, one, km_from=km_from, km_to=km_to, wheel=w))
     z = df["sleeper_amp"].to_numpy()
     pred = predict_subsidence(z, model["slope"], model["intercept"]) if model and model["slope"] is not None \
         else np.full(z.size, np.nan)
@@ -211,20 +211,18 @@ def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQuery,
     """Slope of the sleeper-passage force amplitude (kN) on the acceleration amplitude
     (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``.
 
-    Both amplitudes of the same wheel as measured (``sleeper_amp_raw``; ``sleeper_amp`` in jobs
-    before issue 26): the roughness response is in both, so it is not taken out of either."""
+    Both amplitudes of the same wheel as measured (:func:`analytics_data.own_amplitude`): the roughness
+    response is in both, so it is not taken out of either."""
     if mass_min_kg >= mass_max_kg:
         raise ApiError(422, "mass_min_kg", "must be below mass_max_kg")
     sel = runs.select(db)
     w = _wheel(runs.wheel)
-    df = data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=w)
+    df = data.own_amplitude(data.load_profiles(db, settings, sel, km_from=runs.km_from, km_to=runs.km_to, wheel=w))
     df = df[np.isfinite(df["sleeper_force_amp"].to_numpy(dtype=np.float64))]
     out = []
     for wh in ([w] if w else sorted(df["wheel"].unique().tolist())):
         pw = df[df["wheel"] == wh]
-        raw = pw["sleeper_amp_raw"].to_numpy(dtype=np.float64)
-        z = np.where(np.isfinite(raw), raw, pw["sleeper_amp"].to_numpy(dtype=np.float64))
-        f = pw["sleeper_force_amp"].to_numpy()
+        z, f = pw["sleeper_amp"].to_numpy(), pw["sleeper_force_amp"].to_numpy()
         mf = fit_unsprung_mass(z, f, groups=pw["run_id"].to_numpy(), hac_lag=_lag(sel),
                                plausible_kg=(mass_min_kg, mass_max_kg)) if z.size else None
         idx = decimate_indices(z.size, max_points)

@@ -21,7 +21,7 @@ from app.db import crud, line_profiles, reference_crud, results_reader
 from app.db.models import Run
 from app.db.session import Database
 
-__all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "reference",
+__all__ = ["Selection", "parse_run_ids", "select_runs", "load_profiles", "own_amplitude", "reference",
            "speed_exponents", "normalised", "section_types", "num", "nums", "PROFILE_CACHE_ROWS"]
 
 _COLS = ["run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp", "sleeper_amp_raw"]
@@ -145,6 +145,18 @@ class _FrameCache:
 
 
 _CACHE = _FrameCache(PROFILE_CACHE_ROWS)
+
+
+def own_amplitude(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with ``sleeper_amp`` the wheel's own amplitude (``sleeper_amp_raw``; jobs before issue 26: as is).
+
+    For relations of one rail's records (its subsidence, its wheel's force): where both wheels of an axle
+    are measured ``sleeper_amp`` is the response common to both rails (docs/indicator.md).
+    """
+    if "sleeper_amp_raw" not in df.columns or df.empty:
+        return df
+    raw = df["sleeper_amp_raw"].to_numpy(dtype=np.float64, na_value=np.nan)
+    return df.assign(sleeper_amp=np.where(np.isfinite(raw), raw, df["sleeper_amp"].to_numpy(dtype=np.float64)))
 
 
 def load_profiles(

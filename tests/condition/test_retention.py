@@ -17,7 +17,6 @@ from app.db.session import Database
 from app.simulate.fleet import FleetNoise, FleetSimulator
 from app.simulate.track import generate_line
 from tests.condition.support import publish_tracks
-from tests.db.support import profile_table
 
 SIM = FleetSimulator(generate_line(12_000.0, 13_000.0, seed=9), noise=FleetNoise(), grid_m=0.25)
 NOW = dt.datetime.now(dt.UTC)
@@ -88,10 +87,11 @@ def test_postgresql_profile_rows_are_partitioned_by_job_range(pg_cluster):
             s.execute(text("INSERT INTO jobs (run_id, status, progress, settings, cancel_requested, attempts, "
                            "created_at) VALUES (:r, 'done', 1, '{}', false, 1, now())"), {"r": run_id})
             job_id = s.execute(text("SELECT max(id) FROM jobs")).scalar()
-        from app.db import results_writer
-
-        with db.write() as s:
-            results_writer.store_profile_rows(s, run_id, job_id, profile_table(n_bins=300))
+        with db.write() as s:  # the rows of that version (the writer knows later columns): plain SQL
+            s.execute(text("INSERT INTO profile_bins (job_id, wheel, bin, run_id, km, display_level, n_samples, "
+                           "sleeper_amp) SELECT :j, w, b, :r, (b + 0.5) * 0.25 / 1000, 0, 100, 1.0 "
+                           "FROM unnest(ARRAY['11', '12']) AS w, generate_series(1000, 1299) AS b"),
+                      {"j": job_id, "r": run_id})
         migrate.upgrade(url)
         with db.read() as s:
             parts = partitions.list_partitions(s)

@@ -56,5 +56,7 @@ def profile_table(
             **{c: rng.random(n_bins) for c in ORDER_COLUMNS},
             "residual_rms": rng.random(n_bins),
             "sleeper_force_amp": rng.random(n_bins),
+            "sleeper_amp_raw": rng.lognormal(0.2, 0.5, n_bins),
+            "sleeper_amp_sd": rng.uniform(0.05, 0.5, n_bins),
         }))
     return pd.concat(frames, ignore_index=True)
