@@ -69,7 +69,6 @@ from app.analysis.uncertainty import (
     correlation_length,
     rice_clipped_moments,
 )
-from app.analysis.vkf import vkf
 
 __all__ = [
     "FLOOR_WINDOW_LENGTHS",
@@ -91,10 +90,6 @@ SIDEBAND_OFFSET = 1.5
 #: the floors and the local signal power of the 1-σ model are averaged over this many correlation
 #: lengths (≈ 20 m at 3 m resolution): ≈ 5 independent looks, local to a stiffness section
 FLOOR_WINDOW_LENGTHS = 5.0
-#: the carrier the grid series is put on for the VKF, fraction of the grid rate
-_CARRIER_OF_RATE = 0.25
-#: order of the zero-phase Butterworth low-pass (cutoff grid rate / 8) the grid series passes first
-_PREFILTER_ORDER = 4
 
 
 def floor_gain(
@@ -185,7 +180,6 @@ def sideband_floor(
     grid_rate: float,
     speed: np.ndarray,
     bandwidth_per_speed: float,
-    floor_speed: float,
     order_multiplier: float,
     filter_order: int = 2,
     offset: float = SIDEBAND_OFFSET,
@@ -206,8 +200,6 @@ def sideband_floor(
     bandwidth_per_speed : float
         The sleeper order's full -3 dB bandwidth per unit speed, Hz per m/s
         (:attr:`app.analysis.recipe.OrderRecipe.bandwidth_per_speed` of its row).
-    floor_speed : float
-        Speed below which the bandwidth keeps its value there, m/s.
     order_multiplier : float
         The sleeper order's frequency per unit speed, ``1/d_s``, Hz per m/s.
     filter_order : int
@@ -231,9 +223,15 @@ def sideband_floor(
     Notes
     -----
     The grid series holds the residual's content around ``f_s`` at offsets
-    ``δf``; put on a carrier at a quarter of the grid rate it becomes a real
-    signal the VKF tracks two orders of, at the carrier ``∓ offset·B(v)``: the
-    same filter, speed rule and impulse response as the sleeper order's own.
+    ``δf``. The sleeper order's bandwidth is proportional to speed (a fixed
+    spatial resolution), so along the travelled distance its envelope filter is
+    one fixed zero-phase low-pass, ``H(k) = 1/(1 + (√2−1)(2k/b)^(2q))`` with
+    ``b = bandwidth_per_speed`` cycles per metre. The series is resampled onto a
+    uniform distance grid, each side band shifted to 0 (``exp(∓i2π·offset·b·x)``)
+    and low-passed by a Butterworth filter of order q run forth and back, whose
+    squared magnitude is that ``H`` exactly: the order's own filter, without a
+    second VKF solve. (Below the bandwidth's floor speed the VKF keeps its
+    bandwidth in Hz; those samples do not count for indicators.)
     """
     z = np.asarray(demod)
     v = np.abs(np.asarray(speed, dtype=np.float64))
@@ -243,26 +241,31 @@ def sideband_floor(
         raise ValueError(f"grid_rate must be > 0 Hz, got {grid_rate!r}")
     if z.size < 4:
         return np.full((2, z.size), np.nan)
-    bw = float(bandwidth_per_speed) * np.maximum(v, float(floor_speed))
-    f_c = _CARRIER_OF_RATE * grid_rate
-    shift = offset * float(bandwidth_per_speed) * v
-    if float(np.max(shift + bw)) >= 0.45 * f_c / 2 or (offset + 0.5) * float(bandwidth_per_speed) >= 0.5 * float(
-            order_multiplier):
+    b = float(bandwidth_per_speed)  # cycles per metre: the bandwidth is proportional to speed
+    if (offset + 0.5) * b >= 0.5 * float(order_multiplier):
         # no room for the side bands (the lower one would reach below f_s / 2: a resolution under ~2 m
-        # on 0.6 m sleepers), or a grid too coarse for them: no floor from the side bands
+        # on 0.6 m sleepers): no floor from them
         return np.full((2, z.size), np.nan)
-    # keep the grid series to |δf| < grid_rate / 8 first: on the carrier, the real signal's mirror
-    # folds δf ≈ −grid_rate/2 onto the side bands (there: images of the sleeper harmonics 4·f_s …)
-    if z.size > 3 * 2 * _PREFILTER_ORDER:
-        sos = butter(_PREFILTER_ORDER, 0.25, output="sos")  # cutoff grid_rate / 8 (Nyquist = 1)
-        z = sosfiltfilt(sos, z.real) + 1j * sosfiltfilt(sos, z.imag)
-    t = np.arange(z.size) / grid_rate
-    carrier = 2.0 * (z * np.exp(2j * np.pi * f_c * t)).real
-    freqs = np.vstack([f_c - shift, f_c + shift])
-    res = vkf(carrier, grid_rate, freqs, np.vstack([bw, bw]), filter_order, chunk_duration=np.inf)
-    env = res.envelope_at(np.arange(z.size))
+    # along the travelled distance the order's filter is one fixed low-pass of the envelope (B = b·v):
+    # resample the grid series onto a uniform distance grid, shift each side band to 0 and filter
+    dist = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]))]) / grid_rate
+    step_m = max(float(np.max(np.diff(dist))) if z.size > 1 else 0.0, 1e-3)
+    if dist[-1] < 8.0 * step_m:
+        return np.full((2, z.size), np.nan)
+    grid = np.arange(0.0, dist[-1], step_m)
+    zd = np.interp(grid, dist, z.real) + 1j * np.interp(grid, dist, z.imag)
+    # a Butterworth of order q run forth and back: |G|² = 1/(1 + (k/k_c)^(2q)) is the VKF's H exactly
+    k_c = 0.5 * b * (math.sqrt(2.0) - 1.0) ** (-1.0 / (2 * filter_order))
+    sos = butter(int(filter_order), k_c * 2.0 * step_m, output="sos")
+    env = []
+    for sign in (-1.0, 1.0):
+        shifted = zd * np.exp(-2j * np.pi * sign * offset * b * grid)
+        low = sosfiltfilt(sos, shifted.real) + 1j * sosfiltfilt(sos, shifted.imag)
+        power = 4.0 * np.abs(low) ** 2  # a side-band component A·cos(…) sits in the grid series as A/2
+        env.append(np.interp(dist, grid, power))
+    env = np.vstack(env)
     k = floor_gain(filter_order, offset) if gain is None else float(gain)
-    return k * np.abs(env) ** 2
+    return k * env
 
 
 def _dense(bins: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:

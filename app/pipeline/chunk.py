@@ -323,7 +323,7 @@ def process_chunk(
                     y[iz], env, out_idx, psi, recipe, chunk, lo, bins_of, keep, should_cancel
                 )
                 tracks[wheel] = SleeperTrack(env[sleeper], demod, bins_of(out_idx), w_out * moving,
-                                             float(recipe.bandwidth_per_speed[sleeper]), recipe.floor_speed,
+                                             float(recipe.bandwidth_per_speed[sleeper]),
                                              float(recipe.multipliers[sleeper]), recipe.filter_order,
                                              recipe_floor_gain(recipe))
 

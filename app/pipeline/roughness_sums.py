@@ -49,8 +49,8 @@ class SleeperTrack:
         Profile bin of every grid point (the wheel's axle's track position).
     weight : ndarray, shape (m,)
         Crossfade weight × "moving" of every grid point.
-    bandwidth_per_speed, floor_speed : float
-        The sleeper order's bandwidth rule (Hz per m/s; m/s).
+    bandwidth_per_speed : float
+        The sleeper order's bandwidth per unit speed, Hz per m/s.
     multiplier : float
         The sleeper order's frequency per unit speed (1/d_s), Hz per m/s.
     gain : float
@@ -64,7 +64,6 @@ class SleeperTrack:
     bins: np.ndarray
     weight: np.ndarray
     bandwidth_per_speed: float
-    floor_speed: float
     multiplier: float
     filter_order: int
     gain: float
@@ -95,8 +94,8 @@ def rough_groups(tracks: Mapping[str, SleeperTrack], speed: np.ndarray, grid_rat
     values: dict[str, dict[str, np.ndarray]] = {}
     for wheel, tr in tracks.items():
         e = tr.envelope
-        lo, hi = sideband_floor(tr.demod, grid_rate, speed, tr.bandwidth_per_speed, tr.floor_speed,
-                                tr.multiplier, tr.filter_order, gain=tr.gain)
+        lo, hi = sideband_floor(tr.demod, grid_rate, speed, tr.bandwidth_per_speed, tr.multiplier,
+                                tr.filter_order, gain=tr.gain)
         res_m = STEP_WIDTH_FACTORS[int(tr.filter_order)] / float(tr.bandwidth_per_speed)
         values[wheel] = {"pow": np.abs(e) ** 2, "re": e.real, "im": e.imag, "floor_lo": lo, "floor_hi": hi,
                          "res_m": np.full(e.size, res_m)}
