@@ -18,12 +18,13 @@ Three things in the data separate them (physics, not tuning):
   sleeper order holds roughness response of about the density inside the band.
   Two side bands of the order's own bandwidth B, centred
   :data:`SIDEBAND_OFFSET` bandwidths below and above ``f_s`` (their −3 dB edges
-  B/2 outside the order's), are extracted from the residual by the VKF; with
-  the gain :func:`floor_gain` (the residual's notch under the order, computed
-  for a flat density) their mean power is the floor per bin. Phase-free and as
-  local as the amplitude itself, but a *lower bound* where the roughness
-  response peaks at ``f_s``: the wheel–track resonance that makes a track
-  respond strongly at ``f_s`` also peaks its roughness response there.
+  B/2 outside the order's), are filtered out of the residual with the order's
+  own envelope filter; with the gain :func:`floor_gain` (how the coupled VKF
+  shares a flat density among its orders) each gives a floor, and the lesser of
+  their 20 m medians is the floor per bin (:func:`side_floor`). Phase-free and
+  local, but a *lower bound* where the roughness response peaks at ``f_s``: the
+  wheel–track resonance that makes a track respond strongly at ``f_s`` also
+  peaks its roughness response there.
 * **The envelope's own fluctuation** (:func:`inband_floor`): over ≈ 20 m of
   uniform track ``S`` is steady while ``R`` decorrelates every few metres
   (:func:`app.analysis.uncertainty.envelope_correlation`), so the median of
@@ -39,17 +40,21 @@ Three things in the data separate them (physics, not tuning):
 
 Estimates (per 25 cm bin)
 -------------------------
-* single wheel (:func:`single_wheel_estimate`): ``sqrt(max(|E|² − F_side, 0))``;
-* two wheels of an axle: ``sqrt(max(Re(E₁ conj E₂), 0))`` corrected for the
-  square root's bias at low signal-to-roughness ratio (the power estimate is
-  unbiased, its square root is not: ``E sqrt(X⁺) < S`` for ``S²/σ ≳ 0.3``),
-  the same value for both wheels.
+* single wheel (:func:`single_wheel_estimate`): ``sqrt(max(|E|² − F_side, 0)) / c``;
+* two wheels of an axle (:func:`two_rail_estimate`): ``sqrt(max(Re(E₁ conj E₂), 0)) / c``,
+  the same value for both wheels;
 
-The 1-σ of each follows from the Gaussian power model of
-:func:`app.analysis.uncertainty.clipped_sqrt_moments` with the floors measured
-above, smoothed over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths: the
-spread of the estimate, and for a single wheel its bias from the floor the side
-bands miss (a root mean square error). Segments: :func:`app.analysis.uncertainty.segment_sd`.
+``c = E[sqrt(X⁺)] / S`` is the square root's bias at low signal-to-roughness
+ratio (the power estimate ``X`` is unbiased for the floor taken off, its square
+root is not: ``E sqrt(X⁺) < S`` for ``S²/σ ≳ 0.3``).
+
+The 1-σ of each follows from the power model with the floors measured above,
+averaged over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths: for two rails the
+spread of the estimate (Gaussian power model,
+:func:`app.analysis.uncertainty.clipped_sqrt_moments`), for a single wheel the
+root mean square error including the floor the side bands miss (exact Rice
+moments, :func:`app.analysis.uncertainty.rice_clipped_moments`). Segments:
+:func:`app.analysis.uncertainty.segment_sd`.
 """
 
 from __future__ import annotations
@@ -63,10 +68,10 @@ from scipy.signal import butter, sosfiltfilt
 
 from app.analysis.uncertainty import (
     STEP_WIDTH_FACTORS,
-    _correlation_table,
-    _response_squared,
     clipped_sqrt_moments,
     correlation_length,
+    correlation_zero,
+    envelope_response_squared,
     rice_clipped_moments,
 )
 
@@ -112,7 +117,7 @@ def floor_gain(
 
         κ = ∫ G_s(f)² df / ½ Σ_± ∫ R(f)² H_s(f ∓ offset·B)² df
 
-    (1.108 at q = 2, offset 1.5 for the sleeper order alone; 1.39 with the
+    (1.108 at q = 2, offset 1.5 for the sleeper order alone; 1.28 with the
     default recipe's wheel orders on 0.92 m wheels). ``κ × side-band power`` is
     the floor in the order's band.
 
@@ -169,9 +174,9 @@ def floor_gain(
 @lru_cache(maxsize=8)
 def _lone_floor_gain(filter_order: int, offset: float) -> float:
     kappa = np.linspace(-40.0, 40.0, 160_001)
-    h2 = _response_squared(kappa, filter_order)
+    h2 = envelope_response_squared(kappa, filter_order)
     notch = (1.0 - np.sqrt(h2)) ** 2
-    side = _response_squared(kappa - offset, filter_order)
+    side = envelope_response_squared(kappa - offset, filter_order)
     return float(np.sum(h2) / np.sum(notch * side))
 
 
@@ -317,10 +322,8 @@ def smooth_along(bins: np.ndarray, values: np.ndarray, window_m: float, bin_leng
 
 
 def increment_lag(resolution_m: float = 3.0, filter_order: int = 2) -> float:
-    """First zero of the envelope correlation, m (4.25 m at 3 m, q = 2): the lag of :func:`inband_floor`."""
-    table, ds = _correlation_table(int(filter_order))
-    first = int(np.argmax(table <= 0.0))
-    return float(first * ds * resolution_m)
+    """First zero of the envelope correlation, m (4.23 m at 3 m, q = 2): the lag of :func:`inband_floor`."""
+    return correlation_zero(resolution_m, filter_order)
 
 
 def inband_floor(

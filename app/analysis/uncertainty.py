@@ -42,7 +42,9 @@ __all__ = [
     "clipped_sqrt_moments",
     "rice_clipped_moments",
     "correlation_length",
+    "correlation_zero",
     "envelope_correlation",
+    "envelope_response_squared",
     "segment_sd",
 ]
 
@@ -124,6 +126,19 @@ def envelope_correlation(lag_m: np.ndarray | float, resolution_m: float = 3.0, f
     table, ds = _correlation_table(q)
     s = np.arange(table.size) * ds
     return np.interp(lag, s, table, right=0.0)
+
+
+def envelope_response_squared(kappa: np.ndarray, filter_order: int = 2) -> np.ndarray:
+    """``H²`` of the VKF's envelope low-pass at ``kappa`` = frequency offset / full -3 dB bandwidth."""
+    return _response_squared(np.asarray(kappa, dtype=np.float64), _check_q(filter_order))
+
+
+def correlation_zero(resolution_m: float = 3.0, filter_order: int = 2) -> float:
+    """First lag at which :func:`envelope_correlation` reaches 0, m (4.23 m at 3 m, q = 2)."""
+    q = _check_q(filter_order)
+    res = _check_resolution(resolution_m)
+    table, ds = _correlation_table(q)
+    return float(int(np.argmax(table <= 0.0)) * ds * res)
 
 
 def correlation_length(resolution_m: float = 3.0, filter_order: int = 2) -> float:
