@@ -26,6 +26,8 @@ from app.core.ratelimit import RateLimiter
 from app.core.runstore import RunStore
 from app.db.display_arrays import DisplayArrays
 from app.db.session import Database
+from app.observability.routes import install_metrics
+from app.operations.heavy import install_heavy_limiter
 from app.web import install_pages
 
 __all__ = ["create_app", "check_production_database"]
@@ -46,7 +48,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         omitted. The database must be migrated (``trackvkf migrate``).
     """
     settings = settings or get_settings()
-    configure_logging(settings.log_level)
+    configure_logging(settings.log_level, settings.log_format)
     settings.check_production()
     db = Database(settings.database_url)
     if settings.is_production:
@@ -97,12 +99,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.display_arrays = DisplayArrays(settings.display_cache_bytes)  # zooms sliced from memory
     app.state.profile_limiter = anyio.CapacityLimiter(settings.profile_concurrency)
     app.state.profile_pending = {}  # answers being computed: asked again, awaited once
+    install_heavy_limiter(app, settings.upload_ingest_concurrency)  # conversions of uploads at once
     app.add_middleware(GZipMiddleware, minimum_size=1024, compresslevel=5, exclude_content_types=_NOT_GZIPPED)
     app.add_middleware(SecurityHeadersMiddleware)  # CSP, framing, sniffing, referrer: every answer
     app.include_router(build_api_router())
     app.include_router(login_page_router)
     install_protected_docs(app, {f"{API_PREFIX}/health", f"{API_PREFIX}/auth/login"})
     install_pages(app)  # dashboard: HTML pages at /, /runs/{id}, ..., /static, Plotly.js
+    install_metrics(app)  # GET /metrics (admin), every request counted (outermost middleware)
 
     return app
 

@@ -1,10 +1,26 @@
-"""Indicator benchmark: spatial resolution and accuracy of the sleeper-passage amplitude (issue 15).
+"""Indicator benchmark: spatial resolution and accuracy of the sleeper-passage amplitude (issues 15, 26).
 
 Usage::
 
-    .venv/bin/python bench/bench_indicator.py            # sweep + the default through the pipeline
-    .venv/bin/python bench/bench_indicator.py --plot     # only docs/img/indicator-resolution.png
-                                                         # (needs matplotlib: pip install -e .[bench])
+    .venv/bin/python bench/bench_indicator.py                  # transitions, then the spliced sweep
+    .venv/bin/python bench/bench_indicator.py --only transitions
+    .venv/bin/python bench/bench_indicator.py --only spliced --resolutions 2,3,4
+    .venv/bin/python bench/bench_indicator.py --diagnose       # controlled experiments: why it rang
+    .venv/bin/python bench/bench_indicator.py --plot           # docs/img/indicator-resolution.png and
+                                                               # docs/img/indicator-transitions.png
+                                                               # (needs matplotlib: pip install -e .[bench])
+
+**Transitions as physics makes them** (issue 26; bench/physics_transitions.py): the transition runs
+of ../shared/physics (trans2_v30, trans2_v42) as they are, the same runs inside 1000 m of their own
+first and last segment (constructed: the service's chunks are 1.5–3 km long), and transitions
+constructed from the uniform runs at 35 and 50 m/s with the two responses cross-faded over 3 m
+(the phase turns over metres). Each is written as a canonical run and processed by the real
+pipeline with the default settings; the profile is compared with the per-bay truth (10–90 %
+width, rise width, 50 % point, ringing, level errors 10–20 m from the edges; the physics' own widths
+from ``A_bay``), and the track's content at the wheel-order-5 line over the record is printed (what
+a wheel order estimated from that record cannot tell from a polygon).
+
+**Spliced steps** (issue 15):
 
 Signals are built from the physics reference runs (bench/physics_runs.py: steady bays tiled,
 stiffness steps and 6 m soft spots spliced at a sleeper, optionally a 90 µm order-5 wheel polygon
@@ -33,6 +49,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from physics_runs import D_S, cases, polygon, steady_unit  # noqa: E402
+from physics_transitions import (  # noqa: E402
+    blended_run,
+    embedded_run,
+    evaluate,
+    meets_targets,
+    physics_run,
+    pipeline_profile,
+    wheel5_projection,
+)
 
 from app.analysis.recipe import order_recipe  # noqa: E402
 from app.analysis.settings import LEGACY_VALUES, ProcessingSettings  # noqa: E402
@@ -194,15 +219,181 @@ def plot(path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+#: constructed transitions from the uniform runs: (speed, k_a, k_b), segments 37.2 / 24.6 / 60 m inside 500 m
+BLENDED = ((35, 40, 160), (35, 80, 20), (50, 40, 160), (50, 20, 80))
+BLENDED_SEGMENTS_M = [37.2, 24.6, 60.0]
+
+
+def transition_cases() -> list:
+    """The transition test signals of the bench (and of tests/pipeline/test_indicator_physics.py)."""
+    runs = [physics_run("trans2_v30.npz"), physics_run("trans2_v42.npz"),
+            embedded_run("trans2_v30.npz"), embedded_run("trans2_v42.npz")]
+    runs += [blended_run(v, ka, kb, BLENDED_SEGMENTS_M) for v, ka, kb in BLENDED]
+    return runs
+
+
+def transitions() -> None:
+    """Print the transitions table (Markdown) for BENCHMARKS.md."""
+    import tempfile
+
+    print("| case | wheel-5 line content m/s² | edge | 10–90 % width m (physics') | rise width m (physics') | "
+          "50 % point m | ringing (physics') | level error 10–20 m from the edges, per segment | targets met |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for run in transition_cases():
+        with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            x, a = pipeline_profile(run, tmp)
+        res = evaluate(x, a, run)
+        met = meets_targets(res)
+        levels = " / ".join("–" if not np.isfinite(v) else f"{v:+.1%}" for v in res["levels"])
+        ok = ", ".join(k for k, v in met.items() if v) or "none"
+        miss = ", ".join(k for k, v in met.items() if not v)
+        name = run.name + (" (constructed)" if run.constructed else "")
+        for j, e in enumerate(res["edges"]):
+            p, q = e["product"], e["physics"]
+            head = (f"{name} | {wheel5_projection(run):.3f} | " if j == 0 else " | | ")
+            tail = f"{levels} | {ok}{'; not ' + miss if miss else ''} |" if j == 0 else " | |"
+            print(f"| {head}{e['edge']:.1f} | {p['width']:.1f} ({q['width']:.1f}) | {p['rise']:.1f} ({q['rise']:.1f}) | "
+                  f"{p['offset']:+.1f} | {p['ringing']:.1%} ({q['ringing']:.1%}) | {tail}")
+
+
+def _binned(env: np.ndarray, idx: np.ndarray, fs: float, v: float) -> tuple[np.ndarray, np.ndarray]:
+    """25 cm bin means of |env| at sample indices ``idx`` (constant speed ``v``)."""
+    b = np.floor(idx * v / fs / BIN).astype(int)
+    return (np.arange(b.max() + 1) + 0.5) * BIN, np.bincount(b, np.abs(env)) / np.maximum(np.bincount(b), 1)
+
+
+def diagnose() -> None:
+    """Controlled experiments on the two transition runs (why the joint solve rang; issue 26).
+
+    One solve per variant (``vkf`` on the run as it is, the default recipe's orders and bandwidths unless
+    said), and an independent sparse solve of Eq. 20 (tests/vkf/reference_vkf.py: scipy.sparse + SuperLU,
+    refined in extended precision) of the signal decimated to 2 kHz.
+    """
+    from scipy.signal import decimate
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "vkf"))
+    from reference_vkf import carrier_phase, reference_vkf, weight_from_bandwidth
+
+    from app.analysis.vkf import vkf
+
+    recipe = order_recipe(0.92, D_S, ProcessingSettings())
+    labels = list(recipe.labels)
+    wheel = [i for i, x in enumerate(labels) if x.isdigit()]
+    print("| run | variant | ringing per edge | level error per segment (10–20 m from the edges) |")
+    print("|---|---|---|---|")
+    for name in ("trans2_v30.npz", "trans2_v42.npz"):
+        run = physics_run(name)
+        v = np.full(run.z.size, run.speed)
+        step = max(1, int(run.fs * 0.05 / run.speed))
+        idx = np.arange(0, run.z.size, step)
+        f, b = recipe.multipliers * run.speed, recipe.bandwidths(v)[:, 0]
+
+        def joint(rows: list[int], bw: np.ndarray = b, real: bool = True, run=run, f=f, idx=idx) -> np.ndarray:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                res = vkf(run.z, run.fs, f[rows], bw[rows], recipe.filter_order, chunk_duration=np.inf,
+                          phase0=np.zeros(len(rows)), real_signal=real)
+            return res.envelope_at(idx)[0]
+
+        narrow = b.copy()
+        narrow[wheel] *= 0.1
+        variants = [
+            ("product (wheel orders in the track band stationary)",
+             recipe.solve(run.z, run.fs, v).envelope_at(idx)[recipe.sleeper_row]),
+            ("joint solve of the 14 orders (before issue 26)", joint(list(range(len(labels))))),
+            ("joint, no wheel orders", joint([i for i in range(len(labels)) if i not in wheel])),
+            ("joint, all but wheel order 5", joint([i for i in range(len(labels)) if labels[i] != "5"])),
+            ("joint, f_s and wheel order 5 only", joint([0, labels.index("5")])),
+            ("joint, Eq. 20 as written (no mirror images, no image refinement)",
+             joint(list(range(len(labels))), real=False)),
+            ("joint, wheel orders 0.01 orders wide", joint(list(range(len(labels))), narrow)),
+        ]
+        rows = [(label, *_binned(env, idx, run.fs, run.speed)) for label, env in variants]
+        dec = 5
+        y = decimate(run.z, dec, ftype="fir", zero_phase=True)
+        fs2, n2 = run.fs / dec, y.size
+        for label, sel in (("sparse reference of Eq. 20, f_s and wheel order 5", [0, labels.index("5")]),
+                           ("sparse reference of Eq. 20, f_s alone", [0])):
+            phi = carrier_phase(np.repeat(f[sel][:, None], n2, axis=1), fs2)
+            a = reference_vkf(y, phi, weight_from_bandwidth(b[sel], fs2, recipe.filter_order), recipe.filter_order,
+                              refine=3)
+            rows.append((label, *_binned(2.0 * a[0], np.arange(n2) * dec, run.fs, run.speed)))
+        for label, x, a in rows:
+            res = evaluate(x, a, run)
+            ring = " / ".join(f"{e['product']['ringing']:.1%}" for e in res["edges"])
+            lv = " / ".join(f"{v:+.1%}" for v in res["levels"])
+            print(f"| {name} | {label} | {ring} | {lv} |")
+
+
+def plot_transitions(path: Path) -> None:
+    """The two transition runs as they are (left) and inside 1000 m of their own track (right): per-bay
+    truth, the product, and wheel order 5 solved jointly with the track orders (before issue 26)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from app.analysis.vkf import vkf
+
+    recipe = order_recipe(0.92, D_S, ProcessingSettings())
+    fig, axes = plt.subplots(2, 2, figsize=(14, 7.5), sharey="row")
+    for row, name in enumerate(("trans2_v30.npz", "trans2_v42.npz")):
+        for col, run in enumerate((physics_run(name), embedded_run(name))):
+            ax = axes[row, col]
+            v = np.full(run.z.size, run.speed)
+            step = max(1, int(run.fs * 0.05 / run.speed))
+            x0 = run.edges[0] - 40.0
+            idx = np.arange(0, run.z.size, step)
+            idx = idx[(idx * run.speed / run.fs > x0) & (idx * run.speed / run.fs < x0 + 160.0)]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                now = recipe.solve(run.z, run.fs, v).envelope_at(idx)[recipe.sleeper_row]
+                joint = vkf(run.z, run.fs, recipe.frequencies(v), recipe.bandwidths(v), recipe.filter_order,
+                            chunk_duration=np.inf, phase0=recipe.phase0(0.0)).envelope_at(idx)[recipe.sleeper_row]
+            x = idx * run.speed / run.fs - x0
+            ax.plot(run.x_bay - x0, run.a_bay, "k.", ms=3, label="physics: per-bay amplitude (A_bay)")
+            ax.plot(x, np.abs(joint), ":", lw=1.3, label="wheel order 5 solved jointly (before issue 26)")
+            ax.plot(x, np.abs(now), "-", lw=1.5, label="product: wheel orders in the track band stationary")
+            for lo, hi, lv in zip(run.bounds[:-1], run.bounds[1:], run.levels, strict=True):
+                ax.hlines(lv, max(lo - x0, 0.0), min(hi - x0, 160.0), colors="r", lw=0.6)
+            where = "the 160 m run as it is" if col == 0 else "inside 1000 m of its own track (constructed)"
+            ax.set_title(f"{name} ({run.speed:.3g} m/s): {where}", fontsize=10)
+            ax.set_xlim(0, 160)
+            ax.grid(alpha=0.3)
+            if "v42" in name:
+                ax.set_yscale("log")
+        axes[row, 0].set_ylabel("sleeper-passage amplitude, m/s²")
+    for ax in axes[1]:
+        ax.set_xlabel("position along the transition run, m (edges at 40 / 80 / 120 m; red: steady lock-in)")
+    axes[0, 0].legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--resolutions", default="2,3,4,5,6,legacy")
-    ap.add_argument("--plot", action="store_true", help="write docs/img/indicator-resolution.png only")
+    ap.add_argument("--only", choices=("transitions", "spliced"), default=None)
+    ap.add_argument("--diagnose", action="store_true",
+                    help="only the controlled experiments on the two transition runs (why the joint solve rang)")
+    ap.add_argument("--plot", action="store_true",
+                    help="write docs/img/indicator-resolution.png and docs/img/indicator-transitions.png only")
     args = ap.parse_args()
     if args.plot:
-        out = Path(__file__).resolve().parents[1] / "docs" / "img" / "indicator-resolution.png"
-        plot(out)
-        print(f"wrote {out}")
+        img = Path(__file__).resolve().parents[1] / "docs" / "img"
+        plot(img / "indicator-resolution.png")
+        plot_transitions(img / "indicator-transitions.png")
+        print(f"wrote {img}/indicator-resolution.png, indicator-transitions.png")
+        return
+    if args.diagnose:
+        diagnose()
+        return
+    if args.only != "spliced":
+        transitions()
+        print()
+    if args.only == "transitions":
         return
     res = [None if r == "legacy" else float(r) for r in args.resolutions.split(",")]
     print("| track_resolution_m | 90 µm order-5 polygon | steps | 10–90 % width max / median m | "

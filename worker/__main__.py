@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--log-level", default=None, help="logging level (default: settings)")
     args = parser.parse_args(argv)
     settings = get_settings()
-    configure_logging(args.log_level or settings.log_level)
+    configure_logging(args.log_level or settings.log_level, settings.log_format)
     return modes.run(
         settings, local=args.local, once=args.once, exit_when_idle=args.exit_when_idle,
         processes=args.processes,

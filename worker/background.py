@@ -1,5 +1,6 @@
-"""Background loops of a worker process (both worker modes): webhook deliveries and the
-retention sweep of 25 cm rows, each a daemon thread beside the jobs.
+"""Background loops of a worker process (both worker modes): webhook deliveries, the
+retention sweep of 25 cm rows and the liveness heartbeat, each a daemon thread beside the
+jobs; and, once at start, the sweep of leftover job folders (:mod:`worker.startup_sweep`).
 
 :func:`start_background` starts them for a worker process; its :meth:`Background.stop`
 ends them when the worker stops. A loop never holds up a job: it runs in its own
@@ -69,17 +70,26 @@ def sweep_step(db: Database, settings: Settings) -> bool:
 class Background:
     """The background loops of one worker process."""
 
-    def __init__(self, settings: Settings) -> None:
+    def __init__(self, settings: Settings, mode: str | None = None) -> None:
         from worker.deliveries import DeliveryLoop  # deliveries import this module
+        from worker.heartbeat import HeartbeatLoop
 
         self.settings = settings
         self.db = Database(settings.database_url)
-        self.loops: list[PeriodicLoop] = [DeliveryLoop(settings, self.db)]
+        mode = mode or ("local" if settings.is_sqlite else "procrastinate")
+        self.loops: list[PeriodicLoop] = [HeartbeatLoop(settings, self.db, mode), DeliveryLoop(settings, self.db)]
         if settings.profile_retention_days is not None:
             self.loops.append(PeriodicLoop("retention-sweep", lambda: sweep_step(self.db, settings),
                                            settings.profile_sweep_interval_s))
 
     def start(self) -> Background:
+        from worker.startup_sweep import sweep_job_folders
+        from worker.steps import WorkerRuntime
+
+        try:  # job folders a killed worker left (published, failed): before any job starts
+            sweep_job_folders(WorkerRuntime(self.settings, self.db))
+        except Exception as exc:  # noqa: BLE001 - clean-up only: the next start retries
+            log.warning("start-up sweep of job folders: %s", exc)
         for loop in self.loops:
             loop.start()
         return self
@@ -91,6 +101,7 @@ class Background:
         self.db.dispose()
 
 
-def start_background(settings: Settings) -> Background:
-    """Start the background loops of a worker process."""
-    return Background(settings).start()
+def start_background(settings: Settings, mode: str | None = None) -> Background:
+    """Start the background loops of a worker process (``mode``: ``local`` or ``procrastinate``;
+    default: from the database URL)."""
+    return Background(settings, mode).start()

@@ -443,7 +443,7 @@ def run_worker(
         Number of jobs processed.
     """
     worker = LocalWorker(settings)
-    background = Background(settings)  # webhook deliveries, retention sweep: beside the jobs
+    background = Background(settings, "local")  # webhook deliveries, retention sweep: beside the jobs
 
     def _graceful(signum: int, frame: object) -> None:  # noqa: ARG001
         if worker.stopping:

@@ -44,9 +44,19 @@ harmonic is dropped for that wheel; where the fundamental collides, the wheel
 order is dropped instead (:func:`order_collisions`). The recipe keeps what it
 dropped and why (:attr:`OrderRecipe.notes`), for the job's warnings.
 
+Stationary wheel orders (issue 26): the wheel orders inside a track order's
+band (:func:`in_band_wheel_orders`: 5, 9 and 10 by default) are solved as
+stationary orders of the engine (:attr:`OrderRecipe.stationary`): a wheel's
+out-of-roundness responds to the speed, not to the place, so their envelopes
+are fitted as functions of frequency over the stretch solved and the track
+orders are solved on what is left; otherwise a stiffness change would lose
+its share at their lines (a 15.8 m ripple, docs/indicator.md).
+
 Overlap: a stretch solved on its own agrees with a longer solve inside it
 when it is padded by the impulse-response length of its narrowest filter
-(:func:`order_overlap`); chunk seams use :data:`CHUNK_JOIN_TOL`.
+(:func:`order_overlap`); chunk seams use :data:`CHUNK_JOIN_TOL`. The
+stationary wheel orders are fitted per stretch, so there the agreement is
+that of the two fits (a steady wheel: the same phasor).
 """
 
 from __future__ import annotations
@@ -71,6 +81,7 @@ __all__ = [
     "harmonic_label",
     "track_bandwidth_per_speed",
     "order_collisions",
+    "in_band_wheel_orders",
     "CHUNK_JOIN_TOL",
     "OrderRecipe",
     "WheelGeometry",
@@ -236,8 +247,23 @@ class OrderRecipe:
         """Phase of every order at a start position ``start_m`` (m), rad."""
         return 2.0 * np.pi * self.multipliers * float(start_m)
 
+    @property
+    def stationary(self) -> np.ndarray:
+        """Rows solved as stationary orders (bool, shape (s,)): the wheel orders inside a
+        track order's band (:func:`in_band_wheel_orders`)."""
+        rows = in_band_wheel_orders(self.labels, self.multipliers, self.bandwidth_per_speed)
+        mask = np.zeros(len(self.labels), dtype=bool)
+        mask[rows] = True
+        return mask
+
     def solve(self, y: Any, fs: float, speed: np.ndarray, start_m: float = 0.0) -> VKFResult:
         """Extract the orders of a signal with the VKF (one unchunked solve).
+
+        The wheel orders inside a track order's band are *stationary* orders of
+        the engine (a wheel's out-of-roundness responds to the speed, not to the
+        place: their envelopes are functions of frequency, see
+        :mod:`app.analysis._vkf_stationary` and docs/indicator.md), so that they
+        do not take the track orders' changes at their lines (issue 26).
 
         Parameters
         ----------
@@ -256,8 +282,10 @@ class OrderRecipe:
         VKFResult
             Envelopes of the orders (rows as :attr:`labels`).
         """
+        stationary = self.stationary
         return vkf(y, fs, self.frequencies(speed), self.bandwidths(speed), self.filter_order,
-                   chunk_duration=np.inf, phase0=self.phase0(start_m))
+                   chunk_duration=np.inf, phase0=self.phase0(start_m),
+                   stationary=stationary if stationary.any() else None)
 
     def order_phases(self, psi: np.ndarray) -> np.ndarray:
         """Phases of the orders, ``multipliers ⊗ psi``, rad, shape (s, len(psi))."""
@@ -327,6 +355,35 @@ def order_bandwidths(
         track = track_bandwidth_per_speed(float(settings.track_resolution_m), int(settings.filter_order))
     per_speed = np.array([wheel if x.isdigit() else track for x in labels], dtype=np.float64)
     return per_speed, max(float(settings.min_speed_kmh) / 3.6, 1.0)
+
+
+def in_band_wheel_orders(labels: Sequence[str], multipliers: np.ndarray,
+                         bandwidth_per_speed: np.ndarray) -> np.ndarray:
+    """Rows of the wheel orders that lie inside a (wider) track order's band.
+
+    A wheel order is inside the band of a track order when their frequencies
+    are closer than the track order's full -3 dB bandwidth (both scale with
+    speed, so this holds at every speed or at none): the track filter still
+    passes ≥ 13 % there (q = 2). At the default 3 m resolution on 0.92 m wheels:
+    wheel order 5 (0.18 orders from f_s), 9 and 10 (0.63 and 0.37 from 2·f_s);
+    with ``track_resolution_m`` None (every order 0.1 orders wide): none.
+
+    Parameters
+    ----------
+    labels : sequence of str
+        Order labels (:attr:`OrderRecipe.labels`).
+    multipliers, bandwidth_per_speed : ndarray, shape (s,)
+        Hz per m/s.
+
+    Returns
+    -------
+    ndarray of int
+    """
+    track = [i for i, x in enumerate(labels) if not x.isdigit()]
+    rows = [j for j, x in enumerate(labels) if x.isdigit()
+            and any(abs(float(multipliers[j]) - float(multipliers[i])) < float(bandwidth_per_speed[i])
+                    and bandwidth_per_speed[i] > bandwidth_per_speed[j] for i in track)]
+    return np.array(rows, dtype=np.int64)
 
 
 def order_collisions(

@@ -52,6 +52,7 @@ from ._vkf_baseband import (
     to_baseband,
 )
 from ._vkf_input import InputStats, VKFInput, check_mode, extremes_over, prepare_input, scan_input
+from ._vkf_stationary import solve_with_stationary
 from ._vkf_weights import bandwidth_from_weight, impulse_length, weight_squared
 from .chunking import Chunk, plan_chunk_layout
 
@@ -196,7 +197,8 @@ def _segment_guard_band(inp: VKFInput, lo: int, hi: int) -> tuple[float, float]:
 
 
 def _solve_segment(
-    inp: VKFInput, seg: _Segment, cum_lo: np.ndarray, decimation: str | int, real_signal: bool = True
+    inp: VKFInput, seg: _Segment, cum_lo: np.ndarray, decimation: str | int, real_signal: bool = True,
+    stationary: np.ndarray | None = None,
 ) -> set[tuple[int, int]]:
     """Solve one segment in place (sets ``seg.spline`` and ``seg.info``).
 
@@ -227,7 +229,12 @@ def _solve_segment(
     widened = bool(np.any(r2 > r2_max))
     if widened:
         np.minimum(r2, r2_max, out=r2)
-    sol = solve_orders(ys, phi, r2, q, None if plan is None else _filtered_inside(plan, hi - lo, idx), image)
+    mask = None if plan is None else _filtered_inside(plan, hi - lo, idx)
+    if stationary is None:
+        sol = solve_orders(ys, phi, r2, q, mask, image)
+    else:
+        sol = solve_with_stationary(ys, phi, f, bw, r2, lambda b: np.minimum(weight_squared(b, rate, q), r2_max),
+                                    q, mask, image, stationary)
     seg.spline = EnvelopeSpline(2.0 * sol.envelope, lo, factor)
     seg.info = {
         "decimation": factor,
@@ -237,6 +244,7 @@ def _solve_segment(
         "refinement_correction": sol.correction,
         "widened_min_bandwidth_hz": float(bandwidth_from_weight(r2_max, rate, q)) if widened else None,
         "images_dropped": sol.images_dropped,
+        "stationary_orders": [] if stationary is None else [int(i) for i in np.flatnonzero(stationary)],
     }
     if sol.images_dropped:
         warnings.warn(
@@ -265,7 +273,8 @@ def _solve_segment(
 
 
 def _iter_segments(
-    inp: VKFInput, chunk_duration: float | None, decimation: str | int, real_signal: bool = True
+    inp: VKFInput, chunk_duration: float | None, decimation: str | int, real_signal: bool = True,
+    stationary: np.ndarray | None = None,
 ) -> Iterator[tuple[int, list[_Segment], np.ndarray, set[tuple[int, int]]]]:
     """Solve the planned segments in order.
 
@@ -280,7 +289,7 @@ def _iter_segments(
         if seg.lo > pos:
             cum = cum + inp.sum_freqs(pos, seg.lo)
             pos = seg.lo
-        pairs = _solve_segment(inp, seg, cum, decimation, real_signal)
+        pairs = _solve_segment(inp, seg, cum, decimation, real_signal, stationary)
         yield i, segments, cum.copy(), pairs
 
 
@@ -448,6 +457,20 @@ class VKFResult:
         return self._squeeze(y - wave.sum(axis=-2))
 
 
+def _check_stationary(stationary: Any, s: int) -> np.ndarray | None:
+    """Validate the ``stationary`` keyword: None, or one boolean per order, not all True.
+
+    Returns None when no order is stationary."""
+    if stationary is None:
+        return None
+    stat = np.asarray(stationary)
+    if stat.shape != (s,) or stat.dtype != bool:
+        raise ValueError(f"stationary must be None or {s} booleans (one per order), got {stat.dtype} {stat.shape}")
+    if stat.all():
+        raise ValueError("stationary must leave at least one order that is not stationary")
+    return stat if stat.any() else None
+
+
 def _warn_close(pairs: set[tuple[int, int]]) -> list[tuple[int, int]]:
     close = sorted(pairs)
     if close:
@@ -513,6 +536,7 @@ def vkf(
     chunk_duration: float | None = None,
     phase0: Any = None,
     real_signal: bool = True,
+    stationary: Any = None,
 ) -> VKFResult:
     """Extract orders with the multi-order Vold–Kalman filter.
 
@@ -553,6 +577,19 @@ def vkf(
         order's filter rejects the images (narrow, equal bandwidths); next to
         narrow orders a wide one is off by ~1 % inside a record and up to
         25 % at its ends with False.
+    stationary : array_like of bool, shape (s,), optional
+        Orders whose envelope is a function of their own frequency only (a
+        source that does not change along the record, such as a wheel's
+        out-of-roundness: its response moves with the speed, not with time).
+        Each segment is then solved in three steps: every order at the
+        stationary orders' (narrow) bandwidth; the stationary envelopes
+        replaced by a local-linear fit over log-frequency (Gaussian kernel,
+        1 % of the frequency); the orders wider than them solved again at
+        their own bandwidths on what is left. A wide order whose band holds
+        a stationary one then keeps its changes instead of losing the part
+        at the stationary order's line (docs/vkf.md, *Stationary orders*).
+        Chunks fit their stationary orders each on their own stretch.
+        Default None: every order is solved jointly at its own bandwidth.
 
     Returns
     -------
@@ -598,9 +635,10 @@ def vkf(
     """
     decimation, chunk_duration = check_mode(decimation, chunk_duration)
     inp = prepare_input(y, fs, freqs, bandwidth, filter_order, phase0)
+    stat = _check_stationary(stationary, inp.s)
     pairs: set[tuple[int, int]] = set()
     segments: list[_Segment] = []
-    for _, segments, _, seg_pairs in _iter_segments(inp, chunk_duration, decimation, real_signal):  # noqa: B007
+    for _, segments, _, seg_pairs in _iter_segments(inp, chunk_duration, decimation, real_signal, stat):  # noqa: B007
         pairs |= seg_pairs
     return VKFResult(inp, segments, 0, inp.n, np.zeros(inp.s), _warn_close(pairs))
 
@@ -616,6 +654,7 @@ def vkf_stream(
     chunk_duration: float | None = None,
     phase0: Any = None,
     real_signal: bool = True,
+    stationary: Any = None,
 ) -> Iterator[VKFResult]:
     """Run :func:`vkf` chunk by chunk with bounded memory.
 
@@ -650,8 +689,9 @@ def vkf_stream(
     """
     decimation, chunk_duration = check_mode(decimation, chunk_duration)
     inp = prepare_input(y, fs, freqs, bandwidth, filter_order, phase0)
+    stat = _check_stationary(stationary, inp.s)
     seen: set[tuple[int, int]] = set()
-    for i, segments, cum_lo, pairs in _iter_segments(inp, chunk_duration, decimation, real_signal):
+    for i, segments, cum_lo, pairs in _iter_segments(inp, chunk_duration, decimation, real_signal, stat):
         seg = segments[i]
         start = 0 if i == 0 else seg.out_lo
         stop = segments[i + 1].out_lo if i + 1 < len(segments) else inp.n

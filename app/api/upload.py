@@ -51,6 +51,7 @@ from app.db.models import Run, utcnow
 from app.db.session import Database
 from app.io import RunFileError, RunSummary, ingest, load_metadata_json
 from app.io.geometry import LineGeometry
+from app.operations.heavy import run_heavy
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
 
@@ -610,11 +611,12 @@ async def _receive_and_create(
 
         dest = upload_dir / "run.h5"
         try:
-            summary = await run_in_threadpool(
+            summary = await run_heavy(  # a few at a time per process: reads keep their share (issue 24)
+                request.app,
                 lambda: ingest(
                     path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry,
                     reserve_bytes=settings.min_free_bytes,
-                )
+                ),
             )
         except RunFileError as exc:
             raise ApiError(422, exc.field, exc.message) from None

@@ -1,10 +1,14 @@
 """Webhooks (admin): receivers of alerts when a published run has new condition flags, and their
 delivery log.
 
-``POST /webhooks`` registers a receiver (http or https URL; 422 naming ``url`` otherwise) and
-answers its signing secret once; ``GET /webhooks``, ``PATCH``/``DELETE /webhooks/{id}``;
-``POST /webhooks/{id}/test`` queues a ``ping``; ``GET /webhooks/deliveries`` is the log.
-The request format and how to verify a signature: docs/condition.md ("Alerts").
+``POST /webhooks`` registers a receiver and answers its signing secret once; the URL must be
+http(s) without credentials, and its host must resolve to public addresses only (or to the
+allow-listed networks of ``TRACKVKF_WEBHOOK_ALLOWED_NETWORKS``): 422 naming ``url`` otherwise
+(docs/security.md, "Webhooks: SSRF policy"). ``GET /webhooks`` (URLs shown with credentials
+masked), ``PATCH``/``DELETE /webhooks/{id}`` (``PATCH {"secret": ...}`` rotates the secret: the
+previous one keeps signing for ``TRACKVKF_WEBHOOK_SECRET_GRACE_S``); ``POST /webhooks/{id}/test``
+queues a ``ping``; ``GET /webhooks/deliveries`` is the log (coarse outcomes only: the receiver's
+answer is never kept). The request format and how to verify a signature: docs/condition.md ("Alerts").
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Path, Query, Request, Response, status
 from pydantic import BaseModel, Field
 
+from app.alerts.url_policy import AddressPolicy, UrlError, redact_url, resolve
 from app.api.audit import record
 from app.api.deps import AdminDep, DbDep, PageOffset, SettingsDep, check_page_size, require_role
 from app.api.errors import ApiError, not_found
@@ -39,17 +44,23 @@ class WebhookPatch(BaseModel):
     url: str | None = Field(default=None, max_length=2000)
     description: str | None = Field(default=None, max_length=500)
     active: bool | None = None
+    secret: str | None = Field(default=None, min_length=16, max_length=128,
+                               description="a new signing secret: rotates it (the previous one keeps signing "
+                                           "deliveries, as a second signature, for TRACKVKF_WEBHOOK_SECRET_GRACE_S)")
 
 
 class WebhookOut(BaseModel):
     id: int
-    url: str
+    url: str = Field(description="the receiver's URL, with the values of credential-like query parameters masked")
     description: str | None
     active: bool
     created_by: str | None
     created_at: str
     pending: int = Field(description="deliveries waiting to be sent")
     failed: int = Field(description="deliveries given up")
+    secret_rotated_at: str | None = Field(default=None, description="when the secret was last rotated")
+    previous_secret_valid_until: str | None = Field(
+        default=None, description="deliveries carry a signature with the previous secret too until then")
 
 
 class WebhookCreated(WebhookOut):
@@ -70,7 +81,8 @@ class DeliveryOut(BaseModel):
     next_attempt_at: str | None
     last_attempt_at: str | None
     last_status_code: int | None
-    last_error: str | None
+    last_error: str | None = Field(description="coarse outcome of the last failed attempt: HTTP <status>, "
+                                               "no answer, or refused by the SSRF policy")
     created_at: str
     delivered_at: str | None
     n_flags: int | None
@@ -81,30 +93,35 @@ class DeliveryList(BaseModel):
     items: list[DeliveryOut]
 
 
-def _url(value: str) -> str:
+def _url(value: str, settings) -> str:
+    """The URL if its syntax is acceptable and its host resolves to allowed addresses only (422 naming url)."""
     try:
-        return webhooks.check_url(value)
-    except ValueError as exc:
+        url = webhooks.check_url(value)
+        resolve(url, AddressPolicy.from_settings(settings))
+    except UrlError as exc:
         raise ApiError(422, "url", str(exc)) from None
+    return url
 
 
 def _out(session, hook: Webhook) -> dict:
     counts = {s: 0 for s in DeliveryStatus.ALL}
     for d in session.query(WebhookDelivery.status).filter(WebhookDelivery.webhook_id == hook.id):
         counts[d.status] = counts.get(d.status, 0) + 1
-    return {"id": hook.id, "url": hook.url, "description": hook.description, "active": hook.active,
+    grace = webhooks.signing_secrets(hook)
+    return {"id": hook.id, "url": redact_url(hook.url), "description": hook.description, "active": hook.active,
             "created_by": hook.created_by, "created_at": iso_time(hook.created_at),
             "pending": counts[DeliveryStatus.PENDING] + counts[DeliveryStatus.SENDING],
-            "failed": counts[DeliveryStatus.FAILED]}
+            "failed": counts[DeliveryStatus.FAILED], "secret_rotated_at": iso_time(hook.secret_rotated_at),
+            "previous_secret_valid_until": iso_time(hook.previous_secret_until) if len(grace) > 1 else None}
 
 
 @router.post("", response_model=WebhookCreated, status_code=201, summary="Register a webhook (admin)")
-def create(body: WebhookIn, request: Request, db: DbDep, principal: AdminDep) -> dict:
-    url = _url(body.url)
+def create(body: WebhookIn, request: Request, db: DbDep, principal: AdminDep, settings: SettingsDep) -> dict:
+    url = _url(body.url, settings)
     with db.write() as session:
         hook = webhooks.create_webhook(session, url, description=body.description, secret=body.secret,
                                        created_by=principal.name)
-        record(session, request, principal, "webhook.create", target=hook.id, detail={"url": url})
+        record(session, request, principal, "webhook.create", target=hook.id, detail={"url": redact_url(url)})
         return {**_out(session, hook), "secret": hook.secret}
 
 
@@ -115,18 +132,25 @@ def list_hooks(db: DbDep) -> dict:
 
 
 @router.patch("/{webhook_id}", response_model=WebhookOut, summary="Change a webhook (admin)")
-def change(webhook_id: WebhookId, body: WebhookPatch, request: Request, db: DbDep, principal: AdminDep) -> dict:
+def change(webhook_id: WebhookId, body: WebhookPatch, request: Request, db: DbDep, principal: AdminDep,
+           settings: SettingsDep) -> dict:
+    """Change a webhook's URL, description or active flag, or rotate its secret (``secret``)."""
+    changed = body.model_dump(exclude_none=True)
+    url = _url(changed["url"], settings) if "url" in changed else None
     with db.write() as session:
         hook = session.get(Webhook, webhook_id)
         if hook is None:
             raise not_found("webhook", webhook_id)
-        changed = body.model_dump(exclude_none=True)
-        if "url" in changed:
-            hook.url = _url(changed["url"])
+        if url is not None:
+            hook.url = url
+            changed["url"] = redact_url(url)
         if "description" in changed:
             hook.description = changed["description"]
         if "active" in changed:
             hook.active = changed["active"]
+        if "secret" in changed:
+            webhooks.rotate_secret(hook, changed["secret"], grace_s=settings.webhook_secret_grace_s)
+            changed["secret"] = "rotated"  # never the secret itself
         record(session, request, principal, "webhook.update", target=webhook_id, detail=changed)
         return _out(session, hook)
 
@@ -139,7 +163,7 @@ def delete(webhook_id: WebhookId, request: Request, db: DbDep, principal: AdminD
             raise not_found("webhook", webhook_id)
         session.query(WebhookDelivery).filter(WebhookDelivery.webhook_id == webhook_id).delete()
         session.delete(hook)
-        record(session, request, principal, "webhook.delete", target=webhook_id, detail={"url": hook.url})
+        record(session, request, principal, "webhook.delete", target=webhook_id, detail={"url": redact_url(hook.url)})
     return Response(status_code=204)
 
 

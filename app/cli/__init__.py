@@ -1,19 +1,19 @@
 """Command line of trackvkf: ``serve``, ``worker``, ``migrate``, ``demo``, ``simulate``,
-``process``, ``simulate-fleet``, ``sweep-profiles``, ``user`` (create, set-password, list) and
+``process``, ``simulate-fleet``, ``sweep-profiles``, ``backup``, ``restore``, ``user`` (create, set-password, list) and
 ``key`` (create, revoke, list).
 
 Every command reads the service settings from ``TRACKVKF_*`` environment
 variables (see :class:`app.core.config.Settings`). The commands live by group:
 :mod:`app.cli.service` (serve, worker, migrate), :mod:`app.cli.processing`
 (simulate, process), :mod:`app.cli.condition` (simulate-fleet, sweep-profiles),
-:mod:`app.cli.accounts` (user, key), :mod:`app.cli.demo`.
+:mod:`app.cli.accounts` (user, key), :mod:`app.cli.demo`, :mod:`app.cli.operations` (backup, restore).
 """
 
 from __future__ import annotations
 
 import typer
 
-from app.cli import accounts, condition, demo, processing, service
+from app.cli import accounts, condition, demo, operations, processing, service
 
 __all__ = ["app", "main"]
 
@@ -34,6 +34,8 @@ app.command("sweep-profiles")(condition.sweep_profiles)
 app.add_typer(accounts.user_app, name="user")
 app.add_typer(accounts.key_app, name="key")
 app.command()(demo.demo)
+app.command()(operations.backup)
+app.command()(operations.restore)
 
 
 def main() -> None:

@@ -42,13 +42,20 @@ def serve(
     """
     import uvicorn
 
-    require_migrated_database()
-    refuse_unsafe_production()
-    n = workers if workers is not None else default_api_workers()
-    uvicorn.run(
-        "app.main:create_app", factory=True, host=host, port=port, log_level=log_level.lower(),
-        workers=n, timeout_graceful_shutdown=30,
-    )
+    from app.observability.multiproc import prepare_multiprocess_dir, remove_multiprocess_dir
+
+    metrics_dir, made = prepare_multiprocess_dir()  # /metrics adds up the counts of every API process
+    try:
+        require_migrated_database()
+        refuse_unsafe_production()
+        n = workers if workers is not None else default_api_workers()
+        uvicorn.run(
+            "app.main:create_app", factory=True, host=host, port=port, log_level=log_level.lower(),
+            workers=n, timeout_graceful_shutdown=30,
+        )
+    finally:
+        if made:
+            remove_multiprocess_dir(metrics_dir)
 
 
 def worker(
@@ -65,7 +72,7 @@ def worker(
 
     settings = get_settings()
     require_migrated_database()
-    configure_logging(settings.log_level)
+    configure_logging(settings.log_level, settings.log_format)
     code = modes.run(settings, local=local, once=once, exit_when_idle=exit_when_idle, processes=processes)
     if code:
         raise typer.Exit(code)

@@ -42,6 +42,10 @@ class Settings(BaseSettings):
         Size of the blocks an upload is read and written in, bytes.
     max_metadata_bytes : int
         Largest accepted metadata JSON document, bytes.
+    upload_ingest_concurrency : int
+        Uploads each API process validates and converts at once (the others
+        wait their turn, already received): conversion holds the GIL, and
+        more at once would starve the process's reads (:mod:`app.operations.heavy`).
     upload_stale_after_s : float
         Age (s) after which an upload directory is swept at start-up on a file
         system without ``flock`` (some network file systems). Elsewhere every
@@ -60,6 +64,9 @@ class Settings(BaseSettings):
     worker_stale_after_s : float
         A running job whose heartbeat is older than this (s) belongs to a dead
         worker and is claimed again.
+    health_stuck_after_s : float
+        ``/health`` reports a running job as stuck (status ``degraded``) when
+        no worker has reported progress on it for this long, s.
     worker_chunk_processes : int
         Processes a worker uses to run the chunks of one job in parallel
         (default 1: in the worker process itself). Set it to the number of
@@ -78,6 +85,9 @@ class Settings(BaseSettings):
         Role of that principal (viewer, engineer or admin).
     log_level : str
         Python logging level name for the service loggers.
+    log_format : str
+        ``text`` (default) or ``json``: one JSON object per log line (time,
+        level, logger, message, pid, exception), uvicorn's logs too.
     max_page_size : int
         Largest page a list endpoint returns.
     max_profile_rows : int
@@ -167,7 +177,23 @@ class Settings(BaseSettings):
     condition_min_shift_confidence : float
         Alignments less clear than this are not applied.
     webhook_timeout_s : float
-        Time a webhook receiver has to answer, s.
+        Total time of one webhook request, s: name resolution, connection,
+        TLS, sending and the receiver's answer together, however slowly the
+        receiver trickles bytes.
+    webhook_max_answer_bytes : int
+        Most bytes of a receiver's answer body read (and discarded), bytes.
+    webhook_concurrency : int
+        Deliveries a worker process sends at once (one per webhook at a time):
+        a slow receiver holds one of them, not the others.
+    webhook_allowed_networks : str
+        Networks (CIDR, comma separated: ``10.20.0.0/16,192.168.5.7/32``) that
+        webhook receivers may be in although private, loopback or otherwise
+        not public (on-premises receivers). Default: none (public addresses
+        only). See docs/security.md ("Webhooks: SSRF policy").
+    webhook_secret_grace_s : float
+        After a secret is rotated (``PATCH /webhooks/{id}`` with ``secret``),
+        deliveries carry a signature with the previous secret too for this
+        long, s, so receivers can switch over.
     webhook_max_attempts : int
         Attempts of a delivery before it is given up.
     webhook_retry_base_s, webhook_retry_max_s : float
@@ -197,16 +223,19 @@ class Settings(BaseSettings):
     max_upload_bytes: int = Field(default=8 * _GIB, gt=0)
     upload_block_bytes: int = Field(default=1024 * 1024, ge=4096)
     max_metadata_bytes: int = Field(default=1024 * 1024, ge=1024)
+    upload_ingest_concurrency: int = Field(default=1, ge=1, le=64)
     upload_stale_after_s: float = Field(default=6 * 3600.0, gt=0)
     min_free_bytes: int = Field(default=_GIB, ge=0)
     worker_poll_interval_s: float = Field(default=1.0, gt=0)
     worker_heartbeat_s: float = Field(default=2.0, gt=0)
     worker_stale_after_s: float = Field(default=30.0, gt=0)
     worker_chunk_processes: int = Field(default=1, ge=1, le=64)
+    health_stuck_after_s: float = Field(default=600.0, gt=0)
     shared_store: str | None = None
     anonymous_principal: str = "local"
     anonymous_role: str = "admin"
     log_level: str = "INFO"
+    log_format: str = Field(default="text", pattern="^(text|json)$")
     max_page_size: int = Field(default=500, ge=1)
     max_profile_rows: int = Field(default=200_000, ge=1)
     env: str = "development"
@@ -241,6 +270,10 @@ class Settings(BaseSettings):
     condition_max_shift_m: float = Field(default=50.0, gt=0)
     condition_min_shift_confidence: float = Field(default=0.2, ge=0, le=1)
     webhook_timeout_s: float = Field(default=5.0, gt=0, le=120)
+    webhook_max_answer_bytes: int = Field(default=64 * 1024, ge=0, le=16 * 1024 * 1024)
+    webhook_concurrency: int = Field(default=4, ge=1, le=64)
+    webhook_allowed_networks: str = Field(default="", max_length=4000)
+    webhook_secret_grace_s: float = Field(default=24 * 3600.0, ge=0)
     webhook_max_attempts: int = Field(default=8, ge=1, le=100)
     webhook_retry_base_s: float = Field(default=5.0, gt=0)
     webhook_retry_max_s: float = Field(default=3600.0, gt=0)
@@ -255,6 +288,14 @@ class Settings(BaseSettings):
     def _check_role(cls, value: str) -> str:
         if value not in ("viewer", "engineer", "admin"):
             raise ValueError(f"anonymous_role must be viewer, engineer or admin, got {value!r}")
+        return value
+
+    @field_validator("webhook_allowed_networks")
+    @classmethod
+    def _check_networks(cls, value: str) -> str:
+        from app.alerts.url_policy import parse_networks
+
+        parse_networks(value)  # ValueError naming the entry
         return value
 
     @field_validator("env")

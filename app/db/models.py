@@ -323,6 +323,7 @@ class WheelOOR(Base):
 from app.db import auth_models as _auth_models  # noqa: E402,F401  (users, sessions, api_keys, audit_log)
 from app.db import condition_models as _condition_models  # noqa: E402,F401  (segment condition store)
 from app.db import curve_models as _curve_models  # noqa: E402,F401  (reference_curves in Base.metadata)
+from app.db import operations_models as _operations_models  # noqa: E402,F401  (worker heartbeats)
 from app.db import recorder_models as _recorder_models  # noqa: E402,F401  (channel maps, line geometries)
 from app.db import reference_models as _reference_models  # noqa: E402,F401  (reference tables in Base.metadata)
 from app.db import webhook_models as _webhook_models  # noqa: E402,F401  (webhooks, delivery log)

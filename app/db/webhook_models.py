@@ -2,7 +2,8 @@
 
 Tables
 ------
-webhooks            a receiver: URL, signing secret, active flag
+webhooks            a receiver: URL, signing secret (and the previous one while its
+                    rotation grace period lasts), active flag
 webhook_deliveries  one request to send (or sent): payload, state, attempts,
                     next attempt, the receiver's last answer; written in the
                     transaction that publishes a run with new condition flags,
@@ -41,6 +42,10 @@ class Webhook(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     url: Mapped[str] = mapped_column(String(2000))
     secret: Mapped[str] = mapped_column(String(128))
+    #: the secret before the last rotation: deliveries carry its signature too until ``previous_secret_until``
+    previous_secret: Mapped[str | None] = mapped_column(String(128))
+    previous_secret_until: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
+    secret_rotated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
     description: Mapped[str | None] = mapped_column(String(500))
     active: Mapped[bool] = mapped_column(Boolean, default=True)
     created_by: Mapped[str | None] = mapped_column(String(128))

@@ -9,6 +9,12 @@ guarded conditional updates (a delivery is sent by one loop at a time; a loop
 that dies leaves its claim to expire after the lease), so delivery is
 at-least-once: receivers deduplicate by the ``X-Trackvkf-Delivery`` id.
 Failed attempts are retried with exponential back-off (:class:`RetryPolicy`).
+
+A webhook's URL is checked by :func:`app.alerts.url_policy.check_url` (syntax)
+here; where it may point (the SSRF policy) is checked by the API when it is
+registered and by the transport at every delivery. A secret is rotated by
+:func:`rotate_secret`: the previous secret keeps signing deliveries (a second
+signature) until its grace period ends.
 """
 
 from __future__ import annotations
@@ -18,11 +24,11 @@ import secrets
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
-from urllib.parse import urlsplit
 
 from sqlalchemy import and_, func, or_, select, update
 from sqlalchemy.orm import Session
 
+from app.alerts.url_policy import check_url as _check_url_syntax
 from app.db.condition_models import ConditionFlag, ConditionLine
 from app.db.condition_reader import flag_dict, iso_time
 from app.db.models import Run, utcnow
@@ -37,6 +43,8 @@ __all__ = [
     "check_url",
     "new_secret",
     "create_webhook",
+    "rotate_secret",
+    "signing_secrets",
     "enqueue",
     "enqueue_condition_flags",
     "claim_due",
@@ -48,7 +56,6 @@ __all__ = [
 EVENT_FLAGS = "condition.flags"
 #: Event of a test delivery (``POST /webhooks/{id}/test``).
 EVENT_PING = "ping"
-_MAX_URL = 2000
 
 
 @dataclass(frozen=True)
@@ -72,23 +79,16 @@ class Claimed:
     id: int
     webhook_id: int
     url: str
-    secret: str
+    sign_with: tuple[str, ...]  # the current secret, and the previous one in its grace period
     event: str
     payload: dict[str, Any]
     attempts: int
 
 
 def check_url(url: str) -> str:
-    """The URL, stripped; ValueError unless it is an absolute http(s) URL with a host."""
-    value = (url or "").strip()
-    if len(value) > _MAX_URL:
-        raise ValueError(f"at most {_MAX_URL} characters")
-    parts = urlsplit(value)
-    if parts.scheme not in ("http", "https"):
-        raise ValueError(f"must be an http:// or https:// URL, got {value[:80]!r}")
-    if not parts.hostname:
-        raise ValueError("has no host")
-    return value
+    """The URL, stripped; ValueError (:class:`app.alerts.url_policy.UrlError`) unless its syntax
+    is acceptable: http(s), a host, a port in 1–65535, no credentials, no spaces or control characters."""
+    return _check_url_syntax(url)
 
 
 def new_secret() -> str:
@@ -104,6 +104,32 @@ def create_webhook(session: Session, url: str, *, description: str | None = None
     session.add(hook)
     session.flush()
     return hook
+
+
+def rotate_secret(hook: Webhook, secret: str, *, grace_s: float, now: dt.datetime | None = None) -> None:
+    """Make ``secret`` the webhook's signing secret; the current one stays valid for ``grace_s`` seconds.
+
+    Deliveries sent within the grace period carry both signatures (new first).
+    Rotating again within a grace period drops the oldest secret.
+    """
+    if len(secret) < 16:
+        raise ValueError("secret: at least 16 characters")
+    if grace_s < 0:
+        raise ValueError(f"grace_s must be >= 0, got {grace_s}")
+    now = now or utcnow()
+    if secret != hook.secret:
+        hook.previous_secret = hook.secret if grace_s > 0 else None
+        hook.previous_secret_until = now + dt.timedelta(seconds=grace_s) if grace_s > 0 else None
+        hook.secret = secret
+    hook.secret_rotated_at = now
+
+
+def signing_secrets(hook: Webhook, now: dt.datetime | None = None) -> tuple[str, ...]:
+    """The secrets a delivery is signed with now: the current one, and the previous one in its grace period."""
+    now = now or utcnow()
+    if hook.previous_secret and hook.previous_secret_until is not None and hook.previous_secret_until > now:
+        return (hook.secret, hook.previous_secret)
+    return (hook.secret,)
 
 
 def enqueue(session: Session, event: str, payload: dict[str, Any], *, run_id: int | None = None,
@@ -146,27 +172,55 @@ def _due(now: dt.datetime):
     )
 
 
-def claim_due(db: Database, *, limit: int = 20, lease_s: float = 60.0,
-              now: dt.datetime | None = None) -> list[Claimed]:
+def claim_due(db: Database, *, limit: int = 20, lease_s: float = 60.0, busy_webhooks: Sequence[int] = (),
+              one_per_webhook: bool = False, now: dt.datetime | None = None) -> list[Claimed]:
     """Claim up to ``limit`` due deliveries (pending and due, or sending with an expired lease).
 
     Each is claimed by a guarded update, so two loops never send the same one
     at once; the claim lasts ``lease_s`` seconds.
+
+    Parameters
+    ----------
+    busy_webhooks : sequence of int
+        Webhooks whose deliveries are not claimed now (the caller is sending to them).
+    one_per_webhook : bool
+        Claim at most one delivery per webhook (the oldest due).
     """
+    if limit <= 0:
+        return []
     now = now or utcnow()
-    out = []
+    out: list[Claimed] = []
+    busy = set(busy_webhooks)
     with db.write() as session:
-        rows = session.execute(
-            select(WebhookDelivery, Webhook).join(Webhook, Webhook.id == WebhookDelivery.webhook_id)
-            .where(_due(now)).order_by(WebhookDelivery.next_attempt_at, WebhookDelivery.id).limit(limit)
-        ).all()
-        for d, hook in rows:
+        due = select(WebhookDelivery).where(_due(now))
+        if busy:
+            due = due.where(WebhookDelivery.webhook_id.not_in(busy))
+        if one_per_webhook:
+            # the webhooks with something due, longest waiting first, then each one's oldest delivery:
+            # a webhook with a long backlog does not keep the others from their turn
+            waiting = select(WebhookDelivery.webhook_id).where(_due(now))
+            if busy:
+                waiting = waiting.where(WebhookDelivery.webhook_id.not_in(busy))
+            hook_ids = session.scalars(
+                waiting.group_by(WebhookDelivery.webhook_id)
+                .order_by(func.min(WebhookDelivery.next_attempt_at), WebhookDelivery.webhook_id).limit(limit)
+            ).all()
+            candidates = [session.scalars(due.where(WebhookDelivery.webhook_id == h).order_by(
+                WebhookDelivery.next_attempt_at, WebhookDelivery.id).limit(1)).first() for h in hook_ids]
+        else:
+            candidates = list(session.scalars(
+                due.order_by(WebhookDelivery.next_attempt_at, WebhookDelivery.id).limit(limit)))
+        for d in candidates:
+            if d is None or len(out) >= limit:
+                continue
+            hook = session.get(Webhook, d.webhook_id)
             result = session.execute(
                 update(WebhookDelivery).where(WebhookDelivery.id == d.id, _due(now))
                 .values(status=DeliveryStatus.SENDING, locked_until=now + dt.timedelta(seconds=lease_s))
             )
-            if result.rowcount == 1:
-                out.append(Claimed(d.id, hook.id, hook.url, hook.secret, d.event, dict(d.payload), d.attempts))
+            if result.rowcount == 1 and hook is not None:
+                out.append(Claimed(d.id, hook.id, hook.url, signing_secrets(hook, now), d.event, dict(d.payload),
+                                   d.attempts))
     return out
 
 

@@ -16,6 +16,7 @@ from app.analysis.recipe import (
     SLEEPER,
     STEP_WIDTH_FACTOR,
     OrderRecipe,
+    in_band_wheel_orders,
     order_collisions,
     order_overlap,
     order_recipe,
@@ -179,6 +180,22 @@ def test_fundamental_on_a_wheel_order_drops_the_wheel_order():
     r = order_recipe(d_w, 0.6, ProcessingSettings())
     assert "5" not in r.labels and SLEEPER in r.labels
     assert 5 not in r.wheel_orders and any("wheel order 5 is not extracted" in n for n in r.notes)
+
+
+@pytest.mark.parametrize("settings, d_w, expect", [
+    (ProcessingSettings(), 0.92, ["5", "9", "10"]),  # 0.18 from f_s; 0.63 and 0.37 from 2·f_s (band 0.69 orders)
+    (ProcessingSettings(n_wheel_orders=20), 0.92, ["5", "9", "10", "14", "15"]),  # 3·f_s at 14.45 orders
+    (ProcessingSettings(track_resolution_m=20.0), 0.92, []),  # a 0.10-order track band holds no wheel order
+    (ProcessingSettings(**LEGACY), 0.92, []),  # every order 0.1 orders wide
+    (ProcessingSettings(n_wheel_orders=4), 0.92, []),
+])
+def test_wheel_orders_inside_a_track_band_are_stationary(settings, d_w, expect):
+    """Issue 26: a wheel order inside a track order's band is solved as a stationary order (a function of
+    speed), so that it does not take the track order's changes at its line."""
+    r = order_recipe(d_w, 0.6, settings)
+    rows = in_band_wheel_orders(r.labels, r.multipliers, r.bandwidth_per_speed)
+    assert [r.labels[i] for i in rows] == expect
+    assert list(np.flatnonzero(r.stationary)) == list(rows)
 
 
 def test_order_collisions_rule():

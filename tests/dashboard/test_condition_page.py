@@ -35,7 +35,8 @@ def condition_service(tmp_path_factory) -> Iterator[object]:
     from tests.condition.support import publish_tracks
 
     work = tmp_path_factory.mktemp("condition-page")
-    with running_service(work / "service") as svc:
+    # the page's webhook form registers a receiver on loopback: allow-listed (SSRF policy, issue 24)
+    with running_service(work / "service", env_overrides={"TRACKVKF_WEBHOOK_ALLOWED_NETWORKS": "127.0.0.1/32"}) as svc:
         db = Database(svc.database_url)
         plan = FleetPlan(steps=(PlantedStep(2_400.0, 2_420.0, day=70.0, factor=1.25),),
                          trends=(PlantedTrend(3_300.0, 3_700.0, day=20.0, rate_per_year=0.4),),

@@ -16,7 +16,7 @@ TABLES = {
     "ref_subsidence", "ref_maintenance", "ref_superstructure", "reference_curves",
     "condition_lines", "condition_runs", "segment_condition", "condition_flags",
     "webhooks", "webhook_deliveries", "condition_overview",
-    "channel_maps", "line_geometries",
+    "channel_maps", "line_geometries", "worker_heartbeats",
 }
 
 
@@ -33,7 +33,7 @@ def test_upgrade_downgrade_upgrade(tmp_path):
     migrate.upgrade(url)
     assert _tables(url) == TABLES
     head = migrate.current_revision(url)
-    assert head == "0014_sleeper_roughness"  # one chain: the newest migration is the head
+    assert head == "0015_sleeper_roughness"  # one chain: the newest migration is the head
 
     migrate.downgrade(url, "base")
     assert _tables(url) == set()

@@ -40,6 +40,7 @@ EXPLICIT = {
     ("POST", "/api/v1/jobs/{job_id}/cancel"): "engineer",
     ("DELETE", "/api/v1/runs/{run_id}"): "admin",
     ("GET", "/api/v1/audit"): "admin",
+    ("GET", "/metrics"): "admin",  # issue 24: Prometheus metrics, admin only (an API key for the scraper)
 }
 _ADMIN_PREFIXES = ("/api/v1/auth/users", "/api/v1/auth/keys", "/api/v1/audit",
                    "/api/v1/webhooks")  # issue 16: an admin configures the alert receivers
@@ -70,7 +71,7 @@ def expected_policy(method: str, path: str) -> tuple[str, str | None]:
     """The policy the issue prescribes for a route."""
     if (method, path) in PUBLIC:
         return ("public", None)
-    kind = "api" if path.startswith("/api/") or path == "/openapi.json" else "page"
+    kind = "api" if path.startswith("/api/") or path in ("/openapi.json", "/metrics") else "page"
     if (method, path) in EXPLICIT:
         return (kind, EXPLICIT[(method, path)])
     if path.startswith(_ADMIN_PREFIXES):

@@ -8,8 +8,8 @@ at f_s, what ``sleeper_amp`` held before, m/s²) and ``sleeper_amp_sd`` (the 1-�
 of ``sleeper_amp``, m/s²). Rows stored before have NULL there. On PostgreSQL
 the columns added to the partitioned table reach every partition.
 
-Revision ID: 0014_sleeper_roughness
-Revises: 0013_profile_partitions
+Revision ID: 0015_sleeper_roughness
+Revises: 0014_operations
 Create Date: 2026-11-26
 """
 
@@ -18,8 +18,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0014_sleeper_roughness"
-down_revision: str | None = "0013_profile_partitions"
+revision: str = "0015_sleeper_roughness"
+down_revision: str | None = "0014_operations"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
