@@ -70,9 +70,14 @@ class SleeperTrack:
 
 
 def recipe_floor_gain(recipe: OrderRecipe) -> float:
-    """:func:`app.analysis.roughness.floor_gain` of a wheel's recipe (every tracked order notches the residual)."""
-    return floor_gain(recipe.filter_order, multipliers=recipe.multipliers, bandwidths=recipe.bandwidth_per_speed,
-                      sleeper_row=recipe.sleeper_row)
+    """:func:`app.analysis.roughness.floor_gain` of a wheel's recipe: every tracked order notches the
+    residual, except the stationary ones (:attr:`OrderRecipe.stationary`: fitted as functions of
+    frequency over the stretch, they take no broadband content)."""
+    keep = ~np.asarray(recipe.stationary, dtype=bool)
+    rows = np.flatnonzero(keep)
+    return floor_gain(recipe.filter_order, multipliers=recipe.multipliers[keep],
+                      bandwidths=recipe.bandwidth_per_speed[keep],
+                      sleeper_row=int(np.flatnonzero(rows == recipe.sleeper_row)[0]))
 
 
 def rough_groups(tracks: Mapping[str, SleeperTrack], speed: np.ndarray, grid_rate: float) -> dict[str, BinSums]:

