@@ -22,9 +22,11 @@ Three things in the data separate them (physics, not tuning):
   own envelope filter; with the gain :func:`floor_gain` (how the coupled VKF
   shares a flat density among its orders) each gives a floor, and the lesser of
   their 20 m medians is the floor per bin (:func:`side_floor`). Phase-free and
-  local, but a *lower bound* where the roughness response peaks at ``f_s``: the
-  wheel–track resonance that makes a track respond strongly at ``f_s`` also
-  peaks its roughness response there.
+  local, but on the physics runs not the band's density: 7–70× less where the
+  roughness response peaks at ``f_s`` (the wheel–track resonance that makes a
+  track respond strongly there), 6–9× more on soft track far above it. A single
+  wheel therefore takes it off only where the band's own fluctuation shows at
+  least as much.
 * **The envelope's own fluctuation** (:func:`inband_floor`): over ≈ 20 m of
   uniform track ``S`` is steady while ``R`` decorrelates every few metres
   (:func:`app.analysis.uncertainty.envelope_correlation`), so the median of
