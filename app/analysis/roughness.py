@@ -52,10 +52,12 @@ root is not: ``E sqrt(X⁺) < S`` for ``S²/σ ≳ 0.3``).
 
 The 1-σ of each follows from the power model with the floors measured above,
 averaged over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths: for two rails the
-spread of the estimate (Gaussian power model,
-:func:`app.analysis.uncertainty.clipped_sqrt_moments`), for a single wheel the
-root mean square error including the floor the side bands miss (exact Rice
-moments, :func:`app.analysis.uncertainty.rice_clipped_moments`). Segments:
+spread of the estimate (exact moments of the cross product of two complex
+Gaussian envelopes, :func:`app.analysis.uncertainty.cross_rail_moments`), for a
+single wheel the root mean square error including the floor the side bands miss
+(exact Rice moments, :func:`app.analysis.uncertainty.rice_clipped_moments`); of
+that, the bias of the floor not taken off and the floor estimate's scatter are
+stated apart as shared along the window (``shared``). Segments:
 :func:`app.analysis.uncertainty.segment_sd`.
 """
 
@@ -69,12 +71,14 @@ from scipy.ndimage import median_filter
 from scipy.signal import butter, sosfiltfilt
 
 from app.analysis.uncertainty import (
+    FLOOR_WINDOW_LENGTHS,
     STEP_WIDTH_FACTORS,
-    clipped_sqrt_moments,
     correlation_length,
     correlation_zero,
+    cross_rail_moments,
     envelope_response_squared,
     rice_clipped_moments,
+    shared_window_m,
 )
 
 __all__ = [
@@ -94,9 +98,6 @@ __all__ = [
 #: width B whose -3 dB edge lies B/2 outside the order's (the residual's notch under the order
 #: costs it ≈ 10 % of a flat density, restored by floor_gain)
 SIDEBAND_OFFSET = 1.5
-#: the floors and the local signal power of the 1-σ model are averaged over this many correlation
-#: lengths (≈ 20 m at 3 m resolution): ≈ 5 independent looks, local to a stiffness section
-FLOOR_WINDOW_LENGTHS = 5.0
 
 
 def floor_gain(
@@ -422,7 +423,7 @@ def side_floor(bins: np.ndarray, floor: np.ndarray, bin_length: float = 0.25, re
 
 
 def _window_m(resolution_m: float, filter_order: int) -> float:
-    return FLOOR_WINDOW_LENGTHS * correlation_length(resolution_m, filter_order)
+    return shared_window_m(resolution_m, filter_order)
 
 
 def single_wheel_estimate(
@@ -433,8 +434,8 @@ def single_wheel_estimate(
     bin_length: float = 0.25,
     resolution_m: float = 3.0,
     filter_order: int = 2,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Floor-corrected sleeper amplitude of one wheel and its 1-σ, per bin, m/s².
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Floor-corrected sleeper amplitude of one wheel, its 1-σ and the shared part of it, per bin, m/s².
 
     Parameters
     ----------
@@ -465,6 +466,13 @@ def single_wheel_estimate(
         miss, ``F − F_side``, stays in ``amp`` as a bias and counts; ``S²`` is the local
         mean of ``X`` less it. The averaged side bands' own scatter (``W/ℓ`` looks)
         adds ``(F_side / (2 amp))² ℓ/(2W)``.
+    shared : ndarray
+        The part of ``sd`` shared along the floor window ``W``
+        (:func:`app.analysis.uncertainty.shared_correlation`): the bias the floor
+        not taken off leaves, ``E[amp] − S`` (the same for every bin whose window
+        sees the same floor), and the averaged side bands' scatter; the rest of
+        ``sd`` is the envelope's broadband part. :func:`app.analysis.uncertainty.segment_sd`
+        takes it as ``shared``.
     """
     b = np.asarray(bins, dtype=np.int64)
     p = np.asarray(power, dtype=np.float64)
@@ -473,7 +481,7 @@ def single_wheel_estimate(
     if not (b.shape == p.shape == e.shape) or b.ndim != 1 or sides.shape != (2, b.size):
         raise ValueError("bins, power and envelope must be 1-D of one length n, floor of shape (2, n)")
     if b.size == 0:
-        return p.copy(), p.copy()
+        return p.copy(), p.copy(), p.copy()
     w = _window_m(resolution_m, filter_order)
     f_inc = np.nan_to_num(inband_floor(b, e, bin_length, resolution_m, filter_order))
     # the side bands' floor is taken off only where it is no more than the band's own fluctuation
@@ -503,17 +511,12 @@ def single_wheel_estimate(
     with np.errstate(invalid="ignore", divide="ignore"):
         floor_var = np.where(amp > 0, (0.5 / np.where(amp > 0, amp, 1.0)) ** 2 * 0.5 * f_side_w**2 / looks, 0.0)
     sd = np.sqrt(np.maximum(mse, 0.0) + floor_var)
+    # shared along the window: the bias of the floor not taken off, and the floor estimate's own scatter
+    bias = m1 / c - s
+    shared = np.minimum(np.sqrt(bias**2 + floor_var), sd)
     sd[~np.isfinite(amp)] = np.nan
-    return amp, sd
-
-
-def _sqrt_bias(mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """``E[sqrt(X⁺)] / sqrt(mu)`` for ``X ~ N(mu, sigma²)``: 1 where ``sigma`` or ``mu`` is 0."""
-    mean_sqrt, _ = clipped_sqrt_moments(mu, sigma)
-    root = np.sqrt(np.maximum(mu, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        c = np.where((root > 0) & (sigma > 0), mean_sqrt / np.where(root > 0, root, 1.0), 1.0)
-    return np.where(np.isfinite(c) & (c > 0), c, 1.0)
+    shared[~np.isfinite(amp)] = np.nan
+    return amp, sd, shared
 
 
 def two_rail_estimate(
@@ -524,8 +527,8 @@ def two_rail_estimate(
     bin_length: float = 0.25,
     resolution_m: float = 3.0,
     filter_order: int = 2,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Sleeper amplitude common to the two rails of an axle and its 1-σ, per bin, m/s².
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sleeper amplitude common to the two rails of an axle, its 1-σ and the shared part of it, per bin, m/s².
 
     Parameters
     ----------
@@ -541,12 +544,17 @@ def two_rail_estimate(
     Returns
     -------
     amp : ndarray
-        ``sqrt(max(X, 0)) / c`` with ``X`` = ``cross`` and ``c = E[sqrt(X⁺)] / S`` of the
-        power model (``c → 1`` where the roughness is small against the sleeper response).
+        ``sqrt(max(X, 0)) / c`` with ``X`` = ``cross`` and ``c = E[sqrt(X⁺)] / S``
+        (``c → 1`` where the roughness is small against the sleeper response).
     sd : ndarray
-        The spread of ``amp`` under the model: ``X`` unbiased for ``S²`` with
-        ``σ² = S²(F₁ + F₂)/2 + F₁F₂/2``, ``F_i`` the local mean of ``|E_i|² − X``
-        (each rail's in-band floor), ``S²`` the local mean of ``X``.
+        The spread of ``amp``: ``X = Re((S + R₁) conj(S + R₂))`` with independent
+        circular Gaussian ``R_i`` of power ``F_i``, the local mean of ``|E_i|² − X``
+        (each rail's in-band floor), ``S²`` the local mean of ``X``; exact moments
+        (:func:`app.analysis.uncertainty.cross_rail_moments`).
+    shared : ndarray
+        0: ``X`` is unbiased whatever the floors, so no floor error is shared
+        along the track (the local estimates of ``S²`` and ``F_i`` set ``c`` and
+        ``sd`` only).
 
     Notes
     -----
@@ -561,16 +569,19 @@ def two_rail_estimate(
     raw = np.sqrt(np.maximum(x, 0.0))
     raw[~np.isfinite(x)] = np.nan
     if b.size == 0:
-        return raw, raw.copy()
+        return raw, raw.copy(), raw.copy()
     w = _window_m(resolution_m, filter_order)
     f1 = np.maximum(np.nan_to_num(smooth_along(b, p1 - x, w, bin_length)), 0.0)
     f2 = np.maximum(np.nan_to_num(smooth_along(b, p2 - x, w, bin_length)), 0.0)
     s2 = np.maximum(np.nan_to_num(smooth_along(b, x, w, bin_length)), 0.0)
-    sigma = np.sqrt(s2 * (f1 + f2) / 2.0 + f1 * f2 / 2.0)
-    mean_sqrt, mean_pos = clipped_sqrt_moments(s2, sigma)
-    c = _sqrt_bias(s2, sigma)
+    mean_sqrt, mean_pos = cross_rail_moments(s2, f1, f2)
+    root = np.sqrt(s2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.where(root > 0, mean_sqrt / np.where(root > 0, root, 1.0), 1.0)
+    c = np.where(np.isfinite(c) & (c > 0), c, 1.0)
     amp = raw / c
     spread = np.sqrt(np.maximum(mean_pos - mean_sqrt**2, 0.0))
     sd = spread / c
     sd[~np.isfinite(raw)] = np.nan
-    return amp, sd
+    shared = np.where(np.isfinite(raw), 0.0, np.nan)
+    return amp, sd, shared

@@ -22,10 +22,19 @@ the change tests and tiers of the condition store):
   component (``E[X] = S²``) with a Gaussian error of σ (m²/s⁴) gives the
   amplitude ``sqrt(max(X, 0))``, whose mean and spread follow in closed form
   (:func:`clipped_sqrt_moments`); this is how an amplitude's bias at low
-  signal-to-roughness ratio and its 1-σ are computed.
+  signal-to-roughness ratio and its 1-σ are computed. For the cross product of
+  two rails, ``X = Re((S + R₁) conj(S + R₂))`` with independent circular
+  Gaussian ``R₁``, ``R₂``, the moments are exact (:func:`cross_rail_moments`):
+  ``X`` is skewed and heavier-tailed than a Gaussian of its variance.
+* **Shared part.** Part of a bin's error is not the envelope's broadband part
+  but an error of a quantity estimated over a window of :data:`FLOOR_WINDOW_LENGTHS`
+  correlation lengths (≈ 20 m: a single wheel's floor that cannot be taken off,
+  the floor estimate's own scatter). It is shared by every bin in reach of the
+  window: its correlation is that of a moving mean over the window, the
+  triangle ``(1 − |Δ|/W)⁺`` (:func:`shared_correlation`).
 
 :func:`segment_sd` is the one rule for the 1-σ of a segment's mean from the 1-σ
-of its bins.
+of its bins (and, where stated, the shared part of it).
 """
 
 from __future__ import annotations
@@ -34,24 +43,33 @@ import math
 from functools import lru_cache
 
 import numpy as np
+from numpy.polynomial.hermite_e import hermegauss
 from scipy.interpolate import RegularGridInterpolator
 from scipy.special import i0e, ndtr, pbdv
 
 __all__ = [
+    "FLOOR_WINDOW_LENGTHS",
     "STEP_WIDTH_FACTORS",
     "clipped_sqrt_moments",
+    "cross_rail_moments",
     "rice_clipped_moments",
     "correlation_length",
     "correlation_zero",
     "envelope_correlation",
     "envelope_response_squared",
     "segment_sd",
+    "shared_correlation",
+    "shared_window_m",
 ]
 
 #: c_q of :data:`app.analysis.recipe.STEP_WIDTH_FACTOR` (10–90 % width × bandwidth), repeated
 #: here so that this module imports nothing of the project; a test checks they agree
 STEP_WIDTH_FACTORS: dict[int, float] = {1: 2.0 * math.log(5.0) / math.pi * math.sqrt(math.sqrt(2.0) - 1.0),
                                         2: 0.7205, 3: 0.7672}
+#: the floors and the local signal power of the 1-σ model are estimated over this many correlation
+#: lengths (≈ 20 m at 3 m resolution): ≈ 5 independent looks, local to a stiffness section; what is
+#: estimated over it is an error shared along it (:func:`shared_correlation`)
+FLOOR_WINDOW_LENGTHS = 5.0
 #: spectral grid of the tabulated correlation, in units of the bandwidth b
 _DK = 1.0 / 512.0
 _NK = 1 << 17
@@ -151,6 +169,39 @@ def correlation_length(resolution_m: float = 3.0, filter_order: int = 2) -> floa
     kappa = (np.arange(_NK) - _NK // 2) * _DK
     integral = float(np.sum(_response_squared(kappa, q)) * _DK)
     return res / (STEP_WIDTH_FACTORS[q] * integral)
+
+
+def shared_window_m(resolution_m: float = 3.0, filter_order: int = 2) -> float:
+    """Length of the window the floors are estimated over, m: :data:`FLOOR_WINDOW_LENGTHS` ×
+    :func:`correlation_length` (20.0 m at 3 m, q = 2)."""
+    return FLOOR_WINDOW_LENGTHS * correlation_length(resolution_m, filter_order)
+
+
+def shared_correlation(lag_m: np.ndarray | float, resolution_m: float = 3.0, filter_order: int = 2) -> np.ndarray:
+    """Along-track correlation of the shared part of a bin's error: ``(1 − |Δ|/W)⁺``.
+
+    Parameters
+    ----------
+    lag_m : array_like
+        Distance between two bins, m (sign ignored).
+    resolution_m, filter_order : optional
+        As in :func:`envelope_correlation`; ``W`` = :func:`shared_window_m`.
+
+    Returns
+    -------
+    ndarray
+        ρ, shape of ``lag_m``.
+
+    Notes
+    -----
+    A quantity estimated as a moving mean over ``W`` of a process that
+    decorrelates within much less than ``W`` has the correlation of two windows'
+    overlap, the triangle; the floors' moving medians share it closely enough
+    (the same overlap of the looks they rank).
+    """
+    w = shared_window_m(resolution_m, filter_order)
+    lag = np.abs(np.asarray(lag_m, dtype=np.float64))
+    return np.maximum(1.0 - lag / w, 0.0)
 
 
 def clipped_sqrt_moments(mu: np.ndarray | float, sigma: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
@@ -270,6 +321,88 @@ def rice_clipped_moments(
     return mean_sqrt.reshape(shape), mean_pos.reshape(shape)
 
 
+#: Gauss–Hermite nodes per axis of the rail-1 floor in :func:`cross_rail_moments`' table (≤ 0.3 %)
+_CROSS_NODES = 16
+#: grid of the tabulated cross-rail moments: log10(S² / sqrt(F₁F₂)) and |log10(F₁/F₂)|
+_CROSS_LOG_U = np.linspace(-3.0, 3.0, 61)
+_CROSS_LOG_R = np.linspace(0.0, 3.0, 13)
+
+
+def _cross_direct(s2: np.ndarray, f1: np.ndarray, f2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The moments of :func:`cross_rail_moments` by quadrature (conditional on ``R₁``, ``X`` is Gaussian)."""
+    z, w = hermegauss(_CROSS_NODES)
+    w = w / w.sum()
+    re = np.repeat(z, z.size)[None, :] * np.sqrt(f1 / 2.0)[:, None]
+    im = np.tile(z, z.size)[None, :] * np.sqrt(f1 / 2.0)[:, None]
+    ww = np.outer(w, w).ravel()
+    root = np.sqrt(s2)[:, None]
+    mu = root * (root + re)  # Re((S + R₁) S)
+    sigma = np.sqrt(((root + re) ** 2 + im**2) * f2[:, None] / 2.0)  # |S + R₁| sqrt(F₂/2)
+    m1, m2 = clipped_sqrt_moments(mu, sigma)
+    return m1 @ ww, m2 @ ww
+
+
+@lru_cache(maxsize=1)
+def _cross_tables() -> tuple[RegularGridInterpolator, RegularGridInterpolator]:
+    """``log E[sqrt(X⁺)] / g^½`` and ``log E[X⁺] / g`` over (log10 u, |log10 r|), ``g = sqrt(F₁F₂)``."""
+    lu, lr = np.meshgrid(_CROSS_LOG_U, _CROSS_LOG_R, indexing="ij")
+    u, r = 10.0 ** lu.ravel(), 10.0 ** lr.ravel()
+    m1, m2 = _cross_direct(u, np.sqrt(r), 1.0 / np.sqrt(r))
+    opts = {"bounds_error": False, "fill_value": None}
+    shape = lu.shape
+    return (RegularGridInterpolator((_CROSS_LOG_U, _CROSS_LOG_R), np.log(m1).reshape(shape), **opts),
+            RegularGridInterpolator((_CROSS_LOG_U, _CROSS_LOG_R), np.log(m2).reshape(shape), **opts))
+
+
+def cross_rail_moments(
+    s2: np.ndarray | float, floor_1: np.ndarray | float, floor_2: np.ndarray | float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean of ``sqrt(max(X, 0))`` and of ``max(X, 0)`` for ``X = Re((S + R₁) conj(S + R₂))``.
+
+    The cross product of the two wheels' envelopes of an axle: the common
+    sleeper response ``S`` plus each rail's broadband part ``R_i``, independent
+    circular Gaussian of power ``F_i`` (``E X = S²``, ``var X = S²(F₁ + F₂)/2 +
+    F₁F₂/2``). Exact, unlike :func:`clipped_sqrt_moments` of a Gaussian of that
+    variance (which puts ``E sqrt(X⁺)`` 5 % too high at ``S² ≈ 0.7 F``): given ``R₁``,
+    ``X`` is Gaussian with mean ``S² + S Re R₁`` and variance ``|S + R₁|² F₂/2``;
+    the mean over ``R₁`` by Gauss–Hermite quadrature, tabulated over
+    ``u = S²/sqrt(F₁F₂)`` = 10⁻³ … 10³ and ``F₁/F₂`` = 10⁻³ … 10³ (symmetric).
+
+    Parameters
+    ----------
+    s2 : array_like
+        ``S²``, e.g. (m/s²)², ≥ 0.
+    floor_1, floor_2 : array_like
+        ``F₁``, ``F₂``, same unit, ≥ 0.
+
+    Returns
+    -------
+    mean_sqrt, mean_pos : ndarray
+        ``E[sqrt(X⁺)]`` and ``E[X⁺]``. Where a floor is 0, ``X`` is Gaussian and
+        :func:`clipped_sqrt_moments` is exact; beyond the table (``u > 10³``, or one
+        floor over 10³ times the other) the Gaussian model is used (there ``X`` is
+        dominated by its Gaussian terms); below ``u = 10⁻³`` ``S`` no longer counts
+        and the table's edge is used.
+    """
+    a, f1, f2 = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (s2, floor_1, floor_2)))
+    shape = a.shape
+    a, f1, f2 = (np.maximum(v.reshape(-1), 0.0) for v in (a, f1, f2))
+    sigma = np.sqrt(a * (f1 + f2) / 2.0 + f1 * f2 / 2.0)
+    mean_sqrt, mean_pos = clipped_sqrt_moments(a, sigma)
+    g = np.sqrt(f1 * f2)
+    ok = (g > 0) & np.isfinite(a) & np.isfinite(g)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_u = np.log10(np.where(ok, np.maximum(a, 0.0) / np.where(ok, g, 1.0), 1.0))
+        log_r = np.abs(np.log10(np.where(ok, f1 / np.where(ok, f2, 1.0), 1.0)))
+    table = ok & (log_u <= _CROSS_LOG_U[-1]) & (log_r <= _CROSS_LOG_R[-1])
+    if np.any(table):
+        h1, h2 = _cross_tables()
+        pts = np.column_stack([np.maximum(log_u[table], _CROSS_LOG_U[0]), log_r[table]])
+        mean_sqrt[table] = np.exp(h1(pts)) * np.sqrt(g[table])
+        mean_pos[table] = np.exp(h2(pts)) * g[table]
+    return mean_sqrt.reshape(shape), mean_pos.reshape(shape)
+
+
 def segment_sd(
     bins: np.ndarray,
     sd: np.ndarray,
@@ -277,6 +410,7 @@ def segment_sd(
     bin_length: float = 0.25,
     resolution_m: float = 3.0,
     filter_order: int = 2,
+    shared: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """1-σ of the mean of every segment from the 1-σ of its bins, errors correlated along the track.
 
@@ -294,6 +428,11 @@ def segment_sd(
     resolution_m, filter_order : optional
         The track orders' resolution (m) and q of the run's processing settings
         (defaults 3 m, 2): they set the along-track correlation (:func:`envelope_correlation`).
+    shared : array_like of float, optional
+        (n,) the part of each bin's 1-σ that is shared along the floor window (e.g.
+        ``sleeper_amp_sd_shared``, ≤ ``sd``; NaN or absent: none): it correlates as
+        :func:`shared_correlation`, the rest, ``sqrt(sd² − shared²)``, as
+        :func:`envelope_correlation`.
 
     Returns
     -------
@@ -310,8 +449,9 @@ def segment_sd(
 
     Notes
     -----
-    The rule treats every bin's error as the envelope's broadband part (roughness
-    response, noise) seen through the order's filter. Independent bins would give
+    The rule treats a bin's error as the envelope's broadband part (roughness
+    response, noise) seen through the order's filter, plus the stated shared part.
+    Independent bins would give
     ``sd / √n``; correlated ones give about ``sd · √(ℓ / L)`` for a segment of length
     ``L ≫ ℓ`` (:func:`correlation_length`), and ``sd`` for ``L ≪ ℓ``.
     """
@@ -326,12 +466,19 @@ def segment_sd(
     k = int(round(level / bl))
     if k < 1 or abs(level / bl - k) > 1e-9 * max(level / bl, 1.0):
         raise ValueError(f"level_m must be a positive integer multiple of bin_length={bl} m, got {level_m!r}")
+    if shared is None:
+        sh = np.zeros_like(s)
+    else:
+        sh = np.asarray(shared, dtype=np.float64)
+        if sh.shape != s.shape:
+            raise ValueError(f"shared must have the shape of sd {s.shape}, got {sh.shape}")
+        sh = np.where(np.isfinite(sh), np.maximum(sh, 0.0), 0.0)
     ok = np.isfinite(s)
-    b, s = b[ok].astype(np.int64), s[ok]
+    b, s, sh = b[ok].astype(np.int64), s[ok], sh[ok]
     if b.size == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0)
     order = np.argsort(b, kind="stable")
-    b, s = b[order], s[order]
+    b, s, sh = b[order], s[order], np.minimum(sh[order], s[order])
     if np.any(np.diff(b) == 0):
         raise ValueError("bins must be unique")
     seg = np.floor_divide(b, k)
@@ -340,19 +487,24 @@ def segment_sd(
     # dense along the bins so that a lag is an index offset; gaps hold 0 (no contribution)
     b0 = int(b[0])
     span = int(b[-1]) - b0 + 1
-    dense = np.zeros(span)
-    dense[b - b0] = s
     dense_seg = np.full(span, -1, dtype=np.int64)
     dense_seg[b - b0] = inv
-    max_lag = min(span - 1, int(math.ceil(_MAX_LAG_RESOLUTIONS * float(resolution_m) / bl)), k - 1)
-    rho = envelope_correlation(np.arange(max_lag + 1) * bl, resolution_m, filter_order)
     acc = np.bincount(inv, weights=s * s, minlength=segments.size)
-    for lag in range(1, max_lag + 1):
-        if rho[lag] == 0.0:
-            continue
-        same = (dense_seg[:-lag] == dense_seg[lag:]) & (dense_seg[lag:] >= 0)
-        if not np.any(same):
-            continue
-        prod = dense[:-lag][same] * dense[lag:][same]
-        acc += 2.0 * rho[lag] * np.bincount(dense_seg[lag:][same], weights=prod, minlength=segments.size)
+    parts = [(np.sqrt(np.maximum(s * s - sh * sh, 0.0)), envelope_correlation,
+              int(math.ceil(_MAX_LAG_RESOLUTIONS * float(resolution_m) / bl)))]
+    if np.any(sh > 0):
+        parts.append((sh, shared_correlation, int(math.ceil(shared_window_m(resolution_m, filter_order) / bl))))
+    for values, correlation, reach in parts:
+        dense = np.zeros(span)
+        dense[b - b0] = values
+        max_lag = min(span - 1, reach, k - 1)
+        rho = correlation(np.arange(max_lag + 1) * bl, resolution_m, filter_order)
+        for lag in range(1, max_lag + 1):
+            if rho[lag] == 0.0:
+                continue
+            same = (dense_seg[:-lag] == dense_seg[lag:]) & (dense_seg[lag:] >= 0)
+            if not np.any(same):
+                continue
+            prod = dense[:-lag][same] * dense[lag:][same]
+            acc += 2.0 * rho[lag] * np.bincount(dense_seg[lag:][same], weights=prod, minlength=segments.size)
     return segments, np.sqrt(np.maximum(acc, 0.0)) / n

@@ -75,6 +75,7 @@ PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
     "sleeper_force_amp",
     "sleeper_amp_raw",
     "sleeper_amp_sd",
+    "sleeper_amp_sd_shared",
 )
 
 
@@ -299,6 +300,8 @@ class ProfileBin(Base):
     #: roughness-corrected best estimate) and the 1-σ of sleeper_amp, m/s²; NULL in jobs before issue 26
     sleeper_amp_raw: Mapped[float | None] = mapped_column(Float)
     sleeper_amp_sd: Mapped[float | None] = mapped_column(Float)
+    #: the part of sleeper_amp_sd shared along the ≈ 20 m floor window (what a single wheel's floor leaves)
+    sleeper_amp_sd_shared: Mapped[float | None] = mapped_column(Float)
 
 
 class WheelOOR(Base):

@@ -37,8 +37,8 @@ ENGINE_VERSION = "trackvkf-pipeline/4"
 TRACK_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms")
 #: the roughness columns (issue 26, :mod:`app.analysis.roughness`): the single-wheel VKF amplitude at
 #: f_s as before (``sleeper_amp`` is now the best estimate: floor-corrected, or common to the two rails
-#: of an axle) and the 1-σ of ``sleeper_amp``, m/s²
-ROUGHNESS_COLUMNS: tuple[str, ...] = ("sleeper_amp_raw", "sleeper_amp_sd")
+#: of an axle), the 1-σ of ``sleeper_amp`` and the part of it shared along the floor window, m/s²
+ROUGHNESS_COLUMNS: tuple[str, ...] = ("sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared")
 
 
 @dataclass
@@ -84,7 +84,7 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
     Returns
     -------
     pandas.DataFrame
-        ``bin``, ``sleeper_amp``, ``sleeper_amp_sd``: the two-rail estimate where
+        ``bin``, ``sleeper_amp``, ``sleeper_amp_sd``, ``sleeper_amp_sd_shared``: the two-rail estimate where
         the axle's other wheel was measured
         (:func:`app.analysis.roughness.two_rail_estimate`), else the single wheel's
         floor-corrected one (:func:`app.analysis.roughness.single_wheel_estimate`).
@@ -94,13 +94,13 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
         else _track_resolution(settings, wheel_diameter)
     kw = {"bin_length": settings.bin_length_m, "resolution_m": res_m, "filter_order": int(settings.filter_order)}
     if "cross_re" in rough:
-        amp, sd = two_rail_estimate(bins, rough["cross_re"].to_numpy(), rough["pow"].to_numpy(),
+        amp, sd, shared = two_rail_estimate(bins, rough["cross_re"].to_numpy(), rough["pow"].to_numpy(),
                                     rough["pow_other"].to_numpy(), **kw)
     else:
         env = rough["re"].to_numpy() + 1j * rough["im"].to_numpy()
         floor = rough[["floor_lo", "floor_hi"]].to_numpy().T
-        amp, sd = single_wheel_estimate(bins, rough["pow"].to_numpy(), floor, env, **kw)
-    return pd.DataFrame({"bin": bins, "sleeper_amp": amp, "sleeper_amp_sd": sd})
+        amp, sd, shared = single_wheel_estimate(bins, rough["pow"].to_numpy(), floor, env, **kw)
+    return pd.DataFrame({"bin": bins, "sleeper_amp": amp, "sleeper_amp_sd": sd, "sleeper_amp_sd_shared": shared})
 
 
 def assemble_wheel(

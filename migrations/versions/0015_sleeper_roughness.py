@@ -4,8 +4,10 @@
 the rail roughness taken out as far as one pass allows (floor-corrected for a
 single wheel, common to both rails for an axle with both wheels measured); two
 nullable columns beside it: ``sleeper_amp_raw`` (the single-wheel VKF amplitude
-at f_s, what ``sleeper_amp`` held before, m/s²) and ``sleeper_amp_sd`` (the 1-σ
-of ``sleeper_amp``, m/s²). Rows stored before have NULL there. On PostgreSQL
+at f_s, what ``sleeper_amp`` held before, m/s²), ``sleeper_amp_sd`` (the 1-σ
+of ``sleeper_amp``, m/s²) and ``sleeper_amp_sd_shared`` (the part of that 1-σ
+shared along the ≈ 20 m window the floors are estimated over, m/s²). Rows stored
+before have NULL there. On PostgreSQL
 the columns added to the partitioned table reach every partition.
 
 Revision ID: 0015_sleeper_roughness
@@ -23,7 +25,7 @@ down_revision: str | None = "0014_operations"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
-_COLUMNS = ("sleeper_amp_raw", "sleeper_amp_sd")
+_COLUMNS = ("sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared")
 
 
 def upgrade() -> None:
