@@ -56,7 +56,8 @@ def _segments(r: dict, p, column: str, level: float) -> tuple[np.ndarray, np.nda
     from app.analysis.uncertainty import segment_sd
 
     x = (p["bin"].to_numpy() + 0.5) * 0.25
-    segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), level)
+    segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), level,
+                          shared=p["sleeper_amp_sd_shared"].to_numpy())
     ratio, covered = [], []
     for g, s in zip(segs, sd, strict=True):
         lo = g * level
@@ -112,7 +113,8 @@ def smooth_rows(tmp: Path) -> list[dict]:
         p = res.profiles
         x = (p["bin"].to_numpy() + 0.5) * 0.25
         inner = p[(x > 15) & (x < x.max() - 15)]
-        segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), 10.0)
+        segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), 10.0,
+                          shared=p["sleeper_amp_sd_shared"].to_numpy())
         rows.append({"run": name, "amp_vs_raw": float(inner["sleeper_amp"].mean() / inner["sleeper_amp_raw"].mean() - 1),
                      "amp_vs_lockin": float(inner["sleeper_amp"].mean() / c["A_lockin"] - 1),
                      "raw_vs_lockin": float(inner["sleeper_amp_raw"].mean() / c["A_lockin"] - 1),

@@ -149,3 +149,107 @@ def test_aggregate_profile_gives_the_segments_sd():
     # another resolution, another correlation
     wide = aggregate_profile(df, 10.0, ["sleeper_amp_sd"], resolution_m=6.0)
     assert (wide["sleeper_amp_sd_mean"] > out["sleeper_amp_sd_mean"]).all()
+
+
+@pytest.mark.parametrize("s2, f1, f2", [(32.0, 43.0, 54.0), (144.0, 173.0, 239.0), (0.56, 2.5, 3.0), (32.0, 5.0, 5.0),
+                                        (1.0, 100.0, 0.1), (1e-5, 3.0, 4.0), (1e4, 1.0, 2.0), (3.0, 0.0, 4.0)])
+def test_cross_rail_moments_against_sampling(s2, f1, f2):
+    """X = Re((S + R1) conj(S + R2)), R_i circular Gaussian: sampled, against the tabulated quadrature."""
+    from app.analysis.uncertainty import cross_rail_moments
+
+    rng = np.random.default_rng(4)
+    n = 1_000_000
+    r1 = np.sqrt(f1 / 2) * (rng.standard_normal(n) + 1j * rng.standard_normal(n))
+    r2 = np.sqrt(f2 / 2) * (rng.standard_normal(n) + 1j * rng.standard_normal(n))
+    x = np.real((np.sqrt(s2) + r1) * np.conj(np.sqrt(s2) + r2))
+    m_sqrt, m_pos = cross_rail_moments(s2, f1, f2)
+    assert float(m_sqrt) == pytest.approx(np.sqrt(np.maximum(x, 0)).mean(), rel=1e-2)
+    assert float(m_pos) == pytest.approx(np.maximum(x, 0).mean(), rel=1e-2)
+    assert cross_rail_moments(s2, f2, f1)[0] == pytest.approx(float(m_sqrt), rel=1e-9)  # the rails are alike
+
+
+def test_cross_rail_moments_are_not_the_gaussian_models():
+    """At S² ≈ 0.7 F the cross product is skewed: a Gaussian of its variance puts E sqrt(X⁺) 5 % high."""
+    from app.analysis.uncertainty import cross_rail_moments
+
+    s2, f1, f2 = 32.0, 43.0, 54.0
+    gauss, _ = clipped_sqrt_moments(s2, np.sqrt(s2 * (f1 + f2) / 2 + f1 * f2 / 2))
+    exact, _ = cross_rail_moments(s2, f1, f2)
+    assert float(gauss) / float(exact) - 1 == pytest.approx(0.05, abs=0.015)
+
+
+def _brute_segment_sd(bins, sd, shared, level, res=3.0, q=2):
+    from app.analysis.uncertainty import shared_correlation
+
+    rnd = np.sqrt(sd**2 - shared**2)
+    out = {}
+    for g in np.unique(bins // int(level / 0.25)):
+        m = bins // int(level / 0.25) == g
+        lag = np.abs(bins[m][:, None] - bins[m][None, :]) * 0.25
+        cov = (np.outer(rnd[m], rnd[m]) * envelope_correlation(lag, res, q)
+               + np.outer(shared[m], shared[m]) * shared_correlation(lag, res, q))
+        out[int(g)] = np.sqrt(cov.sum()) / m.sum()
+    return out
+
+
+def test_segment_sd_with_a_shared_part_against_the_double_sum():
+    rng = np.random.default_rng(5)
+    bins = np.setdiff1d(np.arange(200, 900), [300, 301, 302, 650])
+    sd = rng.uniform(0.5, 1.5, bins.size)
+    shared = sd * rng.uniform(0.0, 0.9, bins.size)
+    for level in (10.0, 40.0):
+        segs, s = segment_sd(bins, sd, level, shared=shared)
+        ref = _brute_segment_sd(bins, sd, shared, level)
+        np.testing.assert_allclose(s, [ref[int(g)] for g in segs], rtol=1e-9)
+    # all shared: a 10 m mean barely averages it down; none shared: the rule of old
+    _, s_all = segment_sd(bins, sd, 10.0, shared=sd)
+    _, s_none = segment_sd(bins, sd, 10.0, shared=np.zeros_like(sd))
+    _, s_old = segment_sd(bins, sd, 10.0)
+    np.testing.assert_allclose(s_none, s_old)
+    assert np.all(s_all[:-1] > 1.4 * s_old[:-1])  # (the last segment holds 5 m)
+    with pytest.raises(ValueError, match="shared"):
+        segment_sd(bins, sd, 10.0, shared=sd[:-1])
+
+
+def test_segment_sd_shared_part_matches_monte_carlo():
+    """A floor estimated as a 20 m moving mean of white looks plus the envelope's broadband part: the scatter
+    of 10 m and 40 m means against segment_sd with that floor's error stated as shared."""
+    from app.analysis.uncertainty import shared_window_m
+
+    rng = np.random.default_rng(6)
+    n_bins, reps = 4000, 400
+    bins = np.arange(n_bins)
+    # the broadband part: white noise through the envelope's correlation (an FIR of the filter's response)
+    lag = np.arange(-64, 65) * 0.25
+    kernel = np.real(np.fft.ifft(np.sqrt(np.abs(np.fft.fft(envelope_correlation(lag))))))
+    kernel = np.roll(kernel, 64)
+    w = int(round(shared_window_m() / 0.25))
+    err = []
+    for _ in range(reps):
+        a = np.convolve(rng.standard_normal(n_bins + 128), kernel, mode="same")[64:-64]
+        a /= np.sqrt(np.sum(kernel**2))
+        b = np.convolve(rng.standard_normal(n_bins + w), np.ones(w) / np.sqrt(w), mode="valid")[: n_bins]
+        err.append(0.8 * a + 0.6 * b)
+    err = np.array(err)
+    for level in (10.0, 40.0):
+        k = int(level / 0.25)
+        means = err[:, : n_bins // k * k].reshape(reps, -1, k).mean(axis=2)
+        _, s = segment_sd(bins, np.ones(n_bins), level, shared=np.full(n_bins, 0.6))
+        assert np.median(s) == pytest.approx(means.std(), rel=0.1)
+
+
+def test_aggregate_profile_uses_the_shared_part():
+    import pandas as pd
+
+    from app.analysis.aggregate import aggregate_profile
+
+    rng = np.random.default_rng(7)
+    bins = np.arange(0, 400)
+    sd = rng.uniform(0.1, 0.2, 400)
+    df = pd.DataFrame({"bin": bins, "sleeper_amp_sd": sd, "sleeper_amp_sd_shared": 0.5 * sd})
+    out = aggregate_profile(df, 10.0, ["sleeper_amp_sd", "sleeper_amp_sd_shared"])
+    _, want = segment_sd(bins, sd, 10.0, shared=0.5 * sd)
+    _, want_shared = segment_sd(bins, 0.5 * sd, 10.0, shared=0.5 * sd)
+    np.testing.assert_allclose(out["sleeper_amp_sd_mean"], want)
+    np.testing.assert_allclose(out["sleeper_amp_sd_shared_mean"], want_shared)
+    assert np.all(out["sleeper_amp_sd_shared_mean"] < out["sleeper_amp_sd_mean"])

@@ -62,7 +62,8 @@ def _wheel(res, wheel: str = "11"):
 
 def _segments(x: np.ndarray, p, truth: np.ndarray, level: float = 10.0, skip: float = 20.0):
     """(10 m means of sleeper_amp / truth − 1, covered by the stated 1-σ) over the inner segments."""
-    segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), level)
+    segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), level,
+                          shared=p["sleeper_amp_sd_shared"].to_numpy())
     ratio, covered = [], []
     for g, s in zip(segs, sd, strict=True):
         sel = (x >= g * level) & (x < (g + 1) * level)
@@ -129,6 +130,7 @@ def test_two_rail_estimate_unbiased_and_shared(tmp_path):
     _, p12 = _wheel(res, "12")
     np.testing.assert_allclose(p11["sleeper_amp"], p12["sleeper_amp"], rtol=1e-9)
     np.testing.assert_allclose(p11["sleeper_amp_sd"], p12["sleeper_amp_sd"], rtol=1e-9)
+    assert (p11["sleeper_amp_sd_shared"] == 0).all()  # the cross product is unbiased: no floor error shared
     truth = np.where(xb < 600, 1.0, 2.0)
     ratio, covered = _segments(xb, p11, truth)
     raw = p11.assign(sleeper_amp=p11["sleeper_amp_raw"])
