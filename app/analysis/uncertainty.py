@@ -387,14 +387,17 @@ def cross_rail_moments(
     a, f1, f2 = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (s2, floor_1, floor_2)))
     shape = a.shape
     a, f1, f2 = (np.maximum(v.reshape(-1), 0.0) for v in (a, f1, f2))
-    sigma = np.sqrt(a * (f1 + f2) / 2.0 + f1 * f2 / 2.0)
-    mean_sqrt, mean_pos = clipped_sqrt_moments(a, sigma)
     g = np.sqrt(f1 * f2)
     ok = (g > 0) & np.isfinite(a) & np.isfinite(g)
     with np.errstate(divide="ignore", invalid="ignore"):
         log_u = np.log10(np.where(ok, np.maximum(a, 0.0) / np.where(ok, g, 1.0), 1.0))
         log_r = np.abs(np.log10(np.where(ok, f1 / np.where(ok, f2, 1.0), 1.0)))
     table = ok & (log_u <= _CROSS_LOG_U[-1]) & (log_r <= _CROSS_LOG_R[-1])
+    mean_sqrt, mean_pos = np.sqrt(a), a.copy()
+    gauss = ~table
+    if np.any(gauss):
+        sigma = np.sqrt(a[gauss] * (f1[gauss] + f2[gauss]) / 2.0 + f1[gauss] * f2[gauss] / 2.0)
+        mean_sqrt[gauss], mean_pos[gauss] = clipped_sqrt_moments(a[gauss], sigma)
     if np.any(table):
         h1, h2 = _cross_tables()
         pts = np.column_stack([np.maximum(log_u[table], _CROSS_LOG_U[0]), log_r[table]])

@@ -142,7 +142,7 @@ def process(
 
     ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
     (``sleeper_amp``: rail roughness out; ``sleeper_amp_raw`` the wheel's own, ``sleeper_amp_sd`` the
-    1-σ of ``sleeper_amp``), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
+    1-σ of ``sleeper_amp``, ``sleeper_amp_sd_shared`` the part of it shared along ≈ 20 m), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
     (``sleeper_rms``), the wheel orders and the force amplitude; ``meta.json`` the settings and
     the warnings (docs/indicator.md).
 

@@ -58,5 +58,6 @@ def profile_table(
             "sleeper_force_amp": rng.random(n_bins),
             "sleeper_amp_raw": rng.lognormal(0.2, 0.5, n_bins),
             "sleeper_amp_sd": rng.uniform(0.05, 0.5, n_bins),
+            "sleeper_amp_sd_shared": rng.uniform(0.0, 0.05, n_bins),
         }))
     return pd.concat(frames, ignore_index=True)
