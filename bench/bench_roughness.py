@@ -18,6 +18,10 @@ Speed (``--speed``): a 60 s two-wheel run at 24 kHz (40 → 200 km/h and back, t
 noise), planned and processed chunk by chunk (``process_chunk``) in a fresh process per repetition, base
 and this checkout alternating; CPU seconds and x real time per core (60 s / CPU s per wheel).
 
+Assembly (``--assembly``): CPU seconds of the per-bin estimates (``two_rail_estimate``,
+``single_wheel_estimate``) and of ``segment_sd`` with and without a shared part, on 100 km of random sums of
+one wheel (400 000 bins), in this process.
+
 Prints Markdown tables for BENCHMARKS.md.
 """
 
@@ -185,12 +189,46 @@ def speed(base: Path | None, reps: int) -> list[dict]:
     return out
 
 
+def assembly() -> list[str]:
+    """CPU seconds of the per-bin estimates and of segment_sd on 100 km of random sums (400 000 bins)."""
+    from app.analysis import roughness
+    from app.analysis.uncertainty import segment_sd
+
+    n = 400_000
+    rng = np.random.default_rng(0)
+    b = np.arange(n)
+    e1 = 5 + rng.normal(0, 5, n) + 1j * rng.normal(0, 5, n)
+    e2 = 5 + rng.normal(0, 5, n) + 1j * rng.normal(0, 5, n)
+    x, p1, p2 = np.real(e1 * np.conj(e2)), np.abs(e1) ** 2, np.abs(e2) ** 2
+    sides = np.abs(rng.normal(0, 3, (2, n))) ** 2
+    out = []
+    c0 = time.process_time()
+    roughness.two_rail_estimate(b[:100], x[:100], p1[:100], p2[:100])
+    out.append(f"first call (tables): {time.process_time() - c0:.2f} s")
+    for _ in range(2):
+        c0 = time.process_time()
+        roughness.two_rail_estimate(b, x, p1, p2)
+        c1 = time.process_time()
+        _, sd, shared = roughness.single_wheel_estimate(b, p1, sides, e1)
+        c2 = time.process_time()
+        out.append(f"two_rail_estimate {c1 - c0:.2f} s, single_wheel_estimate {c2 - c1:.2f} s")
+    for level in (10.0, 100.0):
+        c0 = time.process_time()
+        segment_sd(b, sd, level)
+        c1 = time.process_time()
+        segment_sd(b, sd, level, shared=0.4 * sd)
+        out.append(f"segment_sd at {level:g} m: {c1 - c0:.2f} s without a shared part, "
+                   f"{time.process_time() - c1:.2f} s with")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--speed", action="store_true", help="also time the chunks (base vs this checkout)")
     ap.add_argument("--base", type=Path, help="a checkout of the base (e.g. main) for --speed")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--no-accuracy", action="store_true")
+    ap.add_argument("--assembly", action="store_true", help="also time the per-bin estimates and segment_sd")
     ap.add_argument("--time-chunks", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.time_chunks:
@@ -231,6 +269,10 @@ def main() -> None:
               f"{abs(worst_l['amp_vs_lockin']):.4%} ({worst_l['run']}; raw {worst_l['raw_vs_lockin']:+.4%}); "
               f"1-σ of 10 m means / A_lockin: median {np.median([r['sd10_rel'] for r in smooth]):.2%}, "
               f"max {worst_sd['sd10_rel']:.2%} ({worst_sd['run']})")
+    if args.assembly:
+        print()
+        for line in assembly():
+            print(f"assembly, 100 km of one wheel: {line}")
     if args.speed:
         rows = speed(args.base, args.reps)
         print()
