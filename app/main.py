@@ -19,6 +19,7 @@ from app.api.headers import SecurityHeadersMiddleware
 from app.api.health import software_version
 from app.api.login_page import install_protected_docs
 from app.api.login_page import router as login_page_router
+from app.api.metrics import install_metrics
 from app.core.bytecache import ByteLRU
 from app.core.config import ProductionConfigError, Settings, get_settings
 from app.core.logging import configure_logging
@@ -26,7 +27,6 @@ from app.core.ratelimit import RateLimiter
 from app.core.runstore import RunStore
 from app.db.display_arrays import DisplayArrays
 from app.db.session import Database
-from app.observability.routes import install_metrics
 from app.operations.heavy import install_heavy_limiter
 from app.web import install_pages
 
@@ -70,6 +70,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             revision = None
         if revision is None:
             log.warning("database %s is not migrated: run `trackvkf migrate`", settings.database_url)
+        if settings.parse_isolated:
+            from app.io.isolation import warm_up
+
+            warm_up()  # the fork server of the upload parsers, started in the background
         yield
         db.dispose()
 
@@ -95,7 +99,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.upload_limiter = RateLimiter(settings.upload_rate_limit, settings.upload_rate_window_s)
     install_error_handlers(app)
     app.state.profile_cache = ByteLRU(settings.profile_cache_bytes)
-    # profile answers computed at once in this process (the others wait: app.api.profiles)
+    # profile answers computed at once in this process (the others wait: app.profiles.cache)
     app.state.display_arrays = DisplayArrays(settings.display_cache_bytes)  # zooms sliced from memory
     app.state.profile_limiter = anyio.CapacityLimiter(settings.profile_concurrency)
     app.state.profile_pending = {}  # answers being computed: asked again, awaited once

@@ -1,16 +1,16 @@
 """Condition store at line scale: a year of daily runs over a 50 km line, on SQLite or PostgreSQL.
 
-1. Ingest: ``trackvkf simulate-fleet``'s writer (:func:`app.db.condition_fleet.ingest_fleet`)
+1. Ingest: ``trackvkf simulate-fleet``'s writer (:func:`app.condition.fleet.ingest_fleet`)
    writes 365 generated runs (4 wheels, 10 m and 100 m segments, change tests, flags);
    wall time, time inside database transactions, rows, bytes per run-km.
 2. Detection on that history, scored against the planted changes
-   (:class:`app.simulate.fleet.FleetScorer`): unchanged places flagged, planted 20 % / 20 m
+   (:class:`app.simulate.fleet_scoring.FleetScorer`): unchanged places flagged, planted 20 % / 20 m
    steps found, days until each planted 10 %/year trend is flagged.
 3. Queries through the ASGI app (median of ``--repeat``): the heat map runs × km (100 m, mean
    over the wheels, and one wheel), one segment's trend over the year, the change list of the
    newest run, a page of the flag feed.
 4. Publishing one more run of the line: the condition part of the publish transaction
-   (:func:`app.db.condition_writer.store_run_condition` on its 25 cm rows, history read from
+   (:func:`app.condition.writer.store_run_condition` on its 25 cm rows, history read from
    the store).
 
 Usage::
@@ -67,15 +67,16 @@ def main() -> None:
 
     from fastapi.testclient import TestClient
 
+    from app.condition.config import ConditionConfig
+    from app.condition.fleet import ingest_fleet
+    from app.condition.writer import store_run_condition
     from app.core.config import Settings
     from app.db import migrate
-    from app.db.condition_fleet import ingest_fleet
-    from app.db.condition_models import ConditionLine
-    from app.db.condition_writer import ConditionConfig, store_run_condition
-    from app.db.models import Job, JobStatus, Run, utcnow
+    from app.db.models import ConditionLine, Job, JobStatus, Run, utcnow
     from app.db.session import Database
     from app.main import create_app
-    from app.simulate.fleet import FleetScorer, FleetSimulator, random_plan
+    from app.simulate.fleet import FleetSimulator, random_plan
+    from app.simulate.fleet_scoring import FleetScorer
     from app.simulate.track import generate_line
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-condition-"))
@@ -172,7 +173,7 @@ def main() -> None:
         t0 = time.perf_counter()
         with db.write() as s:
             summary = store_run_condition(s, ids[0], ids[1], config=ConditionConfig.from_settings(settings),
-                                          profiles=profiles)
+                                          profiles=profiles).summary()
         wall = time.perf_counter() - t0
         print(f"publish of one more {args.km:g} km run ({len(profiles)} bins of 4 wheels, history of "
               f"{summary['history_runs']} runs read from the store): {wall:.2f} s wall, {_cpu() - cpu0:.2f} s CPU; "

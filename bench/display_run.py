@@ -49,7 +49,7 @@ def store_display_run(database_url: str, km: float) -> tuple[int, str, int]:
             session.flush()
             job = crud.create_job(session, run.id, {"bin_length_m": 0.25})
             job.status = "done"
-            # as the worker does (app.db.queue.complete_job): store, then publish with the job done
+            # as the worker does (app.publish.publish_job): store, then publish with the job done
             results_writer.store_profile_rows(session, run.id, job.id, profiles)
             results_writer.publish_results(session, run.id, job.id, [])
             run_id = run.id

@@ -110,3 +110,17 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "filterwarnings", "ignore:Using `httpx` with `starlette.testclient`"
     )
+
+
+#: the demo data set of the tests (app.simulate.demo): runs of this length (km) and sample rate (Hz)
+DEMO_LENGTH_KM = 1.2
+DEMO_FS = 10_000.0
+
+
+@pytest.fixture(scope="session")
+def demo_data(tmp_path_factory):
+    """The demo's data set (``app.simulate.demo.write_demo_dataset``: 4 runs of 1.2 km at 10 kHz on
+    two lines, reference data of line SIM, both lines' geometry), written once per session."""
+    from app.simulate.demo import write_demo_dataset
+
+    return write_demo_dataset(tmp_path_factory.mktemp("demo"), length_km=DEMO_LENGTH_KM, fs=DEMO_FS)

@@ -11,48 +11,18 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
-import threading
-from collections.abc import Callable
 
 from app.core.config import Settings
 from app.db.models import utcnow
 from app.db.retention import sweep_profiles
 from app.db.session import Database
+from worker.deliveries import DeliveryLoop
+from worker.heartbeat import HeartbeatLoop
+from worker.loops import PeriodicLoop
 
-__all__ = ["PeriodicLoop", "Background", "start_background", "sweep_step"]
+__all__ = ["Background", "start_background", "sweep_step"]
 
 log = logging.getLogger(__name__)
-
-
-class PeriodicLoop(threading.Thread):
-    """Daemon thread calling ``step()`` until :meth:`stop`; it pauses ``interval_s`` after a
-    round that found nothing to do (``step`` returned False) or failed."""
-
-    def __init__(self, name: str, step: Callable[[], bool], interval_s: float) -> None:
-        super().__init__(name=name, daemon=True)
-        self._step, self.interval_s = step, interval_s
-        self._stop_event = threading.Event()
-
-    def stop(self, timeout: float | None = None) -> None:
-        """Ask the loop to end and wait for it (``timeout`` s at most)."""
-        self._stop_event.set()
-        if self.is_alive():
-            self.join(timeout)
-
-    @property
-    def stopping(self) -> bool:
-        """Whether :meth:`stop` was called."""
-        return self._stop_event.is_set()
-
-    def run(self) -> None:
-        while not self._stop_event.is_set():
-            try:
-                busy = bool(self._step())
-            except Exception as exc:  # noqa: BLE001 - database away, receiver odd: next round
-                log.warning("%s: %s", self.name, exc)
-                busy = False
-            if not busy:
-                self._stop_event.wait(self.interval_s)
 
 
 def sweep_step(db: Database, settings: Settings) -> bool:
@@ -71,9 +41,6 @@ class Background:
     """The background loops of one worker process."""
 
     def __init__(self, settings: Settings, mode: str | None = None) -> None:
-        from worker.deliveries import DeliveryLoop  # deliveries import this module
-        from worker.heartbeat import HeartbeatLoop
-
         self.settings = settings
         self.db = Database(settings.database_url)
         mode = mode or ("local" if settings.is_sqlite else "procrastinate")

@@ -23,7 +23,8 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from app.core.runstore import RunStore, atomic_path
+from app.core.atomic import atomic_path
+from app.core.runstore import RunStore
 
 __all__ = ["ChunkStore"]
 

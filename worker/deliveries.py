@@ -1,7 +1,7 @@
 """The webhook delivery loop of a worker process (both worker modes).
 
 Deliveries are queued by the publish step in the transaction that publishes
-a run with new condition flags (:func:`app.db.webhooks.enqueue_condition_flags`);
+a run with new condition flags (:func:`app.condition.alerts.enqueue_new_flags`);
 this loop, a daemon thread of every worker process, claims the due ones
 (:func:`app.db.webhooks.claim_due`), sends each as an HMAC-signed JSON POST
 (:mod:`app.core.signing`) through :func:`app.alerts.transport.post` — the
@@ -32,13 +32,13 @@ import threading
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 
 from app.alerts.transport import Attempt, post
-from app.alerts.url_policy import AddressPolicy, Resolver
 from app.core.config import Settings
 from app.core.signing import SIGNATURE_HEADER, signature_header
+from app.core.url_policy import AddressPolicy, Resolver
 from app.db import webhooks
 from app.db.models import utcnow
 from app.db.session import Database
-from worker.background import PeriodicLoop
+from worker.loops import PeriodicLoop
 
 __all__ = ["DeliveryLoop", "deliver_due", "send_one", "retry_policy", "EVENT_HEADER", "DELIVERY_HEADER"]
 

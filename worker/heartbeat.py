@@ -18,7 +18,7 @@ import uuid
 from app.core.config import Settings
 from app.db.session import Database
 from app.operations import liveness
-from worker.background import PeriodicLoop
+from worker.loops import PeriodicLoop
 
 __all__ = ["HeartbeatLoop", "interval_s"]
 

@@ -2,7 +2,7 @@
 
 The database URL picks the mode: SQLite → the local job loop
 (:mod:`worker.runner`); PostgreSQL → Procrastinate workers
-(:mod:`worker.tasks`), unless ``local`` asks for the local loop.
+(:mod:`worker.tasks`, hosted by :mod:`worker.hosting`), unless ``local`` asks for the local loop.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def run(
 
             run_worker(settings, once=once, exit_when_idle=exit_when_idle)
             return 0
-        from worker.tasks import run_worker_process, run_workers
+        from worker.hosting import run_worker_process, run_workers
 
         if exit_when_idle:
             return run_worker_process(settings, wait=False)

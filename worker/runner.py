@@ -12,9 +12,9 @@ Cancellation (user request), loss of the job (run deleted, job claimed by
 another worker) and worker shutdown are noticed by a heartbeat thread and
 checked between chunks and, through ``should_cancel``, inside a chunk.
 
-The job's steps (load, plan, mark, fail, metadata) and the chunk store are
-those of the Procrastinate tasks too (:mod:`worker.steps`,
-:class:`~worker.chunkstore.ChunkStore`).
+The job's steps (load, plan, mark, metadata, and its ends: published, failed,
+cancelled) and the chunk store are those of the Procrastinate tasks too
+(:mod:`worker.steps`, :class:`~worker.chunkstore.ChunkStore`).
 """
 
 from __future__ import annotations
@@ -45,13 +45,13 @@ from worker.chunkstore import ChunkStore
 from worker.steps import (
     JobRecord,
     WorkerRuntime,
-    discard_job_files,
-    fail_job,
+    end_cancelled,
+    end_failed,
+    end_published,
     job_meta,
     load_job,
     mark_chunk_done,
     record_plan,
-    refresh_line_reference,
     remove_files_if_deleted,
 )
 
@@ -280,13 +280,7 @@ class LocalWorker:
                 results = assemble(run_path, settings, paths)
             meta = job_meta(settings, len(chunks), worker_id=self.worker_id, run_sha256=record.run.sha256,
                             warnings=results.meta.get("warnings", ()), compute_s=time.perf_counter() - t0)
-            stored = queue.complete_job(
-                self.db, job_id, run_id, results.profiles, results.wheels, meta, worker_id=self.worker_id,
-                condition=rt.condition,
-            )
-            if stored:
-                discard_job_files(rt, run_id)  # its chunk files, and those of the jobs it supersedes
-                refresh_line_reference(rt, record.run)
+            if end_published(rt, record, results.profiles, results.wheels, meta, worker_id=self.worker_id):
                 return JobOutcome(job_id, JobStatus.DONE)
             lease.beat()
             if lease.cancel_requested and not lease.lost:
@@ -308,8 +302,7 @@ class LocalWorker:
                     queue.mark_chunk(self.db, job_id, index, ChunkStatus.FAILED, worker_id=self.worker_id)
                 except Exception:  # noqa: BLE001
                     log.exception("cannot mark chunk %s failed", index)
-            fail_job(self.db, job_id, exc, worker_id=self.worker_id)
-            discard_job_files(rt, run_id)
+            end_failed(rt, job_id, run_id, exc, worker_id=self.worker_id)
             return JobOutcome(job_id, JobStatus.FAILED)
         finally:
             lease.stop()
@@ -413,10 +406,7 @@ class LocalWorker:
         if lease.lost:
             return self._lost(job_id, run_id)
         if lease.cancel_requested or not self.stopping:
-            queue.finish_job(
-                self.db, job_id, JobStatus.CANCELLED, "cancelled by request", worker_id=self.worker_id
-            )
-            discard_job_files(self.runtime, run_id)
+            end_cancelled(self.runtime, job_id, run_id, worker_id=self.worker_id)
             return JobOutcome(job_id, JobStatus.CANCELLED)
         queue.release_job(self.db, job_id, self.worker_id)
         return JobOutcome(job_id, "requeued")

@@ -19,9 +19,13 @@ take a job through the same steps, written once here:
 * :func:`job_meta`: the provenance stored with the results (pipeline and
   worker metadata, ``meta["worker"]``);
 * :func:`refresh_line_reference`: after a publish, recompute the reference
-  curves of the run's line (stiffness index; :mod:`app.db.reference_curves`).
+  curves of the run's line (stiffness index; :mod:`app.analytics.reference_curves`).
 
-Every write goes through :mod:`app.db.queue`, guarded by the job's owner:
+The ends of a job, one function each: :func:`end_published` (the publish step,
+:func:`app.publish.publish_job`, then the files go and the line's curves are
+refreshed), :func:`end_failed` (marked failed, files gone) and :func:`end_cancelled`.
+
+Every write goes through :mod:`app.db.queue` (and the publish step), guarded by the job's owner:
 ``worker_id`` is the local worker's id, or None for the fan-out tasks (any
 owner; guarded by the job's state only).
 """
@@ -36,14 +40,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from app import publish
 from app.analysis.settings import ProcessingSettings
+from app.analytics.reference_curves import CurveParams, refresh_reference
+from app.condition.config import ConditionConfig
 from app.core.config import Settings
 from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
-from app.db.condition_writer import ConditionConfig
 from app.db.models import ChunkStatus, Job, JobStatus, Run
-from app.db.reference_curves import CurveParams, refresh_reference
 from app.db.session import Database
 from app.io import WHEELS
 from app.pipeline import ChunkSpec, plan_chunks, results_meta
@@ -61,6 +66,9 @@ __all__ = [
     "finalize_cancels",
     "job_meta",
     "refresh_line_reference",
+    "end_published",
+    "end_failed",
+    "end_cancelled",
 ]
 
 log = logging.getLogger(__name__)
@@ -350,3 +358,44 @@ def refresh_line_reference(rt: WorkerRuntime, run: Run | None) -> None:
     if stored is not None:
         log.info("reference curves of line %s track %s refreshed from %d runs in %.2f s",
                  run.line_id, run.track, len(stored.run_ids), stored.compute_s)
+
+
+def end_published(rt: WorkerRuntime, record: JobRecord, profiles: Any, wheels: Sequence[dict[str, Any]],
+                  meta: dict[str, Any], *, worker_id: str | None) -> bool:
+    """Publish a job's results (:func:`app.publish.publish_job`: results, condition rows and alerts
+    with the job marked done, one transaction), then remove the run's finished job files and, if
+    published, refresh the reference curves of its line.
+
+    ``profiles``: the job's profile rows, or None when stored wheel by wheel (fan-out).
+
+    Returns
+    -------
+    bool
+        True if published; False if the job is no longer ``worker_id``'s, a cancel was
+        requested, or the run was deleted.
+    """
+    run_id = record.run.id
+    stored = publish.publish_job(rt.db, record.job.id, run_id, profiles, wheels, meta, worker_id=worker_id,
+                                 condition=rt.condition)
+    discard_job_files(rt, run_id)  # its chunk (and wheel) files, and those of the jobs it supersedes
+    if stored:
+        refresh_line_reference(rt, record.run)
+    return stored
+
+
+def end_failed(rt: WorkerRuntime, job_id: int, run_id: int | None, exc: BaseException, *,
+               worker_id: str | None) -> bool:
+    """Mark a job failed with the text of ``exc`` (:func:`fail_job`) and remove the run's finished
+    job files (``run_id`` None: the run is unknown, nothing removed); False if not ``worker_id``'s."""
+    failed = fail_job(rt.db, job_id, exc, worker_id=worker_id)
+    if run_id is not None:
+        discard_job_files(rt, run_id)
+    return failed
+
+
+def end_cancelled(rt: WorkerRuntime, job_id: int, run_id: int, *, worker_id: str) -> bool:
+    """Mark a job this worker runs cancelled (by request) and remove the run's finished job files."""
+    cancelled = queue.finish_job(rt.db, job_id, JobStatus.CANCELLED, "cancelled by request", worker_id=worker_id)
+    discard_job_files(rt, run_id)
+    return cancelled
+

@@ -7,18 +7,19 @@ worker (:func:`app.pipeline.plan_chunks`, :func:`~app.pipeline.process_chunk`,
 
     jobs row 'queued' ──NOTIFY at commit (fallback: dispatch_jobs, every 5 s)──▶ plan_job(job_id)
         plan_job:      claim the job, plan chunks, record chunk rows,
-                       defer process_chunk(job_id, index) for every chunk not done
-        process_chunk: chunk result file (atomic: temp + rename) → chunk row 'done';
+                       defer run_chunk(job_id, index) for every chunk not done
+        run_chunk:     chunk result file (atomic: temp + rename) → chunk row 'done';
                        the task that sees all chunks done defers assemble_job
         assemble_job:  defer store_wheel(job_id, wheel) for every wheel
         store_wheel:   merge the wheel's sums from the chunk files → its profile
                        rows (one transaction, keyed by the job: not yet visible),
                        then its OOR result file; the task that sees every wheel
                        stored defers publish_job
-        publish_job:   in one transaction: the run's wheel rows replaced, the
-                       older jobs' profile rows deleted, the job marked 'done'
-                       (readers show a run's latest done job: they switch from
-                       the old to the new results at this commit)
+        publish_job:   the publish step (app.publish.publish_job), one transaction:
+                       the run's wheel rows replaced, the older jobs' profile rows
+                       deleted, the condition rows and alerts written, the job
+                       marked 'done' (readers show a run's latest done job: they
+                       switch from the old to the new results at this commit)
 
 The wheels are stored in parallel by as many workers as are free, so the
 tail after the last chunk shrinks with the number of workers too.
@@ -47,24 +48,18 @@ no chunk running.
 
 The tasks are declared at module level on the Procrastinate blueprint
 :data:`blueprint` (each importable and callable alone with a
-:class:`procrastinate.JobContext`); :func:`make_app` binds them to an app on
-a database, under their unchanged names (``trackvkf.plan_job`` …), so tasks
-queued by an earlier version still run. A worker process hands its
-:class:`~worker.steps.WorkerRuntime` (settings, database, stores, stop flag) to
-the tasks through Procrastinate's ``additional_context`` (:func:`runtime_of`).
-
-Run a worker with ``trackvkf worker`` (or ``python -m worker``) when
-``TRACKVKF_DATABASE_URL`` is a PostgreSQL URL; ``--processes N`` starts N
-worker processes (one per core).
+:class:`procrastinate.JobContext`); :func:`worker.hosting.make_app` binds them to
+an app on a database, under their unchanged names (``trackvkf.plan_job``,
+``trackvkf.process_chunk`` …), so tasks queued by an earlier version still run. A
+worker process (:mod:`worker.hosting`) hands its :class:`~worker.steps.WorkerRuntime`
+(settings, database, stores, stop flag) to the tasks through Procrastinate's
+``additional_context`` (:func:`runtime_of`).
 """
 
 from __future__ import annotations
 
-import asyncio
 import json
 import logging
-import os
-import signal
 import time
 from typing import Any
 
@@ -72,26 +67,22 @@ import procrastinate
 import psycopg
 import sqlalchemy.exc
 from procrastinate import exceptions as pexc
-from sqlalchemy.engine import make_url
 
-from app.core.config import Settings, get_settings
+from app import publish
 from app.core.jsonable import jsonable
-from app.db import crud, queue
+from app.db import queue
 from app.db.models import ChunkStatus
-from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel, run_warnings
-from app.pipeline import process_chunk as compute_chunk
-from worker.background import start_background
-from worker.health import alive_file
+from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel, process_chunk, run_warnings
 from worker.steps import (
     WorkerRuntime,
     discard_job_files,
-    fail_job,
+    end_failed,
+    end_published,
     finalize_cancels,
     job_meta,
     load_job,
     mark_chunk_done,
     record_plan,
-    refresh_line_reference,
     remove_files_if_deleted,
 )
 
@@ -108,15 +99,11 @@ __all__ = [
     "dispatch_jobs",
     "retry_stalled_jobs",
     "plan_job",
-    "process_chunk",
+    "run_chunk",
     "assemble_job",
     "store_wheel",
     "publish_job",
     "runtime_of",
-    "libpq_url",
-    "make_app",
-    "run_worker_process",
-    "run_workers",
 ]
 
 log = logging.getLogger(__name__)
@@ -132,8 +119,8 @@ TASK_RETRY_STALLED = "trackvkf.retry_stalled_jobs"
 RUNTIME_KEY = "trackvkf_runtime"
 
 #: priorities (higher first): bookkeeping before chunks, so results land early
-_PRIO_HIGH = 10
-_PRIO_CHUNK = 0
+PRIORITY_HIGH = 10
+PRIORITY_CHUNK = 0
 #: job file holding a stored wheel's OOR result (its presence: the wheel is stored)
 _WHEEL_FILE = "wheel-{wheel}.json"
 #: seconds between two runs of the periodic dispatcher (a fallback: jobs are planned on NOTIFY)
@@ -167,26 +154,6 @@ _RETRY = procrastinate.RetryStrategy(
 blueprint = procrastinate.Blueprint()
 
 
-def libpq_url(database_url: str) -> str:
-    """The libpq URI (for psycopg/Procrastinate) of a SQLAlchemy PostgreSQL URL.
-
-    Parameters
-    ----------
-    database_url : str
-        ``postgresql+psycopg://user:password@host:port/db`` (any ``postgresql``
-        driver suffix).
-
-    Raises
-    ------
-    ValueError
-        If ``database_url`` is not a PostgreSQL URL.
-    """
-    url = make_url(database_url)
-    if url.get_backend_name() != "postgresql":
-        raise ValueError(f"database_url: the production mode needs PostgreSQL, got {url.drivername!r}")
-    return url.set(drivername="postgresql").render_as_string(hide_password=False)
-
-
 def runtime_of(context: procrastinate.JobContext) -> WorkerRuntime:
     """The :class:`~worker.steps.WorkerRuntime` of the worker process running a task."""
     try:
@@ -214,19 +181,19 @@ def _defer(app: procrastinate.App, name: str, lock: str | None, priority: int, *
 # new jobs are planned at once on their NOTIFY (_plan_on_notify); this is the
 # fallback and finishes cancel requests of jobs without a running chunk
 @blueprint.periodic(cron=f"* * * * * */{_DISPATCH_EVERY_S}")
-@blueprint.task(name=TASK_DISPATCH, queueing_lock=TASK_DISPATCH, priority=_PRIO_HIGH, pass_context=True)
+@blueprint.task(name=TASK_DISPATCH, queueing_lock=TASK_DISPATCH, priority=PRIORITY_HIGH, pass_context=True)
 def dispatch_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
     """Fan queued jobs out to :func:`plan_job`; finish cancel requests."""
     rt = runtime_of(context)
     finalize_cancels(rt)
     n = 0
     for job_id in queue.queued_job_ids(rt.db):
-        n += _defer(context.app, TASK_PLAN, f"plan:{job_id}", _PRIO_HIGH, job_id=job_id)
+        n += _defer(context.app, TASK_PLAN, f"plan:{job_id}", PRIORITY_HIGH, job_id=job_id)
     return n
 
 
 # scheduled by make_app: its period follows the settings' worker_stale_after_s
-@blueprint.task(name=TASK_RETRY_STALLED, queueing_lock=TASK_RETRY_STALLED, priority=_PRIO_HIGH,
+@blueprint.task(name=TASK_RETRY_STALLED, queueing_lock=TASK_RETRY_STALLED, priority=PRIORITY_HIGH,
                 pass_context=True)
 async def retry_stalled_jobs(context: procrastinate.JobContext, timestamp: int) -> int:  # noqa: ARG001
     """Retry the jobs of workers whose heartbeat is older than ``worker_stale_after_s``."""
@@ -261,9 +228,8 @@ def plan_job(context: procrastinate.JobContext, job_id: int) -> str:
     except Exception as exc:
         if _is_transient(exc):
             raise
-        fail_job(rt.db, job_id, exc, worker_id=None)
-        if record is not None and not record.lost:
-            discard_job_files(rt, record.run.id)
+        end_failed(rt, job_id, record.run.id if record is not None and not record.lost else None, exc,
+                   worker_id=None)
         return "failed"
     pending = 0
     for chunk in chunks:
@@ -271,15 +237,15 @@ def plan_job(context: procrastinate.JobContext, job_id: int) -> str:
             mark_chunk_done(rt, record, chunk.index, worker_id=None)
             continue
         pending += 1
-        _defer(context.app, TASK_CHUNK, f"chunk:{job_id}:{chunk.index}", _PRIO_CHUNK,
+        _defer(context.app, TASK_CHUNK, f"chunk:{job_id}:{chunk.index}", PRIORITY_CHUNK,
                job_id=job_id, index=chunk.index)
     if pending == 0:
-        _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
+        _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", PRIORITY_HIGH, job_id=job_id)
     return f"{len(chunks)} chunks, {pending} deferred"
 
 
 @blueprint.task(name=TASK_CHUNK, retry=_RETRY, pass_context=True)
-def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) -> str:
+def run_chunk(context: procrastinate.JobContext, job_id: int, index: int) -> str:
     """Compute one chunk's result file (unless it exists) and mark the chunk done."""
     rt = runtime_of(context)
     record = load_job(rt.db, job_id)
@@ -306,7 +272,7 @@ def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) ->
         try:
             rt.chunks.write(
                 run_id, job_id, index,
-                lambda out: compute_chunk(run_path, settings, chunk, out, should_cancel=watch),
+                lambda out: process_chunk(run_path, settings, chunk, out, should_cancel=watch),
             )
         except PipelineCancelled:
             if rt.stopping.is_set():
@@ -318,8 +284,7 @@ def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) ->
             if _is_transient(exc):
                 raise
             queue.mark_chunk(rt.db, job_id, index, ChunkStatus.FAILED, worker_id=None)
-            fail_job(rt.db, job_id, exc, worker_id=None)
-            discard_job_files(rt, run_id)
+            end_failed(rt, job_id, run_id, exc, worker_id=None)
             return "failed"
     compute_s = time.perf_counter() - t0
     if mark_chunk_done(rt, record, index, worker_id=None) is None:
@@ -328,7 +293,7 @@ def process_chunk(context: procrastinate.JobContext, job_id: int, index: int) ->
     done, total = queue.chunk_progress(rt.db, job_id)
     log.info("job %s chunk %s done in %.2f s (%d/%d)", job_id, index, compute_s, done, total)
     if done == total:
-        _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", _PRIO_HIGH, job_id=job_id)
+        _defer(context.app, TASK_ASSEMBLE, f"assemble:{job_id}", PRIORITY_HIGH, job_id=job_id)
     return f"chunk {index} done in {compute_s:.2f} s ({done}/{total})"
 
 
@@ -344,10 +309,10 @@ def assemble_job(context: procrastinate.JobContext, job_id: int) -> str:
         return "chunks missing"
     wheels = record.wheels
     for wheel in wheels:
-        _defer(context.app, TASK_STORE_WHEEL, f"store:{job_id}:{wheel}", _PRIO_HIGH,
+        _defer(context.app, TASK_STORE_WHEEL, f"store:{job_id}:{wheel}", PRIORITY_HIGH,
                job_id=job_id, wheel=wheel)
     if not wheels:
-        _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
+        _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", PRIORITY_HIGH, job_id=job_id)
     return f"{len(wheels)} wheel(s) deferred"
 
 
@@ -377,12 +342,11 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
         except Exception as exc:
             if _is_transient(exc):
                 raise
-            fail_job(rt.db, job_id, exc, worker_id=None)
-            discard_job_files(rt, run_id)
+            end_failed(rt, job_id, run_id, exc, worker_id=None)
             return "failed"
         profiles, result = done if done is not None else (None, None)  # None: no data of the wheel
         t1 = time.perf_counter()
-        if profiles is not None and not queue.store_wheel_rows(rt.db, job_id, run_id, profiles):
+        if profiles is not None and not publish.store_wheel_rows(rt.db, job_id, run_id, profiles):
             return "job not running"
         t2 = time.perf_counter()
         record_ = {"result": result, "rows": 0 if profiles is None else len(profiles),
@@ -392,7 +356,7 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
         log.info("job %s wheel %s: assembled in %.2f s, %d rows stored in %.2f s",
                  job_id, wheel, t1 - t0, record_["rows"], t2 - t1)
     if all(rt.chunks.exists_named(run_id, job_id, _WHEEL_FILE.format(wheel=w)) for w in record.wheels):
-        _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", _PRIO_HIGH, job_id=job_id)
+        _defer(context.app, TASK_PUBLISH, f"publish:{job_id}", PRIORITY_HIGH, job_id=job_id)
     return f"wheel {wheel} stored"
 
 
@@ -400,7 +364,7 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
 def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     """Publish a job whose wheels are all stored: wheel rows, old rows dropped, job done.
 
-    One transaction (:func:`app.db.queue.complete_job`), guarded by the
+    One transaction (:func:`app.publish.publish_job`), guarded by the
     job's state: a second publish of a done job changes nothing.
     """
     rt = runtime_of(context)
@@ -422,12 +386,9 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     )
     t0 = time.perf_counter()
     wheels = [r["result"] for r in stored_wheels if r["result"] is not None]
-    stored = queue.complete_job(rt.db, job_id, run_id, None, wheels, meta, worker_id=None, condition=rt.condition)
+    stored = end_published(rt, record, None, wheels, meta, worker_id=None)
     log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
              time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
-    discard_job_files(rt, run_id)  # its chunk and wheel files, and those of the jobs it supersedes
-    if stored:
-        refresh_line_reference(rt, record.run)
     return "published" if stored else "not running any more"
 
 
@@ -454,194 +415,3 @@ class _CancelWatch:
             except Exception as exc:  # noqa: BLE001 - database away: keep computing
                 log.warning("cannot check job %s for cancel: %s", self.job_id, exc)
         return self._stop
-
-
-def make_app(settings: Settings | None = None) -> procrastinate.App:
-    """The Procrastinate app of trackvkf with its tasks, for ``settings``' database.
-
-    The tasks of :data:`blueprint` keep their names; :func:`dispatch_jobs`
-    runs every 5 s, :func:`retry_stalled_jobs` every third of
-    ``worker_stale_after_s`` (1–59 s).
-
-    Parameters
-    ----------
-    settings : Settings, optional
-        Service settings (default: from the environment). ``database_url`` must
-        be a PostgreSQL URL; ``worker_stale_after_s`` is the heartbeat age after
-        which a worker counts as dead and its jobs are retried.
-    """
-    settings = settings or get_settings()
-    connector = procrastinate.PsycopgConnector(
-        conninfo=libpq_url(settings.database_url),
-        kwargs={"application_name": "trackvkf-worker"},
-        min_size=1,
-        max_size=4,
-    )
-    app = procrastinate.App(connector=connector)
-    app.add_tasks_from(blueprint, namespace="")  # no namespace: the names stay trackvkf.*
-    stalled_every = max(1, min(59, int(settings.worker_stale_after_s / 3)))
-    app.periodic(cron=f"* * * * * */{stalled_every}")(retry_stalled_jobs)
-    return app
-
-
-# --- worker processes ----------------------------------------------------------
-def run_worker_process(settings: Settings | None = None, *, wait: bool = True) -> int:
-    """Run one Procrastinate worker (concurrency 1) in this process until SIGTERM/SIGINT.
-
-    The worker is restarted after a pause when it stops on its own (database
-    restarted: its connections and heartbeat fail); jobs it had running are
-    retried by :func:`retry_stalled_jobs` if they did not finish.
-
-    Parameters
-    ----------
-    settings : Settings, optional
-    wait : bool
-        False: return once the queue is empty (tests, benchmarks).
-
-    Returns
-    -------
-    int
-        Exit status (0 after a graceful stop, 130 after a second signal).
-    """
-    settings = settings or get_settings()
-    background = start_background(settings)  # webhook deliveries, retention sweep: beside the tasks
-    try:
-        return asyncio.run(_supervise(settings, wait))
-    finally:
-        background.stop()
-
-
-async def _supervise(settings: Settings, wait: bool) -> int:
-    loop = asyncio.get_running_loop()
-    stopping = asyncio.Event()
-    current: list[asyncio.Task] = []
-    runtimes: list[WorkerRuntime] = []
-
-    def on_signal(signum: int) -> None:
-        if stopping.is_set():
-            log.warning("second signal %s: exiting now", signum)
-            os._exit(130)
-        log.info("signal %s: stopping after the running chunk is interrupted", signum)
-        stopping.set()
-        for rt in runtimes:
-            rt.stopping.set()
-        for task in current:
-            task.cancel()
-
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, on_signal, sig)
-    options = {
-        "concurrency": 1,
-        "wait": wait,
-        "install_signal_handlers": False,
-        "delete_jobs": "successful",
-        "update_heartbeat_interval": settings.worker_heartbeat_s,
-        "stalled_worker_timeout": settings.worker_stale_after_s,
-        "fetch_job_polling_interval": max(settings.worker_poll_interval_s, 0.1),
-        "name": f"trackvkf-{os.getpid()}",
-    }
-    alive = asyncio.create_task(_touch_alive(settings.worker_heartbeat_s), name="alive file")
-    try:
-        return await _serve(settings, options, stopping, current, runtimes, wait)
-    finally:
-        alive.cancel()
-        alive_file(os.getpid()).unlink(missing_ok=True)
-
-
-async def _touch_alive(interval_s: float) -> None:
-    """Touch this process's liveness file (``python -m worker.health``) periodically."""
-    path = alive_file(os.getpid())
-    while True:
-        path.touch()
-        await asyncio.sleep(interval_s)
-
-
-async def _serve(
-    settings: Settings,
-    options: dict[str, Any],
-    stopping: asyncio.Event,
-    current: list[asyncio.Task],
-    runtimes: list[WorkerRuntime],
-    wait: bool,
-) -> int:
-    while not stopping.is_set():
-        app = make_app(settings)
-        rt = WorkerRuntime(settings)
-        runtimes[:] = [rt]
-        try:
-            async with app.open_async():
-                task = asyncio.create_task(
-                    app.run_worker_async(**options, additional_context={RUNTIME_KEY: rt})
-                )
-                current[:] = [task]
-                listener = asyncio.create_task(_plan_on_notify(app, settings), name="job notifications")
-                try:
-                    await task
-                finally:
-                    listener.cancel()
-            if not wait:
-                break
-            log.warning("procrastinate worker stopped on its own; restarting in 1 s")
-        except asyncio.CancelledError:
-            if stopping.is_set():
-                break
-            raise
-        except (*TRANSIENT_ERRORS, OSError) as exc:  # database away: try again shortly
-            log.warning("procrastinate worker failed (%s: %s); restarting in 1 s", type(exc).__name__, exc)
-        finally:
-            current.clear()
-            rt.close()
-        try:
-            await asyncio.wait_for(stopping.wait(), timeout=1.0)
-        except TimeoutError:
-            pass
-    return 0
-
-
-async def _plan_on_notify(app: procrastinate.App, settings: Settings) -> None:
-    """Defer :func:`plan_job` as soon as a job is queued (PostgreSQL ``NOTIFY``
-    :data:`app.db.crud.JOBS_CHANNEL`, sent by the job's commit).
-
-    Every worker process listens; the queueing lock keeps one waiting plan task
-    per job and a second planner finds the job claimed. The periodic
-    dispatcher stays the fallback (a notification missed while a listener
-    reconnects), so a lost notification delays a job by seconds, never loses it.
-    """
-    while True:
-        try:
-            conn = await psycopg.AsyncConnection.connect(libpq_url(settings.database_url), autocommit=True)
-            async with conn:
-                await conn.execute(f"LISTEN {crud.JOBS_CHANNEL}")
-                async for note in conn.notifies():
-                    if not note.payload.isdigit():
-                        continue
-                    try:
-                        await app.configure_task(
-                            TASK_PLAN, queueing_lock=f"plan:{note.payload}", priority=_PRIO_HIGH
-                        ).defer_async(job_id=int(note.payload))
-                    except pexc.AlreadyEnqueued:
-                        pass
-        except asyncio.CancelledError:
-            raise
-        except Exception as exc:  # database away: listen again shortly; the dispatcher covers the gap
-            log.warning("job notifications: %s: %s; listening again in 1 s", type(exc).__name__, exc)
-            await asyncio.sleep(1.0)
-
-
-def run_workers(settings: Settings | None = None, processes: int = 1) -> int:
-    """Run ``processes`` worker processes (0 = one per core) until SIGTERM/SIGINT.
-
-    With one process the worker runs in this process; otherwise this process
-    supervises ``python -m worker`` children (:class:`worker.supervisor.Supervisor`):
-    a child that dies is replaced after a back-off (1 s, doubling up to 60 s
-    while children keep dying young), SIGTERM/SIGINT are forwarded to the
-    children and waited for.
-    """
-    if processes < 0:
-        raise ValueError(f"processes must be >= 0, got {processes}")
-    n = processes or len(os.sched_getaffinity(0)) or 1
-    if n == 1:
-        return run_worker_process(settings)
-    from worker.supervisor import Supervisor, worker_command
-
-    return Supervisor(worker_command(), n).run()

@@ -1,2 +1,2 @@
-"""Alerts: the SSRF policy of webhook targets (:mod:`~app.alerts.url_policy`) and the bounded,
+"""Alerts: the SSRF policy of webhook targets (:mod:`~app.core.url_policy`) and the bounded,
 pinned request that delivers one (:mod:`~app.alerts.transport`)."""

@@ -3,7 +3,7 @@
 :func:`post` sends a body to a webhook URL the way the delivery loop needs:
 
 * the host is resolved now and every address checked by the
-  :class:`~app.alerts.url_policy.AddressPolicy` (a host that changed its DNS
+  :class:`~app.core.url_policy.AddressPolicy` (a host that changed its DNS
   answer to a private address since it was registered is refused);
 * the connection goes to the checked address itself (the *pinned* address:
   the name is not resolved a second time by the HTTP client), the peer address
@@ -38,7 +38,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from urllib.parse import urlsplit
 
-from app.alerts.url_policy import AddressPolicy, RefusedAddress, Resolver, check_url, resolve
+from app.core.url_policy import AddressPolicy, RefusedAddress, Resolver, check_url, resolve
 
 __all__ = ["Attempt", "Outcome", "post"]
 
@@ -190,7 +190,7 @@ def post(url: str, body: bytes, headers: dict[str, str], *, policy: AddressPolic
     Parameters
     ----------
     url : str
-        The webhook's URL (checked again by :func:`~app.alerts.url_policy.check_url`).
+        The webhook's URL (checked again by :func:`~app.core.url_policy.check_url`).
     body : bytes
     headers : dict
         Request headers (``Host`` and ``Content-Length`` are set here).

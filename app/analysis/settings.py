@@ -6,6 +6,12 @@ binning from it (the railway order recipe, :mod:`app.analysis.recipe`, turns
 them into the orders and bandwidths of a wheel), so every stored number can be
 traced back to the settings that produced it.
 
+The dataclass is the one description of the settings: each field's metadata
+(:func:`setting_help`) carries its short help and range, from which the API's
+request schema (:mod:`app.api.schemas.jobs`) and the ``process`` command's
+options (:mod:`app.cli.processing`) are derived; the ranges are checked in
+``__post_init__``.
+
 Settings stored by older versions lack the keys added since; they must still
 mean what they meant then. :meth:`ProcessingSettings.from_stored` reads a
 stored dict and fills a missing key with its **legacy** value
@@ -18,13 +24,33 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["ProcessingSettings", "LEGACY_VALUES", "MAX_SLEEPER_HARMONIC"]
+__all__ = ["ProcessingSettings", "LEGACY_VALUES", "MAX_SLEEPER_HARMONIC", "MAX_WHEEL_ORDERS", "setting_help"]
 
 #: highest sleeper-passage harmonic that can be extracted (2·f_s and 3·f_s)
 MAX_SLEEPER_HARMONIC = 3
+#: most wheel out-of-roundness orders the pipeline tracks (the service stores fewer:
+#: :data:`app.db.models.N_ORDER_COLUMNS`)
+MAX_WHEEL_ORDERS = 30
+
+
+def _setting(default: Any, help: str, valid: str) -> Any:  # noqa: A002 - the name of the metadata key
+    """A field of :class:`ProcessingSettings` with its short help and its valid values (as text)."""
+    return field(default=default, metadata={"help": help, "valid": valid})
+
+
+def setting_help(name: str, *, valid: str | None = None) -> str:
+    """One line on setting ``name``: its help, valid values (``valid`` overrides them) and default.
+
+    What the API schema's descriptions and the command line's option help say.
+    """
+    f = {f.name: f for f in dataclasses.fields(ProcessingSettings)}[name]
+    default = "none" if f.default is None else f"{f.default:g}" if isinstance(f.default, float) else f.default
+    return f"{f.metadata['help']} ({valid or f.metadata['valid']}; default {default})"
+
+
 #: what a stored settings dict without these keys meant (before issue 15)
 LEGACY_VALUES: dict[str, Any] = {
     "track_resolution_m": None,
@@ -85,19 +111,25 @@ class ProcessingSettings:
         its impulse response needs). Default 60.
     """
 
-    n_wheel_orders: int = 11
-    bandwidth_orders: float = 0.1
-    track_resolution_m: float | None = 3.0
-    sleeper_harmonics: int = 3
-    force_mean_window_m: float = 12.0
-    filter_order: int = 2
-    bin_length_m: float = 0.25
-    min_speed_kmh: float = 25.0
-    chunk_seconds: float = 60.0
+    n_wheel_orders: int = _setting(11, "Wheel out-of-roundness orders tracked (orders 1..n)", "1..30")
+    bandwidth_orders: float = _setting(
+        0.1, "-3 dB bandwidth of each wheel order's filter, in wheel orders", "0.01..1")
+    track_resolution_m: float | None = _setting(
+        3.0, "Spatial resolution of the sleeper-passage orders: 10-90 % width of a stiffness step in "
+        "their profiles, m; sets their bandwidth (c_q v / resolution Hz); none: as bandwidth_orders",
+        "0.5..100 or none")
+    sleeper_harmonics: int = _setting(
+        3, "Highest sleeper-passage harmonic extracted: 1 (f_s only), 2 or 3 (also 2 f_s, 3 f_s)", "1, 2 or 3")
+    force_mean_window_m: float = _setting(
+        12.0, "Moving mean removed from the force channels (static wheel load), m; 0: off", "0 or 1.2..200")
+    filter_order: int = _setting(2, "VKF structural order q", "1, 2 or 3")
+    bin_length_m: float = _setting(0.25, "Profile bin length, m", "0.05..10")
+    min_speed_kmh: float = _setting(25.0, "Slowest speed used for indicators, km/h", "0..200")
+    chunk_seconds: float = _setting(60.0, "Core length of a processing chunk, s", "1..3600")
 
     def __post_init__(self) -> None:
-        if not 1 <= int(self.n_wheel_orders) <= 30 or int(self.n_wheel_orders) != self.n_wheel_orders:
-            raise ValueError(f"n_wheel_orders must be an integer in 1..30, got {self.n_wheel_orders!r}")
+        if not 1 <= int(self.n_wheel_orders) <= MAX_WHEEL_ORDERS or int(self.n_wheel_orders) != self.n_wheel_orders:
+            raise ValueError(f"n_wheel_orders must be an integer in 1..{MAX_WHEEL_ORDERS}, got {self.n_wheel_orders!r}")
         if not 0.01 <= float(self.bandwidth_orders) <= 1.0:
             raise ValueError(f"bandwidth_orders must be in [0.01, 1], got {self.bandwidth_orders!r}")
         if self.track_resolution_m is not None and not 0.5 <= float(self.track_resolution_m) <= 100.0:

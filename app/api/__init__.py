@@ -14,7 +14,6 @@ from fastapi import APIRouter, Depends
 
 from app.api import (
     analytics,
-    analytics_index,
     audit,
     auth,
     channel_maps,
@@ -31,10 +30,10 @@ from app.api import (
     wheels,
 )
 from app.api.deps import public, require_role
+from app.core.config import API_PREFIX
 
 __all__ = ["build_api_router", "API_PREFIX"]
 
-API_PREFIX = "/api/v1"
 
 
 def build_api_router() -> APIRouter:
@@ -44,7 +43,7 @@ def build_api_router() -> APIRouter:
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
-        runs, jobs, profiles, wheels, spectrogram, reference, analytics, analytics_index, condition,
+        runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition,
         condition_effects, auth, audit, channel_maps, geometry, webhooks,
     ):
         protected.include_router(module.router)

@@ -1,107 +1,27 @@
-"""The audit log: the helper routes use to append to it, and its read endpoint (admin).
-
-Routes record what they change with :func:`record` inside their own write
-transaction, so an action and its audit entry are committed together::
-
-    with db.write() as session:
-        ...change...
-        record(session, request, principal, "reference.import", target="maintenance",
-               detail={"imported": n})
-"""
+"""The audit log's read endpoint (admin). Entries are written by :func:`app.audit.record`
+(re-exported here for the routes), in the transaction of the change they record."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Request
-from sqlalchemy.orm import Session
+from fastapi import APIRouter, Depends, Query
 
 from app.api.deps import (
     DbDep,
     PageOffset,
-    Principal,
     SettingsDep,
     check_page_size,
-    client_ip,
     parse_time_range,
     require_role,
 )
 from app.api.schemas.auth import AuditList, AuditOut
+from app.audit import ACTIONS, record, record_now
 from app.db import auth_crud
-from app.db.session import Database
 
 __all__ = ["router", "record", "record_now", "ACTIONS"]
 
-#: Actions written to the audit log.
-ACTIONS: tuple[str, ...] = (
-    "auth.login",
-    "auth.logout",
-    "auth.password",
-    "user.create",
-    "user.update",
-    "user.delete",
-    "key.create",
-    "key.revoke",
-    "run.upload",
-    "run.delete",
-    "job.create",
-    "job.cancel",
-    "reference.import",
-    "reference.delete",
-    "webhook.create",
-    "webhook.update",
-    "webhook.delete",
-)
-
 router = APIRouter(tags=["audit"], dependencies=[Depends(require_role("admin"))])
-
-
-def record(
-    session: Session,
-    request: Request | None,
-    principal: Principal | None,
-    action: str,
-    *,
-    target: Any = None,
-    outcome: str = "ok",
-    detail: dict[str, Any] | None = None,
-    actor: str | None = None,
-) -> None:
-    """Append an audit entry in the caller's transaction.
-
-    Parameters
-    ----------
-    session : Session
-        Open write session.
-    request : Request or None
-        The request (for the client address).
-    principal : Principal or None
-        Who acts; ``actor`` names someone not authenticated (a failed login).
-    action : str
-        One of :data:`ACTIONS` (e.g. ``"run.upload"``).
-    target : object
-        What is acted on (run id, user name, key id ...).
-    outcome : str
-        ``ok``, ``denied`` or ``rejected``.
-    detail : dict
-        Further facts (JSON).
-    """
-    auth_crud.audit(
-        session,
-        actor=actor if actor is not None else (principal.name if principal else "unknown"),
-        actor_kind=principal.kind if principal else "none",
-        action=action,
-        target=None if target is None else str(target),
-        outcome=outcome,
-        client_ip=client_ip(request) if request is not None else None,
-        detail=detail,
-    )
-
-
-def record_now(db: Database, request: Request | None, principal: Principal | None, action: str, **kwargs: Any) -> None:
-    """Append an audit entry in its own transaction (for outcomes without other writes)."""
-    with db.write() as session:
-        record(session, request, principal, action, **kwargs)
 
 
 @router.get("/audit", response_model=AuditList, summary="Read the audit log (admin)")

@@ -57,8 +57,7 @@ from app.core.security import (
     verify_password,
 )
 from app.db import auth_crud
-from app.db.auth_models import User
-from app.db.models import utcnow
+from app.db.models import User, utcnow
 
 __all__ = ["router", "login_router", "set_session_cookies", "DEVICE_COOKIE"]
 

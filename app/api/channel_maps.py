@@ -12,12 +12,10 @@ from app.api.deps import DbDep, EngineerDep, require_role
 from app.api.errors import ApiError, not_found
 from app.api.schemas.recorder import ChannelMapIn, ChannelMapList, ChannelMapOut
 from app.db import recorder_crud
-from app.db.recorder_models import ChannelMapRow
-from app.db.session import Database
-from app.io import RunFileError
-from app.io.channel_map import ChannelMap, parse_channel_map
+from app.db.models import ChannelMapRow
+from app.io.channel_map import parse_channel_map
 
-__all__ = ["router", "load_channel_map"]
+__all__ = ["router"]
 
 router = APIRouter(prefix="/channel-maps", tags=["channel maps"])
 MapId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Channel map id")]
@@ -31,32 +29,8 @@ def _out(row: ChannelMapRow) -> ChannelMapOut:
 
 
 def _validated(body: ChannelMapIn) -> dict:
-    try:
-        cmap = parse_channel_map({"name": body.name, "channels": body.channels})
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    cmap = parse_channel_map({"name": body.name, "channels": body.channels})  # RunFileError: 422
     return cmap.model_dump(mode="json", exclude_none=True)["channels"]
-
-
-def load_channel_map(db: Database, map_id: int, vehicle_id: str | None) -> ChannelMap:
-    """The stored channel map ``map_id``, checked against the run's vehicle.
-
-    Raises
-    ------
-    ApiError
-        422 naming ``channel_map`` when it does not exist or belongs to another vehicle.
-    """
-    with db.read() as session:
-        row = recorder_crud.get_channel_map(session, map_id)
-        if row is None:
-            raise ApiError(422, "channel_map", f"channel map {map_id} not found")
-        if vehicle_id is not None and row.vehicle_id != vehicle_id:
-            raise ApiError(
-                422, "channel_map",
-                f"channel map {map_id} belongs to vehicle {row.vehicle_id!r}, the run's "
-                f"vehicle_id is {vehicle_id!r}",
-            )
-        return parse_channel_map({"name": row.name, "channels": dict(row.channels)})
 
 
 @router.get("", response_model=ChannelMapList, summary="List channel maps")

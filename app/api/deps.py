@@ -1,43 +1,54 @@
-"""Dependencies of the API routes: settings, database, run store, authentication.
+"""What the routes depend on: the app's settings, database and run store, who asks, and the
+shared parameters.
 
-Everything the routes need hangs on ``app.state`` (set by
-:func:`app.main.create_app`), so a test can build an app with its own settings
-and database.
+Everything the routes need hangs on ``app.state`` (set by :func:`app.main.create_app`),
+so a test can build an app with its own settings and database. Who may call a route is
+decided in :mod:`app.api.access`; the shared query and path parameters and their checks
+are :mod:`app.api.params`. This module gathers what a route module imports.
 """
 
 from __future__ import annotations
 
-import datetime as dt
-import math
-from collections.abc import Iterator
-from dataclasses import dataclass
-from typing import Annotated, Any, Literal, TypeVar
-from urllib.parse import quote
+from typing import Annotated
 
-from fastapi import Depends, HTTPException, Path, Query, Request
+from fastapi import Depends, Request
 
-from app.api.errors import ApiError
+from app.api.access import (
+    API_KEY_HEADER,
+    CSRF_COOKIE,
+    CSRF_HEADER,
+    SESSION_COOKIE,
+    PageLogin,
+    Principal,
+    RoleRequirement,
+    client_ip,
+    get_principal,
+    iter_routes,
+    public,
+    require_page_login,
+    require_role,
+    route_policy,
+)
+from app.api.params import (
+    KM_BOUND,
+    IdQuery,
+    JobId,
+    PageOffset,
+    RunId,
+    Wheel,
+    WheelQ,
+    check_km,
+    check_page_size,
+    km_query,
+    parse_time,
+    parse_time_range,
+    wheel_param,
+)
 from app.core.config import Settings
 from app.core.runstore import RunStore
-from app.core.security import ROLES, csrf_matches, role_allows, role_rank
-from app.db import auth_crud
 from app.db.session import Database
 
 __all__ = [
-    "Principal",
-    "get_principal",
-    "require_role",
-    "require_page_login",
-    "public",
-    "route_policy",
-    "iter_routes",
-    "client_ip",
-    "RoleRequirement",
-    "PageLogin",
-    "SESSION_COOKIE",
-    "CSRF_COOKIE",
-    "CSRF_HEADER",
-    "API_KEY_HEADER",
     "get_settings",
     "get_db",
     "get_store",
@@ -48,44 +59,40 @@ __all__ = [
     "ViewerDep",
     "EngineerDep",
     "AdminDep",
-    "RunId",
-    "check_km",
+    # from app.api.access
+    "API_KEY_HEADER",
+    "CSRF_COOKIE",
+    "CSRF_HEADER",
+    "SESSION_COOKIE",
+    "PageLogin",
+    "Principal",
+    "RoleRequirement",
+    "client_ip",
+    "get_principal",
+    "iter_routes",
+    "public",
+    "require_page_login",
+    "require_role",
+    "route_policy",
+    # from app.api.params
     "KM_BOUND",
-    "km_query",
     "JobId",
+    "IdQuery",
     "PageOffset",
+    "RunId",
+    "Wheel",
+    "WheelQ",
+    "check_km",
     "check_page_size",
+    "km_query",
     "parse_time",
     "parse_time_range",
+    "wheel_param",
 ]
 
 
-@dataclass(frozen=True)
-class Principal:
-    """Who makes a request.
-
-    Attributes
-    ----------
-    name : str
-        User name or API key name.
-    role : str
-        ``viewer``, ``engineer`` or ``admin``.
-    kind : str
-        ``anonymous`` (``auth_disabled``), ``user`` (session cookie) or
-        ``api_key``.
-    user_id, key_id : int or None
-        Row id of the user or the API key.
-    """
-
-    name: str
-    role: Literal["viewer", "engineer", "admin"]
-    kind: Literal["anonymous", "user", "api_key"] = "anonymous"
-    user_id: int | None = None
-    key_id: int | None = None
-
-
-# the three below are coroutines: FastAPI runs a plain function dependency in a worker
-# thread (a hop of ~0.1 ms each per request), and these only read the app state
+# coroutines: FastAPI runs a plain function dependency in a worker thread (a hop of
+# ~0.1 ms each per request), and these only read the app state
 
 
 async def get_settings(request: Request) -> Settings:
@@ -103,249 +110,6 @@ async def get_store(request: Request) -> RunStore:
     return request.app.state.store
 
 
-SESSION_COOKIE = "trackvkf_session"
-CSRF_COOKIE = "trackvkf_csrf"
-CSRF_HEADER = "X-CSRF-Token"
-API_KEY_HEADER = "X-API-Key"
-_SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS", "TRACE"})
-_BEARER = {"WWW-Authenticate": 'Bearer realm="trackvkf"'}
-
-
-def client_ip(request: Request) -> str | None:
-    """Address of the peer (the reverse proxy when there is one)."""
-    return request.client.host if request.client else None
-
-
-def _api_key_token(request: Request) -> str | None:
-    header = request.headers.get("authorization")
-    if header is not None:
-        scheme, _, value = header.partition(" ")
-        if scheme.lower() != "bearer" or not value.strip():
-            raise ApiError(
-                401, "authorization", "expected 'Authorization: Bearer <API key>'", _BEARER
-            )
-        return value.strip()
-    key = request.headers.get(API_KEY_HEADER)
-    if key is not None:
-        return key.strip()
-    return None
-
-
-def _lookup(request: Request) -> Principal | None:
-    """Authenticate a request by API key or session cookie; None without credentials.
-
-    Raises
-    ------
-    ApiError
-        401 for a wrong, revoked or expired API key (no fallback to the cookie).
-    """
-    settings: Settings = request.app.state.settings
-    if settings.auth_disabled:
-        return Principal(
-            name=settings.anonymous_principal, role=settings.anonymous_role, kind="anonymous"
-        )
-    db: Database = request.app.state.db
-    token = _api_key_token(request)
-    if token is not None:
-        with db.read() as session:
-            key = auth_crud.api_key_by_token(session, token)
-            if key is None:
-                raise ApiError(401, "authorization", "invalid, revoked or expired API key", _BEARER)
-            principal = Principal(name=f"key:{key.name}", role=key.role, kind="api_key", key_id=key.id)
-            stale = auth_crud.needs_touch(key)
-        if stale:
-            with db.write() as session:
-                auth_crud.touch_api_key(session, key.id)
-        return principal
-    cookie = request.cookies.get(SESSION_COOKIE)
-    if cookie:
-        with db.read() as session:
-            user = auth_crud.session_user(session, cookie)
-            if user is not None:
-                request.state.session_token = cookie
-                return Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
-    return None
-
-
-def _authenticate(request: Request) -> Principal | None:
-    cached = getattr(request.state, "principal", None)
-    if cached is None:
-        cached = _lookup(request)
-        request.state.principal = cached
-    return cached
-
-
-def get_principal(request: Request) -> Principal:
-    """The authenticated principal of a request.
-
-    An API key (``Authorization: Bearer <key>`` or ``X-API-Key``) is checked
-    first, then the session cookie ``trackvkf_session``. A state-changing
-    request (POST/PUT/PATCH/DELETE) authenticated by the cookie must carry the
-    session's CSRF token in ``X-CSRF-Token`` (the value of the
-    ``trackvkf_csrf`` cookie). With ``auth_disabled`` (development only)
-    every request runs as the anonymous principal of the settings.
-
-    Raises
-    ------
-    ApiError
-        401 without valid credentials, 403 for a missing or wrong CSRF token.
-    """
-    principal = _authenticate(request)
-    if principal is None:
-        raise ApiError(401, "authentication", "log in or send an API key", _BEARER)
-    if principal.kind == "user" and request.method not in _SAFE_METHODS:
-        settings: Settings = request.app.state.settings
-        token = getattr(request.state, "session_token", "")
-        if not csrf_matches(settings.secret_key, token, request.headers.get(CSRF_HEADER)):
-            raise ApiError(
-                403, "csrf", f"missing or wrong {CSRF_HEADER} header (value of the {CSRF_COOKIE} cookie)"
-            )
-    return principal
-
-
-class _RoleGate:
-    """What both access dependencies share: a role, and 403 for a principal below it."""
-
-    def __init__(self, role: str) -> None:
-        role_rank(role)  # validates
-        self.role = role
-
-    def _admit(self, principal: Principal) -> Principal:
-        if not role_allows(principal.role, self.role):
-            raise ApiError(
-                403, "role", f"needs role {self.role} or higher; {principal.name} is {principal.role}"
-            )
-        return principal
-
-
-_Gate = TypeVar("_Gate", bound=_RoleGate)
-
-
-def _gate_of(gates: dict[str, _Gate], role: str) -> _Gate:
-    """The dependency of ``role`` (one object per role); ValueError for an unknown role."""
-    try:
-        return gates[role]
-    except KeyError:
-        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
-
-
-class RoleRequirement(_RoleGate):
-    """Dependency: the request's principal must have at least ``role``.
-
-    Use through :func:`require_role`. 401 without authentication, 403 for a
-    role below ``role``.
-    """
-
-    def __call__(self, principal: Annotated[Principal, Depends(get_principal)]) -> Principal:
-        return self._admit(principal)
-
-    def __repr__(self) -> str:
-        return f"require_role({self.role!r})"
-
-
-_REQUIREMENTS: dict[str, RoleRequirement] = {role: RoleRequirement(role) for role in ROLES}
-
-
-def require_role(role: str) -> RoleRequirement:
-    """The dependency that admits principals with ``role`` or a higher one.
-
-    Roles are ordered viewer < engineer < admin. Apply it per route or per
-    router::
-
-        @router.post("/x", dependencies=[Depends(require_role("engineer"))])
-        APIRouter(dependencies=[Depends(require_role("viewer"))])
-
-    or take the principal from it: ``principal: Annotated[Principal,
-    Depends(require_role("admin"))]``.
-    """
-    return _gate_of(_REQUIREMENTS, role)
-
-
-class PageLogin(_RoleGate):
-    """Dependency of HTML pages: the principal, else a 303 redirect to the login page.
-
-    Use through :func:`require_page_login`. A logged-in principal whose role
-    is below ``role`` gets 403.
-    """
-
-    def __call__(self, request: Request) -> Principal:
-        principal = _authenticate(request)
-        if principal is None:
-            target = request.url.path + (f"?{request.url.query}" if request.url.query else "")
-            location = f"/login?next={quote(target, safe='')}"
-            raise HTTPException(
-                status_code=303, detail="log in first", headers={"Location": location}
-            )
-        return self._admit(principal)
-
-    def __repr__(self) -> str:
-        return f"require_page_login({self.role!r})"
-
-
-_PAGE_LOGINS: dict[str, PageLogin] = {role: PageLogin(role) for role in ROLES}
-
-
-def require_page_login(role: str = "viewer") -> PageLogin:
-    """Dependency of HTML pages: logged in (any role >= ``role``) or 303 → ``/login?next=``."""
-    return _gate_of(_PAGE_LOGINS, role)
-
-
-def public() -> None:
-    """Marker dependency of routes that need no authentication (health, login)."""
-
-
-def iter_routes(app) -> Iterator[Any]:
-    """Every route of an app with its effective dependencies (included routers flattened).
-
-    Items have ``path``, ``methods`` and, for FastAPI routes, ``dependant``
-    (None for mounts and plain Starlette routes).
-    """
-    try:
-        from fastapi.routing import iter_route_contexts
-    except ImportError:  # older FastAPI: included routes are flattened into app.routes
-        yield from app.routes
-        return
-    yield from iter_route_contexts(app.routes)
-
-
-def route_policy(route: Any) -> tuple[str, str | None] | None:
-    """The access policy a route declares through its dependencies.
-
-    Returns
-    -------
-    tuple or None
-        ``("public", None)``, ``("api", role)`` (401/403 JSON) or
-        ``("page", role)`` (303 to the login page, 403), with the highest role
-        required anywhere in the route's dependencies; None when the route
-        declares nothing (a bug: every route must declare its policy).
-    """
-    found: list[tuple[str, str | None]] = []
-
-    def walk(dependant) -> None:
-        for dep in dependant.dependencies:
-            call = dep.call
-            if isinstance(call, RoleRequirement):
-                found.append(("api", call.role))
-            elif isinstance(call, PageLogin):
-                found.append(("page", call.role))
-            elif call is public:
-                found.append(("public", None))
-            walk(dep)
-
-    dependant = getattr(route, "dependant", None)
-    if dependant is None:
-        return None
-    walk(dependant)
-    if not found:
-        return None
-    kinds = {k for k, _ in found}
-    roles = [r for _, r in found if r is not None]
-    if roles:
-        kind = "page" if "page" in kinds else "api"
-        return kind, max(roles, key=role_rank)
-    return "public", None
-
-
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 DbDep = Annotated[Database, Depends(get_db)]
 StoreDep = Annotated[RunStore, Depends(get_store)]
@@ -353,87 +117,3 @@ PrincipalDep = Annotated[Principal, Depends(get_principal)]
 ViewerDep = Annotated[Principal, Depends(require_role("viewer"))]
 EngineerDep = Annotated[Principal, Depends(require_role("engineer"))]
 AdminDep = Annotated[Principal, Depends(require_role("admin"))]
-
-_MAX_ID = 2**31 - 1
-RunId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Run id")]
-JobId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Job id")]
-PageOffset = Annotated[int, Query(ge=0, le=10**9)]
-
-
-#: Largest |km| a query accepts.
-KM_BOUND = 100_000.0
-
-
-def km_query(description: str | None = None) -> Any:
-    """The ``Query`` of a km parameter: within ±:data:`KM_BOUND`.
-
-    Use as ``Annotated[float | None, km_query("Lower km bound")]``.
-    """
-    return Query(ge=-KM_BOUND, le=KM_BOUND, description=description)
-
-
-def check_km(km_from: float | None, km_to: float | None) -> None:
-    """422 unless the km bounds are finite and ordered."""
-    for name, value in (("km_from", km_from), ("km_to", km_to)):
-        if value is not None and not math.isfinite(value):
-            raise ApiError(422, name, "must be a finite number")
-    if km_from is not None and km_to is not None and km_from > km_to:
-        raise ApiError(422, "km_from", f"({km_from}) is greater than km_to ({km_to})")
-
-
-def check_page_size(limit: int, settings: Settings) -> None:
-    """422 for a page larger than ``settings.max_page_size``."""
-    if limit > settings.max_page_size:
-        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
-
-
-def parse_time(
-    value: str | None, name: str, *, day: Literal["start", "end"] | None = None
-) -> dt.datetime | None:
-    """An ISO 8601 date or datetime query parameter as an aware UTC datetime.
-
-    Parameters
-    ----------
-    value : str or None
-        The parameter; None or ``""`` give None. A datetime without offset is UTC.
-    name : str
-        Its name, for the 422 message.
-    day : {"start", "end"}, optional
-        What a bare date (``YYYY-MM-DD``) means: the first or the last instant
-        of that day (UTC). Without it a date is read as a datetime (midnight).
-
-    Raises
-    ------
-    ApiError
-        422 for a value that is not ISO 8601 or out of the representable range.
-    """
-    if value is None or value == "":
-        return None
-    try:
-        if day is not None and len(value) == 10:
-            t = dt.time.max if day == "end" else dt.time.min
-            return dt.datetime.combine(dt.date.fromisoformat(value), t, tzinfo=dt.UTC)
-        parsed = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
-    except ValueError:
-        raise ApiError(422, name, f"not an ISO 8601 date or datetime: {value!r}") from None
-    if parsed.tzinfo is None:
-        parsed = parsed.replace(tzinfo=dt.UTC)
-    try:
-        return parsed.astimezone(dt.UTC)
-    except OverflowError:
-        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
-
-
-def parse_time_range(
-    since: str | None, until: str | None, names: tuple[str, str], *, whole_days: bool = False
-) -> tuple[dt.datetime | None, dt.datetime | None]:
-    """Both ends of a time filter (:func:`parse_time`); 422 on the first name if they are reversed.
-
-    With ``whole_days`` a bare date as ``since`` starts at the beginning of the
-    day and one as ``until`` ends at its end.
-    """
-    start = parse_time(since, names[0], day="start" if whole_days else None)
-    end = parse_time(until, names[1], day="end" if whole_days else None)
-    if start and end and start > end:
-        raise ApiError(422, names[0], f"is after {names[1]}")
-    return start, end

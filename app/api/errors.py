@@ -1,35 +1,49 @@
 """Error responses of the API: ``{"detail": "<field>: <message>", "field": "<field>"}``.
 
-Every error the API answers takes this form: :class:`ApiError` raised by the
-routes and their dependencies, and FastAPI's own validation of query, path
-and body parameters (:class:`fastapi.exceptions.RequestValidationError`),
-whose list of problems is reduced to the first one, naming its parameter, and
-PostgreSQL's refusal of NUL characters in text (a query filter holding one).
-Messages are cut to :data:`MAX_MESSAGE_CHARS`: no answer echoes a large input.
+Every error the API answers takes this form: :class:`~app.core.errors.ApiError` raised by the
+routes, their dependencies and the services they call, :class:`~app.io.RunFileError` (a run
+or reference file, metadata or channel map that is not valid: 422 naming the field,
+:func:`run_file_error`), FastAPI's own validation of query, path and body parameters
+(:class:`fastapi.exceptions.RequestValidationError`), whose list of problems is reduced to
+the first one, naming its parameter, Starlette's HTTP errors (unknown path → ``path``,
+method → ``method``, a body that cannot be parsed → ``body``), PostgreSQL's refusal of NUL
+characters in text (a query filter holding one) and, last, any exception a route did not
+expect: answered ``500`` with ``"field": "server"`` (its traceback goes to the log, never to
+the client) by :class:`CatchAllMiddleware`, on a connection that stays open. Messages are
+cut to :data:`MAX_MESSAGE_CHARS`: no answer echoes a large input.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import DataError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from app.core.errors import MAX_MESSAGE_CHARS, ApiError, cut_message, not_found
+from app.io import RunFileError
 
 __all__ = [
     "ApiError",
     "MAX_MESSAGE_CHARS",
     "ERROR_SCHEMA",
     "not_found",
+    "run_file_error",
     "validation_error",
     "document_error_responses",
     "install_error_handlers",
+    "CatchAllMiddleware",
+    "INTERNAL_ERROR",
 ]
 
-#: Longest message of an error answer, characters (longer ones are cut, ending in "…").
-MAX_MESSAGE_CHARS = 500
+log = logging.getLogger(__name__)
 
 #: OpenAPI schema of an error answer.
 ERROR_SCHEMA: dict[str, Any] = {
@@ -44,44 +58,14 @@ ERROR_SCHEMA: dict[str, Any] = {
 
 _PARAMETER_KINDS = ("query", "path", "body", "header", "cookie")
 
-
-def _cut(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
-    return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
-class ApiError(Exception):
-    """An error answered with ``status_code`` and a message naming the problem.
-
-    Parameters
-    ----------
-    status_code : int
-        HTTP status (4xx; 507 when the run store is full).
-    field : str
-        What is wrong: a channel, a metadata field, a query parameter,
-        ``format``, ``file`` ...
-    message : str
-        Human-readable explanation; cut to :data:`MAX_MESSAGE_CHARS` characters.
-    headers : dict, optional
-        Extra response headers (``WWW-Authenticate``, ``Retry-After``).
-    """
-
-    def __init__(
-        self, status_code: int, field: str, message: str, headers: dict[str, str] | None = None
-    ) -> None:
-        self.status_code = status_code
-        self.field = _cut(str(field), 200)
-        self.message = _cut(str(message))
-        self.headers = headers
-        super().__init__(f"{self.field}: {self.message}")
-
-
-def not_found(what: str, ident: object) -> ApiError:
-    """A 404 error for ``what`` (``"run"``, ``"job"``) with id ``ident``."""
-    return ApiError(404, f"{what}_id", f"{what} {ident} not found")
+#: The answer to an exception no route expected (the details are in the service log).
+INTERNAL_ERROR: dict[str, str] = {"detail": "server: internal error (logged on the server)", "field": "server"}
+#: Starlette's message when the body is not JSON it can parse (too deep, a number too long …).
+_BODY_PARSE_ERROR = "There was an error parsing the body"
 
 
 def _shown(value: Any) -> str:
-    return _cut(repr(value), 60)
+    return cut_message(repr(value), 60)
 
 
 def validation_error(errors: Sequence[dict[str, Any]]) -> ApiError:
@@ -131,6 +115,16 @@ async def _api_error_handler(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+def run_file_error(exc: RunFileError) -> ApiError:
+    """The 422 of an invalid file, metadata or channel map, naming its field (the one mapping)."""
+    return ApiError(422, exc.field, exc.message)
+
+
+async def _run_file_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RunFileError)
+    return await _api_error_handler(request, run_file_error(exc))
+
+
 async def _validation_error_handler(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
     return await _api_error_handler(request, validation_error(exc.errors()))
@@ -145,6 +139,64 @@ async def _data_error_handler(request: Request, exc: Exception) -> JSONResponse:
     return await _api_error_handler(
         request, ApiError(422, field, "text must not contain NUL characters (\\u0000)")
     )
+
+
+async def _http_error_handler(request: Request, exc: Exception) -> Any:
+    """Starlette's HTTP errors (404, 405, 400 of body parsing …) in the project's error shape."""
+    assert isinstance(exc, StarletteHTTPException)
+    if exc.status_code < 400:  # the pages' redirect to the login page
+        return await http_exception_handler(request, exc)
+    detail = str(exc.detail)
+    if exc.status_code == 404 and detail == "Not Found":
+        field, message = "path", f"no such path {request.url.path[:200]!r}"
+    elif exc.status_code == 405:
+        field, message = "method", f"{request.method} is not allowed here"
+    elif exc.status_code == 400 and detail == _BODY_PARSE_ERROR:
+        field, message = "body", (
+            "cannot be parsed as JSON (nested too deeply or a number with too many digits?)"
+        )
+    else:
+        field, message = "request", detail
+    return await _api_error_handler(request, ApiError(exc.status_code, field, message, exc.headers))
+
+
+async def _unexpected_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    """Last resort of Starlette's outermost middleware (an error raised by a middleware itself)."""
+    return JSONResponse(status_code=500, content=INTERNAL_ERROR)
+
+
+class CatchAllMiddleware:
+    """An exception no route expected: logged, answered 500 in the error shape, connection kept.
+
+    Starlette's own last resort answers and then re-raises the exception to the
+    server, which closes the keep-alive connection after any 500. This ASGI
+    middleware sits inside the other middlewares (the answer still gets the
+    security headers) and ends the request there instead. An exception after
+    the answer has started cannot be answered any more: it is re-raised.
+    """
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def tracked(message: Message) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+            await send(message)
+
+        try:
+            await self.app(scope, receive, tracked)
+        except Exception:
+            log.exception("unexpected error answering %s %s", scope.get("method"), scope.get("path"))
+            if started:
+                raise
+            await JSONResponse(status_code=500, content=INTERNAL_ERROR)(scope, receive, send)
 
 
 def document_error_responses(schema: dict[str, Any]) -> dict[str, Any]:
@@ -171,7 +223,11 @@ def document_error_responses(schema: dict[str, Any]) -> dict[str, Any]:
 
 
 def install_error_handlers(app: FastAPI) -> None:
-    """Register the handlers that render :class:`ApiError` and request validation errors."""
+    """Register the handlers of every error (call before adding the other middlewares)."""
     app.add_exception_handler(ApiError, _api_error_handler)
+    app.add_exception_handler(RunFileError, _run_file_error_handler)
     app.add_exception_handler(RequestValidationError, _validation_error_handler)
     app.add_exception_handler(DataError, _data_error_handler)
+    app.add_exception_handler(StarletteHTTPException, _http_error_handler)
+    app.add_exception_handler(Exception, _unexpected_error_handler)
+    app.add_middleware(CatchAllMiddleware)

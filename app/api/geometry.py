@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import Annotated
 
-import numpy as np
 from fastapi import APIRouter, Depends, File, Path, Query, Request, Response, UploadFile, status
 from starlette.concurrency import run_in_threadpool
 
@@ -17,27 +16,17 @@ from app.api.schemas.recorder import (
     GeometryOut,
     GeometrySummary,
     IndicatorOut,
-    IndicatorSegment,
 )
-from app.db import crud, recorder_crud, results_reader
-from app.db.models import PROFILE_VALUE_COLUMNS
-from app.db.recorder_models import LineGeometryRow
-from app.io import RunFileError
-from app.io.channels import UNITS
-from app.io.geometry import parse_geojson
+from app.db import recorder_crud
+from app.db.models import LineGeometryRow
+from app.io.isolation import parse_geojson_upload
+from app.maps import indicator as map_indicator
+from app.maps.indicator import DEFAULT_MAP_SEGMENT_M, INDICATOR_UNITS
 
 __all__ = ["router", "INDICATOR_UNITS"]
 
 router = APIRouter(prefix="/geometry", tags=["line geometry"])
 GeometryId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Geometry id")]
-
-#: Quantities the map can colour the line by (profile columns) and their units.
-INDICATOR_UNITS: dict[str, str] = {
-    **{c: UNITS["Z11"] for c in PROFILE_VALUE_COLUMNS if c.startswith(("sleeper_amp", "order_amp", "residual"))},
-    "speed_mean": UNITS["speed"],
-    "sleeper_force_amp": UNITS["Q11"],
-}
-
 
 def _summary(row: LineGeometryRow) -> GeometrySummary:
     return GeometrySummary(
@@ -67,10 +56,7 @@ async def import_geometry(
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    try:
-        geometries = await run_in_threadpool(parse_geojson, data)
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    geometries = await run_in_threadpool(parse_geojson_upload, settings, data)  # RunFileError: 422 naming the feature
 
     def write() -> list[GeometrySummary]:
         with db.write() as session:
@@ -121,54 +107,12 @@ def geometry_indicator(
     db: DbDep,
     quantity: Annotated[str, Query(max_length=64, description="Profile column to colour the line by")] = "sleeper_amp",
     run_id: Annotated[int | None, Query(ge=1, le=2**31 - 1, description="Default: the latest processed run of the line and track")] = None,
-    segment_m: Annotated[float, Query(ge=10.0, le=10_000.0, description="Segment length, m")] = 100.0,
+    segment_m: Annotated[float, Query(ge=10.0, le=10_000.0, description="Segment length, m")] = DEFAULT_MAP_SEGMENT_M,
 ) -> IndicatorOut:
     """Mean of ``quantity`` over the bins and wheels of each segment of the run, placed on the line.
 
     Segments without profile rows have ``value`` null; a quantity that is not
     a profile column answers 422 naming ``quantity``.
     """
-    if quantity not in INDICATOR_UNITS:
-        raise ApiError(422, "quantity", f"unknown quantity {quantity!r}; one of {', '.join(INDICATOR_UNITS)}")
-    with db.read() as session:
-        row = recorder_crud.get_geometry(session, geometry_id)
-        if row is None:
-            raise not_found("geometry", geometry_id)
-        geom = recorder_crud.to_line_geometry(row)
-        if run_id is None:
-            run = recorder_crud.latest_processed_run(session, row.line_id, row.track)
-        else:
-            run = crud.get_run(session, run_id)
-            if run is None:
-                raise not_found("run", run_id)
-            if (run.line_id, run.track) != (row.line_id, row.track):
-                raise ApiError(422, "run_id", f"run {run_id} is on line {run.line_id} track {run.track}")
-        frame = results_reader.profile_rows(session, run.id, columns=[quantity]) if run is not None else None
-    lo, hi = sorted((float(geom.km[0]), float(geom.km[-1])))
-    edges = np.arange(lo * 1000.0, hi * 1000.0 + segment_m, segment_m) / 1000.0
-    edges = edges[edges <= hi + 1e-9]
-    if edges.size < 2:
-        edges = np.array([lo, hi])
-    centres = 0.5 * (edges[:-1] + edges[1:])
-    values = np.full(centres.size, np.nan)
-    if frame is not None and len(frame):
-        km = frame["km"].to_numpy(dtype=np.float64)
-        v = frame[quantity].to_numpy(dtype=np.float64)
-        k = np.searchsorted(edges, km, side="right") - 1
-        ok = (k >= 0) & (k < centres.size) & np.isfinite(v)
-        sums = np.bincount(k[ok], weights=v[ok], minlength=centres.size)
-        counts = np.bincount(k[ok], minlength=centres.size)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            values = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
-    lon, lat = geom.lonlat_at_km(centres)
-    x, y = geom.to_local(lon, lat)
-    segments = [
-        IndicatorSegment(km_from=float(a), km_to=float(b), km=float(c),
-                         value=None if not np.isfinite(val) else float(val),
-                         lon=float(lo_), lat=float(la), x_m=float(xx), y_m=float(yy))
-        for a, b, c, val, lo_, la, xx, yy in zip(edges[:-1], edges[1:], centres, values, lon, lat, x, y,
-                                                 strict=True)
-    ]
-    return IndicatorOut(geometry_id=geometry_id, line_id=row.line_id, track=row.track,
-                        run_id=run.id if run is not None else None, quantity=quantity,
-                        unit=INDICATOR_UNITS[quantity], segment_m=segment_m, segments=segments)
+    return IndicatorOut(**map_indicator.geometry_indicator(db, geometry_id, quantity=quantity, run_id=run_id,
+                                                           segment_m=segment_m))

@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Depends, Query, Request, status
 
-from app.analysis.settings import ProcessingSettings
-from app.api.audit import record
 from app.api.deps import (
     DbDep,
     EngineerDep,
@@ -21,49 +18,16 @@ from app.api.deps import (
     require_role,
 )
 from app.api.errors import ApiError, not_found
+from app.api.schemas.from_rows import job_out
 from app.api.schemas.jobs import JobList, JobOut, ProcessingSettingsIn
-from app.api.views import job_out
 from app.db import crud
-from app.db.models import N_ORDER_COLUMNS, JobStatus
+from app.db.models import JobStatus
 from app.db.session import Database
+from app.runs import jobs
 
-__all__ = ["router", "settings_from_request"]
+__all__ = ["router"]
 
 router = APIRouter(tags=["jobs"])
-
-_SETTING_FIELDS = tuple(f.name for f in dataclasses.fields(ProcessingSettings))
-
-
-def settings_from_request(base: dict | None, changes: dict) -> ProcessingSettings:
-    """Merge ``changes`` onto ``base`` settings and validate them.
-
-    Raises
-    ------
-    ApiError
-        422 naming the offending setting.
-    """
-    merged = {k: v for k, v in (base or {}).items() if k in _SETTING_FIELDS}
-    if base is not None:  # stored settings lacking newer keys mean what they meant then
-        try:
-            merged = ProcessingSettings.from_stored(merged).to_dict()
-        except (ValueError, TypeError):
-            pass  # validated with the changes below
-    merged.update(changes)
-    try:
-        settings = ProcessingSettings.from_dict(merged)
-    except (ValueError, TypeError) as exc:
-        text = str(exc)
-        field = next((f for f in _SETTING_FIELDS if text.startswith(f)), "settings")
-        raise ApiError(422, field, text) from None
-    if settings.n_wheel_orders > N_ORDER_COLUMNS:
-        raise ApiError(
-            422,
-            "n_wheel_orders",
-            f"the service stores at most {N_ORDER_COLUMNS} wheel orders per bin, "
-            f"got {settings.n_wheel_orders}",
-        )
-    return settings
-
 
 def _job_page(
     db: Database,
@@ -120,22 +84,7 @@ def reprocess(
     is done its results replace the run's stored profiles and wheels.
     """
     changes = body.model_dump(exclude_none=True) if body is not None else {}
-    with db.write() as session:
-        if crud.get_run(session, run_id) is None:
-            raise not_found("run", run_id)
-        latest = crud.latest_job(session, run_id)
-        settings = settings_from_request(latest.settings if latest else None, changes)
-        active = crud.active_job(session, run_id)
-        if active is not None:
-            raise ApiError(
-                409,
-                "job",
-                f"run {run_id} already has job {active.id} {active.status}; cancel it first",
-            )
-        job = crud.create_job(session, run_id, settings.to_dict(), principal.name)
-        record(session, request, principal, "job.create", target=run_id,
-               detail={"job_id": job.id, "settings": changes})
-    return job_out(job)
+    return job_out(jobs.reprocess(db, run_id, changes, principal, request))
 
 
 @router.get("/jobs", response_model=JobList, summary="List jobs")
@@ -185,18 +134,5 @@ def cancel_job(
     an attempt interrupted by a worker's shutdown) are removed at once; a
     running job's by its worker.
     """
-    with db.write() as session:
-        outcome = crud.request_cancel(session, job_id)
-        if outcome is None:
-            raise not_found("job", job_id)
-        job = crud.get_job(session, job_id)
-        assert job is not None
-        if outcome == "final":
-            raise ApiError(409, "job", f"job {job_id} is already {job.status}")
-        record(session, request, principal, "job.cancel", target=job_id, detail={"run_id": job.run_id})
-        session.refresh(job)
-        counts = crud.chunk_counts(session, [job_id])
-        answer = job_out(job, counts.get(job_id))
-    if outcome == "cancelled":
-        store.remove_job_files(answer.run_id, job_id)
-    return answer
+    job, counts = jobs.cancel(db, store, job_id, principal, request)
+    return job_out(job, counts)

@@ -10,8 +10,6 @@ import datetime as dt
 from dataclasses import asdict, dataclass
 from typing import Annotated, Any, Literal
 
-import numpy as np
-import pandas as pd
 from fastapi import APIRouter, Depends, File, Query, Request, UploadFile
 from starlette.concurrency import run_in_threadpool
 
@@ -26,8 +24,8 @@ from app.api.schemas.reference import (
     SuperstructureList,
 )
 from app.db import reference_crud
-from app.io import RunFileError
-from app.io.reference import MAINTENANCE_TYPES, read_reference
+from app.io.isolation import read_reference_upload
+from app.io.reference import MAINTENANCE_TYPES
 
 __all__ = ["router"]
 
@@ -38,14 +36,6 @@ LineQ = Annotated[str | None, Query(max_length=128, description="Line id")]
 TrackQ = Annotated[str | None, Query(max_length=64, description="Track")]
 KmFromQ = Annotated[float | None, km_query("Lower km bound")]
 KmToQ = Annotated[float | None, km_query("Upper km bound")]
-
-
-def _records(df: pd.DataFrame) -> list[dict]:
-    out = df.replace({np.nan: None}).to_dict(orient="records")
-    for r in out:
-        if "rail" in r and r["rail"] is not None:
-            r["rail"] = int(r["rail"])
-    return out
 
 
 @router.post("/{kind}", response_model=ImportOut, status_code=201,
@@ -70,10 +60,7 @@ async def import_reference(
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    try:
-        rows = await run_in_threadpool(read_reference, data, kind, format, file.filename)
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
+    rows = await run_in_threadpool(read_reference_upload, settings, data, kind, format, file.filename)  # RunFileError: 422
 
     def write() -> tuple[int, int]:
         with db.write() as session:
@@ -126,8 +113,8 @@ def _query(db, settings, kind, window: _Window, **kw) -> dict[str, Any]:
     check_km(window.km_from, window.km_to)
     limit = settings.max_profile_rows
     with db.read() as session:
-        df = reference_crud.reference_frame(session, kind, limit=limit + 1, **asdict(window), **kw)
-    return {"items": _records(df.iloc[:limit]), "truncated": len(df) > limit}
+        rows = reference_crud.reference_records(session, kind, limit=limit + 1, **asdict(window), **kw)
+    return {"items": rows[:limit], "truncated": len(rows) > limit}
 
 
 @router.get("/subsidence", response_model=SubsidenceList, summary="Subsidence measurements")

@@ -22,7 +22,7 @@ from app.api.deps import (
     require_role,
 )
 from app.api.errors import not_found
-from app.api.run_metadata import revise_run_metadata
+from app.api.schemas.from_rows import run_detail, run_out
 from app.api.schemas.runs import (
     RunDetail,
     RunList,
@@ -31,9 +31,10 @@ from app.api.schemas.runs import (
     RunMetadataPatch,
 )
 from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
-from app.api.views import API_PREFIX, run_detail, run_out
+from app.core.config import API_PREFIX
 from app.db import crud
 from app.db.session import Database
+from app.runs.metadata import revise_run_metadata
 
 __all__ = ["router"]
 

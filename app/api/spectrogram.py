@@ -1,76 +1,17 @@
-"""Spectrogram of a km window of a run (paper figure fig3), computed from the run file."""
+"""Spectrogram of a km window of a run (paper figure fig3): the route (:mod:`app.spectrogram`)."""
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Any
 
-import numpy as np
 from fastapi import APIRouter, Query
 
-from app.analysis.recipe import order_overlap, wheel_recipe
-from app.analysis.settings import ProcessingSettings
-from app.analysis.spectrogram import window_spectrograms
-from app.api.deps import DbDep, RunId, StoreDep, km_query
-from app.api.errors import ApiError, not_found
-from app.db import crud, results_reader
-from app.io import WHEELS, RunFile, open_run
+from app.api.deps import DbDep, RunId, StoreDep, Wheel, km_query, wheel_param
+from app.spectrogram import spectrogram_answer
 
-__all__ = ["router", "MAX_WINDOW_M", "sample_range"]
+__all__ = ["router"]
 
 router = APIRouter(tags=["spectrogram"])
-
-#: longest km window of one spectrogram request, m
-MAX_WINDOW_M = 500.0
-
-
-def _first_at_or_after(run: RunFile, target_m: float, axle: str) -> int:
-    """First sample whose track position (signed along the run) reaches ``target_m``.
-
-    The position along the run is assumed non-decreasing (a train that does
-    not reverse); found by bisection with one-sample reads.
-    """
-    sign = 1.0 if run.metadata.km_increasing else -1.0
-    lo, hi = 0, run.n_samples
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if sign * float(run.track_m(mid, mid + 1, axle=axle)[0]) < sign * target_m:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-def sample_range(run: RunFile, km_from: float, km_to: float, axle: str) -> tuple[int, int]:
-    """Samples ``[start, stop)`` in which ``axle`` is between ``km_from`` and ``km_to``."""
-    a_m, b_m = 1000.0 * km_from, 1000.0 * km_to
-    if not run.metadata.km_increasing:
-        a_m, b_m = b_m, a_m
-    start = _first_at_or_after(run, a_m, axle)
-    stop = _first_at_or_after(run, b_m, axle)
-    return start, stop
-
-
-def _settings_of(db, run_id: int) -> tuple[ProcessingSettings, str]:
-    with db.read() as session:
-        run = crud.get_run(session, run_id)
-        if run is None:
-            raise not_found("run", run_id)
-        job = results_reader.results_job(session, run_id) or crud.latest_job(session, run_id)
-        path = run.file_path
-        raw = dict(job.settings or {}) if job is not None else None
-    try:
-        settings = ProcessingSettings.from_stored(raw) if raw is not None else ProcessingSettings()
-    except (TypeError, ValueError):
-        settings = ProcessingSettings()
-    return settings, path
-
-
-def _finite_list(a: np.ndarray, digits: int = 6) -> list[Any]:
-    arr = np.round(np.asarray(a, dtype=np.float64), digits)
-    out = arr.astype(object)
-    out[~np.isfinite(arr)] = None
-    return out.tolist()
 
 
 @router.get(
@@ -82,7 +23,7 @@ def get_spectrogram(
     run_id: RunId,
     db: DbDep,
     store: StoreDep,
-    wheel: Annotated[str, Query(pattern=r"^Z?(11|12|41|42)$", description='Wheel: "11" … "42" (or "Z11")')],
+    wheel: Wheel,
     km_from: Annotated[float, km_query("Window start, km")],
     km_to: Annotated[float, km_query("Window end, km")],
     revolutions: Annotated[
@@ -93,73 +34,5 @@ def get_spectrogram(
     window of at most 500 m, the PSD of the sum of the VKF-extracted orders (same
     settings as the run's processing job), the tracked order frequencies (Hz) and
     the speed (km/h) per frame, with the km of every frame."""
-    w = wheel.removeprefix("Z")
-    if not (math.isfinite(km_from) and math.isfinite(km_to)):
-        raise ApiError(422, "km_from", "must be finite numbers")
-    if km_to <= km_from:
-        raise ApiError(422, "km_to", f"({km_to}) must be greater than km_from ({km_from})")
-    length_m = 1000.0 * (km_to - km_from)
-    if length_m > MAX_WINDOW_M + 1e-6:
-        raise ApiError(
-            422, "km_to", f"window is {length_m:.0f} m; at most {MAX_WINDOW_M:.0f} m per spectrogram"
-        )
-    settings, file_path = _settings_of(db, run_id)
-    try:
-        run = open_run(store.local_file(file_path))
-    except Exception as exc:  # noqa: BLE001 - the run file is missing or unreadable
-        raise ApiError(409, "run", f"run {run_id}: run file not readable ({exc})") from None
-    with run:
-        channel = f"Z{w}"
-        if w not in WHEELS or not run.has(channel):
-            raise ApiError(404, "wheel", f"run {run_id} has no channel {channel}")
-        axle = w[0]
-        start, stop = sample_range(run, km_from, km_to, axle)
-        if stop - start < 64:
-            first = float(run.km(0, 1, axle=axle)[0])
-            last = float(run.km(run.n_samples - 1, run.n_samples, axle=axle)[0])
-            raise ApiError(
-                422, "km_from",
-                f"window {km_from}–{km_to} km holds no data of wheel {w} "
-                f"(the run covers {min(first, last):.3f}–{max(first, last):.3f} km)",
-            )
-        recipe = wheel_recipe(run.metadata, w, settings)  # the orders the pipeline tracks
-        d_w, d_s = recipe.wheel_diameter, recipe.sleeper_spacing
-        pad = order_overlap(run.fs, run.speed(start, stop), [recipe])
-        pad = min(pad, 4 * (stop - start))
-        lo, hi = max(0, start - pad), min(run.n_samples, stop + pad)
-        y = run.read(channel, lo, hi)
-        speed = run.speed(lo, hi)
-        try:
-            spec = window_spectrograms(
-                y, run.fs, speed, core=(start - lo, stop - lo), wheel_diameter=d_w,
-                sleeper_spacing=d_s, settings=settings, revolutions=revolutions,
-            )
-        except ValueError as exc:
-            text = str(exc)
-            field = text.split(":", 1)[0] if text.startswith("speed") else "window"
-            raise ApiError(422, field, text) from None
-        km_frames = run.km(start, stop, axle=axle)[spec.frame_index]
-        fs = run.fs
-    return {
-        "run_id": run_id,
-        "wheel": w,
-        "channel": channel,
-        "km_from": km_from,
-        "km_to": km_to,
-        "fs_hz": fs,
-        "settings": settings.to_dict(),
-        "wheel_diameter_m": d_w,
-        "sleeper_spacing_m": d_s,
-        "resolution_hz": spec.resolution_hz,
-        "units": {"psd": "dB re 1 (m/s^2)^2/Hz", "freq": "Hz", "km": "km", "speed": "km/h"},
-        "km": _finite_list(km_frames, 6),
-        "time_s": _finite_list(spec.time_s + start / fs, 4),
-        "freq_hz": _finite_list(spec.freq_hz, 4),
-        "raw_db": [_finite_list(row, 2) for row in spec.raw_db],
-        "components_db": [_finite_list(row, 2) for row in spec.components_db],
-        "speed_kmh": _finite_list(spec.speed * 3.6, 3),
-        "orders": [
-            {"label": label, "freq_hz": _finite_list(f, 4)}
-            for label, f in zip(spec.order_labels, spec.order_freq_hz, strict=True)
-        ],
-    }
+    return spectrogram_answer(db, store, run_id, wheel=wheel_param(wheel), km_from=km_from, km_to=km_to,
+                              revolutions=revolutions)

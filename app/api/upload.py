@@ -15,7 +15,8 @@ any other content type (``application/octet-stream``, ``application/x-hdf5``,
 
 The body is read block by block into ``<run_store>/.uploads/<token>/`` while
 its sha256 is computed and its size checked against the cap; it is never held
-in memory whole. The file is then validated and converted by
+in memory whole. The received file is then handed to the run service
+(:func:`app.runs.create.create_run_from_file`): validated and converted by
 :func:`app.io.ingest` to the canonical HDF5 file, and only then are the run
 row and its processing job inserted and the directory moved to its final
 place. Any failure removes the upload directory: no row, job or file remains.
@@ -31,27 +32,19 @@ from typing import Any
 
 from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import MultipartParser, parse_options_header
-from sqlalchemy.exc import IntegrityError
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect, Request
 
-from app.analysis.settings import ProcessingSettings
-from app.api.audit import record, record_now
-from app.api.channel_maps import load_channel_map
+from app.api.audit import record_now
 from app.api.deps import Principal
-from app.api.errors import ApiError
-from app.api.run_metadata import describe_differences, metadata_differences, run_fields
-from app.api.views import API_PREFIX
+from app.api.errors import ApiError, run_file_error
 from app.core.config import Settings
 from app.core.diskspace import DiskFullError, is_disk_full, require_free
-from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
-from app.db import crud, recorder_crud
-from app.db.models import Run, utcnow
 from app.db.session import Database
-from app.io import RunFileError, RunSummary, ingest, load_metadata_json
-from app.io.geometry import LineGeometry
+from app.io import RunFileError, load_metadata_json
 from app.operations.heavy import run_heavy
+from app.runs.create import UploadedFile, UploadOutcome, create_run_from_file, existing_outcome
 
 __all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
 
@@ -80,14 +73,6 @@ ACCEPTED_CONTENT_TYPES: frozenset[str] = frozenset(
 )
 _FORM_FIELDS = ("file", "metadata", "format", "channel_map")
 _UPLOAD_NAME = "upload"
-
-
-@dataclass
-class UploadOutcome:
-    """Result of an upload: the run id and whether it was created now."""
-
-    run_id: int
-    created: bool
 
 
 @dataclass
@@ -374,103 +359,13 @@ def infer_format(
 def _parse_metadata(text: str | None) -> dict[str, Any] | None:
     if text is None or not text.strip():
         return None
-    try:
-        return load_metadata_json(text, field="metadata")
-    except RunFileError as exc:
-        raise ApiError(422, exc.field, exc.message) from None
-
-
-def _channel_map_id(text: str | None) -> int | None:
-    if text is None or not text.strip():
-        return None
-    value = text.strip()
-    if not value.isdigit() or not 0 < int(value) < 2**31:
-        raise ApiError(422, "channel_map", f"must be the id of a stored channel map, got {value[:40]!r}")
-    return int(value)
+    return load_metadata_json(text, field="metadata")  # RunFileError: 422 naming the field
 
 
 def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
     if form_value is not None and query_value is not None:
         raise ApiError(422, name, "given both as form field and as query parameter")
     return form_value if form_value is not None else query_value
-
-
-def _run_row(summary: RunSummary, received: _Received, fmt: str | None, principal_name: str) -> Run:
-    return Run(
-        sha256=received.sha256,
-        file_path="",
-        source_format=summary.source_format or fmt or "unknown",
-        original_filename=received.filename,
-        size_bytes=received.size,
-        **run_fields(summary),
-        ingest_report=jsonable({"warnings": list(summary.warnings), "report": dict(summary.report)}),
-        created_by=principal_name,
-        created_at=utcnow(),
-    )
-
-
-def _existing_run_id(db: Database, sha256: str) -> int | None:
-    with db.read() as session:
-        run = crud.get_run_by_sha256(session, sha256)
-        return run.id if run is not None else None
-
-
-def _check_same_metadata(db: Database, run_id: int, given: dict[str, Any] | None) -> None:
-    """The same file again: 409 when the given metadata differ from the run's (a correction
-    goes through ``PATCH /runs/{id}``; keeping either version silently would lose one)."""
-    if not given:
-        return
-    with db.read() as session:
-        run = crud.get_run(session, run_id)
-        stored = dict(run.meta or {}) if run is not None else None
-    if stored is None:
-        return
-    diffs = metadata_differences(stored, given)
-    if diffs:
-        raise ApiError(
-            409, "metadata",
-            f"this file was uploaded before as run {run_id} with other metadata "
-            f"({describe_differences(diffs)}); correct the run's metadata with "
-            f"PATCH {API_PREFIX}/runs/{run_id} (re-ingests and reprocesses the run)",
-        )
-
-
-def _create_run(
-    db: Database,
-    store: RunStore,
-    upload_dir: Path,
-    summary: RunSummary,
-    received: _Received,
-    fmt: str | None,
-    principal: Principal,
-    request: Request | None = None,
-) -> int:
-    """Insert the run, its queued job and the audit entry; move the upload to the run's directory.
-
-    The directory is moved (and the run file published to the shared store, if
-    any) inside the transaction; if that or the commit fails, both are removed
-    again.
-    """
-    installed: int | None = None
-    try:
-        with db.write() as session:
-            run = _run_row(summary, received, fmt, principal.name)
-            session.add(run)
-            session.flush()
-            run.file_path = store.relative_run_file(run.id)
-            job = crud.create_job(session, run.id, ProcessingSettings().to_dict(), principal.name)
-            record(session, request, principal, "run.upload", target=run.id, detail={
-                "sha256": received.sha256, "size_bytes": received.size,
-                "filename": received.filename, "format": run.source_format, "job_id": job.id,
-            })
-            store.install_run_dir(upload_dir, run.id)
-            installed = run.id
-            store.publish_run_file(run.id)  # to the shared store, if any, before the job is visible
-        return installed
-    except BaseException:
-        if installed is not None:
-            store.remove_run(installed)
-        raise
 
 
 async def receive_and_create_run(
@@ -525,8 +420,9 @@ async def receive_and_create_run(
                 log.warning("upload refused: %s", exc)
                 raise _storage_full(exc) from None
             raise
-    except ApiError as exc:
-        await run_in_threadpool(_record_rejection, db, request, principal, exc, "rejected")
+    except (ApiError, RunFileError) as exc:
+        rejection = exc if isinstance(exc, ApiError) else run_file_error(exc)
+        await run_in_threadpool(_record_rejection, db, request, principal, rejection, "rejected")
         raise
     except Exception as exc:
         # not the client's fault (a bug, the database away): answered 500, audited all the same
@@ -591,49 +487,16 @@ async def _receive_and_create(
         )
         metadata = _parse_metadata(_one_of("metadata", received.fields.get("metadata"), query_metadata))
 
-        existing_id = await run_in_threadpool(_existing_run_id, db, received.sha256)
-        if existing_id is not None:
-            await run_in_threadpool(_check_same_metadata, db, existing_id, metadata)
-            return UploadOutcome(run_id=existing_id, created=False)
-
-        map_id = _channel_map_id(_one_of("channel_map", received.fields.get("channel_map"), query_channel_map))
-        channel_map = None
-        if map_id is not None:
-            vehicle = (metadata or {}).get("vehicle_id")
-            channel_map = await run_in_threadpool(
-                load_channel_map, db, map_id, vehicle if isinstance(vehicle, str) else None
-            )
-
-        def geometry(line_id: str, track: str) -> LineGeometry | None:
-            with db.read() as session:
-                row = recorder_crud.find_geometry(session, line_id, track)
-                return recorder_crud.to_line_geometry(row) if row is not None else None
-
-        dest = upload_dir / "run.h5"
-        try:
-            summary = await run_heavy(  # a few at a time per process: reads keep their share (issue 24)
-                request.app,
-                lambda: ingest(
-                    path, fmt, metadata, dest, channel_map=channel_map, geometry=geometry,
-                    reserve_bytes=settings.min_free_bytes,
-                ),
-            )
-        except RunFileError as exc:
-            raise ApiError(422, exc.field, exc.message) from None
-        await run_in_threadpool(path.unlink)
-
-        try:
-            run_id = await run_in_threadpool(
-                _create_run, db, store, upload_dir, summary, received, fmt, principal, request
-            )
-        except IntegrityError:
-            # The same file was uploaded concurrently and committed first.
-            existing_id = await run_in_threadpool(_existing_run_id, db, received.sha256)
-            if existing_id is None:
-                raise
-            await run_in_threadpool(_check_same_metadata, db, existing_id, metadata)
-            return UploadOutcome(run_id=existing_id, created=False)
-        log.info(
-            "run %s created from %s (%d bytes, sha256 %s)", run_id, fmt, received.size, received.sha256
+        file = UploadedFile(path, received.sha256, received.size, received.filename)
+        existing = await run_in_threadpool(existing_outcome, db, file.sha256, metadata)
+        if existing is not None:
+            return existing
+        # ingest and create: a few at a time per process, so reads keep their share (issue 24)
+        return await run_heavy(
+            request.app,
+            lambda: create_run_from_file(
+                db, store, upload_dir, file, fmt=fmt, metadata=metadata,
+                channel_map=_one_of("channel_map", received.fields.get("channel_map"), query_channel_map),
+                principal=principal, request=request, settings=settings,
+            ),
         )
-        return UploadOutcome(run_id=run_id, created=True)

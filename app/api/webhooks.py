@@ -18,13 +18,13 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Path, Query, Request, Response, status
 from pydantic import BaseModel, Field
 
-from app.alerts.url_policy import AddressPolicy, UrlError, redact_url, resolve
 from app.api.audit import record
 from app.api.deps import AdminDep, DbDep, PageOffset, SettingsDep, check_page_size, require_role
 from app.api.errors import ApiError, not_found
+from app.core.jsonable import iso_time
+from app.core.url_policy import AddressPolicy, UrlError, redact_url, resolve
 from app.db import webhooks
-from app.db.condition_reader import iso_time
-from app.db.webhook_models import DeliveryStatus, Webhook, WebhookDelivery
+from app.db.models import DeliveryStatus, Webhook, WebhookDelivery
 
 __all__ = ["router"]
 

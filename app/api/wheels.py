@@ -1,23 +1,15 @@
-"""Wheel out-of-roundness results of a run."""
+"""Wheel out-of-roundness results of a run, and of a vehicle over its runs: the routes (:mod:`app.wheels`)."""
 
 from __future__ import annotations
 
-import math
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Query
 
-from app.api.deps import DbDep, RunId
-from app.api.errors import ApiError, not_found
-from app.api.schemas.wheels import (
-    WheelList,
-    WheelOrderOut,
-    WheelOut,
-    WheelTrend,
-    WheelTrendPoint,
-)
-from app.db import crud, results_reader
-from app.db.trends import wheel_history
+from app.api.deps import DbDep, RunId, WheelQ, wheel_param
+from app.api.schemas.wheels import WheelList, WheelTrend
+from app.wheels import run_wheels
+from app.wheels import wheel_trend as vehicle_wheel_trend
 
 __all__ = ["router"]
 
@@ -32,71 +24,17 @@ router = APIRouter(tags=["wheels"])
 )
 def get_wheels(run_id: RunId, db: DbDep) -> WheelList:
     """Per wheel: each OOR order as radius deviation (µm) with phase, and r(θ) on 360 angles."""
-    with db.read() as session:
-        if crud.get_run(session, run_id) is None:
-            raise not_found("run", run_id)
-        rows = results_reader.get_wheels(session, run_id)
-        if not rows:
-            latest = crud.latest_job(session, run_id)
-            state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
-            raise ApiError(409, "wheels", f"run {run_id} has no results yet ({state})")
-        items = [
-            WheelOut(
-                wheel=row.wheel,
-                job_id=row.job_id,
-                wheel_diameter_m=row.wheel_diameter_m,
-                n_windows=row.n_windows,
-                orders=[WheelOrderOut(**o) for o in (row.orders or [])],
-                angles_deg=list(row.angles_deg or []),
-                profile_um=list(row.profile_um or []),
-                profile_p05_um=row.profile_p05_um,
-                profile_p95_um=row.profile_p95_um,
-            )
-            for row in rows
-        ]
-    return WheelList(run_id=run_id, items=items)
-
-
-def _num(value: Any) -> float | None:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
+    return WheelList(**run_wheels(db, run_id))
 
 
 @router.get("/wheels/trend", response_model=WheelTrend, summary="Wheel OOR of a vehicle over its runs")
 def wheel_trend(
     db: DbDep,
     vehicle_id: Annotated[str, Query(min_length=1, max_length=200, description="Vehicle id")],
-    wheel: Annotated[
-        str | None, Query(pattern=r"^(11|12|41|42)$", description="One wheel; all when omitted")
-    ] = None,
+    wheel: WheelQ = None,
     limit: Annotated[int, Query(ge=1, le=500, description="Most recent runs")] = 200,
 ) -> WheelTrend:
     """Radius deviation (µm) and acceleration amplitude (m/s²) per OOR order and the
     peak-to-peak of r(θ) for every wheel in every processed run of a vehicle, oldest
     run first: the trend of the wheels' out-of-roundness between re-profilings."""
-    with db.read() as session:
-        rows = wheel_history(session, vehicle_id, wheel, limit)
-        items = []
-        n_orders = 0
-        for run, oor in rows:
-            orders = sorted(oor.orders or [], key=lambda o: int(o.get("order", 0)))
-            n_orders = max(n_orders, len(orders))
-            profile = [v for v in (_num(x) for x in (oor.profile_um or [])) if v is not None]
-            items.append(
-                WheelTrendPoint(
-                    run_id=run.id,
-                    start_time=run.start_time,
-                    line_id=run.line_id,
-                    track=run.track,
-                    wheel=oor.wheel,
-                    wheel_diameter_m=_num(oor.wheel_diameter_m),
-                    refined_diameter_m=_num((oor.extra or {}).get("refined_diameter_m")),
-                    radius_um=[_num(o.get("radius_um")) for o in orders],
-                    accel_amp=[_num(o.get("accel_amp")) for o in orders],
-                    peak_to_peak_um=(max(profile) - min(profile)) if profile else None,
-                )
-            )
-    return WheelTrend(vehicle_id=vehicle_id, orders=list(range(1, n_orders + 1)), items=items)
+    return WheelTrend(**vehicle_wheel_trend(db, vehicle_id, wheel_param(wheel), limit))

@@ -36,9 +36,9 @@ def simulate_fleet(
     its recovery), and are judged by the same change tests as published runs.
     Run again with the same options: the runs already written are kept.
     """
+    from app.condition.config import ConditionConfig
+    from app.condition.fleet import ingest_fleet
     from app.core.config import get_settings
-    from app.db.condition_fleet import ingest_fleet
-    from app.db.condition_writer import ConditionConfig
     from app.simulate.fleet import FleetSimulator, random_plan
     from app.simulate.track import generate_line
 

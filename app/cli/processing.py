@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import inspect
 import json
 import sys
 import time
+import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -14,7 +18,7 @@ import typer
 from app.cli._common import echo
 from app.cli._warnings import engine_warnings
 
-__all__ = ["simulate", "process"]
+__all__ = ["simulate", "process", "with_settings_options"]
 
 
 def simulate(
@@ -107,120 +111,85 @@ def _jsonable(value: Any) -> Any:
     return jsonable(value)
 
 
-def process(
-    run_file: Annotated[Path, typer.Argument(help="Run file: HDF5, CSV, Parquet, MDF4 or TDMS")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output directory")] = Path("trackvkf-out"),
-    format: Annotated[
-        str | None, typer.Option("--format", help="hdf5, csv, parquet, mdf4 or tdms (default: detect)")
-    ] = None,
-    metadata: Annotated[
-        Path | None, typer.Option(help="Metadata JSON file (required for CSV/Parquet)")
-    ] = None,
-    n_wheel_orders: Annotated[int | None, typer.Option(help="Wheel orders (default 11)")] = None,
-    bandwidth_orders: Annotated[
-        float | None, typer.Option(help="Bandwidth of the wheel orders, in wheel orders (default 0.1)")
-    ] = None,
-    track_resolution_m: Annotated[
-        float | None,
-        typer.Option(help="Spatial resolution of the sleeper orders: 10-90 % step width, m (default 3)"),
-    ] = None,
-    sleeper_harmonics: Annotated[
-        int | None, typer.Option(help="Highest sleeper harmonic extracted: 1, 2 or 3 (default 3)")
-    ] = None,
-    force_mean_window_m: Annotated[
-        float | None, typer.Option(help="Moving mean removed from the force channels, m; 0: off (default 12)")
-    ] = None,
-    filter_order: Annotated[int | None, typer.Option(help="VKF filter order q (default 2)")] = None,
-    channel_map: Annotated[
-        Path | None, typer.Option(help="Channel map JSON file (MDF4/TDMS recorder files)")
-    ] = None,
-    geometry: Annotated[
-        Path | None, typer.Option(help="Line geometry GeoJSON (runs placed by GNSS)")
-    ] = None,
-) -> None:
-    """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
+def with_settings_options(command: Callable[..., None]) -> Callable[..., None]:
+    """``command`` with one option per processing setting (``--n-wheel-orders`` …), derived from
+    :class:`~app.analysis.settings.ProcessingSettings` (its help, valid values and default); the
+    options given reach ``command`` as keyword arguments (None: not given)."""
+    from app.analysis.settings import ProcessingSettings, setting_help
 
-    ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
-    (``sleeper_amp``: rail roughness out; ``sleeper_amp_raw`` the wheel's own, ``sleeper_amp_sd`` the
-    1-σ of ``sleeper_amp``, ``sleeper_amp_sd_shared`` the part of it shared along ≈ 20 m), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
-    (``sleeper_rms``), the wheel orders and the force amplitude; ``meta.json`` the settings and
-    the warnings (docs/indicator.md).
+    hints = typing.get_type_hints(ProcessingSettings)
+    signature = inspect.signature(command, eval_str=True)
+    params = [p for p in signature.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    annotations = {p.name: p.annotation for p in params}
+    for f in dataclasses.fields(ProcessingSettings):
+        kind = Annotated[hints[f.name] | None, typer.Option(help=setting_help(f.name))]
+        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=None, annotation=kind))
+        annotations[f.name] = kind
 
-    Intermediate chunk results are kept in ``OUT/.work`` so an interrupted run
-    resumes where it stopped.
-    """
-    from tqdm import tqdm
+    command.__signature__ = signature.replace(parameters=params)  # type: ignore[attr-defined]
+    command.__annotations__ = {**annotations, "return": None}
+    return command
 
+
+def _settings(options: dict[str, Any]):
+    """The processing settings of the options given (the defaults for the others)."""
     from app.analysis.settings import ProcessingSettings
-    from app.io import RunFileError, ingest
-    from app.io.geometry import parse_geojson
-    from app.pipeline import run_pipeline
 
-    if not run_file.is_file():
-        raise typer.BadParameter(f"{run_file} is not a file", param_hint="RUN_FILE")
-    changes = {
-        k: v
-        for k, v in {
-            "n_wheel_orders": n_wheel_orders,
-            "bandwidth_orders": bandwidth_orders,
-            "track_resolution_m": track_resolution_m,
-            "sleeper_harmonics": sleeper_harmonics,
-            "force_mean_window_m": force_mean_window_m,
-            "filter_order": filter_order,
-        }.items()
-        if v is not None
-    }
     try:
-        settings = ProcessingSettings.from_dict(changes)
+        return ProcessingSettings.from_dict({k: v for k, v in options.items() if v is not None})
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from None
-    md = None
-    if metadata is not None:
-        try:
-            md = json.loads(metadata.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
-            raise typer.BadParameter(f"cannot read {metadata}: {exc}", param_hint="--metadata") from None
 
-    extras = {}
-    for name, path in (("channel_map", channel_map), ("geometry", geometry)):
-        if path is not None:
-            try:
-                extras[name] = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, json.JSONDecodeError) as exc:
-                raise typer.BadParameter(f"cannot read {path}: {exc}", param_hint=f"--{name.replace('_', '-')}") from None
-    source_sha = _file_sha256(run_file)
-    key = hashlib.sha256(
-        json.dumps({"sha": source_sha, "md": md, "settings": settings.to_dict(), **extras},
-                   sort_keys=True).encode()
-    ).hexdigest()[:16]
-    work = out / ".work" / key
-    work.mkdir(parents=True, exist_ok=True)
-    canonical = work / "run.h5"
-    if not canonical.is_file():
-        echo(f"validating {run_file} ...")
-        try:
-            lines = parse_geojson(extras["geometry"]) if "geometry" in extras else []
-            summary = ingest(run_file, format, md, canonical, channel_map=extras.get("channel_map"),
-                             geometry=lambda line, track: next(
-                                 (g for g in lines if (g.line_id, g.track) == (line, track)), None))
-        except RunFileError as exc:
-            typer.echo(f"error: {exc}", err=True)
-            raise typer.Exit(2) from None
-        for warning in summary.warnings:
-            typer.echo(f"warning: {warning}", err=True)
-        echo(
-            f"{summary.duration_s:.1f} s at {summary.fs:g} Hz, {summary.distance_m / 1000:.2f} km, "
-            f"channels {', '.join(summary.channels)}"
-        )
+
+def _read_json(path: Path, option: str) -> Any:
+    """The JSON document of a file option; BadParameter naming the option when unreadable."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise typer.BadParameter(f"cannot read {path}: {exc}", param_hint=option) from None
+
+
+def _canonical_file(run_file: Path, format: str | None, md: Any, extras: dict[str, Any], path: Path) -> None:  # noqa: A002
+    """Validate the run file and write it as the canonical HDF5 file ``path`` (exit 2 on a bad file)."""
+    from app.io import RunFileError, ingest
+    from app.io.geometry import parse_geojson
+
+    echo(f"validating {run_file} ...")
+    try:
+        lines = parse_geojson(extras["geometry"]) if "geometry" in extras else []
+        summary = ingest(run_file, format, md, path, channel_map=extras.get("channel_map"),
+                         geometry=lambda line, track: next(
+                             (g for g in lines if (g.line_id, g.track) == (line, track)), None))
+    except RunFileError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    for warning in summary.warnings:
+        typer.echo(f"warning: {warning}", err=True)
+    echo(
+        f"{summary.duration_s:.1f} s at {summary.fs:g} Hz, {summary.distance_m / 1000:.2f} km, "
+        f"channels {', '.join(summary.channels)}"
+    )
+
+
+def _run_with_progress(canonical: Path, settings, chunks_dir: Path):
+    """The pipeline over ``chunks_dir`` with a progress bar; the results and the engine's warnings."""
+    from tqdm import tqdm
+
+    from app.pipeline import run_pipeline
+
     with tqdm(total=100, unit="%", desc="processing", bar_format="{l_bar}{bar}| {elapsed}") as bar, \
             engine_warnings(lambda line: tqdm.write(line, file=sys.stderr)) as seen:
 
         def progress(fraction: float) -> None:
             bar.update(max(0.0, 100 * fraction - bar.n))
 
-        results = run_pipeline(canonical, settings, work / "chunks", progress=progress)
+        results = run_pipeline(canonical, settings, chunks_dir, progress=progress)
         progress(1.0)
+    return results, seen.as_list()
 
+
+def _write_outputs(out: Path, results, meta: dict[str, Any]) -> None:
+    """profiles, wheel orders and wheel profiles as CSV and Parquet, wheels.json and meta.json."""
     out.mkdir(parents=True, exist_ok=True)
     results.profiles.to_csv(out / "profiles.csv", index=False)
     results.profiles.to_parquet(out / "profiles.parquet", index=False)
@@ -230,14 +199,65 @@ def process(
     wheel_profiles.to_csv(out / "wheel_profiles.csv", index=False)
     wheel_profiles.to_parquet(out / "wheel_profiles.parquet", index=False)
     (out / "wheels.json").write_text(json.dumps(_jsonable(results.wheels), indent=1))
+    (out / "meta.json").write_text(json.dumps(_jsonable(meta), indent=1))
+
+
+@with_settings_options
+def process(
+    run_file: Annotated[Path, typer.Argument(help="Run file: HDF5, CSV, Parquet, MDF4 or TDMS")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output directory")] = Path("trackvkf-out"),
+    format: Annotated[
+        str | None, typer.Option("--format", help="hdf5, csv, parquet, mdf4 or tdms (default: detect)")
+    ] = None,
+    metadata: Annotated[
+        Path | None, typer.Option(help="Metadata JSON file (required for CSV/Parquet)")
+    ] = None,
+    channel_map: Annotated[
+        Path | None, typer.Option(help="Channel map JSON file (MDF4/TDMS recorder files)")
+    ] = None,
+    geometry: Annotated[
+        Path | None, typer.Option(help="Line geometry GeoJSON (runs placed by GNSS)")
+    ] = None,
+    **settings_options: Any,
+) -> None:
+    """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
+
+    ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
+    (``sleeper_amp``: rail roughness out; ``sleeper_amp_raw`` the wheel's own, ``sleeper_amp_sd`` the
+    1-σ of ``sleeper_amp``, ``sleeper_amp_sd_shared`` the part of it shared along ≈ 20 m), its
+    harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
+    (``sleeper_rms``), the wheel orders and the force amplitude; ``meta.json`` the settings and
+    the warnings (docs/indicator.md). The processing settings are options (``--n-wheel-orders``
+    …, each with its valid values and default).
+
+    Intermediate chunk results are kept in ``OUT/.work`` so an interrupted run
+    resumes where it stopped.
+    """
+    if not run_file.is_file():
+        raise typer.BadParameter(f"{run_file} is not a file", param_hint="RUN_FILE")
+    settings = _settings(settings_options)
+    md = _read_json(metadata, "--metadata") if metadata is not None else None
+    extras = {name: _read_json(path, f"--{name.replace('_', '-')}")
+              for name, path in (("channel_map", channel_map), ("geometry", geometry)) if path is not None}
+    source_sha = _file_sha256(run_file)
+    key = hashlib.sha256(
+        json.dumps({"sha": source_sha, "md": md, "settings": settings.to_dict(), **extras},
+                   sort_keys=True).encode()
+    ).hexdigest()[:16]
+    work = out / ".work" / key
+    work.mkdir(parents=True, exist_ok=True)
+    canonical = work / "run.h5"
+    if not canonical.is_file():
+        _canonical_file(run_file, format, md, extras, canonical)
+    results, warnings = _run_with_progress(canonical, settings, work / "chunks")
     meta = {
         **dict(results.meta or {}),
         "source_file": str(run_file),
         "source_sha256": source_sha,
         "settings": settings.to_dict(),
-        "warnings": seen.as_list(),
+        "warnings": warnings,
     }
-    (out / "meta.json").write_text(json.dumps(_jsonable(meta), indent=1))
+    _write_outputs(out, results, meta)
     for text in meta.get("warnings") or ():
         typer.echo(f"warning: {text}", err=True)
     echo(
@@ -245,4 +265,3 @@ def process(
         "(profiles.csv/.parquet, wheel_orders.csv/.parquet, wheel_profiles.csv/.parquet, "
         "wheels.json, meta.json)"
     )
-

@@ -13,9 +13,12 @@ from pathlib import Path
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "get_settings", "DEFAULT_SECRET_KEY", "ProductionConfigError"]
+__all__ = ["Settings", "get_settings", "DEFAULT_SECRET_KEY", "ProductionConfigError", "API_PREFIX"]
 
 _GIB = 1024**3
+
+#: URL prefix of the REST API (routes, links in answers, hints in messages).
+API_PREFIX = "/api/v1"
 
 #: The development secret key; production mode refuses to start with it.
 DEFAULT_SECRET_KEY = "trackvkf-insecure-development-key-change-me"
@@ -139,6 +142,18 @@ class Settings(BaseSettings):
     max_reference_bytes : int
         Largest accepted reference data file (subsidence, maintenance,
         superstructure), bytes.
+    parse_isolated : bool
+        Parse uploaded run files, geometries and reference files in a child
+        process with a time and memory budget (default true; see
+        docs/security.md, "Parsers").
+    parse_seconds : float
+        Wall-clock budget of one parse, s, plus the file size divided by
+        ``parse_min_bytes_per_s`` (default 120 s).
+    parse_min_bytes_per_s : float
+        Slowest accepted parse rate, bytes/s (default 1 MB/s; a 26 MB MDF4
+        file ingests at about 10–20 MB/s on one busy core).
+    parse_memory_bytes : int
+        Growth of a parse child's data segment, bytes (default 4 GiB).
     analytics_min_speed_kmh : float
         Profile bins slower than this (km/h) are left out of the analytics.
     analytics_reference_speed_kmh : float
@@ -147,11 +162,12 @@ class Settings(BaseSettings):
         The first and last metres of every run's profile left out of the
         analytics (filter end transients).
     analytics_speed_tolerance : float
-        The matched-speed rule, wherever runs are compared: the reference
-        amplitude at speed v is estimated from passes within ±this fraction of
-        v (0.1 = ±10 %) and exists only where such passes are; two runs'
-        segments are compared, and a condition change is tested against
-        earlier runs, only where their speeds differ by less than this.
+        The matched-speed rule, wherever runs are compared: two passes are at
+        matched speed when ``|ln(v / v0)| <= ln(1 + tol)`` (within a factor
+        1 + tol either way; 0.1 = ±10 %; :mod:`app.analysis.speed_match`). The
+        reference amplitude at speed v is estimated from such passes and exists
+        only where they are; two runs' segments are compared, and a condition
+        change is tested against earlier runs, only at matched speed.
     analytics_section_margin_m : float
         Bins within this distance of a change of superstructure type get no
         stiffness index and do not enter the reference curves, m.
@@ -251,6 +267,10 @@ class Settings(BaseSettings):
     upload_rate_limit: int = Field(default=60, ge=1)
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
     max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
+    parse_isolated: bool = True
+    parse_seconds: float = Field(default=120.0, gt=0)
+    parse_min_bytes_per_s: float = Field(default=1_000_000.0, gt=0)
+    parse_memory_bytes: int = Field(default=4 * _GIB, ge=64 * 1024 * 1024)
     profile_cache_bytes: int = Field(default=64 * 1024 * 1024, ge=0)
     display_cache_bytes: int = Field(default=256 * 1024 * 1024, ge=0)
     profile_concurrency: int = Field(default=2, ge=1, le=64)
@@ -293,7 +313,7 @@ class Settings(BaseSettings):
     @field_validator("webhook_allowed_networks")
     @classmethod
     def _check_networks(cls, value: str) -> str:
-        from app.alerts.url_policy import parse_networks
+        from app.core.url_policy import parse_networks
 
         parse_networks(value)  # ValueError naming the entry
         return value

@@ -1,18 +1,21 @@
-"""Values made valid JSON: numpy scalars and arrays to Python, NaN and ±inf to None.
+"""Values made valid JSON: numpy scalars and arrays to Python, NaN and ±inf to None, times as ISO 8601.
 
-Used wherever results leave numpy for JSON: the job's metadata and wheel rows
-in SQL (:mod:`app.db.results_writer`, :mod:`app.db.queue`), chunk records of
-the fan-out worker and the files the CLI writes.
+The one place of these rules: wherever results leave numpy for JSON (the job's
+metadata and wheel rows in SQL, chunk records of the fan-out worker, the files the
+CLI writes, the API's answers) a non-finite number becomes ``null``
+(:func:`jsonable` for structures, :func:`finite_or_none` for one number,
+:func:`finite_list` for an array) and a time carries its UTC offset (:func:`iso_time`).
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 from typing import Any
 
 import numpy as np
 
-__all__ = ["jsonable"]
+__all__ = ["jsonable", "finite_or_none", "finite_list", "iso_time"]
 
 
 def _scalar(value: Any) -> Any:
@@ -50,3 +53,31 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return [jsonable(v) for v in value.tolist()]
     return _scalar(value)
+
+
+def finite_or_none(value: Any) -> float | None:
+    """``value`` as a float, or None when it is None, NaN, ±inf or not a number."""
+    if value is None:
+        return None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def finite_list(values: Any, digits: int | None = None) -> list[float | None]:
+    """An array as a list of floats (rounded to ``digits`` decimals if given), None where not finite."""
+    arr = np.asarray(values, dtype=np.float64)
+    if digits is not None:
+        arr = np.round(arr, digits)
+    out = arr.astype(object)
+    out[~np.isfinite(arr)] = None
+    return out.tolist()
+
+
+def iso_time(t: dt.datetime | None) -> str | None:
+    """ISO 8601 with the UTC offset (a naive time is UTC); None for None."""
+    if t is None:
+        return None
+    return (t if t.tzinfo else t.replace(tzinfo=dt.UTC)).isoformat()

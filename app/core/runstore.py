@@ -12,7 +12,7 @@ In the production mode on hosts without a common file system the same layout
 is mirrored in a shared fsspec store (:mod:`app.core.sharedstore`).
 
 Every path is generated here from integer ids and random tokens: a client's
-file name never becomes a path. Files are written through :func:`atomic_path`
+file name never becomes a path. Files are written through :func:`app.core.atomic.atomic_path`
 (temporary name in the same directory, fsync, ``os.replace``), so a reader
 sees either the whole file or none.
 
@@ -38,17 +38,21 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.core.atomic import atomic_path
-
 if TYPE_CHECKING:
     from app.core.sharedstore import SharedStore
 
-__all__ = ["RunStore", "atomic_path", "RUN_FILE_NAME"]
+__all__ = ["RunStore", "RUN_FILE_NAME", "chunk_file_name"]
 
 log = logging.getLogger(__name__)
 
 RUN_FILE_NAME = "run.h5"
 _UPLOADS = ".uploads"
+
+
+def chunk_file_name(index: int) -> str:
+    """File name of chunk ``index`` of a job (the run store's and a local work directory's):
+    ``chunk-00000.npz`` …"""
+    return f"chunk-{index:05d}.npz"
 
 
 class RunStore:
@@ -116,7 +120,7 @@ class RunStore:
         """Result file of chunk ``index`` of a job: ``chunk-XXXXX.npz``."""
         if index < 0:
             raise ValueError(f"index must be >= 0, got {index}")
-        return self.job_dir(run_id, job_id) / f"chunk-{index:05d}.npz"
+        return self.job_dir(run_id, job_id) / chunk_file_name(index)
 
     # --- uploads ------------------------------------------------------------
     def new_upload_dir(self) -> Path:

@@ -34,6 +34,7 @@ from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
 
 __all__ = [
+    "Principal",
     "ROLES",
     "Role",
     "role_rank",
@@ -206,3 +207,27 @@ def device_cookie_id(secret_key: str, cookie: str | None, username: str) -> str 
     if not hmac.compare_digest(_device_mac(secret_key, device_id, username), mac):
         return None
     return device_id
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who makes a request.
+
+    Attributes
+    ----------
+    name : str
+        User name or API key name.
+    role : str
+        ``viewer``, ``engineer`` or ``admin``.
+    kind : str
+        ``anonymous`` (``auth_disabled``), ``user`` (session cookie) or
+        ``api_key``.
+    user_id, key_id : int or None
+        Row id of the user or the API key.
+    """
+
+    name: str
+    role: Literal["viewer", "engineer", "admin"]
+    kind: Literal["anonymous", "user", "api_key"] = "anonymous"
+    user_id: int | None = None
+    key_id: int | None = None

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import fsspec
 
-from app.core.runstore import atomic_path
+from app.core.atomic import atomic_path
 
 __all__ = ["SharedStore"]
 

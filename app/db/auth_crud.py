@@ -21,8 +21,7 @@ from app.core.security import (
     new_session_token,
     token_digest,
 )
-from app.db.auth_models import ApiKey, AuditEntry, User, UserSession
-from app.db.models import utcnow
+from app.db.models import ApiKey, AuditEntry, User, UserSession, utcnow
 
 __all__ = [
     "AuthError",

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 import pandas as pd
 from sqlalchemy import Table, insert
 from sqlalchemy.orm import Session
 
+from app.core.jsonable import finite_list
 from app.db.pg_copy import binary_copy_stream
 
 __all__ = ["insert_frame", "frame_columns"]
@@ -30,9 +30,7 @@ def frame_columns(frame: pd.DataFrame) -> dict[str, list[Any]]:
     for col in frame.columns:
         values = frame[col].to_numpy()
         if values.dtype.kind == "f":
-            column = values.astype(object)
-            column[~np.isfinite(values)] = None
-            data[col] = column.tolist()
+            data[col] = finite_list(values)
         else:
             data[col] = values.tolist()
     return data

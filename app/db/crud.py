@@ -16,7 +16,7 @@ from typing import Any, TypeVar
 from sqlalchemy import ColumnElement, and_, delete, func, select, update
 from sqlalchemy.orm import Session
 
-from app.db.condition_writer import delete_run_condition
+from app.db.condition_store import delete_run_condition
 from app.db.models import Job, JobChunk, JobStatus, ProfileBin, Run, WheelOOR, utcnow
 
 __all__ = [

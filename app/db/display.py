@@ -18,9 +18,9 @@ from sqlalchemy.orm import Session
 
 from app.analysis.aggregate import DISPLAY_LEVEL_BASE, display_indices
 from app.db.models import COARSE_DISPLAY_LEVEL, ProfileBin
+from app.db.numeric import fetch_numeric
 from app.db.results_reader import (
     PROFILE_COLUMNS,
-    fetch_numeric,
     numeric_frame,
     profile_frame,
     profile_where,

@@ -32,8 +32,8 @@ from app.analysis.aggregate import DISPLAY_LEVEL_BASE
 from app.core.bytecache import ByteLRU
 from app.db.display import display_frame, display_level_of
 from app.db.models import ProfileBin
+from app.db.numeric import fetch_numeric
 from app.db.results_reader import (
-    fetch_numeric,
     job_bin_length,
     profile_where,
     stored_profile_wheels,

@@ -1,4 +1,4 @@
-"""The job queue in SQL: claiming, heartbeats, chunk bookkeeping, completion.
+"""The job queue in SQL: claiming, heartbeats, chunk bookkeeping, marking jobs final.
 
 Used by the local worker (embedded mode) and, with ``worker_id=None`` (any
 owner) plus the fan-out functions at the end, by the Procrastinate tasks of
@@ -10,7 +10,9 @@ stale) changes nothing and learns so from the return value. The functions
 both modes call take the owner as the keyword-only ``worker_id``.
 
 Progress is derived from the chunk rows (done / all), never from a counter,
-so a repeated chunk cannot count twice.
+so a repeated chunk cannot count twice. Results are published by
+:func:`app.publish.publish_job`, which guards the job with :func:`owned` and marks
+it done with :func:`mark_done` in its transaction.
 """
 
 from __future__ import annotations
@@ -20,12 +22,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import pandas as pd
 from sqlalchemy import and_, case, func, literal, or_, select, update
+from sqlalchemy.orm import Session
 
 from app.core.jsonable import jsonable
-from app.db import partitions, results_writer
-from app.db.condition_writer import DEFAULT_CONDITION_CONFIG, ConditionConfig
+from app.db import results_writer
 from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
 from app.db.session import Database
 
@@ -37,8 +38,8 @@ __all__ = [
     "record_chunks",
     "mark_chunk",
     "finish_job",
-    "complete_job",
-    "store_wheel_rows",
+    "owned",
+    "mark_done",
     "FANOUT_OWNER_PREFIX",
     "queued_job_ids",
     "claim_for_fanout",
@@ -123,7 +124,7 @@ def claim_next_job(db: Database, worker_id: str, stale_after_s: float) -> int | 
     return None
 
 
-def _owned(job_id: int, worker_id: str | None):
+def owned(job_id: int, worker_id: str | None):
     """The job is running under ``worker_id``; ``None`` = under any owner.
 
     The local worker owns a whole job (its ``worker_id``). In the fan-out mode
@@ -139,7 +140,7 @@ def heartbeat(db: Database, job_id: int, worker_id: str) -> Lease:
     """Refresh the heartbeat of a job this worker runs; report ownership and cancel."""
     with db.write() as session:
         result = session.execute(
-            update(Job).where(_owned(job_id, worker_id)).values(heartbeat_at=utcnow())
+            update(Job).where(owned(job_id, worker_id)).values(heartbeat_at=utcnow())
         )
         if result.rowcount != 1:
             return Lease(owned=False, cancel_requested=False)
@@ -152,7 +153,7 @@ def release_job(db: Database, job_id: int, worker_id: str) -> bool:
     with db.write() as session:
         result = session.execute(
             update(Job)
-            .where(_owned(job_id, worker_id))
+            .where(owned(job_id, worker_id))
             .values(status=JobStatus.QUEUED, worker_id=None, heartbeat_at=None)
         )
         return result.rowcount == 1
@@ -178,7 +179,7 @@ def record_chunks(
     with db.write() as session:
         result = session.execute(
             update(Job)
-            .where(_owned(job_id, worker_id))
+            .where(owned(job_id, worker_id))
             .values(n_chunks=len(specs), heartbeat_at=utcnow())
         )
         if result.rowcount != 1:
@@ -224,10 +225,10 @@ def mark_chunk(
         raise ValueError(f"status: unknown chunk status {status!r}")
     now = utcnow()
     with db.write() as session:
-        owned = session.execute(
-            update(Job).where(_owned(job_id, worker_id)).values(heartbeat_at=now)
+        beat = session.execute(
+            update(Job).where(owned(job_id, worker_id)).values(heartbeat_at=now)
         )
-        if owned.rowcount != 1:
+        if beat.rowcount != 1:
             return None
         values: dict[str, Any] = {"status": status}
         if status == ChunkStatus.RUNNING:
@@ -266,7 +267,7 @@ def finish_job(
     with db.write() as session:
         result = session.execute(
             update(Job)
-            .where(_owned(job_id, worker_id))
+            .where(owned(job_id, worker_id))
             .values(status=status, error=error, finished_at=utcnow(), heartbeat_at=None)
         )
         if result.rowcount != 1:
@@ -275,101 +276,21 @@ def finish_job(
         return True
 
 
-def complete_job(
-    db: Database,
-    job_id: int,
-    run_id: int,
-    profiles: pd.DataFrame | None,
-    wheels: Sequence[dict[str, Any]],
-    meta: dict[str, Any],
-    *,
-    worker_id: str | None,
-    condition: ConditionConfig = DEFAULT_CONDITION_CONFIG,
-) -> bool:
-    """Store (unless already stored) and publish a job's results and mark it done, in one transaction.
-
-    The run's wheel rows are replaced and its other jobs' profile rows deleted
-    (:func:`app.db.results_writer.publish_results`): readers switch from the old to the
-    new results at the commit. Nothing is written if the job is no longer
-    owned by this worker, a cancel was requested meanwhile, or the run was
-    deleted.
-
-    Parameters
-    ----------
-    profiles : pandas.DataFrame or None
-        The job's profile rows, or None when they were stored wheel by wheel
-        already (:func:`store_wheel_rows`, fan-out mode).
-    worker_id : str or None
-        Owner of the job; None: any owner (fan-out mode).
-    condition : ConditionConfig
-        How the run's segment condition rows are made; their summary is kept
-        in the job's metadata (``meta["condition"]``).
-
-    Returns
-    -------
-    bool
-        True if the results were published.
-    """
-    if profiles is not None:
-        partitions.ensure_for_job(db, job_id)  # PostgreSQL: before the rows, in its own transaction
-    with db.write() as session:
-        # the run first, then the job: the order delete_run locks them in (no deadlock)
-        if not results_writer.lock_run_for_results(session, run_id):
-            return False
-        result = session.execute(
-            update(Job)
-            .where(_owned(job_id, worker_id), Job.cancel_requested.is_(False))
-            .values(heartbeat_at=utcnow())
+def mark_done(session: Session, job_id: int, meta: dict[str, Any]) -> None:
+    """Mark a job done with its provenance ``meta``, in the caller's transaction (the publish step's,
+    which checked first that the job is still :func:`owned`)."""
+    session.execute(
+        update(Job)
+        .where(Job.id == job_id)
+        .values(
+            status=JobStatus.DONE,
+            progress=1.0,
+            error=None,
+            meta=jsonable(meta),
+            finished_at=utcnow(),
+            heartbeat_at=None,
         )
-        if result.rowcount != 1:
-            return False
-        if profiles is not None:
-            results_writer.store_profile_rows(session, run_id, job_id, profiles)
-        summary = results_writer.publish_results(session, run_id, job_id, wheels, condition=condition,
-                                                 profiles=profiles)
-        meta = {**meta, "condition": summary}
-        session.execute(
-            update(Job)
-            .where(Job.id == job_id)
-            .values(
-                status=JobStatus.DONE,
-                progress=1.0,
-                error=None,
-                meta=jsonable(meta),
-                finished_at=utcnow(),
-                heartbeat_at=None,
-            )
-        )
-        return True
-
-
-def store_wheel_rows(db: Database, job_id: int, run_id: int, profiles: pd.DataFrame) -> bool:
-    """Write the profile rows of some wheels of a running fan-out job (not yet published).
-
-    One transaction; the job's earlier rows of these wheels are replaced, so
-    a retried task never duplicates rows. The job row is share-locked while
-    the rows are written: a cancel or failure that marks the job final waits
-    for the commit and then discards them (:func:`finish_job`,
-    :func:`finalize_cancel_requests`), and a job already final gets none.
-
-    Returns
-    -------
-    bool
-        True if the rows were written (the job is running, no cancel requested).
-    """
-    partitions.ensure_for_job(db, job_id)  # PostgreSQL: before the rows, in its own transaction
-    with db.write() as session:
-        if not results_writer.lock_run_for_results(session, run_id):
-            return False
-        running = session.scalar(
-            select(Job.id)
-            .where(_owned(job_id, None), Job.cancel_requested.is_(False))
-            .with_for_update(read=True)
-        )
-        if running is None:
-            return False
-        results_writer.store_profile_rows(session, run_id, job_id, profiles)
-        return True
+    )
 
 
 # --- fan-out mode (Procrastinate tasks, worker/tasks.py) ----------------------

@@ -9,8 +9,7 @@ import numpy as np
 from sqlalchemy import delete, desc, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Job, JobStatus, Run, utcnow
-from app.db.recorder_models import ChannelMapRow, LineGeometryRow
+from app.db.models import ChannelMapRow, Job, JobStatus, LineGeometryRow, Run, utcnow
 from app.io.geometry import LineGeometry
 
 __all__ = [

@@ -9,14 +9,14 @@ import datetime as dt
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 import pandas as pd
 from sqlalchemy import and_, delete, insert, select, tuple_
 from sqlalchemy.orm import Session
 
-from app.db.models import utcnow
-from app.db.reference_models import MaintenanceAction, SubsidenceMeasurement, SuperstructureSection
+from app.db.models import MaintenanceAction, SubsidenceMeasurement, SuperstructureSection, utcnow
 
-__all__ = ["MODELS", "insert_reference", "delete_reference", "reference_frame"]
+__all__ = ["MODELS", "insert_reference", "delete_reference", "reference_frame", "reference_records"]
 
 MODELS = {
     "subsidence": SubsidenceMeasurement,
@@ -106,3 +106,13 @@ def reference_frame(
         stmt = stmt.limit(limit)
     rows = session.connection().execute(stmt).all()
     return pd.DataFrame([tuple(r) for r in rows], columns=list(cols))
+
+
+def reference_records(session: Session, kind: str, **query: Any) -> list[dict[str, Any]]:
+    """Rows of ``kind`` (:func:`reference_frame`'s filters and ``limit``) as plain records: a
+    missing value None, the rail (superstructure) an int."""
+    out = reference_frame(session, kind, **query).replace({np.nan: None}).to_dict(orient="records")
+    for r in out:
+        if "rail" in r and r["rail"] is not None:
+            r["rail"] = int(r["rail"])
+    return out

@@ -1,6 +1,7 @@
 """The results reader: which job's results a run shows, and its profile and wheel rows.
 
-A run shows the results of its latest done job (:func:`results_job_id`).
+A run shows the results of its latest done job (:func:`results_job_id`); the runs of
+a line with results and their result jobs are :func:`runs_with_results` and :func:`result_jobs`.
 Profile rows (one per wheel and bin of :data:`PROFILE_COLUMNS`) are read
 straight from the database cursor into numpy arrays (:func:`job_profile_frame`),
 a wheel at a time, through the primary key ``(job_id, wheel, bin)``
@@ -23,12 +24,15 @@ from sqlalchemy import ColumnElement, Select, and_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, JobStatus, ProfileBin, Run, WheelOOR
+from app.db.numeric import fetch_numeric
 
 __all__ = [
     "PROFILE_COLUMNS",
     "results_job_id",
     "results_job_and_sweep",
     "results_job",
+    "runs_with_results",
+    "result_jobs",
     "bin_length_of",
     "job_bin_length",
     "stored_profile_wheels",
@@ -36,7 +40,6 @@ __all__ = [
     "profile_frame",
     "profile_where",
     "profile_rows",
-    "fetch_numeric",
     "numeric_frame",
     "job_profile_frame",
     "iter_profile_pages",
@@ -68,6 +71,23 @@ def results_job_and_sweep(session: Session, run_id: int) -> tuple[int, datetime 
 def _shown_job(stmt: Select, run_id: int) -> Select:
     """``stmt`` narrowed to the run's latest done job: the job whose results the run shows."""
     return stmt.where(Job.run_id == run_id, Job.status == JobStatus.DONE).order_by(Job.id.desc()).limit(1)
+
+
+def runs_with_results(session: Session, line_id: str, track: str | None) -> list[Run]:
+    """Runs of a line (and track, if given) with a done job, by start time (then id)."""
+    with_results = select(Job.run_id).where(Job.status == JobStatus.DONE)
+    stmt = select(Run).where(Run.line_id == line_id, Run.id.in_(with_results))
+    if track is not None:
+        stmt = stmt.where(Run.track == track)
+    runs = list(session.scalars(stmt).all())
+    runs.sort(key=lambda r: (r.start_time is None, r.start_time, r.id))
+    return runs
+
+
+def result_jobs(session: Session, runs: Sequence[Run]) -> list[tuple[int, int]]:
+    """``(run_id, job_id)`` of the job holding each run's results (runs without results left out)."""
+    pairs = [(run.id, results_job_id(session, run.id)) for run in runs]
+    return [(run_id, job_id) for run_id, job_id in pairs if job_id is not None]
 
 
 def results_job(session: Session, run_id: int) -> Job | None:
@@ -187,19 +207,6 @@ def profile_rows(
     return job_profile_frame(
         session, job_id, wheel=wheel, km_from=km_from, km_to=km_to, limit=limit, columns=columns
     )
-
-
-def fetch_numeric(session: Session, stmt: Select, n_columns: int) -> np.ndarray:
-    """The rows of a query of ``n_columns`` numeric columns as one float array (NULL -> NaN).
-
-    Straight from the DBAPI cursor: no Python row object per row.
-    """
-    result = session.connection().execute(stmt)
-    try:
-        rows = result.cursor.fetchall()  # DBAPI tuples: no row processing needed for numbers
-    finally:
-        result.close()
-    return np.array(rows, dtype=np.float64).reshape(len(rows), n_columns)
 
 
 def numeric_frame(values: np.ndarray, names: Sequence[str]) -> pd.DataFrame:

@@ -26,7 +26,6 @@ from sqlalchemy.orm import Session
 from app.analysis.aggregate import display_levels
 from app.core.jsonable import jsonable
 from app.db.bulk import insert_frame
-from app.db.condition_writer import DEFAULT_CONDITION_CONFIG, ConditionConfig, store_run_condition
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, ProfileBin, Run, WheelOOR
 
 __all__ = [
@@ -148,30 +147,18 @@ def publish_results(
     run_id: int,
     job_id: int,
     wheels: Sequence[dict[str, Any]],
-    *,
-    condition: ConditionConfig = DEFAULT_CONDITION_CONFIG,
-    profiles: pd.DataFrame | None = None,
-) -> dict[str, Any]:
-    """Make a job's results the run's: wheel rows replaced, other jobs' profile rows deleted,
-    the run's segment condition rows written (:func:`app.db.condition_writer.store_run_condition`).
+) -> None:
+    """Make a job's results the run's: wheel rows replaced, other jobs' profile rows deleted.
 
     Run it in the transaction that marks the job done (that is what readers
     go by, :func:`app.db.results_reader.results_job_id`), with the run locked
-    (:func:`lock_run_for_results`), after the job's profile rows are stored.
+    (:func:`lock_run_for_results`), after the job's profile rows are stored:
+    the publish step (:func:`app.publish.publish_job`).
 
     Parameters
     ----------
     wheels : sequence of dict
         ``RunResults.wheels`` (one dict per wheel with a ``wheel`` key).
-    condition : ConditionConfig
-        How the segment condition rows are made (service settings).
-    profiles : pandas.DataFrame, optional
-        The job's profile rows when at hand (else read back from the database).
-
-    Returns
-    -------
-    dict
-        The condition store's summary of the run (provenance for the job's metadata).
 
     Raises
     ------
@@ -207,7 +194,6 @@ def publish_results(
     other_jobs = select(Job.id).where(Job.run_id == run_id, Job.id != job_id).scalar_subquery()
     session.execute(delete(ProfileBin).where(ProfileBin.job_id.in_(other_jobs)))
     session.execute(update(Run).where(Run.id == run_id).values(profiles_swept_at=None))  # rows again
-    return store_run_condition(session, run_id, job_id, config=condition, profiles=profiles)
 
 
 def discard_profile_rows(session: Session, job_id: int) -> None:

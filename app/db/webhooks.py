@@ -1,8 +1,8 @@
 """Webhooks and their delivery log: configuration, the outbox, claims and retries.
 
-Deliveries are an outbox: :func:`enqueue_condition_flags` adds one row per
-active webhook in the transaction that publishes a run with new condition
-flags (so an alert exists exactly when the flags do), and the workers'
+Deliveries are an outbox: :func:`enqueue` adds one row per active webhook,
+for new condition flags in the transaction that publishes the run
+(:mod:`app.condition.alerts`: an alert exists exactly when the flags do), and the workers'
 delivery loop (:mod:`worker.deliveries`) sends them apart from the jobs — a
 receiver that is down never holds up processing. Claims and outcomes are
 guarded conditional updates (a delivery is sent by one loop at a time; a loop
@@ -10,7 +10,7 @@ that dies leaves its claim to expire after the lease), so delivery is
 at-least-once: receivers deduplicate by the ``X-Trackvkf-Delivery`` id.
 Failed attempts are retried with exponential back-off (:class:`RetryPolicy`).
 
-A webhook's URL is checked by :func:`app.alerts.url_policy.check_url` (syntax)
+A webhook's URL is checked by :func:`app.core.url_policy.check_url` (syntax)
 here; where it may point (the SSRF policy) is checked by the API when it is
 registered and by the transport at every delivery. A secret is rotated by
 :func:`rotate_secret`: the previous secret keeps signing deliveries (a second
@@ -28,12 +28,9 @@ from typing import Any
 from sqlalchemy import and_, func, or_, select, update
 from sqlalchemy.orm import Session
 
-from app.alerts.url_policy import check_url as _check_url_syntax
-from app.db.condition_models import ConditionFlag, ConditionLine
-from app.db.condition_reader import flag_dict, iso_time
-from app.db.models import Run, utcnow
+from app.core.url_policy import check_url as _check_url_syntax
+from app.db.models import DeliveryStatus, Webhook, WebhookDelivery, utcnow
 from app.db.session import Database
-from app.db.webhook_models import DeliveryStatus, Webhook, WebhookDelivery
 
 __all__ = [
     "EVENT_FLAGS",
@@ -46,7 +43,6 @@ __all__ = [
     "rotate_secret",
     "signing_secrets",
     "enqueue",
-    "enqueue_condition_flags",
     "claim_due",
     "finish_attempt",
     "list_deliveries",
@@ -86,7 +82,7 @@ class Claimed:
 
 
 def check_url(url: str) -> str:
-    """The URL, stripped; ValueError (:class:`app.alerts.url_policy.UrlError`) unless its syntax
+    """The URL, stripped; ValueError (:class:`app.core.url_policy.UrlError`) unless its syntax
     is acceptable: http(s), a host, a port in 1–65535, no credentials, no spaces or control characters."""
     return _check_url_syntax(url)
 
@@ -147,22 +143,6 @@ def enqueue(session: Session, event: str, payload: dict[str, Any], *, run_id: in
         session.flush()
         ids.append(row.id)
     return ids
-
-
-def enqueue_condition_flags(session: Session, run_id: int, line: ConditionLine,
-                            flags: Sequence[ConditionFlag]) -> list[int]:
-    """Deliveries of a published run's new flags to every active webhook (none without new flags)."""
-    new = [f for f in flags if f.is_new]
-    if not new:
-        return []
-    run = session.get(Run, run_id)
-    payload = {
-        "event": EVENT_FLAGS, "run_id": run_id, "line_id": line.line_id, "track": line.track,
-        "start_time": iso_time(run.start_time or run.created_at) if run is not None else None,
-        "n_flags": len(new), "flags": [flag_dict(f, line) for f in new],
-        "feed_since": min(f.id for f in new) - 1,
-    }
-    return enqueue(session, EVENT_FLAGS, payload, run_id=run_id)
 
 
 def _due(now: dt.datetime):

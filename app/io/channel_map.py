@@ -113,6 +113,13 @@ def unit_factor(channel: str, unit: str | None) -> float:
     return table[key]
 
 
+def _without_nul(value: str | None) -> str | None:
+    """Text a database can store: NUL characters are refused (PostgreSQL text cannot hold them)."""
+    if value is not None and "\x00" in value:
+        raise ValueError("must not contain NUL characters (\\u0000)")
+    return value
+
+
 class ChannelSource(pydantic.BaseModel):
     """The recorder channel behind one trackvkf channel.
 
@@ -133,6 +140,11 @@ class ChannelSource(pydantic.BaseModel):
     group: str | None = Field(default=None, max_length=200)
     unit: str | None = Field(default=None, max_length=40)
 
+    @field_validator("source", "group", "unit")
+    @classmethod
+    def _no_nul(cls, value: str | None) -> str | None:
+        return _without_nul(value)
+
 
 class ChannelMap(pydantic.BaseModel):
     """A channel map (see the module docstring).
@@ -149,6 +161,11 @@ class ChannelMap(pydantic.BaseModel):
 
     name: str = Field(default="", max_length=200)
     channels: dict[str, ChannelSource]
+
+    @field_validator("name")
+    @classmethod
+    def _no_nul(cls, value: str) -> str:
+        return _without_nul(value)
 
     @field_validator("channels", mode="before")
     @classmethod

@@ -26,7 +26,7 @@ azimuthal equidistant projection centred on the line
 
 from __future__ import annotations
 
-import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -35,6 +35,7 @@ import numpy as np
 
 from app.analysis.map_matching import Polyline
 from app.io.errors import RunFileError
+from app.io.json_input import load_json
 
 __all__ = [
     "LineGeometry",
@@ -50,6 +51,12 @@ KM_LENGTH_TOLERANCE = 0.05
 MAX_FEATURES = 1000
 #: Most vertices per file.
 MAX_VERTICES = 2_000_000
+#: Deepest nesting of the document (a FeatureCollection's coordinates sit at level 6).
+MAX_DEPTH = 16
+#: Longest accepted CRS name or definition, characters.
+MAX_CRS_CHARS = 2048
+#: Semi-major axes of the Earth's ellipsoids and spheres, m (others: another body or no Earth).
+_EARTH_SEMI_MAJOR_M = (6_350_000.0, 6_400_000.0)
 _WGS84 = "EPSG:4326"
 
 
@@ -149,13 +156,27 @@ def _crs_of(doc: Mapping[str, Any]) -> str:
         name = crs
     if not isinstance(name, str) or not name.strip():
         raise RunFileError("crs", 'must be {"type": "name", "properties": {"name": "EPSG:…"}}')
-    from pyproj import CRS
-    from pyproj.exceptions import CRSError
+    if len(name) > MAX_CRS_CHARS or "\x00" in name:
+        raise RunFileError("crs", f"must be a CRS name of at most {MAX_CRS_CHARS} characters without NUL")
+    from pyproj import CRS, Transformer
+    from pyproj.exceptions import CRSError, ProjError
 
     try:
         parsed = CRS.from_user_input(name.strip())
     except CRSError:
         raise RunFileError("crs", f"unknown CRS {name[:80]!r}") from None
+    ellipsoid = parsed.ellipsoid
+    axis = ellipsoid.semi_major_metre if ellipsoid is not None else None
+    if not (parsed.is_geographic or parsed.is_projected) or parsed.is_compound or len(parsed.axis_info) != 2:
+        raise RunFileError("crs", f"{name[:80]!r} is not a two-dimensional geographic or projected CRS "
+                           "(geocentric, vertical, compound and 3-D CRS are not accepted)")
+    if axis is None or not _EARTH_SEMI_MAJOR_M[0] <= axis <= _EARTH_SEMI_MAJOR_M[1]:
+        raise RunFileError("crs", f"{name[:80]!r} is not a CRS of the Earth (ellipsoid "
+                           f"{getattr(ellipsoid, 'name', None)!r})")
+    try:
+        Transformer.from_crs(parsed, _WGS84, always_xy=True)
+    except (CRSError, ProjError) as exc:
+        raise RunFileError("crs", f"{name[:80]!r} cannot be transformed to WGS84: {str(exc)[:200]}") from None
     return parsed.to_string()
 
 
@@ -163,8 +184,12 @@ def _to_wgs84(crs: str, x: np.ndarray, y: np.ndarray, where: str) -> tuple[np.nd
     if crs == _WGS84:
         return x, y
     from pyproj import Transformer
+    from pyproj.exceptions import CRSError, ProjError
 
-    lon, lat = Transformer.from_crs(crs, _WGS84, always_xy=True).transform(x, y)
+    try:
+        lon, lat = Transformer.from_crs(crs, _WGS84, always_xy=True).transform(x, y)
+    except (CRSError, ProjError) as exc:
+        raise RunFileError(where, f"coordinates cannot be transformed from {crs} to WGS84: {str(exc)[:200]}") from None
     lon, lat = np.asarray(lon, dtype=np.float64), np.asarray(lat, dtype=np.float64)
     if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
         raise RunFileError(where, f"coordinates cannot be transformed from {crs} to WGS84")
@@ -173,11 +198,20 @@ def _to_wgs84(crs: str, x: np.ndarray, y: np.ndarray, where: str) -> tuple[np.nd
 
 def _text(props: Mapping[str, Any], key: str, where: str) -> str:
     value = props.get(key)
-    if isinstance(value, int | float) and not isinstance(value, bool):
+    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
         value = str(value)
     if not isinstance(value, str) or not value.strip() or len(value) > 128:
         raise RunFileError(where, f"properties.{key} is missing (a non-empty text of ≤ 128 characters)")
+    if "\x00" in value:
+        raise RunFileError(where, f"properties.{key} must not contain NUL characters (\\u0000)")
     return value.strip()
+
+
+def _number(value: Any) -> float:
+    """A JSON number as a float (``TypeError`` for anything else, booleans included)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError("not a number")
+    return float(value)
 
 
 def _feature(feat: Any, i: int, crs: str) -> LineGeometry:
@@ -197,8 +231,8 @@ def _feature(feat: Any, i: int, crs: str) -> LineGeometry:
     if not isinstance(coords, list) or len(coords) < 2:
         raise RunFileError(where, f"({label}) a LineString needs at least two positions")
     try:
-        xy = np.array([[float(p[0]), float(p[1])] for p in coords], dtype=np.float64)
-    except (TypeError, ValueError, IndexError):
+        xy = np.array([[_number(p[0]), _number(p[1])] for p in coords], dtype=np.float64)
+    except (TypeError, ValueError, IndexError, KeyError, OverflowError):
         raise RunFileError(where, f"({label}) coordinates must be [x, y] number pairs") from None
     if not np.isfinite(xy).all():
         raise RunFileError(where, f"({label}) coordinates must be finite")
@@ -209,8 +243,8 @@ def _feature(feat: Any, i: int, crs: str) -> LineGeometry:
             f"({label}) has no km stations: give properties.km, the line km at every vertex",
         )
     try:
-        km = np.array([float(k) for k in km_raw], dtype=np.float64)
-    except (TypeError, ValueError):
+        km = np.array([_number(k) for k in km_raw], dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
         raise RunFileError(where, f"({label}) properties.km must be a list of numbers (km)") from None
     if km.size != xy.shape[0]:
         raise RunFileError(
@@ -267,10 +301,7 @@ def parse_geojson(data: bytes | str | Mapping[str, Any]) -> list[LineGeometry]:
         refused, and so is a line and track given twice.
     """
     if isinstance(data, bytes | str):
-        try:
-            doc = json.loads(data)
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise RunFileError("file", f"not valid JSON: {exc}") from None
+        doc = load_json(data, field="file", max_depth=MAX_DEPTH)
     else:
         doc = data
     if not isinstance(doc, Mapping):
@@ -286,9 +317,10 @@ def parse_geojson(data: bytes | str | Mapping[str, Any]) -> list[LineGeometry]:
     if len(features) > MAX_FEATURES:
         raise RunFileError("file", f"{len(features)} features exceed the limit of {MAX_FEATURES}")
     n_vertices = sum(
-        len(f.get("geometry", {}).get("coordinates", []) or [])
+        len(f["geometry"]["coordinates"])
         for f in features
         if isinstance(f, Mapping) and isinstance(f.get("geometry"), Mapping)
+        and isinstance(f["geometry"].get("coordinates"), list)
     )
     if n_vertices > MAX_VERTICES:
         raise RunFileError("file", f"{n_vertices} vertices exceed the limit of {MAX_VERTICES}")

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -385,6 +386,19 @@ class _Checks:
             )
 
 
+@dataclass
+class _Plan:
+    """What is settled before any sample is written: metadata, channels, length, sample rate."""
+
+    meta: RunMetadata
+    kind: str
+    stored: list[str]
+    n_known: int | None
+    fs: float
+    from_time: bool
+    blocks: Iterator[dict[str, np.ndarray]]
+
+
 def _ingest(
     source: Source,
     fmt: str,
@@ -395,12 +409,53 @@ def _ingest(
     geometry: GeometryLookup | LineGeometry | None,
     reserve_bytes: int,
 ) -> RunSummary:
-    info = source.info
+    """Three stages: plan (:func:`_plan`), check and write every block (:class:`_BlockWriter`),
+    derive what follows from the whole run (:func:`_finish`)."""
     warnings: list[str] = []
+    plan = _plan(source, given, limits, warnings)
+    expected = 0 if plan.n_known is None else plan.n_known * _canonical_bytes_per_sample(plan.stored)
+    with canonical_output(dest, reserve_bytes=reserve_bytes, expected_bytes=expected) as (h5, check_io):
+        writer = CanonicalWriter(
+            h5,
+            fs=plan.fs,
+            metadata=plan.meta,
+            channels=plan.stored,
+            n_samples=plan.n_known,
+            compression=compression,
+            source_format=fmt,
+        )
+        blocks = _BlockWriter(writer, plan, limits)
+        n = blocks.write_all(check_io)
+        report, stats = _finish(writer, blocks, plan, n, limits, geometry, warnings)
+        if isinstance(source, RecorderSource):
+            report["channels"] = source.channel_sources()
+        writer.finish(n)
+        channels = [c for c in ALL_CHANNELS if c in h5]
+        final_meta = writer.metadata
+    return RunSummary(
+        fs=plan.fs,
+        n_samples=n,
+        duration_s=n / plan.fs,
+        channels=channels,
+        metadata=final_meta,
+        distance_m=stats["distance"],
+        speed_min=stats["vmin"],
+        speed_max=stats["vmax"],
+        source_format=fmt,
+        nan_filled={c: f.n_nan for c, f in blocks.fillers.items() if f.n_nan},
+        warnings=warnings,
+        report=report,
+    )
+
+
+def _plan(
+    source: Source, given: Mapping[str, Any] | None, limits: IngestLimits, warnings: list[str]
+) -> _Plan:
+    """Metadata, position kind, stored channels, declared length and sample rate (first block)."""
+    info = source.info
     meta = _merge_metadata(source, given, warnings)
     kind = resolve_position_kind(meta, info.channels, warnings)
     stored = _check_channels(info.channels)
-    gnss_used = kind == "gnss"
     n_known = info.n_samples
     if n_known is not None:
         if n_known == 0:
@@ -420,98 +475,105 @@ def _ingest(
             f"invalid sample rate {fs:g} Hz; accepted {limits.min_sample_rate_hz:g} … "
             f"{limits.max_sample_rate_hz:g} Hz",
         )
-    meta = meta.model_copy(update={"sample_rate_hz": fs})
-    checks = _Checks(meta, fs, limits, from_time, 0 if kind == "line_km" else 1)
-    fixes = GnssFixes(fs, limits) if gnss_used else None
     if n_known is not None:
         _check_duration(n_known, fs, limits)
+    return _Plan(
+        meta=meta.model_copy(update={"sample_rate_hz": fs}),
+        kind=kind,
+        stored=stored,
+        n_known=n_known,
+        fs=fs,
+        from_time=from_time,
+        blocks=itertools.chain([first], blocks),
+    )
 
-    expected = 0 if n_known is None else n_known * _canonical_bytes_per_sample(stored)
-    with canonical_output(dest, reserve_bytes=reserve_bytes, expected_bytes=expected) as (h5, check_io):
-        writer = CanonicalWriter(
-            h5,
-            fs=fs,
-            metadata=meta,
-            channels=stored,
-            n_samples=n_known,
-            compression=compression,
-            source_format=fmt,
-        )
-        fillers = {
+
+class _BlockWriter:
+    """Checks every block of the source (values, time grid, position, speed, NaN) and writes it."""
+
+    def __init__(self, writer: CanonicalWriter, plan: _Plan, limits: IngestLimits) -> None:
+        self.writer, self.plan, self.limits = writer, plan, limits
+        self.checks = _Checks(plan.meta, plan.fs, limits, plan.from_time, 0 if plan.kind == "line_km" else 1)
+        self.fixes = GnssFixes(plan.fs, limits) if plan.kind == "gnss" else None
+        self.fillers = {
             c: GapFiller(lambda a, v, c=c: writer.write(c, a, v), chunk=limits.block_samples)
-            for c in stored
+            for c in plan.stored
         }
+
+    def write_all(self, check_io: Callable[[], None]) -> int:
+        """Write every block; return the number of samples (checked against the declared one)."""
+        limits, n_known = self.limits, self.plan.n_known
         offset = 0
-        for block in itertools.chain([first], blocks):
+        for block in self.plan.blocks:
             m = len(next(iter(block.values())))
             if offset + m > limits.max_samples:
                 raise RunFileError("file", f"more than {limits.max_samples} samples (limit)")
             if TIME_COLUMN in block:
-                checks.time(offset, block[TIME_COLUMN])
-            if fixes is not None:
-                fixes.add(offset, block["lat"], block["lon"])
-            for c in stored:
-                x = block[c]
-                if not x.flags.writeable:
-                    x = x.copy()
-                if np.isinf(x).any():
-                    i = int(np.flatnonzero(np.isinf(x))[0])
-                    raise RunFileError(c, f"infinite value at sample {offset + i}")
-                checks.magnitude(c, offset, x)
-                fillers[c].process(offset, x)
-                if n_known is not None and fillers[c].n_nan > limits.max_nan_fraction * n_known:
-                    _too_many_nan(c, fillers[c].n_nan, n_known, limits)
-                if c == "position":
-                    checks.position(offset, x)
-                elif c == "speed":
-                    checks.speed(offset, x)
-                writer.write(c, offset, x)
+                self.checks.time(offset, block[TIME_COLUMN])
+            if self.fixes is not None:
+                self.fixes.add(offset, block["lat"], block["lon"])
+            for c in self.plan.stored:
+                self._channel(c, offset, block[c])
             check_io()
             offset += m
-        n = offset
-        if n_known is not None and n != n_known:
-            raise RunFileError("file", f"read {n} samples but the file declares {n_known}")
-        _check_duration(n, fs, limits)
-        for c in stored:
-            if fillers[c].n_nan > limits.max_nan_fraction * n:
-                _too_many_nan(c, fillers[c].n_nan, n, limits)
-            fillers[c].finish(n)
-        writer.n_samples = n
-        report: dict[str, Any] = {"position_kind": kind, "km_source": "metadata"}
-        if kind == "line_km":
-            finish_line_km(writer, checks.first_pos, checks.direction)
-            report["km_source"] = "line_km"
-        elif checks.first_pos is not None and abs(checks.first_pos) > _ZERO_TOLERANCE_M:
-            warnings.append(
-                f"position: the relative position channel starts at {checks.first_pos:.6g} m, "
-                "not 0 m; it was taken as distance travelled (its first sample subtracted). "
-                "If it is the line chainage, upload with position_kind line_km"
-            )
-        stats = _derive_kinematics(writer, stored, n, fs, limits)
-        if fixes is not None:
-            lookup = geometry(meta.line_id, meta.track) if callable(geometry) else geometry
-            if lookup is not None and (lookup.line_id, lookup.track) != (meta.line_id, meta.track):
-                lookup = None
-            report.update(apply_gnss(writer, fixes, lookup, n, limits, warnings))
-        if isinstance(source, RecorderSource):
-            report["channels"] = source.channel_sources()
-        writer.finish(n)
-        channels = [c for c in ALL_CHANNELS if c in h5]
-        final_meta = writer.metadata
-    return RunSummary(
-        fs=fs,
-        n_samples=n,
-        duration_s=n / fs,
-        channels=channels,
-        metadata=final_meta,
-        distance_m=stats["distance"],
-        speed_min=stats["vmin"],
-        speed_max=stats["vmax"],
-        source_format=fmt,
-        nan_filled={c: f.n_nan for c, f in fillers.items() if f.n_nan},
-        warnings=warnings,
-        report=report,
-    )
+        if n_known is not None and offset != n_known:
+            raise RunFileError("file", f"read {offset} samples but the file declares {n_known}")
+        _check_duration(offset, self.plan.fs, limits)
+        for c, filler in self.fillers.items():
+            if filler.n_nan > limits.max_nan_fraction * offset:
+                _too_many_nan(c, filler.n_nan, offset, limits)
+            filler.finish(offset)
+        return offset
+
+    def _channel(self, c: str, offset: int, x: np.ndarray) -> None:
+        limits, n_known = self.limits, self.plan.n_known
+        if not x.flags.writeable:
+            x = x.copy()
+        if np.isinf(x).any():
+            i = int(np.flatnonzero(np.isinf(x))[0])
+            raise RunFileError(c, f"infinite value at sample {offset + i}")
+        self.checks.magnitude(c, offset, x)
+        filler = self.fillers[c]
+        filler.process(offset, x)
+        if n_known is not None and filler.n_nan > limits.max_nan_fraction * n_known:
+            _too_many_nan(c, filler.n_nan, n_known, limits)
+        if c == "position":
+            self.checks.position(offset, x)
+        elif c == "speed":
+            self.checks.speed(offset, x)
+        self.writer.write(c, offset, x)
+
+
+def _finish(
+    writer: CanonicalWriter,
+    blocks: _BlockWriter,
+    plan: _Plan,
+    n: int,
+    limits: IngestLimits,
+    geometry: GeometryLookup | LineGeometry | None,
+    warnings: list[str],
+) -> tuple[dict[str, Any], dict[str, float]]:
+    """Line km, the missing one of speed/position, GNSS positions: ``(report, kinematic stats)``."""
+    writer.n_samples = n
+    checks = blocks.checks
+    report: dict[str, Any] = {"position_kind": plan.kind, "km_source": "metadata"}
+    if plan.kind == "line_km":
+        finish_line_km(writer, checks.first_pos, checks.direction)
+        report["km_source"] = "line_km"
+    elif checks.first_pos is not None and abs(checks.first_pos) > _ZERO_TOLERANCE_M:
+        warnings.append(
+            f"position: the relative position channel starts at {checks.first_pos:.6g} m, "
+            "not 0 m; it was taken as distance travelled (its first sample subtracted). "
+            "If it is the line chainage, upload with position_kind line_km"
+        )
+    stats = _derive_kinematics(writer, plan.stored, n, plan.fs, limits)
+    if blocks.fixes is not None:
+        meta = plan.meta
+        lookup = geometry(meta.line_id, meta.track) if callable(geometry) else geometry
+        if lookup is not None and (lookup.line_id, lookup.track) != (meta.line_id, meta.track):
+            lookup = None
+        report.update(apply_gnss(writer, blocks.fixes, lookup, n, limits, warnings))
+    return report, stats
 
 
 def _canonical_bytes_per_sample(stored: list[str]) -> int:

@@ -81,6 +81,13 @@ class IngestLimits:
         Largest number of channels in an MDF4 or TDMS recorder file (default
         2048: recorders log many signals besides the ones a run reads; the
         channels read are at most :attr:`max_columns`).
+    max_recorder_blocks : int
+        Largest number of blocks of an MDF4 file (default 262 144; a recorder
+        file has a few per channel and one per data block), or metadata objects
+        of a TDMS file, walked before the third-party reader opens the file.
+    max_recorder_text_bytes : int
+        Largest total size of the texts and comments (MDF4 TX/MD blocks,
+        counted at every reference) of a recorder file, bytes (default 16 MiB).
     max_gnss_rate_hz : float
         GNSS fixes are kept at most at this rate, Hz (default 10): fixes
         resampled onto the ABA time base are thinned to it before map matching.
@@ -109,6 +116,8 @@ class IngestLimits:
     max_line_bytes: int = 64 * 1024
     csv_block_bytes: int = 8 * 1024 * 1024
     max_recorder_channels: int = 2048
+    max_recorder_blocks: int = 262_144
+    max_recorder_text_bytes: int = 16 * 1024 * 1024
     max_gnss_rate_hz: float = 10.0
 
     def max_decoded_bytes(self, file_bytes: int) -> int:
@@ -159,6 +168,8 @@ class IngestLimits:
             "expansion_floor_bytes",
             "max_parquet_footer_bytes",
             "max_recorder_channels",
+            "max_recorder_blocks",
+            "max_recorder_text_bytes",
             "max_metadata_bytes",
             "max_attribute_bytes",
             "max_attribute_read_bytes",

@@ -3,18 +3,16 @@
 from __future__ import annotations
 
 import datetime as dt
-import json
 import math
-import re
 from collections.abc import Mapping
 from typing import Any, Literal
 
-import numpy as np
 import pydantic
 from pydantic import AliasChoices, AwareDatetime, ConfigDict, Field, StrictBool, field_validator
 
 from app.io.channels import ALL_CHANNELS, AXLES, WHEELS
 from app.io.errors import RunFileError
+from app.io.json_input import load_json
 
 __all__ = [
     "Calibration",
@@ -43,10 +41,6 @@ START_TIME_RANGE: tuple[dt.datetime, dt.datetime] = (
     dt.datetime(1900, 1, 1, tzinfo=dt.UTC),
     dt.datetime(2200, 1, 1, tzinfo=dt.UTC),
 )
-#: JSON integers with more digits than this are read as floats (inf beyond ~308
-#: digits, refused then); Python refuses to convert more than 4300 digits at all.
-_MAX_INT_DIGITS = 300
-
 #: What the ``position`` channel of an input file is (see :class:`RunMetadata`).
 PositionKind = Literal["relative", "line_km", "gnss"]
 POSITION_KINDS: tuple[str, ...] = ("relative", "line_km", "gnss")
@@ -353,24 +347,6 @@ def _check_json_values(value: Any, path: str, depth: int) -> None:
             _check_json_values(item, f"{path}.{key}" if path else str(key), depth + 1)
 
 
-# a JSON string literal (with escapes); stripped before the brackets are counted
-_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
-
-
-def _json_depth(text: str) -> int:
-    """Deepest nesting of ``[``/``{`` in a JSON text, without parsing it (linear time)."""
-    skeleton = _JSON_STRING.sub("", text).encode("ascii", "ignore")
-    codes = np.frombuffer(skeleton, dtype=np.uint8)
-    steps = np.zeros(codes.shape, dtype=np.int32)
-    steps[(codes == ord("[")) | (codes == ord("{"))] = 1
-    steps[(codes == ord("]")) | (codes == ord("}"))] = -1
-    return int(np.cumsum(steps).max(initial=0))
-
-
-def _parse_int(digits: str) -> int | float:
-    return int(digits) if len(digits) <= _MAX_INT_DIGITS else float(digits)
-
-
 def load_metadata_json(text: str | bytes, *, field: str = "metadata") -> dict[str, Any]:
     """Parse a metadata JSON document (form field, query parameter, HDF5 attribute).
 
@@ -395,20 +371,7 @@ def load_metadata_json(text: str | bytes, *, field: str = "metadata") -> dict[st
         nested deeper than :data:`MAX_METADATA_DEPTH` (checked before parsing,
         so a document nested 100 000 deep costs no recursion).
     """
-    if isinstance(text, bytes):
-        try:
-            text = text.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            raise RunFileError(field, f"not UTF-8 text (byte {exc.start})") from None
-    depth = _json_depth(text)
-    if depth > MAX_METADATA_DEPTH:
-        raise RunFileError(field, f"nested deeper than {MAX_METADATA_DEPTH} levels ({depth})")
-    try:
-        value = json.loads(text, parse_int=_parse_int, parse_constant=float)
-    except json.JSONDecodeError as exc:
-        raise RunFileError(field, f"not valid JSON: {exc.msg} at position {exc.pos}") from None
-    except (ValueError, RecursionError) as exc:  # belt and braces: the depth is checked above
-        raise RunFileError(field, f"not valid JSON: {str(exc)[:120]}") from None
+    value = load_json(text, field=field, max_depth=MAX_METADATA_DEPTH)
     if not isinstance(value, dict):
         raise RunFileError(field, f"must be a JSON object, got {type(value).__name__}")
     return value

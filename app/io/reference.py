@@ -68,6 +68,8 @@ def _text(df: pd.DataFrame, col: str, required: bool = True) -> np.ndarray:
             raise _fail(i + 1, col, "is empty")
         if len(s) > _MAX_TEXT.get(col, 128):
             raise _fail(i + 1, col, f"is longer than {_MAX_TEXT.get(col, 128)} characters")
+        if "\x00" in s:
+            raise _fail(i + 1, col, "must not contain NUL characters (\\u0000)")
         out[i] = s or None
     return out
 

@@ -1,2 +1,2 @@
 """Observability: Prometheus metrics (:mod:`~app.observability.metrics`, served by
-:mod:`~app.observability.routes`) and the JSON log format (:mod:`app.core.logging`)."""
+:mod:`~app.api.metrics`) and the JSON log format (:mod:`app.core.logging`)."""

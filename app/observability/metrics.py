@@ -50,10 +50,8 @@ from prometheus_client.exposition import CONTENT_TYPE_LATEST
 from sqlalchemy import case, func, select
 
 from app.core.config import Settings
-from app.db.condition_models import ConditionFlag
-from app.db.models import Job, JobStatus, Run
+from app.db.models import ConditionFlag, Job, JobStatus, Run, WebhookDelivery
 from app.db.session import Database
-from app.db.webhook_models import WebhookDelivery
 from app.observability.multiproc import multiprocess_mode
 from app.operations.liveness import queue_health
 
@@ -86,7 +84,7 @@ class RouteTemplates:
     The router puts the matched route object in ``scope["route"]``; its own
     ``path`` may be relative to the router that includes it, so the full
     templates are read once from the app's flattened routes
-    (:func:`app.api.deps.iter_routes`) and the one whose pattern matches the
+    (:func:`app.core.routing.iter_routes`) and the one whose pattern matches the
     request's path is taken. A request that matched no route is ``(unmatched)``.
     """
 
@@ -96,7 +94,7 @@ class RouteTemplates:
     def _build(self, app) -> dict[int, list[tuple[str, re.Pattern]]]:
         from starlette.routing import compile_path
 
-        from app.api.deps import iter_routes
+        from app.core.routing import iter_routes
 
         out: dict[int, list[tuple[str, re.Pattern]]] = {}
         for item in iter_routes(app):

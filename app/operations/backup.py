@@ -59,8 +59,7 @@ from app.core.atomic import atomic_path
 from app.core.config import Settings
 from app.core.runstore import RunStore
 from app.db import migrate
-from app.db.models import Base, Job, JobChunk, JobStatus, Run
-from app.db.operations_models import WorkerHeartbeat
+from app.db.models import Base, Job, JobChunk, JobStatus, Run, WorkerHeartbeat
 from app.db.session import Database, make_engine
 
 __all__ = [

@@ -23,8 +23,7 @@ from dataclasses import dataclass
 from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
-from app.db.models import Job, JobStatus, utcnow
-from app.db.operations_models import WorkerHeartbeat
+from app.db.models import Job, JobStatus, WorkerHeartbeat, utcnow
 from app.db.session import Database
 
 __all__ = ["beat", "forget", "prune", "WorkerInfo", "QueueHealth", "queue_health", "PRUNE_AFTER"]

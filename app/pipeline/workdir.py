@@ -6,16 +6,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from app.analysis.settings import ProcessingSettings
+from app.core.runstore import chunk_file_name
 from app.pipeline.assemble import RunResults, assemble
 from app.pipeline.chunk import process_chunk
 from app.pipeline.plan import plan_chunks
 
 __all__ = ["chunk_file_name", "run_pipeline"]
-
-
-def chunk_file_name(index: int) -> str:
-    """File name of chunk ``index`` in a work directory: ``chunk-00000.npz`` …"""
-    return f"chunk-{index:05d}.npz"
 
 
 def run_pipeline(

@@ -11,8 +11,11 @@ from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
+from app.analysis.condition import OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
+from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
 from app.api import API_PREFIX
-from app.api.deps import RunId, iter_routes, public, require_page_login
+from app.api.deps import RunId, public, require_page_login
+from app.maps.indicator import DEFAULT_MAP_SEGMENT_M
 
 __all__ = [
     "FRONTEND_DIR", "PLOTLY_JS", "FAVICON", "build_pages_router", "build_public_router",
@@ -25,17 +28,6 @@ FRONTEND_DIR = Path(__file__).resolve().parents[2] / "frontend"
 PLOTLY_JS = "/vendor/plotly.min.js"
 #: the icon browsers ask for at ``/favicon.ico`` on their own (pages also link the SVG)
 FAVICON = FRONTEND_DIR / "static" / "img" / "favicon.ico"
-
-#: API features a page uses only when the server has them (built by other modules)
-_FEATURES = {
-    "analytics_segments": f"{API_PREFIX}/analytics/segments",
-    "analytics_segment_trend": f"{API_PREFIX}/analytics/segment-trend",
-    "analytics_subsidence": f"{API_PREFIX}/analytics/subsidence-fit",
-    "analytics_unsprung_mass": f"{API_PREFIX}/analytics/unsprung-mass",
-    "analytics_maintenance": f"{API_PREFIX}/analytics/maintenance",
-    "reference_superstructure": f"{API_PREFIX}/reference/superstructure",
-    "reference_maintenance": f"{API_PREFIX}/reference/maintenance",
-}
 
 #: nav bar: (page key, URL, label)
 NAV = (
@@ -58,11 +50,6 @@ def plotly_js_path() -> Path:
     return path
 
 
-def _features(request: Request) -> dict[str, bool]:
-    paths = {getattr(route, "path", "") for route in iter_routes(request.app)}
-    return {name: path in paths for name, path in _FEATURES.items()}
-
-
 def build_pages_router(templates: Jinja2Templates) -> APIRouter:
     """Router of the HTML pages (not in the OpenAPI schema).
 
@@ -73,7 +60,7 @@ def build_pages_router(templates: Jinja2Templates) -> APIRouter:
     router = APIRouter(include_in_schema=False, dependencies=[Depends(require_page_login("viewer"))])
 
     def page(request: Request, template: str, key: str, title: str, **context: Any) -> HTMLResponse:
-        boot = {"api": API_PREFIX, "page": key, "features": _features(request), **context}
+        boot = {"api": API_PREFIX, "page": key, "segment_m": DEFAULT_SEGMENT_M, **context}
         return templates.TemplateResponse(
             request,
             template,
@@ -101,11 +88,13 @@ def build_pages_router(templates: Jinja2Templates) -> APIRouter:
     def map_page(request: Request) -> HTMLResponse:
         settings = request.app.state.settings
         tiles = {"url": settings.map_tile_url, "attribution": settings.map_tile_attribution}
-        return page(request, "map.html", "map", "Map", tiles=tiles if settings.map_tile_url else None)
+        return page(request, "map.html", "map", "Map", tiles=tiles if settings.map_tile_url else None,
+                    map_segment_m=int(DEFAULT_MAP_SEGMENT_M))
 
     @router.get("/condition", response_class=HTMLResponse)
     def condition_page(request: Request) -> HTMLResponse:
-        return page(request, "condition.html", "condition", "Condition")
+        return page(request, "condition.html", "condition", "Condition",
+                    segment_lengths=[int(s) for s in SEGMENT_LENGTHS_M], overview_segment_m=int(OVERVIEW_SEGMENT_M))
 
     @router.get("/wheels", response_class=HTMLResponse)
     def wheels_page(request: Request) -> HTMLResponse:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from app import publish
 from app.db import queue
 from app.db.session import Database
 
@@ -17,7 +18,7 @@ def store_run(client, run) -> int:
         job_id = queue.claim_next_job(db, "test", 30)
         assert job_id == body["latest_job"]["id"]
         res = run.results
-        assert queue.complete_job(db, job_id, body["id"], res.profiles, res.wheels, res.meta, worker_id="test")
+        assert publish.publish_job(db, job_id, body["id"], res.profiles, res.wheels, res.meta, worker_id="test")
     finally:
         db.dispose()
     return body["id"]

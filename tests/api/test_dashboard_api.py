@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from app.analysis.orders import railway_multipliers
-from tests.api.test_profiles_api import N_BINS, processed  # noqa: F401 - fixture
+from tests.profiles.test_profiles_api import N_BINS, processed  # noqa: F401 - fixture
 
 
 def test_profile_max_points_keeps_peaks_and_rows(processed):  # noqa: F811

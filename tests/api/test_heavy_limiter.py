@@ -11,7 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 import anyio
 import pytest
 
-from app.io import ingest as real_ingest
+from app.io.isolation import ingest_upload as real_ingest
 from app.operations.heavy import install_heavy_limiter, run_heavy
 from tests.faults.support import hdf5_run, upload_file
 
@@ -64,7 +64,7 @@ def test_concurrent_uploads_are_converted_one_at_a_time(make_client, tmp_path, m
             with lock:
                 active[0] -= 1
 
-    monkeypatch.setattr("app.api.upload.ingest", counting_ingest)
+    monkeypatch.setattr("app.runs.create.ingest_upload", counting_ingest)  # the parse child's launcher
     files = [hdf5_run(tmp_path, n=20_000) for _ in range(4)]
     with ThreadPoolExecutor(4) as pool:
         codes = [r.status_code for r in pool.map(lambda p: upload_file(client, p), files)]

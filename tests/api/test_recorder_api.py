@@ -8,9 +8,7 @@ import json
 import pytest
 from sqlalchemy import func, select
 
-from app.db.auth_models import AuditEntry
-from app.db.models import Job, Run
-from app.db.recorder_models import LineGeometryRow
+from app.db.models import AuditEntry, Job, LineGeometryRow, Run
 from app.db.session import Database
 from app.simulate.recorder import GnssSimulation, simulate_recorder_run
 from tests.api.support import store_files

@@ -253,23 +253,21 @@ def test_concurrent_duplicate_commit_leaves_no_directory(client, tmp_path):
     sha256 and its upload directory is not installed as a run directory."""
     from sqlalchemy.exc import IntegrityError
 
-    from app.api.deps import Principal
-    from app.api.upload import _create_run, _Received
     from app.core.runstore import RunStore
+    from app.core.security import Principal
     from app.io import ingest
+    from app.runs.create import UploadedFile, insert_run
 
     path = runfiles.write_hdf5(tmp_path / "good.h5")
     first = _post_file(client, path).json()
     store = RunStore(client.settings.run_store)
     upload_dir = store.new_upload_dir()
     summary = ingest(path, None, None, upload_dir / "run.h5")
-    received = _Received(path=path, sha256=first["sha256"], size=path.stat().st_size)
+    received = UploadedFile(path=path, sha256=first["sha256"], size=path.stat().st_size)
     db = Database(client.settings.database_url)
     try:
         with pytest.raises(IntegrityError):
-            _create_run(
-                    db, store, upload_dir, summary, received, "hdf5", Principal("test", "admin")
-                )
+            insert_run(db, store, upload_dir, summary, received, "hdf5", Principal("test", "admin"))
     finally:
         db.dispose()
     assert store.run_ids_on_disk() == [first["id"]]

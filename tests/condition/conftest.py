@@ -33,11 +33,11 @@ class Fleet:
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory) -> Iterator[Fleet]:
     """An API client (admin key) on a database with :data:`FLEET_RUNS` generated runs of line F1
-    (and a second line "F2" on two tracks), written by :func:`app.db.condition_fleet.ingest_fleet`."""
+    (and a second line "F2" on two tracks), written by :func:`app.condition.fleet.ingest_fleet`."""
     from fastapi.testclient import TestClient
 
+    from app.condition.fleet import ingest_fleet
     from app.db import migrate
-    from app.db.condition_fleet import ingest_fleet
     from app.db.session import Database
     from app.main import create_app
     from tests.api.support import auth_headers, create_api_key, make_settings

@@ -8,8 +8,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from app.db import queue
-from app.db.condition_writer import ConditionConfig
+from app import publish
+from app.condition.config import ConditionConfig
 from app.db.models import Job, JobStatus, Run, utcnow
 from app.db.session import Database
 from app.simulate.fleet import FleetSimulator, WheelTrack
@@ -40,7 +40,7 @@ def publish_tracks(
     track: str = "1", shift_m: float = 0.0, config: ConditionConfig | None = None, sha: str | None = None,
     run_id: int | None = None,
 ) -> tuple[int, int, dict[str, Any]]:
-    """Publish generated tracks as a processed run through :func:`app.db.queue.complete_job`
+    """Publish generated tracks as a processed run through :func:`app.publish.publish_job`
     (the local worker's path); returns (run id, job id, the job's condition summary)."""
     with db.write() as s:
         if run_id is None:
@@ -57,7 +57,7 @@ def publish_tracks(
         s.flush()
         job_id = job.id
     kw = {"condition": config} if config is not None else {}
-    assert queue.complete_job(db, job_id, run_id, profile_frame_of(tracks, shift_m=shift_m), [], {},
+    assert publish.publish_job(db, job_id, run_id, profile_frame_of(tracks, shift_m=shift_m), [], {},
                               worker_id="test-worker", **kw)
     with db.read() as s:
         meta = s.get(Job, job_id).meta

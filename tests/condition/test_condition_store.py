@@ -9,7 +9,7 @@ import pytest
 from sqlalchemy import func, select
 
 from app.db import crud
-from app.db.condition_models import ConditionFlag, ConditionLine, ConditionRun, SegmentCondition
+from app.db.models import ConditionFlag, ConditionLine, ConditionRun, SegmentCondition
 from app.simulate.fleet import FleetNoise, FleetPlan, FleetSimulator, PlantedStep
 from app.simulate.track import generate_line
 from tests.condition.support import DAY0, profile_frame_of, publish_history, publish_tracks
@@ -126,6 +126,7 @@ def test_a_run_with_an_odometry_error_is_aligned_onto_the_line(db):
 def test_a_metadata_correction_moves_the_runs_rows_to_the_corrected_line(client, tmp_path):
     """PATCH /runs/{id} queues a reprocessing; its publish replaces the run's condition rows under
     the corrected line, and the old line, left without runs, is gone from the store's answers."""
+    from app import publish
     from app.db import queue
     from app.db.session import Database
     from tests.api import runfiles
@@ -135,20 +136,20 @@ def test_a_metadata_correction_moves_the_runs_rows_to_the_corrected_line(client,
         run_id = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()["id"]
     db = Database(client.settings.database_url)
     try:
-        def publish(seed: int) -> int:
+        def publish_seed(seed: int) -> int:
             job_id = queue.claim_next_job(db, "test", 30)
             assert job_id is not None
             _, tracks = _sim().run(0.0, seed)
-            assert queue.complete_job(db, job_id, run_id, profile_frame_of(tracks), [], {}, worker_id="test")
+            assert publish.publish_job(db, job_id, run_id, profile_frame_of(tracks), [], {}, worker_id="test")
             return job_id
 
-        publish(1)
+        publish_seed(1)
         assert [x["line_id"] for x in client.get("/api/v1/condition/lines").json()["items"]] == ["4010"]
         r = client.patch(f"/api/v1/runs/{run_id}", json={"metadata": {"line_id": "4020"}})
         assert r.status_code == 200, r.text
         # until the reprocessing is published, the rows of the old metadata stay
         assert [x["line_id"] for x in client.get("/api/v1/condition/lines").json()["items"]] == ["4010"]
-        job2 = publish(2)
+        job2 = publish_seed(2)
 
         items = client.get("/api/v1/condition/lines").json()["items"]
         assert [(x["line_id"], x["n_runs"], x["reference_run_id"]) for x in items] == [("4020", 1, run_id)]

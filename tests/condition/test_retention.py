@@ -10,8 +10,7 @@ import pytest
 from sqlalchemy import func, select, text
 
 from app.db import migrate, partitions
-from app.db.condition_models import SegmentCondition
-from app.db.models import ProfileBin, Run
+from app.db.models import ProfileBin, Run, SegmentCondition
 from app.db.retention import sweep_profiles
 from app.db.session import Database
 from app.simulate.fleet import FleetNoise, FleetSimulator

@@ -18,7 +18,8 @@ import time
 import pytest
 
 from app.alerts import transport
-from app.alerts.url_policy import (
+from app.core.signing import SIGNATURE_HEADER, verify
+from app.core.url_policy import (
     AddressPolicy,
     RefusedAddress,
     UrlError,
@@ -26,7 +27,6 @@ from app.alerts.url_policy import (
     parse_networks,
     resolve,
 )
-from app.core.signing import SIGNATURE_HEADER, verify
 from app.db import webhooks
 from app.db.session import Database
 from tests.condition.test_webhooks import Receiver

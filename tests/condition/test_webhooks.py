@@ -14,8 +14,8 @@ import pytest
 
 from app.core.signing import SIGNATURE_HEADER, verify
 from app.db import webhooks
+from app.db.models import DeliveryStatus, WebhookDelivery
 from app.db.session import Database
-from app.db.webhook_models import DeliveryStatus, WebhookDelivery
 from app.simulate.fleet import FleetNoise, FleetPlan, FleetSimulator, PlantedStep
 from app.simulate.track import generate_line
 from tests.condition.support import DAY0, publish_tracks

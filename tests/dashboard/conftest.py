@@ -32,8 +32,7 @@ CHROMIUM_ARGS = [
 #: README's pictures
 SCREENSHOTS = Path(os.environ.get("TRACKVKF_SCREENSHOT_DIR")
                    or Path(tempfile.gettempdir()) / f"trackvkf-screenshots-{os.getuid()}")
-#: the demo data set, with runs of this length (km) and sample rate (Hz)
-RUN_LENGTH_KM = 1.2
+#: the extra run file of the upload test: sample rate (Hz) and the line it is on
 RUN_FS = 10_000.0
 LINE_SEED = 7
 #: the browser's user: an engineer (uploads, reprocesses, cancels)
@@ -71,15 +70,14 @@ class Dashboard:
 
 
 @pytest.fixture(scope="session")
-def dashboard(tmp_path_factory) -> Iterator[Dashboard]:
-    """The real service with the demo data processed (app.simulate.demo: 4 runs of 1.2 km at
+def dashboard(tmp_path_factory, demo_data) -> Iterator[Dashboard]:
+    """The real service with the demo data processed (the ``demo_data`` fixture: 4 runs of 1.2 km at
     10 kHz on two lines, reference data of line SIM), two workers left running, a further run
     file for the upload test and a bad file."""
-    from app.simulate.demo import write_demo_dataset
     from app.simulate.run import simulate_run
 
     work = tmp_path_factory.mktemp("dashboard")
-    demo = write_demo_dataset(work / "demo", length_km=RUN_LENGTH_KM, fs=RUN_FS)
+    demo = demo_data
     upload = work / "upload-run.h5"
     simulate_run(upload, length_km=0.6, fs=RUN_FS, seed=21, line_seed=LINE_SEED,
                  start_time="2025-01-15T09:30:00+01:00", with_forces=False)

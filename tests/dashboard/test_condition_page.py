@@ -21,8 +21,8 @@ LINE = "CF"
 
 @pytest.fixture(scope="module")
 def condition_service(tmp_path_factory) -> Iterator[object]:
+    from app.condition.fleet import ingest_fleet
     from app.db import auth_crud
-    from app.db.condition_fleet import ingest_fleet
     from app.db.session import Database
     from app.simulate.fleet import (
         FleetPlan,

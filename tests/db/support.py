@@ -7,10 +7,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from app.db import crud
 from app.db.models import ORDER_COLUMNS, Run, utcnow
 from app.db.session import Database
 
-__all__ = ["add_run", "profile_table"]
+__all__ = ["add_run", "profile_table", "make_run_with_job", "job_results"]
 
 
 def add_run(db: Database, sha: str = "a" * 64, **columns: Any) -> int:
@@ -61,3 +62,32 @@ def profile_table(
             "sleeper_amp_sd_shared": rng.uniform(0.0, 0.05, n_bins),
         }))
     return pd.concat(frames, ignore_index=True)
+
+
+def make_run_with_job(db: Database, sha: str = "a" * 64) -> tuple[int, int]:
+    """A run row and its queued job; (run id, job id)."""
+    with db.write() as s:
+        run = Run(
+            sha256=sha, file_path="x", source_format="hdf5", size_bytes=1, fs=10_000.0,
+            n_samples=10, duration_s=0.001, channels=["Z11"], meta={}, created_at=utcnow(),
+        )
+        s.add(run)
+        s.flush()
+        job = crud.create_job(s, run.id, {"n_wheel_orders": 11})
+        return run.id, job.id
+
+
+def job_results(n_bins: int, value: float) -> tuple[pd.DataFrame, list[dict]]:
+    """Profile rows of wheels 11 and 12 (``n_bins`` bins of amplitude ``value``) and their wheel results."""
+    rows = []
+    for wheel in ("11", "12"):
+        for b in range(n_bins):
+            rows.append({"wheel": wheel, "bin": 40_000 + b, "km": (40_000 + b + 0.5) * 0.25 / 1000,
+                         "n_samples": 100, "speed_mean": 20.0, "sleeper_amp": value,
+                         **{f"order_amp_{i:02d}": value / i for i in range(1, 12)},
+                         "residual_rms": 0.1, "sleeper_force_amp": np.nan})
+    wheels = [{"wheel": w, "wheel_diameter_m": 0.92, "n_windows": 3,
+               "orders": [{"order": 1, "radius_um": 10.0}], "angles_deg": [0.0, 1.0],
+               "profile_um": [1.0, np.float64(2.0)], "profile_p05_um": None, "profile_p95_um": None}
+              for w in ("11", "12")]
+    return pd.DataFrame(rows), wheels

@@ -95,20 +95,21 @@ def test_answers_are_the_rows_of_the_sql_path(stored):
 
 
 def test_the_api_answers_byte_for_byte_as_without_arrays(stored, service_settings):
-    from app.api import profiles as api
+    from app.profiles import answer as api
+    from app.profiles.query import ProfileQuery
 
     db, job_id, profiles = stored
     arrays = DisplayArrays(64 * 1024 * 1024)
-    query = api._ProfileQuery(1, job_id, 0.25, 1, "12", None, None, 0.25, 2400,
+    query = ProfileQuery(1, job_id, 0.25, 1, "12", None, None, 0.25, 2400,
                               ("sleeper_amp", "speed_mean", "sleeper_force_amp"), "columns")
-    first = api._profile_body(db, service_settings, query, arrays)  # the database answers; the wheel is read
+    first = api.profile_body(db, service_settings, query, arrays)  # the database answers; the wheel is read
     assert arrays.wait(60) and arrays.size > 0
     for km_from, km_to in _windows(profiles["km"].to_numpy()[:N_BINS])[:20]:
         for layout in ("columns", "rows"):
-            q = api._ProfileQuery(1, job_id, 0.25, 1, "12", km_from, km_to, 0.25, 300,
+            q = ProfileQuery(1, job_id, 0.25, 1, "12", km_from, km_to, 0.25, 300,
                                   ("sleeper_amp", "speed_mean", "sleeper_force_amp"), layout)
-            assert api._profile_body(db, service_settings, q, arrays) == api._profile_body(db, service_settings, q)
-    assert first == api._profile_body(db, service_settings, query, arrays)
+            assert api.profile_body(db, service_settings, q, arrays) == api.profile_body(db, service_settings, q)
+    assert first == api.profile_body(db, service_settings, query, arrays)
 
 
 def test_a_wheel_is_read_in_the_background_once(stored, monkeypatch):

@@ -46,7 +46,8 @@ def test_postgresql_upgrade_downgrade_with_procrastinate_schema(pg_cluster):
     assert objs["service"] == 5
     # the schema works: Procrastinate can defer into it
     from app.core.config import Settings
-    from worker.tasks import TASK_PLAN, make_app
+    from worker.hosting import make_app
+    from worker.tasks import TASK_PLAN
 
     app = make_app(Settings(database_url=url))
     with app.open():

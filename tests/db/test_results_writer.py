@@ -150,7 +150,7 @@ def test_publish_makes_a_job_the_runs_and_stores_wheels_as_json(db):
         results_writer.publish_results(
             s, run_id, new_job, [wheel, {"wheel": "12", "wheel_diameter_m": float("nan")}]
         )
-        crud.get_job(s, new_job).status = JobStatus.DONE  # as complete_job does, same transaction
+        crud.get_job(s, new_job).status = JobStatus.DONE  # as publish_job does, same transaction
     assert _count(db) == 7  # the old job's rows are gone
     with db.read() as s:
         assert results_reader.results_job_id(s, run_id) == new_job

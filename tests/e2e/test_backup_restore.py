@@ -20,8 +20,7 @@ from pathlib import Path
 import pytest
 from sqlalchemy import func, select
 
-from app.db.condition_models import ConditionRun, SegmentCondition
-from app.db.models import Job, JobStatus, ProfileBin, Run, WheelOOR
+from app.db.models import ConditionRun, Job, JobStatus, ProfileBin, Run, SegmentCondition, WheelOOR
 from app.db.session import Database
 from tests.api import runfiles
 from tests.e2e.conftest import running_service

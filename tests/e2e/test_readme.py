@@ -1,6 +1,8 @@
-"""The README's shell commands, run verbatim against a throw-away service.
+"""The README's shell commands (and those of the guides it sends a reader to), run verbatim
+against a throw-away service.
 
-Blocks preceded by ``<!-- readme-test: run -->`` are run in one bash, in the README's order, in
+Blocks preceded by ``<!-- readme-test: run -->`` are run in one bash, in the order of
+:data:`DOCS` and of each file (the README first: it starts the service), in
 a fresh project directory (the repository's ``.venv`` linked in, the default ``./var``). A line
 whose comment says ``(runs until Ctrl-C)`` is started in the background (serve, worker). The
 harness adds only what a reader sees anyway: ``curl`` fails on an HTTP error
@@ -26,6 +28,8 @@ pytestmark = pytest.mark.timeout(900)
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
+#: the files whose marked blocks run, in this order
+DOCS = (README, ROOT / "docs" / "api.md", ROOT / "docs" / "cli.md")
 MARKER = "<!-- readme-test: run -->"
 BACKGROUND = "(runs until Ctrl-C)"
 
@@ -97,8 +101,14 @@ def _port_8000_free() -> bool:
         return True
 
 
+def all_blocks() -> list[list[str]]:
+    """The marked blocks of :data:`DOCS`, in order."""
+    return [block for path in DOCS for block in readme_blocks(path.read_text(encoding="utf-8"))]
+
+
 def test_marked_blocks_exist_and_parse():
-    blocks = readme_blocks(README.read_text(encoding="utf-8"))
+    blocks = all_blocks()
+    assert readme_blocks(README.read_text(encoding="utf-8")), "the README starts the service in a marked block"
     assert len(blocks) >= 4
     text = "\n".join(c for b in blocks for c in b)
     assert "source .venv/bin/activate" in text and "trackvkf serve" in text
@@ -118,7 +128,7 @@ def test_readme_commands_run_verbatim(tmp_path):
     logs = tmp_path / "logs"
     logs.mkdir()
     script = tmp_path / "readme.sh"
-    script.write_text(readme_script(readme_blocks(README.read_text(encoding="utf-8")), logs))
+    script.write_text(readme_script(all_blocks(), logs))
     env = {k: v for k, v in os.environ.items() if not k.startswith(("TRACKVKF_", "VIRTUAL_ENV"))}
     env["PATH"] = re.sub(r"[^:]*\.venv/bin:?", "", env.get("PATH", "")) or "/usr/bin:/bin"
     done = subprocess.run([*(isolation or []), "bash", str(script)], cwd=project, env=env,

@@ -85,7 +85,8 @@ def test_same_chunk_delivered_twice_on_hosts_sharing_only_an_object_store(
 ):
     if service.backend != "postgresql":
         pytest.skip("task delivery is Procrastinate's (the local worker owns whole jobs)")
-    from worker.tasks import TASK_ASSEMBLE, TASK_CHUNK, TASK_PUBLISH, TASK_STORE_WHEEL, make_app
+    from worker.hosting import make_app
+    from worker.tasks import TASK_ASSEMBLE, TASK_CHUNK, TASK_PUBLISH, TASK_STORE_WHEEL
 
     path, _ = short_sim_run
     # two "hosts" without a common file system: the API's run store, the workers' own

@@ -148,9 +148,9 @@ def test_fan_out_cancel_removes_the_chunks_already_computed(fanout):
     job_id = client.post(f"/api/v1/runs/{run['id']}/jobs", json=REPROCESS).json()["id"]
     app = _App()
     assert tasks.plan_job(_context(app, rt, job_id=7), job_id=job_id).endswith("deferred")
-    assert tasks.process_chunk(_context(app, rt), job_id=job_id, index=0).startswith("chunk 0 done")
+    assert tasks.run_chunk(_context(app, rt), job_id=job_id, index=0).startswith("chunk 0 done")
     assert _shared_job_names(store, run["id"]) == [str(job_id)]
     assert client.post(f"/api/v1/jobs/{job_id}/cancel").json()["cancel_requested"] is True
-    assert tasks.process_chunk(_context(app, rt), job_id=job_id, index=1) == "job running"
+    assert tasks.run_chunk(_context(app, rt), job_id=job_id, index=1) == "job running"
     assert _job(client, job_id)["status"] == "cancelled"
     assert _shared_job_names(store, run["id"]) == []

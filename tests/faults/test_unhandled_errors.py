@@ -100,12 +100,12 @@ def test_nul_characters_rejected_on_postgres(pg_cluster, make_client, tmp_path):
 
 def test_unexpected_errors_are_audited_too(client, tmp_path, monkeypatch):
     """A failure that is not the client's (a bug) still leaves its audit entry."""
-    import app.api.upload as upload
+    import app.runs.create as upload
 
     def boom(*args, **kwargs):
         raise RuntimeError("simulated bug")
 
-    monkeypatch.setattr(upload, "ingest", boom)
+    monkeypatch.setattr(upload, "ingest_upload", boom)  # the upload's parse (app.io.isolation)
     from fastapi.testclient import TestClient
 
     quiet = TestClient(client.app, headers=dict(client.headers), raise_server_exceptions=False)

@@ -168,18 +168,20 @@ def test_mdf4_deflate_bomb_and_channel_limit(tmp_path: Path) -> None:
 
 
 def test_mdf4_lying_dz_block_is_refused(tmp_path: Path) -> None:
-    """A DZ block that inflates to more than it declares is refused before asammdf reads it."""
+    """A DZ stream that inflates to more than it declares is refused before asammdf reads it."""
     import zlib
 
-    from app.io.sources.mdf4 import _check_deflate
+    from app.io.sources.mdf4_blocks import inflate_exactly
 
     payload = zlib.compress(b"\0" * 100_000)
     path = tmp_path / "blob"
     path.write_bytes(b"xx" + payload)
     with open(path, "rb") as fh:
-        _check_deflate(fh, 2, len(payload), 100_000)
+        inflate_exactly(fh, 2, len(payload), 100_000, "DZ")
         with pytest.raises(RunFileError, match="decompression bomb"):
-            _check_deflate(fh, 2, len(payload), 1000)
+            inflate_exactly(fh, 2, len(payload), 1000, "DZ")
+        with pytest.raises(RunFileError, match="inflates to 100000 bytes but declares"):
+            inflate_exactly(fh, 2, len(payload), 200_000, "DZ")
 
 
 def test_channel_map_validation_and_units() -> None:

@@ -10,7 +10,7 @@ from sqlalchemy.exc import DatabaseError
 
 from app.core.security import token_digest
 from app.db import auth_crud
-from app.db.auth_models import ApiKey, AuditEntry
+from app.db.models import ApiKey, AuditEntry
 from app.db.session import Database
 from tests.api import runfiles
 from tests.api.support import auth_headers, make_settings

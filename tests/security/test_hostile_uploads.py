@@ -15,8 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 from sqlalchemy import func, select
 
-from app.db.auth_models import AuditEntry
-from app.db.models import Job, Run
+from app.db.models import AuditEntry, Job, Run
 from app.db.session import Database
 from tests.api import runfiles
 from tests.api.support import store_files

@@ -21,7 +21,7 @@ from fastapi.testclient import TestClient
 import app.api.auth as auth_api
 from app.core.security import device_cookie_id, new_device_cookie
 from app.db import auth_crud, migrate
-from app.db.auth_models import AuditEntry
+from app.db.models import AuditEntry
 from app.db.session import Database
 from app.main import create_app
 from tests.api.support import make_settings

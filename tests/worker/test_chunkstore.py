@@ -17,7 +17,7 @@ from app.core.runstore import RunStore
 from app.pipeline import assemble, plan_chunks, process_chunk, run_pipeline
 from worker.chunkstore import ChunkStore
 from worker.health import alive_file, check
-from worker.tasks import libpq_url
+from worker.hosting import libpq_url
 
 SETTINGS = ProcessingSettings.from_dict({"chunk_seconds": 4.0})
 

@@ -9,7 +9,7 @@ import pytest
 from app.db import crud, migrate
 from app.db.models import Run, utcnow
 from app.db.session import Database
-from worker.tasks import libpq_url
+from worker.hosting import libpq_url
 
 
 def _notes(conn: psycopg.Connection) -> list[str]:

@@ -86,13 +86,13 @@ def test_job_meta_of_both_modes():
 
 
 def test_the_database_url_picks_the_mode(monkeypatch):
+    import worker.hosting
     import worker.runner
-    import worker.tasks
 
     calls = []
     monkeypatch.setattr(worker.runner, "run_worker", lambda s, **kw: calls.append(("local", kw)))
-    monkeypatch.setattr(worker.tasks, "run_workers", lambda s, n: calls.append(("workers", n)) or 3)
-    monkeypatch.setattr(worker.tasks, "run_worker_process", lambda s, wait: calls.append(("process", wait)) or 0)
+    monkeypatch.setattr(worker.hosting, "run_workers", lambda s, n: calls.append(("workers", n)) or 3)
+    monkeypatch.setattr(worker.hosting, "run_worker_process", lambda s, wait: calls.append(("process", wait)) or 0)
     sqlite = Settings(database_url="sqlite:///x.db")
     pg = Settings(database_url="postgresql+psycopg://u:p@db.example/trackvkf")
     assert modes.run(sqlite, once=True) == 0

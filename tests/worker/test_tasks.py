@@ -17,7 +17,7 @@ from procrastinate import exceptions as pexc
 
 from app.core.config import Settings
 from app.db.session import Database
-from worker import tasks
+from worker import hosting, tasks
 from worker.runner import LocalWorker
 from worker.steps import WorkerRuntime
 
@@ -26,7 +26,7 @@ pytestmark = pytest.mark.timeout(300)
 SETTINGS = {"chunk_seconds": 4.0}
 BY_NAME = {
     tasks.TASK_PLAN: tasks.plan_job,
-    tasks.TASK_CHUNK: tasks.process_chunk,
+    tasks.TASK_CHUNK: tasks.run_chunk,
     tasks.TASK_ASSEMBLE: tasks.assemble_job,
     tasks.TASK_STORE_WHEEL: tasks.store_wheel,
     tasks.TASK_PUBLISH: tasks.publish_job,
@@ -122,23 +122,23 @@ def test_each_task_alone(uploaded):
     app = _App()
     try:
         # not planned yet: nothing to do
-        assert tasks.process_chunk(_context(app, rt), job_id=job_id, index=0) == "job queued"
+        assert tasks.run_chunk(_context(app, rt), job_id=job_id, index=0) == "job queued"
         assert tasks.assemble_job(_context(app, rt), job_id=job_id) == "job queued"
         assert tasks.plan_job(_context(app, rt, job_id=7), job_id=job_id).endswith("deferred")
         assert tasks.plan_job(_context(app, rt, job_id=8), job_id=job_id) == "skipped"  # another planner
         chunk_tasks = [kw for name, _, _, kw in app.waiting if name == tasks.TASK_CHUNK]
         assert [kw["index"] for kw in chunk_tasks] == list(range(len(chunk_tasks)))
         assert tasks.assemble_job(_context(app, rt), job_id=job_id) == "chunks missing"
-        assert tasks.process_chunk(_context(app, rt), job_id=job_id, index=99) == "unknown chunk"
-        first = tasks.process_chunk(_context(app, rt), job_id=job_id, index=0)
+        assert tasks.run_chunk(_context(app, rt), job_id=job_id, index=99) == "unknown chunk"
+        first = tasks.run_chunk(_context(app, rt), job_id=job_id, index=0)
         assert first.startswith("chunk 0 done")
-        again = tasks.process_chunk(_context(app, rt), job_id=job_id, index=0)  # a duplicate delivery
+        again = tasks.run_chunk(_context(app, rt), job_id=job_id, index=0)  # a duplicate delivery
         assert again.startswith("chunk 0 done")
         assert tasks.store_wheel(_context(app, rt), job_id=job_id, wheel="99") == f"run {run_id} has no wheel '99'"
         assert tasks.publish_job(_context(app, rt), job_id=job_id) == "wheel 11 not stored yet"
         # a cancel request stops the job's tasks
         assert client.post(f"/api/v1/jobs/{job_id}/cancel").status_code in (200, 202)
-        assert tasks.process_chunk(_context(app, rt), job_id=job_id, index=1) == "job running"
+        assert tasks.run_chunk(_context(app, rt), job_id=job_id, index=1) == "job running"
         assert tasks.dispatch_jobs(_context(app, rt), timestamp=0) == 0
         assert client.get(f"/api/v1/jobs/{job_id}").json()["status"] == "cancelled"
         assert tasks.store_wheel(_context(app, rt), job_id=job_id, wheel="11") == "job cancelled"
@@ -160,7 +160,7 @@ def test_blueprint_keeps_the_task_names():
     }
     settings = Settings(database_url="postgresql+psycopg://u:p@db.example/trackvkf", worker_stale_after_s=12)
     for _ in range(2):  # a worker makes a new app at every restart
-        app = tasks.make_app(settings)
+        app = hosting.make_app(settings)
         assert set(BY_NAME) | {tasks.TASK_DISPATCH, tasks.TASK_RETRY_STALLED} <= set(app.tasks)
         crons = {name: p.cron for (name, _), p in app.periodic_registry.periodic_tasks.items()}
         assert crons == {tasks.TASK_DISPATCH: "* * * * * */5", tasks.TASK_RETRY_STALLED: "* * * * * */4"}

@@ -4,7 +4,7 @@ against a segment's history, hotspot ranking and the effect of maintenance actio
 Modules: :mod:`segments` (25 cm bins → 10 m / 100 m segment rows), :mod:`change`
 (step and trend tests against the repeatability of the history), :mod:`assess` (a run's
 tests per wheel and its flags per place; the in-memory history of generated runs),
-:mod:`hotspots` (segments ranked by where to act first), :mod:`index` (the provisional index).
+:mod:`hotspots` (segments ranked by where to act first), :mod:`index` (the condition index ln A).
 """
 
 from app.analysis.condition.assess import (
@@ -34,10 +34,18 @@ from app.analysis.condition.change import (
     trend_change,
 )
 from app.analysis.condition.hotspots import DEFAULT_ANOMALY_Z, HotspotTable, rank_segments
-from app.analysis.condition.segments import SEGMENT_LENGTHS_M, SegmentStats, segment_stats
+from app.analysis.condition.segments import (
+    FINE_SEGMENT_M,
+    OVERVIEW_SEGMENT_M,
+    SEGMENT_LENGTHS_M,
+    SegmentStats,
+    segment_stats,
+)
 
 __all__ = [
     "SEGMENT_LENGTHS_M",
+    "OVERVIEW_SEGMENT_M",
+    "FINE_SEGMENT_M",
     "SegmentStats",
     "segment_stats",
     "ChangeParams",

@@ -14,7 +14,7 @@ The step test runs on every segment length, the trend test on
 longer segments are the more repeatable).
 
 Two history sources share the same matrices: the database (the publish step,
-:mod:`app.db.condition_writer`) and :class:`RollingHistory`, an in-memory
+:mod:`app.condition.writer`) and :class:`RollingHistory`, an in-memory
 window over the runs of one line in date order (the fleet generator and the
 tests), so a generated history is judged exactly as a published one.
 """

@@ -55,6 +55,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
+
 __all__ = [
     "ChangeParams",
     "DEFAULT_CHANGE_PARAMS",
@@ -105,8 +107,8 @@ class ChangeParams:
     agree_z : float
         A wheel agrees with a combined change when its own score reaches this.
     speed_tolerance : float
-        History values count only where the run passed within this relative
-        speed difference, ``|v / v_new − 1| ≤ speed_tolerance``.
+        History values count only where the run passed at matched speed,
+        ``|ln(v / v_new)| ≤ ln(1 + speed_tolerance)`` (:mod:`app.analysis.speed_match`).
     level_block_m : float
         Length of the blocks whose median deviation is taken as a run's level, m.
     level_block_segments : int
@@ -129,7 +131,7 @@ class ChangeParams:
     history_scan_runs: int = 60
     trend_window_days: float = 180.0
     min_spread: float = 0.005
-    speed_tolerance: float = 0.10
+    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE
     level_block_m: float = 1000.0
     level_block_segments: int = 50
     min_level_segments: int = 5
@@ -284,7 +286,8 @@ def speed_matched(
     speed : numpy.ndarray
         (segments,) speed of the newest run, m/s.
     tolerance : float
-        Largest relative speed difference kept, ``|v / v_new - 1|`` (> 0).
+        Matched-speed tolerance (> 0): kept where ``|ln(v / v_new)| <= ln(1 + tolerance)``
+        (:func:`app.analysis.speed_match.speeds_matched`).
 
     Returns
     -------
@@ -308,7 +311,7 @@ def speed_matched(
         sxx = float((dx * dx).sum())
         exponent = float((dx * dy).sum() / sxx) if sxx > 1e-6 * max(int(ok.sum()), 1) else 0.0
         lv_new = np.log(np.where(v > 0, v, np.nan))[:, None]
-        matched = ok & (np.abs(hv / v[:, None] - 1.0) <= tolerance)
+        matched = ok & speeds_matched(hv, v[:, None], tolerance)
         adjusted = np.where(matched, h + exponent * (lv_new - lv), np.nan)
     return SpeedMatch(history=adjusted, exponent=exponent, n_matched=matched.sum(axis=1).astype(np.int64))
 

@@ -28,10 +28,14 @@ import numpy as np
 
 from app.analysis._checks import check_positive
 
-__all__ = ["SEGMENT_LENGTHS_M", "SegmentStats", "segment_stats"]
+__all__ = ["SEGMENT_LENGTHS_M", "OVERVIEW_SEGMENT_M", "FINE_SEGMENT_M", "SegmentStats", "segment_stats"]
 
 #: Segment lengths of the condition store, m.
 SEGMENT_LENGTHS_M: tuple[float, ...] = (10.0, 100.0)
+#: Segment length of a run's overview rows (the line's heat map: mean over the wheels), m.
+OVERVIEW_SEGMENT_M: float = SEGMENT_LENGTHS_M[-1]
+#: The finest segment length of the store (a segment's trend, the work list), m.
+FINE_SEGMENT_M: float = SEGMENT_LENGTHS_M[0]
 
 
 @dataclass(frozen=True)

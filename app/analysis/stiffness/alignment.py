@@ -20,8 +20,12 @@ import numpy as np
 from scipy import ndimage, signal
 
 from app.analysis._checks import check_positive
+from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
 
-__all__ = ["Alignment", "signature", "align_runs", "SegmentTable", "segment_table"]
+__all__ = ["Alignment", "signature", "align_runs", "SegmentTable", "segment_table", "DEFAULT_SEGMENT_M"]
+
+#: Default segment length of the runs-by-segment comparison (the line view's heat map), m.
+DEFAULT_SEGMENT_M = 100.0
 
 
 @dataclass(frozen=True)
@@ -230,10 +234,10 @@ def segment_table(
     shifts_m: list[float],
     *,
     bin_length_m: float = 0.25,
-    segment_m: float = 100.0,
+    segment_m: float = DEFAULT_SEGMENT_M,
     min_coverage: float = 0.5,
     speeds: list[np.ndarray] | None = None,
-    speed_tolerance: float = 0.1,
+    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
 ) -> SegmentTable:
     """Per-segment mean amplitude of several runs after shifting each by its alignment.
 
@@ -252,7 +256,8 @@ def segment_table(
         ``change`` compares two runs only where their speeds differ by at most
         ``speed_tolerance`` (relative).
     speed_tolerance : float
-        ``|ln(v_last / v_first)| <= ln(1 + speed_tolerance)`` for a change.
+        A change needs the two runs at matched speed, ``|ln(v_last / v_first)| <= ln(1 + speed_tolerance)``
+        (:func:`app.analysis.speed_match.speeds_matched`).
     """
     if len(runs) != len(shifts_m) or (speeds is not None and len(speeds) != len(runs)):
         raise ValueError("runs, shifts_m, speeds: must have equal lengths")
@@ -286,13 +291,12 @@ def segment_table(
         dev = np.where(np.isfinite(matrix), matrix - mean, 0.0)
         spread = np.where(n_ok >= 2, np.sqrt((dev**2).sum(axis=0) / np.maximum(n_ok - 1, 1)), np.nan)
     change = np.full(all_segs.size, np.nan)
-    limit = np.log1p(speed_tolerance)
     for j in range(all_segs.size):
         have = np.flatnonzero(np.isfinite(matrix[:, j]))
         if have.size < 2:
             continue
         first, last = have[0], have[-1]
-        if speed is not None and not abs(np.log(speed[last, j] / speed[first, j])) <= limit:
+        if speed is not None and not speeds_matched(speed[last, j], speed[first, j], speed_tolerance):
             continue
         change[j] = matrix[last, j] - matrix[first, j]
     return SegmentTable(all_segs * segment_m, matrix, mean, spread, change, speed)

@@ -48,6 +48,11 @@ import numpy as np
 from scipy import stats
 
 from app.analysis._checks import check_positive
+from app.analysis.speed_match import (
+    DEFAULT_SPEED_TOLERANCE,
+    log_speed_tolerance,
+    log_speeds_matched,
+)
 
 __all__ = [
     "BLOCK_M",
@@ -462,7 +467,7 @@ class ReferenceSet:
     curves: dict[str, ReferenceCurve]
     wheel_offsets: tuple[WheelOffset, ...] = ()
     rail_difference: float = float("nan")
-    speed_tolerance: float = 0.1
+    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE
     block_m: float = BLOCK_M
     extra: dict[str, Any] = field(default_factory=dict)
 
@@ -600,7 +605,7 @@ def fit_reference_curve(
     samples: BlockSamples,
     cls: str = "",
     *,
-    speed_tolerance: float = 0.1,
+    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
     min_support: int = 20,
     confidence: float = 0.9,
     n_boot: int = 40,
@@ -632,7 +637,7 @@ def fit_reference_curve(
     if int(min_support) != min_support or min_support < 3:
         raise ValueError(f"min_support: must be an integer >= 3, got {min_support!r}")
     y, u = samples.log_amp, samples.log_speed
-    h = math.log1p(speed_tolerance)
+    h = log_speed_tolerance(speed_tolerance)  # the window: the matched-speed rule
     _, loc = np.unique(samples.location, return_inverse=True)
     loc = loc.ravel()
     n_loc = int(loc.max()) + 1 if loc.size else 0
@@ -710,7 +715,7 @@ def _codes(values: np.ndarray) -> np.ndarray:
 
 def bin_repeatability(
     log_amp: np.ndarray, log_speed: np.ndarray, rail: np.ndarray, bin_index: np.ndarray, pass_id: np.ndarray,
-    *, speed_tolerance: float = 0.1,
+    *, speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
 ) -> float:
     """Standard deviation of one bin's ``ln A`` between two passes at similar speed (ln units).
 
@@ -730,7 +735,7 @@ def bin_repeatability(
     order = np.lexsort((p, b, r))
     r, b, p, y, u = r[order], b[order], p[order], y[order], u[order]
     same = (r[1:] == r[:-1]) & (b[1:] == b[:-1]) & (p[1:] != p[:-1])
-    same &= np.abs(u[1:] - u[:-1]) <= math.log1p(speed_tolerance)
+    same &= log_speeds_matched(u[1:] - u[:-1], speed_tolerance)
     d = (y[1:] - y[:-1])[same]
     if d.size < 100:
         return float("nan")
@@ -801,7 +806,7 @@ def wheel_offsets(samples: BlockSamples, curves: Mapping[str, ReferenceCurve], *
 def fit_reference_set(
     samples: BlockSamples,
     *,
-    speed_tolerance: float = 0.1,
+    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
     min_support: int = 20,
     confidence: float = 0.9,
     n_boot: int = 40,
@@ -829,7 +834,7 @@ def fit_reference_from_rows(
     *,
     bin_length_m: float = 0.25,
     block_m: float = BLOCK_M,
-    speed_tolerance: float = 0.1,
+    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
     min_support: int = 20,
     confidence: float = 0.9,
     n_boot: int = 40,

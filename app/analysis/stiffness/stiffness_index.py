@@ -15,8 +15,11 @@ amplitude or speed is missing, the class has no curve, or the speed lies
 outside the curve's supported speeds (the matched-speed rule), or the sample
 has no class (None: near a change of superstructure).
 
-This is the one function the segment condition store, the profile API and the
-exports compute the index with.
+This is the one function the stiffness index is computed with: the profile answers and
+exports (``index=true``), the analytics (``value=index``, the superstructure conditioning) and
+the reference curves' diagnostics, all through :mod:`app.analytics.stiffness_index`. The
+segment condition store does not keep it: it keeps the condition index ``ln A`` compared at
+matched speed (:mod:`app.analysis.condition.index`), because the curves move as runs arrive.
 """
 
 from __future__ import annotations

@@ -17,7 +17,10 @@ import numpy as np
 from app.analysis._checks import check_positive, paired_1d
 
 __all__ = ["TypeDistribution", "SegmentFlag", "assign_sections", "section_classes", "type_distributions",
-           "flag_segments"]
+           "flag_segments", "OUTLIER_SEGMENT_M"]
+
+#: Default segment length of the outlying-segment search (:func:`flag_segments`), m.
+OUTLIER_SEGMENT_M = 100.0
 
 
 @dataclass(frozen=True)
@@ -128,7 +131,7 @@ def flag_segments(
     section: np.ndarray,
     section_types: list[str],
     *,
-    segment_m: float = 100.0,
+    segment_m: float = OUTLIER_SEGMENT_M,
     bin_length_m: float = 0.25,
     z_threshold: float = 3.5,
     min_coverage: float = 0.5,

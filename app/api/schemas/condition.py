@@ -1,4 +1,10 @@
-"""Schemas of the condition endpoints (index in natural-log units, km in km, speeds in km/h)."""
+"""Schemas of the condition endpoints (index in natural-log units, km in km, speeds in km/h).
+
+``index`` in these answers is the store's **condition index**, ``ln(A / 1 m/s²)`` of the
+sleeper-passage amplitude, compared at matched speed (the heat map names it: ``"ln_amplitude"``);
+it is not the **stiffness index** ``ln(A / A_ref(class, v))`` of the profiles (``stiffness_index``
+with ``index=true``) and the analytics (``value=index``). The key stays ``index`` for integrations.
+"""
 
 from __future__ import annotations
 
@@ -50,7 +56,8 @@ class HeatmapOut(BaseModel):
     track: str
     segment_m: int
     wheel: str | None = Field(description="null: mean over the wheels")
-    index: str = Field(description="what the index is (provenance)")
+    index: str = Field(description="which index the values are (provenance): \"ln_amplitude\", the condition "
+                       "index ln(A / 1 m/s²) compared at matched speed")
     km: list[float] = Field(description="segment starts, km")
     runs: list[HeatmapRun]
     matrix: list[list[float | None]] = Field(description="index per run (row, oldest first) and segment")
@@ -163,3 +170,43 @@ class HotspotsOut(BaseModel):
     min_priority: float
     total: int = Field(description="segments matching the filters (before limit)")
     items: list[HotspotOut]
+
+
+class EffectOut(BaseModel):
+    action_id: int
+    line_id: str
+    track: str
+    type: str
+    date: str
+    km_from: float
+    km_to: float
+    n_runs: int = Field(description="runs of the line over the action's extent (0: no before/after view)")
+    n_runs_before: int
+    n_runs_after: int
+    index_before: float | None = Field(description="median index over the extent before, relative to the "
+                                                   "surrounding track of each run (log units)")
+    index_after: float | None = Field(description="the same just after")
+    recovery: float | None = Field(description="after minus before (negative: lower index, e.g. amplitude)")
+    recovery_pct: float | None = Field(description="the recovery as a percentage of the amplitude")
+    slope_after_per_year: float | None = Field(description="index change per year after the action")
+    lasted_days_observed: float | None = Field(description="days until the given fraction of the recovery was lost")
+    lasted_days_projected: float | None = Field(description="the same projected from the slope after")
+
+
+class EffectsOut(BaseModel):
+    regain_fraction: float
+    items: list[EffectOut]
+
+
+class SeriesPoint(BaseModel):
+    run_id: int
+    start_time: str
+    index: float
+
+
+class EffectDetailOut(EffectOut):
+    series: list[SeriesPoint] = Field(description="index over the extent per run relative to its surroundings, "
+                                              "oldest first")
+    profile_km: list[float] = Field(description="segment starts (km) of the extent ± 100 m")
+    profile_before: list[float | None] = Field(description="mean relative index per segment over the runs before")
+    profile_after: list[float | None] = Field(description="mean index per segment over the runs just after")

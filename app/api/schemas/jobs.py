@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
+import typing
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, create_model
+
+from app.analysis.settings import ProcessingSettings, setting_help
+from app.db.models import N_ORDER_COLUMNS
 
 __all__ = ["JobOut", "JobList", "ProcessingSettingsIn"]
 
@@ -46,30 +51,24 @@ class JobList(BaseModel):
     offset: int
 
 
-class ProcessingSettingsIn(BaseModel):
-    """Settings for reprocessing a run; omitted fields keep the run's latest settings.
+def _settings_in() -> type[BaseModel]:
+    """The request body of a reprocessing job, derived from :class:`ProcessingSettings`: every setting
+    optional (omitted: the run's latest value), described by its metadata; wheel orders limited to
+    what the service stores (:data:`~app.db.models.N_ORDER_COLUMNS`)."""
+    hints = typing.get_type_hints(ProcessingSettings)
+    fields: dict[str, Any] = {}
+    for f in dataclasses.fields(ProcessingSettings):
+        valid = f"1..{N_ORDER_COLUMNS}: the service stores {N_ORDER_COLUMNS} order columns" \
+            if f.name == "n_wheel_orders" else None
+        kind = hints[f.name]
+        fields[f.name] = (kind | None, Field(None, description=setting_help(f.name, valid=valid)))
+    return create_model(
+        "ProcessingSettingsIn",
+        __config__=ConfigDict(extra="forbid"),
+        __doc__="Settings for reprocessing a run; omitted fields keep the run's latest settings.\n\n"
+                "Derived from ``app.analysis.settings.ProcessingSettings`` (ranges and defaults).",
+        **fields,
+    )
 
-    See ``app.analysis.settings.ProcessingSettings`` for ranges and defaults.
-    """
 
-    model_config = ConfigDict(extra="forbid")
-
-    n_wheel_orders: int | None = Field(None, description="Wheel orders tracked, 1..11")
-    bandwidth_orders: float | None = Field(
-        None, description="-3 dB bandwidth of each order's filter, in wheel orders (0.01..1)"
-    )
-    track_resolution_m: float | None = Field(
-        None,
-        description="Spatial resolution of the sleeper-passage orders: 10–90 % width of a stiffness step "
-        "in their profiles, m (0.5..100); sets their bandwidth (c_q·v/resolution Hz)",
-    )
-    sleeper_harmonics: int | None = Field(
-        None, description="Highest sleeper-passage harmonic extracted: 1 (f_s only), 2 or 3 (also 2·f_s, 3·f_s)"
-    )
-    force_mean_window_m: float | None = Field(
-        None, description="Moving mean removed from the force channels (static load), m; 0: off"
-    )
-    filter_order: int | None = Field(None, description="VKF structural order q: 1, 2 or 3")
-    bin_length_m: float | None = Field(None, description="Profile bin length, m")
-    min_speed_kmh: float | None = Field(None, description="Slowest speed used, km/h")
-    chunk_seconds: float | None = Field(None, description="Core length of a chunk, s")
+ProcessingSettingsIn = _settings_in()

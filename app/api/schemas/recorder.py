@@ -25,8 +25,9 @@ class ChannelMapIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    vehicle_id: str = Field(min_length=1, max_length=128, description="Vehicle the map belongs to")
-    name: str = Field(min_length=1, max_length=200, description="Name, unique per vehicle")
+    vehicle_id: str = Field(min_length=1, max_length=128, pattern=r"^[^\x00]*$",
+                            description="Vehicle the map belongs to")
+    name: str = Field(min_length=1, max_length=200, pattern=r"^[^\x00]*$", description="Name, unique per vehicle")
     channels: dict[str, Any] = Field(
         description='trackvkf channel → recorder channel: "name" or {"source", "group", "unit"}'
     )

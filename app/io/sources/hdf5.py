@@ -44,6 +44,30 @@ def _check_filters(name: str, ds: h5py.Dataset) -> None:
             )
 
 
+#: What h5py raises on a file whose metadata libhdf5 cannot decode.
+_H5_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError, OverflowError)
+
+
+def _check_extents(name: str, ds: h5py.Dataset, file_bytes: int) -> None:
+    """The dataset's stored bytes (contiguous block or every chunk) lie inside the file."""
+    dsid = ds.id
+    if ds.chunks is None:
+        offset = dsid.get_offset()
+        size = int(dsid.get_storage_size())
+        if offset is not None and int(offset) + size > file_bytes:
+            raise RunFileError(name, f"its data (byte {int(offset)}, {size} bytes) reach beyond the "
+                               f"end of the {file_bytes}-byte file")
+        return
+
+    def visit(info: Any) -> None:
+        end = int(info.byte_offset) + int(info.size)
+        if end > file_bytes:
+            raise RunFileError(name, f"a chunk at byte {int(info.byte_offset)} ({int(info.size)} bytes) "
+                               f"reaches beyond the end of the {file_bytes}-byte file")
+
+    dsid.chunk_iter(visit)
+
+
 def _attr_text(value: Any) -> str:
     if isinstance(value, bytes):
         return value.decode("utf-8", errors="replace")
@@ -88,9 +112,18 @@ class Hdf5Source(Source):
         self._outside_bytes = self._file_bytes
         try:
             self._h5 = h5py.File(path, "r")
-        except (OSError, ValueError) as exc:
-            raise RunFileError("file", f"cannot open HDF5 file: {exc}") from None
-        self._set_up_or_close(self._setup)
+        except _H5_ERRORS as exc:
+            raise RunFileError("file", f"cannot open HDF5 file: {str(exc)[:300]}") from None
+        self._set_up_or_close(self._checked_setup)
+
+    def _checked_setup(self) -> None:
+        """:meth:`_setup`, with libhdf5's errors on corrupt metadata answered as the file's fault."""
+        try:
+            self._setup()
+        except RunFileError:
+            raise
+        except _H5_ERRORS as exc:
+            raise RunFileError("file", f"corrupt HDF5 structure: {type(exc).__name__}: {str(exc)[:300]}") from None
 
     def _setup(self) -> None:
         n_members = len(self._h5)
@@ -113,6 +146,7 @@ class Hdf5Source(Source):
             if ds.dtype.kind not in "iuf":
                 raise RunFileError(orig, f"wrong dtype {ds.dtype}: channels must be numeric")
             _check_filters(orig, ds)
+            _check_extents(orig, ds, self._file_bytes)
             units = self._attr(ds, "units", f"{orig}.units")
             if units is not None:
                 text = _attr_text(units).strip()
@@ -198,8 +232,8 @@ class Hdf5Source(Source):
             for canon, ds in self._ds.items():
                 try:
                     block[canon] = np.asarray(ds[a:b], dtype=np.float64)
-                except (OSError, ValueError) as exc:
-                    raise RunFileError(canon, f"cannot read samples {a}:{b}: {exc}") from None
+                except _H5_ERRORS as exc:
+                    raise RunFileError(canon, f"cannot read samples {a}:{b}: {str(exc)[:300]}") from None
             yield block
 
     def close(self) -> None:

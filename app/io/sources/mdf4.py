@@ -1,10 +1,9 @@
-"""ASAM MDF input (MDF4, also MDF3) read with asammdf, record range by record range."""
+"""ASAM MDF 4 input: structurally validated, then read with asammdf record range by record range."""
 
 from __future__ import annotations
 
 import datetime as dt
 import logging
-import zlib
 from collections.abc import Hashable
 from pathlib import Path
 
@@ -13,16 +12,19 @@ import numpy as np
 from app.io.channel_map import RecorderChannel
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
+from app.io.sources.mdf4_blocks import ChannelLayout, Mdf4Layout, check_mdf4
 from app.io.sources.recorder import RecorderReader
 
 __all__ = ["Mdf4Reader"]
 
 #: MDF4 channel types that hold time stamps (master, virtual master).
 _MASTER_TYPES = (2, 3)
-#: MDF4 DZ block types (asammdf ``DataBlockInfo.block_type``) of deflate-compressed data.
-_DEFLATE_TYPES = (1, 2)
-_PLAIN_TYPE = 0
-_READ_BYTES = 1 << 20
+#: Channel types read as samples: fixed-length values and masters (not VLSD, MLSD, virtual).
+_READABLE_TYPES = (0, 2, 4)
+#: MDF4 data types read: unsigned, signed integers and IEEE floats (Intel and Motorola order).
+_NUMERIC_DATA_TYPES = (0, 1, 2, 3, 4, 5)
+#: Conversions applied: identity, linear, rational, value tables (not formulae or texts).
+_NUMERIC_CONVERSIONS = (None, 0, 1, 2, 4, 5, 6)
 
 
 def _group_label(group: object, index: int) -> str:
@@ -34,38 +36,17 @@ def _group_label(group: object, index: int) -> str:
     return f"group {index}"
 
 
-def _check_deflate(fh, address: int, compressed: int, original: int) -> None:  # noqa: ANN001
-    """Inflate a DZ payload without keeping it: it must not exceed its declared size."""
-    fh.seek(address)
-    inflater = zlib.decompressobj()
-    left, produced = compressed, 0
-    while left > 0:
-        data = fh.read(min(_READ_BYTES, left))
-        if not data:
-            break
-        left -= len(data)
-        while data:
-            out = inflater.decompress(data, _READ_BYTES)
-            produced += len(out)
-            if produced > original:
-                raise RunFileError(
-                    "file",
-                    f"an MDF data block inflates to more than its declared {original} bytes "
-                    "(decompression bomb)",
-                )
-            data = inflater.unconsumed_tail
-        if inflater.eof:
-            break
-
-
 class Mdf4Reader(RecorderReader):
-    """An MDF file open with asammdf (metadata only; data read on demand).
+    """An MDF4 file, structurally validated, then open with asammdf (data read on demand).
 
-    Before any sample is read, the channel count (``limits.max_recorder_channels``),
-    the declared data size (records × record bytes, and the declared original
-    size of the data blocks) against ``limits.max_decoded_bytes(file size)`` and
-    every deflate-compressed block (inflated once, bounded, without keeping
-    it) are checked; LZ4 and Zstandard blocks (MDF 4.3) are refused.
+    :func:`app.io.sources.mdf4_blocks.check_mdf4` walks the file's blocks
+    before asammdf sees it: links, lengths, channel layouts, data sizes (every
+    DZ block inflated once, bounded, nothing kept), the channel count
+    (``limits.max_recorder_channels``) and the decoded size
+    (``limits.max_decoded_bytes(file size)``). asammdf then opens it without
+    bus-logging decoding; what asammdf reports must agree with the walk.
+    Channels are read only when they are numeric fixed-length values with a
+    numeric conversion.
 
     Parameters
     ----------
@@ -80,60 +61,65 @@ class Mdf4Reader(RecorderReader):
 
         path = Path(path)
         file_bytes = path.stat().st_size
+        with open(path, "rb") as fh:
+            layout = check_mdf4(fh, file_bytes, limits)
         logging.getLogger("asammdf").setLevel(logging.ERROR)
         try:
-            self._mdf = MDF(path)
+            self._mdf = MDF(path, process_bus_logging=False)
         except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad files
             raise RunFileError("file", f"cannot open MDF file: {str(exc)[:300]}") from None
-        self._set_up_or_close(lambda: self._setup(path, file_bytes, limits))
+        self._set_up_or_close(lambda: self._setup(layout))
 
-    def _setup(self, path: Path, file_bytes: int, limits: IngestLimits) -> None:
+    def _setup(self, layout: Mdf4Layout) -> None:
         mdf = self._mdf
-        channels: list[RecorderChannel] = []
-        n_all = 0
-        declared = 0
-        blocks_original = 0
-        deflated: list[tuple[int, int, int]] = []
-        self._cycles: dict[int, int] = {}
-        for gi, group in enumerate(mdf.groups):
-            cg = group.channel_group
-            cycles = int(getattr(cg, "cycles_nr", 0))
-            record = int(getattr(cg, "samples_byte_nr", 0)) + int(
-                getattr(cg, "invalidation_bytes_nr", 0)
+        if len(mdf.groups) != len(layout.groups):
+            raise RunFileError(
+                "file", f"asammdf reads {len(mdf.groups)} channel groups, the file's blocks hold "
+                f"{len(layout.groups)}"
             )
+        channels: list[RecorderChannel] = []
+        self._cycles: dict[int, int] = {}
+        self._layout: dict[tuple[int, int], ChannelLayout | None] = {}
+        for gi, group in enumerate(mdf.groups):
+            cycles = int(getattr(group.channel_group, "cycles_nr", 0))
+            if cycles != layout.groups[gi][0]:
+                raise RunFileError(
+                    "file", f"asammdf reads {cycles} records in channel group {gi}, its CG block "
+                    f"declares {layout.groups[gi][0]}"
+                )
             self._cycles[gi] = cycles
-            declared += cycles * max(record, 0)
-            for info in group.get_data_blocks():
-                kind = int(info.block_type)
-                if kind in _DEFLATE_TYPES:
-                    deflated.append((int(info.address), int(info.compressed_size), int(info.original_size)))
-                elif kind != _PLAIN_TYPE:
-                    raise RunFileError(
-                        "file",
-                        f"MDF data block compression type {kind} is not accepted (plain or deflate)",
-                    )
-                blocks_original += max(int(info.original_size), 0)
             label = _group_label(group, gi)
             for ci, ch in enumerate(group.channels):
-                n_all += 1
-                if n_all > limits.max_recorder_channels:
-                    raise RunFileError(
-                        "file",
-                        f"more than {limits.max_recorder_channels} channels in the MDF file (limit)",
-                    )
+                self._layout[(gi, ci)] = layout.channels.get(int(getattr(ch, "address", -1)))
                 if int(getattr(ch, "channel_type", 0)) in _MASTER_TYPES:
                     continue
                 name = str(ch.name)
                 unit = str(getattr(ch, "unit", "") or "")
                 channels.append(RecorderChannel(name, label, gi, unit.strip(), (gi, ci)))
-        limits.check_decoded(max(declared, blocks_original), file_bytes, "the MDF data")
-        if deflated:
-            with open(path, "rb") as fh:
-                for address, compressed, original in deflated:
-                    _check_deflate(fh, address, compressed, original)
         self.channels = channels
         start = getattr(mdf.header, "start_time", None)
         self.start_time = start if isinstance(start, dt.datetime) and start.tzinfo else None
+
+    def _readable(self, ch: RecorderChannel) -> None:
+        """Refuse, before asammdf reads it, a channel that is not numeric fixed-length data."""
+        info = self._layout.get(ch.key)
+        if info is None:
+            raise RunFileError(ch.name, "asammdf lists a channel the file's CN blocks do not hold")
+        if (
+            info.channel_type not in _READABLE_TYPES
+            or info.data_type not in _NUMERIC_DATA_TYPES
+            or info.composed
+        ):
+            raise RunFileError(
+                ch.name, f"is not a numeric fixed-length channel (cn_type {info.channel_type}, "
+                f"cn_data_type {info.data_type}{', composed' if info.composed else ''}); channels "
+                "must be numeric"
+            )
+        if info.conversion_type not in _NUMERIC_CONVERSIONS:
+            raise RunFileError(
+                ch.name, f"has a conversion of cc_type {info.conversion_type} (formula or text); only "
+                "identity, linear, rational and value-table conversions are applied"
+            )
 
     def length(self, ch: RecorderChannel) -> int:
         return self._cycles[ch.key[0]]
@@ -146,6 +132,7 @@ class Mdf4Reader(RecorderReader):
 
     def read(self, ch: RecorderChannel, a: int, b: int) -> np.ndarray:
         gi, ci = ch.key
+        self._readable(ch)
         try:
             sig = self._mdf.get(
                 group=gi, index=ci, record_offset=a, record_count=b - a, ignore_invalidation_bits=False

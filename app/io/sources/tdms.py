@@ -1,4 +1,4 @@
-"""NI TDMS input read with npTDMS, slice by slice (``TdmsFile.open``: metadata only)."""
+"""NI TDMS input: structurally validated, then read with npTDMS slice by slice (``TdmsFile.open``)."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from app.io.channel_map import RecorderChannel
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
 from app.io.sources.recorder import RecorderReader
+from app.io.sources.tdms_segments import TdmsLayout, check_tdms
 
 __all__ = ["TdmsReader", "TIME_CHANNEL_NAMES"]
 
@@ -47,9 +48,13 @@ class TdmsReader(RecorderReader):
     Time base of a channel: its waveform properties (``wf_increment``,
     ``wf_start_offset``, ``wf_start_time``), else a channel named ``time``
     (``t``, ``timestamp``, ``zeit``; seconds or TDMS timestamps) in the same
-    group. Before any sample is read, the object count
-    (``limits.max_recorder_channels``) and the data size (samples × bytes per
-    sample) against ``limits.max_decoded_bytes(file size)`` are checked.
+    group. Before npTDMS sees the file,
+    :func:`app.io.sources.tdms_segments.check_tdms` walks its segments
+    (offsets, metadata, chunk sizes; DAQmx refused). Before any sample is
+    read, the object count (``limits.max_recorder_channels``), the data size
+    (samples × bytes per sample) against ``limits.max_decoded_bytes(file
+    size)`` and every channel's length against the segments' value counts are
+    checked.
 
     Parameters
     ----------
@@ -64,13 +69,15 @@ class TdmsReader(RecorderReader):
 
         path = Path(path)
         file_bytes = path.stat().st_size
+        with open(path, "rb") as fh:
+            layout = check_tdms(fh, file_bytes, limits)
         try:
             self._tdms = TdmsFile.open(path)
         except Exception as exc:  # noqa: BLE001 - npTDMS raises many types on bad files
             raise RunFileError("file", f"cannot open TDMS file: {str(exc)[:300]}") from None
-        self._set_up_or_close(lambda: self._setup(file_bytes, limits))
+        self._set_up_or_close(lambda: self._setup(file_bytes, limits, layout))
 
-    def _setup(self, file_bytes: int, limits: IngestLimits) -> None:
+    def _setup(self, file_bytes: int, limits: IngestLimits, layout: TdmsLayout) -> None:
         groups = self._tdms.groups()
         n_objects = sum(1 + len(g.channels()) for g in groups)
         if n_objects > limits.max_recorder_channels:
@@ -89,6 +96,11 @@ class TdmsReader(RecorderReader):
         for gi, group in enumerate(groups):
             time_ch = None
             for ch in group.channels():
+                if len(ch) != layout.values.get(ch.path, 0):
+                    raise RunFileError(
+                        "file", f"npTDMS reads {len(ch)} values of {ch.path}, the file's segments "
+                        f"declare {layout.values.get(ch.path, 0)}"
+                    )
                 decoded += len(ch) * max(int(getattr(ch.dtype, "itemsize", 8) or 8), 1)
                 if ch.name.strip().lower() in TIME_CHANNEL_NAMES and time_ch is None:
                     time_ch = ch

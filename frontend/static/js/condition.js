@@ -55,7 +55,7 @@
         const p = ev.points && ev.points[0];
         if (!p) return;
         $("cond-trend-km").value = (p.x - heat.segment_m / 2000 + 0.0005).toFixed(3);
-        $("cond-trend-seg").value = "100";
+        $("cond-trend-seg").value = String(T.boot.overview_segment_m);
         drawTrend();
       });
     }
@@ -201,7 +201,7 @@
     if (!$("cond-trend-km").value) {
       const top = wl && wl.items[0];
       $("cond-trend-km").value = top ? (top.km_from + 0.0005).toFixed(3) : ((line.km_min + line.km_max) / 2).toFixed(3);
-      $("cond-trend-seg").value = top ? String(top.segment_m) : "100";
+      $("cond-trend-seg").value = top ? String(top.segment_m) : String(T.boot.overview_segment_m);
     }
     await drawTrend();
     await drawActions();

@@ -5,7 +5,6 @@
 (function () {
   "use strict";
   const T = window.trackvkf;
-  const F = T.boot.features;
   const PLOTS = ["subsidence-plot", "mass-plot", "maintenance-plot"];
   const HOWTO = `<p>Import reference data with <code>POST /api/v1/reference/subsidence</code>,
     <code>/maintenance</code> or <code>/superstructure</code> (CSV or Parquet), then reload this page.</p>`;
@@ -157,17 +156,6 @@
 
   async function show() {
     T.banner(null);
-    const analytics = F.analytics_subsidence || F.analytics_unsprung_mass || F.analytics_maintenance;
-    if (!analytics) {
-      for (const id of PLOTS) T.emptyState(id, "No data yet.", "");
-      fit = null; fitTable();
-      showEmpty(`<strong>Correlations need reference data.</strong>
-        <p>This server has no analytics endpoints yet (<code>/api/v1/analytics/…</code>). When they are installed and
-        subsidence, maintenance or superstructure records are imported, this page shows the subsidence model per wheel
-        (slope, intercept, RMSE, samples), the unsprung mass fitted from force and acceleration, and the amplitude by the
-        number of maintenance actions.</p>${HOWTO}`);
-      return;
-    }
     const q = query();
     if (!q.line_id) {
       for (const id of PLOTS) T.emptyState(id, "No runs yet.", "<p>Upload runs on the Runs page.</p>");
@@ -178,9 +166,9 @@
     T.rememberLine(q);
     try {
       const [sub, mass, maint] = await Promise.all([
-        F.analytics_subsidence ? T.api.optional("/analytics/subsidence-fit", Object.assign({ max_points: DRAW_POINTS }, q)) : null,
-        F.analytics_unsprung_mass ? T.api.optional("/analytics/unsprung-mass", Object.assign({ max_points: DRAW_POINTS }, q)) : null,
-        F.analytics_maintenance ? T.api.optional("/analytics/maintenance", Object.assign({ type: document.getElementById("mtype").value }, q)) : null,
+        T.api.get("/analytics/subsidence-fit", Object.assign({ max_points: DRAW_POINTS }, q)),
+        T.api.get("/analytics/unsprung-mass", Object.assign({ max_points: DRAW_POINTS }, q)),
+        T.api.get("/analytics/maintenance", Object.assign({ type: document.getElementById("mtype").value }, q)),
       ]);
       fit = sub;
       fitTable();

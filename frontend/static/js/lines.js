@@ -1,40 +1,14 @@
-/* Line view: heat map runs × km (from /analytics/segments, or built here from each run's
- * 100 m profile when that endpoint is not on the server), overlaid profiles, trend of one
- * segment across run dates. */
+/* Line view: heat map runs × km (/analytics/segments: the runs aligned and averaged per
+ * segment by the server), overlaid profiles, trend of one segment across run dates
+ * (/analytics/segment-trend). */
 (function () {
   "use strict";
   const T = window.trackvkf;
-  const F = T.boot.features;
   let runs = [], seg = null, profiles = [];
-  const SEG_M = 100;
+  const SEG_M = T.boot.segment_m; // the server's default segment of /analytics/segments
 
   const lineKey = T.lineKey;
   function runLabel(r) { return `${T.date(r.start_time)} · run ${r.run_id}`; }
-
-  /* runs × km matrix from the runs' own 100 m profiles */
-  async function segmentsFromProfiles(doneRuns, wheel) {
-    const per = await Promise.all(doneRuns.map((r) => T.api.get(`/runs/${r.id}/profile`, { wheel, level: SEG_M, columns: "sleeper_amp" }).catch(() => null)));
-    const keys = new Set();
-    per.forEach((p) => p && p.rows.forEach((row) => keys.add(Math.round(row.km_from * 1e4))));
-    const km = [...keys].sort((a, b) => a - b).map((k) => k / 1e4);
-    const index = new Map(km.map((k, i) => [Math.round(k * 1e4), i]));
-    const matrix = per.map((p) => {
-      const row = new Array(km.length).fill(null);
-      if (p) p.rows.forEach((r) => { row[index.get(Math.round(r.km_from * 1e4))] = r.sleeper_amp_mean; });
-      return row;
-    });
-    const mean = km.map((_, j) => {
-      const v = matrix.map((row) => row[j]).filter((x) => x !== null && Number.isFinite(x));
-      return v.length ? v.reduce((a, b) => a + b, 0) / v.length : null;
-    });
-    const spread = km.map((_, j) => {
-      const v = matrix.map((row) => row[j]).filter((x) => x !== null && Number.isFinite(x));
-      if (v.length < 2) return null;
-      const m = v.reduce((a, b) => a + b, 0) / v.length;
-      return Math.sqrt(v.reduce((a, b) => a + (b - m) ** 2, 0) / (v.length - 1));
-    });
-    return { segment_m: SEG_M, km, runs: doneRuns.map((r) => ({ run_id: r.id, start_time: r.start_time, shift_m: 0 })), matrix, mean, spread, source: "profiles" };
-  }
 
   async function drawHeatmap() {
     const el = document.getElementById("heatmap-plot");
@@ -108,16 +82,8 @@
     const wheel = document.getElementById("wheel").value;
     const { line_id, track } = T.lineOf("line-track");
     if (!seg || !Number.isFinite(km)) { T.emptyState(el, "Choose a segment.", "<p>Click a cell of the heat map or enter a km.</p>"); return; }
-    let points = null;
-    if (F.analytics_segment_trend) {
-      const res = await T.api.optional("/analytics/segment-trend", { line_id, track, km, wheel });
-      points = res ? res.points : null;
-    }
-    if (!points) {
-      const j = seg.km.findIndex((k) => km >= k - 1e-9 && km < k + seg.segment_m / 1000 - 1e-9);
-      points = j < 0 ? [] : seg.runs.map((r, i) => ({ run_id: r.run_id, start_time: r.start_time, amplitude: seg.matrix[i][j] }))
-        .filter((p) => p.amplitude !== null);
-    }
+    const res = await T.api.get("/analytics/segment-trend", { line_id, track, km, wheel, segment_m: seg.segment_m });
+    const points = res.points.filter((p) => p.amplitude !== null);
     const k0 = Math.floor(km * 1000 / seg.segment_m) * seg.segment_m / 1000;
     document.getElementById("trend-title").textContent = `Trend of segment km ${k0.toFixed(3)}–${(k0 + seg.segment_m / 1000).toFixed(3)} across run dates`;
     if (!points.length) { T.emptyState(el, "No runs cover this segment.", ""); return; }
@@ -144,16 +110,12 @@
     const doneRuns = runs.filter((r) => lineKey(r) === key && r.latest_job && r.latest_job.status === "done")
       .sort((a, b) => String(a.start_time).localeCompare(String(b.start_time)));
     seg = null;
-    if (F.analytics_segments) {
-      try { seg = await T.api.optional("/analytics/segments", { line_id, track, wheel, segment_m: SEG_M, align: true }); }
-      catch (e) { T.banner(`Segments not available (HTTP ${e.status}): ${e.detail}`); }
-      if (seg) seg.source = "analytics";
-    }
-    if (!seg || !seg.runs || !seg.runs.length) seg = await segmentsFromProfiles(doneRuns, wheel);
+    try { seg = await T.api.get("/analytics/segments", { line_id, track, wheel, segment_m: SEG_M, align: true }); }
+    catch (e) { T.banner(`Segments not available (HTTP ${e.status}): ${e.detail}`); }
     document.getElementById("line-info").textContent = `${doneRuns.length} processed run${doneRuns.length === 1 ? "" : "s"}` +
-      (seg.source === "analytics" ? " · runs aligned by the analytics service" : " · matrix built from each run's 100 m profile");
+      " · runs aligned by the analytics service";
     const trendKm = document.getElementById("trend-km");
-    if (!trendKm.value && seg.km.length) trendKm.value = seg.km[Math.floor(seg.km.length / 2)].toFixed(3);
+    if (!trendKm.value && seg && seg.km.length) trendKm.value = seg.km[Math.floor(seg.km.length / 2)].toFixed(3);
     await drawHeatmap();
     await drawProfiles(doneRuns, wheel);
     await drawTrend();

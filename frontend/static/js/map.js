@@ -64,7 +64,7 @@
     const el = document.getElementById("map-plot");
     const id = document.getElementById("geometry").value;
     const quantity = document.getElementById("quantity").value;
-    const segment = Number(document.getElementById("segment").value) || 100;
+    const segment = Number(document.getElementById("segment").value) || T.boot.map_segment_m;
     const [geom, ind] = await Promise.all([
       T.api.get(`/geometry/${id}`),
       T.api.get(`/geometry/${id}/indicator`, { quantity, segment_m: segment }),

@@ -57,7 +57,7 @@
     shapes = []; annotations = [];
     const info = [], legend = [];
     const q = { line_id: run.line_id, track: run.track, km_from: a, km_to: b };
-    if (T.boot.features.reference_superstructure) {
+    { // superstructure sections: shading with a label
       const res = await T.api.optional("/reference/superstructure", q);
       const items = (res && res.items) || [];
       const types = new Map();
@@ -77,7 +77,7 @@
       }
       info.push(items.length ? `${items.length} superstructure section${items.length === 1 ? "" : "s"}` : "no superstructure data");
     }
-    if (T.boot.features.reference_maintenance) {
+    { // maintenance actions: marks at the bottom
       const res = await T.api.optional("/reference/maintenance", q);
       const items = (res && res.items) || [];
       for (const m of items) {
@@ -90,7 +90,6 @@
       }
       info.push(`${items.length} maintenance action${items.length === 1 ? "" : "s"}`);
     }
-    if (!info.length) info.push("superstructure and maintenance shading appear when reference data are available");
     document.getElementById("sections-info").textContent = info.join(" · ");
     const box = document.getElementById("map-legend");
     box.innerHTML = legend.length ? `<span class="muted">Shading:</span> ${legend.join("")}` : "";

@@ -1,0 +1,267 @@
+"""Who makes a request, and what a route admits: API keys, session cookies, CSRF, roles.
+
+Every route declares its access policy through a dependency (:func:`route_policy`):
+``public`` (health, login), :func:`require_role` (API: 401/403 as JSON) or
+:func:`require_page_login` (pages: 303 to the login page, 403). The checks use the
+primitives of :mod:`app.core.security` and the rows of :mod:`app.db.auth_crud`.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, TypeVar
+from urllib.parse import quote
+
+from fastapi import Depends, HTTPException, Request
+
+from app.core.config import Settings
+from app.core.errors import ApiError
+from app.core.routing import iter_routes
+from app.core.security import ROLES, Principal, csrf_matches, role_allows, role_rank
+from app.db import auth_crud
+from app.db.session import Database
+
+__all__ = [
+    "Principal",
+    "get_principal",
+    "require_role",
+    "require_page_login",
+    "public",
+    "route_policy",
+    "iter_routes",
+    "client_ip",
+    "RoleRequirement",
+    "PageLogin",
+    "SESSION_COOKIE",
+    "CSRF_COOKIE",
+    "CSRF_HEADER",
+    "API_KEY_HEADER",
+]
+
+
+SESSION_COOKIE = "trackvkf_session"
+CSRF_COOKIE = "trackvkf_csrf"
+CSRF_HEADER = "X-CSRF-Token"
+API_KEY_HEADER = "X-API-Key"
+_SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS", "TRACE"})
+_BEARER = {"WWW-Authenticate": 'Bearer realm="trackvkf"'}
+
+
+def client_ip(request: Request) -> str | None:
+    """Address of the peer (the reverse proxy when there is one)."""
+    return request.client.host if request.client else None
+
+
+def _api_key_token(request: Request) -> str | None:
+    header = request.headers.get("authorization")
+    if header is not None:
+        scheme, _, value = header.partition(" ")
+        if scheme.lower() != "bearer" or not value.strip():
+            raise ApiError(
+                401, "authorization", "expected 'Authorization: Bearer <API key>'", _BEARER
+            )
+        return value.strip()
+    key = request.headers.get(API_KEY_HEADER)
+    if key is not None:
+        return key.strip()
+    return None
+
+
+def _lookup(request: Request) -> Principal | None:
+    """Authenticate a request by API key or session cookie; None without credentials.
+
+    Raises
+    ------
+    ApiError
+        401 for a wrong, revoked or expired API key (no fallback to the cookie).
+    """
+    settings: Settings = request.app.state.settings
+    if settings.auth_disabled:
+        return Principal(
+            name=settings.anonymous_principal, role=settings.anonymous_role, kind="anonymous"
+        )
+    db: Database = request.app.state.db
+    token = _api_key_token(request)
+    if token is not None:
+        with db.read() as session:
+            key = auth_crud.api_key_by_token(session, token)
+            if key is None:
+                raise ApiError(401, "authorization", "invalid, revoked or expired API key", _BEARER)
+            principal = Principal(name=f"key:{key.name}", role=key.role, kind="api_key", key_id=key.id)
+            stale = auth_crud.needs_touch(key)
+        if stale:
+            with db.write() as session:
+                auth_crud.touch_api_key(session, key.id)
+        return principal
+    cookie = request.cookies.get(SESSION_COOKIE)
+    if cookie:
+        with db.read() as session:
+            user = auth_crud.session_user(session, cookie)
+            if user is not None:
+                request.state.session_token = cookie
+                return Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+    return None
+
+
+def _authenticate(request: Request) -> Principal | None:
+    cached = getattr(request.state, "principal", None)
+    if cached is None:
+        cached = _lookup(request)
+        request.state.principal = cached
+    return cached
+
+
+def get_principal(request: Request) -> Principal:
+    """The authenticated principal of a request.
+
+    An API key (``Authorization: Bearer <key>`` or ``X-API-Key``) is checked
+    first, then the session cookie ``trackvkf_session``. A state-changing
+    request (POST/PUT/PATCH/DELETE) authenticated by the cookie must carry the
+    session's CSRF token in ``X-CSRF-Token`` (the value of the
+    ``trackvkf_csrf`` cookie). With ``auth_disabled`` (development only)
+    every request runs as the anonymous principal of the settings.
+
+    Raises
+    ------
+    ApiError
+        401 without valid credentials, 403 for a missing or wrong CSRF token.
+    """
+    principal = _authenticate(request)
+    if principal is None:
+        raise ApiError(401, "authentication", "log in or send an API key", _BEARER)
+    if principal.kind == "user" and request.method not in _SAFE_METHODS:
+        settings: Settings = request.app.state.settings
+        token = getattr(request.state, "session_token", "")
+        if not csrf_matches(settings.secret_key, token, request.headers.get(CSRF_HEADER)):
+            raise ApiError(
+                403, "csrf", f"missing or wrong {CSRF_HEADER} header (value of the {CSRF_COOKIE} cookie)"
+            )
+    return principal
+
+
+class _RoleGate:
+    """What both access dependencies share: a role, and 403 for a principal below it."""
+
+    def __init__(self, role: str) -> None:
+        role_rank(role)  # validates
+        self.role = role
+
+    def _admit(self, principal: Principal) -> Principal:
+        if not role_allows(principal.role, self.role):
+            raise ApiError(
+                403, "role", f"needs role {self.role} or higher; {principal.name} is {principal.role}"
+            )
+        return principal
+
+
+_Gate = TypeVar("_Gate", bound=_RoleGate)
+
+
+def _gate_of(gates: dict[str, _Gate], role: str) -> _Gate:
+    """The dependency of ``role`` (one object per role); ValueError for an unknown role."""
+    try:
+        return gates[role]
+    except KeyError:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
+
+
+class RoleRequirement(_RoleGate):
+    """Dependency: the request's principal must have at least ``role``.
+
+    Use through :func:`require_role`. 401 without authentication, 403 for a
+    role below ``role``.
+    """
+
+    def __call__(self, principal: Annotated[Principal, Depends(get_principal)]) -> Principal:
+        return self._admit(principal)
+
+    def __repr__(self) -> str:
+        return f"require_role({self.role!r})"
+
+
+_REQUIREMENTS: dict[str, RoleRequirement] = {role: RoleRequirement(role) for role in ROLES}
+
+
+def require_role(role: str) -> RoleRequirement:
+    """The dependency that admits principals with ``role`` or a higher one.
+
+    Roles are ordered viewer < engineer < admin. Apply it per route or per
+    router::
+
+        @router.post("/x", dependencies=[Depends(require_role("engineer"))])
+        APIRouter(dependencies=[Depends(require_role("viewer"))])
+
+    or take the principal from it: ``principal: Annotated[Principal,
+    Depends(require_role("admin"))]``.
+    """
+    return _gate_of(_REQUIREMENTS, role)
+
+
+class PageLogin(_RoleGate):
+    """Dependency of HTML pages: the principal, else a 303 redirect to the login page.
+
+    Use through :func:`require_page_login`. A logged-in principal whose role
+    is below ``role`` gets 403.
+    """
+
+    def __call__(self, request: Request) -> Principal:
+        principal = _authenticate(request)
+        if principal is None:
+            target = request.url.path + (f"?{request.url.query}" if request.url.query else "")
+            location = f"/login?next={quote(target, safe='')}"
+            raise HTTPException(
+                status_code=303, detail="log in first", headers={"Location": location}
+            )
+        return self._admit(principal)
+
+    def __repr__(self) -> str:
+        return f"require_page_login({self.role!r})"
+
+
+_PAGE_LOGINS: dict[str, PageLogin] = {role: PageLogin(role) for role in ROLES}
+
+
+def require_page_login(role: str = "viewer") -> PageLogin:
+    """Dependency of HTML pages: logged in (any role >= ``role``) or 303 → ``/login?next=``."""
+    return _gate_of(_PAGE_LOGINS, role)
+
+
+def public() -> None:
+    """Marker dependency of routes that need no authentication (health, login)."""
+
+
+def route_policy(route: Any) -> tuple[str, str | None] | None:
+    """The access policy a route declares through its dependencies.
+
+    Returns
+    -------
+    tuple or None
+        ``("public", None)``, ``("api", role)`` (401/403 JSON) or
+        ``("page", role)`` (303 to the login page, 403), with the highest role
+        required anywhere in the route's dependencies; None when the route
+        declares nothing (a bug: every route must declare its policy).
+    """
+    found: list[tuple[str, str | None]] = []
+
+    def walk(dependant) -> None:
+        for dep in dependant.dependencies:
+            call = dep.call
+            if isinstance(call, RoleRequirement):
+                found.append(("api", call.role))
+            elif isinstance(call, PageLogin):
+                found.append(("page", call.role))
+            elif call is public:
+                found.append(("public", None))
+            walk(dep)
+
+    dependant = getattr(route, "dependant", None)
+    if dependant is None:
+        return None
+    walk(dependant)
+    if not found:
+        return None
+    kinds = {k for k, _ in found}
+    roles = [r for _, r in found if r is not None]
+    if roles:
+        kind = "page" if "page" in kinds else "api"
+        return kind, max(roles, key=role_rank)
+    return "public", None

@@ -1,0 +1,96 @@
+"""Response models built from database rows: a job, a run in a list, a run's detail (with links)."""
+
+from __future__ import annotations
+
+from app.analysis.settings import ProcessingSettings
+from app.api.schemas.jobs import JobOut
+from app.api.schemas.runs import RunDetail, RunOut, RunSummaryOut
+from app.core.config import API_PREFIX
+from app.db.models import ChunkStatus, Job, Run
+
+__all__ = ["job_out", "run_out", "run_detail"]
+
+
+def _settings_shown(stored: dict | None) -> dict:
+    """A job's stored settings with every key, the ones it predates at their legacy values."""
+    try:
+        return ProcessingSettings.from_stored(stored).to_dict()
+    except (TypeError, ValueError):
+        return dict(stored or {})
+
+
+def job_out(job: Job, chunk_counts: dict[str, int] | None = None) -> JobOut:
+    """Response model of a job; ``chunk_counts`` maps chunk status to count."""
+    counts = chunk_counts or {}
+    return JobOut(
+        id=job.id,
+        run_id=job.run_id,
+        status=job.status,
+        progress=float(job.progress or 0.0),
+        error=job.error,
+        settings=_settings_shown(job.settings),
+        meta=job.meta,
+        warnings=[str(w) for w in (job.meta or {}).get("warnings") or []],
+        n_chunks=job.n_chunks,
+        chunks_done=int(counts.get(ChunkStatus.DONE, 0)),
+        attempts=int(job.attempts or 0),
+        cancel_requested=bool(job.cancel_requested),
+        created_by=job.created_by,
+        created_at=job.created_at,
+        started_at=job.started_at,
+        finished_at=job.finished_at,
+    )
+
+
+def _links(run_id: int) -> dict[str, str]:
+    base = f"{API_PREFIX}/runs/{run_id}"
+    return {
+        "self": base,
+        "jobs": f"{base}/jobs",
+        "profile": f"{base}/profile",
+        "profile_csv": f"{base}/profile.csv",
+        "profile_parquet": f"{base}/profile.parquet",
+        "wheels": f"{base}/wheels",
+    }
+
+
+def run_out(run: Run, latest: Job | None, chunk_counts: dict[str, int] | None = None) -> RunOut:
+    """Response model of a run in a list."""
+    return RunOut(
+        id=run.id,
+        sha256=run.sha256,
+        source_format=run.source_format,
+        original_filename=run.original_filename,
+        size_bytes=run.size_bytes,
+        vehicle_id=run.vehicle_id,
+        line_id=run.line_id,
+        track=run.track,
+        direction=run.direction,
+        start_time=run.start_time,
+        km_start=run.km_start,
+        km_increasing=run.km_increasing,
+        created_by=run.created_by,
+        created_at=run.created_at,
+        summary=RunSummaryOut(
+            fs=run.fs,
+            n_samples=run.n_samples,
+            duration_s=run.duration_s,
+            distance_m=run.distance_m,
+            speed_min=run.speed_min,
+            speed_max=run.speed_max,
+            channels=list(run.channels or []),
+        ),
+        latest_job=job_out(latest, chunk_counts) if latest is not None else None,
+        links=_links(run.id),
+        warnings=list((run.ingest_report or {}).get("warnings", [])),
+    )
+
+
+def run_detail(run: Run, latest: Job | None, chunk_counts: dict[str, int] | None = None) -> RunDetail:
+    """Response model of one run with its metadata."""
+    base = run_out(run, latest, chunk_counts)
+    return RunDetail(
+        **base.model_dump(),
+        metadata=dict(run.meta or {}),
+        ingest_report=dict((run.ingest_report or {}).get("report", {})),
+    )

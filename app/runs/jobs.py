@@ -1,0 +1,107 @@
+"""Processing jobs a request starts or stops: a reprocessing job with its settings, a cancel.
+
+The settings of a new job are the run's latest ones with the request's changes, checked by
+:class:`~app.analysis.settings.ProcessingSettings` (422 naming the setting) and by what the
+service stores (at most :data:`~app.db.models.N_ORDER_COLUMNS` wheel orders per bin).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from app.analysis.settings import ProcessingSettings
+from app.audit import record
+from app.core.errors import ApiError, not_found
+from app.core.runstore import RunStore
+from app.core.security import Principal
+from app.db import crud
+from app.db.models import N_ORDER_COLUMNS, Job
+from app.db.session import Database
+
+__all__ = ["settings_from_request", "reprocess", "cancel"]
+
+_SETTING_FIELDS = tuple(f.name for f in dataclasses.fields(ProcessingSettings))
+
+
+def settings_from_request(base: dict | None, changes: dict) -> ProcessingSettings:
+    """Merge ``changes`` onto ``base`` settings and validate them.
+
+    Raises
+    ------
+    ApiError
+        422 naming the offending setting.
+    """
+    merged = {k: v for k, v in (base or {}).items() if k in _SETTING_FIELDS}
+    if base is not None:  # stored settings lacking newer keys mean what they meant then
+        try:
+            merged = ProcessingSettings.from_stored(merged).to_dict()
+        except (ValueError, TypeError):
+            pass  # validated with the changes below
+    merged.update(changes)
+    try:
+        settings = ProcessingSettings.from_dict(merged)
+    except (ValueError, TypeError) as exc:
+        text = str(exc)
+        field = next((f for f in _SETTING_FIELDS if text.startswith(f)), "settings")
+        raise ApiError(422, field, text) from None
+    if settings.n_wheel_orders > N_ORDER_COLUMNS:
+        raise ApiError(
+            422,
+            "n_wheel_orders",
+            f"the service stores at most {N_ORDER_COLUMNS} wheel orders per bin, "
+            f"got {settings.n_wheel_orders}",
+        )
+    return settings
+
+
+def reprocess(db: Database, run_id: int, changes: dict[str, Any], principal: Principal, request: Any = None) -> Job:
+    """Queue a new processing job for a run with its latest settings changed by ``changes`` (audited).
+
+    Raises
+    ------
+    ApiError
+        404 without the run, 422 naming a bad setting, 409 while a job of the run is queued or running.
+    """
+    with db.write() as session:
+        if crud.get_run(session, run_id) is None:
+            raise not_found("run", run_id)
+        latest = crud.latest_job(session, run_id)
+        settings = settings_from_request(latest.settings if latest else None, changes)
+        active = crud.active_job(session, run_id)
+        if active is not None:
+            raise ApiError(
+                409,
+                "job",
+                f"run {run_id} already has job {active.id} {active.status}; cancel it first",
+            )
+        job = crud.create_job(session, run_id, settings.to_dict(), principal.name)
+        record(session, request, principal, "job.create", target=run_id,
+               detail={"job_id": job.id, "settings": changes})
+    return job
+
+
+def cancel(db: Database, store: RunStore, job_id: int, principal: Principal, request: Any = None,
+           ) -> tuple[Job, dict[str, int]]:
+    """Cancel a job: a queued one at once (its leftover chunk files removed), a running one at its
+    worker's next chunk boundary (audited). The job after the change and its chunk counts.
+
+    Raises
+    ------
+    ApiError
+        404 without the job, 409 when it is already done, failed or cancelled.
+    """
+    with db.write() as session:
+        outcome = crud.request_cancel(session, job_id)
+        if outcome is None:
+            raise not_found("job", job_id)
+        job = crud.get_job(session, job_id)
+        assert job is not None
+        if outcome == "final":
+            raise ApiError(409, "job", f"job {job_id} is already {job.status}")
+        record(session, request, principal, "job.cancel", target=job_id, detail={"run_id": job.run_id})
+        session.refresh(job)
+        counts = crud.chunk_counts(session, [job_id]).get(job_id, {})
+    if outcome == "cancelled":
+        store.remove_job_files(job.run_id, job_id)
+    return job, counts

@@ -1,0 +1,3 @@
+"""The publish step's tests use the db layer's database fixture."""
+
+from tests.db.conftest import db  # noqa: F401 - the fixture
