@@ -21,6 +21,7 @@ from app.api import (
     condition_effects,
     geometry,
     health,
+    impacts,
     jobs,
     profiles,
     reference,
@@ -35,7 +36,6 @@ from app.core.config import API_PREFIX
 __all__ = ["build_api_router", "API_PREFIX"]
 
 
-
 def build_api_router() -> APIRouter:
     """The ``/api/v1`` router with all resource routers."""
     api = APIRouter(prefix=API_PREFIX)
@@ -43,7 +43,7 @@ def build_api_router() -> APIRouter:
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
-        runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition,
+        runs, jobs, profiles, impacts, wheels, spectrogram, reference, analytics, condition,
         condition_effects, auth, audit, channel_maps, geometry, webhooks,
     ):
         protected.include_router(module.router)

@@ -40,6 +40,7 @@ from app.analysis.vkf import VKFResult, VKFWarning
 from app.analysis.wheel_oor import radius_phasor
 from app.io import WHEELS, open_run
 from app.pipeline.chunkfile import wheel_members, write_chunk_file
+from app.pipeline.impacts import chunk_dip_member, wheel_orders_at
 from app.pipeline.plan import ChunkSpec
 from app.pipeline.roughness_sums import SleeperTrack, recipe_floor_gain, rough_groups
 
@@ -326,6 +327,9 @@ def process_chunk(
                                              float(recipe.bandwidth_per_speed[sleeper]),
                                              float(recipe.multipliers[sleeper]), recipe.filter_order,
                                              recipe_floor_gain(recipe))
+                # isolated impacts: dips of the surface under the wheel (app.pipeline.impacts)
+                members.update(chunk_dip_member(wheel, y[iz], travelled, v_abs, track_m, recipe,
+                                                wheel_orders_at(env, out_idx, travelled, recipe, lo), chunk, lo))
 
                 # wheel OOR: radius phasors of the wheel orders, summed per window
                 rho = radius_phasor(env[order_rows], v_abs[out_idx - lo], recipe.wheel_diameter, orders)

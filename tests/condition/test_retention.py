@@ -7,7 +7,7 @@ import datetime as dt
 
 import numpy as np
 import pytest
-from sqlalchemy import func, select, text
+from sqlalchemy import MetaData, Table, func, select, text
 
 from app.db import migrate, partitions
 from app.db.models import ProfileBin, Run, SegmentCondition
@@ -16,6 +16,7 @@ from app.db.session import Database
 from app.simulate.fleet import FleetNoise, FleetSimulator
 from app.simulate.track import generate_line
 from tests.condition.support import publish_tracks
+from tests.db.support import profile_table
 
 SIM = FleetSimulator(generate_line(12_000.0, 13_000.0, seed=9), noise=FleetNoise(), grid_m=0.25)
 NOW = dt.datetime.now(dt.UTC)
@@ -86,11 +87,13 @@ def test_postgresql_profile_rows_are_partitioned_by_job_range(pg_cluster):
             s.execute(text("INSERT INTO jobs (run_id, status, progress, settings, cancel_requested, attempts, "
                            "created_at) VALUES (:r, 'done', 1, '{}', false, 1, now())"), {"r": run_id})
             job_id = s.execute(text("SELECT max(id) FROM jobs")).scalar()
-        with db.write() as s:  # the rows of that version (the writer knows later columns): plain SQL
-            s.execute(text("INSERT INTO profile_bins (job_id, wheel, bin, run_id, km, display_level, n_samples, "
-                           "sleeper_amp) SELECT :j, w, b, :r, (b + 0.5) * 0.25 / 1000, 0, 100, 1.0 "
-                           "FROM unnest(ARRAY['11', '12']) AS w, generate_series(1000, 1299) AS b"),
-                      {"j": job_id, "r": run_id})
+        from app.db import results_writer
+
+        with db.write() as s:  # the rows as the writer lays them out, less the columns of later versions
+            table = Table("profile_bins", MetaData(), autoload_with=s.connection())
+            frame = results_writer._profile_frame(profile_table(n_bins=300), run_id, job_id)
+            rows = frame[[c.name for c in table.columns]].astype(object).where(frame.notna(), None)
+            s.execute(table.insert(), rows.to_dict("records"))
         migrate.upgrade(url)
         with db.read() as s:
             parts = partitions.list_partitions(s)

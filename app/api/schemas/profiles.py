@@ -18,7 +18,9 @@ class ProfileOut(BaseModel):
     ``sleeper_amp_raw`` (m/s², the single wheel's amplitude), ``sleeper_amp_sd`` (m/s², the
     1-σ of ``sleeper_amp``), ``sleeper_amp_sd_shared`` (m/s², the part of that 1-σ shared along the
     ≈ 20 m the roughness floor is estimated over), ``order_amp_01..11`` (m/s²), ``residual_rms`` (m/s²),
-    ``sleeper_force_amp`` (kN). At a coarser level every row is one segment with
+    ``sleeper_force_amp`` (kN), ``track_impact_mm`` (estimated depth of an
+    isolated track impact — a dipped weld or joint — in that bin, mm; null
+    elsewhere). At a coarser level every row is one segment with
     ``km_from, km_to, n_bins`` and ``<column>_mean``, ``<column>_max``,
     ``<column>_p95`` for every indicator column; ``sleeper_amp_sd_mean`` is the 1-σ of
     the segment's mean (the bins' errors correlate along the track, their shared part over

@@ -10,8 +10,8 @@ shared along the ≈ 20 m window the floors are estimated over, m/s²). Rows sto
 before have NULL there. On PostgreSQL
 the columns added to the partitioned table reach every partition.
 
-Revision ID: 0015_sleeper_roughness
-Revises: 0014_operations
+Revision ID: 0016_sleeper_roughness
+Revises: 0015_track_impacts
 Create Date: 2026-11-26
 """
 
@@ -20,8 +20,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0015_sleeper_roughness"
-down_revision: str | None = "0014_operations"
+revision: str = "0016_sleeper_roughness"
+down_revision: str | None = "0015_track_impacts"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
