@@ -62,24 +62,49 @@ def steady_unit(name: str, fs: float | None = None) -> tuple[np.ndarray, float, 
     return unit, nb * D_S * fs / n, fs, nb
 
 
-def write_run(path: Path, z: np.ndarray, fs: float, speed: float, wheel_diameter: float = 0.92) -> Path:
-    """A canonical run with ``z`` as Z11 (and Z12, Z41, Z42), constant ``speed``, position from 0."""
+def write_run(path: Path, z: np.ndarray, fs: float, speed: float, wheel_diameter: float = 0.92,
+              z12: np.ndarray | None = None) -> Path:
+    """A canonical run with ``z`` as Z11 (and ``z12`` as Z12: the other wheel of the axle), constant ``speed``,
+    position from 0."""
     from app.io import parse_metadata
     from app.io.canonical import CanonicalWriter
 
     n = z.size
+    if z12 is not None and z12.shape != z.shape:
+        raise ValueError(f"z12 must have the shape of z {z.shape}, got {z12.shape}")
     meta = parse_metadata({"vehicle_id": "PHYS", "line_id": "PHYS", "km_start": 0.0, "km_increasing": True,
                            "start_time": "2024-01-01T00:00:00+00:00", "track": "1", "direction": "up",
                            "sleeper_spacing": D_S, "sample_rate_hz": fs,
                            "wheel_diameters": {w: wheel_diameter for w in ("11", "12", "41", "42")}})
     with h5py.File(path, "w") as h5:
-        w = CanonicalWriter(h5, fs=fs, metadata=meta, channels=["Z11", "speed", "position"], n_samples=n,
+        channels = ["Z11", *(["Z12"] if z12 is not None else []), "speed", "position"]
+        w = CanonicalWriter(h5, fs=fs, metadata=meta, channels=channels, n_samples=n,
                             compression=None, source_format="simulated")
         w.write("Z11", 0, z)
+        if z12 is not None:
+            w.write("Z12", 0, z12)
         w.write("speed", 0, np.full(n, speed))
         w.write("position", 0, np.arange(n) * speed / fs)
         w.finish(n)
     return path
+
+
+#: the rough runs (Added 2026-11-26): one rail, or two rails of one track (rail 1 = Z11, rail 2 = Z12)
+ROUGH_SINGLE = ("rough_k80_v35", "rough_k80_v35_severe")
+ROUGH_PAIRS = ("rail2_k80_v35", "rail2_trans_v42")
+
+
+def rough_run(name: str) -> dict[str, np.ndarray | float]:
+    """A rough physics run as written: ``z11`` (and ``z12`` for a two-rail pair), ``fs``, ``speed``,
+    the smooth twin's per-bay truth ``x_bay`` / ``A_bay_smooth`` and the stiffness ``edges``."""
+    pair = (PHYSICS / f"{name}_r1.npz").is_file()
+    d1 = np.load(PHYSICS / (f"{name}_r1.npz" if pair else f"{name}.npz"))
+    out: dict[str, np.ndarray | float] = {"z11": d1["a_axle"], "fs": float(d1["fs"]), "speed": float(d1["speed"]),
+                                          "x_bay": d1["x_bay"], "A_bay_smooth": d1["A_bay_smooth"],
+                                          "edges": d1["edges"], "ks": d1["ks"], "welds": d1["welds"]}
+    if pair:
+        out["z12"] = np.load(PHYSICS / f"{name}_r2.npz")["a_axle"]
+    return out
 
 
 def polygon(n: int, fs: float, speed: float, rho_um: float = 90.0, order: int = 5,

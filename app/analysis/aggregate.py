@@ -4,6 +4,12 @@
   (1 / 10 / 100 m, ...) and gives the NaN-aware mean, max and 95th percentile
   of every column per segment. Segment ``g`` of a row with bin index ``b`` is
   ``floor(b * bin_length / level_m)``; it spans ``[g, g + 1) * level_m`` m.
+  A 1-σ column (name ending in ``_sd``, e.g. ``sleeper_amp_sd``) aggregates to
+  the 1-σ of the segment's mean (:func:`app.analysis.uncertainty.segment_sd`:
+  the bins' errors are correlated along the track), not to the mean of the bins' 1-σ;
+  where ``df`` holds ``<col>_shared`` (e.g. ``sleeper_amp_sd_shared``), that part of
+  it is shared along the floor window, and ``<col>_shared`` itself aggregates to the
+  shared part of the segment's 1-σ.
 * :func:`decimate_for_display` reduces a long curve to at most ``max_points``
   points for plotting while keeping the local minima and maxima (peaks
   survive), and always the global minimum and maximum.
@@ -18,6 +24,8 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+
+from app.analysis.uncertainty import segment_sd
 
 __all__ = ["aggregate_profile", "decimate_for_display", "display_indices", "display_levels", "DISPLAY_LEVEL_BASE"]
 
@@ -79,6 +87,9 @@ def aggregate_profile(
     level_m: float,
     columns: Sequence[str],
     bin_length: float = 0.25,
+    *,
+    resolution_m: float = 3.0,
+    filter_order: int = 2,
 ) -> pd.DataFrame:
     """Aggregate a 25 cm profile to segments of ``level_m``.
 
@@ -95,6 +106,10 @@ def aggregate_profile(
         Numeric columns of ``df`` to aggregate (e.g. ``order_amp_01`` in m/s²).
     bin_length : float, optional
         Bin length of ``df``, m (default 0.25).
+    resolution_m, filter_order : optional, keyword-only
+        The track orders' resolution (m) and q the profile was processed with
+        (defaults: those of :class:`app.analysis.settings.ProcessingSettings`): the
+        along-track correlation of a 1-σ column's bins.
 
     Returns
     -------
@@ -103,6 +118,12 @@ def aggregate_profile(
         ``km_from``, ``km_to`` (segment bounds, km), ``n_bins`` (number of rows of
         ``df`` in the segment), then ``<col>_mean``, ``<col>_max`` and ``<col>_p95``
         for every column (NaN values ignored; NaN where a segment has no finite value).
+
+        For a 1-σ column (``<col>`` ending in ``_sd``) ``<col>_mean`` is the 1-σ of
+        the mean of the segment's bins (:func:`app.analysis.uncertainty.segment_sd`,
+        with ``<col>_shared`` of ``df`` as its shared part where ``df`` holds it;
+        ``<col>_shared`` aggregates to that part of the segment's 1-σ); their
+        ``_max`` and ``_p95`` are those of the bins'.
 
     Raises
     ------
@@ -161,6 +182,17 @@ def aggregate_profile(
             mean = np.where(n_fin > 0, total / np.maximum(n_fin, 1), np.nan)
         vmax = np.maximum.reduceat(np.where(finite, v, -np.inf), starts)
         vmax = np.where(n_fin > 0, vmax, np.nan)
+        if c.endswith("_sd") or c.endswith("_sd_shared"):  # the 1-σ of the segment's mean
+            if c.endswith("_sd_shared"):
+                shared = v
+            elif f"{c}_shared" in df.columns:
+                shared = pd.to_numeric(df[f"{c}_shared"], errors="raise").to_numpy(
+                    dtype=np.float64, na_value=np.nan)[order]
+            else:
+                shared = None
+            mean = np.full(ng, np.nan)
+            segs, sd_mean = segment_sd(bins, v, level, bin_length, resolution_m, filter_order, shared=shared)
+            mean[np.searchsorted(seg_ids, segs)] = sd_mean
         result[f"{c}_mean"] = mean
         result[f"{c}_max"] = vmax
         result[f"{c}_p95"] = _group_percentile(v, starts, group_id, 95.0)

@@ -10,6 +10,12 @@ The orders must be *railway orders*: track orders with the phases ``h·m0·ψ``
 orders with the phases ``l·m1·ψ`` (``l = 1 … L``, any subset), so that each
 group's sum is a polynomial in one phasor, ``exp(i·m0·ψ)`` or
 ``exp(i·m1·ψ)`` (Horner's scheme).
+
+With ``demodulate=True`` the same pass also returns the residual mixed down by
+the sleeper-passage phase, ``r·exp(−i·m0·ψ)``, averaged over every grid
+interval: the residual's content around ``f_s`` at the grid rate, from which
+:mod:`app.analysis.roughness` measures the broadband floor beside the sleeper
+order (a few operations per sample, no second pass).
 """
 
 from __future__ import annotations
@@ -32,6 +38,8 @@ def _residual_kernel(
     m0: float,
     m1: float,
     out: np.ndarray,
+    demod: np.ndarray,
+    want_demod: bool,
 ) -> None:  # pragma: no cover - compiled; covered through railway_residual
     n = y.shape[0]
     h_max = track.shape[1] - 1
@@ -49,6 +57,8 @@ def _residual_kernel(
         for order in range(h_max - 1, 0, -1):
             tr = tr * e0 + (track[j, order] + f * track_slope[j, order])
         out[k] = y[k] - (acc * e1 + tr * e0).real
+        if want_demod:
+            demod[j] += out[k] * e0.conjugate()
 
 
 def _dense(env: np.ndarray, powers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -67,7 +77,8 @@ def railway_residual(
     multipliers: np.ndarray,
     powers: np.ndarray | None = None,
     n_track: int = 1,
-) -> np.ndarray:
+    demodulate: bool = False,
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """``y − Σ_n Re(a_n·exp(i·φ_n))`` with envelopes linear between grid points.
 
     Parameters
@@ -92,11 +103,20 @@ def railway_residual(
         track order and wheel orders 1, 2, … (``[m0, m1, 2·m1, …]``).
     n_track : int
         Number of track orders (the first rows), ≥ 1.
+    demodulate : bool, optional
+        Also return the residual mixed down by the first track order's phase
+        ``m0·ψ`` (the sleeper passage) and averaged over each grid interval.
 
     Returns
     -------
     ndarray, shape (N,)
         Residual, in the unit of ``y``.
+    ndarray, complex, shape (ceil(N / step),)
+        Only with ``demodulate``: ``mean(r[k]·exp(−i·m0·ψ[k]))`` over the samples
+        ``k`` of grid interval ``j`` (``j·step ≤ k < (j + 1)·step``), in the unit of
+        ``y``. A component ``A·cos(m0·ψ + 2π·δf·t + φ)`` of the residual appears in it
+        as ``(A/2)·exp(i(2π·δf·t + φ))`` (times the interval's sinc droop,
+        ``sinc(δf·step/fs)``), its image at ``−(2·f_s + δf)``.
 
     Raises
     ------
@@ -136,6 +156,14 @@ def railway_residual(
     track_slope /= step
     wheel_slope /= step
     out = np.empty_like(y)
+    n_grid = -(-y.size // step)
+    demod = np.zeros(n_grid if demodulate else 1, dtype=np.complex128)
     if y.size:
-        _residual_kernel(y, psi, track, track_slope, wheel, wheel_slope, step, float(m0), float(m1), out)
-    return out
+        _residual_kernel(y, psi, track, track_slope, wheel, wheel_slope, step, float(m0), float(m1), out,
+                         demod, bool(demodulate))
+    if not demodulate:
+        return out
+    counts = np.full(n_grid, float(step))
+    if n_grid:
+        counts[-1] = y.size - (n_grid - 1) * step
+    return out, demod / counts

@@ -71,12 +71,13 @@ def _subsidence_wheel(wheel, amp, u, groups, lag, confidence=0.95, max_points=MA
 def subsidence_fit(db: Database, settings: Settings, q: RunsQuery, *, confidence: float, normalise: bool,
                    reference_speed_kmh: float | None, max_points: int) -> dict:
     """u (mm) = slope · ln(Z / 1 m/s²) + intercept per wheel on 25 cm bins with both a
-    sleeper-passage amplitude Z and a subsidence value of the wheel's rail (or of both
-    rails); Newey–West intervals over 100 m. With ``normalise`` Z is the speed-normalised
-    amplitude (runs of different speeds pool)."""
+    sleeper-passage amplitude Z (the wheel's own, :func:`frames.own_amplitude`: its rail's
+    subsidence) and a subsidence value of the wheel's rail (or of both rails); Newey–West
+    intervals over 100 m. With ``normalise`` Z is the speed-normalised amplitude (runs of
+    different speeds pool)."""
     sel = q.select(db)
     w = q.wheel
-    df = data.load_profiles(db, settings, sel, km_from=q.km_from, km_to=q.km_to, wheel=w)
+    df = data.own_amplitude(data.load_profiles(db, settings, sel, km_from=q.km_from, km_to=q.km_to, wheel=w))
     if normalise and not df.empty:
         ref_v = reference_speed_kmh or settings.analytics_reference_speed_kmh
         min_v = settings.analytics_min_speed_kmh
@@ -100,12 +101,12 @@ def predicted_subsidence(db: Database, settings: Settings, run_id: int, *, wheel
         run, _ = run_with_results(session, run_id)
     fit_sel = data.select_runs(db, run.line_id, run.track, fit_run_ids) \
         if (fit_run_ids or run.line_id is not None) else data.select_runs(db, None, None, [run_id])
-    fdf = data.load_profiles(db, settings, fit_sel, wheel=wheel)
+    fdf = data.own_amplitude(data.load_profiles(db, settings, fit_sel, wheel=wheel))
     sub = data.reference(db, "subsidence", fit_sel)
     amp, u, g, _ = _subsidence_pairs(fdf, sub, wheel, fit_sel.bin_length)
     model = _subsidence_wheel(wheel, amp, u, g, hac_lag(fit_sel)) if amp.size >= 3 else None
     one = Selection(run.line_id, run.track, [run], fit_sel.bin_length)
-    df = data.load_profiles(db, settings, one, km_from=km_from, km_to=km_to, wheel=wheel)
+    df = data.own_amplitude(data.load_profiles(db, settings, one, km_from=km_from, km_to=km_to, wheel=wheel))
     z = df["sleeper_amp"].to_numpy()
     pred = predict_subsidence(z, model["slope"], model["intercept"]) if model and model["slope"] is not None \
         else np.full(z.size, np.nan)
@@ -123,10 +124,13 @@ def predicted_subsidence(db: Database, settings: Settings, run_id: int, *, wheel
 def unsprung_mass(db: Database, settings: Settings, q: RunsQuery, *, mass_min_kg: float, mass_max_kg: float,
                   max_points: int) -> dict:
     """Slope of the sleeper-passage force amplitude (kN) on the acceleration amplitude
-    (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``."""
+    (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``.
+
+    Both amplitudes of the same wheel as measured (:func:`frames.own_amplitude`): the roughness
+    response is in both, so it is not taken out of either."""
     sel = q.select(db)
     w = q.wheel
-    df = data.load_profiles(db, settings, sel, km_from=q.km_from, km_to=q.km_to, wheel=w)
+    df = data.own_amplitude(data.load_profiles(db, settings, sel, km_from=q.km_from, km_to=q.km_to, wheel=w))
     df = df[np.isfinite(df["sleeper_force_amp"].to_numpy(dtype=np.float64))]
     out = []
     for wh in ([w] if w else sorted(df["wheel"].unique().tolist())):

@@ -30,10 +30,11 @@ from app.db.models import ProfileBin, Run
 from app.db.session import Database
 
 __all__ = ["Selection", "RunsQuery", "hac_lag", "ANALYTICS_COLUMNS", "parse_run_ids", "select_runs", "analytics_frame", "load_profiles",
-           "reference", "speed_exponents", "normalised", "section_types", "PROFILE_CACHE_ROWS"]
+           "own_amplitude", "reference", "speed_exponents", "normalised", "section_types", "PROFILE_CACHE_ROWS"]
 
 #: Columns of :func:`analytics_frame` (and of :func:`load_profiles`).
-ANALYTICS_COLUMNS: tuple[str, ...] = ("run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp")
+ANALYTICS_COLUMNS: tuple[str, ...] = ("run_id", "wheel", "bin", "km", "speed_mean", "sleeper_amp", "sleeper_force_amp",
+                                       "sleeper_amp_raw")
 _COLS = list(ANALYTICS_COLUMNS)
 #: rows of analytics profile frames kept in memory per API process (about 60 MB)
 PROFILE_CACHE_ROWS = 1_000_000
@@ -147,7 +148,7 @@ def analytics_frame(
     km_from: float | None = None,
     km_to: float | None = None,
     wheel: str | None = None,
-    columns: Sequence[str] = ("speed_mean", "sleeper_amp", "sleeper_force_amp"),
+    columns: Sequence[str] = ("speed_mean", "sleeper_amp", "sleeper_force_amp", "sleeper_amp_raw"),
 ) -> pd.DataFrame:
     """Profile rows of the result jobs ``jobs`` (``(run_id, job_id)`` pairs, :func:`result_jobs`),
     columns ``run_id, wheel, bin, km`` and ``columns``.
@@ -222,6 +223,18 @@ class _FrameCache:
 
 
 _CACHE = _FrameCache(PROFILE_CACHE_ROWS)
+
+
+def own_amplitude(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with ``sleeper_amp`` the wheel's own amplitude (``sleeper_amp_raw``; jobs before issue 26: as is).
+
+    For relations of one rail's records (its subsidence, its wheel's force): where both wheels of an axle
+    are measured ``sleeper_amp`` is the response common to both rails (docs/indicator.md).
+    """
+    if "sleeper_amp_raw" not in df.columns or df.empty:
+        return df
+    raw = df["sleeper_amp_raw"].to_numpy(dtype=np.float64, na_value=np.nan)
+    return df.assign(sleeper_amp=np.where(np.isfinite(raw), raw, df["sleeper_amp"].to_numpy(dtype=np.float64)))
 
 
 def load_profiles(

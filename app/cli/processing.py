@@ -231,7 +231,9 @@ def process(
     """Process a run file locally (no server): profiles and wheel OOR to CSV and Parquet.
 
     ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
-    (``sleeper_amp``), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
+    (``sleeper_amp``: rail roughness out; ``sleeper_amp_raw`` the wheel's own, ``sleeper_amp_sd`` the
+    1-σ of ``sleeper_amp``, ``sleeper_amp_sd_shared`` the part of it shared along ≈ 20 m), its
+    harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
     (``sleeper_rms``), the wheel orders, the force amplitude and the depth of a track impact
     (``track_impact_mm``: a dipped weld or joint, bridged out of the sleeper columns);
     ``wheels.json`` the wheel OOR and any wheel flat (``flat``); ``meta.json`` the settings and

@@ -16,7 +16,9 @@ import numpy as np
 import pandas as pd
 
 from app.analysis.binning import BinSums
+from app.analysis.roughness import single_wheel_estimate, two_rail_estimate
 from app.analysis.settings import ProcessingSettings
+from app.analysis.uncertainty import STEP_WIDTH_FACTORS
 from app.analysis.wheel_oor import apply_diameter_correction, refine_diameter, summarize_oor
 from app.io import WHEELS
 from app.io.metadata import DEFAULT_WHEEL_DIAMETER_M
@@ -24,16 +26,21 @@ from app.pipeline.chunk import OOR_WINDOW_M
 from app.pipeline.chunkfile import read_wheel
 from app.pipeline.impacts import IMPACT_COLUMN, flat_result, mask_track_impacts, run_impacts
 
-__all__ = ["ENGINE_VERSION", "TRACK_COLUMNS", "RunResults", "assemble", "assemble_wheel", "results_meta",
-           "run_warnings"]
+__all__ = ["ENGINE_VERSION", "ROUGHNESS_COLUMNS", "TRACK_COLUMNS", "RunResults", "assemble", "assemble_wheel",
+           "results_meta", "run_warnings", "sleeper_estimate"]
 
 #: bump when the stored numbers would change for the same input and settings
 #: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q;
-#: 4: track impacts bridged out of the sleeper columns, track_impact_mm, wheel flats)
-ENGINE_VERSION = "trackvkf-pipeline/4"
+#: 4: track impacts bridged out of the sleeper columns, track_impact_mm, wheel flats;
+#: 5: and sleeper_amp the roughness-corrected estimate, sleeper_amp_raw / sleeper_amp_sd beside it)
+ENGINE_VERSION = "trackvkf-pipeline/5"
 #: the sleeper-passage columns of a profile row: the fundamental (m/s²), its 2nd and
 #: 3rd harmonics (m/s², NaN where not extracted) and their RMS (the energy indicator, m/s²)
 TRACK_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms")
+#: the roughness columns (issue 26, :mod:`app.analysis.roughness`): the single-wheel VKF amplitude at
+#: f_s as before (``sleeper_amp`` is now the best estimate: floor-corrected, or common to the two rails
+#: of an axle), the 1-σ of ``sleeper_amp`` and the part of it shared along the floor window, m/s²
+ROUGHNESS_COLUMNS: tuple[str, ...] = ("sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared")
 
 
 @dataclass
@@ -52,7 +59,50 @@ def _wheel_order_numbers(settings: ProcessingSettings) -> np.ndarray:
 def _profile_columns(settings: ProcessingSettings) -> list[str]:
     orders = [f"order_amp_{lvl:02d}" for lvl in _wheel_order_numbers(settings)]
     return ["wheel", "bin", "km", "n_samples", "speed_mean", *TRACK_COLUMNS, *orders,
-            "residual_rms", "sleeper_force_amp", IMPACT_COLUMN]
+            "residual_rms", "sleeper_force_amp", *ROUGHNESS_COLUMNS, IMPACT_COLUMN]
+
+
+def _track_resolution(settings: ProcessingSettings, wheel_diameter: float) -> float:
+    """The track orders' 10–90 % step width, m (``track_resolution_m``, or that of the wheel orders' band)."""
+    if settings.track_resolution_m is not None:
+        return float(settings.track_resolution_m)
+    per_speed = float(settings.bandwidth_orders) / (np.pi * float(wheel_diameter))
+    return STEP_WIDTH_FACTORS[int(settings.filter_order)] / per_speed
+
+
+def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_diameter: float) -> pd.DataFrame:
+    """``sleeper_amp`` (the best estimate) and ``sleeper_amp_sd`` of one wheel from its ``rough`` sums.
+
+    Parameters
+    ----------
+    rough : pandas.DataFrame
+        The finalised ``rough`` group (:mod:`app.pipeline.roughness_sums`): ``bin``,
+        ``pow``, ``re``, ``im``, ``floor_lo``, ``floor_hi``, ``res_m`` (the recipe's resolution) and,
+        for an axle with both wheels measured, ``cross_re`` and ``pow_other``.
+    settings : ProcessingSettings
+    wheel_diameter : float
+        m (the track orders' resolution from the settings, for sums without ``res_m``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``bin``, ``sleeper_amp``, ``sleeper_amp_sd``, ``sleeper_amp_sd_shared``: the two-rail estimate where
+        the axle's other wheel was measured
+        (:func:`app.analysis.roughness.two_rail_estimate`), else the single wheel's
+        floor-corrected one (:func:`app.analysis.roughness.single_wheel_estimate`).
+    """
+    bins = rough["bin"].to_numpy(dtype=np.int64)
+    res_m = float(np.nanmedian(rough["res_m"])) if "res_m" in rough and rough["res_m"].notna().any() \
+        else _track_resolution(settings, wheel_diameter)
+    kw = {"bin_length": settings.bin_length_m, "resolution_m": res_m, "filter_order": int(settings.filter_order)}
+    if "cross_re" in rough:
+        amp, sd, shared = two_rail_estimate(bins, rough["cross_re"].to_numpy(), rough["pow"].to_numpy(),
+                                    rough["pow_other"].to_numpy(), **kw)
+    else:
+        env = rough["re"].to_numpy() + 1j * rough["im"].to_numpy()
+        floor = rough[["floor_lo", "floor_hi"]].to_numpy().T
+        amp, sd, shared = single_wheel_estimate(bins, rough["pow"].to_numpy(), floor, env, **kw)
+    return pd.DataFrame({"bin": bins, "sleeper_amp": amp, "sleeper_amp_sd": sd, "sleeper_amp_sd_shared": shared})
 
 
 def assemble_wheel(
@@ -91,7 +141,13 @@ def assemble_wheel(
     resid = BinSums.merge_all(g["resid"]).finalize(settings.bin_length_m)
     prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
     prof = prof[prof["n_samples"] > 0]
-    for col in (*TRACK_COLUMNS, *[f"order_amp_{lvl:02d}" for lvl in _wheel_order_numbers(settings)],
+    prof = prof.rename(columns={"sleeper_amp": "sleeper_amp_raw"})
+    if g.get("rough"):
+        rough = BinSums.merge_all(g["rough"]).finalize(settings.bin_length_m)
+        prof = prof.merge(sleeper_estimate(rough, settings, d_w), on="bin", how="left")
+    elif "sleeper_amp_raw" in prof:  # chunk files before issue 26: the single-wheel amplitude, no 1-σ
+        prof["sleeper_amp"] = prof["sleeper_amp_raw"]
+    for col in (*TRACK_COLUMNS, *ROUGHNESS_COLUMNS, *[f"order_amp_{lvl:02d}" for lvl in _wheel_order_numbers(settings)],
                 "sleeper_force_amp"):
         if col not in prof:  # not extracted (collision, no force channel, older chunk files)
             prof[col] = np.nan

@@ -42,6 +42,7 @@ from app.io import WHEELS, open_run
 from app.pipeline.chunkfile import wheel_members, write_chunk_file
 from app.pipeline.impacts import chunk_dip_member, wheel_orders_at
 from app.pipeline.plan import ChunkSpec
+from app.pipeline.roughness_sums import SleeperTrack, recipe_floor_gain, rough_groups
 
 __all__ = ["OOR_WINDOW_M", "SHORT_RECORD_TOL", "PipelineCancelled", "chunk_warnings", "process_chunk",
            "sleeper_rms", "solve_logged", "wheel_groups"]
@@ -74,8 +75,12 @@ def _residual_sums(
     bins_of: Callable[[np.ndarray], np.ndarray],
     keep: Callable[[np.ndarray], np.ndarray],
     should_cancel: Callable[[], bool],
-) -> BinSums:
+) -> tuple[BinSums, np.ndarray]:
     """Crossfade-weighted Σ residual² per bin at the full rate, block by block.
+
+    Also returns the residual mixed down by the sleeper phase and averaged over
+    every interval of the output grid (complex, one value per ``out_idx``), for
+    the floor beside the sleeper order (:mod:`app.pipeline.roughness_sums`).
 
     Parameters
     ----------
@@ -99,19 +104,20 @@ def _residual_sums(
     mult, powers, n_track = recipe.multipliers, recipe.powers, len(recipe.track_rows)
     rows_per_block = max(1, _BLOCK // step)
     n_rows = -(-(chunk.out_hi - base) // step)
-    parts = []
+    parts, demod = [], []
     for r0 in range(0, n_rows, rows_per_block):
         if should_cancel():
             raise PipelineCancelled(f"cancelled in chunk {chunk.index}")
         r1 = min(r0 + rows_per_block, n_rows)
         a = base + r0 * step
         b = min(base + r1 * step, chunk.out_hi)
-        r = railway_residual(y[a - lo : b - lo], psi[a - lo : b - lo], env[:, r0 : r1 + 1], step, mult,
-                             powers, n_track)
+        r, z = railway_residual(y[a - lo : b - lo], psi[a - lo : b - lo], env[:, r0 : r1 + 1], step, mult,
+                                powers, n_track, demodulate=True)
+        demod.append(z)
         idx = np.arange(a, b)
         w = chunk.weight(idx) * keep(idx)
         parts.append(BinSums.from_samples(bins_of(idx), w, {"residual": r}, squares=("residual",)))
-    return BinSums.merge_all(parts)
+    return BinSums.merge_all(parts), np.concatenate(demod)[: out_idx.size]
 
 
 def sleeper_rms(amplitudes: np.ndarray) -> np.ndarray:
@@ -268,6 +274,9 @@ def process_chunk(
         def keep(idx: np.ndarray) -> np.ndarray:
             return (v_abs[idx - lo] >= min_v).astype(float)
 
+        solved: dict[str, tuple[dict[str, BinSums], float, list[str]]] = {}
+        tracks: dict[str, SleeperTrack] = {}
+
         for wheels, recipe in wheel_groups(run, settings):
             if should_cancel():
                 raise PipelineCancelled(f"cancelled in chunk {chunk.index}")
@@ -311,9 +320,13 @@ def process_chunk(
                 if iq is not None:
                     values["sleeper_force_amp"] = np.abs(env_all[iq, sleeper])
                 sums = BinSums.from_samples(bins_of(out_idx), w_out * moving, values)
-                resid = _residual_sums(
+                resid, demod = _residual_sums(
                     y[iz], env, out_idx, psi, recipe, chunk, lo, bins_of, keep, should_cancel
                 )
+                tracks[wheel] = SleeperTrack(env[sleeper], demod, bins_of(out_idx), w_out * moving,
+                                             float(recipe.bandwidth_per_speed[sleeper]),
+                                             float(recipe.multipliers[sleeper]), recipe.filter_order,
+                                             recipe_floor_gain(recipe))
                 # isolated impacts: dips of the surface under the wheel (app.pipeline.impacts)
                 members.update(chunk_dip_member(wheel, y[iz], travelled, v_abs, track_m, recipe,
                                                 wheel_orders_at(env, out_idx, travelled, recipe, lo), chunk, lo))
@@ -327,8 +340,8 @@ def process_chunk(
                     oor_vals[f"im_{lvl:02d}"] = np.where(ok, rho[i].imag, np.nan)
                     oor_vals[f"acc_{lvl:02d}"] = np.where(ok, amp[order_rows[i]], np.nan)
                 oor = BinSums.from_samples(win, w_out * ok, oor_vals)
-                members.update(
-                    wheel_members(wheel, {"bins": sums, "resid": resid, "oor": oor}, recipe.wheel_diameter,
-                                  warnings=notes)
-                )
+                solved[wheel] = ({"bins": sums, "resid": resid, "oor": oor}, recipe.wheel_diameter, notes)
+        rough = rough_groups(tracks, v_abs[out_idx - lo], fs / step) if tracks else {}
+        for wheel, (groups, diameter, notes) in solved.items():
+            members.update(wheel_members(wheel, {**groups, "rough": rough[wheel]}, diameter, warnings=notes))
     write_chunk_file(out_path, chunk.index, members)

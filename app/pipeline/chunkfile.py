@@ -10,7 +10,10 @@ all: its presence is the proof that the chunk is done. Members:
     One group of :class:`~app.analysis.binning.BinSums` per kind and wheel
     (:func:`pack_group`): ``bins`` (the 25 cm profile sums), ``resid``
     (residual sums per bin), ``oor`` (wheel out-of-roundness phasor sums per
-    window of :data:`app.pipeline.chunk.OOR_WINDOW_M`).
+    window of :data:`app.pipeline.chunk.OOR_WINDOW_M`); optionally ``rough``
+    (the sleeper order's power, envelope, side-band floor and, for an axle with
+    both wheels measured, their cross product per bin:
+    :mod:`app.pipeline.roughness_sums`; absent in files written before issue 26).
 ``diameter_<wheel>``
     The wheel diameter the chunk was solved with, m.
 ``warnings_<wheel>``
@@ -40,6 +43,7 @@ from app.analysis.binning import BinSums
 
 __all__ = [
     "GROUP_KINDS",
+    "OPTIONAL_KINDS",
     "WheelParts",
     "group_prefix",
     "pack_group",
@@ -51,12 +55,14 @@ __all__ = [
 
 #: groups of sums a chunk file holds per wheel
 GROUP_KINDS = ("bins", "resid", "oor")
+#: groups a chunk file may hold per wheel besides those (older files lack them)
+OPTIONAL_KINDS = ("rough",)
 
 
 def group_prefix(kind: str, wheel: str) -> str:
     """Member-name prefix of the group ``kind`` of ``wheel`` (``"bins_11__"``)."""
-    if kind not in GROUP_KINDS:
-        raise ValueError(f"kind must be one of {', '.join(GROUP_KINDS)}, got {kind!r}")
+    if kind not in GROUP_KINDS + OPTIONAL_KINDS:
+        raise ValueError(f"kind must be one of {', '.join(GROUP_KINDS + OPTIONAL_KINDS)}, got {kind!r}")
     return f"{kind}_{wheel}__"
 
 
@@ -150,17 +156,19 @@ def wheel_members(
     wheel : str
         ``"11"``, ``"12"``, ``"41"`` or ``"42"``.
     groups : mapping of kind to BinSums
-        One entry per kind of :data:`GROUP_KINDS`.
+        One entry per kind of :data:`GROUP_KINDS`, and any of :data:`OPTIONAL_KINDS`.
     diameter_m : float
         Wheel diameter the chunk was solved with, m.
     warnings : sequence of str
         Warnings of the wheel's solve in this chunk.
     """
-    if set(groups) != set(GROUP_KINDS):
-        raise ValueError(f"groups must hold {', '.join(GROUP_KINDS)}, got {', '.join(sorted(groups))}")
+    if not set(GROUP_KINDS) <= set(groups) <= set(GROUP_KINDS + OPTIONAL_KINDS):
+        raise ValueError(f"groups must hold {', '.join(GROUP_KINDS)} (and optionally {', '.join(OPTIONAL_KINDS)}), "
+                         f"got {', '.join(sorted(groups))}")
     members: dict[str, np.ndarray] = {}
-    for kind in GROUP_KINDS:
-        members.update(pack_group(group_prefix(kind, wheel), groups[kind].to_arrays()))
+    for kind in GROUP_KINDS + OPTIONAL_KINDS:
+        if kind in groups:
+            members.update(pack_group(group_prefix(kind, wheel), groups[kind].to_arrays()))
     members[_diameter_member(wheel)] = np.array(diameter_m)
     members[_warnings_member(wheel)] = np.array(list(warnings), dtype=np.str_).reshape(-1)
     return members
@@ -173,7 +181,7 @@ class WheelParts:
     Attributes
     ----------
     groups : dict of kind to BinSums
-        The groups found (kinds of :data:`GROUP_KINDS`).
+        The groups found (kinds of :data:`GROUP_KINDS` and :data:`OPTIONAL_KINDS`).
     diameter_m : float or None
         Wheel diameter, m (None if the file does not hold it).
     warnings : tuple of str
@@ -189,7 +197,7 @@ def read_wheel(path: Path, wheel: str) -> WheelParts:
     """Read one wheel's groups and diameter from a chunk file."""
     with np.load(path) as npz:
         groups = {}
-        for kind in GROUP_KINDS:
+        for kind in GROUP_KINDS + OPTIONAL_KINDS:
             part = load_group(npz, group_prefix(kind, wheel))
             if part is not None:
                 groups[kind] = part

@@ -52,9 +52,10 @@ __all__ = [
 
 #: The profile column of track impacts: estimated dip depth (mm) at the impact's bin, NaN elsewhere.
 IMPACT_COLUMN = "track_impact_mm"
-#: Profile columns bridged around a track impact (the sleeper-passage indicator and its force).
-BRIDGED_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms",
-                                    "sleeper_force_amp")
+#: Profile columns bridged around a track impact (the sleeper-passage indicator, its single-wheel
+#: amplitude and 1-σ, and its force).
+BRIDGED_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared",
+                                    "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms", "sleeper_force_amp")
 #: Rows of a chunk file's ``dips_<wheel>`` member.
 DIP_FIELDS: tuple[str, ...] = ("track_m", "s_m", "length_m", "depth_m", "score", "speed_mps", "weight")
 

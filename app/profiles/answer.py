@@ -20,6 +20,7 @@ from app.core.jsonable import jsonable
 from app.db import results_reader
 from app.db.display import display_rows, km_extent
 from app.db.display_arrays import DisplayArrays
+from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
 from app.profiles.encoding import columns_json, encoded, rows_json
 from app.profiles.query import AGGREGATED_COLUMNS, ProfileQuery
@@ -67,6 +68,9 @@ def profile_body(
     km_from, km_to, level, max_points, values = q.km_from, q.km_to, q.level, q.max_points, q.values
     ctx = q.index
     read = {"wheel": wheel, "km_from": km_from, "km_to": km_to, "columns": values}
+    if values is not None and k > 1:  # a segment's 1-σ needs the shared part of its bins' (aggregate_profile)
+        read["columns"] = [*values, *(f"{c}_shared" for c in values
+                                      if f"{c}_shared" in PROFILE_VALUE_COLUMNS and f"{c}_shared" not in values)]
     in_memory = None
     if arrays is not None and max_points is not None and k == 1:  # a published job's arrays
         in_memory = arrays.display_rows(db, job_id, wheel, max_points, bin_length, km_from=km_from, km_to=km_to,

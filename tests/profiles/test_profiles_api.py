@@ -27,6 +27,8 @@ def _synthetic(n_bins: int = N_BINS):
             "speed_mean": 20.0, "sleeper_amp": rng.lognormal(0, 0.3, n_bins),
             **{f"order_amp_{i:02d}": rng.random(n_bins) for i in range(1, 12)},
             "residual_rms": 0.2, "sleeper_force_amp": rng.random(n_bins),
+            "sleeper_amp_raw": rng.lognormal(0.2, 0.3, n_bins), "sleeper_amp_sd": rng.uniform(0.1, 0.3, n_bins),
+            "sleeper_amp_sd_shared": rng.uniform(0.0, 0.1, n_bins),
         }))
     wheels = [{"wheel": w, "wheel_diameter_m": 0.92, "n_windows": 5,
                "orders": [{"order": k, "radius_um": 10.0 * k, "radius_um_p05": 9.0 * k,
@@ -134,6 +136,32 @@ def test_csv_and_parquet_exports(processed):
     r = client.get(f"/api/v1/runs/{run_id}/profile.csv", params={"wheel": "11", "level": 100})
     got = pd.read_csv(io.StringIO(r.text))
     assert len(got) == 5 and "sleeper_amp_p95" in got.columns
+
+
+def test_roughness_columns_stored_returned_and_exported(processed):
+    """sleeper_amp_raw, sleeper_amp_sd and its shared part per bin, in the exports, and the segments' 1-σ at a
+    level (with the shared part, also when only sleeper_amp_sd is asked for)."""
+    from app.analysis.uncertainty import segment_sd
+
+    client, run_id, df = processed
+    want = df[df.wheel == "11"]
+    rows = pd.DataFrame(client.get(f"/api/v1/runs/{run_id}/profile", params={"wheel": "11"}).json()["rows"])
+    for col in ("sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared"):
+        np.testing.assert_allclose(rows[col], want[col])
+    got = pd.read_csv(io.StringIO(client.get(f"/api/v1/runs/{run_id}/profile.csv").text), dtype={"wheel": str})
+    assert {"sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared"} <= set(got.columns)
+    body = client.get(f"/api/v1/runs/{run_id}/profile",
+                      params={"wheel": "11", "level": 10, "columns": "sleeper_amp,sleeper_amp_sd"}).json()
+    agg = pd.DataFrame(body["rows"])
+    _, sd = segment_sd(want["bin"].to_numpy(), want["sleeper_amp_sd"].to_numpy(), 10.0,
+                       shared=want["sleeper_amp_sd_shared"].to_numpy())
+    np.testing.assert_allclose(agg["sleeper_amp_sd_mean"], sd, rtol=1e-9)
+    assert "sleeper_amp_sd_shared_mean" not in agg.columns  # read for the rule, not answered unasked
+    full = pd.DataFrame(client.get(f"/api/v1/runs/{run_id}/profile", params={"wheel": "11", "level": 10}).json()["rows"])
+    np.testing.assert_allclose(full["sleeper_amp_sd_mean"], sd, rtol=1e-9)
+    # correlated along the track: far above sd/sqrt(40), below the bins' mean sd
+    assert (agg["sleeper_amp_sd_mean"] < agg["sleeper_amp_sd_max"]).all()
+    assert agg["sleeper_amp_sd_mean"].mean() > 2 * want["sleeper_amp_sd"].mean() / np.sqrt(40)
 
 
 def test_wheels(processed):

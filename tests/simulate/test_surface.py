@@ -162,7 +162,9 @@ def test_confounders_on_and_off(tmp_path: Path):
 
 def test_roughness_raises_the_sleeper_order_like_the_physics(tmp_path: Path):
     """Qualitatively as ../shared/physics/rough_k80_v35 against its smooth twin (+40 % in the product's
-    10 m means there): the roughness answers near f_s and the indicator reads tens of per cent high."""
+    10 m means there): the roughness answers near f_s and the single wheel's amplitude (``sleeper_amp_raw``)
+    reads tens of per cent high; with both rails measured (Z11, Z12: independent roughness) the two-rail
+    ``sleeper_amp`` takes that bias out (docs/indicator.md, *How it separates roughness*), not the scatter."""
     from app.analysis.settings import ProcessingSettings
     from app.pipeline import run_pipeline
 
@@ -174,13 +176,18 @@ def test_roughness_raises_the_sleeper_order_like_the_physics(tmp_path: Path):
         truth = simulate_run(tmp_path / f"{name}.h5", confounders=sw, **kw)
         p = run_pipeline(truth.run_path, ProcessingSettings(), tmp_path / f"w-{name}").profiles
         p = p[p["wheel"] == "11"].sort_values("bin")
-        out[name] = ((p["bin"].to_numpy() + 0.5) * 0.25, p["sleeper_amp"].to_numpy())
-    x, smooth = out["smooth"]
-    rough = out["rough"][1]
+        out[name] = ((p["bin"].to_numpy() + 0.5) * 0.25, p["sleeper_amp_raw"].to_numpy(), p["sleeper_amp"].to_numpy())
+    x, smooth = out["smooth"][0], out["smooth"][1]
     edges = np.arange(12_020.0, 12_380.0, 10.0)
-    ratio = np.array([rough[(x >= a) & (x < a + 10)].mean() / smooth[(x >= a) & (x < a + 10)].mean() for a in edges])
-    assert 1.1 < np.median(ratio) < 2.5
-    assert np.sqrt(np.mean((ratio - 1) ** 2)) > 0.2  # and it scatters from one 10 m to the next
+
+    def ratio(rough: np.ndarray) -> np.ndarray:
+        return np.array([rough[(x >= a) & (x < a + 10)].mean() / smooth[(x >= a) & (x < a + 10)].mean() for a in edges])
+
+    raw, best = ratio(out["rough"][1]), ratio(out["rough"][2])
+    assert 1.1 < np.median(raw) < 2.5
+    assert np.sqrt(np.mean((raw - 1) ** 2)) > 0.2  # and it scatters from one 10 m to the next
+    assert abs(np.median(best) - 1.0) < 0.2  # two rails: the bias out (issue 26: ±15–20 % on the physics runs)
+    assert np.sqrt(np.mean((best - 1) ** 2)) > 0.1  # the scatter of one pass stays
 
 
 def test_config_object_and_keywords_make_the_same_run(tmp_path: Path):

@@ -14,12 +14,17 @@ class ProfileOut(BaseModel):
 
     At ``level_m`` equal to the bin length (0.25 m) every row is one stored bin
     with the columns ``wheel, bin, km, n_samples, speed_mean`` (m/s),
-    ``sleeper_amp`` (m/s²), ``order_amp_01..11`` (m/s²), ``residual_rms`` (m/s²),
+    ``sleeper_amp`` (m/s², the best estimate: rail roughness out, docs/indicator.md),
+    ``sleeper_amp_raw`` (m/s², the single wheel's amplitude), ``sleeper_amp_sd`` (m/s², the
+    1-σ of ``sleeper_amp``), ``sleeper_amp_sd_shared`` (m/s², the part of that 1-σ shared along the
+    ≈ 20 m the roughness floor is estimated over), ``order_amp_01..11`` (m/s²), ``residual_rms`` (m/s²),
     ``sleeper_force_amp`` (kN), ``track_impact_mm`` (estimated depth of an
     isolated track impact — a dipped weld or joint — in that bin, mm; null
     elsewhere). At a coarser level every row is one segment with
     ``km_from, km_to, n_bins`` and ``<column>_mean``, ``<column>_max``,
-    ``<column>_p95`` for every indicator column.
+    ``<column>_p95`` for every indicator column; ``sleeper_amp_sd_mean`` is the 1-σ of
+    the segment's mean (the bins' errors correlate along the track, their shared part over
+    ≈ 20 m), not the mean 1-σ; ``sleeper_amp_sd_shared_mean`` is the shared part of it.
     """
 
     run_id: int

@@ -69,6 +69,9 @@ PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
     *ORDER_COLUMNS,
     "residual_rms",
     "sleeper_force_amp",
+    "sleeper_amp_raw",
+    "sleeper_amp_sd",
+    "sleeper_amp_sd_shared",
     "track_impact_mm",
 )
 
@@ -250,6 +253,12 @@ class ProfileBin(Base):
     order_amp_11: Mapped[float | None] = mapped_column(Float)
     residual_rms: Mapped[float | None] = mapped_column(Float)
     sleeper_force_amp: Mapped[float | None] = mapped_column(Float)
+    #: issue 26: the single-wheel VKF amplitude at f_s (what sleeper_amp was before: sleeper_amp is now the
+    #: roughness-corrected best estimate) and the 1-σ of sleeper_amp, m/s²; NULL in jobs before issue 26
+    sleeper_amp_raw: Mapped[float | None] = mapped_column(Float)
+    sleeper_amp_sd: Mapped[float | None] = mapped_column(Float)
+    #: the part of sleeper_amp_sd shared along the ≈ 20 m floor window (what a single wheel's floor leaves)
+    sleeper_amp_sd_shared: Mapped[float | None] = mapped_column(Float)
     #: estimated depth (mm) of an isolated track impact (dipped weld or joint) in this bin, NULL elsewhere;
     #: the sleeper-passage columns are bridged around it (app.pipeline.impacts); NULL in jobs before issue 26
     track_impact_mm: Mapped[float | None] = mapped_column(Float)
