@@ -43,6 +43,7 @@ ACTIONS: tuple[str, ...] = (
     "webhook.create",
     "webhook.update",
     "webhook.delete",
+    "place.status",
 )
 
 

@@ -12,7 +12,10 @@ the run not deleted):
 2. the run's segment condition rows, change tests and flags are written
    (:func:`app.condition.writer.store_run_condition`);
 3. the alerts of its new flags are queued in the outbox (:mod:`app.condition.alerts`);
-4. the job is marked done with its provenance (:func:`app.db.queue.mark_done`).
+4. the run's places are found and its line's places advanced, with the alerts of new places and
+   tier changes (:func:`app.places.update.update_places`, in a savepoint: a failure there is
+   reported in the job's metadata and publishes the rest);
+5. the job is marked done with its provenance (:func:`app.db.queue.mark_done`).
 
 Readers switch from the run's old results to the new ones at the commit, and an
 alert exists exactly when its flags do.
@@ -32,6 +35,8 @@ from app.condition.writer import store_run_condition
 from app.db import partitions, queue, results_writer
 from app.db.models import Job, utcnow
 from app.db.session import Database
+from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
+from app.places.update import update_places
 
 __all__ = ["publish_job", "store_wheel_rows"]
 
@@ -46,6 +51,7 @@ def publish_job(
     *,
     worker_id: str | None,
     condition: ConditionConfig = DEFAULT_CONDITION_CONFIG,
+    places: PlacesConfig = DEFAULT_PLACES_CONFIG,
 ) -> bool:
     """Store (unless already stored) and publish a job's results and mark it done, in one transaction.
 
@@ -66,6 +72,8 @@ def publish_job(
         Owner of the job; None: any owner (fan-out mode).
     condition : ConditionConfig
         How the run's segment condition rows are made.
+    places : PlacesConfig
+        How its places are found and followed (``meta["condition"]["places"]`` says what they did).
 
     Returns
     -------
@@ -90,7 +98,10 @@ def publish_job(
         results_writer.publish_results(session, run_id, job_id, wheels)
         stored = store_run_condition(session, run_id, job_id, config=condition, profiles=profiles)
         deliveries = enqueue_new_flags(session, run_id, stored.line, stored.flags) if stored.stored else []
-        queue.mark_done(session, job_id, {**meta, "condition": stored.summary(len(deliveries))})
+        summary = stored.summary(len(deliveries))
+        if stored.stored:
+            summary["places"] = update_places(session, run_id, stored.line, job_id, config=places).summary()
+        queue.mark_done(session, job_id, {**meta, "condition": summary})
         return True
 
 

@@ -52,6 +52,7 @@ from app.db.models import ChunkStatus, Job, JobStatus, Run
 from app.db.session import Database
 from app.io import WHEELS
 from app.pipeline import ChunkSpec, plan_chunks, results_meta
+from app.places.config import PlacesConfig
 from worker.chunkstore import ChunkStore
 
 __all__ = [
@@ -99,6 +100,8 @@ class WorkerRuntime:
         next sub-block.
     condition : ConditionConfig
         How published runs become segment condition rows (from the settings).
+    places : PlacesConfig
+        How published runs' places are found and followed (from the settings).
     """
 
     def __init__(self, settings: Settings, db: Database | None = None) -> None:
@@ -108,6 +111,7 @@ class WorkerRuntime:
         self.chunks = ChunkStore(self.store)
         self.stopping = threading.Event()
         self.condition = ConditionConfig.from_settings(settings)
+        self.places = PlacesConfig.from_settings(settings)
 
     @property
     def db(self) -> Database:
@@ -376,7 +380,7 @@ def end_published(rt: WorkerRuntime, record: JobRecord, profiles: Any, wheels: S
     """
     run_id = record.run.id
     stored = publish.publish_job(rt.db, record.job.id, run_id, profiles, wheels, meta, worker_id=worker_id,
-                                 condition=rt.condition)
+                                 condition=rt.condition, places=rt.places)
     discard_job_files(rt, run_id)  # its chunk (and wheel) files, and those of the jobs it supersedes
     if stored:
         refresh_line_reference(rt, record.run)

@@ -14,15 +14,18 @@ from fastapi import APIRouter, Depends
 
 from app.api import (
     analytics,
+    assets,
     audit,
     auth,
     channel_maps,
     condition,
     condition_effects,
+    condition_sections,
     geometry,
     health,
     impacts,
     jobs,
+    places,
     profiles,
     reference,
     runs,
@@ -44,7 +47,7 @@ def build_api_router() -> APIRouter:
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
         runs, jobs, profiles, impacts, wheels, spectrogram, reference, analytics, condition,
-        condition_effects, auth, audit, channel_maps, geometry, webhooks,
+        condition_effects, condition_sections, places, auth, audit, channel_maps, geometry, webhooks, assets,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

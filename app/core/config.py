@@ -192,6 +192,78 @@ class Settings(BaseSettings):
         Largest alignment shift of a run onto its line's reference, m.
     condition_min_shift_confidence : float
         Alignments less clear than this are not applied.
+    places_level_limits : dict of str to [float, float, float]
+        Tier limits of a place's ``|index|`` (speed-conditioned stiffness
+        index, ln units) per superstructure class: alert, intervention,
+        immediate action (JSON: ``{"": [...], "b91_pads": [...]}``; ``""`` is
+        every other class). Alert ≈ 3.3 σ of the class's healthy index, above
+        every healthy segment measured; intervention and immediate 1.5 and 2.5
+        times it (EN 13848-5's ratios). docs/places.md.
+    places_change_limits : [float, float, float]
+        Tier limits of a place's change against its own history (ln units):
+        above healthy steps between runs at different speeds (≤ 0.10), below
+        a 20 % change (0.22).
+    places_step_z, places_trend_z : float
+        Scores (wheels combined) a place's step and trend evidence need.
+    places_min_rate_per_year : float
+        Rate (ln units a year) a trend needs to be evidence of a place.
+    places_watch_days : float
+        A trend alone makes a place (tier watch) where it reaches the alert
+        limit within so many days.
+    places_trend_window_days : float
+        Days of history a place's trend test regresses over.
+    places_min_history : int
+        Earlier runs with a value the step test of a place needs.
+    places_history_runs : int
+        Most recent earlier runs read for a run's places (baseline, repeatability).
+    places_gap_m : float
+        Exceeding 10 m segments at most this far apart merge into one place, m.
+    places_curve_min_locations : int
+        Distinct locations (10 m of one rail) a speed needs for the line's
+        reference curve there (400 m of track both rails: no false places at a
+        braking end); fewer: no index at that speed.
+    places_curve_runs : int
+        Newest earlier runs (with the run) the line's reference curves of the
+        places are fitted on at each publish (enough passes over a fleet's
+        speed spread; a longer history costs seconds a run and changes the
+        curves little).
+    places_match_tolerance_m : float
+        Widening of the extents when a run's places are matched to the known
+        places of the line, m.
+    places_min_confirmations : int
+        Runs that must find a place before it is listed (a one-run exceedance
+        is that run's noise).
+    places_confirm_tier : str
+        A place of this tier or higher is listed at once (``alert``,
+        ``intervention`` or ``immediate``).
+    places_drop_after : int
+        Consecutive runs covering a place without finding it after which it
+        is not active (off the work list until found again).
+    places_tier_down_runs : int
+        Consecutive lower runs before a place's tier falls (no alert
+        ping-pong at a limit).
+    places_hold_change : float
+        Departure from its baseline (ln units) that still holds a known place
+        a run's tests did not flag.
+    places_explain_days : float
+        A place appearing this many days or fewer after a maintenance action
+        over it is the action's effect (kept, never listed), days.
+    places_section_m : float
+        Length of the sections classed A … E by the index's level and spread, m.
+    places_section_limits : [float, float, float, float]
+        rms limits of the section classes A/B, B/C, C/D, D/E (ln units).
+    places_asset_buffer_m : float
+        Assets (switches, bridges, …) within this distance of a place label it, m.
+    places_muted_asset_types : str
+        Asset types (comma separated, e.g. ``weld,insulated_joint``) whose
+        places are muted on the work list (labelled, never dropped). Default none.
+    places_alerts : bool
+        Send the places' alerts (a new place, a tier change, a place back:
+        webhook event ``condition.places``) to the webhooks; the flags'
+        alerts (``condition.flags``) go whatever this says.
+    places_effect_around_m, places_effect_margin_m : float
+        An action's effect is its extent's index against the track within
+        ``around`` m outside the extent widened by ``margin`` m.
     webhook_timeout_s : float
         Total time of one webhook request, s: name resolution, connection,
         TLS, sending and the receiver's answer together, however slowly the
@@ -289,6 +361,33 @@ class Settings(BaseSettings):
     condition_level_block_m: float = Field(default=1000.0, gt=0)
     condition_max_shift_m: float = Field(default=50.0, gt=0)
     condition_min_shift_confidence: float = Field(default=0.2, ge=0, le=1)
+    places_level_limits: dict[str, list[float]] = Field(
+        default_factory=lambda: {"": [0.25, 0.375, 0.625], "b91_pads": [0.30, 0.45, 0.75]})
+    places_change_limits: list[float] = Field(default_factory=lambda: [0.10, 0.30, 0.50])
+    places_step_z: float = Field(default=4.5, gt=0)
+    places_trend_z: float = Field(default=4.5, gt=0)
+    places_min_rate_per_year: float = Field(default=0.25, gt=0)
+    places_watch_days: float = Field(default=180.0, gt=0)
+    places_trend_window_days: float = Field(default=180.0, gt=0)
+    places_min_history: int = Field(default=5, ge=2)
+    places_history_runs: int = Field(default=30, ge=2, le=1000)
+    places_gap_m: float = Field(default=10.0, ge=0)
+    places_curve_min_locations: int = Field(default=80, ge=0)
+    places_curve_runs: int = Field(default=20, ge=1, le=1000)
+    places_match_tolerance_m: float = Field(default=10.0, ge=0)
+    places_min_confirmations: int = Field(default=2, ge=1)
+    places_confirm_tier: str = "intervention"
+    places_drop_after: int = Field(default=2, ge=1)
+    places_tier_down_runs: int = Field(default=2, ge=1)
+    places_hold_change: float = Field(default=0.10, gt=0)
+    places_explain_days: float = Field(default=60.0, ge=0)
+    places_section_m: float = Field(default=200.0, gt=0)
+    places_section_limits: list[float] = Field(default_factory=lambda: [0.05, 0.10, 0.17, 0.25])
+    places_asset_buffer_m: float = Field(default=20.0, ge=0)
+    places_muted_asset_types: str = Field(default="", max_length=500)
+    places_alerts: bool = True
+    places_effect_around_m: float = Field(default=1000.0, gt=0)
+    places_effect_margin_m: float = Field(default=50.0, ge=0)
     webhook_timeout_s: float = Field(default=5.0, gt=0, le=120)
     webhook_max_answer_bytes: int = Field(default=64 * 1024, ge=0, le=16 * 1024 * 1024)
     webhook_concurrency: int = Field(default=4, ge=1, le=64)
@@ -317,6 +416,36 @@ class Settings(BaseSettings):
 
         parse_networks(value)  # ValueError naming the entry
         return value
+
+    @field_validator("places_level_limits")
+    @classmethod
+    def _check_level_limits(cls, value: dict[str, list[float]]) -> dict[str, list[float]]:
+        for name, lim in value.items():
+            _check_increasing(f"places_level_limits[{name!r}]", lim, 3)
+        return value
+
+    @field_validator("places_change_limits")
+    @classmethod
+    def _check_change_limits(cls, value: list[float]) -> list[float]:
+        return _check_increasing("places_change_limits", value, 3)
+
+    @field_validator("places_section_limits")
+    @classmethod
+    def _check_section_limits(cls, value: list[float]) -> list[float]:
+        return _check_increasing("places_section_limits", value, 4)
+
+    @field_validator("places_confirm_tier")
+    @classmethod
+    def _check_confirm_tier(cls, value: str) -> str:
+        if value not in ("alert", "intervention", "immediate"):
+            raise ValueError(f"places_confirm_tier must be alert, intervention or immediate, got {value!r}")
+        return value
+
+    @field_validator("places_muted_asset_types")
+    @classmethod
+    def _check_muted(cls, value: str) -> str:
+        # the known types are checked where the places' settings are read (app.places.config)
+        return ",".join(t.strip() for t in value.split(",") if t.strip())
 
     @field_validator("env")
     @classmethod
@@ -367,6 +496,15 @@ class Settings(BaseSettings):
     def is_sqlite(self) -> bool:
         """Whether the database URL selects SQLite (embedded mode)."""
         return self.database_url.startswith("sqlite")
+
+
+def _check_increasing(name: str, value: list[float], n: int) -> list[float]:
+    import math
+
+    if len(value) != n or not all(math.isfinite(v) for v in value) \
+            or not all(0 < a < b for a, b in zip(value, value[1:], strict=False)) or not value[0] > 0:
+        raise ValueError(f"{name}: must be {n} finite increasing numbers > 0, got {value!r}")
+    return [float(v) for v in value]
 
 
 @lru_cache(maxsize=1)

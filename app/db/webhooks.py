@@ -35,6 +35,7 @@ from app.db.session import Database
 __all__ = [
     "EVENT_FLAGS",
     "EVENT_PING",
+    "EVENT_PLACES",
     "RetryPolicy",
     "Claimed",
     "check_url",
@@ -50,6 +51,8 @@ __all__ = [
 
 #: Event of new condition flags in a published run.
 EVENT_FLAGS = "condition.flags"
+#: Event of place alerts (a new place, a tier change, a place back): :mod:`app.places.alerts`.
+EVENT_PLACES = "condition.places"
 #: Event of a test delivery (``POST /webhooks/{id}/test``).
 EVENT_PING = "ping"
 

@@ -17,6 +17,8 @@ TABLES = {
     "condition_lines", "condition_runs", "segment_condition", "condition_flags",
     "webhooks", "webhook_deliveries", "condition_overview",
     "channel_maps", "line_geometries", "worker_heartbeats",
+    "places", "place_observations", "place_events", "place_status_history", "place_actions", "place_runs",
+    "assets",
 }
 
 
@@ -33,7 +35,7 @@ def test_upgrade_downgrade_upgrade(tmp_path):
     migrate.upgrade(url)
     assert _tables(url) == TABLES
     head = migrate.current_revision(url)
-    assert head == "0016_sleeper_roughness"  # one chain: the newest migration is the head
+    assert head == "0018_assets"  # one chain: the newest migration is the head
 
     migrate.downgrade(url, "base")
     assert _tables(url) == set()

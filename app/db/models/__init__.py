@@ -16,10 +16,14 @@ module                 tables
 ``recorder``           channel_maps, line_geometries
 ``webhooks``           webhooks and their delivery log (the alerts outbox)
 ``operations``         worker_heartbeats (the liveness of worker processes)
+``places``             places, place_observations, place_events, place_status_history,
+                       place_actions, place_runs (the work list)
 ``auth``               users, sessions, api_keys, audit_log
+``assets``             assets (known discontinuities: switches, bridges, joints, ...)
 =====================  ==============================================================
 """
 
+from app.db.models.assets import Asset
 from app.db.models.auth import ApiKey, AuditEntry, User, UserSession
 from app.db.models.base import NAMING, Base, JSONType, UTCDateTime, utcnow
 from app.db.models.condition import (
@@ -32,6 +36,17 @@ from app.db.models.condition import (
 )
 from app.db.models.curves import ReferenceCurveRow
 from app.db.models.operations import WorkerHeartbeat
+from app.db.models.places import (
+    PLACE_ACTION_RELATIONS,
+    PLACE_EVENT_KINDS,
+    PLACE_STATUSES,
+    Place,
+    PlaceAction,
+    PlaceEventRow,
+    PlaceObservation,
+    PlaceRun,
+    PlaceStatusChange,
+)
 from app.db.models.recorder import ChannelMapRow, LineGeometryRow
 from app.db.models.reference import (
     MAINTENANCE_TYPES,
@@ -56,6 +71,7 @@ from app.db.models.webhooks import DeliveryStatus, Webhook, WebhookDelivery
 
 __all__ = [
     "ApiKey",
+    "Asset",
     "AuditEntry",
     "Base",
     "ChannelMapRow",
@@ -77,6 +93,15 @@ __all__ = [
     "N_ORDER_COLUMNS",
     "NAMING",
     "ORDER_COLUMNS",
+    "Place",
+    "PlaceAction",
+    "PLACE_ACTION_RELATIONS",
+    "PLACE_EVENT_KINDS",
+    "PlaceEventRow",
+    "PlaceObservation",
+    "PlaceRun",
+    "PLACE_STATUSES",
+    "PlaceStatusChange",
     "PROFILE_VALUE_COLUMNS",
     "ProfileBin",
     "ReferenceCurveRow",

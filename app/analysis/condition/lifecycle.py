@@ -1,0 +1,471 @@
+"""The lifecycle of places over runs: identity, confirmation, tier changes and the alerts they raise.
+
+A run's places (:func:`~app.analysis.condition.run_places.find_places`) are
+matched to the known places of the line (:func:`~app.analysis.condition.identity.match_places`,
+every known place whatever its workflow status, so a place that comes back
+after it was marked fixed keeps its id and history). Then:
+
+* a known place found again is **confirmed** by the run: its extent becomes
+  today's, its observation (day, level, change, tier) is added;
+* a place keeps the index it had **before it appeared** (its *baseline*: the
+  level minus the change of the run that first found it by a step). Its
+  change is measured against that baseline from then on, not against a
+  rolling history that slowly absorbs a lasting change; a known place the
+  run's tests did not flag is still **held** (confirmed) while its extent
+  stays ``hold_change`` away from its baseline in its direction;
+* a place neither found nor held by a run that covered its extent with an
+  index (a run without one there — no reference curve at the speed it passed
+  the place — could not see it) is **missed** by it (``misses`` counts the consecutive ones), and after
+  ``drop_after`` misses it is no longer **active** (not on the list until
+  found again; a place never listed is then forgotten) — a repaired place
+  goes back to its baseline and drops out this way;
+* a place is **listed** (on the work list, and alerted) once ``min_confirmations``
+  runs found it — a single run's exceedance that the next run does not repeat
+  is noise of that run — or at once when its tier reaches ``confirm_tier``
+  (what needs action now is not held back by a run);
+* its **tier** rises at once; it falls only when ``tier_down_runs`` consecutive
+  confirming runs put it lower (no alert ping-pong for a place at a limit).
+
+**Maintenance** (:class:`Action`: the imported actions of the line):
+
+* a place that appears within ``explain_days`` after an action covering at
+  least half of it is that action's **effect** (``explained_by``): a tamping
+  lowers the amplitude over its extent, a grinding changes the rail's share of
+  it — neither is a new defect of the track's support. It is kept, with its
+  observations, but never listed or alerted;
+* an action dated after a known place was first seen and covering at least
+  half of it is **linked** to it; when the first run after the action finds
+  the place neither flagged nor held, the action **repaired** it (event
+  ``repaired`` with the action, the place is no longer active at once). A
+  place the action did not repair stays, linked.
+
+Events (:class:`PlaceEvent`) — ``new`` when a place becomes listed, ``tier``
+when a listed place's tier changes, ``back`` when an inactive place is found
+again, ``repaired`` when an action repaired it — are what alerts are sent for;
+nothing else in a run raises one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from app.analysis.condition.identity import covering_actions, match_places, tendency
+from app.analysis.condition.outlook import Projection, Trend, linear_trend, time_to_limit
+from app.analysis.condition.places import EVIDENCE_STEP
+from app.analysis.condition.run_places import PlaceParams, RunPlaces
+from app.analysis.condition.tiers import TIER_INTERVENTION, TierTable
+
+__all__ = [
+    "LifecycleParams",
+    "Observation",
+    "PlaceState",
+    "PlaceEvent",
+    "Action",
+    "PlaceOutlook",
+    "place_outlook",
+    "advance_places",
+    "severity_trend",
+]
+
+
+@dataclass(frozen=True)
+class LifecycleParams:
+    """Rules of the lifecycle (module docstring).
+
+    Attributes
+    ----------
+    tolerance_m : float
+        Widening of the extents when matching, m.
+    min_confirmations : int
+        Runs that must find a place before it is listed (≥ 1).
+    confirm_tier : int
+        A place of this tier or higher is listed at once.
+    drop_after : int
+        Consecutive covering runs without it after which a place is not active.
+    tier_down_runs : int
+        Consecutive confirming runs at a lower tier before the tier falls.
+    hold_change : float
+        Departure from its baseline (ln units) that holds a known place the run's tests did not flag.
+    explain_days : float
+        A place appearing this many days or fewer after an action over it is the action's effect.
+    """
+
+    tolerance_m: float = 10.0
+    min_confirmations: int = 2
+    confirm_tier: int = TIER_INTERVENTION
+    drop_after: int = 2
+    tier_down_runs: int = 2
+    hold_change: float = 0.10
+    explain_days: float = 60.0
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.explain_days) and self.explain_days >= 0):
+            raise ValueError(f"explain_days: must be >= 0, got {self.explain_days!r}")
+        if not (np.isfinite(self.hold_change) and self.hold_change > 0):
+            raise ValueError(f"hold_change: must be > 0, got {self.hold_change!r}")
+        if not (np.isfinite(self.tolerance_m) and self.tolerance_m >= 0):
+            raise ValueError(f"tolerance_m: must be >= 0, got {self.tolerance_m!r}")
+        for name in ("min_confirmations", "confirm_tier", "drop_after", "tier_down_runs"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name}: must be >= 1, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What one run found of a place (extent, centroid and peak in m; level and change in ln units;
+    evidence and agreeing-wheel bits as :class:`~app.analysis.condition.places.PlaceTable`)."""
+
+    run_id: int
+    day: float
+    start_m: float
+    end_m: float
+    centre_m: float
+    peak_m: float
+    level: float
+    change: float
+    tier: int
+    severity: float
+    evidence: int
+    wheels: int
+
+
+@dataclass
+class PlaceState:
+    """A known place (mutable: :func:`advance_places` updates it).
+
+    Attributes
+    ----------
+    id : int
+    direction : int
+        +1 / −1.
+    start_m, end_m, peak_m : float
+        Extent and peak of the latest observation, m.
+    cls : str or None
+        Superstructure class at the peak (latest observation).
+    baseline : float or None
+        The index before the place appeared (ln units; None: first found without a step).
+    explained_by : int or None
+        The maintenance action whose effect the place is (never listed then).
+    actions : list of int
+        Maintenance actions over the place after it was first seen (linked to it).
+    tier : int
+        Current tier (with the falling rule of the module docstring).
+    listed : bool
+        Reached the listing rule once (stays True).
+    active : bool
+        Found by the latest run(s): not ``drop_after`` misses in a row.
+    misses : int
+        Consecutive covering runs that did not find it.
+    lower_runs : int
+        Consecutive confirming runs at a tier below ``tier``.
+    observations : list of Observation
+        Every run that found it, oldest first.
+    """
+
+    id: int
+    direction: int
+    start_m: float
+    end_m: float
+    peak_m: float
+    cls: str | None = None
+    baseline: float | None = None
+    explained_by: int | None = None
+    actions: list[int] = field(default_factory=list)
+    tier: int = 0
+    listed: bool = False
+    active: bool = True
+    misses: int = 0
+    lower_runs: int = 0
+    observations: list[Observation] = field(default_factory=list)
+
+    @property
+    def first_seen_day(self) -> float:
+        return self.observations[0].day
+
+    @property
+    def last_confirmed_day(self) -> float:
+        return self.observations[-1].day
+
+    @property
+    def confirmations(self) -> int:
+        return len(self.observations)
+
+
+@dataclass(frozen=True)
+class PlaceEvent:
+    """A change of a place that raises an alert.
+
+    Attributes
+    ----------
+    place_id : int
+    kind : {"new", "tier", "back", "repaired"}
+    old_tier, new_tier : int
+    action_id : int or None
+        The maintenance action of a ``repaired`` event.
+    """
+
+    place_id: int
+    kind: str
+    old_tier: int
+    new_tier: int
+    action_id: int | None = None
+
+
+@dataclass(frozen=True)
+class Action:
+    """A maintenance action of the line: id, extent on the aligned km axis (m), day, type."""
+
+    id: int
+    start_m: float
+    end_m: float
+    day: float
+    kind: str = "tamping"
+
+
+def severity_trend(state: PlaceState, *, now_day: float | None = None, window_days: float | None = None) -> Trend:
+    """Trend of the place's level in its own direction (``direction · level``, ln units) over its observations.
+
+    ``window_days`` keeps only the observations of the last so many days (all by default).
+    """
+    days = np.array([o.day for o in state.observations], dtype=np.float64)
+    vals = np.array([state.direction * o.level for o in state.observations], dtype=np.float64)
+    if window_days is not None and days.size:
+        keep = days >= days.max() - window_days
+        days, vals = days[keep], vals[keep]
+    return linear_trend(days, vals, now_day=now_day)
+
+
+@dataclass(frozen=True)
+class PlaceOutlook:
+    """A place's trend, the next tier's limit and when it reaches it.
+
+    Attributes
+    ----------
+    trend : Trend
+        Of ``direction · level`` over the observations (ln units per year).
+    next_limit : float
+        The level limit of the tier above the place's (NaN at the immediate tier or without a class).
+    projection : Projection
+        Days from the last observation to ``next_limit`` (NaN: not projected).
+    tendency : str
+        ``new`` / ``growing`` / ``stable`` / ``shrinking``.
+    """
+
+    trend: Trend
+    next_limit: float
+    projection: Projection
+    tendency: str
+
+
+def place_outlook(state: PlaceState, levels: TierTable, *, window_days: float | None = None) -> PlaceOutlook:
+    """Trend, next limit, time to it and tendency of a place (the limits of its class in ``levels``)."""
+    tr = severity_trend(state, window_days=window_days)
+    nxt = float(levels.limits_for(state.cls).next_limit(np.array([state.tier]))[0]) if state.cls is not None \
+        else float("nan")
+    return PlaceOutlook(trend=tr, next_limit=nxt, projection=time_to_limit(tr, nxt), tendency=tendency(tr))
+
+
+def _apply_tier(state: PlaceState, new_tier: int, params: LifecycleParams, events: list[PlaceEvent]) -> None:
+    """The tier rises at once and falls after ``tier_down_runs`` lower runs; events for a listed place."""
+    if new_tier > state.tier:
+        old = state.tier
+        state.tier, state.lower_runs = new_tier, 0
+        if state.listed:
+            events.append(PlaceEvent(state.id, "tier", old, state.tier))
+    elif new_tier < state.tier:
+        state.lower_runs += 1
+        if state.lower_runs >= params.tier_down_runs:
+            old = state.tier
+            state.tier, state.lower_runs = new_tier, 0
+            if state.listed:
+                events.append(PlaceEvent(state.id, "tier", old, state.tier))
+    else:
+        state.lower_runs = 0
+
+
+def _graded(place_params: PlaceParams | None, cls: str | None, level: float, change: float,
+            direction: int, tier: int) -> int:
+    """The tier of an observation from its level and its change against the place's baseline."""
+    if place_params is None:
+        return tier
+    if not np.isfinite(change):
+        return tier
+    lt = int(place_params.levels.limits_for(cls).grade(np.array([abs(level)]))[0]) if cls is not None else 0
+    ct = int(place_params.changes.grade(np.array([direction * change]))[0])
+    return max(lt, ct)
+
+
+def advance_places(
+    known: list[PlaceState],
+    found: RunPlaces,
+    *,
+    run_id: int,
+    day: float,
+    covered_m: tuple[float, float],
+    params: LifecycleParams,
+    next_id: int,
+    place_params: PlaceParams | None = None,
+    actions: Sequence[Action] = (),
+) -> tuple[list[PlaceEvent], list[int], int]:
+    """Apply one run to the known places (in place) and add its new ones.
+
+    Parameters
+    ----------
+    known : list of PlaceState
+        The line's known places; updated, and new places appended.
+    found : RunPlaces
+        The run's places (and its per-segment index, for the places it did not flag).
+    run_id : int
+    day : float
+        Time of the run, days.
+    covered_m : (float, float)
+        Extent the run has data for, m (known places inside it and not found are held or missed).
+    params : LifecycleParams
+    next_id : int
+        Id of the next new place.
+    place_params : PlaceParams, optional
+        The limits: with them a known place's tier is graded on its change against its baseline
+        (else the run's tier stands).
+    actions : sequence of Action
+        The line's maintenance actions (those after ``day`` are ignored).
+
+    Returns
+    -------
+    events : list of PlaceEvent
+    ids : list of int
+        The place id of each of the run's places (in ``found`` order).
+    next_id : int
+    """
+    if not isinstance(params, LifecycleParams):
+        raise TypeError("params: must be a LifecycleParams")
+    lo, hi = covered_m
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+        raise ValueError(f"covered_m: must be finite with from <= to, got {covered_m!r}")
+    acts = [a for a in actions if a.day <= day]
+    a_start = np.array([a.start_m for a in acts], dtype=np.float64)
+    a_end = np.array([a.end_m for a in acts], dtype=np.float64)
+    p = found.places
+    match = match_places(p.start_m, p.end_m, p.direction,
+                         np.array([k.start_m for k in known]), np.array([k.end_m for k in known]),
+                         np.array([k.direction for k in known], dtype=np.int64), tolerance_m=params.tolerance_m)
+    events: list[PlaceEvent] = []
+    ids: list[int] = []
+    matched = set()
+    for i in range(len(p)):
+        level, change = float(found.level[i]), float(found.change[i])
+        j = int(match.known[i])
+        state = known[j] if j >= 0 else None
+        if state is not None and state.baseline is not None:
+            change = level - state.baseline
+        # the change grades a place against its baseline, or where the run's step test fired
+        graded_change = change if (state is not None and state.baseline is not None) \
+            or (p.evidence[i] & EVIDENCE_STEP) else float("nan")
+        tier = _graded(place_params, found.cls[i], level, graded_change, int(p.direction[i]), int(found.tier[i]))
+        obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),
+                          centre_m=float(p.centre_m[i]), peak_m=float(found.peak_m[i]), level=level, change=change,
+                          tier=tier, severity=float(found.severity[i]), evidence=int(p.evidence[i]),
+                          wheels=int(p.wheels[i]))
+        if state is None:
+            state = PlaceState(id=next_id, direction=int(p.direction[i]), start_m=obs.start_m, end_m=obs.end_m,
+                               peak_m=obs.peak_m, cls=found.cls[i], tier=obs.tier,
+                               baseline=level - change if np.isfinite(change) and (p.evidence[i] & EVIDENCE_STEP)
+                               else None)
+            next_id += 1
+            known.append(state)
+            was_active = True
+            recent = [acts[k] for k in covering_actions(obs.start_m, obs.end_m, a_start, a_end)
+                      if 0.0 <= day - acts[k].day <= params.explain_days]
+            if recent:
+                state.explained_by = max(recent, key=lambda a: a.day).id
+        else:
+            matched.add(j)
+            was_active = state.active
+            state.start_m, state.end_m, state.peak_m = obs.start_m, obs.end_m, obs.peak_m
+            state.cls = found.cls[i]
+            if state.baseline is None and np.isfinite(found.change[i]) and (p.evidence[i] & EVIDENCE_STEP):
+                state.baseline = level - float(found.change[i])
+            _apply_tier(state, obs.tier, params, events)
+        _confirm(state, obs, was_active, params, events)
+        ids.append(state.id)
+    for j, state in enumerate(known):
+        if state.explained_by is None and acts:
+            for k in covering_actions(state.start_m, state.end_m, a_start, a_end):
+                if acts[k].day > state.first_seen_day and acts[k].id not in state.actions:
+                    state.actions.append(acts[k].id)
+        if j in matched or state.observations[-1].run_id == run_id:
+            continue
+        if not (lo <= state.start_m and state.end_m <= hi) or not _observed(state, found):
+            continue
+        held = _held(state, found, run_id, day, params, place_params)
+        if held is not None:
+            was_active = state.active
+            _apply_tier(state, held.tier, params, events)
+            _confirm(state, held, was_active, params, events)
+            continue
+        state.misses += 1
+        repair = [a for a in acts if a.id in state.actions and state.last_confirmed_day < a.day <= day]
+        if repair and state.active and state.explained_by is None:
+            state.active = False
+            if state.listed:
+                events.append(PlaceEvent(state.id, "repaired", state.tier, state.tier,
+                                         action_id=max(repair, key=lambda a: a.day).id))
+        elif state.misses >= params.drop_after:
+            state.active = False
+    # a candidate never confirmed is forgotten (an action's effect is kept as its record)
+    known[:] = [k for k in known if k.listed or k.active or k.explained_by is not None]
+    return events, ids, next_id
+
+
+def _confirm(state: PlaceState, obs: Observation, was_active: bool, params: LifecycleParams,
+             events: list[PlaceEvent]) -> None:
+    state.observations.append(obs)
+    state.misses = 0
+    state.active = True
+    if state.listed and not was_active:
+        events.append(PlaceEvent(state.id, "back", state.tier, state.tier))
+    if state.explained_by is not None:
+        return
+    if not state.listed and (state.confirmations >= params.min_confirmations or state.tier >= params.confirm_tier):
+        state.listed = True
+        events.append(PlaceEvent(state.id, "new", 0, state.tier))
+
+
+def _observed(state: PlaceState, found: RunPlaces) -> bool:
+    """The run has an index over the place's extent (where it has none — no reference curve at the speed
+    it passed there, no valid bins — it could not see the place, and does not miss it)."""
+    if found.seg.size == 0:
+        return False
+    a = np.searchsorted(found.seg, int(np.floor(state.start_m / found.segment_m)), side="left")
+    b = np.searchsorted(found.seg, int(np.ceil(state.end_m / found.segment_m)), side="left")
+    return bool(np.isfinite(found.seg_index[a:b]).any())
+
+
+def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: LifecycleParams,
+          place_params: PlaceParams | None) -> Observation | None:
+    """The observation that holds a known place the run did not flag (None: it is back at its baseline)."""
+    if state.baseline is None or found.seg.size == 0:
+        return None
+    a = np.searchsorted(found.seg, int(np.floor(state.start_m / found.segment_m)), side="left")
+    b = np.searchsorted(found.seg, int(np.ceil(state.end_m / found.segment_m)), side="left")
+    vals = found.seg_index[a:b]
+    if vals.size == 0 or not np.isfinite(vals).any():
+        return None
+    dev = state.direction * (np.nan_to_num(vals, nan=-np.inf) - state.baseline)
+    k = int(np.argmax(dev))
+    if not dev[k] >= params.hold_change:
+        return None
+    level = float(vals[k])
+    change = level - state.baseline
+    cls = found.seg_class[a + k]
+    tier = _graded(place_params, cls, level, change, state.direction, state.tier)
+    lvl_alert = place_params.levels.limits_for(cls).alert if place_params is not None and cls is not None else np.inf
+    chg_alert = place_params.changes.alert if place_params is not None else np.inf
+    severity = max(abs(level) / lvl_alert, abs(change) / chg_alert) if place_params is not None else 0.0
+    peak = (float(found.seg[a + k]) + 0.5) * found.segment_m
+    # held, not found: the place keeps its extent and the centre the run that last found it located
+    return Observation(run_id=run_id, day=float(day), start_m=state.start_m, end_m=state.end_m,
+                       centre_m=state.observations[-1].centre_m, peak_m=peak, level=level, change=change, tier=tier, severity=float(severity),
+                       evidence=EVIDENCE_STEP, wheels=0)

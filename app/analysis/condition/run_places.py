@@ -1,0 +1,418 @@
+"""A run's places: where the speed-conditioned index stands out or changed, merged and graded.
+
+Per 10 m segment of a run (wheels × segments), with the **speed-conditioned
+stiffness index** ``ln(A / A_ref(class, v))`` of the run and of its history
+(the earlier runs of the line, the same reference curves: :func:`segment_index`):
+
+* **anomaly** — the index (mean over the wheels) reaches the alert limit of
+  its superstructure class (:class:`~app.analysis.condition.tiers.TierTable`
+  ``levels``): the place departs from the typical track of its kind *at the
+  speed it was passed*, so speed ramps at stations do not read as track;
+* **step** — the index against the segment's own history (every earlier run,
+  whatever its speed: the index is comparable across speeds): median baseline,
+  robust repeatability, run level per kilometre block taken out, wheels
+  combined (:func:`~app.analysis.condition.change.detect_changes`,
+  :func:`~app.analysis.condition.change.combine_wheels`); a step counts where
+  ``|z| ≥ step_z`` **and** the change reaches the alert limit of ``changes``
+  (a significant change too small to act on is not a place). A step back towards the typical
+  track on a segment that was an anomaly before (a hard place softening, a repair) is that anomaly
+  shrinking, not a new place the other way: no step, unless the segment overshoots into an anomaly
+  of the other side (without this rule a shrinking hard place was listed as a new soft place at its
+  km, "growing");
+* **trend** — the index's slope over the last ``trend_window_days`` of the
+  segment's history (:func:`~app.analysis.condition.change.trend_change`, the
+  same levelled history), wheels combined: ``|z| ≥ trend_z`` and a rate of at
+  least ``min_rate_per_year`` away from the class's typical track, reaching the class's alert
+  limit within ``watch_days`` at that rate where it is the only evidence. A place
+  growing steadily has a history too spread for the step test and may not
+  have reached a limit yet: the trend finds it (tier *watch* until it does).
+
+Exceeding segments merge into places (:func:`~app.analysis.condition.places.merge_places`;
+a step segment's direction is that of its change, a trend's that of its rate,
+an anomaly's that of its index). A place's **level** is the index at its peak segment, its **change**
+the change there; its tier is the higher of the level's tier (limits of its
+class) and the change's (``changes``), and its severity in tier units
+(``magnitude / alert limit`` of whichever is higher) orders places of one tier.
+
+The speed-conditioned step replaces the stored matched-speed test here
+because on a fleet whose cruise speeds spread over ±10 % the matched-speed test
+finds too few runs within ±10 % of the newest one to test at all (measured:
+``bench/bench_places.py``, ``docs/condition.md``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes
+from app.analysis.condition.places import (
+    EVIDENCE_ANOMALY,
+    EVIDENCE_STEP,
+    EVIDENCE_TREND,
+    PlaceTable,
+    merge_places,
+)
+from app.analysis.condition.tiers import TierLimits, TierTable
+from app.analysis.stiffness.reference_curve import ReferenceCurve
+
+__all__ = [
+    "DEFAULT_LEVEL_LIMITS",
+    "DEFAULT_CHANGE_LIMITS",
+    "DEFAULT_PLACE_PARAMS",
+    "PlaceParams",
+    "RunPlaces",
+    "segment_index",
+    "find_places",
+]
+
+#: Limits of ``|index|`` per superstructure class (ln units), measured (``bench/bench_places.py``: three
+#: seeds of a uniform and a planted history, 12 runs each, through the real pipeline; BENCHMARKS.md): the
+#: alert limit is about 3.3 standard deviations of the class's healthy 10 m index (slab 0.073, B91 without
+#: pads 0.076, with pads 0.098: soft track has the lower signal-to-noise ratio) and above every healthy
+#: 10 m segment measured (largest: 0.20, 0.24, 0.23); intervention and immediate action at 1.5 and 2.5
+#: times it, the ratios of EN 13848-5's limits for isolated defects. Classes without a row use the default.
+DEFAULT_LEVEL_LIMITS = TierTable(
+    TierLimits(0.25, 0.375, 0.625),
+    {"slab": TierLimits(0.25, 0.375, 0.625), "b91_no_pads": TierLimits(0.25, 0.375, 0.625),
+     "b91_pads": TierLimits(0.30, 0.45, 0.75)},
+)
+#: Limits of ``|change|`` against the own history (ln units): 0.10 is above the largest significant
+#: step of healthy segments between runs at different speeds (0.05–0.10: the VKF's resolution along
+#: the track changes with speed) and below the changes to find (a 20 % change is 0.22: alert); a sudden
+#: change of +35 % / −26 % is an intervention, of +65 % / −40 % immediate action.
+DEFAULT_CHANGE_LIMITS = TierLimits(0.10, 0.30, 0.50)
+
+
+@dataclass(frozen=True)
+class PlaceParams:
+    """How places are found and graded.
+
+    Attributes
+    ----------
+    levels : TierTable
+        Limits of ``|index|`` per superstructure class (ln units).
+    changes : TierLimits
+        Limits of ``|change|`` against the segment's own history (ln units).
+    step_z : float
+        Step score a change needs (repeatability units).
+    trend_z : float
+        Trend score a growth needs.
+    min_rate_per_year : float
+        Rate a trend needs, ln units per year (0.25: healthy track would reach the alert
+        limit within a year).
+    trend_window_days : float
+        Days of history the trend is fitted over.
+    agree_z : float
+        A wheel agrees when its own score reaches this.
+    min_history : int
+        Earlier runs with a value a step test needs.
+    history_runs : int
+        Most recent runs the baseline is taken over.
+    gap_m : float
+        Gap tolerance of the merge, m.
+    level_block_m : float
+        Block of the run-level correction, m.
+    watch_days : float
+        A trend alone makes a place (tier watch) where it reaches the alert limit within so many days.
+    """
+
+    levels: TierTable
+    changes: TierLimits
+    step_z: float = 4.5
+    trend_z: float = 4.5
+    min_rate_per_year: float = 0.25
+    trend_window_days: float = 180.0
+    agree_z: float = 2.0
+    min_history: int = 5
+    history_runs: int = 30
+    gap_m: float = 10.0
+    level_block_m: float = 1000.0
+    watch_days: float = 180.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.levels, TierTable):
+            raise TypeError("levels: must be a TierTable")
+        if not isinstance(self.changes, TierLimits):
+            raise TypeError("changes: must be a TierLimits")
+        for name in ("step_z", "trend_z", "min_rate_per_year", "trend_window_days", "agree_z", "level_block_m",
+                     "watch_days"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
+        if not (np.isfinite(self.gap_m) and self.gap_m >= 0):
+            raise ValueError(f"gap_m: must be >= 0, got {self.gap_m!r}")
+        if self.min_history < 2:
+            raise ValueError(f"min_history: must be >= 2, got {self.min_history!r}")
+        if self.history_runs < self.min_history:
+            raise ValueError(f"history_runs: must be >= min_history, got {self.history_runs!r}")
+
+    def change_params(self) -> ChangeParams:
+        """The step test's parameters (no speed matching: the index is speed-conditioned)."""
+        return ChangeParams(step_z=self.step_z, trend_z=self.trend_z, trend_window_days=self.trend_window_days,
+                            agree_z=self.agree_z, min_history=self.min_history,
+                            history_runs=self.history_runs, history_scan_runs=max(self.history_runs, 60),
+                            speed_tolerance=1e6, level_block_m=self.level_block_m)
+
+
+@dataclass(frozen=True)
+class RunPlaces:
+    """The places of a run and the per-segment values they come from.
+
+    Attributes
+    ----------
+    places : PlaceTable
+        Extent, centre, peak, direction, evidence bits, agreeing-wheel bits.
+    peak_m : numpy.ndarray
+        Centre of each place's peak segment (the highest tier, then the largest magnitude), m.
+    level, change, change_z : numpy.ndarray
+        Per place at its peak segment: index (mean over wheels), change against the history
+        and its combined score (NaN without a step test).
+    cls : numpy.ndarray
+        Superstructure class of the peak segment (object; None: no class there).
+    level_tier, change_tier, tier : numpy.ndarray
+        int64 tiers (0 … 3) of the level, of the change (0 without step evidence) and the higher.
+    severity : numpy.ndarray
+        The place's magnitude in units of the alert limit that gives its tier.
+    n_agreeing : numpy.ndarray
+        int64 wheels agreeing at the peak segment.
+    rate_per_year, trend_z : numpy.ndarray
+        Per place at its peak segment: the index's rate (ln units per year) and its combined trend score.
+    seg : numpy.ndarray
+        int64 segment numbers of the per-segment arrays; ``segment_m`` their length, m.
+    seg_index, seg_change, seg_change_z : numpy.ndarray
+        Per segment: index (mean over wheels), change and combined step score.
+    seg_class : numpy.ndarray
+        Per segment: superstructure class (object; None: none).
+    seg_evidence : numpy.ndarray
+        int64 evidence bits per segment.
+    """
+
+    places: PlaceTable
+    peak_m: np.ndarray
+    level: np.ndarray
+    change: np.ndarray
+    change_z: np.ndarray
+    cls: np.ndarray
+    level_tier: np.ndarray
+    change_tier: np.ndarray
+    tier: np.ndarray
+    severity: np.ndarray
+    n_agreeing: np.ndarray
+    rate_per_year: np.ndarray
+    trend_z: np.ndarray
+    seg: np.ndarray
+    segment_m: float
+    seg_index: np.ndarray
+    seg_change: np.ndarray
+    seg_change_z: np.ndarray
+    seg_class: np.ndarray
+    seg_evidence: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    def __len__(self) -> int:
+        return len(self.places)
+
+
+#: The measured defaults (step score 4.5 as the store's change tests, 5 earlier runs, gap 10 m).
+DEFAULT_PLACE_PARAMS = PlaceParams(DEFAULT_LEVEL_LIMITS, DEFAULT_CHANGE_LIMITS)
+
+
+def segment_index(log_amp: np.ndarray, speed_mps: np.ndarray, classes: np.ndarray,
+                  curves: Mapping[str, ReferenceCurve]) -> np.ndarray:
+    """``ln A − ln A_ref(class, v)`` of segments.
+
+    Parameters
+    ----------
+    log_amp : numpy.ndarray
+        ``ln(A / 1 m/s²)`` per segment (any shape ending in segments; e.g. wheels × segments).
+    speed_mps : numpy.ndarray
+        Speed, m/s (same shape).
+    classes : numpy.ndarray
+        (segments,) class label of each segment (None: no class, e.g. near a change of
+        superstructure: no index).
+    curves : mapping of str to ReferenceCurve
+        The line's curves by class.
+
+    Returns
+    -------
+    numpy.ndarray
+        The index (NaN where the class has no curve or the speed no reference).
+    """
+    la = np.asarray(log_amp, dtype=np.float64)
+    v = np.asarray(speed_mps, dtype=np.float64)
+    if la.shape != v.shape:
+        raise ValueError("log_amp, speed_mps: must have equal shapes")
+    cls = np.asarray(classes, dtype=object)
+    if la.ndim == 0 or cls.shape != (la.shape[-1],):
+        raise ValueError(f"classes: must have one label per segment ({la.shape[-1] if la.ndim else 0})")
+    out = np.full(la.shape, np.nan)
+    labels = np.array(["\0" if c is None else str(c) for c in cls.tolist()], dtype=object)
+    for name, curve in curves.items():
+        m = labels == name
+        if not m.any() or curve.log_speed.size == 0:
+            continue
+        g, _ = curve.evaluate(v[..., m])
+        out[..., m] = la[..., m] - g
+    return out
+
+
+def _mean_over_wheels(a: np.ndarray) -> np.ndarray:
+    ok = np.isfinite(a)
+    n = ok.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, np.where(ok, a, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
+
+
+def find_places(
+    seg: np.ndarray,
+    index: np.ndarray,
+    history: np.ndarray,
+    history_days: np.ndarray,
+    now_day: float,
+    classes: np.ndarray,
+    *,
+    segment_m: float,
+    params: PlaceParams,
+    wheel_bits: Sequence[int] | None = None,
+) -> RunPlaces:
+    """Find and grade a run's places (module docstring).
+
+    Parameters
+    ----------
+    seg : numpy.ndarray
+        (S,) segment numbers, strictly ascending.
+    index : numpy.ndarray
+        (W, S) speed-conditioned index of the run per wheel (NaN: no value).
+    history : numpy.ndarray
+        (W, S, R) the index of the earlier runs on these segments and wheels, oldest first
+        (NaN: none); R may be 0.
+    history_days : numpy.ndarray
+        (R,) time of each earlier run, days (the origin of ``now_day``).
+    now_day : float
+        Time of the run, days.
+    classes : numpy.ndarray
+        (S,) class per segment (None: none).
+    segment_m : float
+        Segment length, m.
+    params : PlaceParams
+    wheel_bits : sequence of int, optional
+        Bit of each wheel (row of ``index``) in the places' wheel masks (default ``1 << row``).
+
+    Returns
+    -------
+    RunPlaces
+    """
+    if not isinstance(params, PlaceParams):
+        raise TypeError("params: must be a PlaceParams")
+    s = np.asarray(seg, dtype=np.int64)
+    x = np.asarray(index, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != s.size:
+        raise ValueError(f"index: must be (wheels, {s.size}), got shape {x.shape}")
+    h = np.asarray(history, dtype=np.float64)
+    if h.ndim != 3 or h.shape[:2] != x.shape:
+        raise ValueError(f"history: must be (wheels, segments, runs) = {x.shape} × runs, got shape {h.shape}")
+    days = np.asarray(history_days, dtype=np.float64)
+    if days.shape != (h.shape[2],):
+        raise ValueError(f"history_days: must have one time per history run ({h.shape[2]}), got shape {days.shape}")
+    if not np.isfinite(now_day):
+        raise ValueError(f"now_day: must be finite, got {now_day!r}")
+    cls = np.asarray(classes, dtype=object)
+    if cls.shape != s.shape:
+        raise ValueError(f"classes: must have one label per segment ({s.size}), got shape {cls.shape}")
+    n_w = x.shape[0]
+    bits = np.array([1 << i for i in range(n_w)] if wheel_bits is None else list(wheel_bits), dtype=np.int64)
+    if bits.shape != (n_w,):
+        raise ValueError(f"wheel_bits: must have one bit per wheel ({n_w})")
+
+    level = _mean_over_wheels(x)
+    has_class = np.array([c is not None for c in cls.tolist()], dtype=bool)
+    level_tier = np.zeros(s.size, np.int64)
+    if has_class.any():
+        level_tier[has_class] = params.levels.grade(np.abs(level[has_class]), cls[has_class])
+    # step against the segment's own history, every wheel
+    wz = np.full(x.shape, np.nan)
+    wchange = np.full(x.shape, np.nan)
+    wtz = np.full(x.shape, np.nan)
+    wrate = np.full(x.shape, np.nan)
+    if h.shape[2] >= params.min_history:
+        cp = params.change_params()
+        ones = np.ones(h.shape[1:])
+        for w in range(n_w):
+            ch = detect_changes(h[w], ones, days, x[w], np.ones(s.size), float(now_day), s, segment_m=segment_m,
+                                params=cp, trend=True)
+            wz[w], wchange[w], wtz[w], wrate[w] = ch.change_z, ch.change, ch.trend_z, ch.trend_rate
+    cz, agree = combine_wheels(wz, params.agree_z)
+    tz, t_agree = combine_wheels(wtz, params.agree_z)
+    rate = _mean_over_wheels(wrate)
+    trend = (np.abs(np.nan_to_num(tz)) >= params.trend_z) & (np.abs(np.nan_to_num(rate)) >= params.min_rate_per_year) \
+        & (np.sign(np.nan_to_num(tz)) == np.sign(np.nan_to_num(rate)))
+    change = _mean_over_wheels(wchange)
+    change_tier = params.changes.grade(np.abs(change))
+    step = (np.abs(np.nan_to_num(cz)) >= params.step_z) & (change_tier >= 1) & (np.sign(np.nan_to_num(cz))
+                                                                               == np.sign(np.nan_to_num(change)))
+    anomaly = level_tier >= 1
+    # a step back towards the class's typical track on a segment that was an anomaly before it is that
+    # anomaly shrinking (or repaired), not a new place the other way: the anomaly, while it lasts, stays
+    # graded by its level; only where the segment overshoots into an anomaly of the other side is it one
+    before = level - change
+    before_tier = np.zeros(s.size, np.int64)
+    if has_class.any():
+        before_tier[has_class] = params.levels.grade(np.abs(np.nan_to_num(before[has_class])), cls[has_class])
+    back = (before_tier >= 1) & (np.sign(np.nan_to_num(change)) == -np.sign(np.nan_to_num(before))) \
+        & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(change))))
+    step &= ~back
+    change_tier = np.where(step, change_tier, 0)
+    # a trend counts where the index grows away from the class's typical track (a place recovering
+    # towards it is no work): not against an anomaly's own side, nor back from a former anomaly unless
+    # it overshoots into an anomaly of the other side
+    trend &= ~anomaly | (np.sign(np.nan_to_num(rate)) == np.sign(np.nan_to_num(level)))
+    trend &= ~((before_tier >= 1) & (np.sign(np.nan_to_num(rate)) == -np.sign(np.nan_to_num(before)))
+               & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(rate)))))
+    # a trend alone (no anomaly, no step: tier watch) counts where the segment reaches its class's alert
+    # limit within watch_days at its rate: a segment at typical track with a trend is a year or more away
+    # from any limit, and where the curve is thin (a braking end) such trends were noise (measured)
+    alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        to_alert = (alert - np.sign(np.nan_to_num(rate)) * level) / np.abs(rate) * 365.25
+    trend &= anomaly | step | (np.nan_to_num(to_alert, nan=np.inf) <= params.watch_days)
+    evidence = (np.where(anomaly, EVIDENCE_ANOMALY, 0) | np.where(step, EVIDENCE_STEP, 0)
+                | np.where(trend, EVIDENCE_TREND, 0))
+    # a step segment goes the way of its change, a trend the way of its rate, an anomaly the way of its index
+    # (a trend segment weighs by its change against the history, the growth so far, where that goes its way)
+    tiny = 1e-9 * np.sign(np.nan_to_num(rate))
+    trend_value = np.where(np.sign(np.nan_to_num(change)) == np.sign(np.nan_to_num(rate)), change, tiny)
+    value = np.where(step, change, np.where(anomaly, level, np.where(trend, trend_value, level)))
+    hot = anomaly | step | trend
+    # agreeing wheels: on the step where there is one, else those whose own index reaches the level limit
+    own_tier = np.zeros(x.shape, np.int64)
+    for w in range(n_w):
+        if has_class.any():
+            own_tier[w, has_class] = params.levels.grade(np.abs(np.nan_to_num(x[w, has_class])), cls[has_class])
+    level_agree = (own_tier >= 1) & (np.sign(np.nan_to_num(x)) == np.sign(np.nan_to_num(level))[None, :])
+    agree_any = np.where(step[None, :], agree, np.where(anomaly[None, :], level_agree, t_agree))
+    wheel_mask = (agree_any * bits[:, None]).sum(axis=0).astype(np.int64)
+    places = merge_places(s, value, hot, segment_m=segment_m, gap_m=params.gap_m, evidence=evidence,
+                          wheels=wheel_mask)
+    n = len(places)
+    peak = np.zeros(n, np.int64)
+    for p in range(n):
+        rows = np.arange(places.first[p], places.last[p] + 1)
+        rows = rows[hot[rows]]
+        tier_rows = np.maximum(level_tier[rows], change_tier[rows])
+        mag = places.direction[p] * np.nan_to_num(value[rows])
+        peak[p] = rows[np.lexsort((-mag, -tier_rows))[0]]
+    lt, ct = level_tier[peak], change_tier[peak]
+    tier = np.maximum(lt, ct)
+    lvl_alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf
+                          for c in cls[peak].tolist()], dtype=np.float64)
+    sev_level = np.abs(np.nan_to_num(level[peak])) / lvl_alert
+    sev_change = np.where(ct >= 1, np.abs(np.nan_to_num(change[peak])) / params.changes.alert, 0.0)
+    return RunPlaces(
+        places=places, peak_m=(s[peak] + 0.5) * segment_m, level=level[peak], change=change[peak], change_z=cz[peak], cls=cls[peak],
+        level_tier=lt, change_tier=ct, tier=tier, severity=np.maximum(sev_level, sev_change),
+        n_agreeing=agree_any[:, peak].sum(axis=0).astype(np.int64), rate_per_year=rate[peak], trend_z=tz[peak],
+        seg=s, segment_m=float(segment_m), seg_index=level, seg_change=change, seg_change_z=cz, seg_class=cls,
+        seg_evidence=evidence.astype(np.int64),
+    )

@@ -1,0 +1,98 @@
+"""Known discontinuities (assets): ``GET /assets``, ``POST /assets`` (CSV or GeoJSON; engineer),
+``DELETE /assets/{id}`` (admin). An import replaces the stored assets of each line and track
+it holds (the asset register is the truth), in one transaction with its audit entry."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, File, Path, Query, Request, Response, UploadFile, status
+from pydantic import BaseModel, Field
+from starlette.concurrency import run_in_threadpool
+
+from app.analysis.condition.discontinuities import ASSET_TYPES
+from app.api.audit import record
+from app.api.deps import AdminDep, DbDep, EngineerDep, SettingsDep, require_role
+from app.api.errors import ApiError, not_found
+from app.assets import service
+
+__all__ = ["router"]
+
+router = APIRouter(prefix="/assets", tags=["assets (known discontinuities)"])
+
+AssetId = Annotated[int, Path(ge=1, le=2**31 - 1)]
+
+
+class AssetOut(BaseModel):
+    id: int
+    line_id: str
+    track: str | None = Field(description="null: on every track of the line")
+    type: str = Field(description=", ".join(ASSET_TYPES))
+    km: float
+    km_to: float | None = Field(description="end of an extended asset (a bridge), km")
+    name: str | None
+    lon: float | None = Field(description="WGS84, degrees (GeoJSON imports)")
+    lat: float | None
+
+
+class AssetList(BaseModel):
+    items: list[AssetOut]
+    total: int
+
+
+class AssetImportOut(BaseModel):
+    imported: int = Field(description="assets imported")
+    replaced: int = Field(description="assets of the same lines and tracks deleted first")
+
+
+@router.get("", response_model=AssetList, summary="Known discontinuities (assets)")
+def list_assets(
+    db: DbDep,
+    line_id: Annotated[str | None, Query(max_length=128)] = None,
+    track: Annotated[str | None, Query(max_length=64, description="assets without a track are on every track")] = None,
+    type: Annotated[str | None, Query(max_length=32, description=", ".join(ASSET_TYPES))] = None,
+    limit: Annotated[int, Query(ge=1, le=10_000)] = 10_000,
+    offset: Annotated[int, Query(ge=0, le=2**31 - 1)] = 0,
+) -> AssetList:
+    """Assets by line, track and km."""
+    if type is not None and type not in ASSET_TYPES:
+        raise ApiError(422, "type", f"{type!r} is not one of {', '.join(ASSET_TYPES)}")
+    items, total = service.find_assets(db, line_id=line_id, track=track, type_=type, limit=limit, offset=offset)
+    return AssetList(items=[AssetOut(**a) for a in items], total=total)
+
+
+@router.post("", response_model=AssetImportOut, status_code=201, summary="Import assets (CSV or GeoJSON; engineer)")
+async def import_assets(
+    request: Request,
+    principal: EngineerDep,
+    db: DbDep,
+    settings: SettingsDep,
+    file: Annotated[UploadFile, File(description="CSV (line_id,track,type,km[,km_to,name]) or GeoJSON")],
+) -> AssetImportOut:
+    """Validate the whole file, then replace the assets of its lines and tracks in one transaction.
+
+    A bad value answers 422 naming the row (CSV, 1 = first data row) or feature (GeoJSON) and
+    the column; nothing is imported then.
+    """
+    cap = settings.max_reference_bytes
+    data = await file.read(cap + 1)
+    if len(data) > cap:
+        raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
+    rows = await run_in_threadpool(service.parse_upload, settings, data, file.filename)  # RunFileError: 422/413
+
+    def audit(session, imported: int, replaced: int) -> None:
+        record(session, request, principal, "assets.import", target=file.filename,
+               detail={"imported": imported, "replaced": replaced})
+
+    imported, replaced = await run_in_threadpool(service.store_assets, db, rows, audit)
+    return AssetImportOut(imported=imported, replaced=replaced)
+
+
+@router.delete("/{asset_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete an asset (admin)",
+               dependencies=[Depends(require_role("admin"))])
+def delete_asset(asset_id: AssetId, request: Request, db: DbDep, principal: AdminDep) -> Response:
+    """Delete one asset."""
+    if not service.remove_asset(db, asset_id, lambda s: record(s, request, principal, "assets.delete",
+                                                               target=asset_id)):
+        raise not_found("asset", asset_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

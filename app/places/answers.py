@@ -1,0 +1,78 @@
+"""A place as the API, the exports and the alerts answer it (``/work/briefs/places-contract.md``:
+``Place``). One shape for every reader."""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Sequence
+from typing import Any
+
+from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP, EVIDENCE_TREND
+from app.analysis.condition.tiers import TIER_ACTIONS, TIER_NAMES
+from app.core.jsonable import finite_or_none, iso_time
+from app.db.models import ConditionLine, Place, PlaceAction
+
+__all__ = ["QUANTITY", "EVIDENCE_NAMES", "place_dict", "action_dict", "evidence_names", "tier_name"]
+
+#: What every value of a place is: the speed-conditioned stiffness index.
+QUANTITY = "stiffness index ln(A/A_ref(class, v))"
+#: Evidence bits and their names.
+EVIDENCE_NAMES: tuple[tuple[int, str], ...] = ((EVIDENCE_ANOMALY, "anomaly"), (EVIDENCE_STEP, "step"),
+                                                (EVIDENCE_TREND, "trend"))
+
+
+def evidence_names(bits: int) -> list[str]:
+    """Names of the evidence bits."""
+    return [name for bit, name in EVIDENCE_NAMES if bits & bit]
+
+
+def tier_name(tier: int | None) -> str | None:
+    """The tier's name (None for None)."""
+    return None if tier is None else TIER_NAMES[int(tier)]
+
+
+def action_dict(a: PlaceAction) -> dict[str, Any]:
+    """A maintenance action linked to a place."""
+    return {"id": a.action_id, "kind": a.kind, "date": a.date.isoformat(), "km_from": a.km_from, "km_to": a.km_to,
+            "relation": a.relation}
+
+
+def _date(t: dt.datetime | None, days: float | None) -> str | None:
+    if t is None or days is None or not math.isfinite(days):
+        return None
+    try:
+        return iso_time(t + dt.timedelta(days=float(days)))
+    except OverflowError:
+        return None
+
+
+def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (),
+               assets: Sequence[dict[str, Any]] = (), muted_reason: str | None = None) -> dict[str, Any]:
+    """The contract's ``Place``: extent in km, peak (the index at the peak segment, ln units, and in
+    per cent), tier and its action, evidence, wheels, runs, outlook, status, actions, assets."""
+    tier = TIER_NAMES[int(p.tier)]
+    nxt = TIER_NAMES[int(p.tier) + 1] if int(p.tier) + 1 < len(TIER_NAMES) else None
+    level = float(p.level)
+    return {
+        "id": p.id, "line_id": line.line_id, "track": line.track,
+        "km_from": p.start_m / 1000.0, "km_to": p.end_m / 1000.0, "length_m": p.end_m - p.start_m,
+        "peak": level, "peak_km": p.peak_m / 1000.0, "peak_percent": 100.0 * math.expm1(level),
+        "direction": "hard" if p.direction > 0 else "soft",
+        "tier": tier, "action": TIER_ACTIONS[tier], "evidence": evidence_names(int(p.evidence)),
+        "wheels": [w for w in (p.wheel_labels or "").split(",") if w],
+        "change": finite_or_none(p.change), "severity": finite_or_none(p.severity), "class": p.cls,
+        "runs_confirming": int(p.runs_confirming), "first_seen": iso_time(p.first_seen),
+        "last_confirmed": iso_time(p.last_confirmed), "first_run_id": p.first_run_id, "last_run_id": p.last_run_id,
+        "active": bool(p.active), "listed": bool(p.listed), "tendency": p.tendency,
+        "rate_per_year": finite_or_none(p.rate_per_year), "rate_low": finite_or_none(p.rate_low),
+        "rate_high": finite_or_none(p.rate_high),
+        "next_tier": nxt, "next_limit": finite_or_none(p.next_limit) if nxt else None,
+        "projected_date": _date(p.last_confirmed, p.days_to_next) if nxt else None,
+        "days_to_next_tier": finite_or_none(p.days_to_next) if nxt else None,
+        "status": p.status, "status_comment": p.status_comment, "status_by": p.status_by,
+        "status_at": iso_time(p.status_at),
+        "actions": [action_dict(a) for a in actions], "explained_by": p.explained_by,
+        "assets": list(assets), "muted": muted_reason is not None, "muted_reason": muted_reason,
+        "method_version": p.method_version,
+    }

@@ -1,0 +1,145 @@
+"""How places are found, graded and followed: the ``TRACKVKF_PLACES_*`` settings read once into the
+numerics' parameter objects (:class:`~app.analysis.condition.run_places.PlaceParams`,
+:class:`~app.analysis.condition.lifecycle.LifecycleParams`, the tier tables). The one place that
+builds them; every caller (publish step, API, benchmark) takes a :class:`PlacesConfig`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from app.analysis.condition.discontinuities import ASSET_TYPES
+from app.analysis.condition.lifecycle import LifecycleParams
+from app.analysis.condition.run_places import PlaceParams
+from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
+from app.analysis.condition.tiers import TIER_NAMES, TierLimits, TierTable
+
+__all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "tier_table", "default_places_config"]
+
+#: Defaults of the settings (``docs/places.md``, "Settings"); :class:`app.core.config.Settings` has the same.
+_DEFAULT_LEVELS = {"": [0.25, 0.375, 0.625], "b91_pads": [0.30, 0.45, 0.75]}
+_DEFAULT_CHANGES = [0.10, 0.30, 0.50]
+_DEFAULT_SECTIONS = (0.05, 0.10, 0.17, 0.25)
+
+
+def tier_table(levels: dict[str, list[float]]) -> TierTable:
+    """A :class:`TierTable` from ``{class: [alert, intervention, immediate]}`` (``""``: every other class)."""
+    rows = {str(k): TierLimits(*[float(v) for v in lim]) for k, lim in levels.items()}
+    default = rows.pop("", TierLimits(*_DEFAULT_LEVELS[""]))
+    return TierTable(default, rows)
+
+
+@dataclass(frozen=True)
+class PlacesConfig:
+    """The places' parameters (from the service settings: :meth:`from_settings`).
+
+    Attributes
+    ----------
+    place : PlaceParams
+        How a run's places are found and graded.
+    lifecycle : LifecycleParams
+        Identity, confirmation, tier changes, maintenance.
+    curve_min_locations : int
+        Locations a speed needs for the line's reference curve.
+    curve_runs : int
+        Newest history runs (with the run) the line's reference curves are fitted on.
+    section_m : float
+        Section length of the section classes, m.
+    section_limits : tuple of float
+        rms limits of the classes A/B … D/E.
+    asset_buffer_m : float
+        Labelling distance of assets, m.
+    muted_asset_types : frozenset of str
+        Asset types whose places are muted.
+    effect_around_m, effect_margin_m : float
+        An action's effect: surroundings and margin, m.
+    alerts : bool
+        Queue the places' alerts in the webhooks' outbox.
+    section_margin_m : float
+        Segments this close to a change of superstructure class have no class (no index), m
+        (``TRACKVKF_ANALYTICS_SECTION_MARGIN_M``).
+    """
+
+    place: PlaceParams = field(default_factory=lambda: PlaceParams(tier_table(_DEFAULT_LEVELS),
+                                                                    TierLimits(*_DEFAULT_CHANGES)))
+    lifecycle: LifecycleParams = field(default_factory=LifecycleParams)
+    curve_min_locations: int = DEFAULT_MIN_LOCATIONS
+    curve_runs: int = 20
+    section_m: float = 200.0
+    section_limits: tuple[float, ...] = _DEFAULT_SECTIONS
+    asset_buffer_m: float = 20.0
+    muted_asset_types: frozenset[str] = frozenset()
+    effect_around_m: float = 1000.0
+    effect_margin_m: float = 50.0
+    section_margin_m: float = 50.0
+    alerts: bool = True
+
+    def asset_settings(self) -> Any:
+        """The asset-labelling settings as :func:`app.assets.labels.label_places` reads them."""
+        from types import SimpleNamespace
+
+        return SimpleNamespace(places_asset_buffer_m=self.asset_buffer_m,
+                               places_muted_asset_types=",".join(sorted(self.muted_asset_types)))
+
+    @property
+    def levels(self) -> TierTable:
+        """Level limits per class."""
+        return self.place.levels
+
+    def to_dict(self) -> dict[str, Any]:
+        """The parameters that decide a place (its method's provenance)."""
+        p, lc = self.place, self.lifecycle
+        return {
+            "levels": p.levels.to_dict(), "changes": [p.changes.alert, p.changes.intervention, p.changes.immediate],
+            "step_z": p.step_z, "trend_z": p.trend_z, "min_rate_per_year": p.min_rate_per_year,
+            "trend_window_days": p.trend_window_days, "min_history": p.min_history,
+            "history_runs": p.history_runs, "gap_m": p.gap_m, "watch_days": p.watch_days,
+            "curve_min_locations": self.curve_min_locations, "curve_runs": self.curve_runs, "tolerance_m": lc.tolerance_m,
+            "min_confirmations": lc.min_confirmations, "confirm_tier": TIER_NAMES[lc.confirm_tier],
+            "drop_after": lc.drop_after, "tier_down_runs": lc.tier_down_runs, "hold_change": lc.hold_change,
+            "explain_days": lc.explain_days,
+        }
+
+    @classmethod
+    def from_settings(cls, settings: Any) -> PlacesConfig:
+        """From :class:`app.core.config.Settings` (``places_*``).
+
+        Raises
+        ------
+        ValueError
+            Naming the setting (an unknown muted asset type).
+        """
+        muted = frozenset(t for t in settings.places_muted_asset_types.split(",") if t)
+        unknown = sorted(muted - set(ASSET_TYPES))
+        if unknown:
+            raise ValueError(f"TRACKVKF_PLACES_MUTED_ASSET_TYPES: unknown type(s) {', '.join(unknown)}; "
+                             f"known: {', '.join(ASSET_TYPES)}")
+        place = PlaceParams(
+            tier_table(settings.places_level_limits), TierLimits(*settings.places_change_limits),
+            step_z=settings.places_step_z, trend_z=settings.places_trend_z,
+            min_rate_per_year=settings.places_min_rate_per_year,
+            trend_window_days=settings.places_trend_window_days, min_history=settings.places_min_history,
+            history_runs=max(settings.places_history_runs, settings.places_min_history),
+            gap_m=settings.places_gap_m, watch_days=settings.places_watch_days,
+        )
+        lifecycle = LifecycleParams(
+            tolerance_m=settings.places_match_tolerance_m, min_confirmations=settings.places_min_confirmations,
+            confirm_tier=TIER_NAMES.index(settings.places_confirm_tier), drop_after=settings.places_drop_after,
+            tier_down_runs=settings.places_tier_down_runs, hold_change=settings.places_hold_change,
+            explain_days=settings.places_explain_days,
+        )
+        return cls(place=place, lifecycle=lifecycle, curve_min_locations=settings.places_curve_min_locations,
+                   curve_runs=settings.places_curve_runs,
+                   section_m=settings.places_section_m, section_limits=tuple(settings.places_section_limits),
+                   asset_buffer_m=settings.places_asset_buffer_m, muted_asset_types=muted,
+                   effect_around_m=settings.places_effect_around_m,
+                   effect_margin_m=settings.places_effect_margin_m,
+                   section_margin_m=settings.analytics_section_margin_m, alerts=settings.places_alerts)
+
+
+DEFAULT_PLACES_CONFIG = PlacesConfig()
+
+
+def default_places_config() -> PlacesConfig:
+    """The defaults (what a service with no ``TRACKVKF_PLACES_*`` setting uses)."""
+    return DEFAULT_PLACES_CONFIG

@@ -1,0 +1,170 @@
+"""A simulated history through the real service: upload over the API, the local worker's pipeline,
+the publish step and its condition store (what the work list tests and the places benchmark use)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from app.simulate.history import HistoryFiles, HistorySpec, write_history
+
+__all__ = ["ProcessedHistory", "history_service", "process_history"]
+
+
+@dataclass
+class ProcessedHistory:
+    """A history processed into a service's database.
+
+    Attributes
+    ----------
+    spec : HistorySpec
+    files : HistoryFiles
+    client : fastapi.testclient.TestClient
+        Admin client of the service (``client.settings``: its settings).
+    run_ids : list of int
+        Run ids in the order of ``spec.runs``.
+    jobs : list of dict
+        The final state of each run's job.
+    """
+
+    spec: HistorySpec
+    files: HistoryFiles
+    client: Any
+    run_ids: list[int] = field(default_factory=list)
+    jobs: list[dict] = field(default_factory=list)
+
+    @property
+    def database_url(self) -> str:
+        return self.client.settings.database_url
+
+
+@contextmanager
+def history_service(tmp_path: Path, **overrides: Any) -> Iterator[Any]:
+    """An admin API client on a fresh migrated SQLite database (settings overridable)."""
+    from fastapi.testclient import TestClient
+
+    from app.db import migrate
+    from app.main import create_app
+    from tests.api.support import auth_headers, create_api_key, make_settings
+
+    settings = make_settings(tmp_path, **overrides)
+    migrate.upgrade(settings.database_url)
+    key = create_api_key(settings.database_url, "admin")
+    with TestClient(create_app(settings), headers=auth_headers(key)) as client:
+        client.settings = settings  # type: ignore[attr-defined]
+        client.api_key = key  # type: ignore[attr-defined]
+        yield client
+
+
+def _post(client: Any, url: str, path: Path, params: dict | None = None) -> dict:
+    with open(path, "rb") as fh:
+        r = client.post(url, params=params, files={"file": (path.name, fh)})
+    assert r.status_code in (200, 201), f"{url} {path.name}: {r.status_code} {r.text}"
+    return r.json()
+
+
+def process_history(client: Any, spec: HistorySpec, file_dir: Path, *, runs: slice | None = None,
+                    reference: bool = True) -> ProcessedHistory:
+    """Write the history's files (if missing), import its reference data and upload and process
+    its runs one by one in date order with the real local worker.
+
+    Parameters
+    ----------
+    client : TestClient
+        Admin client (:func:`history_service`).
+    spec : HistorySpec
+    file_dir : Path
+        Where the run files are written (reused between tests and benchmarks).
+    runs : slice, optional
+        Only these runs (default all).
+    reference : bool
+        Import the superstructure sections and the maintenance actions first.
+    """
+    from app.db.session import Database
+    from worker.runner import LocalWorker
+
+    files = write_history(spec, file_dir)
+    out = ProcessedHistory(spec, files, client)
+    if reference:
+        _post(client, "/api/v1/reference/superstructure", files.superstructure, {"mode": "replace"})
+        if spec.maintenance().shape[0]:
+            _post(client, "/api/v1/reference/maintenance", files.maintenance, {"mode": "replace"})
+    db = Database(client.settings.database_url)
+    try:
+        worker = LocalWorker(client.settings, db=db)
+        try:
+            for path in files.runs[runs or slice(None)]:
+                run = _post(client, "/api/v1/runs", path)
+                worker.run(exit_when_idle=True)
+                job = client.get(f"/api/v1/jobs/{run['latest_job']['id']}").json()
+                assert job["status"] == "done", f"{path.name}: job {job['id']} {job['status']}: {job.get('error')}"
+                out.run_ids.append(run["id"])
+                out.jobs.append(job)
+        finally:
+            worker.runtime.close()
+    finally:
+        db.dispose()
+    return out
+
+
+@dataclass
+class StoredRun:
+    """A run's 10 m segment rows as the condition store holds them (wheels × segments).
+
+    ``log_amp`` is the store's condition index ``ln(A / 1 m/s²)``, ``speed`` m/s; ``classes`` the
+    superstructure class per segment (None near a change of class or outside the sections).
+    """
+
+    run_id: int
+    day: float
+    seg: Any
+    wheels: list[str]
+    log_amp: Any
+    speed: Any
+    classes: Any
+
+
+def stored_runs(database_url: str, spec: HistorySpec, *, margin_m: float = 50.0) -> list[StoredRun]:
+    """The history's runs in the store, oldest first (days from ``spec.start``)."""
+    import numpy as np
+    import pandas as pd
+    from sqlalchemy import select
+
+    from app.analysis.stiffness.superstructure import section_classes
+    from app.db import reference_crud
+    from app.db.models import ConditionLine, ConditionRun
+    from app.db.models import SegmentCondition as SC
+    from app.db.session import Database
+
+    db = Database(database_url)
+    out: list[StoredRun] = []
+    try:
+        with db.read() as s:
+            sections = reference_crud.reference_frame(s, "superstructure", line_id=spec.line_id, track=spec.track)
+            line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == spec.line_id))
+            runs = s.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(ConditionRun.line_key == line.id)
+                             .order_by(ConditionRun.run_time)).all()
+            for run_id, when in runs:
+                rows = pd.DataFrame(s.execute(select(SC.wheel, SC.seg, SC.index, SC.speed_mean)
+                                              .where(SC.run_id == run_id, SC.seg_m == 10)).all(),
+                                    columns=["wheel", "seg", "index", "speed"])
+                seg = np.sort(rows.seg.unique())
+                wheels = sorted(rows.wheel.unique())
+                la = np.full((len(wheels), seg.size), np.nan)
+                v = np.full((len(wheels), seg.size), np.nan)
+                for i, w in enumerate(wheels):
+                    a = rows[rows.wheel == w]
+                    j = np.searchsorted(seg, a.seg.to_numpy())
+                    la[i, j] = a["index"].to_numpy(dtype=float)
+                    v[i, j] = a["speed"].to_numpy(dtype=float)
+                day = (when.replace(tzinfo=spec.start.tzinfo) - spec.start).total_seconds() / 86400.0
+                cls = section_classes((seg + 0.5) * 10.0, sections["km_from"].to_numpy() * 1000.0,
+                                      sections["km_to"].to_numpy() * 1000.0, sections["type"].to_numpy(dtype=object),
+                                      boundary_margin_m=margin_m)
+                out.append(StoredRun(int(run_id), day, seg, wheels, la, v, cls))
+    finally:
+        db.dispose()
+    return out

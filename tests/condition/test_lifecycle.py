@@ -1,0 +1,281 @@
+"""The lifecycle of places over runs on synthetic truth: identity with alignment residuals, first seen /
+last confirmed / runs confirming, growing / stable / shrinking, a repaired place that comes back with its
+history, maintenance actions, alerts only for new places and tier changes; the outlook of a place; an
+action's effect from the extent against its surroundings."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import pytest
+
+from app.analysis.condition.extent_level import extent_level
+from app.analysis.condition.lifecycle import (
+    Action,
+    LifecycleParams,
+    Observation,
+    PlaceEvent,
+    PlaceState,
+    advance_places,
+    place_outlook,
+)
+from app.analysis.condition.maintenance_effect import action_effect
+from app.analysis.condition.places import EVIDENCE_STEP
+from app.analysis.condition.run_places import find_places
+from app.analysis.condition.tiers import TIER_ALERT, TIER_IMMEDIATE, TIER_INTERVENTION
+from tests.condition.places_support import COVERED, PARAMS, SEG, box, runs, track
+
+CLS = np.full(SEG.size, "b91", dtype=object)
+EVERY = 14.0  # days between runs
+
+
+def _history(seed: int, n: int, extra: Callable[[int], np.ndarray], *, natural: float = 0.3) -> np.ndarray:
+    """(W, S, n) index of ``n`` runs of one line whose track is its own variation + ``extra(run)``."""
+    return runs(np.random.default_rng(seed), track(np.random.default_rng(seed + 1000)) * natural, n, extra)
+
+
+def _advance(index: np.ndarray, *, first: int = 5, actions: Sequence[Action] = (),
+             covered: Callable[[int], tuple[float, float]] = lambda r: COVERED,
+             ) -> tuple[list[PlaceState], dict[int, list[PlaceEvent]], dict[int, list[int]]]:
+    """Run the lifecycle over runs ``first …`` (each run's history: the runs before it)."""
+    days = np.arange(index.shape[2]) * EVERY
+    known: list[PlaceState] = []
+    next_id, events, ids = 1, {}, {}
+    for r in range(first, index.shape[2]):
+        rp = find_places(SEG, index[:, :, r], index[:, :, :r], days[:r], days[r], CLS, segment_m=10.0, params=PARAMS)
+        events[r], ids[r], next_id = advance_places(known, rp, run_id=r, day=days[r], covered_m=covered(r),
+                                                    params=LifecycleParams(), next_id=next_id, place_params=PARAMS,
+                                                    actions=actions)
+    return known, events, ids
+
+
+def _kinds(events: dict[int, list[PlaceEvent]]) -> list[tuple[int, str, int]]:
+    return [(r, e.kind, e.place_id) for r, evs in events.items() for e in evs]
+
+
+# --- identity, first seen, last confirmed, runs confirming -------------------------------------------
+
+
+def test_places_keep_their_id_through_alignment_residuals_growth_and_a_run_that_does_not_cover_them():
+    rng = np.random.default_rng(21)
+    offset = rng.normal(0, 2.0, 16)  # each run's alignment residual, m
+
+    def extra(r: int) -> np.ndarray:
+        o = offset[r]
+        grow = 20.0 if r >= 10 else 0.0  # the soft place grows by 20 m from run 10 on
+        return box(11_000.0 + o, 11_030.0 + o, 0.33) + box(11_080.0 + o, 11_110.0 + o + grow, -0.33)
+
+    index = _history(22, 16, extra)
+    index[:, SEG < 1200, 12] = np.nan  # run 12 covers km 12–13 only
+    known, events, ids = _advance(index, covered=lambda r: (12_000.0, 13_000.0) if r == 12 else COVERED)
+    assert [k.id for k in known] == [1, 2]
+    hard, soft = known
+    assert (hard.direction, soft.direction) == (1, -1)
+    assert all(ids[r] == [] if r == 12 else ids[r] == [1, 2] for r in ids)
+    # listed on the 2nd run that found them; then only the growth's tier (its new 20 m changed by −28 %)
+    kinds = _kinds(events)
+    assert kinds[:2] == [(6, "new", 1), (6, "new", 2)]
+    assert all(kind == "tier" and pid == 2 and r >= 10 for r, kind, pid in kinds[2:])
+    for k in known:
+        assert k.confirmations == 10  # runs 5 … 15 but 12
+        assert k.first_seen_day == 5 * EVERY and k.last_confirmed_day == 15 * EVERY
+        assert [o.run_id for o in k.observations] == [5, 6, 7, 8, 9, 10, 11, 13, 14, 15]
+        assert k.misses == 0 and k.active and k.listed
+    assert abs(hard.observations[-1].centre_m - (11_015.0 + offset[15])) < 5.0
+    assert soft.end_m >= 11_120.0  # its latest extent is the grown one
+    assert abs(soft.observations[-1].centre_m - (11_105.0 + offset[15])) < 5.0
+
+
+def test_runs_without_an_index_over_a_place_do_not_miss_it():
+    spot = box(12_500.0, 12_530.0, 0.45)  # an intervention-tier hard place, listed at once
+    index = _history(23, 12, lambda r: spot)
+    # runs 7 and 8 passed km 12.4–12.7 at a speed without a reference curve: no index there
+    index[:, (SEG >= 1240) & (SEG < 1270), 7:9] = np.nan
+    known, events, ids = _advance(index)
+    assert [k.id for k in known] == [1] and known[0].active and known[0].misses == 0
+    assert _kinds(events) == [(5, "new", 1)]  # no 'back' after the runs that could not see it
+    assert ids[7] == ids[8] == [] and known[0].confirmations == 5
+    # a run with an index there that does not find it misses it
+    index[:, :, 9:] -= spot[None, :, None]  # repaired from run 9 on (no action recorded)
+    known, events, _ = _advance(index)
+    assert not known[0].active and _kinds(events) == [(5, "new", 1)]
+
+
+# --- growing / stable / shrinking ---------------------------------------------------------------------
+
+
+def test_growing_stable_and_shrinking_places_and_a_shrinking_hard_place_is_not_a_new_soft_one():
+    grow, stay, shrink = box(11_000.0, 11_030.0, 1.0), box(11_500.0, 11_530.0, 1.0), box(12_000.0, 12_030.0, 1.0)
+    index = _history(5, 14, lambda r: grow * (0.30 + 0.02 * r) + stay * 0.32 + shrink * (0.58 - 0.02 * r),
+                     natural=0.0)
+    known, events, ids = _advance(index)
+    # one place each, all hard: the shrinking one's step back towards typical track is no soft place
+    assert [(k.id, k.direction, k.start_m) for k in known] == [(1, 1, 11_000.0), (2, 1, 11_500.0), (3, 1, 12_000.0)]
+    assert all(i == [1, 2, 3] for i in ids.values())
+    out = {k.id: place_outlook(k, PARAMS.levels) for k in known}
+    assert [out[i].tendency for i in (1, 2, 3)] == ["growing", "stable", "shrinking"]
+    # truth: ±0.02 per 14 days = ±0.52 a year (the level at the peak segment: the run's level and the
+    # noise of the segment picked ride on it)
+    truth = 0.02 / EVERY * 365.25
+    assert out[1].trend.rate_per_year == pytest.approx(truth, rel=0.25)
+    assert out[3].trend.rate_per_year == pytest.approx(-truth, rel=0.25)
+    assert out[2].trend.low_per_year <= 0.0 <= out[2].trend.high_per_year
+    # only the growing place has a date: it reaches the immediate-action limit 0.625 around run 16.25
+    assert math.isnan(out[2].projection.days) and math.isnan(out[3].projection.days)
+    assert known[0].tier == TIER_INTERVENTION and out[1].next_limit == 0.625
+    days_truth = (0.625 - (0.30 + 0.02 * 13)) / 0.02 * EVERY
+    assert 0.4 * days_truth < out[1].projection.days < 2.0 * days_truth
+    assert out[1].projection.days == pytest.approx((0.625 - out[1].trend.level) / out[1].trend.rate_per_year * 365.25)
+    # alerts: each place once when listed, then tier changes only (the shrinking one falls to alert)
+    kinds = _kinds(events)
+    assert sorted(k for k in kinds if k[1] == "new") == [(5, "new", 1), (5, "new", 3), (6, "new", 2)]
+    assert {k[1] for k in kinds} <= {"new", "tier"}
+    assert [(e.old_tier, e.new_tier) for evs in events.values() for e in evs if e.place_id == 3 and e.kind == "tier"] \
+        == [(TIER_INTERVENTION, TIER_ALERT)]
+
+
+# --- a repaired place that comes back; actions that do and do not repair -----------------------------
+
+
+def test_a_tamping_repairs_a_place_that_later_comes_back_with_its_id_and_history():
+    step = box(12_000.0, 12_020.0, math.log(1.25))  # +25 % from run 6; repaired on day 147; back from run 15
+    tamping = Action(id=7, start_m=11_950.0, end_m=12_100.0, day=147.0)
+    index = _history(31, 19, lambda r: step if 6 <= r <= 10 or r >= 15 else 0.0 * step)
+    known, events, ids = _advance(index, actions=[tamping])
+    assert [k.id for k in known] == [1]
+    k = known[0]
+    assert _kinds(events) == [(7, "new", 1), (11, "repaired", 1), (15, "back", 1)]
+    repaired = next(e for e in events[11] if e.kind == "repaired")
+    assert repaired.action_id == 7
+    assert k.actions == [7] and k.explained_by is None
+    # its history: the runs before the repair and after its return, the first seen day unchanged
+    assert [o.run_id for o in k.observations] == [6, 7, 8, 9, 10, 15, 16, 17, 18]
+    assert k.first_seen_day == 6 * EVERY and k.last_confirmed_day == 18 * EVERY
+    assert k.active and k.listed and k.baseline is not None
+    assert all(o.evidence & EVIDENCE_STEP for o in k.observations)
+    assert k.observations[-1].change == pytest.approx(math.log(1.25), abs=0.06)
+    assert all(ids[r] == [] for r in range(11, 15))
+
+
+def test_an_action_that_leaves_the_place_is_linked_and_a_small_one_is_not():
+    step = box(12_000.0, 12_040.0, math.log(1.3))  # from run 6 on, for good
+    useless = Action(id=8, start_m=11_990.0, end_m=12_050.0, day=120.0)  # over it, but it stays
+    small = Action(id=9, start_m=12_030.0, end_m=12_045.0, day=130.0)  # covers a quarter of it
+    early = Action(id=10, start_m=11_900.0, end_m=12_100.0, day=20.0)  # before the place appeared
+    index = _history(41, 14, lambda r: step if r >= 6 else 0.0 * step)
+    known, events, _ = _advance(index, actions=[useless, small, early])
+    assert len(known) == 1
+    k = known[0]
+    assert k.actions == [8] and k.active and k.listed
+    assert {e.kind for evs in events.values() for e in evs} <= {"new", "tier"}
+    assert k.confirmations == 8  # runs 6 … 13, through the actions
+
+
+def test_a_tampings_own_effect_is_kept_as_its_record_and_never_alerted():
+    tamping = Action(id=3, start_m=11_800.0, end_m=12_000.0, day=100.0)
+    extent = box(tamping.start_m, tamping.end_m, math.log(0.8))
+    index = _history(51, 14, lambda r: extent if r * EVERY > tamping.day else 0.0 * extent)
+    known, events, _ = _advance(index, actions=[tamping])
+    assert known and all(k.explained_by == 3 and not k.listed and k.direction == -1 for k in known)
+    assert _kinds(events) == []
+
+
+# --- alerts only on new places and tier changes ------------------------------------------------------
+
+
+def test_no_alert_on_a_uniform_history_and_one_for_a_steady_place():
+    index = _history(61, 24, lambda r: np.zeros(SEG.size))
+    known, events, _ = _advance(index)
+    assert _kinds(events) == [] and not [k for k in known if k.listed]
+    steady = box(12_300.0, 12_330.0, 0.31)
+    known, events, _ = _advance(_history(62, 24, lambda r: steady))
+    assert _kinds(events) == [(6, "new", 1)]
+    assert [k.id for k in known if k.listed] == [1] and known[0].confirmations == 19
+
+
+def test_a_place_at_a_limit_does_not_ping_pong():
+    at_limit = box(12_300.0, 12_330.0, 0.375)  # the intervention limit of b91
+    index = _history(63, 30, lambda r: at_limit, natural=0.0)
+    known, events, _ = _advance(index)
+    assert len(known) == 1
+    naive = np.array([o.tier for o in known[0].observations])
+    flips = int(np.sum(naive[1:] != naive[:-1]))
+    tiers = [e for evs in events.values() for e in evs if e.kind == "tier"]
+    assert flips >= 6  # the run's own grading crosses the limit again and again …
+    assert len(tiers) <= flips // 2  # … the place's tier falls only after two lower runs
+    assert all(e.old_tier != e.new_tier for e in tiers)
+    assert {e.kind for evs in events.values() for e in evs} <= {"new", "tier"}
+
+
+# --- outlook -------------------------------------------------------------------------------------------
+
+
+def _state(levels: Sequence[float], *, cls: str | None = "b91", tier: int = TIER_ALERT, every: float = EVERY,
+           direction: int = 1) -> PlaceState:
+    st = PlaceState(id=1, direction=direction, start_m=0.0, end_m=20.0, peak_m=10.0, cls=cls, tier=tier)
+    for i, lv in enumerate(levels):
+        st.observations.append(Observation(i, i * every, 0.0, 20.0, 10.0, 10.0, lv, math.nan, tier, abs(lv) / 0.25,
+                                           1, 15))
+    return st
+
+
+def test_place_outlook_projects_to_the_next_limit_of_its_class_only():
+    growing = _state([-0.26 - 0.01 * i for i in range(8)], direction=-1)  # a soft place getting softer
+    out = place_outlook(growing, PARAMS.levels)
+    assert out.tendency == "growing" and out.next_limit == 0.375
+    rate = 0.01 / EVERY * 365.25
+    assert out.trend.rate_per_year == pytest.approx(rate)
+    assert out.projection.days == pytest.approx((0.375 - 0.33) / rate * 365.25)
+    slab = place_outlook(_state([0.21 + 0.01 * i for i in range(8)], cls="slab"), PARAMS.levels)
+    assert slab.next_limit == 0.3  # slab's intervention limit
+    assert math.isnan(place_outlook(_state([0.3 + 0.01 * i for i in range(8)], cls=None), PARAMS.levels).next_limit)
+    top = place_outlook(_state([0.7 + 0.01 * i for i in range(8)], tier=TIER_IMMEDIATE), PARAMS.levels)
+    assert math.isnan(top.next_limit) and math.isnan(top.projection.days) and top.tendency == "growing"
+    assert place_outlook(_state([0.3, 0.31]), PARAMS.levels).tendency == "new"
+
+
+def test_place_outlook_window_reads_a_place_that_stopped_growing_as_stable():
+    rng = np.random.default_rng(71)
+    levels = np.r_[0.26 + 0.02 * np.arange(8), np.full(8, 0.40)] + rng.normal(0, 0.005, 16)
+    st = _state(levels.tolist(), tier=TIER_INTERVENTION)
+    assert place_outlook(st, PARAMS.levels).tendency == "growing"  # over its whole life
+    recent = place_outlook(st, PARAMS.levels, window_days=7 * EVERY)
+    assert recent.tendency == "stable" and recent.trend.n == 8 and math.isnan(recent.projection.days)
+
+
+# --- an action's effect: the extent against the track around it ---------------------------------------
+
+
+def test_an_actions_effect_from_the_extent_against_its_surroundings_is_within_a_point():
+    rng = np.random.default_rng(81)
+    base = track(np.random.default_rng(82)) * 0.5
+    days = np.arange(12) * EVERY
+    tamping = Action(id=1, start_m=11_800.0, end_m=12_000.0, day=75.0)
+    extent = box(tamping.start_m, tamping.end_m, math.log(0.8))
+    # the runs after the work are also 6 % higher everywhere (another vehicle, a faster timetable)
+    index = runs(rng, base, days.size, lambda r: (extent + 0.06) if days[r] > tamping.day else 0.0 * extent)
+    level = index.mean(axis=0)
+    rel = np.array([extent_level(SEG, level[:, r], tamping.start_m, tamping.end_m, segment_m=10.0)
+                    for r in range(days.size)])
+    absolute = np.array([extent_level(SEG, level[:, r], tamping.start_m, tamping.end_m, segment_m=10.0,
+                                      relative=False) for r in range(days.size)])
+    eff = action_effect(days, rel, tamping.day)
+    assert 100 * math.expm1(eff.recovery) == pytest.approx(-20.0, abs=1.0)
+    assert abs(100 * math.expm1(action_effect(days, absolute, tamping.day).recovery) + 20.0) > 4.0
+
+
+def test_extent_level_reads_nan_without_data_and_checks_arguments():
+    x = np.zeros(SEG.size)
+    x[SEG < 1100] = np.nan
+    assert math.isnan(extent_level(SEG, x, 10_500.0, 10_700.0, segment_m=10.0))
+    assert extent_level(SEG, x + 0.1, 12_000.0, 12_100.0, segment_m=10.0, relative=False) == pytest.approx(0.1)
+    with pytest.raises(ValueError, match="start_m, end_m"):
+        extent_level(SEG, x, 12_000.0, 12_000.0, segment_m=10.0)
+    with pytest.raises(ValueError, match="margin_m"):
+        extent_level(SEG, x, 12_000.0, 12_100.0, segment_m=10.0, margin_m=-1.0)
+    with pytest.raises(ValueError, match="seg, index"):
+        extent_level(SEG, x[:5], 12_000.0, 12_100.0, segment_m=10.0)
+    with pytest.raises(ValueError, match="min_segments"):
+        extent_level(SEG, x, 12_000.0, 12_100.0, segment_m=10.0, min_segments=0)
