@@ -116,8 +116,8 @@ def build(which: str, seed: int, n_runs: int, workdir: Path) -> tuple[HistorySpe
 def load(url: str, spec: HistorySpec) -> tuple[list[RunData], pd.DataFrame, pd.DataFrame]:
     """Segment rows per run (10 m, all wheels), the 25 cm rows of every run and the sections."""
     from app.db import line_profiles, reference_crud
-    from app.db.condition_models import ConditionLine, ConditionRun
-    from app.db.condition_models import SegmentCondition as SC
+    from app.db.models import ConditionLine, ConditionRun
+    from app.db.models import SegmentCondition as SC
     from app.db.session import Database
 
     db = Database(url)
@@ -389,8 +389,8 @@ def fit_curves(bins: pd.DataFrame, sections: pd.DataFrame, upto: list[int]) -> d
 
 def current_work_list(url: str, spec: HistorySpec) -> dict:
     """What the current /condition/hotspots answers on the newest run: rows, the first 10, where."""
-    from app.db.condition_hotspots import line_hotspots
-    from app.db.condition_models import ConditionLine
+    from app.condition.hotspots import line_hotspots
+    from app.db.models import ConditionLine
     from app.db.session import Database
 
     db = Database(url)

@@ -15,8 +15,9 @@ from fastapi import APIRouter, Depends, Path, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field
 
-from app.api.deps import DbDep, EngineerDep
+from app.api.deps import DbDep, EngineerDep, SettingsDep
 from app.places import workflow, worklist
+from app.places.config import PlacesConfig
 from app.places.worklist import PlaceQuery
 
 __all__ = ["router"]
@@ -52,30 +53,30 @@ class StatusIn(BaseModel):
 
 
 @router.get("/places", summary="Work list: places ranked by tier, time to the next tier, severity")
-def places(db: DbDep, q: PlaceQ) -> dict:
+def places(db: DbDep, settings: SettingsDep, q: PlaceQ) -> dict:
     """Listed places (open ones unless ``include_closed`` or a ``status`` filter), each with its
     extent, peak, tier and action, evidence, wheels, runs, trend and time to the next tier, status."""
-    return worklist.list_places(db, q)
+    return worklist.list_places(db, q, PlacesConfig.from_settings(settings))
 
 
 @router.get("/places.csv", summary="Work list as CSV (the filters of /condition/places)",
             response_class=Response, responses={200: {"content": {"text/csv": {}}}})
-def places_csv(db: DbDep, q: PlaceQ) -> Response:
-    return Response(worklist.places_csv(db, q), media_type="text/csv",
+def places_csv(db: DbDep, settings: SettingsDep, q: PlaceQ) -> Response:
+    return Response(worklist.places_csv(db, q, PlacesConfig.from_settings(settings)), media_type="text/csv",
                     headers={"Content-Disposition": 'attachment; filename="places.csv"'})
 
 
 @router.get("/places.geojson", summary="Work list as GeoJSON (the filters of /condition/places)",
             response_class=JSONResponse, responses={200: {"content": {"application/geo+json": {}}}})
-def places_geojson(db: DbDep, q: PlaceQ) -> JSONResponse:
+def places_geojson(db: DbDep, settings: SettingsDep, q: PlaceQ) -> JSONResponse:
     """One feature per place: its extent as a LineString where the line's geometry is imported, else null."""
-    return JSONResponse(worklist.places_geojson(db, q), media_type="application/geo+json")
+    return JSONResponse(worklist.places_geojson(db, q, PlacesConfig.from_settings(settings)), media_type="application/geo+json")
 
 
 @router.get("/places/{place_id}", summary="A place with its history")
-def place(db: DbDep, place_id: PlaceId) -> dict:
+def place(db: DbDep, settings: SettingsDep, place_id: PlaceId) -> dict:
     """The place, its observations run by run, its events, status history and the maintenance over it."""
-    return worklist.place_history(db, place_id)
+    return worklist.place_history(db, place_id, PlacesConfig.from_settings(settings))
 
 
 @router.patch("/places/{place_id}/status", summary="Set a place's workflow status (with a comment)")

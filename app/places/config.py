@@ -68,6 +68,13 @@ class PlacesConfig:
     effect_margin_m: float = 50.0
     section_margin_m: float = 50.0
 
+    def asset_settings(self) -> Any:
+        """The asset-labelling settings as :func:`app.assets.labels.label_places` reads them."""
+        from types import SimpleNamespace
+
+        return SimpleNamespace(places_asset_buffer_m=self.asset_buffer_m,
+                               places_muted_asset_types=",".join(sorted(self.muted_asset_types)))
+
     @property
     def levels(self) -> TierTable:
         """Level limits per class."""

@@ -67,7 +67,8 @@ from app.db.models import (
 from app.pipeline.assemble import ENGINE_VERSION
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
-__all__ = ["SEGMENT_M", "SYSTEM_USER", "PlacesUpdate", "method_version", "update_places", "apply_run"]
+__all__ = ["SEGMENT_M", "SYSTEM_USER", "PlacesUpdate", "RunIndex", "method_version", "update_places", "apply_run",
+           "apply_stored_runs", "run_index", "run_segment_index"]
 
 log = logging.getLogger(__name__)
 
@@ -190,6 +191,107 @@ def _finite(x: float) -> float | None:
     return float(x) if x is not None and np.isfinite(x) else None
 
 
+@dataclass(frozen=True)
+class RunIndex:
+    """The speed-conditioned index of a run and of its history on the run's segments and wheels.
+
+    Attributes
+    ----------
+    seg : numpy.ndarray
+        int64 segment numbers (``SEGMENT_M`` m each) of the run.
+    wheels : list of str
+        Wheel of each row.
+    index : numpy.ndarray
+        (wheels, segments) ``ln(A / A_ref(class, v))`` (NaN: none).
+    speed : numpy.ndarray
+        (wheels, segments) speed, m/s.
+    history : numpy.ndarray
+        (wheels, segments, runs) the index of the history runs, oldest first.
+    history_days : numpy.ndarray
+        Days (since 1970) of the history runs.
+    classes : numpy.ndarray
+        Superstructure class of each segment (None near a change of class).
+    """
+
+    seg: np.ndarray
+    wheels: list[str]
+    index: np.ndarray
+    speed: np.ndarray
+    history: np.ndarray
+    history_days: np.ndarray
+    classes: np.ndarray
+
+    @property
+    def mean_index(self) -> np.ndarray:
+        """The index per segment, mean over the wheels (what a place is graded on)."""
+        return _mean_over_wheels(self.index)
+
+
+def _mean_over_wheels(a: np.ndarray) -> np.ndarray:
+    ok = np.isfinite(a)
+    n = ok.sum(axis=0)
+    return np.where(n > 0, np.where(ok, a, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
+
+
+def run_index(session: Session, line: ConditionLine, run_id: int, history: list[tuple[int, dt.datetime]], *,
+              config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> RunIndex | None:
+    """The index of a run and of ``history`` (run id, time; oldest first) from the store's 10 m rows, with
+    the line's reference curves fitted on those rows (None: the run has no 10 m rows)."""
+    run_ids = [r for r, _ in history] + [run_id]
+    values, wheel_names = q.segment_frame(session, run_ids, SEGMENT_M)
+    grids = _grids(values, wheel_names, run_ids)
+    seg, wheels, la, v = grids[run_id]
+    if seg.size == 0:
+        return None
+    all_seg = np.unique(values[:, 2].astype(np.int64))
+    all_cls = _classes(session, line, all_seg, config.section_margin_m)
+    cls_of = dict(zip(all_seg.tolist(), all_cls.tolist(), strict=True))
+    row_cls = np.array([cls_of[int(s)] for s in values[:, 2].astype(np.int64)], dtype=object)
+    curves = fit_segment_curves(values[:, 2].astype(np.int64), values[:, 3], values[:, 4], values[:, 0],
+                                np.array([wheel_names[int(c)] for c in values[:, 1]], dtype=object), row_cls,
+                                min_locations=config.curve_min_locations)
+    classes = np.array([cls_of[int(s)] for s in seg.tolist()], dtype=object)
+    idx = segment_index(la, v, classes, curves)
+    hist = [_on(grids[r], seg, wheels, segment_index(grids[r][2], grids[r][3],
+                                                     np.array([cls_of[int(s)] for s in grids[r][0].tolist()],
+                                                              dtype=object), curves))
+            for r, _ in history]
+    return RunIndex(seg=seg, wheels=wheels, index=idx, speed=v,
+                    history=np.stack(hist, axis=2) if hist else np.zeros((*idx.shape, 0)),
+                    history_days=np.array([days_of(t) for _, t in history], dtype=np.float64), classes=classes)
+
+
+def run_segment_index(session: Session, line: ConditionLine, run_id: int, *,
+                      config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> tuple[np.ndarray, np.ndarray]:
+    """The speed-conditioned index per 10 m segment of a run (mean over the wheels) as the places use it:
+    segment numbers (int64) and the index (NaN: none).
+
+    A run applied to its line's places: the curves of its method version's history, exactly as the places
+    were found on it. Another run: the curves of the line's most recent runs up to it (``history_runs``).
+    """
+    from sqlalchemy import select
+
+    from app.db.models import ConditionRun
+
+    when = q.run_time(session, run_id)
+    if when is None:
+        return np.zeros(0, np.int64), np.zeros(0)
+    applied = q.applied_run(session, run_id)
+    if applied is not None:
+        history = q.history_runs(session, line.id, when, applied.method_version,
+                                 scan_runs=max(config.place.history_runs, 60),
+                                 window_days=config.place.trend_window_days)
+    else:
+        rows = session.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(
+            ConditionRun.line_key == line.id, ConditionRun.run_time < when)
+            .order_by(ConditionRun.run_time.desc()).limit(config.place.history_runs)).all()
+        history = sorted(((int(r), t) for r, t in rows), key=lambda x: (x[1], x[0]))
+    ri = run_index(session, line, run_id, history, config=config)
+    if ri is None:
+        return np.zeros(0, np.int64), np.zeros(0)
+    return ri.seg, ri.mean_index
+
+
 def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, *,
               config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> PlacesUpdate:
     """Apply one run to the line's places (no savepoint, no alerts: :func:`update_places` wraps it)."""
@@ -206,28 +308,12 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
     params = config.place
     hist_ids = q.history_runs(session, line.id, when, version, scan_runs=max(params.history_runs, 60),
                               window_days=params.trend_window_days)
-    run_ids = [r for r, _ in hist_ids] + [run_id]
-    values, wheel_names = q.segment_frame(session, run_ids, SEGMENT_M)
-    grids = _grids(values, wheel_names, run_ids)
-    seg, wheels, la, v = grids[run_id]
-    if seg.size == 0:
+    ri = run_index(session, line, run_id, hist_ids, config=config)
+    if ri is None:
         return PlacesUpdate(False, "the run has no 10 m condition rows", version)
-    all_seg = np.unique(values[:, 2].astype(np.int64))
-    all_cls = _classes(session, line, all_seg, config.section_margin_m)
-    cls_of = dict(zip(all_seg.tolist(), all_cls.tolist(), strict=True))
-    row_cls = np.array([cls_of[int(s)] for s in values[:, 2].astype(np.int64)], dtype=object)
-    curves = fit_segment_curves(values[:, 2].astype(np.int64), values[:, 3], values[:, 4], values[:, 0],
-                                np.array([wheel_names[int(c)] for c in values[:, 1]], dtype=object), row_cls,
-                                min_locations=config.curve_min_locations)
-    classes = np.array([cls_of[int(s)] for s in seg.tolist()], dtype=object)
-    idx = segment_index(la, v, classes, curves)
-    hist = [_on(grids[r], seg, wheels, segment_index(grids[r][2], grids[r][3],
-                                                     np.array([cls_of[int(s)] for s in grids[r][0].tolist()],
-                                                              dtype=object), curves))
-            for r, _ in hist_ids]
-    history = np.stack(hist, axis=2) if hist else np.zeros((*idx.shape, 0))
+    seg, wheels, v = ri.seg, ri.wheels, ri.speed
     now_day = days_of(when)
-    found = find_places(seg, idx, history, np.array([days_of(t) for _, t in hist_ids]), now_day, classes,
+    found = find_places(seg, ri.index, ri.history, ri.history_days, now_day, ri.classes,
                         segment_m=SEGMENT_M, params=params)
 
     rows = q.line_places(session, line.id)
@@ -244,7 +330,7 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
                                   actions=acts)
     kept = {k.id for k in known}
     q.delete_places(session, [i for i in by_id if i not in kept])
-    speed_kmh = np.nanmean(np.where(np.isfinite(v), v, np.nan), axis=0) * 3.6 if v.size else v
+    speed_kmh = _mean_over_wheels(v) * 3.6
     written = _write(session, line, run_id, when, version, known, by_id, before, events, acts, act_rows,
                      seg, wheels, speed_kmh, version_runs, config)
     session.add(PlaceRun(run_id=run_id, line_key=line.id, run_time=when, method_version=version,
@@ -299,7 +385,8 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
         same = replace(st, observations=[o for o in st.observations if o.run_id in mine])
         look = place_outlook(same if same.observations else st, config.levels)
         last = st.observations[-1]
-        row.direction, row.start_m, row.end_m, row.peak_m = st.direction, st.start_m, st.end_m, st.peak_m
+        # the peak and level of the latest observation (a held place keeps its extent, its peak moves)
+        row.direction, row.start_m, row.end_m, row.peak_m = st.direction, st.start_m, st.end_m, last.peak_m
         row.centre_m, row.cls, row.baseline, row.explained_by = last.centre_m, st.cls, _finite(st.baseline), \
             st.explained_by
         row.tier, row.listed, row.active, row.misses, row.lower_runs = st.tier, st.listed, st.active, st.misses, \
@@ -371,9 +458,9 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
         if was_active and not st.active and "repaired" not in kinds and was_listed:
             event(st.id, "inactive", st.tier, st.tier)
         # a place marked fixed that a run finds again after it was marked reopens with its history
+        # (found by the run's tests, not merely held near its level; the run is applied after the mark)
         if new_obs and row.status == "fixed" and "back" not in kinds and "repaired" not in kinds \
-                and row.status_at is not None and row.status_at < when and st.listed and st.active \
-                and any(o.evidence and o.wheels for o in new_obs):
+                and st.listed and st.active and any(o.evidence and o.wheels for o in new_obs):
             event(st.id, "back", st.tier, st.tier, alerted=True)
             _set_status(session, row, "open", f"marked fixed, found again by run {run_id}", when)
     session.flush()
@@ -387,3 +474,30 @@ def _set_status(session: Session, row: Place, status: str, comment: str, when: d
     session.add(PlaceStatusChange(place_id=row.id, by=SYSTEM_USER, at=utcnow(), old=row.status, new=status,
                                   comment=comment))
     row.status, row.status_comment, row.status_by, row.status_at = status, comment, SYSTEM_USER, utcnow()
+
+
+def apply_stored_runs(db: Any, line_id: str, track: str, *, config: PlacesConfig = DEFAULT_PLACES_CONFIG,
+                      alerts: bool = False) -> list[PlacesUpdate]:
+    """Apply every run of a line in the condition store that its places have not seen, oldest first, one
+    transaction each (runs published before the places existed, a generated fleet history). Alerts are
+    off by default: a history replayed at once is not news."""
+    from sqlalchemy import select
+
+    from app.db.models import ConditionRun
+
+    out = []
+    with db.read() as session:
+        line = session.scalar(select(ConditionLine).where(ConditionLine.line_id == line_id,
+                                                          ConditionLine.track == track))
+        if line is None:
+            return out
+        runs = session.execute(select(ConditionRun.run_id, ConditionRun.job_id).where(
+            ConditionRun.line_key == line.id).order_by(ConditionRun.run_time, ConditionRun.run_id)).all()
+        done = set(session.scalars(select(PlaceRun.run_id).where(PlaceRun.line_key == line.id)))
+    for run_id, job_id in runs:
+        if run_id in done:
+            continue
+        with db.write() as session:
+            ln = session.get(ConditionLine, line.id)
+            out.append(update_places(session, int(run_id), ln, int(job_id), config=config, alerts=alerts))
+    return out

@@ -19,6 +19,7 @@ from sqlalchemy import and_, case, func, select
 from sqlalchemy.orm import Session
 
 from app.analysis.condition.tiers import TIER_NAMES
+from app.assets.labels import label_places
 from app.core.errors import ApiError, not_found
 from app.core.jsonable import iso_time
 from app.db import places as q
@@ -26,6 +27,7 @@ from app.db import recorder_crud, reference_crud
 from app.db.models import PLACE_STATUSES, ConditionLine, Place, PlaceObservation, PlaceRun
 from app.db.session import Database
 from app.places.answers import QUANTITY, evidence_names, place_dict, tier_name
+from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
 __all__ = ["PlaceQuery", "CLOSED_STATUSES", "list_places", "places_csv", "places_geojson", "place_history"]
 
@@ -36,7 +38,7 @@ CSV_COLUMNS: tuple[str, ...] = (
     "id", "line_id", "track", "km_from", "km_to", "length_m", "peak", "peak_percent", "peak_km", "direction",
     "tier", "evidence", "wheels", "runs_confirming", "first_seen", "last_confirmed", "tendency", "rate_per_year",
     "rate_low", "rate_high", "next_tier", "projected_date", "days_to_next_tier", "status", "status_comment",
-    "status_by", "status_at", "actions", "active", "muted", "method_version",
+    "status_by", "status_at", "actions", "assets", "active", "muted", "muted_reason", "method_version",
 )
 
 
@@ -104,38 +106,56 @@ def _page(session: Session, qy: PlaceQuery) -> tuple[dict[int, ConditionLine], l
     return lines, rows, total
 
 
-def _items(session: Session, lines: dict[int, ConditionLine], rows: list[Place]) -> list[dict]:
+def labelled(session: Session, lines: dict[int, ConditionLine], rows: list[Place],
+             config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> list[dict]:
+    """The places as answered: their linked actions, and the known discontinuities on them
+    (:func:`app.assets.labels.label_places`: labelled, muted by type, never dropped)."""
     links = q.actions_of(session, [p.id for p in rows])
-    return [place_dict(p, lines[p.line_key], links[p.id]) for p in rows]
+    labels: dict[int, object] = {}
+    by_line: dict[int, list[Place]] = {}
+    for p in rows:
+        by_line.setdefault(p.line_key, []).append(p)
+    for key, ps in by_line.items():
+        ln = lines[key]
+        got = label_places(session, config.asset_settings(), ln.line_id, ln.track, [p.start_m / 1000.0 for p in ps],
+                           [p.end_m / 1000.0 for p in ps])
+        labels.update({p.id: lab for p, lab in zip(ps, got, strict=True)})
+    out = []
+    for p in rows:
+        lab = labels.get(p.id)
+        out.append(place_dict(p, lines[p.line_key], links[p.id], assets=lab.assets if lab else (),
+                              muted_reason=lab.muted_reason if lab is not None and lab.muted else None))
+    return out
 
 
-def list_places(db: Database, qy: PlaceQuery) -> dict:
+def list_places(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> dict:
     """The work list (``GET /condition/places``)."""
     qy = qy.checked()
     with db.read() as session:
         lines, rows, total = _page(session, qy)
-        items = _items(session, lines, rows)
+        items = labelled(session, lines, rows, config)
     return {"line_id": qy.line_id, "quantity": QUANTITY, "items": items, "total": total}
 
 
-def places_csv(db: Database, qy: PlaceQuery) -> str:
+def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> str:
     """The work list as CSV (one row per place; lists joined by ``+``, actions as ``kind date``)."""
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
-    for item in list_places(db, qy)["items"]:
+    for item in list_places(db, qy, config)["items"]:
         row = dict(item)
         row["evidence"] = "+".join(item["evidence"])
         row["wheels"] = "+".join(item["wheels"])
         row["actions"] = "+".join(f"{a['kind']} {a['date']}" for a in item["actions"])
+        row["assets"] = "+".join(f"{a['type']} {a['km']:.3f}" for a in item["assets"])
         w.writerow(["" if row.get(c) is None else row.get(c) for c in CSV_COLUMNS])
     return out.getvalue()
 
 
-def places_geojson(db: Database, qy: PlaceQuery) -> dict:
+def places_geojson(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> dict:
     """The work list as a GeoJSON FeatureCollection: the place's extent as a LineString in WGS84 where
     the line's geometry is imported (else a null geometry), the place's fields as properties."""
-    items = list_places(db, qy)["items"]
+    items = list_places(db, qy, config)["items"]
     geoms: dict[tuple[str, str], object] = {}
     with db.read() as session:
         for key in {(i["line_id"], i["track"]) for i in items}:
@@ -153,7 +173,7 @@ def places_geojson(db: Database, qy: PlaceQuery) -> dict:
     return {"type": "FeatureCollection", "features": features}
 
 
-def place_history(db: Database, place_id: int) -> dict:
+def place_history(db: Database, place_id: int, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> dict:
     """A place with its observations, events, status history and the line's maintenance actions over it
     within the time span of the line's runs (``GET /condition/places/{id}``; 404 naming ``place_id``)."""
     with db.read() as session:
@@ -161,7 +181,7 @@ def place_history(db: Database, place_id: int) -> dict:
         if p is None:
             raise not_found("place", place_id)
         line = session.get(ConditionLine, p.line_key)
-        out = place_dict(p, line, q.actions_of(session, [p.id])[p.id])
+        (out,) = labelled(session, {line.id: line}, [p], config)
         obs = session.scalars(select(PlaceObservation).where(PlaceObservation.place_id == p.id)
                               .order_by(PlaceObservation.day, PlaceObservation.id))
         out["observations"] = [

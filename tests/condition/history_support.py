@@ -135,8 +135,8 @@ def stored_runs(database_url: str, spec: HistorySpec, *, margin_m: float = 50.0)
 
     from app.analysis.stiffness.superstructure import section_classes
     from app.db import reference_crud
-    from app.db.condition_models import ConditionLine, ConditionRun
-    from app.db.condition_models import SegmentCondition as SC
+    from app.db.models import ConditionLine, ConditionRun
+    from app.db.models import SegmentCondition as SC
     from app.db.session import Database
 
     db = Database(database_url)

@@ -1,0 +1,248 @@
+"""The places' service and API on a generated fleet history in the condition store (both databases):
+the publish step's places update (:func:`app.places.update.update_places`), the work list and its
+exports, a place's history, the status workflow (audited, roles), the bad-input answers, the alerts of
+new places and tier changes, the method-version rule and a fixed place that comes back."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+import pytest
+from sqlalchemy import select, update
+
+from app.analysis.condition.tiers import TIER_NAMES
+from app.db.models import AuditEntry, PlaceEventRow, PlaceRun, SegmentCondition, WebhookDelivery
+from app.db.webhooks import EVENT_PLACES, create_webhook
+from app.places.update import apply_run
+from tests.places.conftest import APPLIED, LINE, STEP_FROM_M, STEP_TO_M, apply_runs
+
+URL = "/api/v1/condition/places"
+
+
+def _listed(client, **params) -> dict:
+    r = client.get(URL, params={"line_id": LINE, "limit": 1000, **params})
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def _step_place(items: list[dict]) -> dict:
+    on = [p for p in items if p["km_from"] * 1000 < STEP_TO_M + 10 and STEP_FROM_M - 10 < p["km_to"] * 1000]
+    assert len(on) == 1, on
+    return on[0]
+
+
+def test_the_planted_step_is_one_listed_place_with_its_history(places_fleet):
+    out = _listed(places_fleet.clients["viewer"])
+    assert out["quantity"] == "stiffness index ln(A/A_ref(class, v))" and out["total"] == len(out["items"]) > 0
+    p = _step_place(out["items"])
+    assert p["direction"] == "soft" and p["tier"] in TIER_NAMES[1:] and p["peak"] < 0
+    assert abs(p["peak_percent"] - 100 * np.expm1(p["peak"])) < 1e-9
+    assert "step" in p["evidence"] or "anomaly" in p["evidence"]
+    assert p["status"] == "open" and p["active"] and p["runs_confirming"] >= 2
+    assert p["method_version"].startswith("trackvkf-pipeline/")
+    h = places_fleet.clients["viewer"].get(f"{URL}/{p['id']}")
+    assert h.status_code == 200, h.text
+    hist = h.json()
+    assert hist["id"] == p["id"] and len(hist["observations"]) == p["runs_confirming"]
+    assert [o["run_time"] for o in hist["observations"]] == sorted(o["run_time"] for o in hist["observations"])
+    assert all(o["method_version"] == p["method_version"] for o in hist["observations"])
+    assert hist["observations"][-1]["speed_kmh"] > 0
+    assert [e["kind"] for e in hist["events"]].count("new") == 1
+    assert hist["first_seen"] >= "2025-03-26"  # not before the step (day 25)
+
+
+def test_the_list_is_ranked_and_filtered(places_fleet):
+    c = places_fleet.clients["viewer"]
+    items = _listed(c, include_closed=True)["items"]
+    keys = [(-TIER_NAMES.index(p["tier"]), p["days_to_next_tier"] is None, p["days_to_next_tier"] or 0.0,
+             -p["severity"]) for p in items]
+    assert keys == sorted(keys)
+    for tier in {p["tier"] for p in items}:
+        got = _listed(c, tier=tier, include_closed=True)["items"]
+        assert got and {p["tier"] for p in got} == {tier}
+    page = c.get(URL, params={"line_id": LINE, "limit": 1, "offset": 1, "include_closed": True}).json()
+    assert page["total"] == len(items) and [p["id"] for p in page["items"]] == [items[1]["id"]]
+
+
+def test_exports_list_the_same_places(places_fleet):
+    c = places_fleet.clients["viewer"]
+    items = _listed(c)["items"]
+    r = c.get(f"{URL}.csv", params={"line_id": LINE, "limit": 1000})
+    assert r.status_code == 200 and r.headers["content-type"].startswith("text/csv")
+    rows = list(csv.DictReader(io.StringIO(r.text)))
+    assert [int(x["id"]) for x in rows] == [p["id"] for p in items]
+    assert rows[0]["tier"] == items[0]["tier"] and float(rows[0]["km_from"]) == items[0]["km_from"]
+    g = c.get(f"{URL}.geojson", params={"line_id": LINE, "limit": 1000})
+    assert g.status_code == 200 and g.headers["content-type"].startswith("application/geo+json")
+    feats = g.json()["features"]
+    assert [f["id"] for f in feats] == [p["id"] for p in items]
+    assert all(f["geometry"] is None and f["properties"]["status"] for f in feats)  # no geometry imported
+
+
+def test_bad_input_names_the_field(places_fleet):
+    c, e = places_fleet.clients["viewer"], places_fleet.clients["engineer"]
+    r = c.get(f"{URL}/2147480000")
+    assert r.status_code == 404 and r.json()["field"] == "place_id"
+    assert c.get(URL, params={"tier": "severe"}).json()["field"] == "tier"
+    assert c.get(URL, params={"status": "done"}).json()["field"] == "status"
+    assert c.get(URL, params={"line_id": "nope"}).status_code == 404
+    pid = _listed(c)["items"][0]["id"]
+    for body, field in (({"status": "planned"}, "comment"), ({"status": "planned", "comment": ""}, "comment"),
+                        ({"status": "planned", "comment": "   "}, "comment"), ({"comment": "x"}, "status"),
+                        ({"status": "repaired", "comment": "x"}, "status"),
+                        ({"status": "planned", "comment": "x" * 2001}, "comment")):
+        r = e.patch(f"{URL}/{pid}/status", json=body)
+        assert r.status_code == 422 and r.json()["field"] == field, (body, r.text)
+    r = e.patch(f"{URL}/2147480000/status", json={"status": "planned", "comment": "x"})
+    assert r.status_code == 404 and r.json()["field"] == "place_id"
+    r = c.patch(f"{URL}/{pid}/status", json={"status": "planned", "comment": "viewer tries"})
+    assert r.status_code == 403
+    assert c.get(f"{URL}/{pid}").json()["status_history"] == []  # nothing half-written
+
+
+def test_status_workflow_is_recorded_and_audited(places_fleet):
+    c, e = places_fleet.clients["viewer"], places_fleet.clients["engineer"]
+    items = _listed(c)["items"]
+    pid = items[-1]["id"]
+    for status, comment in (("acknowledged", "seen on the report"), ("planned", "tamping in week 14"),
+                            ("false_alarm", "a welded joint, known")):
+        r = e.patch(f"{URL}/{pid}/status", json={"status": status, "comment": comment})
+        assert r.status_code == 200, r.text
+        assert r.json()["status"] == status and r.json()["status_comment"] == comment
+        assert r.json()["status_by"] == "key:engineer-key"
+    hist = c.get(f"{URL}/{pid}").json()["status_history"]
+    assert [(h["old"], h["new"], h["by"]) for h in hist] == [
+        ("open", "acknowledged", "key:engineer-key"), ("acknowledged", "planned", "key:engineer-key"),
+        ("planned", "false_alarm", "key:engineer-key")]
+    with places_fleet.db.read() as s:
+        audit = s.scalars(select(AuditEntry).where(AuditEntry.action == "place.status",
+                                                   AuditEntry.target == str(pid)).order_by(AuditEntry.id)).all()
+    assert [(a.actor, a.detail["old"], a.detail["new"]) for a in audit] == [
+        ("key:engineer-key", "open", "acknowledged"), ("key:engineer-key", "acknowledged", "planned"),
+        ("key:engineer-key", "planned", "false_alarm")]
+    # closed: off the default list, on the list with include_closed or a status filter
+    assert pid not in [p["id"] for p in _listed(c)["items"]]
+    assert pid in [p["id"] for p in _listed(c, include_closed=True)["items"]]
+    assert [p["id"] for p in _listed(c, status="false_alarm")["items"]] == [pid]
+
+
+def test_a_run_is_applied_once_and_in_time_order(places_fleet):
+    db, runs = places_fleet.db, places_fleet.run_ids
+    (again,) = apply_runs(db, [runs[APPLIED - 1]])
+    assert not again.applied and "already" in again.reason
+    (older,) = apply_runs(db, [runs[0]])
+    assert not older.applied
+    with db.read() as s:
+        assert s.scalar(select(PlaceRun.run_id).order_by(PlaceRun.run_time.desc()).limit(1)) == runs[APPLIED - 1]
+
+
+def test_another_method_version_does_not_read_as_a_change_of_the_track(places_fleet):
+    """The next runs, processed with another recipe whose amplitude over 30 m is 16 % higher: compared
+    with the history of the old recipe that is a change (a place); compared only within their own
+    version it is not."""
+    db, runs = places_fleet.db, places_fleet.run_ids
+    nxt = runs[APPLIED:APPLIED + 3]
+    lo, hi = 12_000 // 10, 12_030 // 10  # a healthy stretch
+    with db.write() as s:
+        s.execute(update(SegmentCondition).where(SegmentCondition.run_id.in_(nxt), SegmentCondition.seg_m == 10,
+                                                 SegmentCondition.seg >= lo, SegmentCondition.seg < hi)
+                  .values(index=SegmentCondition.index + 0.15))
+    from app.db.models import ConditionLine, Place
+
+    def places_there(version_of) -> list:
+        with db.read() as s:  # rolled back at the end: nothing stays
+            line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == LINE))
+            for rid in nxt:
+                up = apply_run(s, rid, line, version_of(s))
+                assert up.applied, up.reason
+            return [(p.start_m, p.end_m, p.direction) for p in s.scalars(select(Place))
+                    if p.start_m < hi * 10 + 10 and lo * 10 - 10 < p.end_m and p.last_run_id in nxt]
+
+    def same(s):
+        return s.scalar(select(PlaceRun.method_version).where(PlaceRun.run_id == runs[APPLIED - 1]))
+
+    assert places_there(same), "the recipe's change reads as the track's within one version"
+    assert places_there(lambda s: "trackvkf-pipeline/3+another-recipe") == []
+    with db.write() as s:  # undo
+        s.execute(update(SegmentCondition).where(SegmentCondition.run_id.in_(nxt), SegmentCondition.seg_m == 10,
+                                                 SegmentCondition.seg >= lo, SegmentCondition.seg < hi)
+                  .values(index=SegmentCondition.index - 0.15))
+
+
+def test_alerts_only_for_new_places_and_tier_changes_and_a_fixed_place_back(places_fleet):
+    """The remaining runs with a webhook: one delivery per run with a new place, a tier change or a
+    place back, carrying the place's id and status; a place marked fixed that the next runs find again
+    is reopened with its history (event back)."""
+    db, runs, c, e = places_fleet.db, places_fleet.run_ids, places_fleet.clients["viewer"], \
+        places_fleet.clients["engineer"]
+    p = _step_place(_listed(c)["items"])
+    r = e.patch(f"{URL}/{p['id']}/status", json={"status": "fixed", "comment": "ballast renewed"})
+    assert r.status_code == 200
+    with db.write() as s:
+        create_webhook(s, "https://hooks.example.com/trackvkf")
+    ups = apply_runs(db, runs[APPLIED:], alerts=True)
+    assert all(u.applied for u in ups)
+    with db.read() as s:
+        deliveries = s.scalars(select(WebhookDelivery).where(WebhookDelivery.event == EVENT_PLACES)
+                               .order_by(WebhookDelivery.id)).all()
+        events = s.scalars(select(PlaceEventRow).where(PlaceEventRow.run_id.in_(runs[APPLIED:]))).all()
+    alerted = [ev for ev in events if ev.alerted]
+    assert {ev.kind for ev in alerted} <= {"new", "tier_up", "tier_down", "back"}
+    assert len(deliveries) == len({ev.run_id for ev in alerted}) <= len(runs) - APPLIED
+    sent = [(x["kind"], x["place_id"]) for d in deliveries for x in d.payload["events"]]
+    assert sorted(sent) == sorted((ev.kind, ev.place_id) for ev in alerted)
+    for d in deliveries:
+        for x in d.payload["events"]:
+            assert x["place"]["id"] == x["place_id"] and x["place"]["status"] in ("open", "acknowledged", "planned",
+                                                                                   "fixed", "false_alarm")
+    news = [ev.place_id for ev in alerted if ev.kind == "new"]
+    assert len(news) == len(set(news))
+    # the step is still there: the place marked fixed is reopened, with its history
+    back = c.get(f"{URL}/{p['id']}").json()
+    assert back["status"] == "open" and back["status_by"] == "trackvkf"
+    assert "back" in [ev["kind"] for ev in back["events"]]
+    assert [h["new"] for h in back["status_history"]][-2:] == ["fixed", "open"]
+    assert len(back["observations"]) > p["runs_confirming"]
+    assert any(x == ("back", p["id"]) for x in sent)
+
+
+def test_run_segment_index_is_what_the_places_are_graded_on(places_fleet):
+    from app.db.models import ConditionLine, Place
+    from app.places.update import run_segment_index
+
+    db = places_fleet.db
+    with db.read() as s:
+        last = s.scalar(select(PlaceRun.run_id).order_by(PlaceRun.run_time.desc()).limit(1))
+        line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == LINE))
+        seg, index = run_segment_index(s, line, last)
+        assert seg.size and np.isfinite(index).mean() > 0.5
+        found = [p for p in s.scalars(select(Place).where(Place.last_run_id == last))
+                 if p.runs_confirming and p.level is not None]
+        assert found
+        for p in found:
+            k = int(np.searchsorted(seg, int(p.peak_m // 10)))
+            if seg[k] == int(p.peak_m // 10) and np.isfinite(index[k]):
+                assert index[k] == pytest.approx(p.level, abs=1e-9)
+
+
+def test_places_on_known_discontinuities_are_labelled_and_muted_types_stay_listed(places_fleet):
+    from dataclasses import replace
+
+    from app.places.config import DEFAULT_PLACES_CONFIG
+    from app.places.worklist import PlaceQuery, list_places
+
+    c, e = places_fleet.clients["viewer"], places_fleet.clients["engineer"]
+    p = _step_place(_listed(c)["items"])
+    km = round((STEP_FROM_M + STEP_TO_M) / 2000.0, 3)
+    body = f"line_id,track,type,km,km_to,name\n{LINE},1,weld,{km},,W1\n".encode()
+    r = e.post("/api/v1/assets", files={"file": ("assets.csv", body, "text/csv")})
+    assert r.status_code == 201, r.text
+    got = _step_place(_listed(c)["items"])
+    assert [(a["type"], a["name"]) for a in got["assets"]] == [("weld", "W1")] and not got["muted"]
+    assert c.get(f"{URL}/{p['id']}").json()["assets"] == got["assets"]
+    muted = replace(DEFAULT_PLACES_CONFIG, muted_asset_types=frozenset({"weld"}))
+    items = list_places(places_fleet.db, PlaceQuery(line_id=LINE, limit=1000), muted)["items"]
+    m = _step_place(items)
+    assert m["muted"] and "weld" in m["muted_reason"] and len(items) == len(_listed(c)["items"])
