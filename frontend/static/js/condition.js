@@ -109,7 +109,7 @@
     $("places-geojson").href = `${T.boot.api}/condition/places.geojson?${q}&limit=1000`;
     if (!params.tier.length || !params.status.length) {
       placeList = { items: [], total: 0 };
-      body.innerHTML = `<tr><td colspan="13" class="muted">Choose at least one tier and one status.</td></tr>`;
+      body.innerHTML = `<tr><td colspan="12" class="muted">Choose at least one tier and one status.</td></tr>`;
       $("places-info").textContent = "";
       return placeList;
     }
@@ -117,17 +117,17 @@
     placeList = res;
     $("places-info").textContent = `${res.total} place${res.total === 1 ? "" : "s"}` + (res.total > res.items.length ? `, first ${res.items.length}` : "");
     if (!res.items.length) {
-      body.innerHTML = `<tr><td colspan="13" class="muted">No place with these tiers and statuses.</td></tr>`;
+      body.innerHTML = `<tr><td colspan="12" class="muted">No place with these tiers and statuses.</td></tr>`;
       return res;
     }
     body.innerHTML = res.items.map((p, i) => `<tr data-place="${p.id}" class="${p.id === placeId ? "selected" : ""}${p.muted ? " is-muted" : ""}">
       <td class="num">${i + 1}</td><td>${tierBadge(p.tier)}</td>
-      <td title="place ${p.id}">${p.km_from.toFixed(3)}–${p.km_to.toFixed(3)}</td><td class="num">${T.fmt(p.length_m, 0)}</td>
-      <td class="num">${peakText(p)}</td><td>${trendText(p)}</td><td>${limitText(p)}</td>
+      <td title="place ${p.id}">${p.km_from.toFixed(3)}–${p.km_to.toFixed(3)}<br><span class="muted">${T.fmt(p.length_m, 0)} m</span></td>
+      <td class="num nowrap">${peakText(p)}</td><td class="wrap">${trendText(p)}</td><td class="wrap">${limitText(p)}</td>
       <td><span class="status status-${T.esc(p.status)}">${T.esc(p.status.replace("_", " "))}</span></td>
       <td>${T.date(p.first_seen)}</td><td class="num" title="runs confirming">${p.runs_confirming}</td>
-      <td>${p.actions.length ? p.actions.map((a) => `${T.esc(a.kind)} ${T.date(a.date)}`).join(", ") : `<span class="muted">–</span>`}</td>
-      <td>${assetsText(p)}</td>
+      <td class="wrap">${p.actions.length ? p.actions.map((a) => `${T.esc(a.kind)} ${T.date(a.date)}`).join(", ") : `<span class="muted">–</span>`}</td>
+      <td class="wrap">${assetsText(p)}</td>
       <td><button class="btn small" type="button" data-act="history">History</button>
         <a class="btn small" href="${mapLink(p.last_run_id, p.km_from, p.km_to)}">Map</a></td></tr>`).join("");
     return res;
@@ -214,8 +214,8 @@
     const fx = heat.flagged.map(([i, j]) => x[j]), fy = heat.flagged.map(([i]) => y[i]);
     await T.plot(el, [
       { type: "heatmap", x, y, z: heat.matrix, colorscale: "YlOrRd", reversescale: true, hoverongaps: false, name: "index",
-        colorbar: { title: { text: "Index", side: "right" }, thickness: 14 },
-        hovertemplate: "%{y|%Y-%m-%d}<br>km %{x:.2f}<br>index %{z:.3f}<extra></extra>" },
+        colorbar: { title: { text: "ln A", side: "right" }, thickness: 14 },
+        hovertemplate: "%{y|%Y-%m-%d}<br>km %{x:.2f}<br>ln A %{z:.3f}<extra></extra>" },
       { type: "scatter", mode: "markers", x: fx, y: fy, name: "flagged", marker: { symbol: "x-thin", size: 7, color: "#1d2733", line: { width: 1.5, color: "#1d2733" } },
         hovertemplate: "flagged<br>%{y|%Y-%m-%d} km %{x:.2f}<extra></extra>" },
     ], {
@@ -434,7 +434,7 @@
       if (!lines.length) {
         for (const id of ["cond-sections", "place-history", "cond-heatmap", "cond-trend", "cond-effect"]) T.emptyState(id, "No runs in the condition store yet.",
           "<p>Processed runs with a line id appear here: <code>./scripts/demo.sh</code> processes a short history of a line.</p>");
-        $("places-body").innerHTML = `<tr><td colspan="13" class="muted">No places yet.</td></tr>`;
+        $("places-body").innerHTML = `<tr><td colspan="12" class="muted">No places yet.</td></tr>`;
       } else {
         const best = lines.reduce((a, b) => (b.n_runs > a.n_runs ? b : a));
         $("cond-line").innerHTML = lines.map((l) => `<option value="${T.esc(l.line_id)}\u0001${T.esc(l.track)}">line ${T.esc(l.line_id)} / track ${T.esc(l.track)} (${l.n_runs} runs)</option>`).join("");
