@@ -235,6 +235,7 @@ def test_a_bad_webhook_url_shows_the_api_message(browser, history_service):
         page.fill("#webhook-url", "http://127.0.0.1:9/hook")
         page.click("#webhook-form button[type=submit]")
         page.wait_for_function("() => document.getElementById('webhook-secret').textContent.includes('whsec_')")
+        page.wait_for_selector("#webhooks-body tr[data-hook]")
         assert page.locator("#webhooks-body tr[data-hook]").count() == 1
     finally:
         ctx.close()
