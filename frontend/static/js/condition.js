@@ -154,7 +154,7 @@
     $("place-kv").innerHTML = kv.map(([k, v]) => `<div><span>${k}</span><b>${v}</b></div>`).join("");
     await drawPlaceHistory(p);
     $("place-events-body").innerHTML = p.events.length ? p.events.map((e) => `<tr><td>${T.date(e.time)}</td><td>${T.esc(e.kind.replace("_", " "))}</td>
-      <td>${e.run_id ?? "–"}</td><td>${e.old_tier || e.new_tier ? `${e.old_tier ? tierBadge(e.old_tier) + " → " : ""}${e.new_tier ? tierBadge(e.new_tier) : ""}` : "–"}</td></tr>`).join("")
+      <td>${e.run_id ?? "–"}</td><td>${e.old_tier && e.new_tier && e.old_tier !== e.new_tier ? `${tierBadge(e.old_tier)} → ${tierBadge(e.new_tier)}` : e.new_tier || e.old_tier ? tierBadge(e.new_tier || e.old_tier) : "–"}</td></tr>`).join("")
       : `<tr><td colspan="4" class="muted">No events.</td></tr>`;
     $("place-maint-body").innerHTML = p.maintenance.length ? p.maintenance.map((m) => `<tr><td>${T.date(m.date)}</td><td>${T.esc(m.kind || m.type)}</td>
       <td>${T.fmt(m.km_from, 3)}–${T.fmt(m.km_to, 3)}</td></tr>`).join("")

@@ -41,7 +41,9 @@
     }).filter((p) => p.a !== null && p.b !== null);
     const text = pts.map((p) => p.x.type.replace(/_/g, " "));
     const hover = pts.map((p) => `${T.esc(p.x.type.replace(/_/g, " "))}${p.x.name ? " " + T.esc(p.x.name) : ""}<br>km ${p.x.km.toFixed(3)}${p.x.km_to != null ? "–" + p.x.km_to.toFixed(3) : ""}`);
-    const base = { mode: "markers+text", name: "assets", text, textposition: "top center", hovertext: hover, hoverinfo: "text",
+    // labels alternate above and below, so that two assets close together stay readable
+    const textposition = tiles ? "top center" : pts.map((_, i) => (i % 2 ? "bottom center" : "top center"));
+    const base = { mode: "markers+text", name: "assets", text, textposition, hovertext: hover, hoverinfo: "text",
                    textfont: { size: 11, color: "#37474f" } };
     if (tiles) return Object.assign(base, { type: "scattermap", lon: pts.map((p) => p.a), lat: pts.map((p) => p.b), marker: { size: 10, color: "#37474f" } });
     return Object.assign(base, { type: "scatter", x: pts.map((p) => p.a / 1000), y: pts.map((p) => p.b / 1000),
