@@ -1,7 +1,8 @@
 """The work list of places (issue 25, docs/places.md): places with severity, identity and history.
 
 ``GET /condition/places`` (``.csv``, ``.geojson``) — the listed places ranked by tier, then days to the
-next tier, then severity; ``GET /condition/places/{id}`` — a place with its observations, events,
+next tier, then severity; ``GET /condition/places/events`` — the feed of place events (``since=``);
+``GET /condition/places/{id}`` — a place with its observations, events,
 status history and maintenance; ``PATCH /condition/places/{id}/status`` — an engineer sets its
 workflow status with a comment (audited). Every value is the speed-conditioned stiffness index
 ``ln(A / A_ref(class, v))``. Routes parse, authorise and call one function of :mod:`app.places`.
@@ -71,6 +72,16 @@ def places_csv(db: DbDep, settings: SettingsDep, q: PlaceQ) -> Response:
 def places_geojson(db: DbDep, settings: SettingsDep, q: PlaceQ) -> JSONResponse:
     """One feature per place: its extent as a LineString where the line's geometry is imported, else null."""
     return JSONResponse(worklist.places_geojson(db, q, PlacesConfig.from_settings(settings)), media_type="application/geo+json")
+
+
+@router.get("/places/events", summary="Feed of place events (poll with since=)")
+def place_events(db: DbDep, settings: SettingsDep,
+                 since: Annotated[int, Query(ge=0, le=2**62, description="last event id seen (0: from the start)")] = 0,
+                 limit: Annotated[int, Query(ge=1, le=1000)] = 200,
+                 every: Annotated[bool, Query(description="every event, not only the alerted ones")] = False) -> dict:
+    """New places, tier changes and places back (``every``: also repaired, linked, inactive), oldest
+    first, each with its place (id, status, tier …); ``next_since`` for the next poll."""
+    return worklist.event_feed(db, since, limit, alerted_only=not every, config=PlacesConfig.from_settings(settings))
 
 
 @router.get("/places/{place_id}", summary="A place with its history")

@@ -222,6 +222,11 @@ class Settings(BaseSettings):
         Distinct locations (10 m of one rail) a speed needs for the line's
         reference curve there (400 m of track both rails: no false places at a
         braking end); fewer: no index at that speed.
+    places_curve_runs : int
+        Newest earlier runs (with the run) the line's reference curves of the
+        places are fitted on at each publish (enough passes over a fleet's
+        speed spread; a longer history costs seconds a run and changes the
+        curves little).
     places_match_tolerance_m : float
         Widening of the extents when a run's places are matched to the known
         places of the line, m.
@@ -364,6 +369,7 @@ class Settings(BaseSettings):
     places_history_runs: int = Field(default=30, ge=2, le=1000)
     places_gap_m: float = Field(default=10.0, ge=0)
     places_curve_min_locations: int = Field(default=80, ge=0)
+    places_curve_runs: int = Field(default=20, ge=1, le=1000)
     places_match_tolerance_m: float = Field(default=10.0, ge=0)
     places_min_confirmations: int = Field(default=2, ge=1)
     places_confirm_tier: str = "intervention"

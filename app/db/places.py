@@ -60,14 +60,24 @@ def latest_applied_time(session: Session, line_key: int) -> dt.datetime | None:
 
 def history_runs(session: Session, line_key: int, when: dt.datetime, method_version: str, *,
                  scan_runs: int, window_days: float) -> list[tuple[int, dt.datetime]]:
-    """Earlier runs applied to the line with this method version: the ``scan_runs`` newest and every run
-    within ``window_days`` before ``when``, oldest first."""
+    """Earlier runs applied to the line with this method version, oldest first: the ``scan_runs`` newest, and
+    of the older ones within ``window_days`` before ``when`` at most ``scan_runs`` spread evenly over the
+    window (daily runs would otherwise make the read grow with the window: a trend needs its span, not every
+    run)."""
     base = and_(PlaceRun.line_key == line_key, PlaceRun.method_version == method_version, PlaceRun.run_time < when)
     newest = session.execute(select(PlaceRun.run_id, PlaceRun.run_time).where(base)
                              .order_by(PlaceRun.run_time.desc()).limit(scan_runs)).all()
-    window = session.execute(select(PlaceRun.run_id, PlaceRun.run_time)
-                             .where(base, PlaceRun.run_time >= when - dt.timedelta(days=window_days))).all()
-    return sorted({(int(r), t) for r, t in [*newest, *window]}, key=lambda x: (x[1], x[0]))
+    picked = {(int(r), t) for r, t in newest}
+    if len(newest) == scan_runs:
+        oldest = min(t for _, t in newest)
+        window = session.execute(select(PlaceRun.run_id, PlaceRun.run_time).where(
+            base, PlaceRun.run_time < oldest, PlaceRun.run_time >= when - dt.timedelta(days=window_days))
+            .order_by(PlaceRun.run_time)).all()
+        if len(window) > scan_runs:
+            keep = np.unique(np.linspace(0, len(window) - 1, scan_runs).round().astype(int))
+            window = [window[k] for k in keep]
+        picked |= {(int(r), t) for r, t in window}
+    return sorted(picked, key=lambda x: (x[1], x[0]))
 
 
 def segment_frame(session: Session, run_ids: Sequence[int], seg_m: int = 10) -> tuple[np.ndarray, list[str]]:
@@ -83,18 +93,22 @@ def segment_frame(session: Session, run_ids: Sequence[int], seg_m: int = 10) -> 
     if not run_ids:
         return np.zeros((0, 5)), []
     sc = SegmentCondition
-    stmt = select(sc.run_id, sc.wheel, sc.seg, sc.index, sc.speed_mean).where(
-        sc.run_id.in_([int(r) for r in run_ids]), sc.seg_m == int(seg_m))
-    result = session.connection().execute(stmt)
-    try:
-        raw = result.fetchall()
-    finally:
-        result.close()
-    wheels = sorted({str(r[1]) for r in raw})
-    code = {w: float(i) for i, w in enumerate(wheels)}
-    out = np.array([(r[0], code[str(r[1])], r[2], np.nan if r[3] is None else r[3],
-                     np.nan if r[4] is None else r[4]) for r in raw], dtype=np.float64).reshape(len(raw), 5)
-    return out, wheels
+    ids = [int(r) for r in run_ids]
+    wheels = sorted(str(w) for w in session.scalars(select(sc.wheel).where(sc.run_id.in_(ids), sc.seg_m == int(seg_m))
+                                                    .distinct()))
+    parts = []
+    for code, wheel in enumerate(wheels):
+        # numeric columns only, through the driver's cursor: a year of a long line is millions of rows
+        stmt = select(sc.run_id, sc.seg, sc.index, sc.speed_mean).where(sc.run_id.in_(ids), sc.seg_m == int(seg_m),
+                                                                         sc.wheel == wheel)
+        result = session.connection().execute(stmt)
+        try:
+            raw = result.cursor.fetchall()
+        finally:
+            result.close()
+        a = np.array(raw, dtype=np.float64).reshape(len(raw), 4)
+        parts.append(np.column_stack([a[:, 0], np.full(len(raw), float(code)), a[:, 1:]]))
+    return (np.concatenate(parts) if parts else np.zeros((0, 5))), wheels
 
 
 def run_time(session: Session, run_id: int) -> dt.datetime | None:

@@ -41,6 +41,8 @@ class PlacesConfig:
         Identity, confirmation, tier changes, maintenance.
     curve_min_locations : int
         Locations a speed needs for the line's reference curve.
+    curve_runs : int
+        Newest history runs (with the run) the line's reference curves are fitted on.
     section_m : float
         Section length of the section classes, m.
     section_limits : tuple of float
@@ -60,6 +62,7 @@ class PlacesConfig:
                                                                     TierLimits(*_DEFAULT_CHANGES)))
     lifecycle: LifecycleParams = field(default_factory=LifecycleParams)
     curve_min_locations: int = DEFAULT_MIN_LOCATIONS
+    curve_runs: int = 20
     section_m: float = 200.0
     section_limits: tuple[float, ...] = _DEFAULT_SECTIONS
     asset_buffer_m: float = 20.0
@@ -88,7 +91,7 @@ class PlacesConfig:
             "step_z": p.step_z, "trend_z": p.trend_z, "min_rate_per_year": p.min_rate_per_year,
             "trend_window_days": p.trend_window_days, "min_history": p.min_history,
             "history_runs": p.history_runs, "gap_m": p.gap_m, "watch_days": p.watch_days,
-            "curve_min_locations": self.curve_min_locations, "tolerance_m": lc.tolerance_m,
+            "curve_min_locations": self.curve_min_locations, "curve_runs": self.curve_runs, "tolerance_m": lc.tolerance_m,
             "min_confirmations": lc.min_confirmations, "confirm_tier": TIER_NAMES[lc.confirm_tier],
             "drop_after": lc.drop_after, "tier_down_runs": lc.tier_down_runs, "hold_change": lc.hold_change,
             "explain_days": lc.explain_days,
@@ -123,6 +126,7 @@ class PlacesConfig:
             explain_days=settings.places_explain_days,
         )
         return cls(place=place, lifecycle=lifecycle, curve_min_locations=settings.places_curve_min_locations,
+                   curve_runs=settings.places_curve_runs,
                    section_m=settings.places_section_m, section_limits=tuple(settings.places_section_limits),
                    asset_buffer_m=settings.places_asset_buffer_m, muted_asset_types=muted,
                    effect_around_m=settings.places_effect_around_m,

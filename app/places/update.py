@@ -145,9 +145,13 @@ def _actions(session: Session, line: ConditionLine) -> tuple[list[Action], dict[
 
 def _grids(values: np.ndarray, wheels: list[str], run_ids: list[int]):
     """Per run: (segments, wheel names, ln A, speed) as wheels × segments arrays."""
+    order = np.argsort(values[:, 0], kind="stable")
+    v_sorted = values[order]
+    bounds = np.searchsorted(v_sorted[:, 0], np.asarray(run_ids, dtype=np.float64), side="left")
+    ends = np.searchsorted(v_sorted[:, 0], np.asarray(run_ids, dtype=np.float64), side="right")
     out = {}
-    for rid in run_ids:
-        part = values[values[:, 0] == rid]
+    for rid, a, b in zip(run_ids, bounds, ends, strict=True):
+        part = v_sorted[a:b]
         seg = np.unique(part[:, 2].astype(np.int64))
         codes = np.unique(part[:, 1].astype(np.int64))
         la = np.full((codes.size, seg.size), np.nan)
@@ -246,9 +250,14 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
     all_seg = np.unique(values[:, 2].astype(np.int64))
     all_cls = _classes(session, line, all_seg, config.section_margin_m)
     cls_of = dict(zip(all_seg.tolist(), all_cls.tolist(), strict=True))
-    row_cls = np.array([cls_of[int(s)] for s in values[:, 2].astype(np.int64)], dtype=object)
-    curves = fit_segment_curves(values[:, 2].astype(np.int64), values[:, 3], values[:, 4], values[:, 0],
-                                np.array([wheel_names[int(c)] for c in values[:, 1]], dtype=object), row_cls,
+    row_cls = np.asarray(all_cls, dtype=object)[np.searchsorted(all_seg, values[:, 2].astype(np.int64))]
+    # the curves from the run and its newest history runs (``curve_runs``: enough passes over the ±10 %
+    # speed spread of a fleet; fitting a long history costs seconds a run and changes the curve little)
+    fit = np.isin(values[:, 0], [r for r, _ in history[-config.curve_runs:]] + [run_id]) \
+        if len(history) > config.curve_runs else np.ones(values.shape[0], dtype=bool)
+    wheel_of = np.array(wheel_names, dtype=object)
+    curves = fit_segment_curves(values[fit, 2].astype(np.int64), values[fit, 3], values[fit, 4], values[fit, 0],
+                                wheel_of[values[fit, 1].astype(np.int64)], row_cls[fit],
                                 min_locations=config.curve_min_locations)
     classes = np.array([cls_of[int(s)] for s in seg.tolist()], dtype=object)
     idx = segment_index(la, v, classes, curves)

@@ -29,7 +29,8 @@ from app.db.session import Database
 from app.places.answers import QUANTITY, evidence_names, place_dict, tier_name
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
-__all__ = ["PlaceQuery", "CLOSED_STATUSES", "list_places", "places_csv", "places_geojson", "place_history"]
+__all__ = ["PlaceQuery", "CLOSED_STATUSES", "list_places", "places_csv", "places_geojson", "place_history",
+           "event_feed"]
 
 #: Statuses that take a place off the default list.
 CLOSED_STATUSES: tuple[str, ...] = ("fixed", "false_alarm")
@@ -210,3 +211,28 @@ def place_history(db: Database, place_id: int, config: PlacesConfig = DEFAULT_PL
     return out
 
 
+
+
+def event_feed(db: Database, since: int, limit: int, *, alerted_only: bool = True,
+               config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> dict:
+    """The feed of place events for data systems (``GET /condition/places/events``): events with an id
+    above ``since``, oldest first, each with its place as answered now (id, status, tier …); by default
+    the alerted ones (new, tier changes, back). ``next_since``: the ``since=`` of the next poll. Event
+    ids become visible in increasing order (the places are updated under one lock, serially)."""
+    from app.db.models import PlaceEventRow
+    from app.places.alerts import ALERTED_KINDS
+
+    with db.read() as session:
+        stmt = select(PlaceEventRow).where(PlaceEventRow.id > since)
+        if alerted_only:
+            stmt = stmt.where(PlaceEventRow.kind.in_(ALERTED_KINDS))
+        events = list(session.scalars(stmt.order_by(PlaceEventRow.id).limit(limit)))
+        ids = sorted({e.place_id for e in events})
+        rows = {p.id: p for p in session.scalars(select(Place).where(Place.id.in_(ids)))} if ids else {}
+        lines = {ln.id: ln for ln in session.scalars(select(ConditionLine).where(
+            ConditionLine.id.in_({p.line_key for p in rows.values()})))} if rows else {}
+        shaped = {d["id"]: d for d in labelled(session, lines, list(rows.values()), config)}
+    items = [{"id": e.id, "kind": e.kind, "place_id": e.place_id, "run_id": e.run_id, "time": iso_time(e.time),
+              "old_tier": tier_name(e.old_tier), "new_tier": tier_name(e.new_tier), "action_id": e.action_id,
+              "place": shaped.get(e.place_id)} for e in events]
+    return {"items": items, "next_since": events[-1].id if events else since}

@@ -51,10 +51,22 @@ def history(tmp_path_factory):
     spec = planted_history(seed=3, n_runs=10)
     tmp = tmp_path_factory.mktemp("places-history")
     with history_service(tmp) as client:
-        process_history(client, spec, tmp / "files")
+        processed = process_history(client, spec, tmp / "files")
         runs = stored_runs(client.settings.database_url, spec)
+        service = _service_answers(client, spec, processed)
     assert len(runs) == 10
-    return spec, runs, *lifecycle_of(spec, runs)
+    return spec, runs, *lifecycle_of(spec, runs), service
+
+
+def _service_answers(client, spec, processed) -> dict:
+    """What the service made of the history in the publish step: the jobs' places summaries, the work
+    list (open places and all listed ones) and every listed place's history."""
+    url = "/api/v1/condition/places"
+    open_ = client.get(url, params={"line_id": spec.line_id, "limit": 1000}).json()
+    every = client.get(url, params={"line_id": spec.line_id, "limit": 1000, "include_closed": True}).json()
+    return {"summaries": [j["meta"]["condition"]["places"] for j in processed.jobs], "open": open_["items"],
+            "all": every["items"], "history": {p["id"]: client.get(f"{url}/{p['id']}").json()
+                                              for p in every["items"]}}
 
 
 def lifecycle_of(spec, runs: list[StoredRun]):
@@ -86,7 +98,7 @@ def _real(spec, day: float, a: float, b: float, tol: float = 10.0) -> bool:
 
 
 def test_the_work_list_is_real_places_and_nothing_on_the_ramps(history):
-    spec, runs, _, steps, _ = history
+    spec, runs, _, steps, _, _ = history
     ramp_lo = spec.km_start * 1000 + spec.ramp_in_m
     ramp_hi = spec.km_start * 1000 + spec.length_km * 1000 - spec.ramp_out_m
     for st in steps[5:]:
@@ -101,7 +113,7 @@ def test_the_work_list_is_real_places_and_nothing_on_the_ramps(history):
 
 
 def test_each_new_20m_change_is_one_place_within_5m(history):
-    spec, _, _, steps, _ = history
+    spec, _, _, steps, _, _ = history
     changes = [c for c in spec.changes if c.kind == "change"]
     for c in changes:
         centre = 0.5 * (c.track_from_m + c.track_to_m)
@@ -119,7 +131,7 @@ def test_each_new_20m_change_is_one_place_within_5m(history):
 
 
 def test_the_tamping_closes_its_place_and_its_effect_is_within_5_points(history):
-    spec, runs, known, steps, actions = history
+    spec, runs, known, steps, actions, _ = history
     (tamping,) = actions
     first_after = next(k for k, st in enumerate(steps) if st["run"].day > tamping.day)
     repaired = [e for e in steps[first_after]["events"] if e.kind == "repaired"]
@@ -143,7 +155,7 @@ def test_the_tamping_closes_its_place_and_its_effect_is_within_5_points(history)
 
 
 def test_alerts_only_for_new_places_and_tier_changes(history):
-    spec, _, known, steps, _ = history
+    spec, _, known, steps, _, _ = history
     by_id = {p.id: p for p in known}
     news = [(st["run"].day, e) for st in steps for e in st["events"] if e.kind == "new"]
     assert news and all(_real(spec, day, by_id[e.place_id].start_m, by_id[e.place_id].end_m) for day, e in news)
@@ -156,3 +168,29 @@ def test_alerts_only_for_new_places_and_tier_changes(history):
     # far fewer alerts than runs × places: a place on the list raises none while nothing changes
     n_events = sum(len(st["events"]) for st in steps)
     assert n_events <= 2 * len([p for p in known if p.listed])
+
+
+def test_the_publish_step_keeps_the_same_places_as_the_lifecycle(history):
+    """The service (the publish step of each run, both worker modes' one path) lists the places the
+    lifecycle over the store's rows finds, with their tiers; the tamping's place is fixed with the
+    action, by the service, and its history holds every run that saw it."""
+    spec, runs, known, steps, actions, service = history
+    assert all(s["applied"] for s in service["summaries"]), service["summaries"]
+    pure = sorted((round(x[1]), round(x[2]), x[7], x[3]) for x in steps[-1]["listed"])
+    served = sorted((round(p["km_from"] * 1000), round(p["km_to"] * 1000), 1 if p["direction"] == "hard" else -1,
+                     ["watch", "alert", "intervention", "immediate"].index(p["tier"])) for p in service["open"])
+    assert served == pure
+    (tamping,) = actions
+    fixed = [p for p in service["all"] if p["status"] == "fixed"]
+    assert len(fixed) == 1 and not fixed[0]["active"] and fixed[0]["status_by"] == "trackvkf"
+    assert [(a["kind"], a["relation"]) for a in fixed[0]["actions"]] == [("tamping", "repaired")]
+    assert fixed[0]["km_from"] * 1000 < tamping.end_m and tamping.start_m < fixed[0]["km_to"] * 1000
+    h = service["history"][fixed[0]["id"]]
+    assert [e["kind"] for e in h["events"]].count("repaired") == 1 and h["status_history"][-1]["new"] == "fixed"
+    assert [m["kind"] for m in h["maintenance"]] == ["tamping"]
+    for p in service["all"]:
+        obs = service["history"][p["id"]]["observations"]
+        assert len(obs) == p["runs_confirming"] and p["method_version"] == obs[-1]["method_version"]
+    # the service's alerts are the lifecycle's events of listed places: news once per place, all real
+    news = [e for s in service["summaries"] for e in s["events"] if e["kind"] == "new"]
+    assert len(news) == len({e["place_id"] for e in news}) == len([p for p in known if p.listed])

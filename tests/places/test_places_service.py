@@ -246,3 +246,16 @@ def test_places_on_known_discontinuities_are_labelled_and_muted_types_stay_liste
     items = list_places(places_fleet.db, PlaceQuery(line_id=LINE, limit=1000), muted)["items"]
     m = _step_place(items)
     assert m["muted"] and "weld" in m["muted_reason"] and len(items) == len(_listed(c)["items"])
+
+
+def test_the_event_feed_lists_places_with_id_and_status(places_fleet):
+    c = places_fleet.clients["viewer"]
+    first = c.get(f"{URL}/events", params={"since": 0, "limit": 1000}).json()
+    assert first["items"] and {x["kind"] for x in first["items"]} <= {"new", "tier_up", "tier_down", "back"}
+    ids = [x["id"] for x in first["items"]]
+    assert ids == sorted(ids) and first["next_since"] == ids[-1]
+    assert all(x["place"]["id"] == x["place_id"] and x["place"]["status"] for x in first["items"])
+    assert c.get(f"{URL}/events", params={"since": first["next_since"]}).json()["items"] == []
+    every = c.get(f"{URL}/events", params={"since": 0, "limit": 1000, "every": True}).json()["items"]
+    assert len(every) >= len(first["items"])
+    assert c.get(f"{URL}/events", params={"since": -1}).json()["field"] == "since"
