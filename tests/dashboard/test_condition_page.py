@@ -145,9 +145,9 @@ def test_the_tamping_closed_its_place_and_its_history_shows_the_maintenance(engi
     # filter: fixed places only (the tamping's)
     for box in page.locator("#status-filter input").all():
         box.set_checked(box.get_attribute("value") == "fixed")
-    page.wait_for_function("() => document.querySelectorAll('#places-body tr[data-place]').length > 0")
+    page.wait_for_function("""() => { const st = [...document.querySelectorAll('#places-body tr[data-place] td:nth-child(7)')];
+        return st.length > 0 && st.every(td => td.textContent.trim() === 'fixed'); }""")
     rows = page.locator("#places-body tr[data-place]")
-    assert all(t == "fixed" for t in rows.locator("td:nth-child(7)").all_inner_texts())
     tamping = next(c for c in history_service.spec.changes if c.kind == "tamping")
     hit = None
     for i in range(rows.count()):

@@ -11,6 +11,9 @@
   "use strict";
   const T = window.trackvkf;
   let lines = [], heat = null, trendData = null, effect = null, me = null, placeId = null, placeList = null;
+  // answers can arrive out of order (a filter clicked twice, a place opened while another loads):
+  // only the newest request of each view is drawn
+  let placesSeq = 0, placeSeq = 0;
   const $ = (id) => document.getElementById(id);
   const TIER_COLORS = { watch: "#607d8b", alert: "#d49b00", intervention: "#e65100", immediate: "#c62828" };
   const CLASS_COLORS = { A: "#2e7d32", B: "#8bc34a", C: "#e6c619", D: "#fb8c00", E: "#c62828", "": "#cfd8dc" };
@@ -108,12 +111,15 @@
     $("places-csv").href = `${T.boot.api}/condition/places.csv?${q}&limit=1000`;
     $("places-geojson").href = `${T.boot.api}/condition/places.geojson?${q}&limit=1000`;
     if (!params.tier.length || !params.status.length) {
+      placesSeq++;
       placeList = { items: [], total: 0 };
       body.innerHTML = `<tr><td colspan="12" class="muted">Choose at least one tier and one status.</td></tr>`;
       $("places-info").textContent = "";
       return placeList;
     }
+    const mine = ++placesSeq;
     const res = await T.api.get(`/condition/places?${q}&limit=200`);
+    if (mine !== placesSeq) return res;  // a newer filter is on its way
     placeList = res;
     $("places-info").textContent = `${res.total} place${res.total === 1 ? "" : "s"}` + (res.total > res.items.length ? `, first ${res.items.length}` : "");
     if (!res.items.length) {
@@ -137,7 +143,9 @@
   async function drawPlace(id) {
     placeId = Number(id);
     for (const tr of document.querySelectorAll("#places-body tr[data-place]")) tr.classList.toggle("selected", Number(tr.dataset.place) === placeId);
+    const mine = ++placeSeq;
     const p = await T.api.get(`/condition/places/${placeId}`);
+    if (mine !== placeSeq) return p;  // another place (or a newer state of this one) is on its way
     $("place-title").innerHTML = `Place ${p.id}: km ${p.km_from.toFixed(3)}–${p.km_to.toFixed(3)} ${tierBadge(p.tier)}`;
     const link = $("place-map");
     link.href = mapLink(p.last_run_id, p.km_from, p.km_to);
