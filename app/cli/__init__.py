@@ -1,11 +1,11 @@
 """Command line of trackvkf: ``serve``, ``worker``, ``migrate``, ``demo``, ``simulate``,
-``process``, ``simulate-fleet``, ``sweep-profiles``, ``backup``, ``restore``, ``user`` (create, set-password, list) and
-``key`` (create, revoke, list).
+``process``, ``simulate-fleet``, ``sweep-profiles``, ``apply-places``, ``backup``, ``restore``, ``user``
+(create, set-password, list) and ``key`` (create, revoke, list).
 
 Every command reads the service settings from ``TRACKVKF_*`` environment
 variables (see :class:`app.core.config.Settings`). The commands live by group:
 :mod:`app.cli.service` (serve, worker, migrate), :mod:`app.cli.processing`
-(simulate, process), :mod:`app.cli.condition` (simulate-fleet, sweep-profiles),
+(simulate, process), :mod:`app.cli.condition` (simulate-fleet, sweep-profiles, apply-places),
 :mod:`app.cli.accounts` (user, key), :mod:`app.cli.demo`, :mod:`app.cli.operations` (backup, restore).
 """
 
@@ -31,6 +31,7 @@ app.command()(processing.simulate)
 app.command()(processing.process)
 app.command("simulate-fleet")(condition.simulate_fleet)
 app.command("sweep-profiles")(condition.sweep_profiles)
+app.command("apply-places")(condition.apply_places)
 app.add_typer(accounts.user_app, name="user")
 app.add_typer(accounts.key_app, name="key")
 app.command()(demo.demo)

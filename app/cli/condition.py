@@ -1,5 +1,6 @@
-"""Commands of the condition store: ``simulate-fleet`` (a generated history of daily runs) and
-``sweep-profiles`` (retention of the 25 cm rows)."""
+"""Commands of the condition store: ``simulate-fleet`` (a generated history of daily runs),
+``sweep-profiles`` (retention of the 25 cm rows) and ``apply-places`` (the places of runs already in the
+store)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import typer
 
 from app.cli._common import database, echo
 
-__all__ = ["simulate_fleet", "sweep_profiles"]
+__all__ = ["simulate_fleet", "sweep_profiles", "apply_places"]
 
 
 def simulate_fleet(
@@ -98,3 +99,27 @@ def sweep_profiles(
     echo(f"{result.runs} run(s) measured more than {days} days ago {what} their 25 cm rows"
          + ("" if dry_run else f" ({result.rows} rows deleted, partitions dropped: "
                                 f"{', '.join(result.partitions) or 'none'}) in {result.seconds:.1f} s"))
+
+
+def apply_places(
+    line_id: Annotated[str, typer.Option(help="Line id")],
+    track: Annotated[str, typer.Option(help="Track")] = "1",
+) -> None:
+    """Apply the runs of a line already in the condition store to its places, oldest first (runs published
+    before the places existed — after upgrading — or a generated fleet history). A run applied already,
+    or older than the newest applied one, is left as it is. Sends no alerts."""
+    from app.core.config import get_settings
+    from app.places.config import PlacesConfig
+    from app.places.update import apply_stored_runs
+
+    db = database()
+    try:
+        done = apply_stored_runs(db, line_id, track, config=PlacesConfig.from_settings(get_settings()))
+    finally:
+        db.dispose()
+    applied = [u for u in done if u.applied]
+    events = sum(len(u.events) for u in applied)
+    echo(f"line {line_id!r} track {track!r}: {len(applied)} run(s) applied, {len(done) - len(applied)} not "
+         f"({'; '.join(sorted({u.reason for u in done if not u.applied}))}); {events} place event(s)"
+         if len(done) != len(applied) else
+         f"line {line_id!r} track {track!r}: {len(applied)} run(s) applied; {events} place event(s)")

@@ -257,6 +257,10 @@ class Settings(BaseSettings):
     places_muted_asset_types : str
         Asset types (comma separated, e.g. ``weld,insulated_joint``) whose
         places are muted on the work list (labelled, never dropped). Default none.
+    places_alerts : bool
+        Send the places' alerts (a new place, a tier change, a place back:
+        webhook event ``condition.places``) to the webhooks; the flags'
+        alerts (``condition.flags``) go whatever this says.
     places_effect_around_m, places_effect_margin_m : float
         An action's effect is its extent's index against the track within
         ``around`` m outside the extent widened by ``margin`` m.
@@ -381,6 +385,7 @@ class Settings(BaseSettings):
     places_section_limits: list[float] = Field(default_factory=lambda: [0.05, 0.10, 0.17, 0.25])
     places_asset_buffer_m: float = Field(default=20.0, ge=0)
     places_muted_asset_types: str = Field(default="", max_length=500)
+    places_alerts: bool = True
     places_effect_around_m: float = Field(default=1000.0, gt=0)
     places_effect_margin_m: float = Field(default=50.0, ge=0)
     webhook_timeout_s: float = Field(default=5.0, gt=0, le=120)

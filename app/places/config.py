@@ -53,6 +53,8 @@ class PlacesConfig:
         Asset types whose places are muted.
     effect_around_m, effect_margin_m : float
         An action's effect: surroundings and margin, m.
+    alerts : bool
+        Queue the places' alerts in the webhooks' outbox.
     section_margin_m : float
         Segments this close to a change of superstructure class have no class (no index), m
         (``TRACKVKF_ANALYTICS_SECTION_MARGIN_M``).
@@ -70,6 +72,7 @@ class PlacesConfig:
     effect_around_m: float = 1000.0
     effect_margin_m: float = 50.0
     section_margin_m: float = 50.0
+    alerts: bool = True
 
     def asset_settings(self) -> Any:
         """The asset-labelling settings as :func:`app.assets.labels.label_places` reads them."""
@@ -131,7 +134,7 @@ class PlacesConfig:
                    asset_buffer_m=settings.places_asset_buffer_m, muted_asset_types=muted,
                    effect_around_m=settings.places_effect_around_m,
                    effect_margin_m=settings.places_effect_margin_m,
-                   section_margin_m=settings.analytics_section_margin_m)
+                   section_margin_m=settings.analytics_section_margin_m, alerts=settings.places_alerts)
 
 
 DEFAULT_PLACES_CONFIG = PlacesConfig()

@@ -115,7 +115,7 @@ def update_places(session: Session, run_id: int, line: ConditionLine, job_id: in
             job = session.get(Job, job_id)
             version = method_version(job.settings if job is not None else None)
             out = apply_run(session, run_id, line, version, config=config)
-            if alerts and out.applied:
+            if alerts and config.alerts and out.applied:
                 from app.places.alerts import enqueue_place_events
 
                 out.deliveries = enqueue_place_events(session, run_id, line, out.events)
@@ -422,7 +422,6 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
                                          wheel_labels=row.wheel_labels if o.wheels else "",
                                          speed_kmh=_speed(seg, speed_kmh, o.start_m, o.end_m),
                                          method_version=version))
-        session.flush()
         was_active, was_listed, was_actions = before.get(st.id, (True, False, []))
         # action links
         relation = {}

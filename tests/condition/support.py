@@ -38,7 +38,7 @@ def profile_frame_of(tracks: dict[str, WheelTrack], bin_length_m: float = 0.25, 
 def publish_tracks(
     db: Database, tracks: dict[str, WheelTrack], when: dt.datetime, *, line_id: str | None = "L1",
     track: str = "1", shift_m: float = 0.0, config: ConditionConfig | None = None, sha: str | None = None,
-    run_id: int | None = None,
+    run_id: int | None = None, places: Any = None,
 ) -> tuple[int, int, dict[str, Any]]:
     """Publish generated tracks as a processed run through :func:`app.publish.publish_job`
     (the local worker's path); returns (run id, job id, the job's condition summary)."""
@@ -57,6 +57,8 @@ def publish_tracks(
         s.flush()
         job_id = job.id
     kw = {"condition": config} if config is not None else {}
+    if places is not None:
+        kw["places"] = places
     assert publish.publish_job(db, job_id, run_id, profile_frame_of(tracks, shift_m=shift_m), [], {},
                               worker_id="test-worker", **kw)
     with db.read() as s:

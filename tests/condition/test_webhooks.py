@@ -8,6 +8,7 @@ import json
 import socket
 import threading
 import time
+from dataclasses import replace
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
@@ -16,6 +17,7 @@ from app.core.signing import SIGNATURE_HEADER, verify
 from app.db import webhooks
 from app.db.models import DeliveryStatus, WebhookDelivery
 from app.db.session import Database
+from app.places.config import DEFAULT_PLACES_CONFIG
 from app.simulate.fleet import FleetNoise, FleetPlan, FleetSimulator, PlantedStep
 from app.simulate.track import generate_line
 from tests.condition.support import DAY0, publish_tracks
@@ -78,6 +80,11 @@ def admin(make_client):
                        webhook_allowed_networks="127.0.0.1/32")  # the local receiver: allow-listed
 
 
+#: these tests are about the flags' alerts: the places' alerts (new places of the generated line on its
+#: first runs) are tested in tests/places
+FLAG_ALERTS_ONLY = replace(DEFAULT_PLACES_CONFIG, alerts=False)
+
+
 def _step_history(db: Database, n: int = 11) -> int:
     """Publish ``n`` daily runs; a 20 % step over 20 m from the last one on. Returns its run id."""
     sim = FleetSimulator(LINE, FleetPlan(steps=(PlantedStep(13_400.0, 13_420.0, day=n - 1, factor=1.2),)), QUIET,
@@ -87,7 +94,7 @@ def _step_history(db: Database, n: int = 11) -> int:
     run_id = None
     for i in range(n):
         _, tracks = sim.run(float(i), np.random.default_rng([5, i]))
-        run_id, _, summary = publish_tracks(db, tracks, DAY0 + dt.timedelta(days=i))
+        run_id, _, summary = publish_tracks(db, tracks, DAY0 + dt.timedelta(days=i), places=FLAG_ALERTS_ONLY)
     assert summary["new_flag_ids"], summary
     return run_id
 

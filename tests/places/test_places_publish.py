@@ -1,0 +1,89 @@
+"""The publish step applies a run to its line's places in the same transaction, and a failure of the
+places leaves the run's results, condition rows and flags published (both databases)."""
+
+from __future__ import annotations
+
+import numpy as np
+from sqlalchemy import func, select
+
+from app.db.models import ConditionRun, PlaceRun
+from app.simulate.fleet import FleetSimulator
+from app.simulate.track import generate_line
+from tests.condition.conftest import any_db, db  # noqa: F401  (fixtures)
+from tests.condition.support import DAY0, publish_tracks
+
+
+def test_publish_applies_places_and_survives_their_failure(any_db, monkeypatch):  # noqa: F811
+    import datetime as dt
+
+    import app.places.update as update
+
+    sim = FleetSimulator(generate_line(12_000.0, 13_500.0, seed=7), grid_m=0.25)  # 25 cm rows, as a processed run
+    _, tracks = sim.run(0.0, np.random.default_rng(1))
+    run1, _, summary = publish_tracks(any_db, tracks, DAY0)
+    assert summary["stored"] and summary["places"]["applied"], summary["places"]
+    assert summary["places"]["method_version"].startswith("trackvkf-pipeline/")
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("places broke")
+
+    monkeypatch.setattr(update, "apply_run", broken)
+    _, tracks = sim.run(1.0, np.random.default_rng(2))
+    run2, _, summary = publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=1))
+    assert summary["stored"] and summary["places"] == {"applied": False,
+                                                       "reason": "error: RuntimeError: places broke"}
+    monkeypatch.undo()
+    with any_db.read() as s:
+        assert s.get(ConditionRun, run2) is not None  # the run's condition rows are published
+        assert sorted(s.scalars(select(PlaceRun.run_id))) == [run1]
+    _, tracks = sim.run(2.0, np.random.default_rng(3))
+    run3, _, summary = publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=2))
+    assert summary["places"]["applied"]
+    with any_db.read() as s:
+        assert s.scalar(select(func.count()).select_from(PlaceRun)) == 2
+
+
+def test_apply_places_command_applies_the_stored_runs_once(db, monkeypatch):  # noqa: F811
+    from typer.testing import CliRunner
+
+    from app.cli import app
+    from app.condition.fleet import ingest_fleet
+    from app.core.config import get_settings
+
+    sim = FleetSimulator(generate_line(0.0, 2_000.0, seed=3))
+    ingest_fleet(db, sim, 6, line_id="C1", start=DAY0, seed=4, reference=False)
+    monkeypatch.setenv("TRACKVKF_DATABASE_URL", str(db.engine.url))
+    get_settings.cache_clear()
+    try:
+        first = CliRunner().invoke(app, ["apply-places", "--line-id", "C1"])
+        again = CliRunner().invoke(app, ["apply-places", "--line-id", "C1"])
+    finally:
+        get_settings.cache_clear()
+    assert first.exit_code == 0 and "6 run(s) applied" in first.output, first.output
+    assert again.exit_code == 0 and "0 run(s) applied" in again.output, again.output
+    with db.read() as s:
+        assert s.scalar(select(func.count()).select_from(PlaceRun)) == 6
+
+
+def test_places_alerts_can_be_switched_off(db):  # noqa: F811
+    from dataclasses import replace
+
+    from app.core.config import Settings
+    from app.db.models import WebhookDelivery
+    from app.db.webhooks import EVENT_PLACES, create_webhook
+    from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
+
+    assert not PlacesConfig.from_settings(Settings(places_alerts=False)).alerts
+    with db.write() as s:
+        create_webhook(s, "https://hooks.example.com/x")
+    sim = FleetSimulator(generate_line(12_000.0, 13_500.0, seed=7), grid_m=0.25)
+    for i, alerts in enumerate((False, True)):
+        import datetime as dt
+
+        _, tracks = sim.run(float(i), np.random.default_rng(i))
+        publish_tracks(db, tracks, DAY0 + dt.timedelta(days=i), places=replace(DEFAULT_PLACES_CONFIG, alerts=alerts))
+        with db.read() as s:
+            n = s.scalar(select(func.count()).select_from(WebhookDelivery).where(WebhookDelivery.event == EVENT_PLACES))
+        if not alerts:
+            assert n == 0
+    assert n >= 1  # the generated line's places at the immediate tier are listed (and alerted) at once
