@@ -23,6 +23,7 @@ from app.api import (
     condition_sections,
     geometry,
     health,
+    impacts,
     jobs,
     places,
     profiles,
@@ -38,7 +39,6 @@ from app.core.config import API_PREFIX
 __all__ = ["build_api_router", "API_PREFIX"]
 
 
-
 def build_api_router() -> APIRouter:
     """The ``/api/v1`` router with all resource routers."""
     api = APIRouter(prefix=API_PREFIX)
@@ -46,7 +46,7 @@ def build_api_router() -> APIRouter:
     api.include_router(auth.login_router)
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
-        runs, jobs, profiles, wheels, spectrogram, reference, analytics, condition,
+        runs, jobs, profiles, impacts, wheels, spectrogram, reference, analytics, condition,
         condition_effects, condition_sections, places, auth, audit, channel_maps, geometry, webhooks, assets,
     ):
         protected.include_router(module.router)

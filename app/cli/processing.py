@@ -39,6 +39,9 @@ def simulate(
     gnss: Annotated[bool, typer.Option(
         help="With --recorder: a GNSS group (3 m noise, 30 s outages) and the line geometry "
         "(OUT stem + '.line.geojson')")] = False,
+    confounders: Annotated[bool, typer.Option(
+        help="Rough rails (Sato, good rail) with a dipped weld every 100–200 m, and a 40 mm wheel flat "
+        "on wheel 11 (docs/run-format.md)")] = False,
 ) -> None:
     """Write a synthetic run in the canonical format with its ground truth beside it."""
     from app.simulate.run import simulate_run
@@ -48,6 +51,11 @@ def simulate(
     if amplitude_model not in ("resonance", "power_law"):
         typer.echo(f"error: --amplitude-model must be resonance or power_law, got {amplitude_model!r}", err=True)
         raise typer.Exit(2)
+    surface: dict[str, Any] = {}
+    if confounders:
+        from app.simulate.wheels import WheelFlat
+
+        surface = {"rail_surface": True, "wheel_flats": {"11": WheelFlat()}}
     if recorder is not None:
         from app.simulate.recorder import GnssSimulation, simulate_recorder_run
 
@@ -55,12 +63,12 @@ def simulate(
             raise typer.BadParameter("mdf4 or tdms", param_hint="--recorder")
         rec = simulate_recorder_run(out, recorder, gnss=GnssSimulation() if gnss else None, seed=seed,
                                     length_km=length_km, fs=fs, with_forces=forces,
-                                    amplitude_model=amplitude_model)
+                                    amplitude_model=amplitude_model, **surface)
         echo(f"wrote {out} in {time.perf_counter() - t0:.1f} s; channel map {rec.channel_map_path}, "
              f"metadata {rec.metadata_path}" + (f", geometry {rec.geometry_path}" if gnss else ""))
         return
     truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces,
-                         amplitude_model=amplitude_model)
+                         amplitude_model=amplitude_model, **surface)
     echo(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
     truth_path = getattr(truth, "path", None)
     if truth_path:
@@ -224,7 +232,9 @@ def process(
 
     ``profiles.csv``/``.parquet`` hold per 25 cm bin and wheel the sleeper-passage fundamental
     (``sleeper_amp``), its harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
-    (``sleeper_rms``), the wheel orders and the force amplitude; ``meta.json`` the settings and
+    (``sleeper_rms``), the wheel orders, the force amplitude and the depth of a track impact
+    (``track_impact_mm``: a dipped weld or joint, bridged out of the sleeper columns);
+    ``wheels.json`` the wheel OOR and any wheel flat (``flat``); ``meta.json`` the settings and
     the warnings (docs/indicator.md). The processing settings are options (``--n-wheel-orders``
     …, each with its valid values and default).
 

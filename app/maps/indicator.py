@@ -26,6 +26,7 @@ INDICATOR_UNITS: dict[str, str] = {
     **{c: UNITS["Z11"] for c in PROFILE_VALUE_COLUMNS if c.startswith(("sleeper_amp", "order_amp", "residual"))},
     "speed_mean": UNITS["speed"],
     "sleeper_force_amp": UNITS["Q11"],
+    "track_impact_mm": "mm",
 }
 
 

@@ -22,13 +22,15 @@ from app.io import WHEELS
 from app.io.metadata import DEFAULT_WHEEL_DIAMETER_M
 from app.pipeline.chunk import OOR_WINDOW_M
 from app.pipeline.chunkfile import read_wheel
+from app.pipeline.impacts import IMPACT_COLUMN, flat_result, mask_track_impacts, run_impacts
 
 __all__ = ["ENGINE_VERSION", "TRACK_COLUMNS", "RunResults", "assemble", "assemble_wheel", "results_meta",
            "run_warnings"]
 
 #: bump when the stored numbers would change for the same input and settings
-#: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q)
-ENGINE_VERSION = "trackvkf-pipeline/3"
+#: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q;
+#: 4: track impacts bridged out of the sleeper columns, track_impact_mm, wheel flats)
+ENGINE_VERSION = "trackvkf-pipeline/4"
 #: the sleeper-passage columns of a profile row: the fundamental (m/s²), its 2nd and
 #: 3rd harmonics (m/s², NaN where not extracted) and their RMS (the energy indicator, m/s²)
 TRACK_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms")
@@ -50,7 +52,7 @@ def _wheel_order_numbers(settings: ProcessingSettings) -> np.ndarray:
 def _profile_columns(settings: ProcessingSettings) -> list[str]:
     orders = [f"order_amp_{lvl:02d}" for lvl in _wheel_order_numbers(settings)]
     return ["wheel", "bin", "km", "n_samples", "speed_mean", *TRACK_COLUMNS, *orders,
-            "residual_rms", "sleeper_force_amp"]
+            "residual_rms", "sleeper_force_amp", IMPACT_COLUMN]
 
 
 def assemble_wheel(
@@ -94,6 +96,7 @@ def assemble_wheel(
         if col not in prof:  # not extracted (collision, no force channel, older chunk files)
             prof[col] = np.nan
     prof = prof.rename(columns={"speed": "speed_mean"})
+    prof[IMPACT_COLUMN] = np.nan  # written across the wheels by assemble (track impacts)
     prof.insert(0, "wheel", wheel)
     prof = prof[_profile_columns(settings)].sort_values("bin").reset_index(drop=True)
     prof["bin"] = prof["bin"].astype(np.int64)
@@ -158,6 +161,11 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
             wheels.append(done[1])
     cols = _profile_columns(settings)
     profiles = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
+    # isolated impacts: track impacts bridged out of the sleeper indicator, wheel flats onto the wheels
+    impacts, flats = run_impacts(chunk_paths, wheels)
+    profiles = mask_track_impacts(profiles, impacts, settings)
+    for w in wheels:
+        w["flat"] = flat_result(flats.get(str(w["wheel"])))
     meta = results_meta(settings, len(chunk_paths), run_warnings(wheels))
     return RunResults(profiles=profiles, wheels=wheels, meta=meta)
 

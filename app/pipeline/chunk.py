@@ -40,6 +40,7 @@ from app.analysis.vkf import VKFResult, VKFWarning
 from app.analysis.wheel_oor import radius_phasor
 from app.io import WHEELS, open_run
 from app.pipeline.chunkfile import wheel_members, write_chunk_file
+from app.pipeline.impacts import chunk_dip_member, wheel_orders_at
 from app.pipeline.plan import ChunkSpec
 
 __all__ = ["OOR_WINDOW_M", "SHORT_RECORD_TOL", "PipelineCancelled", "chunk_warnings", "process_chunk",
@@ -313,6 +314,9 @@ def process_chunk(
                 resid = _residual_sums(
                     y[iz], env, out_idx, psi, recipe, chunk, lo, bins_of, keep, should_cancel
                 )
+                # isolated impacts: dips of the surface under the wheel (app.pipeline.impacts)
+                members.update(chunk_dip_member(wheel, y[iz], travelled, v_abs, track_m, recipe,
+                                                wheel_orders_at(env, out_idx, travelled, recipe, lo), chunk, lo))
 
                 # wheel OOR: radius phasors of the wheel orders, summed per window
                 rho = radius_phasor(env[order_rows], v_abs[out_idx - lo], recipe.wheel_diameter, orders)

@@ -16,6 +16,10 @@ all: its presence is the proof that the chunk is done. Members:
 ``warnings_<wheel>``
     Plain-language warnings of the wheel's solve in this chunk (strings;
     absent in files written before issue 15: none).
+``dips_<wheel>``
+    The wheel's dip candidates in the chunk's output range
+    (:mod:`app.pipeline.impacts`, rows :data:`app.pipeline.impacts.DIP_FIELDS`;
+    absent in files written before issue 26: none).
 
 Files of the earlier layout (one member per array, ``<kind>_<wheel>__<name>``)
 still read (:func:`load_group`).

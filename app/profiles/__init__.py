@@ -6,5 +6,6 @@ and the streamed CSV/Parquet exports.
 - :mod:`~app.profiles.answer`: the rows of a query and their encoded answer;
 - :mod:`~app.profiles.encoding`: JSON in rows or columns, ETag, gzip, request headers;
 - :mod:`~app.profiles.cache`: answers computed once per process and kept in memory;
-- :mod:`~app.profiles.export`: the pages of an export and the CSV and Parquet streams.
+- :mod:`~app.profiles.export`: the pages of an export and the CSV and Parquet streams;
+- :mod:`~app.profiles.impacts`: the track impacts of a run (profile rows grouped into impacts).
 """

@@ -8,6 +8,11 @@ by vehicle ``SIM-2``, subsidence, maintenance and superstructure records of line
 track 1 (CSV, as an asset manager would export them) and the geometry of both lines (GeoJSON
 with km stations, for the map).
 
+The runs carry the confounders of real data (``confounders=True``, the default): the rails of each
+line have their random roughness (Sato, good rail) and a dipped weld every 100–200 m, the grinding
+actions of the maintenance records apply to line SIM's rails from their dates on, and wheel 41 of
+SIM-1 has a 40 mm wheel flat from the second run on.
+
 With ``history=True`` (what ``trackvkf demo`` uses) the three runs of line ``SIM`` are replaced by
 a short **history** of the same line (:func:`app.simulate.history.demo_history`: 10 runs two weeks
 apart with speed ramps and cruise speeds ±10 %, a place developing softer, one developing harder
@@ -22,7 +27,7 @@ start uploads nothing new).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -31,9 +36,10 @@ import pandas as pd
 from app.simulate.geometry import synthetic_line, write_geometry
 from app.simulate.history import HistorySpec, demo_history, write_history
 from app.simulate.reference import simulate_reference
-from app.simulate.run import DEFAULT_TRUE_DIAMETERS_M, simulate_run
+from app.simulate.run import DEFAULT_TRUE_DIAMETERS_M, Confounders, simulate_run
+from app.simulate.surface import RailGrinding
 from app.simulate.track import LineModel, generate_line
-from app.simulate.wheels import random_wheel_oor
+from app.simulate.wheels import WheelFlat, random_wheel_oor
 
 __all__ = ["DemoRun", "DemoDataset", "DEMO_RUNS", "DEMO_KM_START", "DEMO_HISTORY_RUNS", "REFERENCE_KINDS",
            "demo_assets", "write_demo_dataset"]
@@ -58,20 +64,23 @@ class DemoRun:
     line_seed: int
     vehicle_seed: int
     km_error_m: float = 0.0
+    wheel_flats: tuple[str, ...] = ()
 
-    def file_name(self, length_km: float, fs: float, amplitude_model: str = "resonance") -> str:
+    def file_name(self, length_km: float, fs: float, amplitude_model: str = "resonance",
+                  confounders: bool = False) -> str:
         """Name of the run file (changes with the demo options)."""
         day = self.start_time[:10]
-        return f"{self.line_id}-{self.track}-{day}-{length_km:g}km-{fs:g}Hz-{amplitude_model}.h5"
+        rough = "-rough" if confounders else ""
+        return f"{self.line_id}-{self.track}-{day}-{length_km:g}km-{fs:g}Hz-{amplitude_model}{rough}.h5"
 
 
 #: the demo's runs: line SIM track 1 three times (the reference data's line), SIM-B once
 DEMO_RUNS: tuple[DemoRun, ...] = (
     DemoRun("SIM", "1", "SIM-1", "2024-05-01T08:00:00+02:00", seed=7, line_seed=7, vehicle_seed=1),
     DemoRun("SIM", "1", "SIM-1", "2024-11-05T09:30:00+01:00", seed=8, line_seed=7, vehicle_seed=1,
-            km_error_m=4.0),
+            km_error_m=4.0, wheel_flats=("41",)),
     DemoRun("SIM", "1", "SIM-1", "2025-05-06T08:15:00+02:00", seed=9, line_seed=7, vehicle_seed=1,
-            km_error_m=-3.0),
+            km_error_m=-3.0, wheel_flats=("41",)),
     DemoRun("SIM-B", "2", "SIM-2", "2025-02-03T14:00:00+01:00", seed=21, line_seed=21, vehicle_seed=2),
 )
 
@@ -92,13 +101,24 @@ class DemoDataset:
     assets: Path | None = None
 
 
-def _line(line_seed: int, length_km: float) -> LineModel:
+def _line(line_seed: int, length_km: float, rough: bool = False) -> LineModel:
     """The line model of ``line_seed`` covering every demo run of ``length_km`` (with margins
-    for the trailing axle and the odometry errors)."""
+    for the trailing axle and the odometry errors); ``rough``: with its rail surface."""
     start = 1000.0 * DEMO_KM_START
     end = start + 1000.0 * length_km
     return generate_line(start - 100.0, end + 100.0, np.random.default_rng([line_seed, 7]),
-                         anomaly_range_m=(start + 20.0, end - 40.0))
+                         anomaly_range_m=(start + 20.0, end - 40.0), surface=rough)
+
+
+def _ground(line: LineModel, maintenance_csv: Path) -> LineModel:
+    """The line with the grinding actions of its maintenance records applied to its rail surface."""
+    if line.surface is None:
+        return line
+    rows = pd.read_csv(maintenance_csv)
+    rows = rows[rows["type"] == "grinding"]
+    grindings = [RailGrinding(1000.0 * float(r.km_from), 1000.0 * float(r.km_to), str(r.date))
+                 for r in rows.itertuples()]
+    return replace(line, surface=line.surface.with_grindings(grindings))
 
 
 def demo_assets(spec: HistorySpec) -> pd.DataFrame:
@@ -123,7 +143,7 @@ def demo_assets(spec: HistorySpec) -> pd.DataFrame:
 
 def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: float = 10_000.0,
                        runs: tuple[DemoRun, ...] = DEMO_RUNS, amplitude_model: str = "resonance",
-                       history: bool = False) -> DemoDataset:
+                       confounders: bool = True, history: bool = False) -> DemoDataset:
     """Write the demo's run files and reference files into ``directory`` (missing ones only).
 
     Parameters
@@ -140,6 +160,9 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
     amplitude_model : {"resonance", "power_law"}
         Speed response of the sleeper-passage amplitude (:func:`app.simulate.run.simulate_run`;
         default the resonance model: not a power law in speed).
+    confounders : bool
+        Rail roughness, welds, grinding and the wheel flat of the module docstring (default);
+        False: smooth rails and round wheels.
     history : bool
         Replace the runs of the first run's line by its history (:data:`DEMO_HISTORY_RUNS` runs,
         :func:`app.simulate.history.demo_history`; ``length_km`` ≥ 2) whose maintenance record
@@ -160,48 +183,54 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
     first, all_runs = runs[0], runs
     data = DemoDataset(directory=out, reference_line=(first.line_id, first.track))
     lines: dict[int, LineModel] = {}
-    spec, hfiles = None, None
-    if history:
-        if amplitude_model != "resonance":
-            raise ValueError("amplitude_model: the demo history is simulated with the resonance model")
-        line = lines.setdefault(first.line_seed, _line(first.line_seed, length_km))
-        spec = demo_history(line, km_start=DEMO_KM_START, length_km=length_km, n_runs=DEMO_HISTORY_RUNS,
-                            line_id=first.line_id, track=first.track, vehicle_id=first.vehicle_id, fs=fs,
-                            seed=first.seed)
-        hfiles = write_history(spec, out / "history")
-        data.history = spec
-        data.runs.extend(hfiles.runs)
-        data.written.extend(hfiles.written)
-        runs = tuple(r for r in runs if (r.line_id, r.track) != (first.line_id, first.track))
-    for run in runs:
-        path = out / run.file_name(length_km, fs, amplitude_model)
-        data.runs.append(path)
-        if path.is_file():
-            continue
-        line = lines.setdefault(run.line_seed, _line(run.line_seed, length_km))
-        rng = np.random.default_rng([run.vehicle_seed, 3])
-        wheels = {w: random_wheel_oor(rng, w, d) for w, d in DEFAULT_TRUE_DIAMETERS_M.items()}
-        simulate_run(path, length_km=length_km, fs=fs, seed=run.seed, line=line, wheels=wheels,
-                     start_time=run.start_time, vehicle_id=run.vehicle_id, line_id=run.line_id,
-                     track=run.track, km_start=DEMO_KM_START, km_error_m=run.km_error_m,
-                     with_forces=True, amplitude_model=amplitude_model)
-        data.written.append(path)
+    # the reference data first: the maintenance records' grinding actions shape line SIM's rails
     ref_dir = out / f"reference-{first.line_id}-{first.track}-{length_km:g}km"
     files = {kind: ref_dir / f"{kind}.csv" for kind in REFERENCE_KINDS}
     if not all(p.is_file() for p in files.values()):
-        line = lines.setdefault(first.line_seed, _line(first.line_seed, length_km))
+        line = lines.setdefault(first.line_seed, _line(first.line_seed, length_km, confounders))
         ref = simulate_reference(line, ref_dir, line_id=first.line_id, track=first.track,
                                  seed=first.seed)
         files = {kind: Path(ref.files[kind]) for kind in REFERENCE_KINDS}
         data.written.extend(files.values())
     data.reference = files
-    if spec is not None and hfiles is not None:
-        # the history's tamping (inside the runs' span) is the line's maintenance record
-        data.reference = {**files, "maintenance": hfiles.maintenance}
+    spec, hfiles = None, None
+    if history:
+        if amplitude_model != "resonance":
+            raise ValueError("amplitude_model: the demo history is simulated with the resonance model")
+        # the history's own line model (smooth rails: the places' numerics are measured on it)
+        spec = demo_history(_line(first.line_seed, length_km), km_start=DEMO_KM_START, length_km=length_km,
+                            n_runs=DEMO_HISTORY_RUNS, line_id=first.line_id, track=first.track,
+                            vehicle_id=first.vehicle_id, fs=fs, seed=first.seed)
+        hfiles = write_history(spec, out / "history")
+        data.history = spec
+        data.runs.extend(hfiles.runs)
+        data.written.extend(hfiles.written)
+        runs = tuple(r for r in runs if (r.line_id, r.track) != (first.line_id, first.track))
+        # the history's tamping (inside the runs' span) is the line's maintenance record, its sections the line's
+        data.reference = {**files, "maintenance": hfiles.maintenance, "superstructure": hfiles.superstructure}
         data.assets = out / f"assets-{spec.line_id}-{spec.track}-{spec.fingerprint()}.csv"
         if not data.assets.is_file():
             demo_assets(spec).to_csv(data.assets, index=False)
             data.written.append(data.assets)
+    for run in runs:
+        path = out / run.file_name(length_km, fs, amplitude_model, confounders)
+        data.runs.append(path)
+        if path.is_file():
+            continue
+        if run.line_seed not in lines:
+            lines[run.line_seed] = _line(run.line_seed, length_km, confounders)
+        line = lines[run.line_seed]
+        if run.line_seed == first.line_seed:
+            line = _ground(line, files["maintenance"])
+        rng = np.random.default_rng([run.vehicle_seed, 3])
+        wheels = {w: random_wheel_oor(rng, w, d) for w, d in DEFAULT_TRUE_DIAMETERS_M.items()}
+        flats = {w: WheelFlat(0.04, 0.2e-3, angle_rad=1.0) for w in run.wheel_flats} if confounders else None
+        simulate_run(path, length_km=length_km, fs=fs, seed=run.seed, line=line, wheels=wheels,
+                     start_time=run.start_time, vehicle_id=run.vehicle_id, line_id=run.line_id,
+                     track=run.track, km_start=DEMO_KM_START, km_error_m=run.km_error_m,
+                     with_forces=True, amplitude_model=amplitude_model, wheel_flats=flats,
+                     confounders=Confounders() if confounders else Confounders(False, False, False))
+        data.written.append(path)
     for line_id, track, seed in dict.fromkeys((r.line_id, r.track, r.line_seed) for r in all_runs):
         path = out / f"geometry-{line_id}-{track}-{length_km:g}km.geojson"
         data.geometry.append(path)

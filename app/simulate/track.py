@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from app.simulate.surface import RailSurface, generate_surface
+
 __all__ = [
     "SUPERSTRUCTURE_TYPES",
     "SUPERSTRUCTURE_AMPLITUDE",
@@ -125,6 +127,9 @@ class LineModel:
         ``K_type``, m/s² at ``v_ref``.
     bin_length : float
         Grid step, m (0.25).
+    surface : RailSurface or None
+        The running surfaces of the rails (roughness, welds, joints, grinding;
+        :mod:`app.simulate.surface`); None: smooth rails.
     """
 
     first_bin: int
@@ -134,6 +139,7 @@ class LineModel:
     anomalies: tuple[StiffnessAnomaly, ...] = ()
     amplitude_vref: dict[str, float] = field(default_factory=lambda: dict(SUPERSTRUCTURE_AMPLITUDE))
     bin_length: float = BIN_LENGTH_M
+    surface: RailSurface | None = None
 
     def __post_init__(self) -> None:
         nb = self.type_code.shape[0]
@@ -288,6 +294,7 @@ def generate_line(
     amplitude_vref: dict[str, float] | None = None,
     sections: Sequence[TrackSection] | None = None,
     anomalies: Sequence[StiffnessAnomaly] | None = None,
+    surface: bool | RailSurface | None = None,
 ) -> LineModel:
     """Generate a random line.
 
@@ -318,6 +325,10 @@ def generate_line(
         :data:`SUPERSTRUCTURE_AMPLITUDE`).
     sections, anomalies : sequence, optional
         Use these instead of random ones.
+    surface : bool or RailSurface, optional
+        The rails' running surface: None/False smooth rails, True a random one
+        (:func:`app.simulate.surface.generate_surface`, drawn after everything
+        else so the rest of the line does not depend on it), or this one.
 
     Returns
     -------
@@ -368,6 +379,12 @@ def generate_line(
         anomalies = _place_anomalies(rng, secs, a_lo, a_hi, count, anomaly_length_m)
     for an in anomalies:
         factor *= 1.0 + (an.factor - 1.0) * an.weight(centres)
+    if surface is True:
+        surface = generate_surface(lo, hi, rng)
+    elif surface is False:
+        surface = None
+    elif surface is not None and not isinstance(surface, RailSurface):
+        raise ValueError(f"surface: must be a bool or a RailSurface, got {type(surface).__name__}")
     return LineModel(
         first_bin=first_bin,
         type_code=type_code,
@@ -376,4 +393,5 @@ def generate_line(
         anomalies=tuple(anomalies),
         amplitude_vref=amps,
         bin_length=bl,
+        surface=surface,
     )

@@ -14,10 +14,18 @@ Truth file layout (``truth_format_version`` 1)::
     /line/sections   track_from_m, track_to_m, type (strings)
     /line/anomalies  track_from_m, track_to_m, factor, taper_m, kind (strings)
     /speed_profile   t0, duration, v0, v1
+    /line/surface    (lines with a rail surface) attrs seed, spectrum (JSON or "null")
+    /line/surface/impacts    track_m, length_m, depth_m, side, kind (strings)
+    /line/surface/grindings  track_from_m, track_to_m, date (strings), roughness_scale
     /wheels/<w>      attrs diameter_m, reported_diameter_m, side, axle, axle_offset_m
+                     [flat_length_m, flat_depth_m, flat_angle_rad: a wheel flat]
                      rho_um (11,), psi_rad (11,)
     /bins/<w>        bin, track_m, km, s_m, t_s, speed_mps, section, stiffness_factor,
                      amplitude_vref_mps2, amplitude_mps2   (one row per 25 cm bin)
+
+Root attributes added with the rail surfaces (absent in older files: nothing of
+them simulated): ``confounders`` (JSON of :class:`app.simulate.run.Confounders`'s
+switches) and ``run_date`` (ISO date the surfaces were taken at).
 """
 
 from __future__ import annotations
@@ -31,8 +39,9 @@ import numpy as np
 
 from app.simulate.amplitude import PowerLawResponse, SpeedResponse, speed_response_from_json
 from app.simulate.speed import SpeedProfile
+from app.simulate.surface import RailGrinding, RailSurface, RoughnessSpectrum, TrackImpact
 from app.simulate.track import SUPERSTRUCTURE_TYPES, LineModel, StiffnessAnomaly, TrackSection
-from app.simulate.wheels import WheelOOR
+from app.simulate.wheels import WheelFlat, WheelOOR
 
 __all__ = [
     "TRUTH_FORMAT_VERSION",
@@ -183,6 +192,12 @@ class SimulationTruth:
     speed_response : SpeedResponse or None
         ``R_type(v)`` (:mod:`app.simulate.amplitude`); None means the power law
         with ``alpha`` and ``v_ref_mps``.
+    confounders : object or None
+        The run's switches of the surface contributions
+        (:class:`app.simulate.run.Confounders`, or a dict of them as read back);
+        None: none simulated (files before them).
+    run_date : str or None
+        ISO date at which the rail surface was taken (grinding up to it applies).
     """
 
     run_path: Path
@@ -212,6 +227,8 @@ class SimulationTruth:
     bins: dict[str, WheelBins]
     km_error_m: float = 0.0
     speed_response: SpeedResponse | None = None
+    confounders: object | None = None
+    run_date: str | None = None
 
     def __post_init__(self) -> None:
         if self.speed_response is None:
@@ -221,6 +238,22 @@ class SimulationTruth:
     def path(self) -> Path:
         """The truth file (same as ``truth_path``)."""
         return self.truth_path
+
+    def switch(self, name: str) -> bool:
+        """Whether the surface contribution ``name`` (``"roughness"``, ``"track_impacts"``,
+        ``"wheel_flats"``) was simulated (it still needs the line or wheel to carry one)."""
+        c = self.confounders
+        if c is None:
+            return False
+        return bool(c.get(name, False) if isinstance(c, dict) else getattr(c, name, False))
+
+    def track_impacts(self, wheel: str) -> tuple[TrackImpact, ...]:
+        """The welds and joints of its rail that wheel ``wheel`` rolled over (nothing if not simulated)."""
+        surface = self.line.surface
+        if surface is None or not self.switch("track_impacts"):
+            return ()
+        x = self.track_m(np.array([0.0, self.distance_m]), wheel[0])
+        return surface.impacts_between(float(x.min()), float(x.max()), int(wheel[1]))
 
     @property
     def wheel_diameters(self) -> dict[str, float]:
@@ -263,6 +296,12 @@ def save_truth(truth: SimulationTruth, h5: h5py.File) -> None:
     a["noise_band_hz"] = np.asarray(truth.noise_band_hz, dtype=np.float64)
     a["axle_positions"] = json.dumps(truth.axle_positions)
     a["speed_response"] = truth.speed_response.to_json()
+    if truth.confounders is not None:
+        c = truth.confounders
+        a["confounders"] = json.dumps(dict(c) if isinstance(c, dict) else
+                                      {k: bool(getattr(c, k)) for k in ("roughness", "track_impacts", "wheel_flats")})
+    if truth.run_date is not None:
+        a["run_date"] = truth.run_date
     line = truth.line
     g = h5.create_group("line")
     g.attrs["first_bin"] = line.first_bin
@@ -281,6 +320,8 @@ def save_truth(truth: SimulationTruth, h5: h5py.File) -> None:
     an["factor"] = np.array([x.factor for x in line.anomalies], dtype=np.float64)
     an["taper_m"] = np.array([x.taper_m for x in line.anomalies], dtype=np.float64)
     an["kind"] = _strings([x.kind for x in line.anomalies])
+    if line.surface is not None:
+        _save_surface(line.surface, g.create_group("surface"))
     sp = h5.create_group("speed_profile")
     for key in ("t0", "duration", "v0", "v1"):
         sp[key] = getattr(truth.speed_profile, key)
@@ -292,6 +333,10 @@ def save_truth(truth: SimulationTruth, h5: h5py.File) -> None:
         g.attrs["side"] = int(w[1])
         g.attrs["axle"] = w[0]
         g.attrs["axle_offset_m"] = truth.axle_positions[w[0]]
+        if oor.flat is not None:
+            g.attrs["flat_length_m"] = oor.flat.length_m
+            g.attrs["flat_depth_m"] = oor.flat.depth_m
+            g.attrs["flat_angle_rad"] = oor.flat.angle_rad
         g["rho_um"] = oor.rho_um
         g["psi_rad"] = oor.psi_rad
     bg = h5.create_group("bins")
@@ -299,6 +344,42 @@ def save_truth(truth: SimulationTruth, h5: h5py.File) -> None:
         g = bg.create_group(w)
         for key in _BIN_FIELDS:
             g.create_dataset(key, data=getattr(b, key), compression="gzip", shuffle=True)
+
+
+def _save_surface(surface: RailSurface, g: h5py.Group) -> None:
+    g.attrs["seed"] = surface.seed
+    sp = surface.spectrum
+    g.attrs["spectrum"] = "null" if sp is None else json.dumps(
+        {"a": sp.a, "wavelength_m": list(sp.wavelength_m), "scale": sp.scale})
+    im = g.create_group("impacts")
+    im["track_m"] = np.array([w.track_m for w in surface.impacts], dtype=np.float64)
+    im["length_m"] = np.array([w.length_m for w in surface.impacts], dtype=np.float64)
+    im["depth_m"] = np.array([w.depth_m for w in surface.impacts], dtype=np.float64)
+    im["side"] = np.array([w.side for w in surface.impacts], dtype=np.int8)
+    im["kind"] = _strings([w.kind for w in surface.impacts])
+    gr = g.create_group("grindings")
+    gr["track_from_m"] = np.array([x.track_from_m for x in surface.grindings], dtype=np.float64)
+    gr["track_to_m"] = np.array([x.track_to_m for x in surface.grindings], dtype=np.float64)
+    gr["date"] = _strings([x.date for x in surface.grindings])
+    gr["roughness_scale"] = np.array([x.roughness_scale for x in surface.grindings], dtype=np.float64)
+
+
+def _load_surface(g: h5py.Group) -> RailSurface:
+    spec = json.loads(g.attrs["spectrum"])
+    im, gr = g["impacts"], g["grindings"]
+    impacts = tuple(
+        TrackImpact(float(x), float(n), float(d), int(sd), str(k))
+        for x, n, d, sd, k in zip(im["track_m"][()], im["length_m"][()], im["depth_m"][()], im["side"][()],
+                                  im["kind"].asstr()[()], strict=True)
+    )
+    grindings = tuple(
+        RailGrinding(float(a), float(b), str(d), float(sc))
+        for a, b, d, sc in zip(gr["track_from_m"][()], gr["track_to_m"][()], gr["date"].asstr()[()],
+                               gr["roughness_scale"][()], strict=True)
+    )
+    spectrum = None if spec is None else RoughnessSpectrum(float(spec["a"]), tuple(spec["wavelength_m"]),
+                                                           float(spec["scale"]))
+    return RailSurface(int(g.attrs["seed"]), spectrum, impacts, grindings)
 
 
 def load_truth(path: Path | str) -> SimulationTruth:
@@ -349,14 +430,19 @@ def load_truth(path: Path | str) -> SimulationTruth:
             anomalies=anomalies,
             amplitude_vref=json.loads(g.attrs["amplitude_vref"]),
             bin_length=float(g.attrs["bin_length"]),
+            surface=_load_surface(g["surface"]) if "surface" in g else None,
         )
         sp = h5["speed_profile"]
         profile = SpeedProfile(sp["t0"][()], sp["duration"][()], sp["v0"][()], sp["v1"][()])
         wheels: dict[str, WheelOOR] = {}
         reported: dict[str, float] = {}
         for w, wg in h5["wheels"].items():
+            flat = None
+            if "flat_length_m" in wg.attrs:
+                flat = WheelFlat(float(wg.attrs["flat_length_m"]), float(wg.attrs["flat_depth_m"]),
+                                 float(wg.attrs["flat_angle_rad"]))
             wheels[w] = WheelOOR(
-                w, float(wg.attrs["diameter_m"]), wg["rho_um"][()], wg["psi_rad"][()]
+                w, float(wg.attrs["diameter_m"]), wg["rho_um"][()], wg["psi_rad"][()], flat
             )
             reported[w] = float(wg.attrs["reported_diameter_m"])
         bins = {
@@ -375,4 +461,6 @@ def load_truth(path: Path | str) -> SimulationTruth:
             wheels=wheels,
             reported_diameters=reported,
             bins=bins,
+            confounders=json.loads(a["confounders"]) if "confounders" in a else None,
+            run_date=str(a["run_date"]) if "run_date" in a else None,
         )

@@ -3,7 +3,7 @@ place_runs (app/db/models/places.py). Places are made by the publish step from t
 after this revision; earlier runs give theirs when they are reprocessed.
 
 Revision ID: 0017_places
-Revises: 0014_operations
+Revises: 0015_track_impacts
 Create Date: 2026-11-26
 """
 
@@ -13,7 +13,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "0017_places"
-down_revision: str | None = "0014_operations"
+down_revision: str | None = "0015_track_impacts"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

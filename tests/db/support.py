@@ -57,6 +57,8 @@ def profile_table(
             **{c: rng.random(n_bins) for c in ORDER_COLUMNS},
             "residual_rms": rng.random(n_bins),
             "sleeper_force_amp": rng.random(n_bins),
+            # a track impact every 100 bins (NULL elsewhere)
+            "track_impact_mm": np.where(bins % 100 == 37, rng.uniform(0.1, 0.5, n_bins), np.nan),
         }))
     return pd.concat(frames, ignore_index=True)
 

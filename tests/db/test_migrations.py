@@ -67,7 +67,10 @@ def test_profile_bins_unique_and_indexed(tmp_path):
         pk = insp.get_pk_constraint("profile_bins")["constrained_columns"]
         assert pk == ["job_id", "wheel", "bin"]  # rows by job: written beside the published ones
         indexes = {ix["name"]: ix for ix in insp.get_indexes("profile_bins")}
-        assert list(indexes) == ["ix_profile_bins_coarse_display"]  # the primary key serves bin ranges
+        # the primary key serves bin ranges; the impacts index holds only the bins with a track impact
+        assert sorted(indexes) == ["ix_profile_bins_coarse_display", "ix_profile_bins_track_impacts"]
+        assert "track_impact_mm IS NOT NULL" in str(indexes["ix_profile_bins_track_impacts"]["dialect_options"]
+                                                    ["sqlite_where"])
         coarse = indexes["ix_profile_bins_coarse_display"]
         assert coarse["column_names"] == ["job_id", "wheel", "km", "display_level"]
         # partial: only the coarse display levels (storing ~10⁶ rows maintains 1/8 of an index)

@@ -23,6 +23,24 @@ def test_simulate_writes_run_and_truth(tmp_path):
     assert out.is_file() and (tmp_path / "sim.truth.h5").is_file()
 
 
+def test_simulate_with_confounders_and_process_finds_them(tmp_path):
+    """--confounders: rough rails with welds and a flat on wheel 11; process reports the flat."""
+    from app.simulate.truth import load_truth
+
+    out = tmp_path / "rough.h5"
+    result = runner.invoke(app, ["simulate", str(out), "--length-km", "0.4", "--fs", "8000", "--seed", "4",
+                                 "--confounders", "--no-forces"])
+    assert result.exit_code == 0, result.output
+    truth = load_truth(tmp_path / "rough.truth.h5")
+    assert truth.line.surface is not None and truth.line.surface.impacts
+    assert truth.wheels["11"].flat is not None and truth.wheels["12"].flat is None
+    result = runner.invoke(app, ["process", str(out), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 0, result.output
+    wheels = {w["wheel"]: w for w in json.loads((tmp_path / "o" / "wheels.json").read_text())}
+    assert wheels["11"]["flat"] is not None and wheels["12"]["flat"] is None
+    assert "track_impact_mm" in pd.read_parquet(tmp_path / "o" / "profiles.parquet").columns
+
+
 def test_process_writes_profiles_and_wheels_and_resumes(tmp_path, short_sim_run):
     path, truth = short_sim_run
     out = tmp_path / "out"

@@ -21,8 +21,8 @@ pytestmark = pytest.mark.timeout(300)
 _KILLED_AFTER_PUBLISH = """
 import os, signal, sys
 from app.core.config import get_settings
-from worker import runner
-runner.discard_job_files = lambda *a, **k: os.kill(os.getpid(), signal.SIGKILL)
+from worker import runner, steps
+steps.discard_job_files = lambda *a, **k: os.kill(os.getpid(), signal.SIGKILL)
 runner.run_worker(get_settings(), once=True)
 """
 

@@ -86,6 +86,10 @@ def test_children_dying_young_are_restarted_with_a_growing_back_off(tmp_path):
     )
     try:
         _wait(lambda: stamps.exists() and len(stamps.read_text().split()) >= 6, 60)
+        # stop between two children (one just starting would be stopped by the signal: status 0):
+        # every child started so far has exited and the next one waits for its back-off
+        _wait(lambda: (s := _status(tmp_path, sup.pid)) is not None and not s["pids"]
+              and s["restarts"] >= len(stamps.read_text().split()), 60)
     finally:
         sup.send_signal(signal.SIGTERM)
         code = sup.wait(timeout=30)

@@ -47,6 +47,7 @@ from app.analysis._checks import check_positive
 __all__ = [
     "TrackParameters",
     "point_receptance",
+    "wheel_rail_transfer",
     "wheel_accelerance",
     "excitation_roughness",
     "sleeper_passage_amplitude",
@@ -223,10 +224,17 @@ def _bay_positions(params: TrackParameters) -> np.ndarray:
     return np.arange(_ELEMENTS_PER_BAY) * params.sleeper_spacing / _ELEMENTS_PER_BAY
 
 
-def wheel_accelerance(
+def wheel_rail_transfer(
     params: TrackParameters, freqs_hz: np.ndarray, position_m: float | None = None
 ) -> np.ndarray:
-    """Wheel acceleration per unit roughness at the contact, ``|a / r|`` (m/s² per m).
+    """Wheel acceleration per unit roughness at the contact, ``a / r`` (complex, m/s² per m).
+
+    ``a / r = (1 / m) / (alpha_w + alpha_c + alpha_t)`` for a harmonic
+    roughness ``r e^(i omega t)`` (up positive, a dip is negative) under the
+    wheel: at low frequency ``-omega^2`` (the wheel follows the rail), at high
+    frequency ``1 / (m (alpha_c + alpha_t))`` (the contact and the rail give).
+    Its inverse, ``m (alpha_w + alpha_c + alpha_t)``, turns a measured
+    acceleration back into the roughness that caused it.
 
     Parameters
     ----------
@@ -237,6 +245,11 @@ def wheel_accelerance(
     position_m : float, optional
         Wheel position after a sleeper, m (a multiple of ``d_s / 12``); default
         the track receptance averaged over the bay.
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex, the shape of ``freqs_hz`` (at least 1-D).
     """
     f = np.atleast_1d(np.asarray(freqs_hz, dtype=np.float64))
     if np.any(~(f > 0)):
@@ -245,7 +258,17 @@ def wheel_accelerance(
     alpha_t = point_receptance(params, f, pos).mean(axis=1)
     omega2 = (2.0 * np.pi * f) ** 2
     alpha_w = -1.0 / (params.wheel_mass * omega2)
-    return 1.0 / (params.wheel_mass * np.abs(alpha_w + 1.0 / params.contact_stiffness + alpha_t))
+    return 1.0 / (params.wheel_mass * (alpha_w + 1.0 / params.contact_stiffness + alpha_t))
+
+
+def wheel_accelerance(
+    params: TrackParameters, freqs_hz: np.ndarray, position_m: float | None = None
+) -> np.ndarray:
+    """Wheel acceleration per unit roughness at the contact, ``|a / r|`` (m/s² per m).
+
+    The magnitude of :func:`wheel_rail_transfer` (parameters there).
+    """
+    return np.abs(wheel_rail_transfer(params, freqs_hz, position_m))
 
 
 def excitation_roughness(params: TrackParameters, n_harmonics: int = 3) -> np.ndarray:

@@ -15,7 +15,9 @@ class ProfileOut(BaseModel):
     At ``level_m`` equal to the bin length (0.25 m) every row is one stored bin
     with the columns ``wheel, bin, km, n_samples, speed_mean`` (m/s),
     ``sleeper_amp`` (m/s²), ``order_amp_01..11`` (m/s²), ``residual_rms`` (m/s²),
-    ``sleeper_force_amp`` (kN). At a coarser level every row is one segment with
+    ``sleeper_force_amp`` (kN), ``track_impact_mm`` (estimated depth of an
+    isolated track impact — a dipped weld or joint — in that bin, mm; null
+    elsewhere). At a coarser level every row is one segment with
     ``km_from, km_to, n_bins`` and ``<column>_mean``, ``<column>_max``,
     ``<column>_p95`` for every indicator column.
     """

@@ -56,6 +56,7 @@ N_ORDER_COLUMNS = 11
 #: (level k keeps at most two rows per 4**k bins: levels >= 2 hold 1/8 of the rows).
 COARSE_DISPLAY_LEVEL = 2
 _COARSE_ROWS = text(f"display_level >= {COARSE_DISPLAY_LEVEL}")  # that index's predicate
+_IMPACT_ROWS = text("track_impact_mm IS NOT NULL")
 ORDER_COLUMNS: tuple[str, ...] = tuple(f"order_amp_{i:02d}" for i in range(1, N_ORDER_COLUMNS + 1))
 #: Indicator columns of a profile bin, in the order of the export files.
 PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
@@ -68,6 +69,7 @@ PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
     *ORDER_COLUMNS,
     "residual_rms",
     "sleeper_force_amp",
+    "track_impact_mm",
 )
 
 
@@ -216,6 +218,9 @@ class ProfileBin(Base):
             postgresql_where=_COARSE_ROWS,
             sqlite_where=_COARSE_ROWS,
         ),
+        # the few bins holding a track impact, for a run's list of them (app.db.track_impacts)
+        Index("ix_profile_bins_track_impacts", "job_id", "km",
+              postgresql_where=_IMPACT_ROWS, sqlite_where=_IMPACT_ROWS),
     )
 
     job_id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
@@ -245,6 +250,9 @@ class ProfileBin(Base):
     order_amp_11: Mapped[float | None] = mapped_column(Float)
     residual_rms: Mapped[float | None] = mapped_column(Float)
     sleeper_force_amp: Mapped[float | None] = mapped_column(Float)
+    #: estimated depth (mm) of an isolated track impact (dipped weld or joint) in this bin, NULL elsewhere;
+    #: the sleeper-passage columns are bridged around it (app.pipeline.impacts); NULL in jobs before issue 26
+    track_impact_mm: Mapped[float | None] = mapped_column(Float)
 
 
 class WheelOOR(Base):

@@ -1,5 +1,6 @@
-/* Wheels page: polar plot of r(θ) (paper fig. 31), order amplitudes as bars, r along the
- * circumference, and the trend of the OOR over the vehicle's runs. */
+/* Wheels page: polar plot of r(θ) (paper fig. 31), order amplitudes as bars, the wheel flats
+ * (marked on the plots of r), r along the circumference, and the trend of the OOR over the
+ * vehicle's runs. */
 (function () {
   "use strict";
   const T = window.trackvkf;
@@ -17,6 +18,20 @@
       r: w.profile_um.concat([w.profile_um[0]]), line: { color: T.wheelColor(w.wheel), width: 2 },
       hovertemplate: `${T.wheelLabel(w.wheel)}<br>θ %{theta:.0f}°<br>%{r:.1f} µm<extra></extra>`,
     }));
+    const flats = wheels.items.filter((w) => w.flat);
+    if (flats.length) {
+      // a spoke from the centre to the rim at the flat's angle, marked on the rim in the wheel's colour
+      const spoke = (f) => [f, f, null];
+      traces.push({
+        type: "scatterpolar", mode: "lines+markers", name: "wheel flat",
+        theta: flats.flatMap((w) => spoke(w.flat.angle_deg)), r: flats.flatMap(() => [-lim, lim, null]),
+        line: { color: "#5b6b7b", width: 1, dash: "dot" },
+        marker: { symbol: "x", size: flats.flatMap(() => [0, 14, 0]),
+          color: flats.flatMap((w) => spoke(T.wheelColor(w.wheel))) },
+        customdata: flats.flatMap((w) => spoke([T.wheelLabel(w.wheel), w.flat.depth_mm])),
+        hovertemplate: "wheel flat, %{customdata[0]}<br>θ %{theta:.1f}°<br>%{customdata[1]:.2f} mm deep<extra></extra>",
+      });
+    }
     await T.plot(el, traces, {
       // ring labels would sit on the curves: the rings are explained in a note instead
       polar: { radialaxis: { range: [-lim, lim], dtick: lim / 2, showticklabels: false, ticks: "", gridcolor: "#e6ebf0" },
@@ -25,7 +40,8 @@
         align: "left", font: { size: 11, color: "#5b6b7b" },
         text: `centre −${T.fmt(lim, 0)} µm · rim +${T.fmt(lim, 0)} µm<br>rings every ${T.fmt(lim / 2, 0)} µm (middle ring 0 µm)` }],
       margin: { l: 40, r: 40, t: 40, b: 30 },
-      legend: { orientation: "v", x: 0, y: 1, yanchor: "top" },
+      // transparent: the box of the longest name would hide the 315° label beside it
+      legend: { orientation: "v", x: 0, y: 1, yanchor: "top", bgcolor: "rgba(0,0,0,0)" },
     }, {
       filename: `run-${wheels.run_id}-wheel-polar`,
       csv: () => {
@@ -71,10 +87,22 @@
         hovertemplate: `${T.wheelLabel(w.wheel)}<br>%{x:.0f} mm<br>%{y:.1f} µm<extra></extra>`,
       };
     });
+    // a flat is a short dip (tens of mm): drawn as a band where it is, its depth written on it
+    const shapes = [], notes = [];
+    for (const w of wheels.items.filter((x) => x.flat)) {
+      const circ = Math.PI * (w.wheel_diameter_m || 0.92) * 1000;
+      const at = w.flat.angle_deg / 360 * circ, half = (w.flat.length_mm || 40) / 2;
+      shapes.push({ type: "rect", xref: "x", yref: "paper", x0: at - half, x1: at + half, y0: 0, y1: 1,
+        fillcolor: T.wheelColor(w.wheel), opacity: 0.25, line: { width: 0 } });
+      // inside the plot, beside the band: above it the legend sits
+      notes.push({ xref: "x", yref: "paper", x: at + half, y: 1, xanchor: "left", yanchor: "top", xshift: 4,
+        showarrow: false, font: { size: 11 }, bgcolor: "rgba(255,255,255,0.85)",
+        text: `flat ${T.esc(T.wheelLabel(w.wheel))} · ${T.fmt(w.flat.depth_mm, 2)} mm` });
+    }
     await T.plot(el, traces, {
       xaxis: T.axis("Position along the circumference (mm)"),
       yaxis: T.axis("Radius deviation (µm)"),
-      margin: { l: 70, r: 20, t: 30, b: 55 },
+      margin: { l: 70, r: 20, t: 30, b: 55 }, shapes, annotations: notes,
     }, {
       filename: `run-${wheels.run_id}-wheel-circumference`,
       csv: () => {
@@ -88,7 +116,26 @@
     });
   }
 
+  function drawFlats() {
+    const body = document.getElementById("flats-body");
+    const flats = wheels.items.filter((w) => w.flat);
+    if (!flats.length) {
+      body.innerHTML = `<tr><td colspan="7" class="muted">No wheel flat found in this run.</td></tr>`;
+      return;
+    }
+    body.innerHTML = flats.map((w) => {
+      const f = w.flat, circ = Math.PI * (w.wheel_diameter_m || 0.92) * 1000;
+      const seen = f.first_seen_run_id === wheels.run_id ? "this run"
+        : `<a href="/wheels?vehicle_id=${encodeURIComponent(document.getElementById("vehicle").value)}&run_id=${f.first_seen_run_id}">run ${f.first_seen_run_id}</a> · ${T.date(f.first_seen_time)}`;
+      return `<tr><td><i class="swatch" style="background:${T.wheelColor(w.wheel)}"></i> ${T.esc(T.wheelLabel(w.wheel))}</td>` +
+        `<td class="num">${T.fmt(f.angle_deg, 1)}</td><td class="num">${T.fmt(f.angle_deg / 360 * circ, 0)}</td>` +
+        `<td class="num">${T.fmt(f.depth_mm, 2)}</td><td class="num">${T.fmt(f.length_mm, 0)}</td>` +
+        `<td class="num">${f.n_hits} / ${f.n_revolutions ?? "–"}</td><td>${seen}</td></tr>`;
+    }).join("");
+  }
+
   function trendValue(item, q) {
+    if (q === "flat") return item.flat_depth_mm;
     if (q === "p2p") return item.peak_to_peak_um;
     return item.radius_um[Number(q) - 1];
   }
@@ -100,14 +147,15 @@
       return;
     }
     const q = document.getElementById("trend-quantity").value;
-    const label = q === "p2p" ? "Peak-to-peak of r(θ) (µm)" : `Order ${q} radius deviation (µm)`;
+    const label = q === "flat" ? "Wheel flat depth (mm)" : q === "p2p" ? "Peak-to-peak of r(θ) (µm)" : `Order ${q} radius deviation (µm)`;
+    const unit = q === "flat" ? "mm" : "µm";
     const traces = T.WHEELS.filter((w) => trend.items.some((i) => i.wheel === w)).map((w) => {
       const items = trend.items.filter((i) => i.wheel === w);
       return {
         type: "scatter", mode: T.trendMode(items.map((i) => i.start_time)), name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 2 },
         marker: { size: 8 }, x: items.map((i) => i.start_time), y: items.map((i) => trendValue(i, q)),
         customdata: items.map((i) => i.run_id),
-        hovertemplate: `${T.wheelLabel(w)}<br>%{x|%Y-%m-%d %H:%M}<br>%{y:.1f} µm<br>run %{customdata}<extra></extra>`,
+        hovertemplate: `${T.wheelLabel(w)}<br>%{x|%Y-%m-%d %H:%M}<br>%{y:.${q === "flat" ? 2 : 1}f} ${unit}<br>run %{customdata}<extra></extra>`,
       };
     });
     await T.plot(el, traces, {
@@ -117,8 +165,8 @@
     }, {
       filename: `vehicle-${trend.vehicle_id}-wheel-trend`,
       csv: () => ({
-        columns: ["run_id", "start_time", "wheel", "wheel_diameter_m", "peak_to_peak_um", ...trend.orders.map((o) => `order_${o}_radius_um`)],
-        rows: trend.items.map((i) => [i.run_id, i.start_time, i.wheel, i.wheel_diameter_m, i.peak_to_peak_um, ...i.radius_um]),
+        columns: ["run_id", "start_time", "wheel", "wheel_diameter_m", "peak_to_peak_um", "flat_depth_mm", ...trend.orders.map((o) => `order_${o}_radius_um`)],
+        rows: trend.items.map((i) => [i.run_id, i.start_time, i.wheel, i.wheel_diameter_m, i.peak_to_peak_um, i.flat_depth_mm, ...i.radius_um]),
       }),
     });
   }
@@ -131,9 +179,11 @@
     }
     try {
       wheels = await T.api.get(`/runs/${runId}/wheels`);
+      drawFlats();
       await Promise.all([drawPolar(), drawOrders(), drawProfile()]);
     } catch (e) {
       for (const id of ["polar-plot", "orders-plot", "profile-plot"]) T.emptyState(id, "No wheel results", `<p>${T.esc(e.detail)}</p>`);
+      document.getElementById("flats-body").innerHTML = `<tr><td colspan="7" class="muted">–</td></tr>`;
     }
   }
 
@@ -147,7 +197,8 @@
     trend = vehicle ? await T.api.get("/wheels/trend", { vehicle_id: vehicle }) : null;
     const qsel = document.getElementById("trend-quantity");
     const orders = trend ? trend.orders : [];
-    qsel.innerHTML = `<option value="p2p">peak-to-peak r(θ)</option>` + orders.map((o) => `<option value="${o}">order ${o}</option>`).join("");
+    qsel.innerHTML = `<option value="p2p">peak-to-peak r(θ)</option><option value="flat">wheel flat depth</option>` +
+      orders.map((o) => `<option value="${o}">order ${o}</option>`).join("");
     await Promise.all([loadRun(), drawTrend()]);
   }
 

@@ -1,0 +1,289 @@
+"""Isolated dips in an estimated running surface: a bank of matched filters.
+
+A dipped weld, a dipped joint and a wheel flat are all, seen from the
+contact, a short dip of the surface, roughly ``-d/2 (1 + cos(2 pi u / L))``
+over ``|u| < L/2``. The background they sit in is the surface's own random
+roughness (a red spectrum, Sato's ``A / Omega³``) and the measurement noise
+carried back through the dynamics. The best linear estimate of the depth of
+a dip of known shape in Gaussian coloured background is the generalised
+least squares one,
+
+    d(x) = <t_L(. - x), P^-1 r> / <t_L, P^-1 t_L>
+
+(``P`` the background's power spectrum): a matched filter after whitening.
+:func:`find_dips` estimates ``P`` from the surface itself (Welch, then a
+running low percentile across wavenumbers: isolated dips hardly move it, and
+the comb of lines of a wheel flat — a dip every revolution — is not taken for
+background), runs the filter for each length of
+:data:`DIP_LENGTHS_M`, divides each output by its robust spread (1.4826 ×
+median absolute deviation, per stretch of :data:`SCALE_BLOCK_M`) and keeps
+the local maxima where the best length's score reaches ``threshold`` and the
+depth :data:`MIN_DEPTH_M`: its position, length, depth (m) and score. These
+are candidates; which of them are impacts is decided across the wheels
+(:mod:`app.analysis.impacts.classify`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import find_peaks, welch
+
+from app.analysis.impacts.surface import SurfaceEstimate
+
+__all__ = ["DIP_LENGTHS_M", "DETECTION_THRESHOLD", "MIN_DEPTH_M", "SCALE_BLOCK_M", "Dips", "find_dips"]
+
+#: Lengths of the matched dips, m (a flat's few cm … a weld's metre and more).
+DIP_LENGTHS_M: tuple[float, ...] = (0.04, 0.1, 0.25, 0.5, 1.0, 1.6)
+#: Score (depth over its robust spread) a dip must reach to be kept as a candidate.
+DETECTION_THRESHOLD = 3.5
+#: Shallower dips are not kept whatever their score (the short-wave roughness is tiny), m.
+MIN_DEPTH_M = 0.1e-3
+#: Stretch over which the spread of the filter output is taken, m.
+SCALE_BLOCK_M = 40.0
+#: No dips are sought this close to the ends of a valid stretch (the filters are truncated there), m.
+EDGE_M = 6.0
+#: Bins and percentile of the running filter across the background spectrum (0.05 1/m a bin).
+_PSD_FILTER_BINS = 31
+_PSD_PERCENTILE = 20
+#: A dip within this of one scoring SIDE_LOBE_RATIO times more is its side lobe, m.
+SIDE_LOBE_M = 3.0
+SIDE_LOBE_RATIO = 2.0
+#: Length of the background spectrum's Welch segments, m.
+_WELCH_M = 20.48
+#: Dips this long or longer are sought on a grid _COARSE times coarser, m.
+_COARSE_FROM_M = 0.2
+_COARSE = 4
+_MAD = 1.4826
+
+
+@dataclass(frozen=True)
+class Dips:
+    """Dips found in one wheel's surface (one entry each, ascending position).
+
+    Attributes
+    ----------
+    s_m : numpy.ndarray
+        Travelled distance of the dip's centre, m.
+    length_m : numpy.ndarray
+        Length of the matched dip that scored best, m.
+    depth_m : numpy.ndarray
+        Its depth, m (> 0).
+    score : numpy.ndarray
+        Depth over the filter's robust spread there.
+    speed_mps : numpy.ndarray
+        Speed there, m/s.
+    """
+
+    s_m: np.ndarray
+    length_m: np.ndarray
+    depth_m: np.ndarray
+    score: np.ndarray
+    speed_mps: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.s_m.size)
+
+    @classmethod
+    def empty(cls) -> Dips:
+        """No dips."""
+        z = np.zeros(0)
+        return cls(z, z, z, z, z)
+
+
+def _template(length_m: float, step: float) -> np.ndarray:
+    half = int(math.ceil(0.5 * length_m / step))
+    u = np.arange(-half, half + 1) * step / length_m
+    return np.where(np.abs(u) < 0.5, -0.5 * (1.0 + np.cos(2 * np.pi * u)), 0.0)
+
+
+def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
+                    est: SurfaceEstimate) -> tuple[np.ndarray, np.ndarray]:
+    """Welch spectrum of the valid stretches (one-sided, per 1/m), a smooth background of it.
+
+    A running low percentile across wavenumbers, over the bins the estimate
+    kept (in its band, off its notches): the background is smooth, a wheel
+    flat's comb of lines (every 1 / circumference, each a few bins wide) is
+    not. A constant factor on it changes neither a depth nor a score.
+    """
+    x = np.where(valid, h, 0.0)
+    frac = float(valid.mean()) if valid.size else 0.0
+    nper = min(nperseg, 1 << int(math.floor(math.log2(max(x.size, 16)))))
+    k, p = welch(x, fs=1.0 / step, nperseg=nper, detrend=False)
+    kept = est.gain(k) > 0.5
+    idx = np.flatnonzero(kept)
+    if idx.size == 0:
+        return k, p / max(frac, 1e-3)
+    half = _PSD_FILTER_BINS // 2
+    padded = np.concatenate([np.full(half, np.nan), np.where(kept, p, np.nan), np.full(half, np.nan)])
+    windows = np.sort(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[idx], axis=1)  # NaN last
+    count = np.sum(np.isfinite(windows), axis=1)
+    pos = (count - 1) * (_PSD_PERCENTILE / 100.0)
+    lo_i = np.floor(pos).astype(np.int64)
+    hi_i = np.minimum(lo_i + 1, count - 1)
+    frac_i = pos - lo_i
+    rows = np.arange(windows.shape[0])
+    filtered = windows[rows, lo_i] * (1.0 - frac_i) + windows[rows, hi_i] * frac_i
+    # outside what the estimate kept: the nearest kept value (the weights are ~0 there)
+    out = np.interp(np.arange(p.size), idx, filtered)
+    return k, out / max(frac, 1e-3)  # the invalid (zeroed) cells diluted it
+
+
+def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
+    """1.4826 × MAD of ``x`` per block of cells (over its valid cells, every fourth one), per cell."""
+    sub = 4
+    xs = np.where(valid, x, np.nan)[::sub]
+    per = max(block // sub, 8)
+    nb = -(-xs.size // per)
+    grid = np.full(nb * per, np.nan)
+    grid[: xs.size] = xs
+    grid = grid.reshape(nb, per)
+    enough = np.sum(np.isfinite(grid), axis=1) >= 32
+    if nb > 1 and not enough[-1]:  # a short last block joins the one before
+        enough[-1] = False
+    out = np.full(x.size, np.nan)
+    if not enough.any():
+        return out
+    with np.errstate(all="ignore"):
+        med = np.nanmedian(grid[enough], axis=1)
+        mad = _MAD * np.nanmedian(np.abs(grid[enough] - med[:, None]), axis=1)
+    # constant within a block; a block without enough valid cells takes its nearest good block's
+    blocks = np.minimum(np.arange(x.size) // (per * sub), nb - 1)
+    good = np.flatnonzero(enough)
+    nearest = good[np.clip(np.searchsorted(good, blocks), 0, good.size - 1)]
+    left = good[np.clip(np.searchsorted(good, blocks, side="right") - 1, 0, good.size - 1)]
+    pick = np.where(np.abs(nearest - blocks) <= np.abs(left - blocks), nearest, left)
+    return mad[np.searchsorted(good, pick)]
+
+
+def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
+          lengths: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Best score, its length and its depth per cell over a bank of matched dips on one grid."""
+    n = h.size
+    k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)), est)
+    nfft = 1 << int(math.ceil(math.log2(n + int(max(lengths) / step) + 8)))
+    kappa = np.fft.rfftfreq(nfft, step)
+    gain = est.gain(kappa)
+    psd = np.interp(kappa, k_bg, p_bg)
+    # the surface is G (d t + b), G what the estimate kept: numerator weight G / P, denominator G² / P
+    inband = (gain > 0.05) & (kappa > 0)
+    floor = 1e-9 * float(psd[inband].max()) if inband.any() else 1.0
+    num_w = np.where(inband, gain / np.maximum(psd, floor), 0.0)
+    den_w = num_w * gain
+    r = np.fft.rfft(np.where(valid, h, 0.0), nfft)
+    block = max(int(SCALE_BLOCK_M / step), 256)
+    best = np.full(n, -np.inf)
+    best_l = np.zeros(n)
+    best_d = np.zeros(n)
+    for length in lengths:
+        t = _template(float(length), step)
+        tt = np.zeros(nfft)
+        half = t.size // 2
+        tt[: half + 1] = t[half:]
+        tt[nfft - half :] = t[:half]  # centred on cell 0 (circular)
+        tf = np.fft.rfft(tt)
+        den = float(np.fft.irfft(np.abs(tf) ** 2 * den_w, nfft)[0])
+        if not den > 0:
+            continue
+        depth = np.fft.irfft(r * np.conj(tf) * num_w, nfft)[:n] / den
+        scale = _robust_scale(depth, valid, block)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            score = np.where(valid & (scale > 0), depth / scale, -np.inf)
+        better = score > best
+        best = np.where(better, score, best)
+        best_l = np.where(better, float(length), best_l)
+        best_d = np.where(better, depth, best_d)
+    return best, best_l, best_d
+
+
+def _without_side_lobes(peaks: np.ndarray, score: np.ndarray, step: float) -> np.ndarray:
+    """Peaks less those within :data:`SIDE_LOBE_M` of one scoring :data:`SIDE_LOBE_RATIO` times more.
+
+    The whitened, band-limited filters answer an isolated dip with side lobes a
+    metre or two either side; a wheel flat's hits (one circumference apart)
+    score alike and all stay.
+    """
+    if peaks.size < 2:
+        return peaks
+    order = peaks[np.argsort(-score[peaks], kind="stable")]
+    kept: list[int] = []
+    reach = SIDE_LOBE_M / step
+    for p in order:
+        if any(abs(p - k) <= reach and score[k] >= SIDE_LOBE_RATIO * score[p] for k in kept):
+            continue
+        kept.append(int(p))
+    return np.sort(np.array(kept, dtype=peaks.dtype))
+
+
+def find_dips(
+    est: SurfaceEstimate,
+    *,
+    lengths_m: tuple[float, ...] = DIP_LENGTHS_M,
+    threshold: float = DETECTION_THRESHOLD,
+    separation_m: float = 1.5,
+) -> Dips:
+    """Isolated dips in an estimated surface (see the module docstring).
+
+    Parameters
+    ----------
+    est : SurfaceEstimate
+        The surface under one wheel (:func:`app.analysis.impacts.surface.surface_estimate`).
+    lengths_m : tuple of float
+        Lengths of the matched dips, m.
+    threshold : float
+        Lowest score kept (> 0).
+    separation_m : float
+        Two dips closer than this are one (the higher score), m.
+
+    Returns
+    -------
+    Dips
+    """
+    if not threshold > 0:
+        raise ValueError(f"threshold: must be > 0, got {threshold!r}")
+    if not lengths_m or any(not (x > 0) for x in lengths_m):
+        raise ValueError("lengths_m: must be a non-empty tuple of lengths > 0 m")
+    n = est.height.size
+    if est.valid.sum() < 1024:
+        return Dips.empty()
+    step = est.step
+    short = tuple(x for x in lengths_m if x < _COARSE_FROM_M)
+    long = tuple(x for x in lengths_m if x >= _COARSE_FROM_M)
+    # the ends of every valid stretch see a truncated filter: no dips within EDGE_M of them
+    edge = max(1, int(EDGE_M / step))
+    ends = np.flatnonzero(np.diff(np.concatenate([[0], est.valid.astype(np.int8), [0]])))
+    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+    # short dips (flats, joints) and long ones (welds) are sought apart: a flat's hit beside a weld
+    # is two things, not a side lobe of one
+    for bank in (short, long):
+        if not bank:
+            continue
+        if bank is short:
+            best, best_l, best_d = _bank(est.height, est.valid, step, est, bank)
+        else:  # long dips on a grid _COARSE times coarser (box averages): a quarter of the work
+            q = _COARSE
+            m = n // q
+            hc = est.height[: m * q].reshape(m, q).mean(axis=1)
+            vc = est.valid[: m * q].reshape(m, q).all(axis=1)
+            bc, lc, dc = _bank(hc, vc, q * step, est, bank)
+            best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
+                                    for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
+        for e in ends:
+            best[max(0, e - edge) : e + edge] = -np.inf
+        peaks, _ = find_peaks(np.where(np.isfinite(best), best, -1e300), height=threshold,
+                              distance=max(1, int(separation_m / step)))
+        peaks = peaks[best_d[peaks] >= MIN_DEPTH_M]
+        peaks = _without_side_lobes(peaks, best, step)
+        parts.append((peaks, best[peaks], best_l[peaks], best_d[peaks]))
+    if not parts:
+        return Dips.empty()
+    peaks = np.concatenate([p[0] for p in parts])
+    order = np.argsort(peaks, kind="stable")
+    peaks = peaks[order]
+    score, length, depth = (np.concatenate([p[k] for p in parts])[order] for k in (1, 2, 3))
+    if peaks.size == 0:
+        return Dips.empty()
+    return Dips(s_m=est.s[peaks], length_m=length, depth_m=depth, score=score,
+                speed_mps=np.nan_to_num(est.speed[peaks], nan=0.0))

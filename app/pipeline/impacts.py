@@ -1,0 +1,273 @@
+"""Isolated impacts in the pipeline: dips per chunk, track impacts and wheel flats per run.
+
+* In a chunk (:func:`chunk_dip_member`): the surface under each wheel is
+  estimated from its acceleration less its wheel orders as the VKF extracted
+  them (:func:`wheel_orders_at`; their bands are narrow: they take almost
+  nothing of a dip), with the sleeper-passage lines notched out (the VKF's
+  track orders are wide: they would take much of a weld), and its dips are
+  kept as candidates, with the crossfade weight of the chunk where they lie
+  (:mod:`app.analysis.impacts`).
+* At assembly (:func:`run_impacts`): the candidates of all chunks are merged
+  (each dip from the chunk that weighs most there), wheel flats are the dips
+  that repeat every circumference of one wheel (with its refined diameter),
+  track impacts the dips that the wheels meet at one track position.
+  :func:`mask_track_impacts` bridges the profile's track columns around each
+  track impact and writes the column ``track_impact_mm``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from app.analysis.chunking import Chunk
+from app.analysis.impacts import find_dips, surface_estimate
+from app.analysis.impacts.classify import (
+    TrackImpactFinding,
+    WheelDips,
+    WheelFlatFinding,
+    track_impacts,
+    wheel_flats,
+)
+from app.analysis.impacts.mask import bridge, impact_mask, mask_half_width
+from app.analysis.recipe import OrderRecipe
+from app.analysis.settings import ProcessingSettings
+
+__all__ = [
+    "IMPACT_COLUMN",
+    "BRIDGED_COLUMNS",
+    "DIP_FIELDS",
+    "wheel_orders_at",
+    "chunk_dip_member",
+    "read_dips",
+    "run_impacts",
+    "mask_track_impacts",
+    "flat_result",
+]
+
+#: The profile column of track impacts: estimated dip depth (mm) at the impact's bin, NaN elsewhere.
+IMPACT_COLUMN = "track_impact_mm"
+#: Profile columns bridged around a track impact (the sleeper-passage indicator and its force).
+BRIDGED_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms",
+                                    "sleeper_force_amp")
+#: Rows of a chunk file's ``dips_<wheel>`` member.
+DIP_FIELDS: tuple[str, ...] = ("track_m", "s_m", "length_m", "depth_m", "score", "speed_mps", "weight")
+
+
+def _member(wheel: str) -> str:
+    return f"dips_{wheel}"
+
+
+def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarray, recipe: OrderRecipe,
+                    lo: int) -> Callable[[np.ndarray], np.ndarray]:
+    """The wheel orders as the VKF extracted them, as a function of travelled distance (m → m/s²).
+
+    Order ``n`` is ``Re(env_n e^(i 2 pi multiplier_n s))`` (the recipe's phase
+    convention with ``psi = 2 pi s``), its envelope interpolated between the
+    output grid's points.
+
+    Parameters
+    ----------
+    env : numpy.ndarray
+        The wheel's order envelopes on the output grid ``out_idx`` (rows of ``recipe``).
+    out_idx : numpy.ndarray
+        Output grid (global samples).
+    travelled_m : numpy.ndarray
+        Travelled distance per sample of the chunk (from ``lo``), m.
+    recipe : OrderRecipe
+    lo : int
+        Global index of the chunk's first sample.
+    """
+    rows = recipe.wheel_rows
+    s_out = travelled_m[out_idx - lo]
+    mult = recipe.multipliers[rows]
+    powers = recipe.powers[rows]  # order l: multiplier = l × (that of order 1)
+    base = float(mult[0] / powers[0]) if mult.size else 0.0
+    env_w = np.ascontiguousarray(env[rows])
+
+    def at(s: np.ndarray) -> np.ndarray:
+        s = np.asarray(s, dtype=np.float64)
+        out = np.zeros(s.shape)
+        if env_w.shape[0] == 0 or s_out.size < 2:
+            return out
+        # envelopes linear between the grid's points (clamped at its ends); phasors by recurrence
+        j = np.clip(np.searchsorted(s_out, s, side="right"), 1, s_out.size - 1)
+        w = np.clip((s - s_out[j - 1]) / np.maximum(s_out[j] - s_out[j - 1], 1e-12), 0.0, 1.0)
+        z1 = np.exp(2j * np.pi * base * s)
+        zl = np.ones(s.shape, dtype=np.complex128)
+        level = 0
+        for k in np.argsort(powers):
+            while level < powers[k]:
+                zl *= z1
+                level += 1
+            c = env_w[k, j - 1] * (1.0 - w) + env_w[k, j] * w
+            out += (c * zl).real
+        return out
+
+    return at
+
+
+def chunk_dip_member(
+    wheel: str,
+    accel: np.ndarray,
+    travelled_m: np.ndarray,
+    speed_mps: np.ndarray,
+    track_m: np.ndarray,
+    recipe: OrderRecipe,
+    wheel_orders: Callable[[np.ndarray], np.ndarray],
+    chunk: Chunk,
+    lo: int,
+) -> dict[str, np.ndarray]:
+    """The chunk-file member of one wheel's dip candidates in a chunk.
+
+    Parameters
+    ----------
+    wheel : str
+    accel : numpy.ndarray
+        The wheel's axle-box acceleration over the chunk's samples ``lo …``, m/s².
+    travelled_m, speed_mps, track_m : numpy.ndarray
+        Per sample of the chunk: travelled distance (the phase reference), absolute speed, track position.
+    recipe : OrderRecipe
+        The wheel's orders: the sleeper-passage lines are notched out of the surface.
+    wheel_orders : callable
+        The wheel orders at travelled distances (:func:`wheel_orders_at`), taken out first.
+    chunk : Chunk
+    lo : int
+        Global index of the chunk's first sample.
+
+    Returns
+    -------
+    dict
+        ``{"dips_<wheel>": (len(DIP_FIELDS), n) float array}``: the dips inside the chunk's output
+        range, with the chunk's crossfade weight there.
+    """
+    empty = {_member(wheel): np.zeros((len(DIP_FIELDS), 0))}
+    # the whole chunk, padding included (the wheel orders are stationary: their envelopes held at the
+    # output range's ends are right there), so that the estimate's own edges lie outside the output range
+    a, b = 0, accel.size
+    if b - a < 2:
+        return empty
+    lines = tuple(float(recipe.multipliers[r]) for r in recipe.track_rows)
+    est = surface_estimate(accel[a:b], travelled_m[a:b], speed_mps[a:b], lines_per_m=lines, subtract=wheel_orders)
+    dips = find_dips(est)
+    if len(dips) == 0:
+        return empty
+    idx = np.clip(np.searchsorted(travelled_m[a:b], dips.s_m), 0, b - a - 1) + a
+    weight = chunk.weight(idx + lo)
+    inside = weight > 0
+    rows = np.vstack([track_m[idx], dips.s_m, dips.length_m, dips.depth_m, dips.score, dips.speed_mps, weight])
+    return {_member(wheel): rows[:, inside].astype(np.float64)}
+
+
+def read_dips(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, WheelDips]:
+    """Every wheel's dips over a run from its chunk files: each dip once, from the chunk weighing most there.
+
+    Files without dip members (written before them) add nothing.
+    """
+    parts: dict[str, list[np.ndarray]] = {w: [] for w in wheels}
+    for path in sorted(paths, key=lambda p: str(p)):
+        with np.load(path) as npz:
+            for w in wheels:
+                key = _member(w)
+                if key in npz.files:
+                    arr = np.asarray(npz[key], dtype=np.float64)
+                    if arr.ndim == 2 and arr.shape[0] == len(DIP_FIELDS) and arr.shape[1]:
+                        parts[w].append(arr)
+    out: dict[str, WheelDips] = {}
+    for w, arrs in parts.items():
+        if not arrs:
+            continue
+        rows = np.hstack(arrs)
+        rows = rows[:, rows[6] >= 0.5]  # the chunk that weighs most at the dip (crossfades: ≥ 0.5 in one)
+        order = np.argsort(rows[1], kind="stable")
+        rows = rows[:, order]
+        # a dip at a seam found by both chunks (weight 0.5 each): keep the higher score
+        keep = np.ones(rows.shape[1], dtype=bool)
+        for i in range(1, rows.shape[1]):
+            if rows[1, i] - rows[1, i - 1] < 0.2:
+                worse = i if rows[4, i] <= rows[4, i - 1] else i - 1
+                keep[worse] = False
+        rows = rows[:, keep]
+        out[w] = WheelDips(*(rows[k] for k in range(6)))
+    return out
+
+
+def run_impacts(
+    chunk_paths: Sequence[Path], wheels: Sequence[Mapping[str, Any]]
+) -> tuple[list[TrackImpactFinding], dict[str, WheelFlatFinding]]:
+    """Track impacts and wheel flats of a run from its chunk files.
+
+    Parameters
+    ----------
+    chunk_paths : sequence of Path
+    wheels : sequence of dict
+        The wheel results (``wheel``, ``refined_diameter_m`` or ``wheel_diameter_m``).
+    """
+    names = [str(w["wheel"]) for w in wheels]
+    dips = read_dips(chunk_paths, names)
+    diam = {}
+    for w in wheels:
+        d = w.get("refined_diameter_m") or w.get("wheel_diameter_m")
+        if d is not None and np.isfinite(float(d)) and float(d) > 0:
+            diam[str(w["wheel"])] = float(d)
+    flats, used = wheel_flats(dips, diam)
+    return track_impacts(dips, exclude=used, wheels_measured=tuple(names)), flats
+
+
+def mask_track_impacts(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding],
+                       settings: ProcessingSettings) -> pd.DataFrame:
+    """Profiles with the track columns bridged around every track impact and ``track_impact_mm`` written.
+
+    Every wheel's bins within :func:`app.analysis.impacts.mask.mask_half_width`
+    of an impact are replaced by the straight line between the undisturbed
+    bins beside them (:data:`BRIDGED_COLUMNS`); the bin holding the impact
+    gets its estimated depth in ``track_impact_mm`` (that rail's estimate
+    where it was found there, else the mean), all others NaN.
+    """
+    out = profiles.copy()
+    out[IMPACT_COLUMN] = np.nan
+    if not impacts or out.empty:
+        return out
+    bl = float(settings.bin_length_m)
+    pos = [i.track_m for i in impacts]
+    half = [mask_half_width(i.length_m, settings.track_resolution_m) for i in impacts]
+    for wheel, rows in out.groupby(out["wheel"].astype(str), sort=False).indices.items():
+        sub = out.iloc[rows]
+        order = np.argsort(sub["bin"].to_numpy())
+        idx = rows[order]
+        bins = out["bin"].to_numpy()[idx]
+        x = (bins + 0.5) * bl
+        mask = impact_mask(x, pos, half)
+        for col in BRIDGED_COLUMNS:
+            if col in out.columns:
+                out.iloc[idx, out.columns.get_loc(col)] = bridge(x, out[col].to_numpy(dtype=np.float64)[idx], mask)
+        side = int(str(wheel)[1]) if len(str(wheel)) == 2 else 0
+        col = out.columns.get_loc(IMPACT_COLUMN)
+        for imp in impacts:
+            b = int(np.floor(imp.track_m / bl))
+            j = np.searchsorted(bins, b)
+            if j < bins.size and bins[j] == b:
+                out.iloc[idx[j], col] = 1e3 * imp.depth_by_side.get(side, imp.depth_m)
+    return out
+
+
+def flat_result(flat: WheelFlatFinding | None) -> dict[str, Any] | None:
+    """A wheel flat as stored with the wheel's results (JSON: mm, degrees, km)."""
+    if flat is None:
+        return None
+    d = asdict(flat)
+    return {
+        "angle_deg": d["angle_deg"],
+        "angle_spread_deg": d["angle_spread_deg"],
+        "depth_mm": 1e3 * d["depth_m"],
+        "length_mm": 1e3 * d["length_m"],
+        "n_hits": d["n_hits"],
+        "n_revolutions": d["n_revolutions"],
+        "first_km": d["first_track_m"] / 1000.0,
+        "last_km": d["last_track_m"] / 1000.0,
+    }

@@ -1,0 +1,169 @@
+"""Isolated impacts (app.analysis.impacts): the surface estimate, the matched dips, the classification, the mask.
+
+The surface under a wheel is made here, put through the wheel–track dynamics of
+app.analysis.stiffness.track_dynamics (the simulator's contact filter, the same
+model's own parameters) and estimated back; the classification and the mask
+are checked on dips whose truth is set by hand.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from app.analysis.impacts import find_dips, surface_estimate
+from app.analysis.impacts.classify import (
+    PAIR_THRESHOLD,
+    SINGLE_RAIL_THRESHOLD,
+    WheelDips,
+    track_impacts,
+    wheel_flats,
+)
+from app.analysis.impacts.mask import bridge, impact_mask, mask_half_width
+from app.analysis.impacts.surface import band_gain
+from app.analysis.stiffness.track_dynamics import TrackParameters
+from app.simulate.contact import ContactFilter
+from app.simulate.surface import RailSurface, TrackImpact
+from app.simulate.wheels import WheelFlat
+
+FS = 10_000.0
+V = 30.0
+
+
+def _through_the_track(height_at, length_m: float, noise: float = 0.05, seed: int = 0):
+    """Acceleration of a wheel rolling at V over a surface ``height_at(s)`` (m), the model's own dynamics."""
+    f = ContactFilter(TrackParameters(), FS)
+    n = int(length_m / V * FS)
+    t = np.arange(-f.history, n + f.lookahead) / FS
+    a = f.apply(height_at(V * t))
+    a += noise * np.random.default_rng(seed).standard_normal(a.size)
+    s = V * np.arange(n) / FS
+    return a, s, np.full(n, V)
+
+
+def test_surface_estimate_inverts_the_dynamics():
+    rough = RailSurface(3)
+    x, h = rough.profile(1, -20.0, 140.0)
+    weld = TrackImpact(60.0, 1.0, 0.3e-3, 1)
+
+    def height(s):
+        return np.interp(s, x, h) + weld.height(s)
+
+    a, s, v = _through_the_track(height, 120.0)
+    est = surface_estimate(a, s, v)
+    truth = height(est.s)
+    kappa = np.fft.rfftfreq(truth.size, est.step)
+    banded = np.fft.irfft(np.fft.rfft(truth) * est.gain(kappa), truth.size)
+    inner = est.valid & (est.s > 10) & (est.s < 110)
+    assert np.corrcoef(est.height[inner], banded[inner])[0, 1] > 0.99
+    assert est.height[inner].std() == pytest.approx(banded[inner].std(), rel=0.03)
+
+
+def test_a_weld_and_a_flat_are_found_with_their_depth():
+    weld = TrackImpact(60.0, 1.0, 0.3e-3, 1)
+    flat = WheelFlat(0.04, 0.2e-3, 1.0)
+
+    def height(s):
+        return weld.height(s) + flat.height(s, 0.92)
+
+    a, s, v = _through_the_track(height, 120.0)
+    dips = find_dips(surface_estimate(a, s, v))
+    at_weld = np.abs(dips.s_m - 60.0) < 0.5
+    assert at_weld.sum() == 1
+    assert dips.depth_m[at_weld][0] == pytest.approx(0.3e-3, rel=0.1)
+    assert dips.length_m[at_weld][0] == 1.0
+    hits = ~at_weld & (dips.length_m < 0.2)
+    circ = math.pi * 0.92
+    assert hits.sum() >= 0.9 * 110 / circ  # (nearly) every revolution between the ends
+    assert np.median(dips.depth_m[hits]) == pytest.approx(0.2e-3, rel=0.15)
+    gaps = np.diff(dips.s_m[hits])
+    assert np.allclose(gaps[gaps < 1.5 * circ], circ, atol=0.02)
+
+
+def test_smooth_surface_gives_no_dip():
+    a, s, v = _through_the_track(lambda s: np.zeros_like(s), 120.0, noise=1.0)
+    assert len(find_dips(surface_estimate(a, s, v))) == 0
+
+
+def test_surface_estimate_checks_its_arguments():
+    s = np.arange(100) * 0.003
+    with pytest.raises(ValueError, match="equal length"):
+        surface_estimate(np.zeros(100), s, np.ones(99))
+    with pytest.raises(ValueError, match="must not decrease"):
+        surface_estimate(np.zeros(100), s[::-1], np.ones(100))
+    with pytest.raises(ValueError, match="band_m"):
+        surface_estimate(np.zeros(100), s, np.ones(100), band_m=(0.01, 2.0))
+    with pytest.raises(ValueError, match="threshold"):
+        find_dips(surface_estimate(np.zeros(100), s, np.full(100, 10.0)), threshold=0)
+
+
+def test_band_gain_is_half_at_the_edges():
+    g = band_gain(np.array([1 / 0.025, 1 / 2.5, 1.0, 0.0]), (0.025, 2.5))
+    assert g[:2] == pytest.approx([0.5, 0.5])
+    assert g[2] == 1.0 and g[3] == 0.0
+
+
+def _dips(track_m, score, depth=0.3e-3, length=1.0, s_m=None):
+    track_m = np.asarray(track_m, dtype=float)
+    n = track_m.size
+    return WheelDips(track_m, track_m if s_m is None else np.asarray(s_m, float), np.full(n, length),
+                     np.full(n, depth), np.asarray(score, dtype=float) * np.ones(n), np.full(n, 30.0))
+
+
+def test_track_impacts_need_both_axles_and_enough_evidence():
+    all4 = ("11", "12", "41", "42")
+    weld = {w: _dips([100.0 + 0.05 * i], 5.0) for i, w in enumerate(all4)}
+    found = track_impacts(weld, wheels_measured=all4)
+    assert len(found) == 1 and found[0].wheels == all4
+    assert found[0].score == pytest.approx(10.0) and found[0].track_m == pytest.approx(100.075)
+    assert set(found[0].depth_by_side) == {1, 2}
+    # one axle only (a jolt of the vehicle, not fixed to the track)
+    assert track_impacts({"11": weld["11"], "12": weld["12"]}, wheels_measured=all4) == []
+    # weak on both rails: under the pair threshold
+    weak = {w: _dips([100.0], 0.45 * PAIR_THRESHOLD) for w in all4}
+    assert track_impacts(weak, wheels_measured=all4) == []
+    # one rail, strong, both axles
+    one = {"11": _dips([50.0], SINGLE_RAIL_THRESHOLD + 0.1), "41": _dips([50.1], SINGLE_RAIL_THRESHOLD + 0.1)}
+    assert len(track_impacts(one, wheels_measured=all4)) == 1
+    # with one axle measured, one passage is all there is
+    assert len(track_impacts({"11": _dips([50.0], SINGLE_RAIL_THRESHOLD + 0.1)}, wheels_measured=("11",))) == 1
+    # excluded dips (a flat's hits) do not count
+    assert track_impacts(weld, exclude={w: np.ones(1, bool) for w in all4}, wheels_measured=all4) == []
+    with pytest.raises(ValueError, match="wheel ids"):
+        track_impacts({"1": weld["11"]})
+
+
+def test_wheel_flat_is_the_chain_one_circumference_apart():
+    d = 0.92
+    circ = math.pi * d
+    s = 3.0 + circ * np.arange(40) + 0.002 * np.random.default_rng(1).standard_normal(40)
+    angle = (2 * s / d) % (2 * math.pi)
+    flat_dips = WheelDips(1000.0 + s, s, np.full(40, 0.04), np.full(40, 0.2e-3), np.full(40, 20.0), np.full(40, 30.0))
+    other = _dips([1010.0, 1057.3], 6.0, s_m=[10.0, 57.3])
+    flats, used = wheel_flats({"11": flat_dips, "12": other}, {"11": d, "12": d})
+    assert set(flats) == {"11"} and used["11"].all() and not used["12"].any()
+    f = flats["11"]
+    assert f.n_hits == 40 and f.n_revolutions == 40
+    expect = math.degrees(float(np.angle(np.exp(1j * angle).mean()))) % 360
+    assert f.angle_deg == pytest.approx(expect, abs=1e-9) and f.angle_spread_deg < 1.0
+    assert f.depth_m == pytest.approx(0.2e-3)
+    # a wrong diameter breaks the chain
+    assert wheel_flats({"11": flat_dips}, {"11": 0.90})[0] == {}
+    with pytest.raises(ValueError, match="diameter"):
+        wheel_flats({"11": flat_dips}, {"11": float("nan")})
+
+
+def test_mask_and_bridge():
+    x = (np.arange(200) + 0.5) * 0.25
+    mask = impact_mask(x, [25.0], [mask_half_width(1.0, 3.0)])
+    assert mask_half_width(1.0, 3.0) == pytest.approx(5.5)
+    assert mask.sum() == 44 and mask[np.abs(x - 25.0) <= 5.5].all()
+    v = 1.0 + 0.01 * x
+    v[mask] = 0.3  # the false dip of a weld
+    out = bridge(x, v, mask)
+    assert np.allclose(out, 1.0 + 0.01 * x)
+    assert np.isnan(bridge(x, np.full(x.size, np.nan), mask)[mask]).all()
+    with pytest.raises(ValueError, match="equal length"):
+        bridge(x, v[:-1], mask)
