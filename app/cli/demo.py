@@ -137,6 +137,14 @@ def _import_geometry(client, base: str, files: list[Path]) -> None:
         echo(f"  geometry: {path.name}")
 
 
+def _import_assets(client, base: str, path: Path | None) -> None:
+    """Import the line's known discontinuities (an import replaces the line's assets)."""
+    if path is None:
+        return
+    _, body = _post_file(client, f"{base}/api/v1/assets", path, "text/csv")
+    echo(f"  assets: {body['imported']} (switches, bridge, level crossing, joint, weld)")
+
+
 def _wait_jobs(client, base: str, runs: list[dict], procs: list[subprocess.Popen]) -> None:
     """Follow the runs' latest jobs until none is queued or running, printing changes."""
     jobs = {run["latest_job"]["id"]: run["latest_job"] for run in runs if run.get("latest_job")}
@@ -177,7 +185,7 @@ def _where_to_look(base: str, runs: list[dict], line: tuple[str, str]) -> str:
         f"  dashboard (runs)         {base}/\n"
         f"  stiffness map, run {first:<5} {base}/runs/{first}\n"
         f"  line view                {base}/lines\n"
-        f"  condition (work list)    {base}/condition\n"
+        f"  condition (places)       {base}/condition\n"
         f"  map                      {base}/map\n"
         f"  wheels                   {base}/wheels\n"
         f"  correlations             {base}/correlations\n"
@@ -187,6 +195,9 @@ def _where_to_look(base: str, runs: list[dict], line: tuple[str, str]) -> str:
         f"  profile export (CSV)     {api}/runs/{first}/profile.csv?wheel=11\n"
         f"  wheel OOR                {api}/runs/{first}/wheels\n"
         f"  subsidence fit           {api}/analytics/subsidence-fit?{line_q}\n"
+        f"  places (work list)       {api}/condition/places?{line_q}\n"
+        f"  section classes          {api}/condition/sections?{line_q}\n"
+        f"  assets                   {api}/assets?{line_q}\n"
         f"  jobs                     {api}/jobs\n"
         "\nThe command line, in another terminal:\n"
         f"  {_activate_hint()}\n"
@@ -196,25 +207,26 @@ def _where_to_look(base: str, runs: list[dict], line: tuple[str, str]) -> str:
 def demo(
     host: Annotated[str, typer.Option(help="Interface for the API")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="TCP port for the API")] = 8000,
-    length_km: Annotated[float, typer.Option(help="Length of each demo run, km")] = 3.0,
+    length_km: Annotated[float, typer.Option(help="Length of each demo run, km (>= 2)")] = 3.0,
     fs: Annotated[float, typer.Option(help="Sample rate of the demo runs, Hz")] = 10_000.0,
     serve_after: Annotated[
         bool, typer.Option("--serve/--no-serve", help="Keep serving after processing (until Ctrl-C)")
     ] = True,
 ) -> None:
-    """Migrate, simulate the demo data (4 runs of 2 lines, reference data, line geometry), start
-    API and worker, upload, import and process it all over HTTP, print where to look."""
+    """Migrate, simulate the demo data (a history of 10 runs of line SIM with a tamping, a developing
+    soft spot and a new change, one run of SIM-B, reference data, assets, line geometry), start API
+    and worker, import and upload it all over HTTP, process it, print where to look."""
     import httpx
 
     from app.db import migrate as db_migrate
-    from app.simulate.demo import DEMO_RUNS, write_demo_dataset
+    from app.simulate.demo import DEMO_HISTORY_RUNS, DEMO_RUNS, write_demo_dataset
 
     settings = get_settings()
     if settings.is_production:
         typer.echo("error: the demo does not run with TRACKVKF_ENV=production", err=True)
         raise typer.Exit(2)
-    if not length_km > 0:
-        typer.echo(f"error: --length-km must be > 0, got {length_km:g}", err=True)
+    if not length_km >= 2:
+        typer.echo(f"error: --length-km must be >= 2 (the demo's history needs it), got {length_km:g}", err=True)
         raise typer.Exit(2)
     if not _port_free(host, port):
         typer.echo(f"error: port {port} on {host} is in use; pass --port", err=True)
@@ -225,9 +237,10 @@ def demo(
 
     demo_dir = Path(settings.run_store).resolve().parent / "demo"
     # the amplitudes follow the resonance model (app.simulate.amplitude): not a power law in speed
-    echo(f"demo data in {demo_dir}: {len(DEMO_RUNS)} runs of {length_km:g} km at {fs:g} Hz "
-         "and reference data (simulated once, then reused) ...")
-    data = write_demo_dataset(demo_dir, length_km=length_km, fs=fs, amplitude_model="resonance")
+    n_runs = DEMO_HISTORY_RUNS + sum(r.line_id != DEMO_RUNS[0].line_id for r in DEMO_RUNS)
+    echo(f"demo data in {demo_dir}: {n_runs} runs of {length_km:g} km at {fs:g} Hz "
+         "(a history of line SIM, two weeks apart), reference data and assets (simulated once, then reused) ...")
+    data = write_demo_dataset(demo_dir, length_km=length_km, fs=fs, amplitude_model="resonance", history=True)
 
     base = f"http://{host}:{port}"
     env = dict(os.environ)
@@ -247,14 +260,18 @@ def demo(
     procs = [api, wrk]
     try:
         _wait_healthy(base, procs)
-        echo(f"API up at {base}; uploading the demo runs ...")
+        echo(f"API up at {base}; importing and uploading the demo data ...")
         headers = {"Authorization": f"Bearer {upload_key}"}
         with httpx.Client(timeout=600, headers=headers) as client:
-            runs = _upload_runs(client, base, data.runs)
+            # reference data first: a run's places are found when it is published, on its line's
+            # superstructure classes and maintenance records as they are then
             echo(f"importing the reference data of line {data.reference_line[0]} "
                  f"track {data.reference_line[1]} ...")
             _import_reference(client, base, data.reference)
             _import_geometry(client, base, data.geometry)
+            _import_assets(client, base, data.assets)
+            echo("uploading the runs (in date order: the worker processes them in that order) ...")
+            runs = _upload_runs(client, base, data.runs)
             _wait_jobs(client, base, runs, procs)
         _revoke_demo_key(upload_key_id)
         if admin_password is not None:

@@ -13,6 +13,14 @@ line have their random roughness (Sato, good rail) and a dipped weld every 100�
 actions of the maintenance records apply to line SIM's rails from their dates on, and wheel 41 of
 SIM-1 has a 40 mm wheel flat from the second run on.
 
+With ``history=True`` (what ``trackvkf demo`` uses) the three runs of line ``SIM`` are replaced by
+a short **history** of the same line (:func:`app.simulate.history.demo_history`: 10 runs two weeks
+apart with speed ramps and cruise speeds ±10 %, a place developing softer, one developing harder
+that a tamping repairs two thirds through — its maintenance record lies inside the runs' span —
+and a new −20 % change half way), so the Condition page's places, trends, status workflow and
+before/after view have content; the line's **assets** (switches, a bridge, a level crossing, joints,
+a weld at the new change: :func:`demo_assets`) are written too.
+
 Files are written once into a directory and reused (same bytes, same sha256: the demo's second
 start uploads nothing new).
 """
@@ -26,16 +34,20 @@ import numpy as np
 import pandas as pd
 
 from app.simulate.geometry import synthetic_line, write_geometry
+from app.simulate.history import HistorySpec, demo_history, write_history
 from app.simulate.reference import simulate_reference
 from app.simulate.run import DEFAULT_TRUE_DIAMETERS_M, Confounders, simulate_run
 from app.simulate.surface import RailGrinding
 from app.simulate.track import LineModel, generate_line
 from app.simulate.wheels import WheelFlat, random_wheel_oor
 
-__all__ = ["DemoRun", "DemoDataset", "DEMO_RUNS", "DEMO_KM_START", "REFERENCE_KINDS", "write_demo_dataset"]
+__all__ = ["DemoRun", "DemoDataset", "DEMO_RUNS", "DEMO_KM_START", "DEMO_HISTORY_RUNS", "REFERENCE_KINDS",
+           "demo_assets", "write_demo_dataset"]
 
 #: km of the position reference at the start of every demo run
 DEMO_KM_START = 12.0
+#: runs of the demo's history of line SIM (two weeks apart)
+DEMO_HISTORY_RUNS = 10
 #: reference data kinds, in the order they are imported
 REFERENCE_KINDS = ("superstructure", "maintenance", "subsidence")
 
@@ -85,6 +97,8 @@ class DemoDataset:
     geometry: list[Path] = field(default_factory=list)
     reference_line: tuple[str, str] = ("SIM", "1")
     written: list[Path] = field(default_factory=list)
+    history: HistorySpec | None = None
+    assets: Path | None = None
 
 
 def _line(line_seed: int, length_km: float, rough: bool = False) -> LineModel:
@@ -107,9 +121,29 @@ def _ground(line: LineModel, maintenance_csv: Path) -> LineModel:
     return replace(line, surface=line.surface.with_grindings(grindings))
 
 
+def demo_assets(spec: HistorySpec) -> pd.DataFrame:
+    """Known discontinuities of the history's line (the asset import's columns), at fixed fractions of
+    the run so any demo length works: switches near both ends, a bridge, a level crossing, an
+    insulated joint, and a weld at the new change (a place labelled with its asset)."""
+    x0, L = spec.km_start, spec.length_km
+    change = next((c for c in spec.changes if c.kind == "change"), None)
+    rows = [
+        ("switch", x0 + 0.03 * L, None, "W 1"),
+        ("insulated_joint", x0 + 0.031 * L + 0.03, None, "IJ 1"),
+        ("level_crossing", x0 + 0.22 * L, None, "LC Feldweg"),
+        ("bridge", x0 + 0.47 * L, x0 + 0.47 * L + 0.045, "Mühlbach bridge"),
+        ("switch", x0 + 0.97 * L, None, "W 2"),
+    ]
+    if change is not None:
+        rows.append(("weld", round(0.5 * (change.track_from_m + change.track_to_m)) / 1000.0, None, "thermite weld"))
+    return pd.DataFrame([{"line_id": spec.line_id, "track": spec.track, "type": t, "km": round(k, 4),
+                          "km_to": None if k2 is None else round(k2, 4), "name": n} for t, k, k2, n in rows],
+                        columns=["line_id", "track", "type", "km", "km_to", "name"])
+
+
 def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: float = 10_000.0,
                        runs: tuple[DemoRun, ...] = DEMO_RUNS, amplitude_model: str = "resonance",
-                       confounders: bool = True) -> DemoDataset:
+                       confounders: bool = True, history: bool = False) -> DemoDataset:
     """Write the demo's run files and reference files into ``directory`` (missing ones only).
 
     Parameters
@@ -129,6 +163,11 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
     confounders : bool
         Rail roughness, welds, grinding and the wheel flat of the module docstring (default);
         False: smooth rails and round wheels.
+    history : bool
+        Replace the runs of the first run's line by its history (:data:`DEMO_HISTORY_RUNS` runs,
+        :func:`app.simulate.history.demo_history`; ``length_km`` ≥ 2) whose maintenance record
+        replaces the reference data's, and write the line's assets (:func:`demo_assets`). The
+        history's runs come first in ``runs``, in date order (the order they must be processed in).
 
     Returns
     -------
@@ -141,7 +180,7 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
         raise ValueError("runs: at least one run is needed")
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
-    first = runs[0]
+    first, all_runs = runs[0], runs
     data = DemoDataset(directory=out, reference_line=(first.line_id, first.track))
     lines: dict[int, LineModel] = {}
     # the reference data first: the maintenance records' grinding actions shape line SIM's rails
@@ -154,6 +193,25 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
         files = {kind: Path(ref.files[kind]) for kind in REFERENCE_KINDS}
         data.written.extend(files.values())
     data.reference = files
+    spec, hfiles = None, None
+    if history:
+        if amplitude_model != "resonance":
+            raise ValueError("amplitude_model: the demo history is simulated with the resonance model")
+        # the history's own line model (smooth rails: the places' numerics are measured on it)
+        spec = demo_history(_line(first.line_seed, length_km), km_start=DEMO_KM_START, length_km=length_km,
+                            n_runs=DEMO_HISTORY_RUNS, line_id=first.line_id, track=first.track,
+                            vehicle_id=first.vehicle_id, fs=fs, seed=first.seed)
+        hfiles = write_history(spec, out / "history")
+        data.history = spec
+        data.runs.extend(hfiles.runs)
+        data.written.extend(hfiles.written)
+        runs = tuple(r for r in runs if (r.line_id, r.track) != (first.line_id, first.track))
+        # the history's tamping (inside the runs' span) is the line's maintenance record, its sections the line's
+        data.reference = {**files, "maintenance": hfiles.maintenance, "superstructure": hfiles.superstructure}
+        data.assets = out / f"assets-{spec.line_id}-{spec.track}-{spec.fingerprint()}.csv"
+        if not data.assets.is_file():
+            demo_assets(spec).to_csv(data.assets, index=False)
+            data.written.append(data.assets)
     for run in runs:
         path = out / run.file_name(length_km, fs, amplitude_model, confounders)
         data.runs.append(path)
@@ -173,7 +231,7 @@ def write_demo_dataset(directory: Path | str, *, length_km: float = 3.0, fs: flo
                      with_forces=True, amplitude_model=amplitude_model, wheel_flats=flats,
                      confounders=Confounders() if confounders else Confounders(False, False, False))
         data.written.append(path)
-    for line_id, track, seed in dict.fromkeys((r.line_id, r.track, r.line_seed) for r in runs):
+    for line_id, track, seed in dict.fromkeys((r.line_id, r.track, r.line_seed) for r in all_runs):
         path = out / f"geometry-{line_id}-{track}-{length_km:g}km.geojson"
         data.geometry.append(path)
         if not path.is_file():

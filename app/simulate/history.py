@@ -533,8 +533,9 @@ def demo_history(line: LineModel, *, km_start: float, length_km: float, n_runs: 
     """A short history of the demo's line: something for every part of the Condition page.
 
     On ``line`` (the demo's line model, with its lasting anomalies): a place developing softer
-    (−1 ln unit a year) from the start, a place developing harder (+1.2 a year) that a tamping over
-    200 m around it repairs two thirds through (×0.85, maintenance record written), and a new
+    (−1 ln unit a year) from the start, a place developing harder (+1.2 a year, since 90 days before
+    the first run: on the work list from the first runs, crossing a tier before the work) that a
+    tamping over 200 m around it repairs two thirds through (×0.85, maintenance record written), and a new
     change of −20 % over 20 m half way; cruise speeds over 100 km/h ± 10 % with ramps at both ends,
     start odometry errors N(0, 4 m). Positions are chosen at fixed fractions of the run so any
     demo length ≥ 2 km works.
@@ -548,7 +549,7 @@ def demo_history(line: LineModel, *, km_start: float, length_km: float, n_runs: 
     soft, hard = x0 + 0.55 * L, x0 + 0.85 * L
     changes = (
         TrackChange("developing", soft, soft + 40.0, -every_days, 1.0, rate_per_year=-1.0, taper_m=8.0),
-        TrackChange("developing", hard, hard + 40.0, -every_days, 1.0, rate_per_year=1.2, taper_m=8.0),
+        TrackChange("developing", hard, hard + 40.0, -90.0, 1.0, rate_per_year=1.2, taper_m=8.0),
         TrackChange("tamping", hard - 80.0, hard + 120.0, t_tamp, 0.85, rate_per_year=0.1, taper_m=10.0),
         TrackChange("change", x0 + 0.35 * L + 4.0, x0 + 0.35 * L + 24.0, half, 0.8, taper_m=2.0),
     )

@@ -12,9 +12,12 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from app.analysis.condition import OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
+from app.analysis.condition.section_class import SECTION_CLASSES
+from app.analysis.condition.tiers import TIER_NAMES
 from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
 from app.api import API_PREFIX
 from app.api.deps import RunId, public, require_page_login
+from app.db.models import PLACE_STATUSES
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M
 
 __all__ = [
@@ -94,7 +97,9 @@ def build_pages_router(templates: Jinja2Templates) -> APIRouter:
     @router.get("/condition", response_class=HTMLResponse)
     def condition_page(request: Request) -> HTMLResponse:
         return page(request, "condition.html", "condition", "Condition",
-                    segment_lengths=[int(s) for s in SEGMENT_LENGTHS_M], overview_segment_m=int(OVERVIEW_SEGMENT_M))
+                    segment_lengths=[int(s) for s in SEGMENT_LENGTHS_M], overview_segment_m=int(OVERVIEW_SEGMENT_M),
+                    tiers=list(reversed(TIER_NAMES)), statuses=list(PLACE_STATUSES),
+                    section_classes=list(SECTION_CLASSES))
 
     @router.get("/wheels", response_class=HTMLResponse)
     def wheels_page(request: Request) -> HTMLResponse:

@@ -60,6 +60,8 @@ def _check_content(page, name: str, dashboard) -> None:
     assert not banner.is_visible(), f"{name}: error banner {banner.inner_text()!r}"
     plots = page.evaluate(_PLOTS)
     for p in plots:
+        if name == "condition-demo" and p["id"] == "place-history" and p["text"].startswith("No place on this line"):
+            continue  # the walk's three runs a half year apart list no place; test_condition_page fills every part
         assert p["state"] == "ready" and p["points"] > 0 and p["traces"] > 0, f"{name}: {p}"
     if name == "runs":
         assert page.locator("#runs-body tr[data-run]").count() >= len(dashboard.run_ids)

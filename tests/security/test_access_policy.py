@@ -41,6 +41,7 @@ EXPLICIT = {
     ("DELETE", "/api/v1/runs/{run_id}"): "admin",
     ("GET", "/api/v1/audit"): "admin",
     ("GET", "/metrics"): "admin",  # issue 24: Prometheus metrics, admin only (an API key for the scraper)
+    ("DELETE", "/api/v1/assets/{asset_id}"): "admin",  # issue 25: assets import as engineer, delete as admin
 }
 _ADMIN_PREFIXES = ("/api/v1/auth/users", "/api/v1/auth/keys", "/api/v1/audit",
                    "/api/v1/webhooks")  # issue 16: an admin configures the alert receivers

@@ -132,6 +132,7 @@
     api: {
       get: (path, params) => request("GET", path, { params }),
       post: (path, json) => request("POST", path, { json }),
+      patch: (path, json) => request("PATCH", path, { json }),
       del: (path) => request("DELETE", path),
       upload,
       url,

@@ -1,39 +1,229 @@
-/* Condition: per line the heat map of the condition index (100 m × run date, flagged cells
- * marked), the work list ranked by priority (links to the stiffness map at that km), the trend
- * of a chosen segment with maintenance actions marked, the before/after view of an action, and
- * (admins) the webhooks with their delivery log. Every number comes from /api/v1/condition/…
- * (the segment condition store), never from the 25 cm rows. */
+/* Condition: an exception report of a line. The section classes along the line (A … E per 200 m,
+ * the length per class now and a year before), the places (the work list: tier, extent, peak,
+ * trend with its interval, time to the next tier, status, first seen, linked actions, assets) with
+ * filters by tier and status, a place's history (observations over runs, events, status history,
+ * maintenance in the runs' span) and its status workflow (engineers; viewers read it), then the
+ * store's heat map of ln A, a segment's trend, the maintenance actions with their before/after
+ * and (admins) the webhooks. Places and sections show the stiffness index ln(A/A_ref(class, v));
+ * the heat map and a segment's trend the stored condition index ln A. Every number comes from
+ * /api/v1/condition/… and /api/v1/assets. */
 (function () {
   "use strict";
   const T = window.trackvkf;
-  let lines = [], heat = null, trendData = null, effect = null;
+  let lines = [], heat = null, trendData = null, effect = null, me = null, placeId = null, placeList = null;
+  // answers can arrive out of order (a filter clicked twice, a place opened while another loads):
+  // only the newest request of each view is drawn
+  let placesSeq = 0, placeSeq = 0;
   const $ = (id) => document.getElementById(id);
+  const TIER_COLORS = { watch: "#607d8b", alert: "#d49b00", intervention: "#e65100", immediate: "#c62828" };
+  const CLASS_COLORS = { A: "#2e7d32", B: "#8bc34a", C: "#e6c619", D: "#fb8c00", E: "#c62828", "": "#cfd8dc" };
+  const CLASS_MEANING = {
+    A: "best fifth of healthy track", B: "typical healthy track", C: "the rest of healthy track",
+    D: "beyond anything healthy measured", E: "reaches a place's alert limit", "": "not enough data",
+  };
 
   function current() {
     const [line_id, track] = ($("cond-line").value || "\u0001").split("\u0001");
     return { line_id, track };
   }
-  function kmRange() { return { km_from: $("cond-km-from").value, km_to: $("cond-km-to").value }; }
-  function indexLabel(name) { return name === "ln_amplitude" ? "Index ln(A / 1 m/s²) (log units)" : `Index ${name} (log units)`; }
+  function indexLabel(name) { return name === "ln_amplitude" ? "Condition index ln(A / 1 m/s²) (ln units)" : `Index ${name} (ln units)`; }
   function pct(v, digits) { return v === null || v === undefined ? "–" : `${v > 0 ? "+" : ""}${T.fmt(v, digits ?? 1)}`; }
   function qs(params) {
     const u = new URLSearchParams();
-    for (const [k, v] of Object.entries(params)) if (v !== undefined && v !== null && v !== "") u.set(k, v);
+    for (const [k, v] of Object.entries(params)) {
+      if (Array.isArray(v)) v.forEach((x) => u.append(k, x));
+      else if (v !== undefined && v !== null && v !== "") u.set(k, v);
+    }
     return u.toString();
+  }
+  function tierBadge(t) { return `<span class="tier tier-${T.esc(t)}">${T.esc(t)}</span>`; }
+  function canEdit() { return !!me && (me.role === "engineer" || me.role === "admin"); }
+  function mapLink(runId, a, b) { return `/runs/${runId}?km_from=${(a - 0.05).toFixed(3)}&km_to=${(b + 0.05).toFixed(3)}`; }
+
+  /* ---------------- section classes ---------------- */
+  async function drawSections() {
+    const el = $("cond-sections");
+    const { line_id, track } = current();
+    const s = await T.api.get("/condition/sections", { line_id, track });
+    $("sections-sub").textContent = `(per ${T.fmt(s.section_m, 0)} m, run of ${T.date(s.run_time)})`;
+    $("sections-info").textContent = `class from the rms of the index over a section: A ≤ ${s.limits.map((x) => T.fmt(x, 2)).join(" < B ≤ ").replace(/ < B ≤ (\S+) < B ≤ (\S+) < B ≤ (\S+)$/, " < B ≤ $1 < C ≤ $2 < D ≤ $3 < E")}`;
+    const traces = s.classes.concat([""]).map((c) => {
+      const part = s.sections.filter((x) => x.class === c);
+      return {
+        type: "bar", orientation: "v", name: c ? `class ${c}` : "no class", x: part.map((x) => (x.km_from + x.km_to) / 2),
+        y: part.map(() => 1), width: part.map((x) => (x.km_to - x.km_from) * 0.98), marker: { color: CLASS_COLORS[c] },
+        customdata: part.map((x) => [x.km_from, x.km_to, x.level, x.spread, x.rms, Math.round(100 * x.fill)]),
+        hovertemplate: `class ${c || "–"}<br>km %{customdata[0]:.2f}–%{customdata[1]:.2f}<br>rms %{customdata[4]:.3f}, level %{customdata[2]:.3f}, spread %{customdata[3]:.3f}<br>data %{customdata[5]} %<extra></extra>`,
+      };
+    }).filter((t) => t.x.length);
+    if (!s.sections.length) { T.emptyState(el, "No section with data.", ""); return s; }
+    await T.plot(el, traces, {
+      barmode: "overlay", bargap: 0, showlegend: true,
+      xaxis: T.axis("Track position (km)", { tickformat: ".1f", range: [s.sections[0].km_from, s.sections[s.sections.length - 1].km_to] }),
+      yaxis: { visible: false, range: [0, 1], fixedrange: true },
+      margin: { l: 20, r: 20, t: 30, b: 50 },
+    }, {
+      filename: `section-classes-${line_id}`,
+      csv: () => ({ columns: ["km_from", "km_to", "class", "level", "spread", "rms", "fill"],
+                    rows: s.sections.map((x) => [x.km_from, x.km_to, x.class, x.level, x.spread, x.rms, x.fill]) }),
+    });
+    const old = s.length_by_class_year_ago;
+    $("class-lengths-body").innerHTML = s.classes.concat([""]).map((c) => {
+      const now = (s.length_by_class[c] || 0) / 1000, before = old ? (old[c] || 0) / 1000 : null;
+      if (!c && !now && !before) return "";
+      return `<tr><td><span class="swatch" style="background:${CLASS_COLORS[c]}"></span> ${c || "no class"}</td>
+        <td class="num">${T.fmt(now, 2)}</td><td class="num">${before === null ? "–" : T.fmt(before, 2)}</td>
+        <td class="num">${before === null ? "–" : pct(now - before, 2)}</td><td class="muted">${CLASS_MEANING[c]}</td></tr>`;
+    }).join("") + (old ? "" : `<tr><td colspan="5" class="muted">No run of this line a year or more before the newest: no change over the year yet.</td></tr>`);
+    return s;
+  }
+
+  /* ---------------- places (work list) ---------------- */
+  function checked(name) { return [...document.querySelectorAll(`#places-filter input[name='${name}']:checked`)].map((x) => x.value); }
+
+  function trendText(p) {
+    if (p.rate_per_year === null) return `<span class="muted">${T.esc(p.tendency || "–")}</span>`;
+    const r = (v) => `${v > 0 ? "+" : ""}${T.fmt(100 * v, 0)}`;
+    const arrow = { growing: "↗", shrinking: "↘", stable: "→" }[p.tendency] || "";
+    const iv = p.rate_low !== null && p.rate_high !== null ? ` <span class="muted">(${r(p.rate_low)} … ${r(p.rate_high)})</span>` : "";
+    return `${arrow} ${T.esc(p.tendency)} ${r(p.rate_per_year)} %${iv}`;
+  }
+  function limitText(p) {
+    if (!p.next_tier) return `<span class="muted">top tier</span>`;
+    if (p.days_to_next_tier === null) return `<span class="muted">no significant trend towards ${T.esc(p.next_tier)}</span>`;
+    return `≈ ${T.fmt(p.days_to_next_tier, 0)} d to ${T.esc(p.next_tier)} <span class="muted">(${T.date(p.projected_date)})</span>`;
+  }
+  function peakText(p) {
+    return `<span title="index ${T.fmt(p.peak, 3)} at km ${T.fmt(p.peak_km, 3)}">${pct(p.peak_percent, 0)} % ${p.direction === "soft" ? "▼ soft" : "▲ hard"}</span>`;
+  }
+  function assetsText(p) {
+    const list = (p.assets || []).map((a) => `${T.esc(a.type.replace(/_/g, " "))}${a.name ? ` <span class="muted">${T.esc(a.name)}</span>` : ""}`).join(", ");
+    const muted = p.muted ? ` <span class="badge muted-badge" title="${T.esc(p.muted_reason || "")}">muted</span>` : "";
+    return (list || `<span class="muted">–</span>`) + muted;
+  }
+
+  async function drawPlaces() {
+    const body = $("places-body");
+    const { line_id, track } = current();
+    const params = { line_id, track, tier: checked("tier"), status: checked("status"),
+                     include_closed: $("include-inactive").checked ? "true" : undefined };
+    const q = qs(params);
+    $("places-csv").href = `${T.boot.api}/condition/places.csv?${q}&limit=1000`;
+    $("places-geojson").href = `${T.boot.api}/condition/places.geojson?${q}&limit=1000`;
+    if (!params.tier.length || !params.status.length) {
+      placesSeq++;
+      placeList = { items: [], total: 0 };
+      body.innerHTML = `<tr><td colspan="12" class="muted">Choose at least one tier and one status.</td></tr>`;
+      $("places-info").textContent = "";
+      return placeList;
+    }
+    const mine = ++placesSeq;
+    const res = await T.api.get(`/condition/places?${q}&limit=200`);
+    if (mine !== placesSeq) return res;  // a newer filter is on its way
+    placeList = res;
+    $("places-info").textContent = `${res.total} place${res.total === 1 ? "" : "s"}` + (res.total > res.items.length ? `, first ${res.items.length}` : "");
+    if (!res.items.length) {
+      body.innerHTML = `<tr><td colspan="12" class="muted">No place with these tiers and statuses.</td></tr>`;
+      return res;
+    }
+    body.innerHTML = res.items.map((p, i) => `<tr data-place="${p.id}" class="${p.id === placeId ? "selected" : ""}${p.muted ? " is-muted" : ""}">
+      <td class="num">${i + 1}</td><td>${tierBadge(p.tier)}</td>
+      <td title="place ${p.id}">${p.km_from.toFixed(3)}–${p.km_to.toFixed(3)}<br><span class="muted">${T.fmt(p.length_m, 0)} m</span></td>
+      <td class="num nowrap">${peakText(p)}</td><td class="wrap">${trendText(p)}</td><td class="wrap">${limitText(p)}</td>
+      <td><span class="status status-${T.esc(p.status)}">${T.esc(p.status.replace("_", " "))}</span></td>
+      <td>${T.date(p.first_seen)}</td><td class="num" title="runs confirming">${p.runs_confirming}</td>
+      <td class="wrap">${p.actions.length ? p.actions.map((a) => `${T.esc(a.kind)} ${T.date(a.date)}`).join(", ") : `<span class="muted">–</span>`}</td>
+      <td class="wrap">${assetsText(p)}</td>
+      <td><button class="btn small" type="button" data-act="history">History</button>
+        <a class="btn small" href="${mapLink(p.last_run_id, p.km_from, p.km_to)}">Map</a></td></tr>`).join("");
+    return res;
+  }
+
+  /* ---------------- a place's history ---------------- */
+  async function drawPlace(id) {
+    placeId = Number(id);
+    for (const tr of document.querySelectorAll("#places-body tr[data-place]")) tr.classList.toggle("selected", Number(tr.dataset.place) === placeId);
+    const mine = ++placeSeq;
+    const p = await T.api.get(`/condition/places/${placeId}`);
+    if (mine !== placeSeq) return p;  // another place (or a newer state of this one) is on its way
+    $("place-title").innerHTML = `Place ${p.id}: km ${p.km_from.toFixed(3)}–${p.km_to.toFixed(3)} ${tierBadge(p.tier)}`;
+    const link = $("place-map");
+    link.href = mapLink(p.last_run_id, p.km_from, p.km_to);
+    link.hidden = false;
+    const kv = [
+      ["Action", T.esc(p.action)], ["Peak", `${peakText(p)} <span class="muted">(index ${T.fmt(p.peak, 3)})</span>`],
+      ["Evidence", T.esc(p.evidence.join(", ") || "–")], ["Wheels", T.esc(p.wheels.join(", ") || "–")],
+      ["Trend per year (95 %)", trendText(p)], ["Time to next tier", limitText(p)],
+      ["First seen / last confirmed", `${T.date(p.first_seen)} / ${T.date(p.last_confirmed)}`],
+      ["Runs confirming", String(p.runs_confirming) + (p.active ? "" : " <span class='muted'>(not seen lately)</span>")],
+      ["Status", `<span class="status status-${T.esc(p.status)}">${T.esc(p.status.replace("_", " "))}</span>` + (p.status_by ? ` <span class="muted">by ${T.esc(p.status_by)} ${T.date(p.status_at)}</span>` : "")],
+      ["Assets", assetsText(p)], ["Method version", `<span class="muted">${T.esc(p.method_version || "–")}</span>`],
+    ];
+    $("place-kv").innerHTML = kv.map(([k, v]) => `<div><span>${k}</span><b>${v}</b></div>`).join("");
+    await drawPlaceHistory(p);
+    $("place-events-body").innerHTML = p.events.length ? p.events.map((e) => `<tr><td>${T.date(e.time)}</td><td>${T.esc(e.kind.replace("_", " "))}</td>
+      <td>${e.run_id ?? "–"}</td><td>${e.old_tier && e.new_tier && e.old_tier !== e.new_tier ? `${tierBadge(e.old_tier)} → ${tierBadge(e.new_tier)}` : e.new_tier || e.old_tier ? tierBadge(e.new_tier || e.old_tier) : "–"}</td></tr>`).join("")
+      : `<tr><td colspan="4" class="muted">No events.</td></tr>`;
+    $("place-maint-body").innerHTML = p.maintenance.length ? p.maintenance.map((m) => `<tr><td>${T.date(m.date)}</td><td>${T.esc(m.kind || m.type)}</td>
+      <td>${T.fmt(m.km_from, 3)}–${T.fmt(m.km_to, 3)}</td></tr>`).join("")
+      : `<tr><td colspan="3" class="muted">No maintenance action over this place within its runs' span.</td></tr>`;
+    $("place-status-body").innerHTML = p.status_history.length ? p.status_history.map((h) => `<tr><td>${T.datetime(h.at)}</td><td>${T.esc(h.by)}</td>
+      <td>${T.esc(h.old.replace("_", " "))} → <b>${T.esc(h.new.replace("_", " "))}</b></td><td class="wrap">${T.esc(h.comment)}</td></tr>`).join("")
+      : `<tr><td colspan="4" class="muted">Status ${T.esc(p.status)} since the place was found; no change yet.</td></tr>`;
+    $("status-form").hidden = !canEdit();
+    $("status-readonly").hidden = canEdit();
+    $("status-new").value = p.status;
+    return p;
+  }
+
+  async function drawPlaceHistory(p) {
+    const el = $("place-history");
+    const obs = p.observations;
+    if (!obs.length) { T.emptyState(el, "No observation of this place.", ""); return; }
+    const x = obs.map((o) => o.run_time);
+    const traces = [
+      { type: "scatter", mode: "lines+markers", name: "index at the place (ln units)", x, y: obs.map((o) => o.level),
+        line: { color: "#1d2733", width: 2 }, marker: { size: 9, color: obs.map((o) => TIER_COLORS[o.tier] || "#999") },
+        customdata: obs.map((o) => [o.run_id, o.tier, o.speed_kmh, o.km_from, o.km_to]),
+        hovertemplate: "%{x|%Y-%m-%d} run %{customdata[0]}<br>index %{y:.3f} (%{customdata[1]})<br>km %{customdata[3]:.3f}–%{customdata[4]:.3f}, %{customdata[2]:.0f} km/h<extra></extra>" },
+    ];
+    const withChange = obs.filter((o) => o.change !== null);
+    if (withChange.length) traces.push({ type: "scatter", mode: "markers", name: "change against its baseline", x: withChange.map((o) => o.run_time),
+      y: withChange.map((o) => o.change), marker: { symbol: "diamond-open", size: 8, color: "#5d6b7a" },
+      hovertemplate: "%{x|%Y-%m-%d}: change %{y:.3f}<extra></extra>" });
+    const shapes = [], annotations = [];
+    if (p.next_limit !== null && p.next_tier) {
+      const lim = (p.direction === "soft" ? -1 : 1) * Math.abs(p.next_limit);
+      shapes.push({ type: "line", xref: "paper", x0: 0, x1: 1, yref: "y", y0: lim, y1: lim, line: { color: TIER_COLORS[p.next_tier], width: 1.5, dash: "dot" } });
+      annotations.push({ xref: "paper", x: 1, y: lim, yanchor: "bottom", xanchor: "right", showarrow: false, text: `${p.next_tier} limit`, font: { size: 11, color: TIER_COLORS[p.next_tier] } });
+    }
+    for (const m of p.maintenance) {
+      shapes.push({ type: "line", xref: "x", yref: "paper", x0: m.date, x1: m.date, y0: 0, y1: 1, line: { color: "#2e7d32", width: 2, dash: "dash" } });
+      annotations.push({ x: m.date, y: 1, xref: "x", yref: "paper", yanchor: "bottom", showarrow: false, text: T.esc(m.kind || m.type), font: { size: 11, color: "#2e7d32" } });
+    }
+    await T.plot(el, traces, {
+      xaxis: T.dateAxis ? T.dateAxis("Run date", x, {}, 30) : T.axis("Run date", { type: "date" }),
+      yaxis: T.axis("Stiffness index ln(A / A_ref) (ln units)", { zeroline: true }),
+      shapes, annotations, margin: { l: 80, r: 30, t: 30, b: 55 },
+    }, {
+      filename: `place-${p.id}-history`,
+      csv: () => ({ columns: ["run_id", "run_time", "speed_kmh", "level", "change", "tier", "km_from", "km_to", "method_version"],
+                    rows: obs.map((o) => [o.run_id, o.run_time, o.speed_kmh, o.level, o.change, o.tier, o.km_from, o.km_to, o.method_version]) }),
+    });
   }
 
   async function drawHeatmap() {
     const el = $("cond-heatmap");
     const { line_id, track } = current();
-    heat = await T.api.get("/condition/heatmap", { line_id, track, wheel: $("cond-wheel").value, ...kmRange() });
+    heat = await T.api.get("/condition/heatmap", { line_id, track, wheel: $("cond-wheel").value });
     if (!heat.runs.length || !heat.km.length) { T.emptyState(el, "No runs of this line in the condition store.", ""); return; }
     const x = heat.km.map((k) => k + heat.segment_m / 2000);
     const y = heat.runs.map((r) => r.start_time);
     const fx = heat.flagged.map(([i, j]) => x[j]), fy = heat.flagged.map(([i]) => y[i]);
     await T.plot(el, [
       { type: "heatmap", x, y, z: heat.matrix, colorscale: "YlOrRd", reversescale: true, hoverongaps: false, name: "index",
-        colorbar: { title: { text: "Index", side: "right" }, thickness: 14 },
-        hovertemplate: "%{y|%Y-%m-%d}<br>km %{x:.2f}<br>index %{z:.3f}<extra></extra>" },
+        colorbar: { title: { text: "ln A", side: "right" }, thickness: 14 },
+        hovertemplate: "%{y|%Y-%m-%d}<br>km %{x:.2f}<br>ln A %{z:.3f}<extra></extra>" },
       { type: "scatter", mode: "markers", x: fx, y: fy, name: "flagged", marker: { symbol: "x-thin", size: 7, color: "#1d2733", line: { width: 1.5, color: "#1d2733" } },
         hovertemplate: "flagged<br>%{y|%Y-%m-%d} km %{x:.2f}<extra></extra>" },
     ], {
@@ -59,27 +249,6 @@
         drawTrend();
       });
     }
-  }
-
-  async function drawWorklist() {
-    const body = $("worklist-body");
-    const { line_id, track } = current();
-    const params = { line_id, track, segment_m: $("cond-seg").value, class: $("cond-class").value || undefined, ...kmRange() };
-    const wl = await T.api.get("/condition/hotspots", { ...params, limit: 50 });
-    const q = qs({ ...params, limit: 10000 });
-    $("worklist-csv").href = `${T.boot.api}/condition/hotspots.csv?${q}`;
-    $("worklist-geojson").href = `${T.boot.api}/condition/hotspots.geojson?${q}`;
-    $("worklist-info").textContent = `${wl.total} segment${wl.total === 1 ? "" : "s"} beyond a threshold` + (wl.total > wl.items.length ? `, first ${wl.items.length}` : "");
-    if (!wl.items.length) { body.innerHTML = `<tr><td colspan="11" class="muted">Nothing beyond the thresholds in the newest run.</td></tr>`; return wl; }
-    body.innerHTML = wl.items.map((h) => `<tr data-km="${h.km_from}" data-seg="${h.segment_m}">
-      <td class="num">${h.rank}</td><td>${h.km_from.toFixed(3)}–${h.km_to.toFixed(3)}</td><td>${T.esc(h.superstructure || "–")}</td>
-      <td class="num"><b>${T.fmt(h.priority, 2)}</b></td><td>${T.esc(h.reasons.join(", "))}</td>
-      <td>${h.direction === "up" ? "▲ up" : "▼ down"}</td><td class="num">${T.fmt(h.anomaly_z, 1)}</td>
-      <td class="num">${pct(h.change_pct)}</td><td class="num">${pct(h.rate_pct_per_year)}</td>
-      <td class="num">${h.wheels_agreeing}/${h.n_wheels}</td>
-      <td><button class="btn small" type="button" data-act="trend">Trend</button>
-        ${h.map_url ? `<a class="btn small" href="${T.esc(h.map_url)}">Stiffness map</a>` : ""}</td></tr>`).join("");
-    return wl;
   }
 
   async function drawTrend() {
@@ -176,7 +345,6 @@
   }
 
   async function drawWebhooks() {
-    const me = await T.api.get("/auth/me").catch(() => null);
     if (!me || me.role !== "admin") return;
     $("webhooks-card").hidden = false;
     const [hooks, log] = await Promise.all([T.api.get("/webhooks"), T.api.get("/webhooks/deliveries", { limit: 20 })]);
@@ -190,41 +358,56 @@
       : `<tr><td colspan="8" class="muted">No deliveries yet.</td></tr>`;
   }
 
+
   async function show() {
     T.banner(null);
     const { line_id } = current();
     const line = lines.find((l) => `${l.line_id}\u0001${l.track}` === $("cond-line").value);
     $("cond-info").textContent = line ? `${line.n_runs} runs, ${T.date(line.first_run)} – ${T.date(line.last_run)}, km ${T.fmt(line.km_min, 2)}–${T.fmt(line.km_max, 2)}` : "";
     if (!line_id) return;
+    await drawSections();
+    const res = await drawPlaces();
+    const top = res.items[0];
+    if (top && !(placeList.items.some((p) => p.id === placeId))) placeId = top.id;
+    if (placeId) await drawPlace(placeId);
+    else T.emptyState("place-history", "No place on this line.", "<p>Places appear once two runs find the same exceedance (at once at the intervention tier).</p>");
     await drawHeatmap();
-    const wl = await drawWorklist();
     if (!$("cond-trend-km").value) {
-      const top = wl && wl.items[0];
-      $("cond-trend-km").value = top ? (top.km_from + 0.0005).toFixed(3) : ((line.km_min + line.km_max) / 2).toFixed(3);
-      $("cond-trend-seg").value = top ? String(top.segment_m) : String(T.boot.overview_segment_m);
+      $("cond-trend-km").value = top ? top.peak_km.toFixed(3) : ((line.km_min + line.km_max) / 2).toFixed(3);
+      $("cond-trend-seg").value = top ? "10" : String(T.boot.overview_segment_m);
     }
     await drawTrend();
     await drawActions();
   }
 
-  async function loadClasses() {
-    const { line_id, track } = current();
-    const sel = $("cond-class");
-    const res = await T.api.optional("/reference/superstructure", { line_id, track }).catch(() => null);
-    const types = [...new Set(((res && res.items) || []).map((s) => s.type))].sort();
-    sel.innerHTML = `<option value="">all classes</option>` + types.map((t) => `<option value="${T.esc(t)}">${T.esc(t)}</option>`).join("");
-  }
-
-  $("cond-controls").addEventListener("submit", (ev) => { ev.preventDefault(); show().catch((e) => T.banner(`Could not load the condition: ${e.detail || e.message}`)); });
-  $("cond-line").addEventListener("change", async () => { $("cond-trend-km").value = ""; await loadClasses(); });
-  $("cond-trend-show").addEventListener("click", () => drawTrend().catch((e) => T.banner(`Trend: ${e.detail || e.message}`)));
-  $("worklist-body").addEventListener("click", (ev) => {
-    const btn = ev.target.closest("button[data-act='trend']");
+  const fail = (what) => (e) => T.banner(`${what}: ${e.detail || e.message}`);
+  $("cond-controls").addEventListener("submit", (ev) => { ev.preventDefault(); show().catch(fail("Could not load the condition")); });
+  $("cond-line").addEventListener("change", () => { $("cond-trend-km").value = ""; placeId = null; });
+  $("places-filter").addEventListener("change", () => drawPlaces().catch(fail("Places")));
+  $("cond-wheel").addEventListener("change", () => drawHeatmap().catch(fail("Heat map")));
+  $("cond-trend-show").addEventListener("click", () => drawTrend().catch(fail("Trend")));
+  $("places-body").addEventListener("click", (ev) => {
+    const btn = ev.target.closest("button[data-act='history']");
     if (!btn) return;
     const row = btn.closest("tr");
-    $("cond-trend-km").value = (parseFloat(row.dataset.km) + 0.0005).toFixed(3);
-    $("cond-trend-seg").value = row.dataset.seg;
-    drawTrend().catch((e) => T.banner(`Trend: ${e.detail || e.message}`));
+    drawPlace(row.dataset.place).then((p) => {
+      $("cond-trend-km").value = p.peak_km.toFixed(3);
+      $("cond-trend-seg").value = "10";
+      $("place-card").scrollIntoView({ behavior: "smooth", block: "start" });
+      return drawTrend();
+    }).catch(fail("Place"));
+  });
+  $("status-form").addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    const comment = $("status-comment").value.trim();
+    if (!comment) { T.banner("A status change needs a comment: what was decided and why."); $("status-comment").focus(); return; }
+    try {
+      await T.api.patch(`/condition/places/${placeId}/status`, { status: $("status-new").value, comment });
+      $("status-comment").value = "";
+      T.banner(`Place ${placeId}: status set to ${$("status-new").value.replace("_", " ")}.`, "ok");
+      await drawPlaces();
+      await drawPlace(placeId);
+    } catch (e) { T.banner(`Status not changed (HTTP ${e.status}): ${e.detail}`); }
   });
   $("actions-body").addEventListener("click", (ev) => {
     const row = ev.target.closest("tr[data-action]");
@@ -250,18 +433,22 @@
     } catch (e) { T.banner(`Webhook ${id}: ${e.detail || e.message}`); }
   });
 
+
   (async () => {
     try {
       $("cond-wheel").innerHTML += T.WHEELS.map((w) => `<option value="${w}">${T.wheelLabel(w)}</option>`).join("");
+      me = await T.api.get("/auth/me").catch(() => null);
       lines = (await T.api.get("/condition/lines")).items;
       if (!lines.length) {
-        for (const id of ["cond-heatmap", "cond-trend", "cond-effect"]) T.emptyState(id, "No runs in the condition store yet.",
-          "<p>Processed runs with a line id appear here; <code>trackvkf simulate-fleet</code> writes a year of generated runs.</p>");
+        for (const id of ["cond-sections", "place-history", "cond-heatmap", "cond-trend", "cond-effect"]) T.emptyState(id, "No runs in the condition store yet.",
+          "<p>Processed runs with a line id appear here: <code>./scripts/demo.sh</code> processes a short history of a line.</p>");
+        $("places-body").innerHTML = `<tr><td colspan="12" class="muted">No places yet.</td></tr>`;
       } else {
         const best = lines.reduce((a, b) => (b.n_runs > a.n_runs ? b : a));
         $("cond-line").innerHTML = lines.map((l) => `<option value="${T.esc(l.line_id)}\u0001${T.esc(l.track)}">line ${T.esc(l.line_id)} / track ${T.esc(l.track)} (${l.n_runs} runs)</option>`).join("");
         $("cond-line").value = `${best.line_id}\u0001${best.track}`;
-        await loadClasses();
+        const want = T.param("place");
+        if (want) placeId = Number(want);
         await show();
       }
       await drawWebhooks();

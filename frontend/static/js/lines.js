@@ -1,6 +1,6 @@
 /* Line view: heat map runs × km (/analytics/segments: the runs aligned and averaged per
- * segment by the server), overlaid profiles, trend of one segment across run dates
- * (/analytics/segment-trend). */
+ * segment by the server), overlaid profiles with the line's assets marked, trend of one segment
+ * across run dates (/analytics/segment-trend). */
 (function () {
   "use strict";
   const T = window.trackvkf;
@@ -61,7 +61,16 @@
         hovertemplate: `run ${p.run.id} ${T.date(p.run.start_time)}<br>km %{x:.3f}<br>%{y:.3f} m/s²<extra></extra>`,
       };
     });
+    // the line's known discontinuities (assets): a dotted line at each, labelled with its type
+    const first = profiles[0].run;
+    const assets = ((await T.api.optional("/assets", { line_id: first.line_id, track: first.track })) || { items: [] }).items;
+    const shapes = assets.map((a) => ({ type: "line", xref: "x", yref: "paper", x0: a.km, x1: a.km, y0: 0, y1: 1,
+      line: { color: "rgba(55,71,79,0.7)", width: 1, dash: "dot" } }));
+    const annotations = assets.length <= 40 ? assets.map((a) => ({ x: a.km, y: 0.99, xref: "x", yref: "paper", yanchor: "top",
+      showarrow: false, text: `◆ ${T.esc(a.type.replace(/_/g, " "))}`, font: { size: 10, color: "#37474f" }, bgcolor: "rgba(255,255,255,0.75)",
+      hovertext: `${T.esc(a.type.replace(/_/g, " "))}${a.name ? " " + T.esc(a.name) : ""} at km ${a.km.toFixed(3)}` })) : [];
     await T.plot(el, traces, {
+      shapes, annotations,
       xaxis: T.axis("Track position (km)", { tickformat: ".3f" }),
       yaxis: T.axis(`Amplitude ${T.wheelLabel(wheel)}, 10 m mean (m/s²)`, { rangemode: "tozero" }),
       legend: { orientation: "v", x: 1.01, y: 1, xanchor: "left" },

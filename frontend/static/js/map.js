@@ -2,7 +2,8 @@
  * Without a tile URL (TRACKVKF_MAP_TILE_URL) the geometry is drawn alone in a local metric
  * plane (km east/north of the line's centre): nothing is requested outside the server. With
  * one, the same data go on a MapLibre map over the operator's raster tiles. A click on a
- * segment opens the run's stiffness map at that km. */
+ * segment opens the run's stiffness map at that km. The line's known discontinuities (assets)
+ * are diamonds labelled with their type, placed at their km on the geometry. */
 (function () {
   "use strict";
   const T = window.trackvkf;
@@ -14,6 +15,39 @@
   function runLink(seg, runId) {
     const a = Math.min(seg.km_from, seg.km_to) - 0.05, b = Math.max(seg.km_from, seg.km_to) + 0.05;
     return `/runs/${runId}?km_from=${a.toFixed(3)}&km_to=${b.toFixed(3)}`;
+  }
+
+  /* Linear interpolation of the geometry's vertices at km (null outside). */
+  function along(geom, km, key) {
+    const k = geom.km, v = geom[key];
+    if (!k || !k.length) return null;
+    const up = k[k.length - 1] >= k[0];
+    for (let i = 1; i < k.length; i++) {
+      const a = k[i - 1], b = k[i];
+      if ((up && km >= a && km <= b) || (!up && km <= a && km >= b)) {
+        const t = b === a ? 0 : (km - a) / (b - a);
+        return v[i - 1] + t * (v[i] - v[i - 1]);
+      }
+    }
+    return null;
+  }
+
+  function assetTrace(geom, assets) {
+    const pts = assets.map((x) => {
+      const km = x.km_to != null ? (x.km + x.km_to) / 2 : x.km;
+      return tiles
+        ? { a: x.lon ?? along(geom, km, "lon"), b: x.lat ?? along(geom, km, "lat"), x }
+        : { a: along(geom, km, "x_m"), b: along(geom, km, "y_m"), x };
+    }).filter((p) => p.a !== null && p.b !== null);
+    const text = pts.map((p) => p.x.type.replace(/_/g, " "));
+    const hover = pts.map((p) => `${T.esc(p.x.type.replace(/_/g, " "))}${p.x.name ? " " + T.esc(p.x.name) : ""}<br>km ${p.x.km.toFixed(3)}${p.x.km_to != null ? "–" + p.x.km_to.toFixed(3) : ""}`);
+    // labels alternate above and below, so that two assets close together stay readable
+    const textposition = tiles ? "top center" : pts.map((_, i) => (i % 2 ? "bottom center" : "top center"));
+    const base = { mode: "markers+text", name: "assets", text, textposition, hovertext: hover, hoverinfo: "text",
+                   textfont: { size: 11, color: "#37474f" } };
+    if (tiles) return Object.assign(base, { type: "scattermap", lon: pts.map((p) => p.a), lat: pts.map((p) => p.b), marker: { size: 10, color: "#37474f" } });
+    return Object.assign(base, { type: "scatter", x: pts.map((p) => p.a / 1000), y: pts.map((p) => p.b / 1000),
+                                 marker: { symbol: "diamond", size: 10, color: "#37474f", line: { color: "#fff", width: 1 } } });
   }
 
   function traces(geom, ind) {
@@ -69,11 +103,15 @@
       T.api.get(`/geometry/${id}`),
       T.api.get(`/geometry/${id}/indicator`, { quantity, segment_m: segment }),
     ]);
+    const assets = (await T.api.get("/assets", { line_id: geom.line_id, track: geom.track })).items;
     document.getElementById("map-title").textContent = `Line ${geom.line_id} track ${geom.track}`;
     document.getElementById("map-info").textContent = ind.run_id
       ? `run ${ind.run_id} · ${ind.segments.filter((s) => s.value !== null).length} segments with data · ${tiles ? "basemap on" : "no basemap (geometry only)"}`
       : "no processed run on this line and track yet";
-    await T.plot(el, traces(geom, ind), layoutFor(geom), {
+    if (assets.length) document.getElementById("map-info").textContent += ` · ${assets.length} asset${assets.length === 1 ? "" : "s"} (◆)`;
+    const all = traces(geom, ind);
+    if (assets.length) all.push(assetTrace(geom, assets));
+    await T.plot(el, all, layoutFor(geom), {
       filename: `map-${geom.line_id}-${geom.track}`,
       csv: () => ({ columns: ["km_from", "km_to", "km", "lon", "lat", `${ind.quantity}_${ind.unit}`],
                    rows: ind.segments.map((s) => [s.km_from, s.km_to, s.km, s.lon, s.lat, s.value]) }),

@@ -1,7 +1,8 @@
 /* Stiffness map of one run: the stiffness index ln(A / A_ref(class, v)) along km for the four
  * wheels (raw sleeper-passage amplitude one click away), decimated on the server per zoom level,
  * speed on a second axis, the reference curves it used stated under the plot, superstructure
- * sections and maintenance actions shaded when the reference data exist. */
+ * sections and maintenance actions shaded when the reference data exist, known discontinuities
+ * (assets: switches, bridges, joints, ...) marked with their type. */
 (function () {
   "use strict";
   const T = window.trackvkf;
@@ -12,6 +13,7 @@
   const SECTION_COLORS = ["rgba(31,95,168,0.10)", "rgba(224,123,0,0.12)", "rgba(46,139,87,0.11)", "rgba(142,68,173,0.10)",
     "rgba(0,131,143,0.11)", "rgba(176,137,0,0.13)", "rgba(93,64,55,0.10)", "rgba(120,144,156,0.14)"];
   const MAINT_COLOR = "rgba(198,40,40,0.55)";
+  const ASSET_COLOR = "rgba(55,71,79,0.7)";
   function sectionColor(type) {
     let h = 0;
     for (const ch of String(type)) h = (h * 31 + ch.codePointAt(0)) >>> 0;
@@ -89,6 +91,27 @@
         legend.push(`<span class="swatch-item"><span class="swatch mark" style="background:${MAINT_COLOR}"></span>maintenance action (${T.esc(kinds)}), mark at the bottom over its km range</span>`);
       }
       info.push(`${items.length} maintenance action${items.length === 1 ? "" : "s"}`);
+    }
+    { // known discontinuities (assets): a dotted line at each, labelled with its type
+      const res = await T.api.optional("/assets", { line_id: run.line_id, track: run.track });
+      const items = ((res && res.items) || []).filter((x) => (x.km_to ?? x.km) >= a && x.km <= b);
+      const label = items.length <= 40;
+      for (const x of items) {
+        const x1 = x.km_to ?? x.km;
+        shapes.push(x1 > x.km
+          ? { type: "rect", xref: "x", yref: "paper", x0: x.km, x1, y0: 0, y1: 1, fillcolor: ASSET_COLOR.replace("0.7", "0.10"), line: { width: 0 } }
+          : { type: "line", xref: "x", yref: "paper", x0: x.km, x1: x.km, y0: 0, y1: 1, line: { color: ASSET_COLOR, width: 1, dash: "dot" } });
+        if (label) {
+          annotations.push({ x: (x.km + x1) / 2, y: 0.97, xref: "x", yref: "paper", yanchor: "top", showarrow: false,
+            text: `◆ ${T.esc(x.type.replace(/_/g, " "))}`, font: { size: 10, color: "#37474f" }, bgcolor: "rgba(255,255,255,0.75)",
+            hovertext: `${T.esc(x.type.replace(/_/g, " "))}${x.name ? " " + T.esc(x.name) : ""} at km ${x.km.toFixed(3)}${x1 > x.km ? "–" + x1.toFixed(3) : ""}` });
+        }
+      }
+      if (items.length) {
+        const kinds = [...new Set(items.map((x) => x.type.replace(/_/g, " ")))].sort().join(", ");
+        legend.push(`<span class="swatch-item"><span class="swatch asset"></span>asset (${T.esc(kinds)}), dotted line at its km</span>`);
+      }
+      info.push(`${items.length} asset${items.length === 1 ? "" : "s"}`);
     }
     document.getElementById("sections-info").textContent = info.join(" · ");
     const box = document.getElementById("map-legend");

@@ -1,0 +1,106 @@
+"""Section classes of a line (EN 13848-6 / CEN TR 16513 style): per section (200 m by default) a
+class A … E from the speed-conditioned stiffness index of the store's 10 m rows, for the newest
+run and for the newest run at least a year before it, with the length per class.
+
+The index is ``ln(A / A_ref(class, v))`` per 10 m segment, mean over the wheels, exactly as the
+places use it (:func:`app.places.update.run_segment_index`: the curves of the run's method-version
+history; docs/places.md); the classes come from
+:func:`app.analysis.condition.section_class.section_classes` with ``TRACKVKF_PLACES_SECTION_M`` and
+``TRACKVKF_PLACES_SECTION_LIMITS``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any
+
+import numpy as np
+from sqlalchemy.orm import Session
+
+from app.analysis.condition.section_class import (
+    DEFAULT_SECTION_LIMITS,
+    SECTION_CLASSES,
+    SectionClassLimits,
+    section_classes,
+)
+from app.condition import readers as reader
+from app.condition.lines import resolve_line
+from app.db.models import ConditionLine, ConditionRun
+from app.db.session import Database
+from app.places.config import PlacesConfig
+from app.places.update import SEGMENT_M, run_segment_index
+
+__all__ = ["SEGMENT_M", "line_sections", "section_limits"]
+
+_YEAR = dt.timedelta(days=365)
+
+
+def _run_index(session: Session, line: ConditionLine, run: ConditionRun,
+               config: PlacesConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The index of a run per 10 m segment (mean over wheels) exactly as the places use it."""
+    return run_segment_index(session, line, run.run_id, config=config)
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def section_limits(settings: Any) -> SectionClassLimits:
+    """``TRACKVKF_PLACES_SECTION_LIMITS`` (default :data:`~app.analysis.condition.section_class.DEFAULT_SECTION_LIMITS`)."""
+    lim = getattr(settings, "places_section_limits", None)
+    return SectionClassLimits(*lim) if lim else DEFAULT_SECTION_LIMITS
+
+
+def line_sections(db: Database, settings: Any, line_id: str, track: str | None, *,
+                  section_m: float | None = None) -> dict[str, Any]:
+    """The section classes of a line's newest run, and the length per class now and a year before.
+
+    Parameters
+    ----------
+    db : Database
+    settings : Settings
+        The places' settings (:meth:`app.places.config.PlacesConfig.from_settings`),
+        ``places_section_m`` and ``places_section_limits``.
+    line_id, track : str
+        The store's line (404 naming ``line_id`` without runs, 422 naming ``track`` when ambiguous).
+    section_m : float, optional
+        Section length, m (a whole multiple of 10 m; default ``places_section_m``).
+
+    Returns
+    -------
+    dict
+        ``section_m, limits, sections [{km_from, km_to, class, level, spread, rms, fill}],
+        length_by_class {A..E, "": m}, length_by_class_year_ago (or None), run_id, run_time,
+        run_id_year_ago, run_time_year_ago``.
+    """
+    line = resolve_line(db, line_id, track)
+    limits = section_limits(settings)
+    section_m = float(section_m if section_m is not None else settings.places_section_m)
+    config = PlacesConfig.from_settings(settings)
+    with db.read() as session:
+        runs = reader.line_runs(session, line.id)
+        k = len(runs) - 1
+        segs, idx = _run_index(session, line, runs[k], config)
+        sc = section_classes(segs, idx, segment_m=SEGMENT_M, limits=limits, section_m=section_m)
+        before = [i for i, r in enumerate(runs) if r.run_time <= runs[k].run_time - _YEAR]
+        old = None
+        if before:
+            j = before[-1]
+            osegs, oidx = _run_index(session, line, runs[j], config)
+            old = (runs[j], section_classes(osegs, oidx, segment_m=SEGMENT_M, limits=limits, section_m=section_m))
+    per = int(round(section_m / SEGMENT_M))
+    sections = [
+        {"km_from": float(sc.start_m[i]) / 1000.0, "km_to": float(sc.end_m[i]) / 1000.0, "class": str(sc.cls[i]),
+         "level": _finite(sc.level[i]), "spread": _finite(sc.spread[i]), "rms": _finite(sc.rms[i]),
+         "fill": float(sc.n_segments[i]) / per}
+        for i in range(len(sc))
+    ]
+    return {
+        "line_id": line.line_id, "track": line.track, "section_m": float(section_m),
+        "limits": limits.limits.tolist(), "classes": list(SECTION_CLASSES),
+        "quantity": "stiffness index ln(A/A_ref(class, v)), mean over the wheels",
+        "sections": sections, "length_by_class": sc.length_by_class(),
+        "length_by_class_year_ago": old[1].length_by_class() if old else None,
+        "run_id": runs[k].run_id, "run_time": runs[k].run_time,
+        "run_id_year_ago": old[0].run_id if old else None, "run_time_year_ago": old[0].run_time if old else None,
+    }
