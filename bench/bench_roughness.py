@@ -42,9 +42,18 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from physics_runs import D_S, ROUGH_PAIRS, ROUGH_SINGLE, cases, rough_run, steady_unit, write_run  # noqa: E402
+from physics_runs import (  # noqa: E402
+    D_S,
+    ROUGH_PAIRS,
+    ROUGH_SINGLE,
+    START_M,
+    cases,
+    rough_run,
+    segment_scores,
+    steady_unit,
+    write_run,
+)
 
-START_M = 4.2
 SPEED_FS = 24_000.0
 SPEED_S = 60.0
 
@@ -54,25 +63,6 @@ def _pipeline(path: Path, work: Path):
     from app.pipeline import run_pipeline
 
     return run_pipeline(path, ProcessingSettings(), work)
-
-
-def _segments(r: dict, p, column: str, level: float) -> tuple[np.ndarray, np.ndarray]:
-    from app.analysis.uncertainty import segment_sd
-
-    x = (p["bin"].to_numpy() + 0.5) * 0.25
-    segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), level,
-                          shared=p["sleeper_amp_sd_shared"].to_numpy())
-    ratio, covered = [], []
-    for g, s in zip(segs, sd, strict=True):
-        lo = g * level
-        if lo < START_M or lo + level > x.max():
-            continue
-        tb = (r["x_bay"] >= lo) & (r["x_bay"] < lo + level)
-        truth = float(np.mean(r["A_bay_smooth"][tb]))
-        est = float(np.mean(p[column].to_numpy()[(x >= lo) & (x < lo + level)]))
-        ratio.append(est / truth - 1.0)
-        covered.append(abs(est - truth) <= s)
-    return np.array(ratio), np.array(covered)
 
 
 def rough_rows(tmp: Path) -> list[dict]:
@@ -89,7 +79,7 @@ def rough_rows(tmp: Path) -> list[dict]:
         for column in ("sleeper_amp_raw", "sleeper_amp"):
             row = {"run": name, "wheels": what, "column": column}
             for level in (10.0, 40.0):
-                ratio, covered = _segments(r, p, column, level)
+                ratio, covered = segment_scores(r, p, column, level)
                 row[f"median_{level:g}"] = float(np.median(ratio))
                 row[f"rms_{level:g}"] = float(np.sqrt(np.mean(ratio**2)))
                 row[f"cover_{level:g}"] = float(np.mean(covered))

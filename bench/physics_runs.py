@@ -107,6 +107,32 @@ def rough_run(name: str) -> dict[str, np.ndarray | float]:
     return out
 
 
+#: the filter's start-up at the beginning of a physics run, m: segments before it are not scored
+START_M = 4.2
+
+
+def segment_scores(r: dict, p, column: str, level: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per ``level`` m segment of a processed rough run after the start-up: (estimate / truth − 1,
+    whether |estimate − truth| ≤ the stated 1-σ of ``sleeper_amp``), against the smooth twin's
+    per-bay truth ``A_bay_smooth``. ``p``: one wheel's profile rows; ``column``: the amplitude scored."""
+    from app.analysis.uncertainty import segment_sd
+
+    x = (p["bin"].to_numpy() + 0.5) * 0.25
+    segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), level,
+                          shared=p["sleeper_amp_sd_shared"].to_numpy())
+    ratio, covered = [], []
+    for g, s in zip(segs, sd, strict=True):
+        lo = g * level
+        if lo < START_M or lo + level > x.max():
+            continue
+        tb = (r["x_bay"] >= lo) & (r["x_bay"] < lo + level)
+        truth = float(np.mean(r["A_bay_smooth"][tb]))
+        est = float(np.mean(p[column].to_numpy()[(x >= lo) & (x < lo + level)]))
+        ratio.append(est / truth - 1.0)
+        covered.append(abs(est - truth) <= s)
+    return np.array(ratio), np.array(covered)
+
+
 def polygon(n: int, fs: float, speed: float, rho_um: float = 90.0, order: int = 5,
             wheel_diameter: float = 0.92, phase: float = 0.3) -> np.ndarray:
     """Axle-box acceleration of a wheel polygon of ``rho_um`` at ``order`` at constant speed, m/s².

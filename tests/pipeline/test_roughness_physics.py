@@ -23,7 +23,16 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 
-from physics_runs import D_S, PHYSICS, cases, rough_run, steady_unit, write_run  # noqa: E402
+from physics_runs import (  # noqa: E402
+    D_S,
+    PHYSICS,
+    START_M,
+    cases,
+    rough_run,
+    segment_scores,
+    steady_unit,
+    write_run,
+)
 
 from app.analysis.settings import ProcessingSettings  # noqa: E402
 from app.analysis.uncertainty import segment_sd  # noqa: E402
@@ -32,7 +41,6 @@ from app.pipeline import run_pipeline  # noqa: E402
 pytestmark = pytest.mark.skipif(not (PHYSICS / "rail2_k80_v35_r1.npz").is_file(), reason="no ../shared/physics")
 
 #: the first bays are the physics run's start-up transient (README: 7 bays)
-START_M = 4.2
 
 
 def _process(tmp_path: Path, name: str, two_rails: bool):
@@ -42,24 +50,6 @@ def _process(tmp_path: Path, name: str, two_rails: bool):
     res = run_pipeline(run, ProcessingSettings(), tmp_path / f"w-{name}")
     p = res.profiles[res.profiles["wheel"] == "11"].sort_values("bin").reset_index(drop=True)
     return r, p
-
-
-def _ten_metre(r, p, column: str, level: float = 10.0):
-    """Per 10 m segment after the start-up: (estimate / truth − 1, |estimate − truth| ≤ stated 1-σ)."""
-    x = (p["bin"].to_numpy() + 0.5) * 0.25
-    segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), level,
-                          shared=p["sleeper_amp_sd_shared"].to_numpy())
-    ratio, covered = [], []
-    for g, s in zip(segs, sd, strict=True):
-        lo = g * level
-        if lo < START_M or lo + level > x.max():
-            continue
-        tb = (r["x_bay"] >= lo) & (r["x_bay"] < lo + level)
-        truth = float(np.mean(r["A_bay_smooth"][tb]))
-        est = float(np.mean(p[column].to_numpy()[(x >= lo) & (x < lo + level)]))
-        ratio.append(est / truth - 1.0)
-        covered.append(abs(est - truth) <= s)
-    return np.array(ratio), np.array(covered)
 
 
 def _rms(a: np.ndarray) -> float:
@@ -77,8 +67,8 @@ def _calibrated(covered: np.ndarray) -> bool:
 
 def test_two_rails_uniform(tmp_path):
     r, p = _process(tmp_path, "rail2_k80_v35", two_rails=True)
-    ratio, covered = _ten_metre(r, p, "sleeper_amp")
-    raw, _ = _ten_metre(r, p, "sleeper_amp_raw")
+    ratio, covered = segment_scores(r, p, "sleeper_amp", 10.0)
+    raw, _ = segment_scores(r, p, "sleeper_amp_raw", 10.0)
     assert np.median(raw) > 0.25  # the single wheel: +37 %
     assert abs(np.median(ratio)) <= 0.15, np.median(ratio)
     assert _rms(ratio) <= _rms(raw)
@@ -87,8 +77,8 @@ def test_two_rails_uniform(tmp_path):
 
 def test_two_rails_transition(tmp_path):
     r, p = _process(tmp_path, "rail2_trans_v42", two_rails=True)
-    ratio, covered = _ten_metre(r, p, "sleeper_amp")
-    raw, _ = _ten_metre(r, p, "sleeper_amp_raw")
+    ratio, covered = segment_scores(r, p, "sleeper_amp", 10.0)
+    raw, _ = segment_scores(r, p, "sleeper_amp_raw", 10.0)
     assert np.median(raw) > 0.5  # the single wheel: +68 %
     assert abs(np.median(ratio)) <= 0.20, np.median(ratio)
     assert _rms(ratio) <= _rms(raw)
@@ -105,8 +95,8 @@ def test_two_rails_transition(tmp_path):
 @pytest.mark.parametrize("name", ["rough_k80_v35", "rough_k80_v35_severe"])
 def test_one_rail(tmp_path, name):
     r, p = _process(tmp_path, name, two_rails=False)
-    ratio, covered = _ten_metre(r, p, "sleeper_amp")
-    raw, _ = _ten_metre(r, p, "sleeper_amp_raw")
+    ratio, covered = segment_scores(r, p, "sleeper_amp", 10.0)
+    raw, _ = segment_scores(r, p, "sleeper_amp_raw", 10.0)
     # part of the bias out, not all of it: a single wheel cannot see the floor the resonance puts under f_s
     assert 0 < np.median(ratio) < np.median(raw)
     assert _rms(ratio) <= _rms(raw)
