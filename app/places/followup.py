@@ -43,6 +43,7 @@ from typing import Any
 from sqlalchemy import and_, func, or_, select
 from sqlalchemy.orm import Session
 
+from app.core.jsonable import iso_time
 from app.db import places as q
 from app.db.models import ConditionLine, ConditionRun, Job, PlaceRun, PlacesPending, utcnow
 from app.db.session import Database
@@ -334,4 +335,4 @@ def line_places_status(session: Session, line_key: int) -> dict[str, Any]:
                            .order_by(PlaceRun.applied_at.desc(), PlaceRun.run_id.desc()).limit(1)).first()
     return {"places_pending": int(pending[0]), "places_failed": int(pending[1]),
             "places_run_id": int(last[0]) if last is not None else None,
-            "places_updated_at": last[1].isoformat() if last is not None else None}
+            "places_updated_at": iso_time(last[1]) if last is not None else None}
