@@ -231,3 +231,24 @@ def test_a_worker_killed_between_the_publish_and_places_commits_loses_nothing(se
                 assert s.scalar(select(Job.meta).where(Job.run_id == r))["condition"]["places"]["applied"] is True
     finally:
         database.dispose()
+
+
+def test_pending_places_updates_are_on_the_metrics(db, service_settings):  # noqa: F811
+    from app.observability.metrics import DatabaseCollector
+
+    def gauges() -> dict:
+        out = {}
+        for family in DatabaseCollector(db, service_settings, cache_s=0.0)._read():
+            if family.name.startswith("trackvkf_places_pending"):
+                out.update({(family.name, tuple(sorted(smp.labels.items()))): smp.value for smp in family.samples})
+        return out
+
+    _publish_days(db, (0,), followup_after=False)
+    got = gauges()
+    assert got[("trackvkf_places_pending", (("state", "waiting"),))] == 1
+    assert got[("trackvkf_places_pending", (("state", "retrying"),))] == 0
+    assert got[("trackvkf_places_pending_oldest_age_seconds", ())] >= 0
+    followup.run_pending(db)
+    got = gauges()
+    assert got[("trackvkf_places_pending", (("state", "waiting"),))] == 0
+    assert got[("trackvkf_places_pending_oldest_age_seconds", ())] == 0
