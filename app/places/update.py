@@ -1,8 +1,9 @@
 """After a run's condition rows are published: its places, and the line's places advanced by it.
 
-Called by the publish step (:func:`app.publish.publish_job`) in the transaction that publishes the
-run (both worker modes), inside a savepoint: a failure here is logged and leaves the run's results,
-condition rows and flags published (``meta["condition"]["places"]`` says why).
+Called by the places follow-up of the publish step (:mod:`app.places.followup`, after the commit that
+publishes the run, both worker modes): :func:`prepare_run` (the run's places found: reads only, no write
+lock) and then, in a short write transaction, :func:`update_places` with them (inside a savepoint). The
+one-transaction path (:func:`apply_run`: both parts) serves ``trackvkf apply-places`` and the tests.
 
 For a run with condition rows, in time order:
 
