@@ -45,8 +45,9 @@ def places_step(db: Database, settings: Settings) -> bool:
     from app.places.config import PlacesConfig
     from app.places.followup import FollowupPolicy, run_pending
 
-    done = run_pending(db, config=PlacesConfig.from_settings(settings), policy=FollowupPolicy.from_settings(settings),
-                       max_runs=20)
+    policy = FollowupPolicy.from_settings(settings)
+    done = run_pending(db, config=PlacesConfig.from_settings(settings), policy=policy, max_runs=20,
+                       min_age_s=policy.grace_s)
     return any(r.outcome in ("applied", "not_applied") for r in done)
 
 

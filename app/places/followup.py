@@ -82,12 +82,16 @@ class FollowupPolicy:
         Back-off after the n-th failure: ``retry_base_s * 2**(n-1)``, at most ``retry_max_s``, s.
     interval_s : float
         Pause of the worker's ``places-followup`` loop after a round with nothing to do, s.
+    grace_s : float
+        The loop leaves a run marked less than this long ago to the worker that published it (which runs
+        its follow-up at once), s: no two workers compute the same run's places meanwhile.
     """
 
     max_attempts: int = 10
     retry_base_s: float = 5.0
     retry_max_s: float = 3600.0
     interval_s: float = 10.0
+    grace_s: float = 30.0
 
     def __post_init__(self) -> None:
         if self.max_attempts < 1:
@@ -95,12 +99,15 @@ class FollowupPolicy:
         for name in ("retry_base_s", "retry_max_s", "interval_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not self.grace_s >= 0:
+            raise ValueError(f"grace_s must be >= 0, got {self.grace_s}")
 
     @classmethod
     def from_settings(cls, settings: Any) -> FollowupPolicy:
         """The policy of the service settings (``TRACKVKF_PLACES_MAX_ATTEMPTS`` …)."""
         return cls(max_attempts=settings.places_max_attempts, retry_base_s=settings.places_retry_base_s,
-                   retry_max_s=settings.places_retry_max_s, interval_s=settings.places_followup_interval_s)
+                   retry_max_s=settings.places_retry_max_s, interval_s=settings.places_followup_interval_s,
+                   grace_s=settings.places_followup_grace_s)
 
     def backoff_s(self, attempts: int) -> float:
         """Wait after the ``attempts``-th failure, s."""
@@ -156,10 +163,13 @@ def _earlier(row: PlacesPending):
                     and_(PlacesPending.run_time == row.run_time, PlacesPending.run_id < row.run_id)))
 
 
-def due_runs(session: Session, now: dt.datetime | None = None, *, line_key: int | None = None) -> list[int]:
+def due_runs(session: Session, now: dt.datetime | None = None, *, line_key: int | None = None,
+             min_age_s: float = 0.0) -> list[int]:
     """The runs whose places update is due: of each line (or of ``line_key``) its oldest pending run not
-    given up, unless it waits for its back-off (then the line's later runs wait too)."""
+    given up, unless it waits for its back-off (then the line's later runs wait too) or was marked less
+    than ``min_age_s`` ago."""
     now = now or utcnow()
+    fresh = now - dt.timedelta(seconds=min_age_s)
     stmt = select(PlacesPending).where(PlacesPending.gave_up.is_(False))
     if line_key is not None:
         stmt = stmt.where(PlacesPending.line_key == line_key)
@@ -169,7 +179,7 @@ def due_runs(session: Session, now: dt.datetime | None = None, *, line_key: int 
         if row.line_key in seen:
             continue
         seen.add(row.line_key)
-        if row.next_attempt_at is None or row.next_attempt_at <= now:
+        if (row.next_attempt_at is None or row.next_attempt_at <= now) and (min_age_s <= 0 or row.queued_at <= fresh):
             out.append(int(row.run_id))
     return out
 
@@ -299,11 +309,12 @@ def _record_failure(db: Database, run_id: int, exc: BaseException, policy: Follo
 
 def run_pending(db: Database, *, config: PlacesConfig = DEFAULT_PLACES_CONFIG,
                 policy: FollowupPolicy = DEFAULT_FOLLOWUP, line_key: int | None = None,
-                max_runs: int | None = None) -> list[FollowupResult]:
+                max_runs: int | None = None, min_age_s: float = 0.0) -> list[FollowupResult]:
     """Complete every due places update (of one line, or of all), each line's runs in order.
 
     The publish step calls it for its line after its commit; the worker's ``places-followup`` loop for all
-    lines (at its start: the runs a killed worker left; then the retries).
+    lines (at its start: the runs a killed worker left; then the retries), with ``min_age_s`` =
+    ``policy.grace_s`` (runs just published are their publisher's).
 
     Returns
     -------
@@ -314,7 +325,7 @@ def run_pending(db: Database, *, config: PlacesConfig = DEFAULT_PLACES_CONFIG,
     tried: set[int] = set()
     while max_runs is None or len(out) < max_runs:
         with db.read() as s:
-            due = [r for r in due_runs(s, line_key=line_key) if r not in tried]
+            due = [r for r in due_runs(s, line_key=line_key, min_age_s=min_age_s) if r not in tried]
         if not due:
             break
         for run_id in due:

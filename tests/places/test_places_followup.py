@@ -102,6 +102,7 @@ def test_a_run_waits_for_the_earlier_pending_runs_of_its_line(any_db):  # noqa: 
     with any_db.read() as s:
         assert list(s.scalars(select(PlaceRun.run_id))) == []
         assert followup.due_runs(s) == [a]
+        assert followup.due_runs(s, min_age_s=30.0) == []  # the loop leaves fresh runs to their publisher
         line_key = s.get(PlacesPending, a).line_key
         status = followup.line_places_status(s, line_key)
     assert status["places_pending"] == 2 and status["places_updated_at"] is None
@@ -211,7 +212,8 @@ def test_a_worker_killed_between_the_publish_and_places_commits_loses_nothing(se
             assert len(pending) == 2 and list(s.scalars(select(PlaceRun.run_id))) == []
             assert all(s.scalar(select(Job.status).where(Job.run_id == r)) == "done" for r in pending)
 
-        background = Background(service_settings, "local").start()
+        # the runs were published seconds ago: no grace (their publisher died)
+        background = Background(service_settings.model_copy(update={"places_followup_grace_s": 0.0}), "local").start()
         try:
             deadline = time.monotonic() + 120
             while time.monotonic() < deadline:
