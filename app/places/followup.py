@@ -40,7 +40,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import and_, func, or_, select
+from sqlalchemy import and_, delete, func, insert, or_, select
 from sqlalchemy.orm import Session
 
 from app.core.jsonable import iso_time
@@ -143,17 +143,17 @@ class FollowupResult:
 
 def mark_pending(session: Session, run_id: int, line_key: int, job_id: int) -> None:
     """Record in the publish transaction that run ``run_id``'s places are to be updated (a reprocessed run's
-    marker is reset: attempts, error, given up)."""
+    marker is replaced: attempts, error, given up reset).
+
+    Delete, then insert: a follow-up of the run committing meanwhile (PostgreSQL) only makes the delete
+    find nothing.
+    """
     when = session.scalar(select(ConditionRun.run_time).where(ConditionRun.run_id == run_id))
     if when is None:
         raise ValueError(f"run {run_id} has no condition rows: no places to update")
-    row = session.get(PlacesPending, run_id)
-    if row is None:
-        session.add(PlacesPending(run_id=run_id, line_key=line_key, job_id=job_id, run_time=when,
-                                  queued_at=utcnow(), attempts=0, gave_up=False))
-        return
-    row.line_key, row.job_id, row.run_time, row.queued_at = line_key, job_id, when, utcnow()
-    row.attempts, row.next_attempt_at, row.last_error, row.gave_up = 0, None, None, False
+    session.execute(delete(PlacesPending).where(PlacesPending.run_id == run_id))
+    session.execute(insert(PlacesPending).values(run_id=run_id, line_key=line_key, job_id=job_id, run_time=when,
+                                                 queued_at=utcnow(), attempts=0, gave_up=False))
 
 
 def _earlier(row: PlacesPending):
@@ -262,7 +262,7 @@ def complete_run(db: Database, run_id: int, *, config: PlacesConfig = DEFAULT_PL
                     out = PlacesUpdate(False, "the run has no condition rows")
                 elif use is not None and _inputs(s, run_id, line, use.version, config) != inputs:
                     continue  # a run of the history or the run itself changed meanwhile: read again
-                else:  # use None (the last try): the whole update under the write lock, as before issue 24
+                else:  # use None (not applicable when read, or the last try): the whole update under the lock
                     out = update_places(s, run_id, line, row.job_id, config=config, prepared=use,
                                         raise_errors=True)
                 summary = out.summary()
