@@ -165,11 +165,12 @@ def test_the_publish_transaction_holds_no_places_statement_and_the_follow_up_wri
     assert summary["places"]["applied"]
     writes = [sqls for kind, sqls in log if kind == "write"]
     publish = [sqls for sqls in writes if any("INSERT INTO places_pending" in q for q in sqls)]
-    places = [sqls for sqls in writes if any("DELETE FROM places_pending" in q for q in sqls)]
+    places = [sqls for sqls in writes if any("INSERT INTO place_runs" in q for q in sqls)]
     assert len(publish) == 1 and len(places) == 1
     assert not [q for q in publish[0] if any(f" {t} " in f" {q} " or f"{t}(" in q for t in PLACE_TABLES)
                 and "places_pending" not in q]
-    assert any("INSERT INTO place_runs" in q for q in places[0])
+    assert any("DELETE FROM places_pending" in q for q in places[0])
+    assert not any("INSERT INTO places_pending" in q for q in places[0])
     assert not [q for q in places[0] if "segment_condition" in q]  # the store's rows: read without the lock
     reads = [sqls for kind, sqls in log if kind == "read" and any("segment_condition" in q for q in sqls)]
     assert reads, "the follow-up reads the store's rows in a read transaction"
@@ -192,47 +193,45 @@ publish_tracks(Database(sys.argv[1]), tracks, DAY0 + dt.timedelta(days=day))
 
 
 @pytest.mark.timeout(300)
-def test_a_worker_killed_between_the_publish_and_places_commits_loses_nothing(service_settings):
+def test_a_worker_killed_between_the_publish_and_places_commits_loses_nothing(any_db, tmp_path):  # noqa: F811
     """A real process publishes and is killed before its places follow-up; the next worker's background
     (its start-up round of the places-followup loop) completes the places, once."""
-    from app.db.session import Database
+    from tests.api.support import make_settings
     from worker.background import Background
 
-    url = service_settings.database_url
-    database = Database(url)
-    try:
-        env = {**{k: v for k, v in os.environ.items() if not k.startswith("TRACKVKF_")},
-               "PYTHONPATH": str(ROOT)}
-        for day in (0, 1):
-            killed = subprocess.run([sys.executable, "-c", _KILLED_AFTER_PUBLISH, url, str(day)], env=env, cwd=ROOT,
-                                    capture_output=True, text=True, timeout=240)
-            assert killed.returncode == -9, killed.stderr[-3000:]
-        with database.read() as s:
-            pending = list(s.scalars(select(PlacesPending.run_id).order_by(PlacesPending.run_time)))
-            assert len(pending) == 2 and list(s.scalars(select(PlaceRun.run_id))) == []
-            assert all(s.scalar(select(Job.status).where(Job.run_id == r)) == "done" for r in pending)
+    url = str(any_db.engine.url.render_as_string(hide_password=False))
+    service_settings = make_settings(tmp_path, database_url=url)
+    database = any_db
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("TRACKVKF_")},
+           "PYTHONPATH": str(ROOT)}
+    for day in (0, 1):
+        killed = subprocess.run([sys.executable, "-c", _KILLED_AFTER_PUBLISH, url, str(day)], env=env, cwd=ROOT,
+                                capture_output=True, text=True, timeout=240)
+        assert killed.returncode == -9, killed.stderr[-3000:]
+    with database.read() as s:
+        pending = list(s.scalars(select(PlacesPending.run_id).order_by(PlacesPending.run_time)))
+        assert len(pending) == 2 and list(s.scalars(select(PlaceRun.run_id))) == []
+        assert all(s.scalar(select(Job.status).where(Job.run_id == r)) == "done" for r in pending)
 
-        # the runs were published seconds ago: no grace (their publisher died)
-        background = Background(service_settings.model_copy(update={"places_followup_grace_s": 0.0}), "local").start()
-        try:
-            deadline = time.monotonic() + 120
-            while time.monotonic() < deadline:
-                with database.read() as s:
-                    if s.scalar(select(PlacesPending.run_id)) is None:
-                        break
-                time.sleep(0.2)
-        finally:
-            background.stop()
-        assert followup.run_pending(database) == []  # nothing left, nothing done twice
-        with database.read() as s:
-            assert s.scalar(select(PlacesPending.run_id)) is None
-            assert list(s.scalars(select(PlaceRun.run_id).order_by(PlaceRun.applied_at, PlaceRun.run_id))) == pending
-            obs = s.execute(select(PlaceObservation.place_id, PlaceObservation.run_id)).all()
-            assert obs and len(obs) == len(set(obs))
-            for r in pending:
-                assert s.scalar(select(Job.meta).where(Job.run_id == r))["condition"]["places"]["applied"] is True
+    # the runs were published seconds ago: no grace (their publisher died)
+    background = Background(service_settings.model_copy(update={"places_followup_grace_s": 0.0}), "local").start()
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            with database.read() as s:
+                if s.scalar(select(PlacesPending.run_id)) is None:
+                    break
+            time.sleep(0.2)
     finally:
-        database.dispose()
+        background.stop()
+    assert followup.run_pending(database) == []  # nothing left, nothing done twice
+    with database.read() as s:
+        assert s.scalar(select(PlacesPending.run_id)) is None
+        assert list(s.scalars(select(PlaceRun.run_id).order_by(PlaceRun.applied_at, PlaceRun.run_id))) == pending
+        obs = s.execute(select(PlaceObservation.place_id, PlaceObservation.run_id)).all()
+        assert obs and len(obs) == len(set(obs))
+        for r in pending:
+            assert s.scalar(select(Job.meta).where(Job.run_id == r))["condition"]["places"]["applied"] is True
 
 
 def test_pending_places_updates_are_on_the_metrics(db, service_settings):  # noqa: F811
