@@ -62,6 +62,7 @@ from app.db.models import (
     PlaceEventRow,
     PlaceObservation,
     PlaceRun,
+    PlacesPending,
     PlaceStatusChange,
     utcnow,
 )
@@ -579,8 +580,15 @@ def apply_stored_runs(db: Any, line_id: str, track: str, *, config: PlacesConfig
         runs = session.execute(select(ConditionRun.run_id, ConditionRun.job_id).where(
             ConditionRun.line_key == line.id).order_by(ConditionRun.run_time, ConditionRun.run_id)).all()
         done = set(session.scalars(select(PlaceRun.run_id).where(PlaceRun.line_key == line.id)))
+        pending = set(session.scalars(select(PlacesPending.run_id).where(PlacesPending.line_key == line.id)))
     for run_id, job_id in runs:
         if run_id in done:
+            continue
+        if run_id in pending:  # published with its places to come: its follow-up (marker, job summary, alerts)
+            from app.places.followup import complete_run
+
+            r = complete_run(db, int(run_id), config=config)
+            out.append(PlacesUpdate(r.outcome == "applied", None if r.outcome == "applied" else r.outcome))
             continue
         with db.write() as session:
             ln = session.get(ConditionLine, line.id)

@@ -253,3 +253,18 @@ def test_pending_places_updates_are_on_the_metrics(db, service_settings):  # noq
     got = gauges()
     assert got[("trackvkf_places_pending", (("state", "waiting"),))] == 0
     assert got[("trackvkf_places_pending_oldest_age_seconds", ())] == 0
+
+
+def test_apply_places_completes_the_pending_runs_in_their_order(db):  # noqa: F811
+    """``trackvkf apply-places`` (apply_stored_runs) takes a run whose places are pending through its follow-up:
+    marker gone, the job's summary set, in the order of the line's runs."""
+    from app.places.update import apply_stored_runs
+
+    runs = _publish_days(db, (0, 1, 2), followup_after=False)
+    ups = apply_stored_runs(db, "L1", "1")
+    assert [u.applied for u in ups] == [True, True, True]
+    with db.read() as s:
+        assert s.scalar(select(PlacesPending.run_id)) is None
+        assert list(s.scalars(select(PlaceRun.run_id).order_by(PlaceRun.run_time))) == [r for r, _, _ in runs]
+        assert all(s.get(Job, j).meta["condition"]["places"]["applied"] for _, j, _ in runs)
+    assert apply_stored_runs(db, "L1", "1") == []
