@@ -1,6 +1,6 @@
 """How long the publish step holds SQLite's write lock for a 50 km line's run: the places update inside the
 publish transaction (before issue 24: the publish step of ``--before-rev``, loaded from git) against the
-publish transaction plus the places follow-up (:mod:`app.places.follow_up`: read without the lock, then a
+publish transaction plus the places follow-up (:mod:`app.places.followup`: read without the lock, then a
 short write), in one run on copies of one database.
 
 A generated 50 km fleet line (:func:`app.condition.fleet.ingest_fleet`, daily runs, ``--history`` runs

@@ -21,7 +21,8 @@ run is never applied again: ``place_runs``), **in the order of its line's runs**
 run of a line first; a later run waits for it, as the places are a history), and **never lost**: a
 worker killed between the publish commit and the follow-up's commit leaves the marker, and the
 worker's ``places-followup`` loop (:mod:`worker.background`, both worker modes; its first round at
-the worker's start is the start-up sweep) completes it. A failing update is logged, reported in the
+the worker's start is the start-up sweep; it leaves runs marked less than ``places_followup_grace_s``
+ago to the worker that published them) completes it. A failing update is logged, reported in the
 job's metadata (``meta["condition"]["places"]``: ``applied`` false, ``reason``, ``attempts``,
 ``retry_at``) and on ``/metrics`` (``trackvkf_places_pending{state}``), and retried with exponential
 back-off (``places_retry_base_s`` doubling up to ``places_retry_max_s``); after
