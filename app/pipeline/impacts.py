@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from app.analysis.chunking import Chunk
-from app.analysis.impacts import find_dips, surface_estimate
+from app.analysis.impacts import surface_estimate
 from app.analysis.impacts.classify import (
     TrackImpactFinding,
     WheelDips,
@@ -34,7 +34,9 @@ from app.analysis.impacts.classify import (
     track_impacts,
     wheel_flats,
 )
+from app.analysis.impacts.dips import scan_dips
 from app.analysis.impacts.mask import bridge, impact_mask, mask_half_width
+from app.analysis.impacts.welds import WheelTrace, combined_track_dips
 from app.analysis.recipe import OrderRecipe
 from app.analysis.settings import ProcessingSettings
 
@@ -42,9 +44,11 @@ __all__ = [
     "IMPACT_COLUMN",
     "BRIDGED_COLUMNS",
     "DIP_FIELDS",
+    "TRACE_FIELDS",
     "wheel_orders_at",
     "chunk_dip_member",
     "read_dips",
+    "read_traces",
     "run_impacts",
     "mask_track_impacts",
     "flat_result",
@@ -58,10 +62,16 @@ BRIDGED_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_amp_raw", "sleeper_a
                                     "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms", "sleeper_force_amp")
 #: Rows of a chunk file's ``dips_<wheel>`` member.
 DIP_FIELDS: tuple[str, ...] = ("track_m", "s_m", "length_m", "depth_m", "score", "speed_mps", "weight")
+#: Rows of a chunk file's ``dipz_<wheel>`` member: the long filters' score trace (welds), every 0.12 m.
+TRACE_FIELDS: tuple[str, ...] = ("track_m", "s_m", "score", "length_m", "depth_m", "weight")
 
 
 def _member(wheel: str) -> str:
     return f"dips_{wheel}"
+
+
+def _trace_member(wheel: str) -> str:
+    return f"dipz_{wheel}"
 
 
 def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarray, recipe: OrderRecipe,
@@ -145,9 +155,10 @@ def chunk_dip_member(
     -------
     dict
         ``{"dips_<wheel>": (len(DIP_FIELDS), n) float array}``: the dips inside the chunk's output
-        range, with the chunk's crossfade weight there.
+        range, with the chunk's crossfade weight there; ``{"dipz_<wheel>": (len(TRACE_FIELDS), m)}``:
+        the long filters' score trace there (:class:`app.analysis.impacts.dips.DipTrace`).
     """
-    empty = {_member(wheel): np.zeros((len(DIP_FIELDS), 0))}
+    empty = {_member(wheel): np.zeros((len(DIP_FIELDS), 0)), _trace_member(wheel): np.zeros((len(TRACE_FIELDS), 0))}
     # the whole chunk, padding included (the wheel orders are stationary: their envelopes held at the
     # output range's ends are right there), so that the estimate's own edges lie outside the output range
     a, b = 0, accel.size
@@ -155,14 +166,22 @@ def chunk_dip_member(
         return empty
     lines = tuple(float(recipe.multipliers[r]) for r in recipe.track_rows)
     est = surface_estimate(accel[a:b], travelled_m[a:b], speed_mps[a:b], lines_per_m=lines, subtract=wheel_orders)
-    dips = find_dips(est)
+    dips, trace = scan_dips(est)
+    out = dict(empty)
+    if len(trace):
+        idx = np.clip(np.searchsorted(travelled_m[a:b], trace.s_m), 0, b - a - 1) + a
+        weight = chunk.weight(idx + lo)
+        inside = (weight > 0) & np.isfinite(trace.score)
+        rows = np.vstack([track_m[idx], trace.s_m, trace.score, trace.length_m, trace.depth_m, weight])
+        out[_trace_member(wheel)] = rows[:, inside].astype(np.float64)
     if len(dips) == 0:
-        return empty
+        return out
     idx = np.clip(np.searchsorted(travelled_m[a:b], dips.s_m), 0, b - a - 1) + a
     weight = chunk.weight(idx + lo)
     inside = weight > 0
     rows = np.vstack([track_m[idx], dips.s_m, dips.length_m, dips.depth_m, dips.score, dips.speed_mps, weight])
-    return {_member(wheel): rows[:, inside].astype(np.float64)}
+    out[_member(wheel)] = rows[:, inside].astype(np.float64)
+    return out
 
 
 def read_dips(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, WheelDips]:
@@ -198,6 +217,31 @@ def read_dips(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, WheelDi
     return out
 
 
+def read_traces(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, WheelTrace]:
+    """Every wheel's long-filter score trace over a run from its chunk files (where a chunk weighs most).
+
+    Files without trace members (written before them) add nothing.
+    """
+    parts: dict[str, list[np.ndarray]] = {w: [] for w in wheels}
+    for path in sorted(paths, key=lambda p: str(p)):
+        with np.load(path) as npz:
+            for w in wheels:
+                key = _trace_member(w)
+                if key in npz.files:
+                    arr = np.asarray(npz[key], dtype=np.float64)
+                    if arr.ndim == 2 and arr.shape[0] == len(TRACE_FIELDS) and arr.shape[1]:
+                        parts[w].append(arr)
+    out: dict[str, WheelTrace] = {}
+    for w, arrs in parts.items():
+        if not arrs:
+            continue
+        rows = np.hstack(arrs)
+        rows = rows[:, rows[5] >= 0.5]  # the chunk that weighs most there
+        rows = rows[:, np.argsort(rows[1], kind="stable")]
+        out[w] = WheelTrace(rows[0], rows[2], rows[3], rows[4])
+    return out
+
+
 def run_impacts(
     chunk_paths: Sequence[Path], wheels: Sequence[Mapping[str, Any]]
 ) -> tuple[list[TrackImpactFinding], dict[str, WheelFlatFinding]]:
@@ -217,7 +261,15 @@ def run_impacts(
         if d is not None and np.isfinite(float(d)) and float(d) > 0:
             diam[str(w["wheel"])] = float(d)
     flats, used = wheel_flats(dips, diam)
-    return track_impacts(dips, exclude=used, wheels_measured=tuple(names)), flats
+    # welds: the long filters' evidence combined over the wheels (rough rail); the single-wheel
+    # candidates' test beside it (short dips: joints; and what it found before on smooth rail)
+    combined = combined_track_dips(read_traces(chunk_paths, names), wheels_measured=tuple(names))
+    single = track_impacts(dips, exclude=used, wheels_measured=tuple(names))
+    merged = list(combined)
+    for imp in single:
+        if all(abs(imp.track_m - c.track_m) > 1.5 + 0.5 * max(imp.length_m, c.length_m) for c in combined):
+            merged.append(imp)
+    return sorted(merged, key=lambda i: i.track_m), flats
 
 
 def mask_track_impacts(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding],

@@ -33,7 +33,8 @@ from scipy.signal import find_peaks, welch
 
 from app.analysis.impacts.surface import SurfaceEstimate
 
-__all__ = ["DIP_LENGTHS_M", "DETECTION_THRESHOLD", "MIN_DEPTH_M", "SCALE_BLOCK_M", "Dips", "find_dips"]
+__all__ = ["DIP_LENGTHS_M", "DETECTION_THRESHOLD", "MIN_DEPTH_M", "SCALE_BLOCK_M", "LONG_SCALE_BLOCK_M",
+           "TRACE_STEP_M", "Dips", "DipTrace", "find_dips", "scan_dips"]
 
 #: Lengths of the matched dips, m (a flat's few cm … a weld's metre and more).
 DIP_LENGTHS_M: tuple[float, ...] = (0.04, 0.1, 0.25, 0.5, 1.0, 1.6)
@@ -41,8 +42,14 @@ DIP_LENGTHS_M: tuple[float, ...] = (0.04, 0.1, 0.25, 0.5, 1.0, 1.6)
 DETECTION_THRESHOLD = 3.5
 #: Shallower dips are not kept whatever their score (the short-wave roughness is tiny), m.
 MIN_DEPTH_M = 0.1e-3
-#: Stretch over which the spread of the filter output is taken, m.
+#: Stretch over which the spread of the short filters' output is taken, m.
 SCALE_BLOCK_M = 40.0
+#: The same for the long (weld) filters, m: their output is correlated over a metre, so 40 m hold
+#: only ~40 independent values and their MAD scatters by ~±18 %; 160 m hold ~160 (±9 %), still local
+#: to the rail's condition (a ground stretch, a change of rail).
+LONG_SCALE_BLOCK_M = 160.0
+#: Spacing of the long filters' score trace (:class:`DipTrace`), m of travelled distance (3 coarse cells).
+TRACE_STEP_M = 0.12
 #: No dips are sought this close to the ends of a valid stretch (the filters are truncated there), m.
 EDGE_M = 6.0
 #: Bins and percentile of the running filter across the background spectrum (0.05 1/m a bin).
@@ -91,6 +98,38 @@ class Dips:
         """No dips."""
         z = np.zeros(0)
         return cls(z, z, z, z, z)
+
+
+@dataclass(frozen=True)
+class DipTrace:
+    """The long (weld) filters' best score along one wheel's travel, every :data:`TRACE_STEP_M`.
+
+    Per stretch of ``TRACE_STEP_M`` the highest score over the long lengths and its length and depth
+    (the stretch's maximum, so that a dip's peak is kept whatever the sampling). NaN where no dip is
+    sought (invalid cells, the ends of a valid stretch). Combined across the wheels at one track
+    position by :func:`app.analysis.impacts.welds.combined_track_dips`.
+
+    Attributes
+    ----------
+    s_m : numpy.ndarray
+        Travelled distance of the stretch's best cell, m.
+    score, length_m, depth_m : numpy.ndarray
+        Its score (depth over the robust spread), length (m) and depth (m).
+    """
+
+    s_m: np.ndarray
+    score: np.ndarray
+    length_m: np.ndarray
+    depth_m: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.s_m.size)
+
+    @classmethod
+    def empty(cls) -> DipTrace:
+        """No trace."""
+        z = np.zeros(0)
+        return cls(z, z, z, z)
 
 
 def _template(length_m: float, step: float) -> np.ndarray:
@@ -159,7 +198,7 @@ def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
 
 
 def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
-          lengths: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+          lengths: tuple[float, ...], scale_block_m: float = SCALE_BLOCK_M) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Best score, its length and its depth per cell over a bank of matched dips on one grid."""
     n = h.size
     k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)), est)
@@ -173,7 +212,7 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
     num_w = np.where(inband, gain / np.maximum(psd, floor), 0.0)
     den_w = num_w * gain
     r = np.fft.rfft(np.where(valid, h, 0.0), nfft)
-    block = max(int(SCALE_BLOCK_M / step), 256)
+    block = max(int(scale_block_m / step), 256)
     best = np.full(n, -np.inf)
     best_l = np.zeros(n)
     best_d = np.zeros(n)
@@ -224,7 +263,18 @@ def find_dips(
     threshold: float = DETECTION_THRESHOLD,
     separation_m: float = 1.5,
 ) -> Dips:
-    """Isolated dips in an estimated surface (see the module docstring).
+    """Isolated dips in an estimated surface (see the module docstring); :func:`scan_dips` without the trace."""
+    return scan_dips(est, lengths_m=lengths_m, threshold=threshold, separation_m=separation_m)[0]
+
+
+def scan_dips(
+    est: SurfaceEstimate,
+    *,
+    lengths_m: tuple[float, ...] = DIP_LENGTHS_M,
+    threshold: float = DETECTION_THRESHOLD,
+    separation_m: float = 1.5,
+) -> tuple[Dips, DipTrace]:
+    """Isolated dips in an estimated surface and the long filters' score trace (module docstring).
 
     Parameters
     ----------
@@ -239,7 +289,11 @@ def find_dips(
 
     Returns
     -------
-    Dips
+    dips : Dips
+        The candidates of this wheel alone (score >= ``threshold``).
+    trace : DipTrace
+        The long lengths' (>= 0.2 m, welds) best score every :data:`TRACE_STEP_M`, whatever its value:
+        the evidence that is combined across the wheels that meet one track position.
     """
     if not threshold > 0:
         raise ValueError(f"threshold: must be > 0, got {threshold!r}")
@@ -247,7 +301,7 @@ def find_dips(
         raise ValueError("lengths_m: must be a non-empty tuple of lengths > 0 m")
     n = est.height.size
     if est.valid.sum() < 1024:
-        return Dips.empty()
+        return Dips.empty(), DipTrace.empty()
     step = est.step
     short = tuple(x for x in lengths_m if x < _COARSE_FROM_M)
     long = tuple(x for x in lengths_m if x >= _COARSE_FROM_M)
@@ -255,6 +309,7 @@ def find_dips(
     edge = max(1, int(EDGE_M / step))
     ends = np.flatnonzero(np.diff(np.concatenate([[0], est.valid.astype(np.int8), [0]])))
     parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+    trace = DipTrace.empty()
     # short dips (flats, joints) and long ones (welds) are sought apart: a flat's hit beside a weld
     # is two things, not a side lobe of one
     for bank in (short, long):
@@ -267,7 +322,10 @@ def find_dips(
             m = n // q
             hc = est.height[: m * q].reshape(m, q).mean(axis=1)
             vc = est.valid[: m * q].reshape(m, q).all(axis=1)
-            bc, lc, dc = _bank(hc, vc, q * step, est, bank)
+            bc, lc, dc = _bank(hc, vc, q * step, est, bank, LONG_SCALE_BLOCK_M)
+            for e in ends:  # in coarse cells
+                bc[max(0, (e - edge) // q) : (e + edge) // q + 1] = -np.inf
+            trace = _trace(bc, lc, dc, est.s0, q * step)
             best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
                                     for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
         for e in ends:
@@ -278,12 +336,28 @@ def find_dips(
         peaks = _without_side_lobes(peaks, best, step)
         parts.append((peaks, best[peaks], best_l[peaks], best_d[peaks]))
     if not parts:
-        return Dips.empty()
+        return Dips.empty(), trace
     peaks = np.concatenate([p[0] for p in parts])
     order = np.argsort(peaks, kind="stable")
     peaks = peaks[order]
     score, length, depth = (np.concatenate([p[k] for p in parts])[order] for k in (1, 2, 3))
     if peaks.size == 0:
-        return Dips.empty()
-    return Dips(s_m=est.s[peaks], length_m=length, depth_m=depth, score=score,
-                speed_mps=np.nan_to_num(est.speed[peaks], nan=0.0))
+        return Dips.empty(), trace
+    return (Dips(s_m=est.s[peaks], length_m=length, depth_m=depth, score=score,
+                 speed_mps=np.nan_to_num(est.speed[peaks], nan=0.0)), trace)
+
+
+def _trace(best: np.ndarray, length: np.ndarray, depth: np.ndarray, s0: float, step: float) -> DipTrace:
+    """Per stretch of :data:`TRACE_STEP_M` the cell of the highest score (NaN where there is none)."""
+    per = max(1, int(round(TRACE_STEP_M / step)))
+    m = best.size // per
+    if m == 0:
+        return DipTrace.empty()
+    b = best[: m * per].reshape(m, per)
+    j = np.argmax(b, axis=1)
+    rows = np.arange(m)
+    cell = rows * per + j
+    score = b[rows, j]
+    ok = np.isfinite(score)
+    return DipTrace(s_m=s0 + (cell + 0.5) * step, score=np.where(ok, score, np.nan),
+                    length_m=length[cell], depth_m=np.where(ok, depth[cell], np.nan))
