@@ -62,16 +62,18 @@ BRIDGED_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_amp_raw", "sleeper_a
                                     "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms", "sleeper_force_amp")
 #: Rows of a chunk file's ``dips_<wheel>`` member.
 DIP_FIELDS: tuple[str, ...] = ("track_m", "s_m", "length_m", "depth_m", "score", "speed_mps", "weight")
-#: Rows of a chunk file's ``dipz_<wheel>`` member: the long filters' score trace (welds), every 0.12 m.
-TRACE_FIELDS: tuple[str, ...] = ("track_m", "s_m", "score", "length_m", "depth_m", "weight")
+#: Rows of a chunk file's ``dipx_<wheel>`` member (float64), beside ``dipz_<wheel>`` (float32: the long
+#: filters' scores per length, then their depths, m) and ``dipl_<wheel>`` (the lengths, m): the long
+#: filters' score trace (welds), every 0.12 m of travel.
+TRACE_FIELDS: tuple[str, ...] = ("track_m", "s_m", "weight")
 
 
 def _member(wheel: str) -> str:
     return f"dips_{wheel}"
 
 
-def _trace_member(wheel: str) -> str:
-    return f"dipz_{wheel}"
+def _trace_members(wheel: str) -> tuple[str, str, str]:
+    return f"dipx_{wheel}", f"dipz_{wheel}", f"dipl_{wheel}"
 
 
 def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarray, recipe: OrderRecipe,
@@ -155,10 +157,11 @@ def chunk_dip_member(
     -------
     dict
         ``{"dips_<wheel>": (len(DIP_FIELDS), n) float array}``: the dips inside the chunk's output
-        range, with the chunk's crossfade weight there; ``{"dipz_<wheel>": (len(TRACE_FIELDS), m)}``:
-        the long filters' score trace there (:class:`app.analysis.impacts.dips.DipTrace`).
+        range, with the chunk's crossfade weight there; ``dipx_<wheel>`` ((len(TRACE_FIELDS), m)),
+        ``dipz_<wheel>`` ((2 k, m), float32) and ``dipl_<wheel>`` ((k,)): the long filters' score
+        trace there (:class:`app.analysis.impacts.dips.DipTrace`).
     """
-    empty = {_member(wheel): np.zeros((len(DIP_FIELDS), 0)), _trace_member(wheel): np.zeros((len(TRACE_FIELDS), 0))}
+    empty = {_member(wheel): np.zeros((len(DIP_FIELDS), 0))}
     # the whole chunk, padding included (the wheel orders are stationary: their envelopes held at the
     # output range's ends are right there), so that the estimate's own edges lie outside the output range
     a, b = 0, accel.size
@@ -171,9 +174,11 @@ def chunk_dip_member(
     if len(trace):
         idx = np.clip(np.searchsorted(travelled_m[a:b], trace.s_m), 0, b - a - 1) + a
         weight = chunk.weight(idx + lo)
-        inside = (weight > 0) & np.isfinite(trace.score)
-        rows = np.vstack([track_m[idx], trace.s_m, trace.score, trace.length_m, trace.depth_m, weight])
-        out[_trace_member(wheel)] = rows[:, inside].astype(np.float64)
+        inside = (weight > 0) & np.any(np.isfinite(trace.score), axis=0)
+        kx, kz, kl = _trace_members(wheel)
+        out[kx] = np.vstack([track_m[idx], trace.s_m, weight])[:, inside].astype(np.float64)
+        out[kz] = np.vstack([trace.score, trace.depth_m])[:, inside].astype(np.float32)
+        out[kl] = trace.lengths_m.astype(np.float64)
     if len(dips) == 0:
         return out
     idx = np.clip(np.searchsorted(travelled_m[a:b], dips.s_m), 0, b - a - 1) + a
@@ -222,23 +227,33 @@ def read_traces(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, Wheel
 
     Files without trace members (written before them) add nothing.
     """
-    parts: dict[str, list[np.ndarray]] = {w: [] for w in wheels}
+    parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {w: [] for w in wheels}
+    lengths: dict[str, np.ndarray] = {}
     for path in sorted(paths, key=lambda p: str(p)):
         with np.load(path) as npz:
             for w in wheels:
-                key = _trace_member(w)
-                if key in npz.files:
-                    arr = np.asarray(npz[key], dtype=np.float64)
-                    if arr.ndim == 2 and arr.shape[0] == len(TRACE_FIELDS) and arr.shape[1]:
-                        parts[w].append(arr)
+                kx, kz, kl = _trace_members(w)
+                if kx in npz.files and kz in npz.files and kl in npz.files:
+                    x = np.asarray(npz[kx], dtype=np.float64)
+                    z = np.asarray(npz[kz], dtype=np.float64)
+                    ln = np.asarray(npz[kl], dtype=np.float64)
+                    if x.ndim == 2 and x.shape[0] == len(TRACE_FIELDS) and x.shape[1] and z.shape == (2 * ln.size,
+                                                                                                   x.shape[1]):
+                        if w in lengths and not np.array_equal(lengths[w], ln):
+                            continue  # chunks of another bank (not expected within a run)
+                        lengths[w] = ln
+                        parts[w].append((x, z))
     out: dict[str, WheelTrace] = {}
     for w, arrs in parts.items():
         if not arrs:
             continue
-        rows = np.hstack(arrs)
-        rows = rows[:, rows[5] >= 0.5]  # the chunk that weighs most there
-        rows = rows[:, np.argsort(rows[1], kind="stable")]
-        out[w] = WheelTrace(rows[0], rows[2], rows[3], rows[4])
+        x = np.hstack([p[0] for p in arrs])
+        z = np.hstack([p[1] for p in arrs])
+        keep = x[2] >= 0.5  # the chunk that weighs most there
+        x, z = x[:, keep], z[:, keep]
+        order = np.argsort(x[1], kind="stable")
+        k = lengths[w].size
+        out[w] = WheelTrace(x[0, order], lengths[w], z[:k][:, order], z[k:][:, order])
     return out
 
 

@@ -102,24 +102,28 @@ class Dips:
 
 @dataclass(frozen=True)
 class DipTrace:
-    """The long (weld) filters' best score along one wheel's travel, every :data:`TRACE_STEP_M`.
+    """The long (weld) filters' scores along one wheel's travel, every :data:`TRACE_STEP_M`, per length.
 
-    Per stretch of ``TRACE_STEP_M`` the highest score over the long lengths and its length and depth
-    (the stretch's maximum, so that a dip's peak is kept whatever the sampling). NaN where no dip is
-    sought (invalid cells, the ends of a valid stretch). Combined across the wheels at one track
-    position by :func:`app.analysis.impacts.welds.combined_track_dips`.
+    Per stretch of ``TRACE_STEP_M`` and per length the stretch's highest score and the depth there (so
+    that a dip's peak is kept whatever the sampling); NaN where no dip is sought (invalid cells, the
+    ends of a valid stretch). Combined, length by length, across the wheels at one track position by
+    :func:`app.analysis.impacts.welds.combined_track_dips`.
 
     Attributes
     ----------
     s_m : numpy.ndarray
-        Travelled distance of the stretch's best cell, m.
-    score, length_m, depth_m : numpy.ndarray
-        Its score (depth over the robust spread), length (m) and depth (m).
+        Travelled distance of the stretch's centre, m, shape (m,).
+    lengths_m : numpy.ndarray
+        The filters' dip lengths, m, shape (k,).
+    score : numpy.ndarray
+        Depth over its robust spread, shape (k, m).
+    depth_m : numpy.ndarray
+        Depth, m, shape (k, m).
     """
 
     s_m: np.ndarray
+    lengths_m: np.ndarray
     score: np.ndarray
-    length_m: np.ndarray
     depth_m: np.ndarray
 
     def __len__(self) -> int:
@@ -129,7 +133,7 @@ class DipTrace:
     def empty(cls) -> DipTrace:
         """No trace."""
         z = np.zeros(0)
-        return cls(z, z, z, z)
+        return cls(z, z, np.zeros((0, 0)), np.zeros((0, 0)))
 
 
 def _template(length_m: float, step: float) -> np.ndarray:
@@ -198,8 +202,12 @@ def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
 
 
 def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
-          lengths: tuple[float, ...], scale_block_m: float = SCALE_BLOCK_M) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Best score, its length and its depth per cell over a bank of matched dips on one grid."""
+          lengths: tuple[float, ...], scale_block_m: float = SCALE_BLOCK_M,
+          per_length: list[tuple[np.ndarray, np.ndarray]] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Best score, its length and its depth per cell over a bank of matched dips on one grid.
+
+    With ``per_length`` (a list) each length's (score, depth) per cell is appended to it.
+    """
     n = h.size
     k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)), est)
     nfft = 1 << int(math.ceil(math.log2(n + int(max(lengths) / step) + 8)))
@@ -230,6 +238,8 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
         scale = _robust_scale(depth, valid, block)
         with np.errstate(invalid="ignore", divide="ignore"):
             score = np.where(valid & (scale > 0), depth / scale, -np.inf)
+        if per_length is not None:
+            per_length.append((score, depth))
         better = score > best
         best = np.where(better, score, best)
         best_l = np.where(better, float(length), best_l)
@@ -322,10 +332,12 @@ def scan_dips(
             m = n // q
             hc = est.height[: m * q].reshape(m, q).mean(axis=1)
             vc = est.valid[: m * q].reshape(m, q).all(axis=1)
-            bc, lc, dc = _bank(hc, vc, q * step, est, bank, LONG_SCALE_BLOCK_M)
-            for e in ends:  # in coarse cells
-                bc[max(0, (e - edge) // q) : (e + edge) // q + 1] = -np.inf
-            trace = _trace(bc, lc, dc, est.s0, q * step)
+            each: list[tuple[np.ndarray, np.ndarray]] = []
+            bc, lc, dc = _bank(hc, vc, q * step, est, bank, LONG_SCALE_BLOCK_M, each)
+            for sc, _ in each:
+                for e in ends:  # in coarse cells
+                    sc[max(0, (e - edge) // q) : (e + edge) // q + 1] = -np.inf
+            trace = _trace(each, bank, est.s0, q * step)
             best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
                                     for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
         for e in ends:
@@ -347,17 +359,21 @@ def scan_dips(
                  speed_mps=np.nan_to_num(est.speed[peaks], nan=0.0)), trace)
 
 
-def _trace(best: np.ndarray, length: np.ndarray, depth: np.ndarray, s0: float, step: float) -> DipTrace:
-    """Per stretch of :data:`TRACE_STEP_M` the cell of the highest score (NaN where there is none)."""
+def _trace(each: list[tuple[np.ndarray, np.ndarray]], lengths: tuple[float, ...], s0: float,
+           step: float) -> DipTrace:
+    """Per stretch of :data:`TRACE_STEP_M` and per length the highest score and its depth (NaN where none)."""
     per = max(1, int(round(TRACE_STEP_M / step)))
-    m = best.size // per
+    m = each[0][0].size // per if each else 0
     if m == 0:
         return DipTrace.empty()
-    b = best[: m * per].reshape(m, per)
-    j = np.argmax(b, axis=1)
     rows = np.arange(m)
-    cell = rows * per + j
-    score = b[rows, j]
-    ok = np.isfinite(score)
-    return DipTrace(s_m=s0 + (cell + 0.5) * step, score=np.where(ok, score, np.nan),
-                    length_m=length[cell], depth_m=np.where(ok, depth[cell], np.nan))
+    scores, depths = [], []
+    for sc, dp in each:
+        b = sc[: m * per].reshape(m, per)
+        j = np.argmax(b, axis=1)
+        best = b[rows, j]
+        ok = np.isfinite(best)
+        scores.append(np.where(ok, best, np.nan))
+        depths.append(np.where(ok, dp[rows * per + j], np.nan))
+    return DipTrace(s_m=s0 + (rows + 0.5) * per * step, lengths_m=np.asarray(lengths, dtype=np.float64),
+                    score=np.vstack(scores), depth_m=np.vstack(depths))

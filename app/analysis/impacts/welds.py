@@ -35,7 +35,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d
 from scipy.signal import find_peaks
 
 from app.analysis.impacts.classify import TrackImpactFinding
@@ -64,63 +63,63 @@ ALIGN_M = 0.15
 
 @dataclass(frozen=True)
 class WheelTrace:
-    """One wheel's long-filter score trace on the track (:class:`app.analysis.impacts.dips.DipTrace`).
+    """One wheel's long-filter scores on the track, per length (:class:`app.analysis.impacts.dips.DipTrace`).
 
     Attributes
     ----------
     track_m : numpy.ndarray
-        Track position, m on the km axis.
-    score, length_m, depth_m : numpy.ndarray
-        Best score, its length (m) and depth (m) there; NaN score where no dip was sought.
+        Track position, m on the km axis, shape (m,).
+    lengths_m : numpy.ndarray
+        The filters' dip lengths, m, shape (k,).
+    score, depth_m : numpy.ndarray
+        Score and depth (m) per length there, shape (k, m); NaN score where no dip was sought.
     """
 
     track_m: np.ndarray
+    lengths_m: np.ndarray
     score: np.ndarray
-    length_m: np.ndarray
     depth_m: np.ndarray
 
     def __post_init__(self) -> None:
-        n = np.asarray(self.track_m).shape
-        for name in ("track_m", "score", "length_m", "depth_m"):
+        x = np.asarray(self.track_m, dtype=np.float64)
+        ln = np.asarray(self.lengths_m, dtype=np.float64).reshape(-1)
+        if x.ndim != 1:
+            raise ValueError("track_m: must be 1-D")
+        object.__setattr__(self, "track_m", x)
+        object.__setattr__(self, "lengths_m", ln)
+        for name in ("score", "depth_m"):
             a = np.asarray(getattr(self, name), dtype=np.float64)
-            if a.shape != n or a.ndim != 1:
-                raise ValueError(f"{name}: must be 1-D like track_m")
+            if a.shape != (ln.size, x.size):
+                raise ValueError(f"{name}: must have shape (len(lengths_m), len(track_m))")
             object.__setattr__(self, name, a)
 
     def __len__(self) -> int:
         return int(self.track_m.size)
 
 
-def _on_grid(tr: WheelTrace, x0: float, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Score, length, depth per grid cell (the best trace point in the cell, then the best within ALIGN_M)."""
-    score = np.full(n, -np.inf)
-    length = np.zeros(n)
-    depth = np.zeros(n)
-    ok = np.isfinite(tr.score) & np.isfinite(tr.track_m)
+def _on_grid(x: np.ndarray, score: np.ndarray, depth: np.ndarray, x0: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Score and depth per grid cell: the best trace point in the cell, then the best within ALIGN_M."""
+    sc_grid = np.full(n, -np.inf)
+    dp_grid = np.full(n, np.nan)
+    ok = np.isfinite(score) & np.isfinite(x)
     if not ok.any():
-        return np.full(n, np.nan), length, depth
-    cell = np.floor((tr.track_m[ok] - x0) / GRID_M).astype(np.int64)
+        return np.full(n, np.nan), dp_grid
+    cell = np.floor((x[ok] - x0) / GRID_M).astype(np.int64)
     inside = (cell >= 0) & (cell < n)
-    cell, sc = cell[inside], tr.score[ok][inside]
-    ln, dp = tr.length_m[ok][inside], tr.depth_m[ok][inside]
+    cell, sc, dp = cell[inside], score[ok][inside], depth[ok][inside]
     order = np.argsort(sc, kind="stable")  # the best last: it wins the assignment
-    score[cell[order]] = sc[order]
-    length[cell[order]] = ln[order]
-    depth[cell[order]] = dp[order]
-    have = np.isfinite(score)
+    sc_grid[cell[order]] = sc[order]
+    dp_grid[cell[order]] = dp[order]
     reach = max(1, int(round(ALIGN_M / GRID_M)))
-    pooled = maximum_filter1d(np.where(have, score, -np.inf), size=2 * reach + 1, mode="constant", cval=-np.inf)
-    # the length and depth of the pooled maximum: that of the best cell within reach
     idx = np.arange(n)
     best_idx = idx.copy()
-    best = np.where(have, score, -np.inf)
     for k in range(1, reach + 1):
         for sh in (k, -k):
             j = np.clip(idx + sh, 0, n - 1)
-            better = best[j] > np.where(best_idx == idx, best, best[best_idx])
+            better = sc_grid[j] > sc_grid[best_idx]
             best_idx = np.where(better, j, best_idx)
-    out = np.where(np.isfinite(pooled), pooled, np.nan)
-    return out, length[best_idx], depth[best_idx]
+    pooled = sc_grid[best_idx]
+    return np.where(np.isfinite(pooled), pooled, np.nan), dp_grid[best_idx]
 
 
 def combined_track_dips(
@@ -155,33 +154,35 @@ def combined_track_dips(
     live = {w: t for w, t in traces.items() if len(t) and np.isfinite(t.score).any()}
     if not live:
         return []
+    lengths = next(iter(live.values())).lengths_m
+    if any(not np.array_equal(t.lengths_m, lengths) for t in live.values()):
+        raise ValueError("traces: every wheel's trace must have the same lengths_m")
     lo = min(float(np.nanmin(t.track_m)) for t in live.values())
     hi = max(float(np.nanmax(t.track_m)) for t in live.values())
     n = int(math.floor((hi - lo) / GRID_M)) + 1
-    grid = {w: _on_grid(t, lo, n) for w, t in live.items()}
     axles_measured = sorted({w[0] for w in (traces if wheels_measured is None else wheels_measured)})
-
-    def mean_of(wheels: list[str], k: int) -> np.ndarray:
-        stack = np.vstack([grid[w][k] for w in wheels]) if wheels else np.full((1, n), np.nan)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: NaN
-            return np.nanmean(stack, axis=0)
-
-    side_z: dict[int, np.ndarray] = {}
-    side_d: dict[int, np.ndarray] = {}
-    for side in (1, 2):
-        mine = [w for w in live if int(w[1]) == side]
-        if mine:
-            side_z[side], side_d[side] = mean_of(mine, 0), mean_of(mine, 2)
-    zs = np.vstack(list(side_z.values()))
-    count = np.sum(np.isfinite(zs), axis=0)
-    total = np.nansum(zs, axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        pair = np.where(count >= 2, total / np.sqrt(np.maximum(count, 1)), np.nan)
-        best_side = np.nanmax(np.where(np.isfinite(zs), zs, -np.inf), axis=0)
-    # one statistic on one scale: a pair's Z over its threshold, or a side's over its own
-    merit = np.fmax(np.where(np.isfinite(pair), pair / pair_threshold, -np.inf), best_side / single_threshold)
-    merit = np.where(np.isfinite(merit), merit, -np.inf)
+    # per length: every wheel's score on the grid, the sides' means, the pair's sum / sqrt 2
+    merit = np.full(n, -np.inf)
+    best_k = np.zeros(n, dtype=np.int64)
+    grids: list[dict[str, tuple[np.ndarray, np.ndarray]]] = []
+    for k in range(lengths.size):
+        g = {w: _on_grid(t.track_m, t.score[k], t.depth_m[k], lo, n) for w, t in live.items()}
+        grids.append(g)
+        zs = []
+        for side in (1, 2):
+            mine = [w for w in live if int(w[1]) == side]
+            if mine:
+                zs.append(_nanmean(np.vstack([g[w][0] for w in mine])))
+        z = np.vstack(zs)
+        count = np.sum(np.isfinite(z), axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            pair = np.where(count >= 2, np.nansum(z, axis=0) / np.sqrt(np.maximum(count, 1)), -np.inf)
+        side_best = np.max(np.where(np.isfinite(z), z, -np.inf), axis=0)
+        # one statistic on one scale: a pair's Z over its threshold, or a side's over its own
+        m_k = np.maximum(pair / pair_threshold, side_best / single_threshold)
+        better = m_k > merit
+        merit = np.where(better, m_k, merit)
+        best_k = np.where(better, k, best_k)
     peaks, _ = find_peaks(np.where(np.isfinite(merit), merit, -1e300), height=1.0,
                           distance=max(1, int(1.5 / GRID_M)))
     if peaks.size == 0:
@@ -196,26 +197,36 @@ def combined_track_dips(
     out: list[TrackImpactFinding] = []
     x = lo + (np.arange(n) + 0.5) * GRID_M
     for p in sorted(kept):
+        k = int(best_k[p])
+        g = grids[k]
         if len(axles_measured) >= 2:
             axle_ok = []
             for axle in axles_measured:
-                mine = [w for w in live if w[0] == axle and np.isfinite(grid[w][0][p])]
-                if not mine:
-                    axle_ok.append(False)
-                    continue
-                z_axle = sum(grid[w][0][p] for w in mine) / math.sqrt(len(mine))
+                mine = [w for w in live if w[0] == axle and np.isfinite(g[w][0][p])]
+                z_axle = sum(g[w][0][p] for w in mine) / math.sqrt(len(mine)) if mine else -np.inf
                 axle_ok.append(z_axle >= confirm_threshold)
             if not all(axle_ok):
                 continue
-        depth_by_side = {s: float(side_d[s][p]) for s in side_z if np.isfinite(side_z[s][p])}
-        depths = [d for d in depth_by_side.values() if np.isfinite(d)]
-        if not depths or float(np.mean(depths)) < MIN_DEPTH_M:
+        depth_by_side: dict[int, float] = {}
+        side_z: list[float] = []
+        for side in (1, 2):
+            mine = [w for w in live if int(w[1]) == side and np.isfinite(g[w][0][p])]
+            if mine:
+                depth_by_side[side] = float(np.mean([g[w][1][p] for w in mine]))
+                side_z.append(float(np.mean([g[w][0][p] for w in mine])))
+        if not depth_by_side or float(np.mean(list(depth_by_side.values()))) < MIN_DEPTH_M:
             continue
-        wheels = tuple(sorted(w for w in live if np.isfinite(grid[w][0][p])))
-        top = max(wheels, key=lambda w: grid[w][0][p])
-        score = float(pair[p]) if np.isfinite(pair[p]) and pair[p] / pair_threshold >= best_side[p] / single_threshold \
-            else float(best_side[p])
-        out.append(TrackImpactFinding(track_m=float(x[p]), length_m=float(grid[top][1][p]),
-                                      depth_m=float(np.mean(depths)), depth_by_side=depth_by_side,
-                                      wheels=wheels, score=score))
+        pair_z = sum(side_z) / math.sqrt(len(side_z)) if len(side_z) >= 2 else -np.inf
+        score = pair_z if pair_z / pair_threshold >= max(side_z) / single_threshold else max(side_z)
+        out.append(TrackImpactFinding(track_m=float(x[p]), length_m=float(lengths[k]),
+                                      depth_m=float(np.mean(list(depth_by_side.values()))),
+                                      depth_by_side=depth_by_side,
+                                      wheels=tuple(sorted(w for w in live if np.isfinite(g[w][0][p]))),
+                                      score=float(score)))
     return out
+
+
+def _nanmean(stack: np.ndarray) -> np.ndarray:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: NaN
+        return np.nanmean(stack, axis=0)
