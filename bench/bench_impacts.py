@@ -223,13 +223,16 @@ def sim(work: Path, seeds: list[int], length_km: float, cases: tuple[str, ...] =
             zpk = combined_track_dips(read_traces(paths, [str(w["wheel"]) for w in res.wheels]),
                                       pair_threshold=1.0, single_threshold=1e9, confirm_threshold=0.0)
             z_at = [max([z.score for z in zpk if abs(z.track_m - x) <= 0.75], default=0.0) for x in inside]
+            p11 = p[p["wheel"] == "11"]
+            v_at = [float(np.interp(x, (p11["bin"].to_numpy() + 0.5) * settings.bin_length_m, p11["speed_mean"].to_numpy()))
+                    for x in inside]
             z_else = [round(z.score, 2) for z in zpk if a <= z.track_m <= b and z.score >= 3.0
                       and all(abs(z.track_m - x) > 3.0 for x in welds)]
             flat = next((w["flat"] for w in res.wheels if w["wheel"] == "11" and w.get("flat")), None)
             other_flats = [w["wheel"] for w in res.wheels if w["wheel"] != "11" and w.get("flat")]
             row = {"case": case, "seed": seed, "km": (b - a) / 1000.0, "welds": len(inside), "found": hit,
                    "missed_depth_mm": missed, "false": len(false), "false_at": [round(f, 1) for f in false],
-                   "z_at_welds": [round(z, 2) for z in z_at], "z_elsewhere": z_else,
+                   "z_at_welds": [round(z, 2) for z in z_at], "speed_at_welds": [round(v, 1) for v in v_at], "z_elsewhere": z_else,
                    "pos_err_m": pos_err, "depth_err": depth_err, "indicator": ind,
                    "flat_found": flat is not None if flats else None,
                    "flat_angle_err_deg": (((flat["angle_deg"] - np.degrees(angle)) + 180) % 360 - 180) if flat else None,

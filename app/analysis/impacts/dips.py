@@ -33,11 +33,15 @@ from scipy.signal import find_peaks, welch
 
 from app.analysis.impacts.surface import SurfaceEstimate
 
-__all__ = ["DIP_LENGTHS_M", "DETECTION_THRESHOLD", "MIN_DEPTH_M", "SCALE_BLOCK_M", "LONG_SCALE_BLOCK_M",
+__all__ = ["DIP_LENGTHS_M", "WELD_LENGTHS_M", "DETECTION_THRESHOLD", "MIN_DEPTH_M", "SCALE_BLOCK_M", "LONG_SCALE_BLOCK_M",
            "TRACE_STEP_M", "Dips", "DipTrace", "find_dips", "scan_dips"]
 
 #: Lengths of the matched dips, m (a flat's few cm … a weld's metre and more).
 DIP_LENGTHS_M: tuple[float, ...] = (0.04, 0.1, 0.25, 0.5, 1.0, 1.6)
+#: Lengths of the weld filters whose scores are kept as a trace (:class:`DipTrace`) and combined across
+#: the wheels, m: the welds' 0.5–2 m in steps of about sqrt 2 (a weld between two lengths loses a few
+#: per cent of its score; the 0.25 m filter, with the most independent values per km, is left out).
+WELD_LENGTHS_M: tuple[float, ...] = (0.5, 0.7, 1.0, 1.4, 2.0)
 #: Score (depth over its robust spread) a dip must reach to be kept as a candidate.
 DETECTION_THRESHOLD = 3.5
 #: Shallower dips are not kept whatever their score (the short-wave roughness is tiny), m.
@@ -45,11 +49,13 @@ MIN_DEPTH_M = 0.1e-3
 #: Stretch over which the spread of the short filters' output is taken, m.
 SCALE_BLOCK_M = 40.0
 #: The same for the long (weld) filters, m: their output is correlated over a metre, so 40 m hold
-#: only ~40 independent values and their MAD scatters by ~±18 %; 160 m hold ~160 (±9 %), still local
-#: to the rail's condition (a ground stretch, a change of rail).
+#: only ~40 independent values and their MAD scatters by ~±18 %; 160 m hold ~160 (±9 %). Their spread
+#: is the larger of the two (a change of track type or rail inside a long block would otherwise leave
+#: its rougher side under-scaled for up to a block, reading as a row of dips).
 LONG_SCALE_BLOCK_M = 160.0
-#: Spacing of the long filters' score trace (:class:`DipTrace`), m of travelled distance (3 coarse cells).
-TRACE_STEP_M = 0.12
+#: Spacing of the long filters' score trace (:class:`DipTrace`), m of travelled distance (2 coarse cells;
+#: the shortest long filter's peak, 0.25 m, loses < 3 % between two samples).
+TRACE_STEP_M = 0.08
 #: No dips are sought this close to the ends of a valid stretch (the filters are truncated there), m.
 EDGE_M = 6.0
 #: Bins and percentile of the running filter across the background spectrum (0.05 1/m a bin).
@@ -102,12 +108,12 @@ class Dips:
 
 @dataclass(frozen=True)
 class DipTrace:
-    """The long (weld) filters' scores along one wheel's travel, every :data:`TRACE_STEP_M`, per length.
+    """The long (weld) filters' scores along one wheel's travel, sampled every :data:`TRACE_STEP_M`, per length.
 
-    Per stretch of ``TRACE_STEP_M`` and per length the stretch's highest score and the depth there (so
-    that a dip's peak is kept whatever the sampling); NaN where no dip is sought (invalid cells, the
-    ends of a valid stretch). Combined, length by length, across the wheels at one track position by
-    :func:`app.analysis.impacts.welds.combined_track_dips`.
+    Samples, not maxima over the stretch: a maximum per wheel would raise the roughness's scores (each
+    rail its own maximum) more than a weld's (one position for all). NaN where no dip is sought
+    (invalid cells, the ends of a valid stretch). Combined, length by length, across the wheels at
+    one track position by :func:`app.analysis.impacts.welds.combined_track_dips`.
 
     Attributes
     ----------
@@ -149,16 +155,24 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     A running low percentile across wavenumbers, over the bins the estimate
     kept (in its band, off its notches): the background is smooth, a wheel
     flat's comb of lines (every 1 / circumference, each a few bins wide) is
-    not. A constant factor on it changes neither a depth nor a score.
+    not. A constant factor on it changes neither a depth nor a score. The
+    percentile is taken of ``P kappa³``, the spectrum with rail roughness's own
+    slope taken out (Sato's ``A / Omega³``), where the background is about flat:
+    of ``P`` itself, a window of 1.5 1/m on a slope of ``kappa⁻³`` would take its
+    low values from the window's short-wave end and put the background at long
+    waves an order of magnitude too low, over-weighting them (the long filters
+    then lose a quarter of a weld's score).
     """
     x = np.where(valid, h, 0.0)
     frac = float(valid.mean()) if valid.size else 0.0
     nper = min(nperseg, 1 << int(math.floor(math.log2(max(x.size, 16)))))
     k, p = welch(x, fs=1.0 / step, nperseg=nper, detrend=False)
+    tilt = np.maximum(k, k[1] if k.size > 1 else 1.0) ** 3
+    p = p * tilt
     kept = est.gain(k) > 0.5
     idx = np.flatnonzero(kept)
     if idx.size == 0:
-        return k, p / max(frac, 1e-3)
+        return k, p / tilt / max(frac, 1e-3)
     half = _PSD_FILTER_BINS // 2
     padded = np.concatenate([np.full(half, np.nan), np.where(kept, p, np.nan), np.full(half, np.nan)])
     windows = np.sort(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[idx], axis=1)  # NaN last
@@ -170,7 +184,7 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     rows = np.arange(windows.shape[0])
     filtered = windows[rows, lo_i] * (1.0 - frac_i) + windows[rows, hi_i] * frac_i
     # outside what the estimate kept: the nearest kept value (the weights are ~0 there)
-    out = np.interp(np.arange(p.size), idx, filtered)
+    out = np.interp(np.arange(p.size), idx, filtered) / tilt
     return k, out / max(frac, 1e-3)  # the invalid (zeroed) cells diluted it
 
 
@@ -220,7 +234,7 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
     num_w = np.where(inband, gain / np.maximum(psd, floor), 0.0)
     den_w = num_w * gain
     r = np.fft.rfft(np.where(valid, h, 0.0), nfft)
-    block = max(int(scale_block_m / step), 256)
+    blocks = sorted({max(int(SCALE_BLOCK_M / step), 256), max(int(scale_block_m / step), 256)})
     best = np.full(n, -np.inf)
     best_l = np.zeros(n)
     best_d = np.zeros(n)
@@ -235,7 +249,9 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
         if not den > 0:
             continue
         depth = np.fft.irfft(r * np.conj(tf) * num_w, nfft)[:n] / den
-        scale = _robust_scale(depth, valid, block)
+        scale = _robust_scale(depth, valid, blocks[0])
+        for block in blocks[1:]:
+            scale = np.fmax(scale, _robust_scale(depth, valid, block))
         with np.errstate(invalid="ignore", divide="ignore"):
             score = np.where(valid & (scale > 0), depth / scale, -np.inf)
         if per_length is not None:
@@ -333,11 +349,22 @@ def scan_dips(
             hc = est.height[: m * q].reshape(m, q).mean(axis=1)
             vc = est.valid[: m * q].reshape(m, q).all(axis=1)
             each: list[tuple[np.ndarray, np.ndarray]] = []
-            bc, lc, dc = _bank(hc, vc, q * step, est, bank, LONG_SCALE_BLOCK_M, each)
+            union = tuple(sorted(set(bank) | set(WELD_LENGTHS_M)))
+            _bank(hc, vc, q * step, est, union, LONG_SCALE_BLOCK_M, each)
             for sc, _ in each:
                 for e in ends:  # in coarse cells
                     sc[max(0, (e - edge) // q) : (e + edge) // q + 1] = -np.inf
-            trace = _trace(each, bank, est.s0, q * step)
+            welds = [i for i, x in enumerate(union) if x in WELD_LENGTHS_M]
+            trace = _trace([each[i] for i in welds], tuple(union[i] for i in welds), est.s0, q * step)
+            bc = np.full(m, -np.inf)
+            lc = np.zeros(m)
+            dc = np.zeros(m)
+            for i, length in enumerate(union):  # the candidates: the best of the bank's own lengths
+                if length in bank:
+                    better = each[i][0] > bc
+                    bc = np.where(better, each[i][0], bc)
+                    lc = np.where(better, length, lc)
+                    dc = np.where(better, each[i][1], dc)
             best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
                                     for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
         for e in ends:
@@ -361,19 +388,16 @@ def scan_dips(
 
 def _trace(each: list[tuple[np.ndarray, np.ndarray]], lengths: tuple[float, ...], s0: float,
            step: float) -> DipTrace:
-    """Per stretch of :data:`TRACE_STEP_M` and per length the highest score and its depth (NaN where none)."""
+    """Every :data:`TRACE_STEP_M` and per length the score and depth (NaN where no dip is sought)."""
     per = max(1, int(round(TRACE_STEP_M / step)))
-    m = each[0][0].size // per if each else 0
-    if m == 0:
+    cell = np.arange(0, each[0][0].size, per) if each else np.zeros(0, dtype=np.int64)
+    if cell.size == 0:
         return DipTrace.empty()
-    rows = np.arange(m)
     scores, depths = [], []
     for sc, dp in each:
-        b = sc[: m * per].reshape(m, per)
-        j = np.argmax(b, axis=1)
-        best = b[rows, j]
-        ok = np.isfinite(best)
-        scores.append(np.where(ok, best, np.nan))
-        depths.append(np.where(ok, dp[rows * per + j], np.nan))
-    return DipTrace(s_m=s0 + (rows + 0.5) * per * step, lengths_m=np.asarray(lengths, dtype=np.float64),
+        v = sc[cell]
+        ok = np.isfinite(v)
+        scores.append(np.where(ok, v, np.nan))
+        depths.append(np.where(ok, dp[cell], np.nan))
+    return DipTrace(s_m=s0 + (cell + 0.5) * step, lengths_m=np.asarray(lengths, dtype=np.float64),
                     score=np.vstack(scores), depth_m=np.vstack(depths))

@@ -50,15 +50,15 @@ __all__ = [
 ]
 
 #: Combined score of a rail pair, ``(z_1 + z_2) / sqrt 2``, that makes a track impact.
-PAIR_Z_THRESHOLD = 4.6
+PAIR_Z_THRESHOLD = 4.0
 #: One side's score (mean over its axles) that makes a track impact of that rail alone.
 SINGLE_Z_THRESHOLD = 5.0
 #: With two axles measured, each axle's own evidence there must reach this.
 CONFIRM_THRESHOLD = 3.0
-#: Track grid on which the wheels' traces are combined, m.
-GRID_M = 0.1
-#: Position tolerance between wheels (a maximum over ± this), m.
-ALIGN_M = 0.15
+#: Track grid on which the wheels' traces are combined (interpolated), m.
+GRID_M = 0.04
+#: A grid cell farther than this from a wheel's trace sample has no value of that wheel, m.
+MAX_GAP_M = 0.2
 
 
 @dataclass(frozen=True)
@@ -97,29 +97,18 @@ class WheelTrace:
         return int(self.track_m.size)
 
 
-def _on_grid(x: np.ndarray, score: np.ndarray, depth: np.ndarray, x0: float, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Score and depth per grid cell: the best trace point in the cell, then the best within ALIGN_M."""
-    sc_grid = np.full(n, -np.inf)
-    dp_grid = np.full(n, np.nan)
+def _on_grid(x: np.ndarray, score: np.ndarray, depth: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Score and depth interpolated onto the grid (NaN farther than :data:`MAX_GAP_M` from a sample)."""
     ok = np.isfinite(score) & np.isfinite(x)
-    if not ok.any():
-        return np.full(n, np.nan), dp_grid
-    cell = np.floor((x[ok] - x0) / GRID_M).astype(np.int64)
-    inside = (cell >= 0) & (cell < n)
-    cell, sc, dp = cell[inside], score[ok][inside], depth[ok][inside]
-    order = np.argsort(sc, kind="stable")  # the best last: it wins the assignment
-    sc_grid[cell[order]] = sc[order]
-    dp_grid[cell[order]] = dp[order]
-    reach = max(1, int(round(ALIGN_M / GRID_M)))
-    idx = np.arange(n)
-    best_idx = idx.copy()
-    for k in range(1, reach + 1):
-        for sh in (k, -k):
-            j = np.clip(idx + sh, 0, n - 1)
-            better = sc_grid[j] > sc_grid[best_idx]
-            best_idx = np.where(better, j, best_idx)
-    pooled = sc_grid[best_idx]
-    return np.where(np.isfinite(pooled), pooled, np.nan), dp_grid[best_idx]
+    if ok.sum() < 2:
+        return np.full(grid.size, np.nan), np.full(grid.size, np.nan)
+    xs, sc, dp = x[ok], score[ok], depth[ok]
+    order = np.argsort(xs, kind="stable")
+    xs, sc, dp = xs[order], sc[order], dp[order]
+    j = np.clip(np.searchsorted(xs, grid), 1, xs.size - 1)
+    gap = np.minimum(np.abs(grid - xs[j - 1]), np.abs(xs[j] - grid))
+    far = gap > MAX_GAP_M
+    return (np.where(far, np.nan, np.interp(grid, xs, sc)), np.where(far, np.nan, np.interp(grid, xs, dp)))
 
 
 def combined_track_dips(
@@ -160,13 +149,14 @@ def combined_track_dips(
     lo = min(float(np.nanmin(t.track_m)) for t in live.values())
     hi = max(float(np.nanmax(t.track_m)) for t in live.values())
     n = int(math.floor((hi - lo) / GRID_M)) + 1
+    x = lo + np.arange(n) * GRID_M
     axles_measured = sorted({w[0] for w in (traces if wheels_measured is None else wheels_measured)})
     # per length: every wheel's score on the grid, the sides' means, the pair's sum / sqrt 2
     merit = np.full(n, -np.inf)
     best_k = np.zeros(n, dtype=np.int64)
     grids: list[dict[str, tuple[np.ndarray, np.ndarray]]] = []
     for k in range(lengths.size):
-        g = {w: _on_grid(t.track_m, t.score[k], t.depth_m[k], lo, n) for w, t in live.items()}
+        g = {w: _on_grid(t.track_m, t.score[k], t.depth_m[k], x) for w, t in live.items()}
         grids.append(g)
         zs = []
         for side in (1, 2):
@@ -195,7 +185,6 @@ def combined_track_dips(
         if not any(abs(p - k) <= reach and merit[k] >= SIDE_LOBE_RATIO * merit[p] for k in kept):
             kept.append(int(p))
     out: list[TrackImpactFinding] = []
-    x = lo + (np.arange(n) + 0.5) * GRID_M
     for p in sorted(kept):
         k = int(best_k[p])
         g = grids[k]
