@@ -276,13 +276,14 @@ def run_impacts(
         if d is not None and np.isfinite(float(d)) and float(d) > 0:
             diam[str(w["wheel"])] = float(d)
     flats, used = wheel_flats(dips, diam)
-    # welds: the long filters' evidence combined over the wheels (rough rail); the single-wheel
-    # candidates' test beside it (short dips: joints; and what it found before on smooth rail)
+    # welds: the single-wheel candidates' test (clear dips: smooth rail, joints) and the weld filters'
+    # evidence combined over the wheels (welds on rough rail, app.analysis.impacts.welds)
     combined = combined_track_dips(read_traces(chunk_paths, names), wheels_measured=tuple(names))
     single = track_impacts(dips, exclude=used, wheels_measured=tuple(names))
-    merged = list(combined)
-    for imp in single:
-        if all(abs(imp.track_m - c.track_m) > 1.5 + 0.5 * max(imp.length_m, c.length_m) for c in combined):
+    # where both found one, the single-wheel test's (its length and depth fit one wheel's dip alone)
+    merged = list(single)
+    for imp in combined:
+        if all(abs(imp.track_m - c.track_m) > 1.5 + 0.5 * max(imp.length_m, c.length_m) for c in single):
             merged.append(imp)
     return sorted(merged, key=lambda i: i.track_m), flats
 

@@ -149,14 +149,14 @@ def _template(length_m: float, step: float) -> np.ndarray:
 
 
 def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
-                    est: SurfaceEstimate) -> tuple[np.ndarray, np.ndarray]:
+                    est: SurfaceEstimate, tilt: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Welch spectrum of the valid stretches (one-sided, per 1/m), a smooth background of it.
 
     A running low percentile across wavenumbers, over the bins the estimate
     kept (in its band, off its notches): the background is smooth, a wheel
     flat's comb of lines (every 1 / circumference, each a few bins wide) is
-    not. A constant factor on it changes neither a depth nor a score. The
-    percentile is taken of ``P kappa³``, the spectrum with rail roughness's own
+    not. A constant factor on it changes neither a depth nor a score. With
+    ``tilt`` (the weld trace) the percentile is taken of ``P kappa³``, the spectrum with rail roughness's own
     slope taken out (Sato's ``A / Omega³``), where the background is about flat:
     of ``P`` itself, a window of 1.5 1/m on a slope of ``kappa⁻³`` would take its
     low values from the window's short-wave end and put the background at long
@@ -167,12 +167,12 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     frac = float(valid.mean()) if valid.size else 0.0
     nper = min(nperseg, 1 << int(math.floor(math.log2(max(x.size, 16)))))
     k, p = welch(x, fs=1.0 / step, nperseg=nper, detrend=False)
-    tilt = np.maximum(k, k[1] if k.size > 1 else 1.0) ** 3
-    p = p * tilt
+    tilt_k = np.maximum(k, k[1] if k.size > 1 else 1.0) ** 3 if tilt else np.ones(k.size)
+    p = p * tilt_k
     kept = est.gain(k) > 0.5
     idx = np.flatnonzero(kept)
     if idx.size == 0:
-        return k, p / tilt / max(frac, 1e-3)
+        return k, p / tilt_k / max(frac, 1e-3)
     half = _PSD_FILTER_BINS // 2
     padded = np.concatenate([np.full(half, np.nan), np.where(kept, p, np.nan), np.full(half, np.nan)])
     windows = np.sort(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[idx], axis=1)  # NaN last
@@ -184,7 +184,7 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     rows = np.arange(windows.shape[0])
     filtered = windows[rows, lo_i] * (1.0 - frac_i) + windows[rows, hi_i] * frac_i
     # outside what the estimate kept: the nearest kept value (the weights are ~0 there)
-    out = np.interp(np.arange(p.size), idx, filtered) / tilt
+    out = np.interp(np.arange(p.size), idx, filtered) / tilt_k
     return k, out / max(frac, 1e-3)  # the invalid (zeroed) cells diluted it
 
 
@@ -217,13 +217,16 @@ def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
 
 def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
           lengths: tuple[float, ...], scale_block_m: float = SCALE_BLOCK_M,
-          per_length: list[tuple[np.ndarray, np.ndarray]] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+          per_length: list[tuple[np.ndarray, np.ndarray]] | None = None,
+          tilt: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Best score, its length and its depth per cell over a bank of matched dips on one grid.
 
-    With ``per_length`` (a list) each length's (score, depth) per cell is appended to it.
+    With ``per_length`` (a list) each length's (score, depth) per cell is appended to it; ``tilt``:
+    see :func:`_background_psd`. The spread is per block of ``scale_block_m`` and, where that is
+    longer, the larger of it and the one per :data:`SCALE_BLOCK_M`.
     """
     n = h.size
-    k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)), est)
+    k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)), est, tilt)
     nfft = 1 << int(math.ceil(math.log2(n + int(max(lengths) / step) + 8)))
     kappa = np.fft.rfftfreq(nfft, step)
     gain = est.gain(kappa)
@@ -348,23 +351,14 @@ def scan_dips(
             m = n // q
             hc = est.height[: m * q].reshape(m, q).mean(axis=1)
             vc = est.valid[: m * q].reshape(m, q).all(axis=1)
+            bc, lc, dc = _bank(hc, vc, q * step, est, bank)
+            # the weld trace: its own bank, background and spread (see WELD_LENGTHS_M, _background_psd)
             each: list[tuple[np.ndarray, np.ndarray]] = []
-            union = tuple(sorted(set(bank) | set(WELD_LENGTHS_M)))
-            _bank(hc, vc, q * step, est, union, LONG_SCALE_BLOCK_M, each)
+            _bank(hc, vc, q * step, est, WELD_LENGTHS_M, LONG_SCALE_BLOCK_M, each, tilt=True)
             for sc, _ in each:
                 for e in ends:  # in coarse cells
                     sc[max(0, (e - edge) // q) : (e + edge) // q + 1] = -np.inf
-            welds = [i for i, x in enumerate(union) if x in WELD_LENGTHS_M]
-            trace = _trace([each[i] for i in welds], tuple(union[i] for i in welds), est.s0, q * step)
-            bc = np.full(m, -np.inf)
-            lc = np.zeros(m)
-            dc = np.zeros(m)
-            for i, length in enumerate(union):  # the candidates: the best of the bank's own lengths
-                if length in bank:
-                    better = each[i][0] > bc
-                    bc = np.where(better, each[i][0], bc)
-                    lc = np.where(better, length, lc)
-                    dc = np.where(better, each[i][1], dc)
+            trace = _trace(each, WELD_LENGTHS_M, est.s0, q * step)
             best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
                                     for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
         for e in ends:
