@@ -234,9 +234,15 @@ def sim(work: Path, seeds: list[int], length_km: float, cases: tuple[str, ...] =
                 depth_err.append(float(got["track_impact_mm"].mean()) / (1e3 * depth) - 1.0)
             false = [f for f in centres if all(abs(f - x) > 0.75 for x in welds)]
             # the detection statistic (the pair's Z, any value) at the welds and its peaks elsewhere
-            zpk = combined_track_dips(read_traces(paths, [str(w["wheel"]) for w in res.wheels]),
-                                      pair_threshold=1.0, single_threshold=1e9, confirm_threshold=0.0)
+            traces = read_traces(paths, [str(w["wheel"]) for w in res.wheels])
+            zpk = combined_track_dips(traces, pair_threshold=1.0, single_threshold=1e9, confirm_threshold=0.0)
             z_at = [max([z.score for z in zpk if abs(z.track_m - x) <= 0.75], default=0.0) for x in inside]
+            # one rail alone (side 1, both axles): the same statistic without the other rail
+            one = combined_track_dips({w: t for w, t in traces.items() if w[1] == "1"}, single_threshold=1.0,
+                                      confirm_threshold=0.0)
+            z1_at = [max([z.score for z in one if abs(z.track_m - x) <= 0.75], default=0.0) for x in inside]
+            z1_else = [round(z.score, 2) for z in one if a <= z.track_m <= b and z.score >= 3.0
+                       and all(abs(z.track_m - x) > 3.0 for x in welds)]
             p11 = p[p["wheel"] == "11"]
             v_at = [float(np.interp(x, (p11["bin"].to_numpy() + 0.5) * settings.bin_length_m, p11["speed_mean"].to_numpy()))
                     for x in inside]
@@ -246,7 +252,8 @@ def sim(work: Path, seeds: list[int], length_km: float, cases: tuple[str, ...] =
             other_flats = [w["wheel"] for w in res.wheels if w["wheel"] != "11" and w.get("flat")]
             row = {"case": case, "seed": seed, "km": (b - a) / 1000.0, "welds": len(inside), "found": hit,
                    "missed_depth_mm": missed, "false": len(false), "false_at": [round(f, 1) for f in false],
-                   "z_at_welds": [round(z, 2) for z in z_at], "speed_at_welds": [round(v, 1) for v in v_at], "z_elsewhere": z_else,
+                   "z_at_welds": [round(z, 2) for z in z_at], "z1_at_welds": [round(z, 2) for z in z1_at],
+                   "z1_elsewhere": z1_else, "speed_at_welds": [round(v, 1) for v in v_at], "z_elsewhere": z_else,
                    "pos_err_m": pos_err, "depth_err": depth_err, "indicator": ind,
                    "flat_found": flat is not None if flats else None,
                    "flat_angle_err_deg": (((flat["angle_deg"] - np.degrees(angle)) + 180) % 360 - 180) if flat else None,
@@ -432,6 +439,13 @@ def _summary(rows: list[dict]) -> None:
               f"{np.mean(za >= 4.6):.0%}") if za.size else "– | –"
         print(f"| {case} | {za.size} | {at} | " + " / ".join(f"{np.sum(ze >= t) / km:.2f}" for t in (4.0, 4.6, 5.0, 5.5))
               + " |")
+        z1a = np.array([z for r in rs for z in r.get("z1_at_welds", [])])
+        z1e = np.array([z for r in rs for z in r.get("z1_elsewhere", [])])
+        if z1a.size or z1e.size:
+            at1 = (f"{np.percentile(z1a, 10):.1f} / {np.median(z1a):.1f} / {np.percentile(z1a, 90):.1f} | "
+                   f"{np.mean(z1a >= 4.6):.0%}") if z1a.size else "– | –"
+            print(f"| {case}, one rail (side 1) | {z1a.size} | {at1} | "
+                  + " / ".join(f"{np.sum(z1e >= t) / km:.2f}" for t in (4.0, 4.6, 5.0, 5.5)) + " |")
     fl = [r for r in rows if r["flat_found"] is not None]
     if fl:
         ok = [r for r in fl if r["flat_found"]]
