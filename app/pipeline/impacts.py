@@ -45,6 +45,7 @@ __all__ = [
     "BRIDGED_COLUMNS",
     "DIP_FIELDS",
     "TRACE_FIELDS",
+    "OOR_SMOOTH_M",
     "wheel_orders_at",
     "chunk_dip_member",
     "read_dips",
@@ -60,6 +61,13 @@ IMPACT_COLUMN = "track_impact_mm"
 #: amplitude and 1-σ, and its force).
 BRIDGED_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared",
                                     "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms", "sleeper_force_amp")
+#: Moving mean of the wheel orders' envelopes before they are taken out of the surface, m of travel. A
+#: wheel's out-of-roundness is fixed to the wheel: its response changes only with the speed, over
+#: hundreds of metres. The VKF's own wheel-order bands (0.1 wheel orders, ≈ 0.035 1/m each) also hold
+#: the roughness's and a weld's content at 11 lines across a weld's band; averaged over 40 m they are
+#: several times narrower, and a weld on rough rail keeps that much more of its score (the share of
+#: 0.3 mm welds found: 77 → 83 %, bench_impacts.py --case sim, 6 lines).
+OOR_SMOOTH_M = 40.0
 #: Rows of a chunk file's ``dips_<wheel>`` member.
 DIP_FIELDS: tuple[str, ...] = ("track_m", "s_m", "length_m", "depth_m", "score", "speed_mps", "weight")
 #: Rows of a chunk file's ``dipx_<wheel>`` member (float64), beside ``dipz_<wheel>`` (float32: the long
@@ -77,12 +85,13 @@ def _trace_members(wheel: str) -> tuple[str, str, str]:
 
 
 def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarray, recipe: OrderRecipe,
-                    lo: int) -> Callable[[np.ndarray], np.ndarray]:
+                    lo: int, smooth_m: float = OOR_SMOOTH_M) -> Callable[[np.ndarray], np.ndarray]:
     """The wheel orders as the VKF extracted them, as a function of travelled distance (m → m/s²).
 
     Order ``n`` is ``Re(env_n e^(i 2 pi multiplier_n s))`` (the recipe's phase
-    convention with ``psi = 2 pi s``), its envelope interpolated between the
-    output grid's points.
+    convention with ``psi = 2 pi s``), its envelope averaged over ``smooth_m``
+    of travel (:data:`OOR_SMOOTH_M`) and interpolated between the output grid's
+    points.
 
     Parameters
     ----------
@@ -95,13 +104,22 @@ def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarra
     recipe : OrderRecipe
     lo : int
         Global index of the chunk's first sample.
+    smooth_m : float
+        Length of the moving mean of the envelopes, m of travel (0: as the VKF gave them).
     """
+    if not (np.isfinite(smooth_m) and smooth_m >= 0):
+        raise ValueError(f"smooth_m: must be a finite length >= 0 m, got {smooth_m!r}")
     rows = recipe.wheel_rows
     s_out = travelled_m[out_idx - lo]
     mult = recipe.multipliers[rows]
     powers = recipe.powers[rows]  # order l: multiplier = l × (that of order 1)
     base = float(mult[0] / powers[0]) if mult.size else 0.0
     env_w = np.ascontiguousarray(env[rows])
+    if smooth_m > 0 and s_out.size > 2:  # moving mean over smooth_m of travel (the grid is uneven in s)
+        c = np.concatenate([np.zeros((env_w.shape[0], 1)), np.cumsum(env_w, axis=1)], axis=1)
+        lo_i = np.searchsorted(s_out, s_out - 0.5 * smooth_m, side="left")
+        hi_i = np.searchsorted(s_out, s_out + 0.5 * smooth_m, side="right")
+        env_w = (c[:, hi_i] - c[:, lo_i]) / (hi_i - lo_i)
 
     def at(s: np.ndarray) -> np.ndarray:
         s = np.asarray(s, dtype=np.float64)

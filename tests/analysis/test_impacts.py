@@ -22,6 +22,7 @@ from app.analysis.impacts.classify import (
     wheel_flats,
 )
 from app.analysis.impacts.mask import bridge, impact_mask, mask_half_width
+from app.analysis.impacts.surface import band_gain
 from app.analysis.impacts.welds import (
     CONFIRM_THRESHOLD,
     PAIR_Z_THRESHOLD,
@@ -29,7 +30,6 @@ from app.analysis.impacts.welds import (
     WheelTrace,
     combined_track_dips,
 )
-from app.analysis.impacts.surface import band_gain
 from app.analysis.stiffness.track_dynamics import TrackParameters
 from app.simulate.contact import ContactFilter
 from app.simulate.surface import RailSurface, TrackImpact
