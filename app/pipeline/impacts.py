@@ -70,18 +70,20 @@ BRIDGED_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_amp_raw", "sleeper_a
 OOR_SMOOTH_M = 40.0
 #: Rows of a chunk file's ``dips_<wheel>`` member.
 DIP_FIELDS: tuple[str, ...] = ("track_m", "s_m", "length_m", "depth_m", "score", "speed_mps", "weight")
-#: Rows of a chunk file's ``dipx_<wheel>`` member (float64), beside ``dipz_<wheel>`` (float32: the long
-#: filters' scores per length, then their depths, m) and ``dipl_<wheel>`` (the lengths, m): the long
-#: filters' score trace (welds), every 0.12 m of travel.
-TRACE_FIELDS: tuple[str, ...] = ("track_m", "s_m", "weight")
+#: Rows of a chunk file's ``dipx_<wheel>`` member (float32, track position less the float64 origin in
+#: ``dipo_<wheel>``), beside ``dipz_<wheel>`` (float16: the weld filters' scores per length, then their
+#: depths in mm) and ``dipl_<wheel>`` (the lengths, m): the weld trace, every 8 cm of travel where the
+#: chunk weighs most (crossfade weight >= 0.5). ~1.2 MB per km of a four-wheel run (the rest of a chunk
+#: file ~8 MB).
+TRACE_FIELDS: tuple[str, ...] = ("track_m",)
 
 
 def _member(wheel: str) -> str:
     return f"dips_{wheel}"
 
 
-def _trace_members(wheel: str) -> tuple[str, str, str]:
-    return f"dipx_{wheel}", f"dipz_{wheel}", f"dipl_{wheel}"
+def _trace_members(wheel: str) -> tuple[str, str, str, str]:
+    return f"dipx_{wheel}", f"dipz_{wheel}", f"dipl_{wheel}", f"dipo_{wheel}"
 
 
 def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarray, recipe: OrderRecipe,
@@ -175,9 +177,9 @@ def chunk_dip_member(
     -------
     dict
         ``{"dips_<wheel>": (len(DIP_FIELDS), n) float array}``: the dips inside the chunk's output
-        range, with the chunk's crossfade weight there; ``dipx_<wheel>`` ((len(TRACE_FIELDS), m)),
-        ``dipz_<wheel>`` ((2 k, m), float32) and ``dipl_<wheel>`` ((k,)): the long filters' score
-        trace there (:class:`app.analysis.impacts.dips.DipTrace`).
+        range, with the chunk's crossfade weight there; ``dipx_``, ``dipz_``, ``dipl_``, ``dipo_<wheel>``:
+        the weld trace where the chunk weighs most (:data:`TRACE_FIELDS`,
+        :class:`app.analysis.impacts.dips.DipTrace`).
     """
     empty = {_member(wheel): np.zeros((len(DIP_FIELDS), 0))}
     # the whole chunk, padding included (the wheel orders are stationary: their envelopes held at the
@@ -192,11 +194,14 @@ def chunk_dip_member(
     if len(trace):
         idx = np.clip(np.searchsorted(travelled_m[a:b], trace.s_m), 0, b - a - 1) + a
         weight = chunk.weight(idx + lo)
-        inside = (weight > 0) & np.any(np.isfinite(trace.score), axis=0)
-        kx, kz, kl = _trace_members(wheel)
-        out[kx] = np.vstack([track_m[idx], trace.s_m, weight])[:, inside].astype(np.float64)
-        out[kz] = np.vstack([trace.score, trace.depth_m])[:, inside].astype(np.float32)
+        kx, kz, kl, ko = _trace_members(wheel)
+        x = track_m[idx]
+        keep = (weight >= 0.5) & np.any(np.isfinite(trace.score), axis=0) & np.isfinite(x)
+        origin = float(x[keep][0]) if keep.any() else 0.0
+        out[kx] = (x[keep] - origin)[None, :].astype(np.float32)
+        out[kz] = np.vstack([trace.score, 1e3 * trace.depth_m])[:, keep].astype(np.float16)
         out[kl] = trace.lengths_m.astype(np.float64)
+        out[ko] = np.array([origin])
     if len(dips) == 0:
         return out
     idx = np.clip(np.searchsorted(travelled_m[a:b], dips.s_m), 0, b - a - 1) + a
@@ -250,28 +255,27 @@ def read_traces(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, Wheel
     for path in sorted(paths, key=lambda p: str(p)):
         with np.load(path) as npz:
             for w in wheels:
-                kx, kz, kl = _trace_members(w)
-                if kx in npz.files and kz in npz.files and kl in npz.files:
+                kx, kz, kl, ko = _trace_members(w)
+                if all(k in npz.files for k in (kx, kz, kl, ko)):
+                    ln = np.asarray(npz[kl], dtype=np.float64)
                     x = np.asarray(npz[kx], dtype=np.float64)
                     z = np.asarray(npz[kz], dtype=np.float64)
-                    ln = np.asarray(npz[kl], dtype=np.float64)
-                    if x.ndim == 2 and x.shape[0] == len(TRACE_FIELDS) and x.shape[1] and z.shape == (2 * ln.size,
-                                                                                                   x.shape[1]):
-                        if w in lengths and not np.array_equal(lengths[w], ln):
-                            continue  # chunks of another bank (not expected within a run)
-                        lengths[w] = ln
-                        parts[w].append((x, z))
+                    if not (x.ndim == 2 and x.shape[0] == len(TRACE_FIELDS) and x.shape[1]
+                            and z.shape == (2 * ln.size, x.shape[1])):
+                        continue
+                    if w in lengths and not np.array_equal(lengths[w], ln):
+                        continue  # chunks of another bank (not expected within a run)
+                    lengths[w] = ln
+                    parts[w].append((x[0] + float(np.asarray(npz[ko]).reshape(-1)[0]), z))
     out: dict[str, WheelTrace] = {}
     for w, arrs in parts.items():
         if not arrs:
             continue
-        x = np.hstack([p[0] for p in arrs])
+        x = np.concatenate([p[0] for p in arrs])
         z = np.hstack([p[1] for p in arrs])
-        keep = x[2] >= 0.5  # the chunk that weighs most there
-        x, z = x[:, keep], z[:, keep]
-        order = np.argsort(x[1], kind="stable")
+        order = np.argsort(x, kind="stable")
         k = lengths[w].size
-        out[w] = WheelTrace(x[0, order], lengths[w], z[:k][:, order], z[k:][:, order])
+        out[w] = WheelTrace(x[order], lengths[w], z[:k][:, order], 1e-3 * z[k:][:, order])
     return out
 
 
