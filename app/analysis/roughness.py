@@ -43,10 +43,8 @@ Three things in the data separate them (physics, not tuning):
 Estimates (per 25 cm bin)
 -------------------------
 * single wheel (:func:`single_wheel_estimate`): ``sqrt(max(|E|² − F_side, 0)) / c``;
-* two wheels of an axle (:func:`two_rail_estimate`): ``soft_root(Re(E₁ conj E₂), |E₁E₂|/√2) / c``,
-  the square root of the cross product smoothed over the spread it would have without a common
-  part, the same value for both wheels (never 0: a negative cross product of one look is no
-  evidence of absent support);
+* two wheels of an axle (:func:`two_rail_estimate`): ``sqrt(max(Re(E₁ conj E₂), 0)) / c``,
+  the same value for both wheels;
 
 ``c = E[sqrt(X⁺)] / S`` is the square root's bias at low signal-to-roughness
 ratio (the power estimate ``X`` is unbiased for the floor taken off, its square
@@ -54,8 +52,8 @@ root is not: ``E sqrt(X⁺) < S`` for ``S²/σ ≳ 0.3``).
 
 The 1-σ of each follows from the power model with the floors measured above,
 averaged over :data:`FLOOR_WINDOW_LENGTHS` correlation lengths: for two rails the
-spread of the estimate (exact moments over two complex Gaussian envelopes,
-:func:`app.analysis.uncertainty.soft_cross_moments`), for a
+spread of the estimate (exact moments of the cross product of two complex
+Gaussian envelopes, :func:`app.analysis.uncertainty.cross_rail_moments`), for a
 single wheel the root mean square error including the floor the side bands miss
 (exact Rice moments, :func:`app.analysis.uncertainty.rice_clipped_moments`); of
 that, the bias of the floor not taken off and the floor estimate's scatter are
@@ -77,11 +75,10 @@ from app.analysis.uncertainty import (
     STEP_WIDTH_FACTORS,
     correlation_length,
     correlation_zero,
+    cross_rail_moments,
     envelope_response_squared,
     rice_clipped_moments,
     shared_window_m,
-    soft_cross_moments,
-    soft_root,
 )
 
 __all__ = [
@@ -547,32 +544,21 @@ def two_rail_estimate(
     Returns
     -------
     amp : ndarray
-        ``m / c`` with ``m = soft_root(X, sqrt(P₁P₂/2))``
-        (:func:`app.analysis.uncertainty.soft_root`): the square root of the cross product
-        ``X`` = ``cross`` smoothed over the spread ``X`` would have if the two envelopes had
-        no common part (their relative phase random: ``sqrt(P₁P₂/2)``, ``P_i`` = ``power``,
-        ``power_other``), and ``c = E[m] / S`` for the local ``S²`` and floors
-        (:func:`app.analysis.uncertainty.soft_cross_moments`), so that ``E[amp] = S``.
-        Never 0 where the bin has a value: a bin whose cross product is negative (23 % of
-        the bins of the uniform two-rail physics run, where the floor is 1.6× ``S²``) does
-        not show the support as absent, it reads low in proportion to how far its two
-        envelopes disagree in phase; at zero floor ``amp = sqrt(|E₁||E₂|)`` where they agree.
+        ``sqrt(max(X, 0)) / c`` with ``X`` = ``cross`` and ``c = E[sqrt(X⁺)] / S``
+        (``c → 1`` where the roughness is small against the sleeper response).
     sd : ndarray
-        The spread of ``amp`` for ``E_i = S + R_i`` with independent circular Gaussian
-        ``R_i`` of power ``F_i``, the local mean of ``|E_i|² − X`` (each rail's in-band
-        floor), ``S²`` the local mean of ``X`` (over :data:`FLOOR_WINDOW_LENGTHS` correlation
-        lengths); exact moments (quadrature, tabulated).
+        The spread of ``amp``: ``X = Re((S + R₁) conj(S + R₂))`` with independent
+        circular Gaussian ``R_i`` of power ``F_i``, the local mean of ``|E_i|² − X``
+        (each rail's in-band floor), ``S²`` the local mean of ``X``; exact moments
+        (:func:`app.analysis.uncertainty.cross_rail_moments`).
     shared : ndarray
-        0: ``E[amp] = S`` whatever the floors, so no floor error is shared along the
-        track (the local estimates of ``S²`` and ``F_i`` set ``c`` and ``sd`` only).
+        0: ``X`` is unbiased whatever the floors, so no floor error is shared
+        along the track (the local estimates of ``S²`` and ``F_i`` set ``c`` and
+        ``sd`` only).
 
     Notes
     -----
-    The same for either wheel of the axle (``X``, ``P₁P₂`` and ``σ`` are symmetric). Before
-    (issue 26 (e)) ``amp`` was ``sqrt(max(X, 0)) / c``, 0 wherever ``X < 0``; averaging ``X``
-    over a correlation length before the root leaves most of those zeros (the cross product
-    of one look is negative wherever the floor exceeds ``S²``) and mis-states the bins'
-    correlation; the soft root keeps the bin's own resolution.
+    The same for either wheel of the axle (``X`` and ``σ`` are symmetric).
     """
     b = np.asarray(bins, dtype=np.int64)
     x = np.asarray(cross, dtype=np.float64)
@@ -580,24 +566,22 @@ def two_rail_estimate(
     p2 = np.asarray(power_other, dtype=np.float64)
     if not (b.shape == x.shape == p1.shape == p2.shape) or b.ndim != 1:
         raise ValueError("bins, cross, power and power_other must be 1-D of one length")
-    # the spread of X if the envelopes had no common part; at least |X| (|X| <= |E1||E2| for one look,
-    # bin means can break it slightly)
-    scale = np.sqrt(np.maximum(np.maximum(p1 * p2, x * x), 0.0) / 2.0)
-    m = soft_root(x, scale)
-    m[~np.isfinite(x)] = np.nan
+    raw = np.sqrt(np.maximum(x, 0.0))
+    raw[~np.isfinite(x)] = np.nan
     if b.size == 0:
-        return m, m.copy(), m.copy()
+        return raw, raw.copy(), raw.copy()
     w = _window_m(resolution_m, filter_order)
     f1 = np.maximum(np.nan_to_num(smooth_along(b, p1 - x, w, bin_length)), 0.0)
     f2 = np.maximum(np.nan_to_num(smooth_along(b, p2 - x, w, bin_length)), 0.0)
     s2 = np.maximum(np.nan_to_num(smooth_along(b, x, w, bin_length)), 0.0)
-    mean, mean_sq = soft_cross_moments(s2, f1, f2)
+    mean_sqrt, mean_pos = cross_rail_moments(s2, f1, f2)
     root = np.sqrt(s2)
     with np.errstate(invalid="ignore", divide="ignore"):
-        c = np.where(root > 0, mean / np.where(root > 0, root, 1.0), 1.0)
+        c = np.where(root > 0, mean_sqrt / np.where(root > 0, root, 1.0), 1.0)
     c = np.where(np.isfinite(c) & (c > 0), c, 1.0)
-    amp = m / c
-    sd = np.sqrt(np.maximum(mean_sq - mean**2, 0.0)) / c
-    sd[~np.isfinite(m)] = np.nan
-    shared = np.where(np.isfinite(m), 0.0, np.nan)
+    amp = raw / c
+    spread = np.sqrt(np.maximum(mean_pos - mean_sqrt**2, 0.0))
+    sd = spread / c
+    sd[~np.isfinite(raw)] = np.nan
+    shared = np.where(np.isfinite(raw), 0.0, np.nan)
     return amp, sd, shared
