@@ -120,8 +120,8 @@ def test_welds_on_rough_rail_are_found_with_few_false(tmp_path):
     """A rough simulated line (Sato "good rail", both rails) with a 0.3 mm weld every 100–200 m on both rails.
 
     One rail's evidence at such a weld is about as strong as the roughness's own largest dips; the two
-    rails' (independent roughness) combined make it stand out (docs/indicator.md, welds section: 81 % of
-    75 welds, 0.4 false per km over 6 lines; this line: its seed of bench_impacts.py --case sim).
+    rails' (independent roughness) combined make it stand out (docs/indicator.md, welds section: 83 % of
+    75 welds, 0.34 false per km over 6 lines; this line: its seed of bench_impacts.py --case sim).
     """
     from app.simulate.surface import generate_surface
 
