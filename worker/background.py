@@ -1,6 +1,8 @@
 """Background loops of a worker process (both worker modes): webhook deliveries, the
-retention sweep of 25 cm rows and the liveness heartbeat, each a daemon thread beside the
-jobs; and, once at start, the sweep of leftover job folders (:mod:`worker.startup_sweep`).
+retention sweep of 25 cm rows, the liveness heartbeat and the places follow-up (runs whose
+places update a killed worker left or a failure put off: :mod:`app.places.followup`; its
+first round, at the worker's start, is part of the start-up sweep), each a daemon thread
+beside the jobs; and, once at start, the sweep of leftover job folders (:mod:`worker.startup_sweep`).
 
 :func:`start_background` starts them for a worker process; its :meth:`Background.stop`
 ends them when the worker stops. A loop never holds up a job: it runs in its own
@@ -20,7 +22,7 @@ from worker.deliveries import DeliveryLoop
 from worker.heartbeat import HeartbeatLoop
 from worker.loops import PeriodicLoop
 
-__all__ = ["Background", "start_background", "sweep_step"]
+__all__ = ["Background", "start_background", "sweep_step", "places_step"]
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +39,18 @@ def sweep_step(db: Database, settings: Settings) -> bool:
     return False
 
 
+def places_step(db: Database, settings: Settings) -> bool:
+    """One round of the places follow-up: every due run's places update, each line's runs in order
+    (True: some were due, look again at once)."""
+    from app.places.config import PlacesConfig
+    from app.places.followup import FollowupPolicy, run_pending
+
+    policy = FollowupPolicy.from_settings(settings)
+    done = run_pending(db, config=PlacesConfig.from_settings(settings), policy=policy, max_runs=20,
+                       min_age_s=policy.grace_s)
+    return any(r.outcome in ("applied", "not_applied") for r in done)
+
+
 class Background:
     """The background loops of one worker process."""
 
@@ -44,7 +58,9 @@ class Background:
         self.settings = settings
         self.db = Database(settings.database_url)
         mode = mode or ("local" if settings.is_sqlite else "procrastinate")
-        self.loops: list[PeriodicLoop] = [HeartbeatLoop(settings, self.db, mode), DeliveryLoop(settings, self.db)]
+        self.loops: list[PeriodicLoop] = [HeartbeatLoop(settings, self.db, mode), DeliveryLoop(settings, self.db),
+                                          PeriodicLoop("places-followup", lambda: places_step(self.db, settings),
+                                                       settings.places_followup_interval_s)]
         if settings.profile_retention_days is not None:
             self.loops.append(PeriodicLoop("retention-sweep", lambda: sweep_step(self.db, settings),
                                            settings.profile_sweep_interval_s))

@@ -53,6 +53,7 @@ from app.db.session import Database
 from app.io import WHEELS
 from app.pipeline import ChunkSpec, plan_chunks, results_meta
 from app.places.config import PlacesConfig
+from app.places.followup import FollowupPolicy
 from worker.chunkstore import ChunkStore
 
 __all__ = [
@@ -102,6 +103,8 @@ class WorkerRuntime:
         How published runs become segment condition rows (from the settings).
     places : PlacesConfig
         How published runs' places are found and followed (from the settings).
+    places_followup : FollowupPolicy
+        How the places follow-up of a publish is retried (from the settings).
     """
 
     def __init__(self, settings: Settings, db: Database | None = None) -> None:
@@ -112,6 +115,7 @@ class WorkerRuntime:
         self.stopping = threading.Event()
         self.condition = ConditionConfig.from_settings(settings)
         self.places = PlacesConfig.from_settings(settings)
+        self.places_followup = FollowupPolicy.from_settings(settings)
 
     @property
     def db(self) -> Database:
@@ -367,8 +371,9 @@ def refresh_line_reference(rt: WorkerRuntime, run: Run | None) -> None:
 def end_published(rt: WorkerRuntime, record: JobRecord, profiles: Any, wheels: Sequence[dict[str, Any]],
                   meta: dict[str, Any], *, worker_id: str | None) -> bool:
     """Publish a job's results (:func:`app.publish.publish_job`: results, condition rows and alerts
-    with the job marked done, one transaction), then remove the run's finished job files and, if
-    published, refresh the reference curves of its line.
+    with the job marked done, one transaction; then the places follow-up of the run's line in
+    transactions of its own), then remove the run's finished job files and, if published, refresh
+    the reference curves of its line.
 
     ``profiles``: the job's profile rows, or None when stored wheel by wheel (fan-out).
 
@@ -380,7 +385,7 @@ def end_published(rt: WorkerRuntime, record: JobRecord, profiles: Any, wheels: S
     """
     run_id = record.run.id
     stored = publish.publish_job(rt.db, record.job.id, run_id, profiles, wheels, meta, worker_id=worker_id,
-                                 condition=rt.condition, places=rt.places)
+                                 condition=rt.condition, places=rt.places, places_followup=rt.places_followup)
     discard_job_files(rt, run_id)  # its chunk (and wheel) files, and those of the jobs it supersedes
     if stored:
         refresh_line_reference(rt, record.run)

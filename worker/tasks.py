@@ -19,7 +19,10 @@ worker (:func:`app.pipeline.plan_chunks`, :func:`~app.pipeline.process_chunk`,
                        the run's wheel rows replaced, the older jobs' profile rows
                        deleted, the condition rows and alerts written, the job
                        marked 'done' (readers show a run's latest done job: they
-                       switch from the old to the new results at this commit)
+                       switch from the old to the new results at this commit),
+                       the run marked places pending; then the places follow-up
+                       in transactions of its own (app.places.followup; a task
+                       killed before it: the workers' places-followup loop)
 
 The wheels are stored in parallel by as many workers as are free, so the
 tail after the last chunk shrinks with the number of workers too.

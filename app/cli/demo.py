@@ -145,8 +145,18 @@ def _import_assets(client, base: str, path: Path | None) -> None:
     echo(f"  assets: {body['imported']} (switches, bridge, level crossing, joint, weld)")
 
 
+def _settled(job: dict) -> bool:
+    """A job ended, and if it published, its run's places follow-up ran (issue 24: the places follow
+    the publish commit)."""
+    if job["status"] in ("queued", "running"):
+        return False
+    places = ((job.get("meta") or {}).get("condition") or {}).get("places") or {}
+    return not (job["status"] == "done" and places.get("pending"))
+
+
 def _wait_jobs(client, base: str, runs: list[dict], procs: list[subprocess.Popen]) -> None:
-    """Follow the runs' latest jobs until none is queued or running, printing changes."""
+    """Follow the runs' latest jobs until none is queued or running and their places are updated,
+    printing changes."""
     jobs = {run["latest_job"]["id"]: run["latest_job"] for run in runs if run.get("latest_job")}
     shown: dict[int, tuple] = {}
     while True:
@@ -157,14 +167,14 @@ def _wait_jobs(client, base: str, runs: list[dict], procs: list[subprocess.Popen
                 error = f": {job['error']}" if job.get("error") else ""
                 echo(f"  job {job_id} (run {job['run_id']}) {job['status']}{chunks}{error}")
                 shown[job_id] = state
-        if all(job["status"] not in ("queued", "running") for job in jobs.values()):
+        if all(_settled(job) for job in jobs.values()):
             return
         time.sleep(1.0)
         for p in procs:
             if p.poll() is not None:
                 raise RuntimeError(f"process {p.args} exited with {p.returncode}")
         for job_id, job in jobs.items():
-            if job["status"] in ("queued", "running"):
+            if not _settled(job):
                 jobs[job_id] = client.get(f"{base}/api/v1/jobs/{job_id}").json()
 
 

@@ -294,6 +294,18 @@ class Settings(BaseSettings):
         (segment condition rows are kept for ever). Default: none (keep all).
     profile_sweep_interval_s : float
         Seconds between two retention sweeps of a worker.
+    places_followup_interval_s : float
+        Pause of a worker's places follow-up loop after a round with nothing
+        due, s (the publish step's own follow-up runs at once; the loop
+        completes what a killed worker left and the retries).
+    places_followup_grace_s : float
+        The loop leaves a run published less than this long ago to the
+        worker that published it (it runs the run's follow-up at once), s.
+    places_max_attempts : int
+        Failed places updates of a run after which it is given up (kept and
+        reported; its line's later runs go on).
+    places_retry_base_s, places_retry_max_s : float
+        Back-off of a failed places update: base doubling per attempt, at most max, s.
     map_tile_url : str, optional
         Raster tile URL template (``https://tiles.example/{z}/{x}/{y}.png``) of
         a basemap under the map page's line geometry. Default: none (the page
@@ -399,6 +411,11 @@ class Settings(BaseSettings):
     webhook_poll_s: float = Field(default=1.0, gt=0)
     profile_retention_days: int | None = Field(default=None, ge=1)
     profile_sweep_interval_s: float = Field(default=3600.0, gt=0)
+    places_followup_interval_s: float = Field(default=10.0, gt=0)
+    places_followup_grace_s: float = Field(default=30.0, ge=0)
+    places_max_attempts: int = Field(default=10, ge=1, le=1000)
+    places_retry_base_s: float = Field(default=5.0, gt=0)
+    places_retry_max_s: float = Field(default=3600.0, gt=0)
     map_tile_url: str | None = Field(default=None, max_length=500)
     map_tile_attribution: str = Field(default="", max_length=300)
 

@@ -32,7 +32,9 @@ host did the work (workers, other API hosts):
 ``trackvkf_webhook_deliveries{status,outcome}``
     the delivery log by status and the coarse outcome of the last attempt;
 ``trackvkf_condition_flags{kind,new}``
-    condition flags in the store.
+    condition flags in the store;
+``trackvkf_places_pending{state}``, ``trackvkf_places_pending_oldest_age_seconds``
+    published runs whose places update (the publish step's follow-up) is still to come.
 
 Alert rules on them: docs/operations.md.
 """
@@ -50,7 +52,7 @@ from prometheus_client.exposition import CONTENT_TYPE_LATEST
 from sqlalchemy import case, func, select
 
 from app.core.config import Settings
-from app.db.models import ConditionFlag, Job, JobStatus, Run, WebhookDelivery
+from app.db.models import ConditionFlag, Job, JobStatus, PlacesPending, Run, WebhookDelivery, utcnow
 from app.db.session import Database
 from app.observability.multiproc import multiprocess_mode
 from app.operations.liveness import queue_health
@@ -230,6 +232,21 @@ class DatabaseCollector:
                                           .group_by(ConditionFlag.kind, ConditionFlag.is_new)).all():
                 flags.add_metric([str(kind), "true" if new else "false"], int(n))
             out.append(flags)
+
+            # the places follow-up of the publish step (app.places.followup): runs whose places lag
+            pending = GaugeMetricFamily("trackvkf_places_pending", "Published runs whose places update is still "
+                                        "to come: waiting (due or never tried), retrying (failed, in back-off), "
+                                        "gave_up", labels=["state"])
+            state = case((PlacesPending.gave_up.is_(True), "gave_up"),
+                         (PlacesPending.attempts > 0, "retrying"), else_="waiting")
+            counts = dict(s.execute(select(state, func.count()).group_by(state)).all())
+            for st in ("waiting", "retrying", "gave_up"):
+                pending.add_metric([st], int(counts.get(st, 0)))
+            out.append(pending)
+            oldest = s.scalar(select(func.min(PlacesPending.queued_at)).where(PlacesPending.gave_up.is_(False)))
+            out.append(GaugeMetricFamily("trackvkf_places_pending_oldest_age_seconds",
+                                         "Age of the oldest pending places update, s (0: none)",
+                                         value=max((utcnow() - oldest).total_seconds(), 0.0) if oldest else 0.0))
         return out
 
     @staticmethod

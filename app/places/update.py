@@ -1,8 +1,9 @@
 """After a run's condition rows are published: its places, and the line's places advanced by it.
 
-Called by the publish step (:func:`app.publish.publish_job`) in the transaction that publishes the
-run (both worker modes), inside a savepoint: a failure here is logged and leaves the run's results,
-condition rows and flags published (``meta["condition"]["places"]`` says why).
+Called by the places follow-up of the publish step (:mod:`app.places.followup`, after the commit that
+publishes the run, both worker modes): :func:`prepare_run` (the run's places found: reads only, no write
+lock) and then, in a short write transaction, :func:`update_places` with them (inside a savepoint). The
+one-transaction path (:func:`apply_run`: both parts) serves ``trackvkf apply-places`` and the tests.
 
 For a run with condition rows, in time order:
 
@@ -61,14 +62,16 @@ from app.db.models import (
     PlaceEventRow,
     PlaceObservation,
     PlaceRun,
+    PlacesPending,
     PlaceStatusChange,
     utcnow,
 )
 from app.pipeline.assemble import ENGINE_VERSION
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
-__all__ = ["SEGMENT_M", "SYSTEM_USER", "PlacesUpdate", "RunIndex", "method_version", "update_places", "apply_run",
-           "apply_stored_runs", "run_index", "run_segment_index"]
+__all__ = ["SEGMENT_M", "SYSTEM_USER", "PlacesUpdate", "PreparedRun", "RunIndex", "method_version", "update_places",
+           "apply_run", "prepare_run", "apply_prepared", "history_of", "apply_stored_runs", "run_index",
+           "run_segment_index"]
 
 log = logging.getLogger(__name__)
 
@@ -107,20 +110,34 @@ class PlacesUpdate:
 
 
 def update_places(session: Session, run_id: int, line: ConditionLine, job_id: int, *,
-                  config: PlacesConfig = DEFAULT_PLACES_CONFIG, alerts: bool = True) -> PlacesUpdate:
+                  config: PlacesConfig = DEFAULT_PLACES_CONFIG, alerts: bool = True,
+                  prepared: PreparedRun | None = None, raise_errors: bool = False) -> PlacesUpdate:
     """Apply a published run to its line's places, in a savepoint of the caller's transaction (module
-    docstring). Never raises for a problem of the places: it is logged and reported in the summary."""
+    docstring). Never raises for a problem of the places (unless ``raise_errors``): it is logged and
+    reported in the summary.
+
+    ``prepared``: the run's places found already (:func:`prepare_run`, in an earlier read transaction:
+    the places follow-up, :mod:`app.places.followup`); this transaction then only advances the line's
+    places with them (:func:`apply_prepared`).
+    """
     try:
         with session.begin_nested():
-            job = session.get(Job, job_id)
-            version = method_version(job.settings if job is not None else None)
-            out = apply_run(session, run_id, line, version, config=config)
+            if prepared is None:
+                job = session.get(Job, job_id)
+                version = method_version(job.settings if job is not None else None)
+                out = apply_run(session, run_id, line, version, config=config)
+            else:
+                q.lock_places(session)
+                out = _not_applicable(session, run_id, line, prepared.version) or \
+                    apply_prepared(session, line, prepared, config=config)
             if alerts and config.alerts and out.applied:
                 from app.places.alerts import enqueue_place_events
 
                 out.deliveries = enqueue_place_events(session, run_id, line, out.events)
             return out
     except Exception as exc:  # noqa: BLE001 - the run's publication must not fail for its places
+        if raise_errors:
+            raise
         log.exception("places of run %s not updated", run_id)
         return PlacesUpdate(applied=False, reason=f"error: {type(exc).__name__}: {exc}")
 
@@ -301,10 +318,37 @@ def run_segment_index(session: Session, line: ConditionLine, run_id: int, *,
     return ri.seg, ri.mean_index
 
 
-def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, *,
-              config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> PlacesUpdate:
-    """Apply one run to the line's places (no savepoint, no alerts: :func:`update_places` wraps it)."""
-    q.lock_places(session)
+@dataclass(frozen=True)
+class PreparedRun:
+    """A run's places found from the store (the long part of applying it: the store's rows read, the curves
+    fitted, :func:`~app.analysis.condition.run_places.find_places`): :func:`prepare_run` makes it,
+    :func:`apply_prepared` advances the line's places with it.
+
+    Attributes
+    ----------
+    run_id : int
+    when : datetime.datetime
+        The run's time.
+    version : str
+        Its method version (:func:`method_version`).
+    history : list of (int, datetime.datetime)
+        The history runs its tests saw (run id, time; oldest first).
+    index : RunIndex
+        The run's index and its history's.
+    found : list
+        The run's places (:func:`~app.analysis.condition.run_places.find_places`).
+    """
+
+    run_id: int
+    when: dt.datetime
+    version: str
+    history: list[tuple[int, dt.datetime]]
+    index: RunIndex
+    found: list
+
+
+def _not_applicable(session: Session, run_id: int, line: ConditionLine, version: str) -> PlacesUpdate | None:
+    """Why the run cannot be applied to its line's places now (None: it can)."""
     when = q.run_time(session, run_id)
     if when is None:
         return PlacesUpdate(False, "the run has no condition rows", version)
@@ -314,17 +358,51 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
     latest = q.latest_applied_time(session, line.id)
     if latest is not None and when < latest:
         return PlacesUpdate(False, "the run is older than the newest run applied to its line's places", version)
+    return None
+
+
+def history_of(session: Session, run_id: int, line: ConditionLine, version: str, *,
+               config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> list[tuple[int, dt.datetime]]:
+    """The history runs a run's tests see (run id, time; oldest first): earlier applied runs of its version."""
     params = config.place
-    hist_ids = q.history_runs(session, line.id, when, version, scan_runs=max(params.history_runs, 60),
-                              window_days=params.trend_window_days)
+    return q.history_runs(session, line.id, q.run_time(session, run_id), version,
+                          scan_runs=max(params.history_runs, 60), window_days=params.trend_window_days)
+
+
+def prepare_run(session: Session, run_id: int, line: ConditionLine, version: str, *,
+                config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> PreparedRun | PlacesUpdate:
+    """Find a run's places from the store (reads only): a :class:`PreparedRun`, or why the run is not applied."""
+    if (why := _not_applicable(session, run_id, line, version)) is not None:
+        return why
+    when = q.run_time(session, run_id)
+    params = config.place
+    hist_ids = history_of(session, run_id, line, version, config=config)
     ri = run_index(session, line, run_id, hist_ids, config=config)
     if ri is None:
         return PlacesUpdate(False, "the run has no 10 m condition rows", version)
+    found = find_places(ri.seg, ri.index, ri.history, ri.history_days, days_of(when), ri.classes,
+                        segment_m=SEGMENT_M, params=params)
+    return PreparedRun(run_id, when, version, hist_ids, ri, found)
+
+
+def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, *,
+              config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> PlacesUpdate:
+    """Apply one run to the line's places (no savepoint, no alerts: :func:`update_places` wraps it)."""
+    q.lock_places(session)
+    prep = prepare_run(session, run_id, line, version, config=config)
+    if isinstance(prep, PlacesUpdate):
+        return prep
+    return apply_prepared(session, line, prep, config=config)
+
+
+def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
+                   config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> PlacesUpdate:
+    """Advance the line's places with a run's places found (:func:`prepare_run`) and write them back
+    (the caller has checked that the run can be applied: :func:`apply_run`, the follow-up)."""
+    run_id, when, version, ri, found = prep.run_id, prep.when, prep.version, prep.index, prep.found
     seg, wheels, v = ri.seg, ri.wheels, ri.speed
     now_day = days_of(when)
-    found = find_places(seg, ri.index, ri.history, ri.history_days, now_day, ri.classes,
-                        segment_m=SEGMENT_M, params=params)
-
+    params = config.place
     rows = q.line_places(session, line.id)
     by_id = {p.id: p for p in rows}
     obs = q.observations_of(session, list(by_id))
@@ -502,8 +580,15 @@ def apply_stored_runs(db: Any, line_id: str, track: str, *, config: PlacesConfig
         runs = session.execute(select(ConditionRun.run_id, ConditionRun.job_id).where(
             ConditionRun.line_key == line.id).order_by(ConditionRun.run_time, ConditionRun.run_id)).all()
         done = set(session.scalars(select(PlaceRun.run_id).where(PlaceRun.line_key == line.id)))
+        pending = set(session.scalars(select(PlacesPending.run_id).where(PlacesPending.line_key == line.id)))
     for run_id, job_id in runs:
         if run_id in done:
+            continue
+        if run_id in pending:  # published with its places to come: its follow-up (marker, job summary, alerts)
+            from app.places.followup import complete_run
+
+            r = complete_run(db, int(run_id), config=config)
+            out.append(PlacesUpdate(r.outcome == "applied", None if r.outcome == "applied" else r.outcome))
             continue
         with db.write() as session:
             ln = session.get(ConditionLine, line.id)

@@ -28,6 +28,7 @@ from app.db.models import PLACE_STATUSES, ConditionLine, Place, PlaceObservation
 from app.db.session import Database
 from app.places.answers import QUANTITY, evidence_names, place_dict, tier_name
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
+from app.places.followup import line_places_status
 
 __all__ = ["PlaceQuery", "CLOSED_STATUSES", "list_places", "places_csv", "places_geojson", "place_history",
            "event_feed"]
@@ -135,7 +136,13 @@ def list_places(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLA
     with db.read() as session:
         lines, rows, total = _page(session, qy)
         items = labelled(session, lines, rows, config)
-    return {"line_id": qy.line_id, "quantity": QUANTITY, "items": items, "total": total}
+        current = [{"line_id": ln.line_id, "track": ln.track, **line_places_status(session, key)}
+                   for key, ln in sorted(lines.items())]
+    updated = [c["places_updated_at"] for c in current if c["places_updated_at"] is not None]
+    # how current the places are: a published run's places follow its publication (app.places.followup)
+    return {"line_id": qy.line_id, "quantity": QUANTITY, "items": items, "total": total,
+            "places_pending": sum(c["places_pending"] for c in current),
+            "places_updated_at": max(updated) if updated else None, "lines": current}
 
 
 def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> str:

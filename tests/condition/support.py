@@ -38,10 +38,11 @@ def profile_frame_of(tracks: dict[str, WheelTrack], bin_length_m: float = 0.25, 
 def publish_tracks(
     db: Database, tracks: dict[str, WheelTrack], when: dt.datetime, *, line_id: str | None = "L1",
     track: str = "1", shift_m: float = 0.0, config: ConditionConfig | None = None, sha: str | None = None,
-    run_id: int | None = None, places: Any = None,
+    run_id: int | None = None, places: Any = None, followup: bool = True,
 ) -> tuple[int, int, dict[str, Any]]:
     """Publish generated tracks as a processed run through :func:`app.publish.publish_job`
-    (the local worker's path); returns (run id, job id, the job's condition summary)."""
+    (the local worker's path); returns (run id, job id, the job's condition summary). ``followup`` False:
+    the places follow-up is not run after the commit (as if the worker died there)."""
     with db.write() as s:
         if run_id is None:
             run = Run(sha256=sha or f"{when.isoformat()}-{line_id}-{np.random.default_rng().integers(1 << 62)}",
@@ -59,6 +60,8 @@ def publish_tracks(
     kw = {"condition": config} if config is not None else {}
     if places is not None:
         kw["places"] = places
+    if not followup:
+        kw["places_followup"] = None
     assert publish.publish_job(db, job_id, run_id, profile_frame_of(tracks, shift_m=shift_m), [], {},
                               worker_id="test-worker", **kw)
     with db.read() as s:

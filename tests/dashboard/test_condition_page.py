@@ -11,6 +11,7 @@ workflow (engineer) and its read-only view (viewer)."""
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Iterator
 
 import pytest
@@ -61,6 +62,12 @@ def history_service(tmp_path_factory) -> Iterator[object]:
             for job_id in jobs:
                 job = svc.wait_job(client, job_id, timeout_s=600)
                 assert job["status"] == "done", f"{job['error']}\n{svc.log_text()}"
+            # the places follow the publish commit (issue 24): the last run's places update too
+            deadline = time.monotonic() + 300
+            while client.get("/api/v1/condition/places", params={"line_id": data.reference_line[0]}).json()[
+                    "places_pending"]:
+                assert time.monotonic() < deadline, svc.log_text()
+                time.sleep(0.5)
         svc.spec = data.history
         yield svc
 

@@ -28,9 +28,16 @@ from tests.e2e.support import (
 pytestmark = pytest.mark.timeout(600)
 
 
+def _places_done(client, job_id) -> bool:
+    """The job's places follow-up (after its publish commit, issue 24) has run."""
+    return not (((job(client, job_id).get("meta") or {}).get("condition") or {}).get("places") or {}).get("pending")
+
+
 def _finish_and_check(client, service, run_id, job_id, clean_reference) -> dict:
     final = wait_final(client, job_id, service)
     assert final["status"] == "done", f"{final['error']}\n{service.log_text()}"
+    wait_for(lambda: _places_done(client, job_id), 120, "places follow-up", service)
+    final = job(client, job_id)
     assert final["progress"] == 1.0 and final["chunks_done"] == final["n_chunks"] >= 5
     got = profile(client, run_id)
     assert_same_as_clean(got, clean_reference)

@@ -1,12 +1,13 @@
-"""The publish step applies a run to its line's places in the same transaction, and a failure of the
-places leaves the run's results, condition rows and flags published (both databases)."""
+"""The publish step applies a run to its line's places in its follow-up (after the publish commit, issue 24),
+and a failure of the places leaves the run's results, condition rows and flags published, is reported and
+retried after its back-off, the line's later runs waiting for it (both databases)."""
 
 from __future__ import annotations
 
 import numpy as np
-from sqlalchemy import func, select
+from sqlalchemy import func, select, update
 
-from app.db.models import ConditionRun, PlaceRun
+from app.db.models import ConditionRun, PlaceRun, PlacesPending
 from app.simulate.fleet import FleetSimulator
 from app.simulate.track import generate_line
 from tests.condition.conftest import any_db, db  # noqa: F401  (fixtures)
@@ -16,7 +17,9 @@ from tests.condition.support import DAY0, publish_tracks
 def test_publish_applies_places_and_survives_their_failure(any_db, monkeypatch):  # noqa: F811
     import datetime as dt
 
-    import app.places.update as update
+    import app.places.followup as followup
+    import app.places.update as places_update
+    from app.db.models import Job, utcnow
 
     sim = FleetSimulator(generate_line(12_000.0, 13_500.0, seed=7), grid_m=0.25)  # 25 cm rows, as a processed run
     _, tracks = sim.run(0.0, np.random.default_rng(1))
@@ -27,20 +30,67 @@ def test_publish_applies_places_and_survives_their_failure(any_db, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("places broke")
 
-    monkeypatch.setattr(update, "apply_run", broken)
+    monkeypatch.setattr(places_update, "prepare_run", broken)
+    monkeypatch.setattr(followup, "prepare_run", broken)
     _, tracks = sim.run(1.0, np.random.default_rng(2))
-    run2, _, summary = publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=1))
-    assert summary["stored"] and summary["places"] == {"applied": False,
-                                                       "reason": "error: RuntimeError: places broke"}
+    run2, job2, summary = publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=1))
+    assert summary["stored"]
+    places = summary["places"]
+    assert places["applied"] is False and places["reason"] == "error: RuntimeError: places broke"
+    assert places["pending"] is True and places["attempts"] == 1 and places["retry_at"]
+    # the next run of the line waits for it (the places are a history)
+    _, tracks = sim.run(2.0, np.random.default_rng(3))
+    run3, job3, summary = publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=2))
+    assert summary["places"] == {"pending": True}
     monkeypatch.undo()
     with any_db.read() as s:
         assert s.get(ConditionRun, run2) is not None  # the run's condition rows are published
         assert sorted(s.scalars(select(PlaceRun.run_id))) == [run1]
-    _, tracks = sim.run(2.0, np.random.default_rng(3))
-    run3, _, summary = publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=2))
-    assert summary["places"]["applied"]
+        marker = s.get(PlacesPending, run2)
+        assert marker.attempts == 1 and "places broke" in marker.last_error and not marker.gave_up
+    assert followup.run_pending(any_db) == []  # run2 waits for its back-off, run3 for run2
+    with any_db.write() as s:  # the back-off has passed
+        s.execute(update(PlacesPending).where(PlacesPending.run_id == run2)
+                  .values(next_attempt_at=utcnow() - dt.timedelta(seconds=1)))
+    done = followup.run_pending(any_db)
+    assert [(r.run_id, r.outcome) for r in done] == [(run2, "applied"), (run3, "applied")]
     with any_db.read() as s:
-        assert s.scalar(select(func.count()).select_from(PlaceRun)) == 2
+        assert s.scalar(select(func.count()).select_from(PlaceRun)) == 3
+        assert s.scalar(select(func.count()).select_from(PlacesPending)) == 0
+        for job_id in (job2, job3):
+            assert s.get(Job, job_id).meta["condition"]["places"]["applied"] is True
+
+
+def test_a_failing_places_update_is_given_up_after_its_attempts(any_db, monkeypatch):  # noqa: F811
+    import datetime as dt
+
+    import app.places.followup as followup
+    from app.db.models import Job
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("places broke")
+
+    monkeypatch.setattr(followup, "prepare_run", broken)
+    policy = followup.FollowupPolicy(max_attempts=3, retry_base_s=0.001, retry_max_s=0.001)
+    sim = FleetSimulator(generate_line(12_000.0, 13_500.0, seed=7), grid_m=0.25)
+    _, tracks = sim.run(0.0, np.random.default_rng(0))
+    run_id, job_id, _ = publish_tracks(any_db, tracks, DAY0, followup=False)
+    import time
+
+    outcomes = []
+    for _ in range(4):
+        time.sleep(0.01)
+        outcomes += [r.outcome for r in followup.run_pending(any_db, policy=policy)]
+    assert outcomes == ["failed", "failed", "gave_up"]
+    with any_db.read() as s:
+        marker = s.get(PlacesPending, run_id)
+        assert marker.gave_up and marker.attempts == 3 and marker.next_attempt_at is None
+        places = s.get(Job, job_id).meta["condition"]["places"]
+        assert places["applied"] is False and places["pending"] is False and places["attempts"] == 3
+    monkeypatch.undo()
+    # given up: the line's later run goes on
+    _, tracks = sim.run(1.0, np.random.default_rng(1))
+    assert publish_tracks(any_db, tracks, DAY0 + dt.timedelta(days=1))[2]["places"]["applied"]
 
 
 def test_apply_places_command_applies_the_stored_runs_once(db, monkeypatch):  # noqa: F811

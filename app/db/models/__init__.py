@@ -45,6 +45,7 @@ from app.db.models.places import (
     PlaceEventRow,
     PlaceObservation,
     PlaceRun,
+    PlacesPending,
     PlaceStatusChange,
 )
 from app.db.models.recorder import ChannelMapRow, LineGeometryRow
@@ -100,6 +101,7 @@ __all__ = [
     "PlaceEventRow",
     "PlaceObservation",
     "PlaceRun",
+    "PlacesPending",
     "PLACE_STATUSES",
     "PlaceStatusChange",
     "PROFILE_VALUE_COLUMNS",

@@ -19,10 +19,13 @@ place_actions           maintenance actions over a place (linked, repaired it, o
                         maintenance import in ``replace`` mode renews the actions' ids)
 place_runs              the runs applied to their line's places, in time order, with the method
                         version and the extent they covered (a run is applied once)
+places_pending          the published runs whose places update has not been done yet (issue 24: the
+                        publish transaction writes the row, the places follow-up deletes it in the
+                        commit that applies the run; attempts and back-off of a failing update)
 
-Rows are written by :func:`app.places.update.update_places` in the publish
-transaction; only the status columns and the status history by the workflow
-(:mod:`app.places.workflow`).
+Rows are written by :func:`app.places.update.update_places`, called by the places follow-up of the
+publish step (:mod:`app.places.followup`) in its own transaction after the publish commit; only the
+status columns and the status history by the workflow (:mod:`app.places.workflow`).
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ __all__ = [
     "PlaceStatusChange",
     "PlaceAction",
     "PlaceRun",
+    "PlacesPending",
 ]
 
 #: Workflow statuses of a place (set by engineers; ``back`` reopens a fixed place).
@@ -196,3 +200,26 @@ class PlaceRun(Base):
     n_places: Mapped[int] = mapped_column(Integer)
     n_events: Mapped[int] = mapped_column(Integer)
     applied_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+
+class PlacesPending(Base):
+    """A published run whose places update is still to be done (:mod:`app.places.followup`).
+
+    Written in the publish transaction (a reprocessed run's row is reset), deleted in the follow-up's
+    commit that applies the run to its line's places. ``attempts``, ``next_attempt_at`` and ``last_error``
+    follow a failing update (retried with back-off); ``gave_up``: failed ``places_max_attempts`` times,
+    kept for the operator and no longer holding up the line's later runs.
+    """
+
+    __tablename__ = "places_pending"
+    __table_args__ = (Index("ix_places_pending_line_key_run_time", "line_key", "run_time"),)
+
+    run_id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    line_key: Mapped[int] = mapped_column(Integer)
+    job_id: Mapped[int] = mapped_column(Integer)
+    run_time: Mapped[dt.datetime] = mapped_column(UTCDateTime())
+    queued_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    next_attempt_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
+    last_error: Mapped[str | None] = mapped_column(Text)
+    gave_up: Mapped[bool] = mapped_column(Boolean, default=False)
