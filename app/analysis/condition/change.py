@@ -14,6 +14,42 @@ score
 counts the change in repeatability units, the second term being the
 uncertainty of the median of ``n`` values. ``|z| ≥ step_z`` flags it.
 
+**Stated uncertainty in the step test** (``sd_value``, ``sd_history``: the 1-σ of each run's
+index that the profile states, :mod:`app.condition.index`; NaN where none is stated). The
+stated 1-σ of one pass is mostly the response of the rail's roughness inside the sleeper
+order's band (plus noise and too few sleeper bays). Rail roughness is fixed to the track: at
+matched speed its response **repeats** from run to run, so the history's spread does not see it
+and it does not move the newest value against the baseline either — it is an error against
+the support's truth, not against the history. The denominator therefore changes only where
+the physics says the errors no longer cancel:
+
+* (a) **a newer run states more than the history did** (another vehicle, sensor or speed: more
+  noise or floor than the typical run) — the repeatability already holds the typical run's
+  noise, so only the excess counts::
+
+      σ² = spread² (1 + π / (2 n)) + max(0, sd_new² − median(sd_hist²))
+
+* (b) **the rail surface changed** between the baseline's runs and the newest (a grinding or a
+  rail renewal in the maintenance records over the segment, ``surface_days``): the old
+  roughness response is in the baseline, the new one in the newest value, independent of each
+  other. Both sides' whole stated 1-σ enter::
+
+      σ² = spread² (1 + π / (2 n)) + sd_new² + median(sd_hist² of the runs before it)
+
+  The whole 1-σ, not only its shared part (``sleeper_amp_sd_shared``): both the broadband part
+  (roughness response in the order's band, correlated over ≈ 4 m) and the shared part (the
+  floor bias not taken off, over ≈ 20 m) are made by the rail surface and change with it; on a
+  10 m segment the broadband part is the larger. The noise share of the stated 1-σ, already in
+  the spread, is counted a second time only across an intervention (a little conservative,
+  there only). Where at least half of the baseline's runs predate the intervention the median
+  is the old surface's; after that the new surface repeats in both and the test is as before.
+  The trend test leaves out the runs before such an intervention (they measured another rail
+  surface). Tamping and other actions change the support, not the rail's surface: the test
+  stays as it was, so their effect is found.
+
+Where no 1-σ is stated (old rows, the synthetic fleet) the extra terms are 0: exactly the test
+above.
+
 **Trend** (:func:`trend_change`) — a gradual degradation. Over the last
 ``trend_window_days`` (history and the newest run), the index is winsorised at
 ``median ± 3 · spread`` and regressed on time; the score is the slope over its
@@ -58,6 +94,8 @@ import numpy as np
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
 
 __all__ = [
+    "RAIL_SURFACE_ACTIONS",
+    "surface_change_days",
     "ChangeParams",
     "DEFAULT_CHANGE_PARAMS",
     "StepResult",
@@ -65,6 +103,7 @@ __all__ = [
     "SpeedMatch",
     "speed_matched",
     "step_change",
+    "stated_variance",
     "trend_change",
     "robust_spread",
     "nan_median",
@@ -77,6 +116,49 @@ __all__ = [
 
 _MAD_TO_SD = 1.4826
 _DAYS_PER_YEAR = 365.25
+#: Maintenance types (the reference import's ``type``) that change the rails' running surface, hence
+#: their roughness response: grinding (and milling, recorded as grinding) and rail renewal.
+RAIL_SURFACE_ACTIONS: tuple[str, ...] = ("grinding", "rail_replacement")
+
+
+def surface_change_days(
+    seg: np.ndarray, segment_m: float, start_m: np.ndarray, end_m: np.ndarray, day: np.ndarray, now_days: float,
+) -> np.ndarray:
+    """Day of the latest rail-surface intervention on each segment up to ``now_days`` (NaN: none).
+
+    Parameters
+    ----------
+    seg : numpy.ndarray
+        (segments,) segment numbers (``[seg · segment_m, (seg + 1) · segment_m)``, m).
+    segment_m : float
+        Segment length, m (> 0).
+    start_m, end_m, day : numpy.ndarray
+        (actions,) extent (m, same axis) and day of each intervention (e.g. the maintenance
+        records of :data:`RAIL_SURFACE_ACTIONS`).
+    now_days : float
+        Day of the newest run; later interventions do not count.
+
+    Returns
+    -------
+    numpy.ndarray
+        (segments,) day, NaN where no intervention overlaps the segment.
+    """
+    if not (np.isfinite(segment_m) and segment_m > 0):
+        raise ValueError(f"segment_m: must be > 0, got {segment_m!r}")
+    s = np.asarray(seg, dtype=np.float64)
+    a, b, d = (np.asarray(v, dtype=np.float64).reshape(-1) for v in (start_m, end_m, day))
+    if not (a.shape == b.shape == d.shape):
+        raise ValueError("start_m, end_m, day: must have one value per intervention")
+    out = np.full(s.shape, np.nan)
+    if s.size == 0 or a.size == 0:
+        return out
+    lo, hi = s * segment_m, (s + 1) * segment_m
+    for x0, x1, t in zip(np.minimum(a, b), np.maximum(a, b), d, strict=True):
+        if not (np.isfinite(t) and t <= now_days):
+            continue
+        hit = (lo < x1) & (hi > x0)
+        out[hit] = np.fmax(out[hit], t)
+    return out
 
 
 @dataclass(frozen=True)
@@ -182,6 +264,8 @@ class StepResult:
         Score (NaN: fewer than ``min_history`` runs).
     n_history : numpy.ndarray
         int64 number of history values used.
+    sd : numpy.ndarray
+        The score's denominator σ: the 1-σ of ``change`` (log units; module docstring).
     """
 
     baseline: np.ndarray
@@ -189,6 +273,7 @@ class StepResult:
     change: np.ndarray
     z: np.ndarray
     n_history: np.ndarray
+    sd: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -367,6 +452,9 @@ def step_change(
     *,
     seg: np.ndarray | None = None,
     segment_m: float | None = None,
+    sd_value: np.ndarray | None = None,
+    sd_history: np.ndarray | None = None,
+    crossed: np.ndarray | None = None,
 ) -> StepResult:
     """Step test of the newest value of each segment against its history.
 
@@ -381,10 +469,17 @@ def step_change(
     seg, segment_m : numpy.ndarray and float, optional
         Segment numbers and length (m): with them, the spreads are pooled
         within blocks (:func:`pooled_spread`).
+    sd_value : numpy.ndarray, optional
+        (segments,) stated 1-σ of the newest value (log units; NaN: none).
+    sd_history : numpy.ndarray, optional
+        (segments, runs) stated 1-σ of the history values (NaN: none).
+    crossed : numpy.ndarray, optional
+        (segments, runs) bool: the rail surface was changed between that history run and the newest.
 
     Returns
     -------
     StepResult
+        With the denominator of the module docstring (the stated terms 0 where no 1-σ is stated).
     """
     x = np.asarray(value, dtype=np.float64)
     if x.ndim != 1:
@@ -397,9 +492,55 @@ def step_change(
                                prior_runs=params.spread_prior_runs)
     change = x - med
     se = spread * np.sqrt(1.0 + np.pi / (2.0 * np.maximum(n, 1)))
+    se = np.sqrt(se**2 + stated_variance(h, sd_value, sd_history, crossed))
     with np.errstate(invalid="ignore", divide="ignore"):
         z = np.where((n >= params.min_history) & np.isfinite(x), change / se, np.nan)
-    return StepResult(baseline=med, spread=spread, change=change, z=z, n_history=n.astype(np.int64))
+    return StepResult(baseline=med, spread=spread, change=change, z=z, n_history=n.astype(np.int64), sd=se)
+
+
+def stated_variance(history: np.ndarray, sd_value: np.ndarray | None, sd_history: np.ndarray | None,
+                    crossed: np.ndarray | None = None) -> np.ndarray:
+    """The stated uncertainty's share of the step test's variance (module docstring), log units².
+
+    Parameters
+    ----------
+    history : numpy.ndarray
+        (segments, runs) the history values the baseline is the median of (NaN: not used).
+    sd_value : numpy.ndarray or None
+        (segments,) stated 1-σ of the newest value (NaN or None: none).
+    sd_history : numpy.ndarray or None
+        (segments, runs) stated 1-σ of the history values (NaN or None: none).
+    crossed : numpy.ndarray or None
+        (segments, runs) bool: a rail-surface intervention lies between that run and the newest.
+
+    Returns
+    -------
+    numpy.ndarray
+        (segments,) ≥ 0; 0 where nothing is stated.
+    """
+    h = np.asarray(history, dtype=np.float64)
+    used = np.isfinite(h)
+    n_seg = h.shape[0]
+    sv = np.full(n_seg, np.nan) if sd_value is None else np.asarray(sd_value, dtype=np.float64)
+    if sv.shape != (n_seg,):
+        raise ValueError(f"sd_value: must have one value per segment ({n_seg}), got shape {sv.shape}")
+    sh = np.full(h.shape, np.nan) if sd_history is None else np.asarray(sd_history, dtype=np.float64)
+    if sh.shape != h.shape:
+        raise ValueError(f"sd_history: must have the shape of history {h.shape}, got {sh.shape}")
+    cr = np.zeros(h.shape, bool) if crossed is None else np.asarray(crossed, dtype=bool)
+    if cr.shape != h.shape:
+        raise ValueError(f"crossed: must have the shape of history {h.shape}, got {cr.shape}")
+    new_var = np.where(np.isfinite(sv), sv**2, np.nan)
+    hist_var = nan_median(np.where(used & np.isfinite(sh), sh**2, np.nan), axis=1)
+    # (a) what the newest run states beyond the history's typical run (where both are stated)
+    excess = np.where(np.isfinite(new_var) & np.isfinite(hist_var), np.maximum(new_var - hist_var, 0.0), 0.0)
+    # (b) across a rail-surface intervention the old and the new roughness response, whole
+    n = used.sum(axis=1)
+    c = (used & cr).sum(axis=1)
+    across = (c > 0) & (2 * c >= n)
+    old_var = nan_median(np.where(used & cr & np.isfinite(sh), sh**2, np.nan), axis=1)
+    rough = np.nan_to_num(new_var) + np.nan_to_num(old_var)
+    return np.where(across, rough, excess)
 
 
 def trend_change(
@@ -538,6 +679,8 @@ class WheelChange:
         Trend per year and its score (NaN when no trend test was asked or possible).
     exponent : float
         Speed exponent used to move the history to the newest run's speed.
+    change_sd : numpy.ndarray
+        1-σ of ``change`` (the step score's denominator, log units).
     """
 
     n_history: np.ndarray
@@ -547,6 +690,7 @@ class WheelChange:
     trend_rate: np.ndarray
     trend_z: np.ndarray
     exponent: float
+    change_sd: np.ndarray | None = None
 
 
 def detect_changes(
@@ -561,6 +705,9 @@ def detect_changes(
     segment_m: float,
     params: ChangeParams = DEFAULT_CHANGE_PARAMS,
     trend: bool = True,
+    sd_value: np.ndarray | None = None,
+    sd_history: np.ndarray | None = None,
+    surface_days: np.ndarray | None = None,
 ) -> WheelChange:
     """The newest run of one wheel against its history: speed matching, run level, step and trend.
 
@@ -582,6 +729,11 @@ def detect_changes(
     params : ChangeParams
     trend : bool
         Also run the trend test.
+    sd_value, sd_history : numpy.ndarray, optional
+        (segments,) and (segments, runs) stated 1-σ of the newest and the history's index (NaN: none).
+    surface_days : numpy.ndarray, optional
+        (segments,) day of the latest rail-surface intervention on the segment up to the newest run
+        (:func:`surface_change_days`; NaN: none).
 
     Returns
     -------
@@ -600,15 +752,25 @@ def detect_changes(
     y = y - level_offsets(dev, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
                           min_segments=params.min_level_segments)
     h_lev, x_lev = y[:, :-1], y[:, -1]
-    step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m)
+    crossed = None
+    if surface_days is not None:
+        sdays = np.asarray(surface_days, dtype=np.float64)
+        if sdays.shape != (x.size,):
+            raise ValueError(f"surface_days: must have one day per segment ({x.size}), got shape {sdays.shape}")
+        with np.errstate(invalid="ignore"):
+            crossed = times[None, :] < sdays[:, None]  # NaN: False
+    step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m,
+                       sd_value=sd_value, sd_history=sd_history, crossed=crossed)
     if trend and h.shape[1]:
-        tr = trend_change(times, h_lev, x_lev, now_days, params, seg=seg, segment_m=segment_m)
+        # the runs before a rail-surface intervention measured another rail: not in the trend
+        h_tr = h_lev if crossed is None else np.where(crossed, np.nan, h_lev)
+        tr = trend_change(times, h_tr, x_lev, now_days, params, seg=seg, segment_m=segment_m)
         rate, tz = tr.rate_per_year, tr.z
     else:
         rate = tz = np.full(x.size, np.nan)
     return WheelChange(
         n_history=step.n_history, baseline=step.baseline, change=step.change, change_z=step.z,
-        trend_rate=rate, trend_z=tz, exponent=matched.exponent,
+        trend_rate=rate, trend_z=tz, exponent=matched.exponent, change_sd=step.sd,
     )
 
 
