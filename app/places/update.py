@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
+from app.analysis.condition.change import RAIL_SURFACE_ACTIONS, surface_change_days
 from app.analysis.condition.lifecycle import (
     Action,
     Observation,
@@ -144,7 +145,7 @@ def _actions(session: Session, line: ConditionLine) -> tuple[list[Action], dict[
 
 
 def _grids(values: np.ndarray, wheels: list[str], run_ids: list[int]):
-    """Per run: (segments, wheel names, ln A, speed) as wheels × segments arrays."""
+    """Per run: (segments, wheel names, ln A, speed, stated 1-σ of ln A) as wheels × segments arrays."""
     order = np.argsort(values[:, 0], kind="stable")
     v_sorted = values[order]
     bounds = np.searchsorted(v_sorted[:, 0], np.asarray(run_ids, dtype=np.float64), side="left")
@@ -156,10 +157,11 @@ def _grids(values: np.ndarray, wheels: list[str], run_ids: list[int]):
         codes = np.unique(part[:, 1].astype(np.int64))
         la = np.full((codes.size, seg.size), np.nan)
         v = np.full_like(la, np.nan)
+        sd = np.full_like(la, np.nan)
         i = np.searchsorted(codes, part[:, 1].astype(np.int64))
         j = np.searchsorted(seg, part[:, 2].astype(np.int64))
-        la[i, j], v[i, j] = part[:, 3], part[:, 4]
-        out[rid] = (seg, [wheels[c] for c in codes], la, v)
+        la[i, j], v[i, j], sd[i, j] = part[:, 3], part[:, 4], part[:, 5]
+        out[rid] = (seg, [wheels[c] for c in codes], la, v, sd)
     return out
 
 
@@ -215,6 +217,8 @@ class RunIndex:
         Days (since 1970) of the history runs.
     classes : numpy.ndarray
         Superstructure class of each segment (None near a change of class).
+    index_sd, history_sd : numpy.ndarray
+        The stated 1-σ of ``index`` and ``history`` (the store's ``index_sd``; NaN: none).
     """
 
     seg: np.ndarray
@@ -224,6 +228,8 @@ class RunIndex:
     history: np.ndarray
     history_days: np.ndarray
     classes: np.ndarray
+    index_sd: np.ndarray | None = None
+    history_sd: np.ndarray | None = None
 
     @property
     def mean_index(self) -> np.ndarray:
@@ -244,7 +250,7 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
     run_ids = [r for r, _ in history] + [run_id]
     values, wheel_names = q.segment_frame(session, run_ids, SEGMENT_M)
     grids = _grids(values, wheel_names, run_ids)
-    seg, wheels, la, v = grids[run_id]
+    seg, wheels, la, v, la_sd = grids[run_id]
     if seg.size == 0:
         return None
     all_seg = np.unique(values[:, 2].astype(np.int64))
@@ -265,9 +271,11 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
                                                      np.array([cls_of[int(s)] for s in grids[r][0].tolist()],
                                                               dtype=object), curves))
             for r, _ in history]
+    hist_sd = [_on(grids[r], seg, wheels, grids[r][4]) for r, _ in history]
     return RunIndex(seg=seg, wheels=wheels, index=idx, speed=v,
                     history=np.stack(hist, axis=2) if hist else np.zeros((*idx.shape, 0)),
-                    history_days=np.array([days_of(t) for _, t in history], dtype=np.float64), classes=classes)
+                    history_days=np.array([days_of(t) for _, t in history], dtype=np.float64), classes=classes,
+                    index_sd=la_sd, history_sd=np.stack(hist_sd, axis=2) if hist_sd else np.zeros((*idx.shape, 0)))
 
 
 def run_segment_index(session: Session, line: ConditionLine, run_id: int, *,
@@ -322,8 +330,14 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
         return PlacesUpdate(False, "the run has no 10 m condition rows", version)
     seg, wheels, v = ri.seg, ri.wheels, ri.speed
     now_day = days_of(when)
+    acts, act_rows = _actions(session, line)
+    surface = [a for a in acts if a.kind in RAIL_SURFACE_ACTIONS]
+    surface_days = surface_change_days(seg, SEGMENT_M, np.array([a.start_m for a in surface]),
+                                       np.array([a.end_m for a in surface]), np.array([a.day for a in surface]),
+                                       now_day)
     found = find_places(seg, ri.index, ri.history, ri.history_days, now_day, ri.classes,
-                        segment_m=SEGMENT_M, params=params)
+                        segment_m=SEGMENT_M, params=params, index_sd=ri.index_sd, history_sd=ri.history_sd,
+                        surface_days=surface_days)
 
     rows = q.line_places(session, line.id)
     by_id = {p.id: p for p in rows}
@@ -332,7 +346,6 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
     known = [_state(p, obs[p.id], links[p.id], version) for p in rows]
     version_runs = {p.id: {o.run_id for o in obs[p.id] if o.method_version == version} for p in rows}
     before = {k.id: (k.active, k.listed, list(k.actions)) for k in known}
-    acts, act_rows = _actions(session, line)
     covered = (float(seg.min() * SEGMENT_M), float((seg.max() + 1) * SEGMENT_M))
     events, _, _ = advance_places(known, found, run_id=run_id, day=now_day, covered_m=covered,
                                   params=config.lifecycle, next_id=q.next_place_id(session), place_params=params,

@@ -199,9 +199,9 @@ def test_action_effect_before_after_and_how_long_it_lasted():
         action_effect(days, values, 99.5, regain_fraction=0)
 
 
-def test_store_index_sd_is_segment_sd_of_the_relative_bin_sd():
-    """The store's stated 1-σ of a segment's ln A: segment_sd of sd/A (and shared/A) of its valid bins,
-    on the aligned axis; NaN where no bin states one."""
+def test_store_index_sd_is_segment_sd_over_the_mean_amplitude():
+    """The store's stated 1-σ of a segment's ln A: segment_sd of the valid bins' sd (and shared part) on the
+    aligned axis over their mean amplitude (delta method); NaN where no bin states one."""
     from app.analysis.uncertainty import segment_sd
     from app.condition.index import store_index_sd
 
@@ -219,8 +219,9 @@ def test_store_index_sd_is_segment_sd_of_the_relative_bin_sd():
                          filter_order=2)
     ok = np.isfinite(amp) & np.isfinite(sd)
     aligned = np.floor(pos / 0.25).astype(np.int64)
-    segs, ref = segment_sd(aligned[ok], sd[ok] / amp[ok], 10.0, 0.25, 3.0, 2, shared=shared[ok] / amp[ok])
-    want = dict(zip(segs.tolist(), ref.tolist(), strict=True))
+    segs, ref = segment_sd(aligned[ok], sd[ok], 10.0, 0.25, 3.0, 2, shared=shared[ok])
+    seg_of = np.floor(pos[ok] / 10.0).astype(np.int64)
+    want = {g: r / amp[ok][seg_of == g].mean() for g, r in zip(segs.tolist(), ref.tolist(), strict=True)}
     assert np.all(np.isfinite(got)) and np.all(got > 0)
     for s_, g in zip(st.seg.tolist(), got.tolist(), strict=True):
         assert g == pytest.approx(want[s_], rel=1e-12)

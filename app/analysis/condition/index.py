@@ -15,12 +15,14 @@ Two indexes live in trackvkf, with distinct names everywhere:
   the store does not keep it.
 
 **Its stated uncertainty** (:func:`log_amplitude_segment_sd`): a segment's index is the mean of
-its bins' ``ln A``. The error of one bin's ``ln A`` is, to first order (delta method),
-``e / A`` with ``e`` the error of ``A`` whose 1-σ the profile states (``sleeper_amp_sd``, of which
-``sleeper_amp_sd_shared`` is shared along the floor window): the bins' relative 1-σ ``sd / A`` and
-``sd_shared / A`` go through :func:`app.analysis.uncertainty.segment_sd`, the one rule that
-aggregates bins to a segment with their along-track correlation. Where the profile states no 1-σ
-(old runs, a profile without the columns) the segment's is NaN: none known — never 0.
+its bins' ``ln A``. Its 1-σ is that of the segment's mean amplitude, from the profile's stated
+1-σ of every bin (``sleeper_amp_sd``, of which ``sleeper_amp_sd_shared`` is shared along the floor
+window) through :func:`app.analysis.uncertainty.segment_sd` (the one rule that aggregates bins to
+a segment with their along-track correlation), over the segment's mean amplitude: the delta
+method ``σ(ln Ā) ≈ σ(Ā) / Ā``, at the segment, not per bin — on rough rail single bins are often
+near 0 (the two-rail estimate is clipped there) and ``sd / A`` of such a bin says nothing of the
+segment. Where the profile states no 1-σ (old runs, a profile without the columns) the segment's
+is NaN: none known — never 0.
 
 :mod:`app.condition.index` is the one place that decides which index the store holds.
 """
@@ -92,8 +94,8 @@ def log_amplitude_segment_sd(
     segments : numpy.ndarray
         int64 segment numbers with at least one bin with a positive amplitude and a finite ``sd``.
     index_sd : numpy.ndarray
-        1-σ of the segment's mean ``ln A`` over those bins: :func:`~app.analysis.uncertainty.segment_sd`
-        of ``sd / A`` (and ``shared / A``), the delta method per bin.
+        1-σ of the segment's index: :func:`~app.analysis.uncertainty.segment_sd` of ``sd`` (and
+        ``shared``) over those bins, divided by their mean amplitude (delta method).
 
     Raises
     ------
@@ -121,9 +123,12 @@ def log_amplitude_segment_sd(
     ok = np.isfinite(x) & np.isfinite(a) & (a > 0) & np.isfinite(s) & (s >= 0)
     if not ok.any():
         return np.zeros(0, dtype=np.int64), np.zeros(0)
-    bins = np.floor(x[ok] / bin_length_m).astype(np.int64)
-    rel = s[ok] / a[ok]
-    rel_shared = None if sh is None else sh[ok] / a[ok]
     # position_m on a shifted axis: bins keep their spacing, the segment is that of the bin's start
-    segments, out = segment_sd(bins, rel, segment_m, bin_length_m, resolution_m, filter_order, shared=rel_shared)
-    return segments, out
+    bins = np.floor(x[ok] / bin_length_m).astype(np.int64)
+    segments, sd_mean = segment_sd(bins, s[ok], segment_m, bin_length_m, resolution_m, filter_order,
+                                   shared=None if sh is None else sh[ok])
+    k = int(round(segment_m / bin_length_m))
+    seg_of = np.floor_divide(bins, k)
+    j = np.searchsorted(segments, seg_of)
+    mean = np.bincount(j, weights=a[ok], minlength=segments.size) / np.bincount(j, minlength=segments.size)
+    return segments, sd_mean / mean
