@@ -189,8 +189,13 @@ def _state(p: Place, obs: list[PlaceObservation], links: list[PlaceAction], vers
         observations=[Observation(run_id=o.run_id, day=o.day, start_m=o.start_m, end_m=o.end_m, centre_m=o.centre_m,
                                   peak_m=o.peak_m, level=o.level, change=np.nan if o.change is None else o.change,
                                   tier=int(o.tier), severity=o.severity, evidence=int(o.evidence),
-                                  wheels=int(o.wheels)) for o in obs],
+                                  wheels=int(o.wheels), level_sd=_nan(o.level_sd), change_sd=_nan(o.change_sd),
+                                  severity_sd=_nan(o.severity_sd)) for o in obs],
     )
+
+
+def _nan(x: float | None) -> float:
+    return float("nan") if x is None else float(x)
 
 
 def _finite(x: float) -> float | None:
@@ -414,6 +419,8 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
         row.tier, row.listed, row.active, row.misses, row.lower_runs = st.tier, st.listed, st.active, st.misses, \
             st.lower_runs
         row.level, row.change, row.severity = last.level, _finite(last.change), last.severity
+        row.level_sd, row.change_sd, row.severity_sd = (_finite(last.level_sd), _finite(last.change_sd),
+                                                        _finite(last.severity_sd))
         row.evidence, row.wheels = last.evidence, last.wheels
         if new_obs:
             row.wheel_labels = _wheel_labels(last.wheels, wheels)
@@ -431,6 +438,8 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
             session.add(PlaceObservation(place_id=st.id, run_id=run_id, run_time=when, day=o.day, start_m=o.start_m,
                                          end_m=o.end_m, centre_m=o.centre_m, peak_m=o.peak_m, level=o.level,
                                          change=_finite(o.change), tier=o.tier, severity=o.severity,
+                                         level_sd=_finite(o.level_sd), change_sd=_finite(o.change_sd),
+                                         severity_sd=_finite(o.severity_sd),
                                          evidence=o.evidence, wheels=o.wheels,
                                          wheel_labels=row.wheel_labels if o.wheels else "",
                                          speed_kmh=_speed(seg, speed_kmh, o.start_m, o.end_m),

@@ -218,6 +218,7 @@ def assess_run(
     for seg_m, wheels in run.items():
         trend = abs(seg_m - trend_segment_m) < 1e-9
         changes: dict[str, WheelChange] = {}
+        n_wheels = max(sum(1 for st in wheels.values() if len(st)), 1)
         for wheel, st in wheels.items():
             if len(st) == 0:
                 continue
@@ -226,7 +227,7 @@ def assess_run(
             changes[wheel] = detect_changes(
                 hist.index, hist.speed, hist.days, st.index, st.speed_mean, now_days, st.seg,
                 segment_m=seg_m, params=params, trend=trend, sd_value=st.index_sd, sd_history=hist.index_sd,
-                surface_days=surface,
+                surface_days=surface, stated_wheels=n_wheels,
             )
         out.changes[seg_m] = changes
         out.exponents[seg_m] = {w: c.exponent for w, c in changes.items()}

@@ -47,6 +47,14 @@ the physics says the errors no longer cancel:
   surface). Tamping and other actions change the support, not the rail's surface: the test
   stays as it was, so their effect is found.
 
+**Wheels share the stated error.** The wheels of a run meet the same rails at the same speed: their
+roughness responses are the same where they run on one rail, and the two-rail estimate gives both
+wheels of an axle one value. The stated part is therefore taken as common to the ``w`` wheels whose
+scores are combined (``stated_wheels``): each wheel's denominator carries ``w ×`` the stated variance,
+so that the wheels' Stouffer sum ``Σ z / √w`` is the change over ``sqrt(spread²(…)/w + stated)`` —
+the repeatability averages over the wheels, the roughness does not (full correlation: the upper
+bound). Without it four wheels would turn one grinding's roughness into twice its score.
+
 Where no 1-σ is stated (old rows, the synthetic fleet) the extra terms are 0: exactly the test
 above.
 
@@ -455,6 +463,7 @@ def step_change(
     sd_value: np.ndarray | None = None,
     sd_history: np.ndarray | None = None,
     crossed: np.ndarray | None = None,
+    stated_wheels: int = 1,
 ) -> StepResult:
     """Step test of the newest value of each segment against its history.
 
@@ -475,6 +484,8 @@ def step_change(
         (segments, runs) stated 1-σ of the history values (NaN: none).
     crossed : numpy.ndarray, optional
         (segments, runs) bool: the rail surface was changed between that history run and the newest.
+    stated_wheels : int, optional
+        Wheels whose scores will be combined and share the stated error (module docstring; default 1).
 
     Returns
     -------
@@ -492,7 +503,9 @@ def step_change(
                                prior_runs=params.spread_prior_runs)
     change = x - med
     se = spread * np.sqrt(1.0 + np.pi / (2.0 * np.maximum(n, 1)))
-    se = np.sqrt(se**2 + stated_variance(h, sd_value, sd_history, crossed))
+    if not (isinstance(stated_wheels, (int, np.integer)) and stated_wheels >= 1):
+        raise ValueError(f"stated_wheels: must be an int >= 1, got {stated_wheels!r}")
+    se = np.sqrt(se**2 + stated_wheels * stated_variance(h, sd_value, sd_history, crossed))
     with np.errstate(invalid="ignore", divide="ignore"):
         z = np.where((n >= params.min_history) & np.isfinite(x), change / se, np.nan)
     return StepResult(baseline=med, spread=spread, change=change, z=z, n_history=n.astype(np.int64), sd=se)
@@ -680,7 +693,9 @@ class WheelChange:
     exponent : float
         Speed exponent used to move the history to the newest run's speed.
     change_sd : numpy.ndarray
-        1-σ of ``change`` (the step score's denominator, log units).
+        The step score's denominator (log units): the 1-σ of ``change`` with the stated part counted
+        ``stated_wheels`` times; the 1-σ of the mean change over those wheels is its mean over them
+        divided by ``sqrt(stated_wheels)``.
     """
 
     n_history: np.ndarray
@@ -708,6 +723,7 @@ def detect_changes(
     sd_value: np.ndarray | None = None,
     sd_history: np.ndarray | None = None,
     surface_days: np.ndarray | None = None,
+    stated_wheels: int = 1,
 ) -> WheelChange:
     """The newest run of one wheel against its history: speed matching, run level, step and trend.
 
@@ -734,6 +750,8 @@ def detect_changes(
     surface_days : numpy.ndarray, optional
         (segments,) day of the latest rail-surface intervention on the segment up to the newest run
         (:func:`surface_change_days`; NaN: none).
+    stated_wheels : int, optional
+        Wheels whose scores will be combined (:func:`step_change`; default 1).
 
     Returns
     -------
@@ -760,7 +778,7 @@ def detect_changes(
         with np.errstate(invalid="ignore"):
             crossed = times[None, :] < sdays[:, None]  # NaN: False
     step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m,
-                       sd_value=sd_value, sd_history=sd_history, crossed=crossed)
+                       sd_value=sd_value, sd_history=sd_history, crossed=crossed, stated_wheels=stated_wheels)
     if trend and h.shape[1]:
         # the runs before a rail-surface intervention measured another rail: not in the trend
         h_tr = h_lev if crossed is None else np.where(crossed, np.nan, h_lev)

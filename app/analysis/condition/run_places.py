@@ -39,8 +39,8 @@ widens as :mod:`app.analysis.condition.change` says (the newest run's excess ove
 across a rail-surface intervention — ``surface_days`` — both sides' roughness response: a grinding
 is not a stiffness change). A place's size carries its 1-σ: the level's is the wheels' mean stated
 1-σ at the peak segment (the wheels of a run meet the same rails at the same speed: their errors are
-taken as fully correlated, the upper bound), the change's the step test's denominator (mean over the
-wheels). A place's **tier rests on its size's lower 1-σ bound**: it is found as before (its
+taken as fully correlated, the upper bound), the change's that of the wheels' mean change (the step
+test's denominators, the stated part shared by the wheels: :mod:`app.analysis.condition.change`). A place's **tier rests on its size's lower 1-σ bound**: it is found as before (its
 evidence does not change), but it reaches the intervention or immediate-action tier only where the
 level or the change less its 1-σ reaches that limit (every found place of tier ≥ 1 keeps at least
 the alert tier). ``severity_sd`` is the 1-σ of ``severity`` (the size that sets it, in the same
@@ -381,7 +381,8 @@ def find_places(
         ones = np.ones(h.shape[1:])
         for w in range(n_w):
             ch = detect_changes(h[w], ones, days, x[w], np.ones(s.size), float(now_day), s, segment_m=segment_m,
-                                params=cp, trend=True, sd_value=xsd[w], sd_history=hsd[w], surface_days=surface_days)
+                                params=cp, trend=True, sd_value=xsd[w], sd_history=hsd[w], surface_days=surface_days,
+                                stated_wheels=n_w)
             wz[w], wchange[w], wtz[w], wrate[w] = ch.change_z, ch.change, ch.trend_z, ch.trend_rate
             wsd[w] = ch.change_sd
     cz, agree = combine_wheels(wz, params.agree_z)
@@ -446,7 +447,10 @@ def find_places(
         peak[p] = rows[np.lexsort((-mag, -tier_rows))[0]]
     lt, ct = level_tier[peak], change_tier[peak]
     level_sd = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
-    change_sd = _mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan))
+    # the denominators carry the stated part once per wheel (shared by the wheels): the mean change's 1-σ
+    with np.errstate(invalid="ignore", divide="ignore"):
+        change_sd = _mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan)) \
+            / np.sqrt(np.maximum(np.isfinite(wchange).sum(axis=0), 1))
     # the tier rests on the size's lower 1-sigma bound (a found place keeps at least the alert tier)
     lo_level = np.maximum(np.abs(np.nan_to_num(level[peak])) - np.nan_to_num(level_sd[peak]), 0.0)
     lo_change = np.maximum(np.abs(np.nan_to_num(change[peak])) - np.nan_to_num(change_sd[peak]), 0.0)
