@@ -51,6 +51,7 @@ from app.analysis.condition import (
     assess_run,
     segment_stats,
 )
+from app.analysis.condition.change import intervention_margin_m
 from app.analysis.stiffness.alignment import align_runs
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
 from app.condition.index import STORE_INDEX, store_index, store_index_sd
@@ -477,7 +478,8 @@ def store_run_condition(
     history = DbHistory(session, line.id, run_id, when, config.change)
     assessment = assess_run(segments, history, days_of(when), params=config.change,
                             previous_flags=history.previous_flags(),
-                            interventions=rail_surface_interventions(session, run.line_id, run.track or ""))
+                            interventions=rail_surface_interventions(session, run.line_id, run.track or ""),
+                            intervention_margin_m=intervention_margin_m(res_m, order))
     flags = write_assessed_run(session, run_id=run_id, job_id=job_id, line=line, when=when, segments=segments,
                                assessment=assessment, shift_m=shift, shift_confidence=confidence)
     exponents = {f"{s:g}": float(np.mean(list(e.values()))) if e else None

@@ -189,6 +189,7 @@ def assess_run(
     previous_flags: set[tuple[int, int, str, int]] | None = None,
     trend_segment_m: float = TREND_SEGMENT_M,
     interventions: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    intervention_margin_m: float | None = None,
 ) -> RunAssessment:
     """Change tests of a run's segments against their history, and the flags.
 
@@ -208,6 +209,9 @@ def assess_run(
     interventions : tuple of numpy.ndarray, optional
         ``(start_m, end_m, day)`` of the line's rail-surface interventions (grinding, rail renewal) on
         the run's km axis and time axis (:func:`~app.analysis.condition.change.surface_change_days`).
+    intervention_margin_m : float, optional
+        Their extents widened by this much, m (default
+        :func:`~app.analysis.condition.change.intervention_margin_m` at 3 m resolution).
 
     Returns
     -------
@@ -223,7 +227,9 @@ def assess_run(
             if len(st) == 0:
                 continue
             hist = history.matrix(seg_m, wheel, st.seg, trend=trend)
-            surface = None if interventions is None else surface_change_days(st.seg, seg_m, *interventions, now_days)
+            surface = None
+            if interventions is not None:
+                surface = surface_change_days(st.seg, seg_m, *interventions, now_days, margin_m=intervention_margin_m)
             changes[wheel] = detect_changes(
                 hist.index, hist.speed, hist.days, st.index, st.speed_mean, now_days, st.seg,
                 segment_m=seg_m, params=params, trend=trend, sd_value=st.index_sd, sd_history=hist.index_sd,

@@ -25,9 +25,12 @@ the physics says the errors no longer cancel:
 
 * (a) **a newer run states more than the history did** (another vehicle, sensor or speed: more
   noise or floor than the typical run) — the repeatability already holds the typical run's
-  noise, so only the excess counts::
+  noise, so only the excess counts. The floor is an absolute power (m/s²), not a share of the
+  amplitude: a softer support lowers ``A`` and raises ``sd / A`` with the same floor, which is no
+  new noise. The history's 1-σ are therefore brought to the new value's amplitude first
+  (``sd_hist · e^(h − x)``, the ratio of the two amplitudes)::
 
-      σ² = spread² (1 + π / (2 n)) + max(0, sd_new² − median(sd_hist²))
+      σ² = spread² (1 + π / (2 n)) + max(0, sd_new² − median(sd_hist² e^(2(h − x))))
 
 * (b) **the rail surface changed** between the baseline's runs and the newest (a grinding or a
   rail renewal in the maintenance records over the segment, ``surface_days``): the old
@@ -44,7 +47,9 @@ the physics says the errors no longer cancel:
   there only). Where at least half of the baseline's runs predate the intervention the median
   is the old surface's; after that the new surface repeats in both and the test is as before.
   The trend test leaves out the runs before such an intervention (they measured another rail
-  surface). Tamping and other actions change the support, not the rail's surface: the test
+  surface), and the run level (below) is taken from the segments it did not cover. The
+  intervention's extent counts with a margin (:func:`intervention_margin_m`): a bin's estimate
+  reaches half the floor window and the filter's correlation beyond itself. Tamping and other actions change the support, not the rail's surface: the test
   stays as it was, so their effect is found.
 
 **Wheels share the stated error.** The wheels of a run meet the same rails at the same speed: their
@@ -100,10 +105,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
+from app.analysis.uncertainty import correlation_zero, shared_window_m
 
 __all__ = [
     "RAIL_SURFACE_ACTIONS",
     "surface_change_days",
+    "intervention_margin_m",
     "ChangeParams",
     "DEFAULT_CHANGE_PARAMS",
     "StepResult",
@@ -129,8 +136,17 @@ _DAYS_PER_YEAR = 365.25
 RAIL_SURFACE_ACTIONS: tuple[str, ...] = ("grinding", "rail_replacement")
 
 
+def intervention_margin_m(resolution_m: float = 3.0, filter_order: int = 2) -> float:
+    """How far beyond a rail-surface intervention's recorded extent the indicator still changes, m: half
+    the floor window (:func:`app.analysis.uncertainty.shared_window_m`, whose estimates mix both surfaces)
+    plus the first zero of the envelope's correlation (:func:`app.analysis.uncertainty.correlation_zero`);
+    14.2 m at 3 m resolution, q = 2."""
+    return shared_window_m(resolution_m, filter_order) / 2.0 + correlation_zero(resolution_m, filter_order)
+
+
 def surface_change_days(
     seg: np.ndarray, segment_m: float, start_m: np.ndarray, end_m: np.ndarray, day: np.ndarray, now_days: float,
+    margin_m: float | None = None,
 ) -> np.ndarray:
     """Day of the latest rail-surface intervention on each segment up to ``now_days`` (NaN: none).
 
@@ -145,6 +161,8 @@ def surface_change_days(
         records of :data:`RAIL_SURFACE_ACTIONS`).
     now_days : float
         Day of the newest run; later interventions do not count.
+    margin_m : float, optional
+        The extents are widened by this much on either side, m (default :func:`intervention_margin_m`).
 
     Returns
     -------
@@ -160,8 +178,11 @@ def surface_change_days(
     out = np.full(s.shape, np.nan)
     if s.size == 0 or a.size == 0:
         return out
+    pad = intervention_margin_m() if margin_m is None else float(margin_m)
+    if not (np.isfinite(pad) and pad >= 0):
+        raise ValueError(f"margin_m: must be >= 0, got {margin_m!r}")
     lo, hi = s * segment_m, (s + 1) * segment_m
-    for x0, x1, t in zip(np.minimum(a, b), np.maximum(a, b), d, strict=True):
+    for x0, x1, t in zip(np.minimum(a, b) - pad, np.maximum(a, b) + pad, d, strict=True):
         if not (np.isfinite(t) and t <= now_days):
             continue
         hit = (lo < x1) & (hi > x0)
@@ -505,14 +526,14 @@ def step_change(
     se = spread * np.sqrt(1.0 + np.pi / (2.0 * np.maximum(n, 1)))
     if not (isinstance(stated_wheels, (int, np.integer)) and stated_wheels >= 1):
         raise ValueError(f"stated_wheels: must be an int >= 1, got {stated_wheels!r}")
-    se = np.sqrt(se**2 + stated_wheels * stated_variance(h, sd_value, sd_history, crossed))
+    se = np.sqrt(se**2 + stated_wheels * stated_variance(h, sd_value, sd_history, crossed, value=x))
     with np.errstate(invalid="ignore", divide="ignore"):
         z = np.where((n >= params.min_history) & np.isfinite(x), change / se, np.nan)
     return StepResult(baseline=med, spread=spread, change=change, z=z, n_history=n.astype(np.int64), sd=se)
 
 
 def stated_variance(history: np.ndarray, sd_value: np.ndarray | None, sd_history: np.ndarray | None,
-                    crossed: np.ndarray | None = None) -> np.ndarray:
+                    crossed: np.ndarray | None = None, *, value: np.ndarray | None = None) -> np.ndarray:
     """The stated uncertainty's share of the step test's variance (module docstring), log units².
 
     Parameters
@@ -525,6 +546,9 @@ def stated_variance(history: np.ndarray, sd_value: np.ndarray | None, sd_history
         (segments, runs) stated 1-σ of the history values (NaN or None: none).
     crossed : numpy.ndarray or None
         (segments, runs) bool: a rail-surface intervention lies between that run and the newest.
+    value : numpy.ndarray, optional
+        (segments,) the newest value (log units): the history's 1-σ are brought to its amplitude for
+        the excess (a), ``sd · e^(h − x)``; without it they are taken as they are.
 
     Returns
     -------
@@ -544,7 +568,14 @@ def stated_variance(history: np.ndarray, sd_value: np.ndarray | None, sd_history
     if cr.shape != h.shape:
         raise ValueError(f"crossed: must have the shape of history {h.shape}, got {cr.shape}")
     new_var = np.where(np.isfinite(sv), sv**2, np.nan)
-    hist_var = nan_median(np.where(used & np.isfinite(sh), sh**2, np.nan), axis=1)
+    scale = np.ones(h.shape)
+    if value is not None:
+        xv = np.asarray(value, dtype=np.float64)
+        if xv.shape != (n_seg,):
+            raise ValueError(f"value: must have one value per segment ({n_seg}), got shape {xv.shape}")
+        with np.errstate(invalid="ignore", over="ignore"):
+            scale = np.where(np.isfinite(h) & np.isfinite(xv)[:, None], np.exp(2.0 * (h - xv[:, None])), 1.0)
+    hist_var = nan_median(np.where(used & np.isfinite(sh), sh**2 * scale, np.nan), axis=1)
     # (a) what the newest run states beyond the history's typical run (where both are stated)
     excess = np.where(np.isfinite(new_var) & np.isfinite(hist_var), np.maximum(new_var - hist_var, 0.0), 0.0)
     # (b) across a rail-surface intervention the old and the new roughness response, whole
@@ -767,9 +798,6 @@ def detect_changes(
     base = nan_median(np.where(recent, h, np.nan), axis=1)
     y = np.concatenate([h, x[:, None]], axis=1)
     dev = y - base[:, None]
-    y = y - level_offsets(dev, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
-                          min_segments=params.min_level_segments)
-    h_lev, x_lev = y[:, :-1], y[:, -1]
     crossed = None
     if surface_days is not None:
         sdays = np.asarray(surface_days, dtype=np.float64)
@@ -777,6 +805,11 @@ def detect_changes(
             raise ValueError(f"surface_days: must have one day per segment ({x.size}), got shape {sdays.shape}")
         with np.errstate(invalid="ignore"):
             crossed = times[None, :] < sdays[:, None]  # NaN: False
+        # a new rail surface moves its segments: the run's level comes from the others
+        dev = np.where(crossed.any(axis=1)[:, None], np.nan, dev)
+    y = y - level_offsets(dev, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
+                          min_segments=params.min_level_segments)
+    h_lev, x_lev = y[:, :-1], y[:, -1]
     step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m,
                        sd_value=sd_value, sd_history=sd_history, crossed=crossed, stated_wheels=stated_wheels)
     if trend and h.shape[1]:
