@@ -13,37 +13,20 @@ import numpy as np
 import pytest
 from sqlalchemy import select
 
-from app.simulate.history import HistoryRun, HistorySpec, TrackChange
-from app.simulate.surface import RailGrinding, generate_surface
-from app.simulate.track import TrackSection, generate_line
+from app.simulate.history import grinding_history
 from tests.condition.history_support import history_service, process_history
 
 pytestmark = pytest.mark.slow
 
-KM0, LENGTH_KM, N_RUNS, EVERY = 12.0, 1.2, 10, 7.0
-START = dt.datetime(2025, 4, 7, 8, 0, tzinfo=dt.UTC)
-GROUND = (12_400.0, 12_600.0)
-SOFT = (12_850.0, 12_870.0)
-GRIND_DAY = (N_RUNS - 2) * EVERY + 3.0  # between the 9th and the 10th run
-
-
-def _spec() -> HistorySpec:
-    lo, hi = 1000.0 * KM0 - 150.0, 1000.0 * (KM0 + LENGTH_KM) + 150.0
-    surface = generate_surface(lo, hi, 21, weld_spacing_m=None).with_grindings(
-        [RailGrinding(*GROUND, (START + dt.timedelta(days=GRIND_DAY)).date().isoformat())])
-    line = generate_line(lo, hi, np.random.default_rng([21, 7]), sections=(TrackSection(lo, hi, "b91_no_pads"),),
-                         anomalies=(), surface=surface)
-    runs = tuple(HistoryRun(day=i * EVERY, cruise_kmh=126.0, km_error_m=0.0, seed=2100 + i) for i in range(N_RUNS))
-    changes = (TrackChange("change", *SOFT, GRIND_DAY, 0.7, taper_m=2.0),)
-    return HistorySpec(line=line, runs=runs, changes=changes, km_start=KM0, length_km=LENGTH_KM, start=START,
-                       line_id="ROUGH", track="1", v_start_kmh=126.0, v_end_kmh=126.0, ramp_in_m=50.0,
-                       ramp_out_m=50.0, vehicle_seed=22)
+SPEC, INFO = grinding_history(seed=21)
+N_RUNS = len(SPEC.runs)
+GROUND, SOFT = INFO["ground"], INFO["soft"]
 
 
 def _maintenance_csv(path) -> None:
-    day = (START + dt.timedelta(days=GRIND_DAY)).date().isoformat()
+    r = INFO["maintenance"]
     path.write_text("line_id,track,km_from,km_to,type,date\n"
-                    f"ROUGH,1,{GROUND[0] / 1000:.3f},{GROUND[1] / 1000:.3f},grinding,{day}\n")
+                    f"{r['line_id']},{r['track']},{r['km_from']:.3f},{r['km_to']:.3f},{r['type']},{r['date']}\n")
 
 
 def _inside(seg: int, extent: tuple[float, float], seg_m: float = 10.0) -> bool:
@@ -55,7 +38,7 @@ def rough(tmp_path_factory):
     """The history processed; the grinding recorded (imported) before the last run is uploaded."""
     from app.db.session import Database
 
-    spec = _spec()
+    spec = SPEC
     tmp = tmp_path_factory.mktemp("rough-history")
     with history_service(tmp) as client:
         first = process_history(client, spec, tmp / "files", runs=slice(0, N_RUNS - 1))
@@ -119,7 +102,7 @@ def _without_record(db, run_id, job_id):
     from app.db.models import SegmentCondition as SC
 
     with db.read() as s:
-        reference_crud.delete_reference(s, "maintenance", "ROUGH", "1")
+        reference_crud.delete_reference(s, "maintenance", SPEC.line_id, SPEC.track)
         rc = store_run_condition(s, run_id, job_id)
         flags = [(f.seg, f.direction, f.score) for f in rc.flags if f.kind == "step" and f.seg_m == 10]
         z = s.execute(select(SC.seg, SC.change_z).where(SC.run_id == run_id, SC.seg_m == 10)).all()
@@ -151,15 +134,39 @@ def test_a_recorded_grinding_is_not_a_stiffness_change_and_a_real_change_still_i
     assert inside and np.median([abs(z_with[g]) for g in inside]) < np.median([abs(zw[g]) for g in inside]) / 2
 
 
+def _places_without_sd(db, run_id):
+    """The last run's places as find_places gives them from the same store rows without the stated 1-σ and
+    the grinding (the places' behaviour before issue 26 item 3): (start, end, evidence) per place."""
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS, find_places
+    from app.condition.writer import days_of
+    from app.db import places as q
+    from app.db.models import ConditionLine, ConditionRun, Job
+    from app.places.update import method_version, run_index
+
+    with db.read() as s:
+        line = s.scalar(select(ConditionLine))
+        entry = s.get(ConditionRun, run_id)
+        version = method_version(s.get(Job, entry.job_id).settings)
+        hist = q.history_runs(s, line.id, entry.run_time, version, scan_runs=60, window_days=180)
+        ri = run_index(s, line, run_id, hist)
+    rp = find_places(ri.seg, ri.index, ri.history, ri.history_days, days_of(entry.run_time), ri.classes,
+                     segment_m=10.0, params=DEFAULT_PLACE_PARAMS)
+    return list(zip(rp.places.start_m, rp.places.end_m, rp.places.evidence, strict=True))
+
+
 def test_no_new_step_place_over_the_recorded_grinding(rough):
-    """The places of the last run (applied by the service with the record): none with step evidence over the
-    ground stretch; the support change is a place with step evidence."""
+    """The places of the last run (applied by the service with the record and the stated 1-σ): none with step
+    evidence over the ground stretch, where the same rows without them give several; the support change is a
+    place with step evidence; the rough line's roughness no longer makes anomalies all along it."""
     from app.db.models import Place, PlaceObservation
 
     spec, db, run_ids, _ = rough
     with db.read() as s:
         obs = list(s.scalars(select(PlaceObservation).where(PlaceObservation.run_id == run_ids[-1])))
         places = {p.id: p for p in s.scalars(select(Place))}
+    before = _places_without_sd(db, run_ids[-1])
+    assert len([p for p in before if p[2] & 2 and p[0] < GROUND[1] and p[1] > GROUND[0]]) >= 2, before
+    assert len(obs) < len(before) / 2, (len(obs), len(before))
     step = [o for o in obs if o.evidence & 2]
     assert not [o for o in step if o.start_m < GROUND[1] and o.end_m > GROUND[0]], \
         [(o.start_m, o.end_m, o.change) for o in step]

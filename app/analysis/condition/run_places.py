@@ -43,7 +43,10 @@ taken as fully correlated, the upper bound), the change's that of the wheels' me
 test's denominators, the stated part shared by the wheels: :mod:`app.analysis.condition.change`). A place's **tier rests on its size's lower 1-σ bound**: it is found as before (its
 evidence does not change), but it reaches the intervention or immediate-action tier only where the
 level or the change less its 1-σ reaches that limit (every found place of tier ≥ 1 keeps at least
-the alert tier). ``severity_sd`` is the 1-σ of ``severity`` (the size that sets it, in the same
+the alert tier). An **anomaly** is found only where the level less its 1-σ reaches the alert limit (on
+rough rail a 10 m level of one pass is uncertain by tens of per cent: the rail's roughness, not the
+support, would otherwise make the anomalies), and the rule "a step back from a former anomaly is that
+anomaly shrinking" judges the former level the same way (with the history's median stated 1-σ). ``severity_sd`` is the 1-σ of ``severity`` (the size that sets it, in the same
 units). Without stated 1-σ (NaN) all this is as before.
 
 The speed-conditioned step replaces the stored matched-speed test here
@@ -59,7 +62,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes
+from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes, nan_median
 from app.analysis.condition.places import (
     EVIDENCE_ANOMALY,
     EVIDENCE_STEP,
@@ -366,10 +369,15 @@ def find_places(
         raise ValueError(f"surface_days: must have one day per segment ({s.size}), got shape {np.shape(surface_days)}")
 
     level = _mean_over_wheels(x)
+    level_sd_seg = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
     has_class = np.array([c is not None for c in cls.tolist()], dtype=bool)
     level_tier = np.zeros(s.size, np.int64)
     if has_class.any():
-        level_tier[has_class] = params.levels.grade(np.abs(level[has_class]), cls[has_class])
+        # graded on the level's lower 1-σ bound: a level within its stated uncertainty of the typical track
+        # is no anomaly (on rough rail one pass's 10 m level is uncertain by tens of per cent)
+        level_lo = np.maximum(np.abs(level) - np.nan_to_num(level_sd_seg), 0.0)
+        level_tier[has_class] = params.levels.grade(np.where(np.isfinite(level), level_lo, np.nan)[has_class],
+                                                    cls[has_class])
     # step against the segment's own history, every wheel
     wz = np.full(x.shape, np.nan)
     wchange = np.full(x.shape, np.nan)
@@ -401,7 +409,10 @@ def find_places(
     before = level - change
     before_tier = np.zeros(s.size, np.int64)
     if has_class.any():
-        before_tier[has_class] = params.levels.grade(np.abs(np.nan_to_num(before[has_class])), cls[has_class])
+        # the history's level on its lower bound too (the median stated 1-σ of the history's values)
+        before_sd = nan_median(np.where(np.isfinite(h), hsd, np.nan).transpose(1, 0, 2).reshape(s.size, -1), axis=1)
+        before_lo = np.maximum(np.abs(np.nan_to_num(before)) - np.nan_to_num(before_sd), 0.0)
+        before_tier[has_class] = params.levels.grade(before_lo[has_class], cls[has_class])
     back = (before_tier >= 1) & (np.sign(np.nan_to_num(change)) == -np.sign(np.nan_to_num(before))) \
         & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(change))))
     step &= ~back
