@@ -116,7 +116,8 @@ def build(which: str, seed: int, n_runs: int, workdir: Path) -> tuple[HistorySpe
 
 def load(url: str, spec: HistorySpec) -> tuple[list[RunData], pd.DataFrame, pd.DataFrame]:
     """Segment rows per run (10 m, all wheels), the 25 cm rows of every run and the sections."""
-    from app.db import line_profiles, reference_crud
+    from app.analytics.frames import analytics_frame
+    from app.db import reference_crud, results_reader
     from app.db.models import ConditionLine, ConditionRun
     from app.db.models import SegmentCondition as SC
     from app.db.session import Database
@@ -149,8 +150,8 @@ def load(url: str, spec: HistorySpec) -> tuple[list[RunData], pd.DataFrame, pd.D
                     mats["trend_z"][i] = b.reindex(seg * 10 // 100).to_numpy(dtype=float)
                 out.append(RunData(run_id, day, float(shift), seg, wheels, mats["index"], mats["speed"],
                                    mats["change_z"], mats["change"], mats["trend_z"], mats["index_sd"]))
-            jobs = line_profiles.result_jobs(s, line_profiles.runs_with_results(s, spec.line_id, spec.track))
-            bins = line_profiles.analytics_frame(s, jobs, bin_length_m=0.25, min_speed_kmh=25.0, edge_trim_m=50.0,
+            jobs = results_reader.result_jobs(s, results_reader.runs_with_results(s, spec.line_id, spec.track))
+            bins = analytics_frame(s, jobs, bin_length_m=0.25, min_speed_kmh=25.0, edge_trim_m=50.0,
                                                  columns=("speed_mean", "sleeper_amp"))
             sections = reference_crud.reference_frame(s, "superstructure", line_id=spec.line_id, track=spec.track)
     finally:

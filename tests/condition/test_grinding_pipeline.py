@@ -7,8 +7,6 @@ without the record are, and the support change is still found."""
 
 from __future__ import annotations
 
-import datetime as dt
-
 import numpy as np
 import pytest
 from sqlalchemy import select
