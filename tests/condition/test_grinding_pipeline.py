@@ -12,7 +12,12 @@ import pytest
 from sqlalchemy import select
 
 from app.simulate.history import grinding_history
-from tests.condition.history_support import history_service, process_history
+from tests.condition.history_support import (
+    history_service,
+    places_without_sd,
+    process_history,
+    store_flags_without,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -91,24 +96,6 @@ def _flags_of(db, run_id):
             ConditionFlag.run_id == run_id, ConditionFlag.kind == "step", ConditionFlag.seg_m == 10))]
 
 
-def _without_record(db, run_id, job_id):
-    """The last run's step flags and 10 m z as the store computes them with the grinding record deleted
-    (in a transaction rolled back: the counterfactual)."""
-    from app.condition.writer import store_run_condition
-    from app.db import reference_crud
-    from app.db.models import ConditionRun
-    from app.db.models import SegmentCondition as SC
-
-    with db.read() as s:
-        reference_crud.delete_reference(s, "maintenance", SPEC.line_id, SPEC.track)
-        rc = store_run_condition(s, run_id, job_id)
-        flags = [(f.seg, f.direction, f.score) for f in rc.flags if f.kind == "step" and f.seg_m == 10]
-        z = s.execute(select(SC.seg, SC.change_z).where(SC.run_id == run_id, SC.seg_m == 10)).all()
-        assert s.get(ConditionRun, run_id) is not None
-        s.rollback()
-    return flags, z
-
-
 def test_a_recorded_grinding_is_not_a_stiffness_change_and_a_real_change_still_is(rough):
     """(ii) without the record the grinding's new rail surface reads as step changes over its extent; with it
     (what the service did) none there; (iii) the −30 % support change beside it is flagged either way."""
@@ -117,7 +104,8 @@ def test_a_recorded_grinding_is_not_a_stiffness_change_and_a_real_change_still_i
     spec, db, run_ids, jobs = rough
     assert all(not [f for f in _flags_of(db, r) if _inside(f[0], GROUND)] for r in run_ids[:-1])
     with_record = _flags_of(db, run_ids[-1])
-    without, z_without = _without_record(db, run_ids[-1], jobs[-1]["id"])
+    without, z_all = store_flags_without(db, run_ids[-1], jobs[-1]["id"], line_id=SPEC.line_id, track=SPEC.track)
+    z_without = [(seg, z) for seg, w, z in z_all if w == "11"]
     ground_without = [f for f in without if _inside(f[0], GROUND)]
     ground_with = [f for f in with_record if _inside(f[0], GROUND)]
     assert len(ground_without) >= 2, without  # the counterfactual: the test can fail
@@ -132,26 +120,6 @@ def test_a_recorded_grinding_is_not_a_stiffness_change_and_a_real_change_still_i
     assert inside and np.median([abs(z_with[g]) for g in inside]) < np.median([abs(zw[g]) for g in inside]) / 2
 
 
-def _places_without_sd(db, run_id):
-    """The last run's places as find_places gives them from the same store rows without the stated 1-σ and
-    the grinding (the places' behaviour before issue 26 item 3): (start, end, evidence) per place."""
-    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS, find_places
-    from app.condition.writer import days_of
-    from app.db import places as q
-    from app.db.models import ConditionLine, ConditionRun, Job
-    from app.places.update import method_version, run_index
-
-    with db.read() as s:
-        line = s.scalar(select(ConditionLine))
-        entry = s.get(ConditionRun, run_id)
-        version = method_version(s.get(Job, entry.job_id).settings)
-        hist = q.history_runs(s, line.id, entry.run_time, version, scan_runs=60, window_days=180)
-        ri = run_index(s, line, run_id, hist)
-    rp = find_places(ri.seg, ri.index, ri.history, ri.history_days, days_of(entry.run_time), ri.classes,
-                     segment_m=10.0, params=DEFAULT_PLACE_PARAMS)
-    return list(zip(rp.places.start_m, rp.places.end_m, rp.places.evidence, strict=True))
-
-
 def test_no_new_step_place_over_the_recorded_grinding(rough):
     """The places of the last run (applied by the service with the record and the stated 1-σ): none with step
     evidence over the ground stretch, where the same rows without them give several; the support change is a
@@ -162,7 +130,7 @@ def test_no_new_step_place_over_the_recorded_grinding(rough):
     with db.read() as s:
         obs = list(s.scalars(select(PlaceObservation).where(PlaceObservation.run_id == run_ids[-1])))
         places = {p.id: p for p in s.scalars(select(Place))}
-    before = _places_without_sd(db, run_ids[-1])
+    before = places_without_sd(db, run_ids[-1])
     assert len([p for p in before if p[2] & 2 and p[0] < GROUND[1] and p[1] > GROUND[0]]) >= 2, before
     assert len(obs) < len(before) / 2, (len(obs), len(before))
     step = [o for o in obs if o.evidence & 2]
