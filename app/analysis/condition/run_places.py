@@ -40,14 +40,15 @@ across a rail-surface intervention — ``surface_days`` — both sides' roughnes
 is not a stiffness change). A place's size carries its 1-σ: the level's is the wheels' mean stated
 1-σ at the peak segment (the wheels of a run meet the same rails at the same speed: their errors are
 taken as fully correlated, the upper bound), the change's that of the wheels' mean change (the step
-test's denominators, the stated part shared by the wheels: :mod:`app.analysis.condition.change`). A place's **tier rests on its size's lower 1-σ bound**: it is found as before (its
-evidence does not change), but it reaches the intervention or immediate-action tier only where the
-level or the change less its 1-σ reaches that limit (every found place of tier ≥ 1 keeps at least
-the alert tier). An **anomaly** is found only where the level less its 1-σ reaches the alert limit (on
-rough rail a 10 m level of one pass is uncertain by tens of per cent: the rail's roughness, not the
-support, would otherwise make the anomalies), and the rule "a step back from a former anomaly is that
-anomaly shrinking" judges the former level the same way (with the history's median stated 1-σ). ``severity_sd`` is the 1-σ of ``severity`` (the size that sets it, in the same
-units). Without stated 1-σ (NaN) all this is as before.
+test's denominators, the stated part shared by the wheels). **Grading rests on the size's lower 1-σ
+bound**: an *anomaly* is found only where the level less its 1-σ reaches the class's alert limit (on
+rough rail one pass's 10 m level is uncertain by tens of per cent: the rail's roughness, not the
+support, would otherwise make the anomalies), the rule "a step back from a former anomaly is that
+anomaly shrinking" judges the former level the same way (with the history's median stated 1-σ), and a
+place reaches the intervention or immediate-action tier only where its level or change less its 1-σ
+reaches that limit (a found place keeps at least the alert tier). ``severity_sd`` is the 1-σ of
+``severity`` (of the size that sets it, in the same units). Without a stated 1-σ (NaN) all this is as
+before.
 
 The speed-conditioned step replaces the stored matched-speed test here
 because on a fleet whose cruise speeds spread over ±10 % the matched-speed test
@@ -457,11 +458,13 @@ def find_places(
         mag = places.direction[p] * np.nan_to_num(value[rows])
         peak[p] = rows[np.lexsort((-mag, -tier_rows))[0]]
     lt, ct = level_tier[peak], change_tier[peak]
-    level_sd = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
-    # the denominators carry the stated part once per wheel (shared by the wheels): the mean change's 1-σ
+    level_sd = level_sd_seg
+    # the denominators carry the stated part once per wheel (shared by the wheels): the mean change's 1-σ,
+    # answered (and used for the tier) where a 1-σ is stated — without one, as before
     with np.errstate(invalid="ignore", divide="ignore"):
         change_sd = _mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan)) \
             / np.sqrt(np.maximum(np.isfinite(wchange).sum(axis=0), 1))
+    change_sd = np.where(np.isfinite(level_sd), change_sd, np.nan)
     # the tier rests on the size's lower 1-sigma bound (a found place keeps at least the alert tier)
     lo_level = np.maximum(np.abs(np.nan_to_num(level[peak])) - np.nan_to_num(level_sd[peak]), 0.0)
     lo_change = np.maximum(np.abs(np.nan_to_num(change[peak])) - np.nan_to_num(change_sd[peak]), 0.0)
