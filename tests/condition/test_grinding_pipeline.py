@@ -53,7 +53,7 @@ def rough(tmp_path_factory):
         last = process_history(client, spec, tmp / "files", runs=slice(N_RUNS - 1, N_RUNS), reference=False)
         db = Database(client.settings.database_url)
         try:
-            yield spec, db, first.run_ids + last.run_ids, first.jobs + last.jobs
+            yield spec, db, first.run_ids + last.run_ids, first.jobs + last.jobs, client
         finally:
             db.dispose()
 
@@ -67,7 +67,7 @@ def test_stored_index_sd_is_the_profiles_stated_uncertainty(rough):
     from app.db.models import ConditionRun, Job
     from app.db.models import SegmentCondition as SC
 
-    spec, db, run_ids, jobs = rough
+    spec, db, run_ids, jobs, _ = rough
     run_id, job_id = run_ids[3], jobs[3]["id"]
     with db.read() as s:
         rows = s.execute(select(SC.wheel, SC.seg, SC.index_sd).where(SC.run_id == run_id, SC.seg_m == 10)).all()
@@ -101,7 +101,7 @@ def test_a_recorded_grinding_is_not_a_stiffness_change_and_a_real_change_still_i
     (what the service did) none there; (iii) the −30 % support change beside it is flagged either way."""
     from app.db.models import SegmentCondition as SC
 
-    spec, db, run_ids, jobs = rough
+    spec, db, run_ids, jobs, _ = rough
     assert all(not [f for f in _flags_of(db, r) if _inside(f[0], GROUND)] for r in run_ids[:-1])
     with_record = _flags_of(db, run_ids[-1])
     without, z_all = store_flags_without(db, run_ids[-1], jobs[-1]["id"], line_id=SPEC.line_id, track=SPEC.track)
@@ -126,7 +126,7 @@ def test_no_new_step_place_over_the_recorded_grinding(rough):
     place with step evidence; the rough line's roughness no longer makes anomalies all along it."""
     from app.db.models import Place, PlaceObservation
 
-    spec, db, run_ids, _ = rough
+    spec, db, run_ids, _, _ = rough
     with db.read() as s:
         obs = list(s.scalars(select(PlaceObservation).where(PlaceObservation.run_id == run_ids[-1])))
         places = {p.id: p for p in s.scalars(select(Place))}
@@ -139,3 +139,28 @@ def test_no_new_step_place_over_the_recorded_grinding(rough):
     soft = [o for o in step if o.start_m < SOFT[1] + 10 and o.end_m > SOFT[0] - 10]
     assert soft and all(o.change < 0 for o in soft)
     assert all(places[o.place_id].level_sd is not None for o in soft)
+
+
+def test_the_work_list_answers_each_places_uncertainty(rough):
+    """The API, the CSV and the GeoJSON answer the 1-σ of each place's size (peak_sd, change_sd, severity_sd),
+    and a place's observations their level_sd; the support change is answered with a change within
+    a few 1-σ of its truth (−0.36)."""
+    import csv
+    import io
+
+    _, _, _, _, client = rough
+    url = "/api/v1/condition/places"
+    r = client.get(url, params={"line_id": SPEC.line_id, "include_closed": True, "limit": 1000})
+    assert r.status_code == 200, r.text
+    items = r.json()["items"]
+    assert items and all(p["peak_sd"] is not None and p["peak_sd"] > 0 for p in items)
+    soft = [p for p in items if p["km_from"] * 1000 < SOFT[1] + 10 and p["km_to"] * 1000 > SOFT[0] - 10]
+    assert soft and soft[0]["change_sd"] is not None and soft[0]["severity_sd"] is not None
+    assert abs(soft[0]["change"] + 0.36) < 3 * soft[0]["change_sd"] + 0.05
+    h = client.get(f"{url}/{soft[0]['id']}").json()
+    assert h["observations"][-1]["level_sd"] is not None
+    rows = list(csv.DictReader(io.StringIO(client.get(f"{url}.csv", params={"line_id": SPEC.line_id,
+                                                                            "include_closed": True}).text)))
+    assert rows and all(row["peak_sd"] != "" for row in rows) and "severity_sd" in rows[0]
+    geo = client.get(f"{url}.geojson", params={"line_id": SPEC.line_id, "include_closed": True}).json()
+    assert all("peak_sd" in f["properties"] for f in geo["features"])
