@@ -125,6 +125,7 @@ class StoredRun:
     log_amp: Any
     speed: Any
     classes: Any
+    index_sd: Any = None
 
 
 def stored_runs(database_url: str, spec: HistorySpec, *, margin_m: float = 50.0) -> list[StoredRun]:
@@ -148,23 +149,25 @@ def stored_runs(database_url: str, spec: HistorySpec, *, margin_m: float = 50.0)
             runs = s.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(ConditionRun.line_key == line.id)
                              .order_by(ConditionRun.run_time)).all()
             for run_id, when in runs:
-                rows = pd.DataFrame(s.execute(select(SC.wheel, SC.seg, SC.index, SC.speed_mean)
+                rows = pd.DataFrame(s.execute(select(SC.wheel, SC.seg, SC.index, SC.speed_mean, SC.index_sd)
                                               .where(SC.run_id == run_id, SC.seg_m == 10)).all(),
-                                    columns=["wheel", "seg", "index", "speed"])
+                                    columns=["wheel", "seg", "index", "speed", "index_sd"])
                 seg = np.sort(rows.seg.unique())
                 wheels = sorted(rows.wheel.unique())
                 la = np.full((len(wheels), seg.size), np.nan)
                 v = np.full((len(wheels), seg.size), np.nan)
+                sd = np.full((len(wheels), seg.size), np.nan)
                 for i, w in enumerate(wheels):
                     a = rows[rows.wheel == w]
                     j = np.searchsorted(seg, a.seg.to_numpy())
                     la[i, j] = a["index"].to_numpy(dtype=float)
                     v[i, j] = a["speed"].to_numpy(dtype=float)
+                    sd[i, j] = a["index_sd"].to_numpy(dtype=float, na_value=np.nan)
                 day = (when.replace(tzinfo=spec.start.tzinfo) - spec.start).total_seconds() / 86400.0
                 cls = section_classes((seg + 0.5) * 10.0, sections["km_from"].to_numpy() * 1000.0,
                                       sections["km_to"].to_numpy() * 1000.0, sections["type"].to_numpy(dtype=object),
                                       boundary_margin_m=margin_m)
-                out.append(StoredRun(int(run_id), day, seg, wheels, la, v, cls))
+                out.append(StoredRun(int(run_id), day, seg, wheels, la, v, cls, sd))
     finally:
         db.dispose()
     return out
