@@ -56,6 +56,7 @@ from physics_transitions import (  # noqa: E402
     meets_targets,
     physics_run,
     pipeline_profile,
+    soft_level_cause,
     wheel5_projection,
 )
 
@@ -255,6 +256,19 @@ def transitions() -> None:
             tail = f"{levels} | {ok}{'; not ' + miss if miss else ''} |" if j == 0 else " | |"
             print(f"| {head}{e['edge']:.1f} | {p['width']:.1f} ({q['width']:.1f}) | {p['rise']:.1f} ({q['rise']:.1f}) | "
                   f"{p['offset']:+.1f} | {p['ringing']:.1%} ({q['ringing']:.1%}) | {tail}")
+    with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cause = soft_level_cause(tmp)
+    print()
+    print(f"trans2_v42, the 30 MN/m segment (level {cause['level']:.3f} m/s²): the stationary wheel order 5 of the record "
+          f"{cause['line']:.3f} m/s² (the record's own content at that line {cause['record_content']:.3f} m/s²)")
+    print()
+    print("| window m | product `sleeper_amp` | physics A_bay | physics lock-in of the signal less that line |")
+    print("|---|---|---|---|")
+    for r in cause["rows"]:
+        lo, hi = r["window"]
+        print(f"| {lo:g}–{hi:g} | {r['product']:.3f} ({r['product'] / r['a_bay'] - 1:+.1%}) | {r['a_bay']:.3f} | "
+              f"{r['lockin_less_line']:.3f} ({r['lockin_less_line'] / r['a_bay'] - 1:+.1%}) |")
 
 
 def _binned(env: np.ndarray, idx: np.ndarray, fs: float, v: float) -> tuple[np.ndarray, np.ndarray]:

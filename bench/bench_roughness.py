@@ -48,6 +48,7 @@ from physics_runs import (  # noqa: E402
     ROUGH_SINGLE,
     START_M,
     cases,
+    coverage,
     rough_run,
     segment_scores,
     steady_unit,
@@ -66,16 +67,20 @@ def _pipeline(path: Path, work: Path):
 
 
 def rough_rows(tmp: Path) -> list[dict]:
-    """One row per (run, wheels, column)."""
+    """One row per (run, wheels, column); rail 2 of a pair also alone (as Z11), for more one-rail segments."""
     rows = []
-    configs = [(name, True) for name in ROUGH_PAIRS] + [(name, False) for name in ROUGH_PAIRS + ROUGH_SINGLE]
-    for name, pair in configs:
+    configs = ([(name, "pair") for name in ROUGH_PAIRS] + [(name, "rail 1") for name in ROUGH_PAIRS]
+               + [(name, "one") for name in ROUGH_SINGLE] + [(name, "rail 2") for name in ROUGH_PAIRS])
+    for name, mode in configs:
         r = rough_run(name)
-        tag = f"{name}-{'pair' if pair else 'one'}"
-        res = _pipeline(write_run(tmp / f"{tag}.h5", r["z11"], r["fs"], r["speed"],
+        pair = mode == "pair"
+        z11 = r["z12"] if mode == "rail 2" else r["z11"]
+        tag = f"{name}-{mode.replace(' ', '')}"
+        res = _pipeline(write_run(tmp / f"{tag}.h5", z11, r["fs"], r["speed"],
                                   z12=r["z12"] if pair else None), tmp / f"w-{tag}")
         p = res.profiles[res.profiles["wheel"] == "11"].sort_values("bin").reset_index(drop=True)
-        what = "rails 1 + 2 (Z11, Z12)" if pair else ("rail 1 only" if "z12" in r else "one rail")
+        what = {"pair": "rails 1 + 2 (Z11, Z12)", "rail 1": "rail 1 only", "rail 2": "rail 2 only",
+                "one": "one rail"}[mode]
         for column in ("sleeper_amp_raw", "sleeper_amp"):
             row = {"run": name, "wheels": what, "column": column}
             for level in (10.0, 40.0):
@@ -84,6 +89,11 @@ def rough_rows(tmp: Path) -> list[dict]:
                 row[f"rms_{level:g}"] = float(np.sqrt(np.mean(ratio**2)))
                 row[f"cover_{level:g}"] = float(np.mean(covered))
                 row[f"n_{level:g}"] = int(ratio.size)
+            if column == "sleeper_amp":
+                row["coverage"] = {level: coverage(r, p, level) for level in (10.0, 5.0)}
+                after = (p["bin"].to_numpy() + 0.5) * 0.25 > START_M
+                row["zero_bins"] = int(np.sum(p["sleeper_amp"].to_numpy()[after] == 0.0))
+                row["n_bins"] = int(np.sum(after))
             if np.asarray(r["edges"]).size:
                 x = (p["bin"].to_numpy() + 0.5) * 0.25
                 edges = [START_M, *np.asarray(r["edges"]).tolist(), float(x.max())]
@@ -250,6 +260,28 @@ def main() -> None:
             k = sum(round(r["cover_10"] * r["n_10"]) for r in sel)
             print(f"`sleeper_amp`, {label}: the 1-σ of 10 m means covers the truth in {k} of {n} segments "
                   f"({k / n:.0%}; 68 % ± {2 * np.sqrt(0.6827 * 0.3173 / n):.0%} at twice the binomial scatter)")
+        print()
+        print("| run | wheels | 10 m: covered (grid from 0 m) | over 4 grids (2.5 m steps) | z | 5 m: covered | "
+              "over 2 grids | z | bins at 0 |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for r in rows:
+            if "coverage" not in r:
+                continue
+            c10, c5 = r["coverage"][10.0], r["coverage"][5.0]
+            print(f"| {r['run']} | {r['wheels']} | {c10['k']}/{c10['n']} = {c10['share']:.0%} (±{c10['sigma']:.0%}) | "
+                  f"{c10['share_offsets']:.0%} ({c10['n_offsets']}) | {c10['z']:+.1f} | "
+                  f"{c5['k']}/{c5['n']} = {c5['share']:.0%} (±{c5['sigma']:.0%}) | {c5['share_offsets']:.0%} "
+                  f"({c5['n_offsets']}) | {c5['z']:+.1f} | {r['zero_bins']} of {r['n_bins']} |")
+        for label, keep in (("two rails", lambda r: "rails 1 + 2" in r["wheels"]),
+                            ("one rail", lambda r: "rails 1 + 2" not in r["wheels"]), ("all", lambda r: True)):
+            for level in (10.0, 5.0):
+                sel = [r["coverage"][level] for r in rows if "coverage" in r and keep(r)]
+                n = sum(c["n"] for c in sel)
+                k = sum(c["k"] for c in sel)
+                share = sum(c["share_offsets"] * c["n_offsets"] for c in sel) / sum(c["n_offsets"] for c in sel)
+                sig = np.sqrt(0.6827 * 0.3173 / n)
+                print(f"coverage of {level:g} m means, {label}: {k} of {n} ({k / n:.0%}, grid from 0 m); over the shifted "
+                      f"grids {share:.0%}; binomial 1-σ of {n} segments ±{sig:.0%} (z = {(share - 0.6827) / sig:+.1f})")
         print()
         worst = max(smooth, key=lambda r: abs(r["amp_vs_raw"]))
         worst_l = max(smooth, key=lambda r: abs(r["amp_vs_lockin"]))

@@ -111,18 +111,21 @@ def rough_run(name: str) -> dict[str, np.ndarray | float]:
 START_M = 4.2
 
 
-def segment_scores(r: dict, p, column: str, level: float) -> tuple[np.ndarray, np.ndarray]:
+def segment_scores(r: dict, p, column: str, level: float, offset: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Per ``level`` m segment of a processed rough run after the start-up: (estimate / truth − 1,
     whether |estimate − truth| ≤ the stated 1-σ of ``sleeper_amp``), against the smooth twin's
-    per-bay truth ``A_bay_smooth``. ``p``: one wheel's profile rows; ``column``: the amplitude scored."""
+    per-bay truth ``A_bay_smooth``. ``p``: one wheel's profile rows; ``column``: the amplitude scored;
+    ``offset``: the segments start at ``offset + g·level`` m (a multiple of the 0.25 m bin)."""
     from app.analysis.uncertainty import segment_sd
 
-    x = (p["bin"].to_numpy() + 0.5) * 0.25
-    segs, sd = segment_sd(p["bin"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), level,
+    bins = p["bin"].to_numpy()
+    x = (bins + 0.5) * 0.25
+    shift = int(round(offset / 0.25))
+    segs, sd = segment_sd(bins - shift, p["sleeper_amp_sd"].to_numpy(), level,
                           shared=p["sleeper_amp_sd_shared"].to_numpy())
     ratio, covered = [], []
     for g, s in zip(segs, sd, strict=True):
-        lo = g * level
+        lo = g * level + shift * 0.25
         if lo < START_M or lo + level > x.max():
             continue
         tb = (r["x_bay"] >= lo) & (r["x_bay"] < lo + level)
@@ -131,6 +134,27 @@ def segment_scores(r: dict, p, column: str, level: float) -> tuple[np.ndarray, n
         ratio.append(est / truth - 1.0)
         covered.append(abs(est - truth) <= s)
     return np.array(ratio), np.array(covered)
+
+
+#: a Gaussian 1-σ interval covers 68.27 % of the time
+ONE_SIGMA = 0.6827
+
+
+def coverage(r: dict, p, level: float = 10.0, step: float = 2.5) -> dict[str, float]:
+    """How often the stated 1-σ of ``level`` m means covers the smooth truth, with its binomial scatter.
+
+    ``k``/``n`` on the segment grid from 0 m; ``share_offsets`` pooled over the grids shifted by
+    ``step``, ``2·step`` … < ``level`` (more segments, the same track: they overlap, so their scatter is
+    not smaller than one grid's); ``sigma`` the binomial 1-σ of a share of ``n`` independent segments
+    around 68.27 %; ``z`` = (share_offsets − 68.27 %) / sigma.
+    """
+    _, c0 = segment_scores(r, p, "sleeper_amp", level)
+    pooled = np.concatenate([segment_scores(r, p, "sleeper_amp", level, o)[1] for o in np.arange(0.0, level, step)])
+    n = int(c0.size)
+    sigma = float(np.sqrt(ONE_SIGMA * (1.0 - ONE_SIGMA) / n))
+    share = float(np.mean(pooled))
+    return {"k": int(c0.sum()), "n": n, "share": float(np.mean(c0)), "share_offsets": share,
+            "n_offsets": int(pooled.size), "sigma": sigma, "z": (share - ONE_SIGMA) / sigma}
 
 
 def polygon(n: int, fs: float, speed: float, rho_um: float = 90.0, order: int = 5,

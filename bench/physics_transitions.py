@@ -278,6 +278,54 @@ def wheel5_projection(run: TransitionRun, wheel_diameter: float = 0.92) -> float
     return float(2.0 * np.abs(np.mean(run.z * np.exp(-2j * np.pi * f5 * t))))
 
 
+def lockin_less_line(run: TransitionRun, line_amp: float, lo: float, hi: float,
+                     wheel_diameter: float = 0.92) -> float:
+    """Mean per-bay lock-in at ``f_s`` over the bays in [lo, hi) m of the signal less a wheel-order-5 line
+    of peak amplitude ``line_amp`` with the phase of the record's own content at that line
+    (:func:`wheel5_projection`): what the physics gives where a stationary wheel order of that size
+    was taken out of the record, m/s²."""
+    t = np.arange(1, run.z.size + 1) / run.fs
+    f5 = 5.0 * run.speed / (np.pi * wheel_diameter)
+    proj = 2.0 * np.mean(run.z * np.exp(-2j * np.pi * f5 * t))
+    z = run.z - np.real(line_amp * proj / abs(proj) * np.exp(2j * np.pi * f5 * t))
+    x = t * run.speed
+    ref = np.exp(-2j * np.pi * (run.speed / D_S) * t)
+    out = []
+    for xc in run.x_bay[(run.x_bay >= lo) & (run.x_bay < hi)]:
+        sel = (x >= xc - D_S / 2) & (x < xc + D_S / 2)
+        out.append(abs(2.0 * np.mean(z[sel] * ref[sel])))
+    return float(np.mean(out))
+
+
+def soft_level_cause(work_dir, lo_hi=((50.0, 60.0), (60.0, 70.0), (50.0, 70.0))) -> dict:
+    """Why the 30 MN/m level of ``trans2_v42`` reads high (issue 26 (b)): per window, the product's mean
+    ``sleeper_amp``, the physics' per-bay truth ``A_bay`` and the physics' lock-in of the signal less
+    the product's stationary wheel-order-5 line (``order_amp_05``), plus that line and the record's own
+    content at it."""
+    from pathlib import Path
+
+    from physics_runs import write_run
+
+    from app.analysis.settings import ProcessingSettings
+    from app.pipeline import run_pipeline
+
+    run = physics_run("trans2_v42.npz")
+    work = Path(work_dir)
+    work.mkdir(parents=True, exist_ok=True)
+    res = run_pipeline(write_run(work / "run.h5", run.z, run.fs, run.speed), ProcessingSettings(), work / "chunks")
+    p = res.profiles[res.profiles["wheel"] == "11"].sort_values("bin")
+    x = (p["bin"].to_numpy() + 0.5) * 0.25
+    line = float(np.median(p["order_amp_05"]))
+    rows = []
+    for lo, hi in lo_hi:
+        sel = (x > lo) & (x < hi)
+        bays = (run.x_bay > lo) & (run.x_bay < hi)
+        rows.append({"window": (lo, hi), "product": float(np.mean(p["sleeper_amp"].to_numpy()[sel])),
+                     "a_bay": float(np.mean(run.a_bay[bays])),
+                     "lockin_less_line": lockin_less_line(run, line, lo, hi)})
+    return {"line": line, "record_content": wheel5_projection(run), "level": float(run.levels[1]), "rows": rows}
+
+
 def pipeline_profile(run: TransitionRun, work_dir, settings=None) -> tuple[np.ndarray, np.ndarray]:
     """(bin centres m, ``sleeper_amp`` m/s²) of wheel 11 from the real pipeline (``run_pipeline``) with
     ``settings`` (default: the product's defaults), the signal written as a canonical run."""

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from app.analysis.chunking import Chunk
-from app.analysis.impacts import find_dips, surface_estimate
+from app.analysis.impacts import surface_estimate
 from app.analysis.impacts.classify import (
     TrackImpactFinding,
     WheelDips,
@@ -34,7 +34,9 @@ from app.analysis.impacts.classify import (
     track_impacts,
     wheel_flats,
 )
+from app.analysis.impacts.dips import scan_dips
 from app.analysis.impacts.mask import bridge, impact_mask, mask_half_width
+from app.analysis.impacts.welds import WheelTrace, combined_track_dips
 from app.analysis.recipe import OrderRecipe
 from app.analysis.settings import ProcessingSettings
 
@@ -42,9 +44,12 @@ __all__ = [
     "IMPACT_COLUMN",
     "BRIDGED_COLUMNS",
     "DIP_FIELDS",
+    "TRACE_FIELDS",
+    "OOR_SMOOTH_M",
     "wheel_orders_at",
     "chunk_dip_member",
     "read_dips",
+    "read_traces",
     "run_impacts",
     "mask_track_impacts",
     "flat_result",
@@ -56,21 +61,39 @@ IMPACT_COLUMN = "track_impact_mm"
 #: amplitude and 1-σ, and its force).
 BRIDGED_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared",
                                     "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms", "sleeper_force_amp")
+#: Moving mean of the wheel orders' envelopes before they are taken out of the surface, m of travel. A
+#: wheel's out-of-roundness is fixed to the wheel: its response changes only with the speed, over
+#: hundreds of metres. The VKF's own wheel-order bands (0.1 wheel orders, ≈ 0.035 1/m each) also hold
+#: the roughness's and a weld's content at 11 lines across a weld's band; averaged over 40 m they are
+#: several times narrower, and a weld on rough rail keeps that much more of its score (the share of
+#: 0.3 mm welds found: 77 → 83 %, bench_impacts.py --case sim, 6 lines).
+OOR_SMOOTH_M = 40.0
 #: Rows of a chunk file's ``dips_<wheel>`` member.
 DIP_FIELDS: tuple[str, ...] = ("track_m", "s_m", "length_m", "depth_m", "score", "speed_mps", "weight")
+#: Rows of a chunk file's ``dipx_<wheel>`` member (float32, track position less the float64 origin in
+#: ``dipo_<wheel>``), beside ``dipz_<wheel>`` (float16: the weld filters' scores per length, then their
+#: depths in mm) and ``dipl_<wheel>`` (the lengths, m): the weld trace, every 8 cm of travel where the
+#: chunk weighs most (crossfade weight >= 0.5). ~1.2 MB per km of a four-wheel run (the rest of a chunk
+#: file ~8 MB).
+TRACE_FIELDS: tuple[str, ...] = ("track_m",)
 
 
 def _member(wheel: str) -> str:
     return f"dips_{wheel}"
 
 
+def _trace_members(wheel: str) -> tuple[str, str, str, str]:
+    return f"dipx_{wheel}", f"dipz_{wheel}", f"dipl_{wheel}", f"dipo_{wheel}"
+
+
 def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarray, recipe: OrderRecipe,
-                    lo: int) -> Callable[[np.ndarray], np.ndarray]:
+                    lo: int, smooth_m: float = OOR_SMOOTH_M) -> Callable[[np.ndarray], np.ndarray]:
     """The wheel orders as the VKF extracted them, as a function of travelled distance (m → m/s²).
 
     Order ``n`` is ``Re(env_n e^(i 2 pi multiplier_n s))`` (the recipe's phase
-    convention with ``psi = 2 pi s``), its envelope interpolated between the
-    output grid's points.
+    convention with ``psi = 2 pi s``), its envelope averaged over ``smooth_m``
+    of travel (:data:`OOR_SMOOTH_M`) and interpolated between the output grid's
+    points.
 
     Parameters
     ----------
@@ -83,13 +106,22 @@ def wheel_orders_at(env: np.ndarray, out_idx: np.ndarray, travelled_m: np.ndarra
     recipe : OrderRecipe
     lo : int
         Global index of the chunk's first sample.
+    smooth_m : float
+        Length of the moving mean of the envelopes, m of travel (0: as the VKF gave them).
     """
+    if not (np.isfinite(smooth_m) and smooth_m >= 0):
+        raise ValueError(f"smooth_m: must be a finite length >= 0 m, got {smooth_m!r}")
     rows = recipe.wheel_rows
     s_out = travelled_m[out_idx - lo]
     mult = recipe.multipliers[rows]
     powers = recipe.powers[rows]  # order l: multiplier = l × (that of order 1)
     base = float(mult[0] / powers[0]) if mult.size else 0.0
     env_w = np.ascontiguousarray(env[rows])
+    if smooth_m > 0 and s_out.size > 2:  # moving mean over smooth_m of travel (the grid is uneven in s)
+        c = np.concatenate([np.zeros((env_w.shape[0], 1)), np.cumsum(env_w, axis=1)], axis=1)
+        lo_i = np.searchsorted(s_out, s_out - 0.5 * smooth_m, side="left")
+        hi_i = np.searchsorted(s_out, s_out + 0.5 * smooth_m, side="right")
+        env_w = (c[:, hi_i] - c[:, lo_i]) / (hi_i - lo_i)
 
     def at(s: np.ndarray) -> np.ndarray:
         s = np.asarray(s, dtype=np.float64)
@@ -145,7 +177,9 @@ def chunk_dip_member(
     -------
     dict
         ``{"dips_<wheel>": (len(DIP_FIELDS), n) float array}``: the dips inside the chunk's output
-        range, with the chunk's crossfade weight there.
+        range, with the chunk's crossfade weight there; ``dipx_``, ``dipz_``, ``dipl_``, ``dipo_<wheel>``:
+        the weld trace where the chunk weighs most (:data:`TRACE_FIELDS`,
+        :class:`app.analysis.impacts.dips.DipTrace`).
     """
     empty = {_member(wheel): np.zeros((len(DIP_FIELDS), 0))}
     # the whole chunk, padding included (the wheel orders are stationary: their envelopes held at the
@@ -155,14 +189,27 @@ def chunk_dip_member(
         return empty
     lines = tuple(float(recipe.multipliers[r]) for r in recipe.track_rows)
     est = surface_estimate(accel[a:b], travelled_m[a:b], speed_mps[a:b], lines_per_m=lines, subtract=wheel_orders)
-    dips = find_dips(est)
+    dips, trace = scan_dips(est)
+    out = dict(empty)
+    if len(trace):
+        idx = np.clip(np.searchsorted(travelled_m[a:b], trace.s_m), 0, b - a - 1) + a
+        weight = chunk.weight(idx + lo)
+        kx, kz, kl, ko = _trace_members(wheel)
+        x = track_m[idx]
+        keep = (weight >= 0.5) & np.any(np.isfinite(trace.score), axis=0) & np.isfinite(x)
+        origin = float(x[keep][0]) if keep.any() else 0.0
+        out[kx] = (x[keep] - origin)[None, :].astype(np.float32)
+        out[kz] = np.vstack([trace.score, 1e3 * trace.depth_m])[:, keep].astype(np.float16)
+        out[kl] = trace.lengths_m.astype(np.float64)
+        out[ko] = np.array([origin])
     if len(dips) == 0:
-        return empty
+        return out
     idx = np.clip(np.searchsorted(travelled_m[a:b], dips.s_m), 0, b - a - 1) + a
     weight = chunk.weight(idx + lo)
     inside = weight > 0
     rows = np.vstack([track_m[idx], dips.s_m, dips.length_m, dips.depth_m, dips.score, dips.speed_mps, weight])
-    return {_member(wheel): rows[:, inside].astype(np.float64)}
+    out[_member(wheel)] = rows[:, inside].astype(np.float64)
+    return out
 
 
 def read_dips(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, WheelDips]:
@@ -198,6 +245,40 @@ def read_dips(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, WheelDi
     return out
 
 
+def read_traces(paths: Sequence[Path], wheels: Sequence[str]) -> dict[str, WheelTrace]:
+    """Every wheel's long-filter score trace over a run from its chunk files (where a chunk weighs most).
+
+    Files without trace members (written before them) add nothing.
+    """
+    parts: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {w: [] for w in wheels}
+    lengths: dict[str, np.ndarray] = {}
+    for path in sorted(paths, key=lambda p: str(p)):
+        with np.load(path) as npz:
+            for w in wheels:
+                kx, kz, kl, ko = _trace_members(w)
+                if all(k in npz.files for k in (kx, kz, kl, ko)):
+                    ln = np.asarray(npz[kl], dtype=np.float64)
+                    x = np.asarray(npz[kx], dtype=np.float64)
+                    z = np.asarray(npz[kz], dtype=np.float64)
+                    if not (x.ndim == 2 and x.shape[0] == len(TRACE_FIELDS) and x.shape[1]
+                            and z.shape == (2 * ln.size, x.shape[1])):
+                        continue
+                    if w in lengths and not np.array_equal(lengths[w], ln):
+                        continue  # chunks of another bank (not expected within a run)
+                    lengths[w] = ln
+                    parts[w].append((x[0] + float(np.asarray(npz[ko]).reshape(-1)[0]), z))
+    out: dict[str, WheelTrace] = {}
+    for w, arrs in parts.items():
+        if not arrs:
+            continue
+        x = np.concatenate([p[0] for p in arrs])
+        z = np.hstack([p[1] for p in arrs])
+        order = np.argsort(x, kind="stable")
+        k = lengths[w].size
+        out[w] = WheelTrace(x[order], lengths[w], z[:k][:, order], 1e-3 * z[k:][:, order])
+    return out
+
+
 def run_impacts(
     chunk_paths: Sequence[Path], wheels: Sequence[Mapping[str, Any]]
 ) -> tuple[list[TrackImpactFinding], dict[str, WheelFlatFinding]]:
@@ -217,7 +298,16 @@ def run_impacts(
         if d is not None and np.isfinite(float(d)) and float(d) > 0:
             diam[str(w["wheel"])] = float(d)
     flats, used = wheel_flats(dips, diam)
-    return track_impacts(dips, exclude=used, wheels_measured=tuple(names)), flats
+    # welds: the single-wheel candidates' test (clear dips: smooth rail, joints) and the weld filters'
+    # evidence combined over the wheels (welds on rough rail, app.analysis.impacts.welds)
+    combined = combined_track_dips(read_traces(chunk_paths, names), wheels_measured=tuple(names))
+    single = track_impacts(dips, exclude=used, wheels_measured=tuple(names))
+    # where both found one, the single-wheel test's (its length and depth fit one wheel's dip alone)
+    merged = list(single)
+    for imp in combined:
+        if all(abs(imp.track_m - c.track_m) > 1.5 + 0.5 * max(imp.length_m, c.length_m) for c in single):
+            merged.append(imp)
+    return sorted(merged, key=lambda i: i.track_m), flats
 
 
 def mask_track_impacts(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding],

@@ -23,6 +23,13 @@ from app.analysis.impacts.classify import (
 )
 from app.analysis.impacts.mask import bridge, impact_mask, mask_half_width
 from app.analysis.impacts.surface import band_gain
+from app.analysis.impacts.welds import (
+    CONFIRM_THRESHOLD,
+    PAIR_Z_THRESHOLD,
+    SINGLE_Z_THRESHOLD,
+    WheelTrace,
+    combined_track_dips,
+)
 from app.analysis.stiffness.track_dynamics import TrackParameters
 from app.simulate.contact import ContactFilter
 from app.simulate.surface import RailSurface, TrackImpact
@@ -167,3 +174,54 @@ def test_mask_and_bridge():
     assert np.isnan(bridge(x, np.full(x.size, np.nan), mask)[mask]).all()
     with pytest.raises(ValueError, match="equal length"):
         bridge(x, v[:-1], mask)
+
+
+def _trace(peaks: dict[float, float], offset_m: float = 0.0, lengths=(0.5, 1.0)) -> WheelTrace:
+    """A weld-filter trace over 0 … 200 m: score 0 but for bumps (0.25 m wide) of the given heights at 1 m length."""
+    x = np.arange(0.0, 200.0, 0.08) + offset_m
+    score = np.zeros((len(lengths), x.size))
+    for x0, h in peaks.items():
+        score[1] += h * np.exp(-0.5 * ((x - x0) / 0.25) ** 2)
+        score[0] += 0.6 * h * np.exp(-0.5 * ((x - x0) / 0.25) ** 2)
+    return WheelTrace(x, np.asarray(lengths), score, score * 70e-6)
+
+
+def test_a_weld_below_either_rails_threshold_is_found_as_a_pair():
+    z = 0.8 * PAIR_Z_THRESHOLD  # each rail alone below every threshold, the pair Z = 0.8 sqrt 2 T above
+    both = {"11": _trace({80.0: z}), "12": _trace({80.0: z}), "41": _trace({80.0: z}, 0.03),
+            "42": _trace({80.0: z}, -0.03)}
+    (imp,) = combined_track_dips(both)
+    assert imp.track_m == pytest.approx(80.0, abs=0.1)
+    assert imp.score == pytest.approx(z * math.sqrt(2), rel=0.02)
+    assert imp.length_m == 1.0 and imp.wheels == ("11", "12", "41", "42")
+    assert imp.depth_by_side[1] == pytest.approx(z * 70e-6, rel=0.02)
+    # one rail alone at that score: roughness as likely as a weld
+    one = {"11": _trace({80.0: z}), "12": _trace({}), "41": _trace({80.0: z}), "42": _trace({})}
+    assert combined_track_dips(one) == []
+    # one rail alone, strong: a weld of that rail
+    (single,) = combined_track_dips({**one, "11": _trace({80.0: 1.1 * SINGLE_Z_THRESHOLD}),
+                                     "41": _trace({80.0: 1.1 * SINGLE_Z_THRESHOLD})})
+    assert single.score == pytest.approx(1.1 * SINGLE_Z_THRESHOLD, rel=0.02)
+
+
+def test_a_pair_needs_both_axles():
+    z = 0.8 * PAIR_Z_THRESHOLD
+    assert CONFIRM_THRESHOLD < z * math.sqrt(2)
+    lead_only = {"11": _trace({80.0: z}), "12": _trace({80.0: z}), "41": _trace({}), "42": _trace({})}
+    assert combined_track_dips(lead_only) == []
+    # one axle measured: no confirmation to ask for
+    assert len(combined_track_dips({"11": _trace({80.0: z}), "12": _trace({80.0: z})})) == 1
+    # the wheels measured name two axles, the trailing one has no trace there: not confirmed
+    assert combined_track_dips({"11": _trace({80.0: z}), "12": _trace({80.0: z})},
+                               wheels_measured=("11", "12", "41", "42")) == []
+
+
+def test_combined_track_dips_checks_its_arguments():
+    with pytest.raises(ValueError, match="wheel ids"):
+        combined_track_dips({"13": _trace({})})
+    with pytest.raises(ValueError, match="pair_threshold"):
+        combined_track_dips({"11": _trace({})}, pair_threshold=0)
+    with pytest.raises(ValueError, match="lengths_m"):
+        combined_track_dips({"11": _trace({}), "12": _trace({}, lengths=(0.5, 2.0))})
+    with pytest.raises(ValueError, match="score"):
+        WheelTrace(np.arange(3.0), np.array([1.0]), np.zeros((2, 3)), np.zeros((1, 3)))

@@ -6,8 +6,8 @@ Truth: ``A_bay_smooth``, the per-bay lock-in of the same track without roughness
 * two rails of one axle (rail 1 as Z11, rail 2 as Z12): median bias of 10 m means within ±15 % on the
   uniform 400 m run and ±20 % on the transition run, the sections' order kept (120 > 60 > 30 MN/m), RMS no
   worse than the single wheel's of today (``sleeper_amp_raw``), the stated 1-σ of 10 m means covering the
-  smooth truth in 60–75 % of the segments (asserted: 68 % within twice the binomial scatter of the number
-  of segments; measured 55 % and 79 %, see _calibrated);
+  smooth truth in 60–75 % of the segments (asserted per run: 68 % within twice the binomial scatter of the
+  number of segments, the share pooled over shifted segment grids; see _calibrated);
 * one rail: the floor correction takes out part of the bias (the side bands see less roughness response
   than the band holds where the wheel–track resonance sits at f_s: docs/indicator.md), the 1-σ is stated;
 * smooth uniform runs (tiled steady bays): the floor does not bias the amplitude (0.02 %) and the 1-σ is small.
@@ -25,9 +25,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 
 from physics_runs import (  # noqa: E402
     D_S,
+    ONE_SIGMA,
     PHYSICS,
     START_M,
     cases,
+    coverage,
     rough_run,
     segment_scores,
     steady_unit,
@@ -56,33 +58,35 @@ def _rms(a: np.ndarray) -> float:
     return float(np.sqrt(np.mean(a**2)))
 
 
-def _calibrated(covered: np.ndarray) -> bool:
-    """The share of segments a 1-σ covers is 68 % within twice its binomial scatter over these segments.
+def _calibrated(r: dict, p) -> bool:
+    """The stated 1-σ of 10 m means covers the smooth truth in 68.27 % of the segments, within twice the
+    binomial scatter of the number of segments of one grid.
 
-    (Issue 26 asks 60–75 %; measured: 61 % of 38 segments on the uniform run, 79 % of 14 on the transition
-    run, where the 20 m windows of the 1-σ model straddle the steps — inside this band.)"""
-    n = covered.size
-    return abs(covered.mean() - 0.6827) <= 2.0 * np.sqrt(0.6827 * 0.3173 / n)
+    The share is pooled over the grids shifted by 2.5, 5, 7.5 m (bench/physics_runs.coverage): one grid of
+    14 segments scatters ±12 points around 68 %. Measured (BENCHMARKS.md, issue 26 (c)): 58 / 64 % (two
+    rails, uniform / transition), 59–76 % one rail; pooled over every run 66 %."""
+    c = coverage(r, p, 10.0)
+    return abs(c["share_offsets"] - ONE_SIGMA) <= 2.0 * c["sigma"]
 
 
 def test_two_rails_uniform(tmp_path):
     r, p = _process(tmp_path, "rail2_k80_v35", two_rails=True)
-    ratio, covered = segment_scores(r, p, "sleeper_amp", 10.0)
+    ratio, _ = segment_scores(r, p, "sleeper_amp", 10.0)
     raw, _ = segment_scores(r, p, "sleeper_amp_raw", 10.0)
     assert np.median(raw) > 0.25  # the single wheel: +37 %
     assert abs(np.median(ratio)) <= 0.15, np.median(ratio)
     assert _rms(ratio) <= _rms(raw)
-    assert _calibrated(covered), covered.mean()
+    assert _calibrated(r, p), coverage(r, p, 10.0)
 
 
 def test_two_rails_transition(tmp_path):
     r, p = _process(tmp_path, "rail2_trans_v42", two_rails=True)
-    ratio, covered = segment_scores(r, p, "sleeper_amp", 10.0)
+    ratio, _ = segment_scores(r, p, "sleeper_amp", 10.0)
     raw, _ = segment_scores(r, p, "sleeper_amp_raw", 10.0)
     assert np.median(raw) > 0.5  # the single wheel: +68 %
     assert abs(np.median(ratio)) <= 0.20, np.median(ratio)
     assert _rms(ratio) <= _rms(raw)
-    assert _calibrated(covered), covered.mean()
+    assert _calibrated(r, p), coverage(r, p, 10.0)
     # the sections' order: 120 / 30 / 120 / 60 MN/m between the edges 40 / 80 / 120 m, 5 m off each edge
     x = (p["bin"].to_numpy() + 0.5) * 0.25
     amp = p["sleeper_amp"].to_numpy()
@@ -95,14 +99,15 @@ def test_two_rails_transition(tmp_path):
 @pytest.mark.parametrize("name", ["rough_k80_v35", "rough_k80_v35_severe"])
 def test_one_rail(tmp_path, name):
     r, p = _process(tmp_path, name, two_rails=False)
-    ratio, covered = segment_scores(r, p, "sleeper_amp", 10.0)
+    ratio, _ = segment_scores(r, p, "sleeper_amp", 10.0)
     raw, _ = segment_scores(r, p, "sleeper_amp_raw", 10.0)
     # part of the bias out, not all of it: a single wheel cannot see the floor the resonance puts under f_s
     assert 0 < np.median(ratio) < np.median(raw)
     assert _rms(ratio) <= _rms(raw)
-    # the stated 1-σ is of the size of the error (measured: 57 % / 71 % of 14 segments covered, the target
-    # 60–75 %; what the side bands miss is a bias shared along the floor window, sleeper_amp_sd_shared)
-    assert _calibrated(covered), covered.mean()
+    # the stated 1-σ is of the size of the error (measured over the shifted grids: 59 % / 62 %, on the grid from
+    # 0 m 57 % / 71 % of 14 segments; what the side bands miss is a bias shared along the floor window,
+    # sleeper_amp_sd_shared)
+    assert _calibrated(r, p), coverage(r, p, 10.0)
     after = (p["bin"].to_numpy() + 0.5) * 0.25 > START_M
     shared, sd = p["sleeper_amp_sd_shared"].to_numpy()[after], p["sleeper_amp_sd"].to_numpy()[after]
     assert np.all((shared >= 0) & (shared <= sd))

@@ -7,6 +7,9 @@
 * :mod:`~app.analysis.impacts.classify` tells the two kinds apart: a track
   impact is met by every wheel at the same track position, a wheel flat by
   one wheel once per revolution;
+* :mod:`~app.analysis.impacts.welds` finds welds on rough rail: the weld
+  filters' scores of all wheels combined at one track position (the two
+  rails' independent roughness);
 * :mod:`~app.analysis.impacts.mask` keeps track impacts out of the sleeper
   indicator (the bins they disturb are bridged).
 """

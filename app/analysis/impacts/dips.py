@@ -33,16 +33,29 @@ from scipy.signal import find_peaks, welch
 
 from app.analysis.impacts.surface import SurfaceEstimate
 
-__all__ = ["DIP_LENGTHS_M", "DETECTION_THRESHOLD", "MIN_DEPTH_M", "SCALE_BLOCK_M", "Dips", "find_dips"]
+__all__ = ["DIP_LENGTHS_M", "WELD_LENGTHS_M", "DETECTION_THRESHOLD", "MIN_DEPTH_M", "SCALE_BLOCK_M", "LONG_SCALE_BLOCK_M",
+           "TRACE_STEP_M", "Dips", "DipTrace", "find_dips", "scan_dips"]
 
 #: Lengths of the matched dips, m (a flat's few cm … a weld's metre and more).
 DIP_LENGTHS_M: tuple[float, ...] = (0.04, 0.1, 0.25, 0.5, 1.0, 1.6)
+#: Lengths of the weld filters whose scores are kept as a trace (:class:`DipTrace`) and combined across
+#: the wheels, m: the welds' 0.5–2 m in steps of about sqrt 2 (a weld between two lengths loses a few
+#: per cent of its score; the 0.25 m filter, with the most independent values per km, is left out).
+WELD_LENGTHS_M: tuple[float, ...] = (0.5, 0.7, 1.0, 1.4, 2.0)
 #: Score (depth over its robust spread) a dip must reach to be kept as a candidate.
 DETECTION_THRESHOLD = 3.5
 #: Shallower dips are not kept whatever their score (the short-wave roughness is tiny), m.
 MIN_DEPTH_M = 0.1e-3
-#: Stretch over which the spread of the filter output is taken, m.
+#: Stretch over which the spread of the short filters' output is taken, m.
 SCALE_BLOCK_M = 40.0
+#: The same for the long (weld) filters, m: their output is correlated over a metre, so 40 m hold
+#: only ~40 independent values and their MAD scatters by ~±18 %; 160 m hold ~160 (±9 %). Their spread
+#: is the larger of the two (a change of track type or rail inside a long block would otherwise leave
+#: its rougher side under-scaled for up to a block, reading as a row of dips).
+LONG_SCALE_BLOCK_M = 160.0
+#: Spacing of the long filters' score trace (:class:`DipTrace`), m of travelled distance (2 coarse cells;
+#: the shortest long filter's peak, 0.25 m, loses < 3 % between two samples).
+TRACE_STEP_M = 0.08
 #: No dips are sought this close to the ends of a valid stretch (the filters are truncated there), m.
 EDGE_M = 6.0
 #: Bins and percentile of the running filter across the background spectrum (0.05 1/m a bin).
@@ -93,6 +106,42 @@ class Dips:
         return cls(z, z, z, z, z)
 
 
+@dataclass(frozen=True)
+class DipTrace:
+    """The long (weld) filters' scores along one wheel's travel, sampled every :data:`TRACE_STEP_M`, per length.
+
+    Samples, not maxima over the stretch: a maximum per wheel would raise the roughness's scores (each
+    rail its own maximum) more than a weld's (one position for all). NaN where no dip is sought
+    (invalid cells, the ends of a valid stretch). Combined, length by length, across the wheels at
+    one track position by :func:`app.analysis.impacts.welds.combined_track_dips`.
+
+    Attributes
+    ----------
+    s_m : numpy.ndarray
+        Travelled distance of the stretch's centre, m, shape (m,).
+    lengths_m : numpy.ndarray
+        The filters' dip lengths, m, shape (k,).
+    score : numpy.ndarray
+        Depth over its robust spread, shape (k, m).
+    depth_m : numpy.ndarray
+        Depth, m, shape (k, m).
+    """
+
+    s_m: np.ndarray
+    lengths_m: np.ndarray
+    score: np.ndarray
+    depth_m: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.s_m.size)
+
+    @classmethod
+    def empty(cls) -> DipTrace:
+        """No trace."""
+        z = np.zeros(0)
+        return cls(z, z, np.zeros((0, 0)), np.zeros((0, 0)))
+
+
 def _template(length_m: float, step: float) -> np.ndarray:
     half = int(math.ceil(0.5 * length_m / step))
     u = np.arange(-half, half + 1) * step / length_m
@@ -100,22 +149,30 @@ def _template(length_m: float, step: float) -> np.ndarray:
 
 
 def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
-                    est: SurfaceEstimate) -> tuple[np.ndarray, np.ndarray]:
+                    est: SurfaceEstimate, tilt: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Welch spectrum of the valid stretches (one-sided, per 1/m), a smooth background of it.
 
     A running low percentile across wavenumbers, over the bins the estimate
     kept (in its band, off its notches): the background is smooth, a wheel
     flat's comb of lines (every 1 / circumference, each a few bins wide) is
-    not. A constant factor on it changes neither a depth nor a score.
+    not. A constant factor on it changes neither a depth nor a score. With
+    ``tilt`` (the weld trace) the percentile is taken of ``P kappa³``, the spectrum with rail roughness's own
+    slope taken out (Sato's ``A / Omega³``), where the background is about flat:
+    of ``P`` itself, a window of 1.5 1/m on a slope of ``kappa⁻³`` would take its
+    low values from the window's short-wave end and put the background at long
+    waves an order of magnitude too low, over-weighting them (the long filters
+    then lose a quarter of a weld's score).
     """
     x = np.where(valid, h, 0.0)
     frac = float(valid.mean()) if valid.size else 0.0
     nper = min(nperseg, 1 << int(math.floor(math.log2(max(x.size, 16)))))
     k, p = welch(x, fs=1.0 / step, nperseg=nper, detrend=False)
+    tilt_k = np.maximum(k, k[1] if k.size > 1 else 1.0) ** 3 if tilt else np.ones(k.size)
+    p = p * tilt_k
     kept = est.gain(k) > 0.5
     idx = np.flatnonzero(kept)
     if idx.size == 0:
-        return k, p / max(frac, 1e-3)
+        return k, p / tilt_k / max(frac, 1e-3)
     half = _PSD_FILTER_BINS // 2
     padded = np.concatenate([np.full(half, np.nan), np.where(kept, p, np.nan), np.full(half, np.nan)])
     windows = np.sort(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[idx], axis=1)  # NaN last
@@ -127,7 +184,7 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     rows = np.arange(windows.shape[0])
     filtered = windows[rows, lo_i] * (1.0 - frac_i) + windows[rows, hi_i] * frac_i
     # outside what the estimate kept: the nearest kept value (the weights are ~0 there)
-    out = np.interp(np.arange(p.size), idx, filtered)
+    out = np.interp(np.arange(p.size), idx, filtered) / tilt_k
     return k, out / max(frac, 1e-3)  # the invalid (zeroed) cells diluted it
 
 
@@ -159,10 +216,17 @@ def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
 
 
 def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
-          lengths: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Best score, its length and its depth per cell over a bank of matched dips on one grid."""
+          lengths: tuple[float, ...], scale_block_m: float = SCALE_BLOCK_M,
+          per_length: list[tuple[np.ndarray, np.ndarray]] | None = None,
+          tilt: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Best score, its length and its depth per cell over a bank of matched dips on one grid.
+
+    With ``per_length`` (a list) each length's (score, depth) per cell is appended to it; ``tilt``:
+    see :func:`_background_psd`. The spread is per block of ``scale_block_m`` and, where that is
+    longer, the larger of it and the one per :data:`SCALE_BLOCK_M`.
+    """
     n = h.size
-    k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)), est)
+    k_bg, p_bg = _background_psd(h, valid, step, max(256, int(_WELCH_M / step)), est, tilt)
     nfft = 1 << int(math.ceil(math.log2(n + int(max(lengths) / step) + 8)))
     kappa = np.fft.rfftfreq(nfft, step)
     gain = est.gain(kappa)
@@ -173,7 +237,7 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
     num_w = np.where(inband, gain / np.maximum(psd, floor), 0.0)
     den_w = num_w * gain
     r = np.fft.rfft(np.where(valid, h, 0.0), nfft)
-    block = max(int(SCALE_BLOCK_M / step), 256)
+    blocks = sorted({max(int(SCALE_BLOCK_M / step), 256), max(int(scale_block_m / step), 256)})
     best = np.full(n, -np.inf)
     best_l = np.zeros(n)
     best_d = np.zeros(n)
@@ -188,9 +252,13 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
         if not den > 0:
             continue
         depth = np.fft.irfft(r * np.conj(tf) * num_w, nfft)[:n] / den
-        scale = _robust_scale(depth, valid, block)
+        scale = _robust_scale(depth, valid, blocks[0])
+        for block in blocks[1:]:
+            scale = np.fmax(scale, _robust_scale(depth, valid, block))
         with np.errstate(invalid="ignore", divide="ignore"):
             score = np.where(valid & (scale > 0), depth / scale, -np.inf)
+        if per_length is not None:
+            per_length.append((score, depth))
         better = score > best
         best = np.where(better, score, best)
         best_l = np.where(better, float(length), best_l)
@@ -224,7 +292,18 @@ def find_dips(
     threshold: float = DETECTION_THRESHOLD,
     separation_m: float = 1.5,
 ) -> Dips:
-    """Isolated dips in an estimated surface (see the module docstring).
+    """Isolated dips in an estimated surface (see the module docstring); :func:`scan_dips` without the trace."""
+    return scan_dips(est, lengths_m=lengths_m, threshold=threshold, separation_m=separation_m)[0]
+
+
+def scan_dips(
+    est: SurfaceEstimate,
+    *,
+    lengths_m: tuple[float, ...] = DIP_LENGTHS_M,
+    threshold: float = DETECTION_THRESHOLD,
+    separation_m: float = 1.5,
+) -> tuple[Dips, DipTrace]:
+    """Isolated dips in an estimated surface and the long filters' score trace (module docstring).
 
     Parameters
     ----------
@@ -239,7 +318,11 @@ def find_dips(
 
     Returns
     -------
-    Dips
+    dips : Dips
+        The candidates of this wheel alone (score >= ``threshold``).
+    trace : DipTrace
+        The long lengths' (>= 0.2 m, welds) best score every :data:`TRACE_STEP_M`, whatever its value:
+        the evidence that is combined across the wheels that meet one track position.
     """
     if not threshold > 0:
         raise ValueError(f"threshold: must be > 0, got {threshold!r}")
@@ -247,7 +330,7 @@ def find_dips(
         raise ValueError("lengths_m: must be a non-empty tuple of lengths > 0 m")
     n = est.height.size
     if est.valid.sum() < 1024:
-        return Dips.empty()
+        return Dips.empty(), DipTrace.empty()
     step = est.step
     short = tuple(x for x in lengths_m if x < _COARSE_FROM_M)
     long = tuple(x for x in lengths_m if x >= _COARSE_FROM_M)
@@ -255,6 +338,7 @@ def find_dips(
     edge = max(1, int(EDGE_M / step))
     ends = np.flatnonzero(np.diff(np.concatenate([[0], est.valid.astype(np.int8), [0]])))
     parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+    trace = DipTrace.empty()
     # short dips (flats, joints) and long ones (welds) are sought apart: a flat's hit beside a weld
     # is two things, not a side lobe of one
     for bank in (short, long):
@@ -268,6 +352,13 @@ def find_dips(
             hc = est.height[: m * q].reshape(m, q).mean(axis=1)
             vc = est.valid[: m * q].reshape(m, q).all(axis=1)
             bc, lc, dc = _bank(hc, vc, q * step, est, bank)
+            # the weld trace: its own bank, background and spread (see WELD_LENGTHS_M, _background_psd)
+            each: list[tuple[np.ndarray, np.ndarray]] = []
+            _bank(hc, vc, q * step, est, WELD_LENGTHS_M, LONG_SCALE_BLOCK_M, each, tilt=True)
+            for sc, _ in each:
+                for e in ends:  # in coarse cells
+                    sc[max(0, (e - edge) // q) : (e + edge) // q + 1] = -np.inf
+            trace = _trace(each, WELD_LENGTHS_M, est.s0, q * step)
             best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
                                     for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
         for e in ends:
@@ -278,12 +369,29 @@ def find_dips(
         peaks = _without_side_lobes(peaks, best, step)
         parts.append((peaks, best[peaks], best_l[peaks], best_d[peaks]))
     if not parts:
-        return Dips.empty()
+        return Dips.empty(), trace
     peaks = np.concatenate([p[0] for p in parts])
     order = np.argsort(peaks, kind="stable")
     peaks = peaks[order]
     score, length, depth = (np.concatenate([p[k] for p in parts])[order] for k in (1, 2, 3))
     if peaks.size == 0:
-        return Dips.empty()
-    return Dips(s_m=est.s[peaks], length_m=length, depth_m=depth, score=score,
-                speed_mps=np.nan_to_num(est.speed[peaks], nan=0.0))
+        return Dips.empty(), trace
+    return (Dips(s_m=est.s[peaks], length_m=length, depth_m=depth, score=score,
+                 speed_mps=np.nan_to_num(est.speed[peaks], nan=0.0)), trace)
+
+
+def _trace(each: list[tuple[np.ndarray, np.ndarray]], lengths: tuple[float, ...], s0: float,
+           step: float) -> DipTrace:
+    """Every :data:`TRACE_STEP_M` and per length the score and depth (NaN where no dip is sought)."""
+    per = max(1, int(round(TRACE_STEP_M / step)))
+    cell = np.arange(0, each[0][0].size, per) if each else np.zeros(0, dtype=np.int64)
+    if cell.size == 0:
+        return DipTrace.empty()
+    scores, depths = [], []
+    for sc, dp in each:
+        v = sc[cell]
+        ok = np.isfinite(v)
+        scores.append(np.where(ok, v, np.nan))
+        depths.append(np.where(ok, dp[cell], np.nan))
+    return DipTrace(s_m=s0 + (cell + 0.5) * step, lengths_m=np.asarray(lengths, dtype=np.float64),
+                    score=np.vstack(scores), depth_m=np.vstack(depths))
