@@ -91,6 +91,7 @@ class RunData:
     change_z: np.ndarray       # (W, S)
     change: np.ndarray         # (W, S)
     trend_z: np.ndarray        # (W, S) of the 100 m parent
+    index_sd: np.ndarray | None = None  # (W, S) the stated 1-σ of log_amp (NaN: none)
 
 
 def build(which: str, seed: int, n_runs: int, workdir: Path) -> tuple[HistorySpec, str]:
@@ -115,7 +116,8 @@ def build(which: str, seed: int, n_runs: int, workdir: Path) -> tuple[HistorySpe
 
 def load(url: str, spec: HistorySpec) -> tuple[list[RunData], pd.DataFrame, pd.DataFrame]:
     """Segment rows per run (10 m, all wheels), the 25 cm rows of every run and the sections."""
-    from app.db import line_profiles, reference_crud
+    from app.analytics.frames import analytics_frame
+    from app.db import reference_crud, results_reader
     from app.db.models import ConditionLine, ConditionRun
     from app.db.models import SegmentCondition as SC
     from app.db.session import Database
@@ -130,26 +132,26 @@ def load(url: str, spec: HistorySpec) -> tuple[list[RunData], pd.DataFrame, pd.D
             for run_id, when, shift in runs:
                 day = (when.replace(tzinfo=spec.start.tzinfo) - spec.start).total_seconds() / 86400.0
                 rows = pd.DataFrame(s.execute(select(SC.seg_m, SC.wheel, SC.seg, SC.index, SC.speed_mean,
-                                                     SC.change_z, SC.change, SC.trend_z)
+                                                     SC.change_z, SC.change, SC.trend_z, SC.index_sd)
                                               .where(SC.run_id == run_id)).all(),
                                     columns=["seg_m", "wheel", "seg", "index", "speed", "change_z", "change",
-                                             "trend_z"])
+                                             "trend_z", "index_sd"])
                 r10, r100 = rows[rows.seg_m == 10], rows[rows.seg_m == 100]
                 seg = np.sort(r10.seg.unique())
                 wheels = sorted(r10.wheel.unique())
                 mats = {k: np.full((len(wheels), seg.size), np.nan) for k in
-                        ("index", "speed", "change_z", "change", "trend_z")}
+                        ("index", "speed", "change_z", "change", "trend_z", "index_sd")}
                 for i, w in enumerate(wheels):
                     a = r10[r10.wheel == w]
                     j = np.searchsorted(seg, a.seg.to_numpy())
-                    for k in ("index", "speed", "change_z", "change"):
+                    for k in ("index", "speed", "change_z", "change", "index_sd"):
                         mats[k][i, j] = a[k].to_numpy(dtype=float)
                     b = r100[r100.wheel == w].set_index("seg")["trend_z"]
                     mats["trend_z"][i] = b.reindex(seg * 10 // 100).to_numpy(dtype=float)
                 out.append(RunData(run_id, day, float(shift), seg, wheels, mats["index"], mats["speed"],
-                                   mats["change_z"], mats["change"], mats["trend_z"]))
-            jobs = line_profiles.result_jobs(s, line_profiles.runs_with_results(s, spec.line_id, spec.track))
-            bins = line_profiles.analytics_frame(s, jobs, bin_length_m=0.25, min_speed_kmh=25.0, edge_trim_m=50.0,
+                                   mats["change_z"], mats["change"], mats["trend_z"], mats["index_sd"]))
+            jobs = results_reader.result_jobs(s, results_reader.runs_with_results(s, spec.line_id, spec.track))
+            bins = analytics_frame(s, jobs, bin_length_m=0.25, min_speed_kmh=25.0, edge_trim_m=50.0,
                                                  columns=("speed_mean", "sleeper_amp"))
             sections = reference_crud.reference_frame(s, "superstructure", line_id=spec.line_id, track=spec.track)
     finally:
@@ -194,12 +196,16 @@ def variants() -> dict[str, PlaceParams]:
         "per class + step (store curves)": DEFAULT_PLACE_PARAMS,
         "per class + step (store curves, ≥ 40 locations)": DEFAULT_PLACE_PARAMS,
         CHOSEN: DEFAULT_PLACE_PARAMS,
+        STATED: DEFAULT_PLACE_PARAMS,
     }
 
 
 DEFAULT_LEVELS = DEFAULT_LEVEL_LIMITS
 MIN_LOCATIONS = (0, 40, 80)
 CHOSEN = "per class + step (store curves, ≥ 80 locations)"
+#: the chosen design with the stated 1-σ of the store's rows (issue 26: step denominators, tiers on the lower
+#: bound); the chosen design above is the same code without it (NaN sd: as before), so the two compare in one run
+STATED = CHOSEN + " + stated 1-σ"
 
 
 def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[dict], healthy: list[pd.DataFrame],
@@ -231,6 +237,7 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         days = np.array([r.day for r in runs[:k]])
         ln_a = mean_w(run.log_amp)
         found_by: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        found_tiers: dict[str, np.ndarray] = {}
         # the current work list's anomaly and the stored matched-speed step test
         z_a = _class_z(ln_a, cls_lbl)
         p = merge_places(run.seg, z_a, np.abs(z_a) >= 3.5, segment_m=SEG_M, gap_m=10.0)
@@ -240,12 +247,24 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         found_by["stored step (lnA, matched speed)"] = (p.start_m, p.end_m, p.centre_m, np.argsort(-np.abs(p.peak)))
         covered = (float(run.seg.min() * SEG_M), float((run.seg.max() + 1) * SEG_M))
         for name, params in variants().items():
-            if "store curves" in name:
+            if name == STATED:
+                n = MIN_LOCATIONS[-1]
+                hist_sd = np.stack([_on(runs[j], run, runs[j].index_sd) for j in range(k)], axis=2) if k \
+                    else np.zeros((*idx.shape, 0))
+                rp = find_places(run.seg, idx_s[n], hist_s[n], days, run.day, cls, segment_m=SEG_M, params=params,
+                                 index_sd=run.index_sd, history_sd=hist_sd)
+                tier_log.append({"history": which, "seed": seed, "run": k,
+                                 "median index_sd": float(np.nanmedian(run.index_sd)),
+                                 "places": len(rp), "tier >= 2": int((rp.tier >= 2).sum()),
+                                 "tier >= 2 without sd": int((found_tiers.get(CHOSEN, np.zeros(0)) >= 2).sum()),
+                                 "median severity_sd": float(np.nanmedian(rp.severity_sd)) if len(rp) else np.nan})
+            elif "store curves" in name:
                 n = int(name.split("≥ ")[1].split(" ")[0]) if "≥" in name else 0
                 rp = find_places(run.seg, idx_s[n], hist_s[n], days, run.day, cls, segment_m=SEG_M, params=params)
             else:
                 rp = find_places(run.seg, idx, hist, days, run.day, cls, segment_m=SEG_M, params=params)
             order = rank_places(rp.tier, np.full(len(rp), np.nan), rp.severity)
+            found_tiers[name] = rp.tier
             found_by[name] = (rp.places.start_m, rp.places.end_m, rp.places.centre_m, order)
             # the same design with the lifecycle: the work list holds the listed, active places
             known, next_id, n_alerts = life.setdefault(name, ([], 1, {}))
@@ -362,6 +381,7 @@ trends: list[dict] = []
 
 alerts_by: dict[tuple[str, int, str], dict[str, int]] = {}
 alert_log: list[dict] = []
+tier_log: list[dict] = []
 LIFECYCLE = LifecycleParams()
 
 
@@ -463,6 +483,14 @@ def main(argv: list[str] | None = None) -> int:
         print("\nNew 20 m changes after their day: |place centre − change centre|, m; places over one change:")
         print(ce.groupby("design").agg(err_mean=("err_m", "mean"), err_max=("err_m", "max"),
                                        places_max=("n_places", "max"), n=("err_m", "count")).round(2).to_string())
+    if tier_log:
+        tl = pd.DataFrame(tier_log)
+        print(f"\nThe stated 1-σ ({STATED}), per history, runs from the 6th on (sums of places, medians of sd):")
+        tl = tl[tl.run >= 5]
+        print(tl.groupby(["history", "seed"]).agg(**{
+            "median index_sd": ("median index_sd", "median"), "places": ("places", "sum"),
+            "tier>=2": ("tier >= 2", "sum"), "tier>=2 without sd": ("tier >= 2 without sd", "sum"),
+            "median severity_sd": ("median severity_sd", "median")}).round(3).to_string())
     print("\nAlerts (events of the lifecycle) over the whole history:")
     print(pd.Series({f"{h} seed {sd}: {n}": v or "none" for (h, sd, n), v in alerts_by.items()}).to_string())
     if alert_log:

@@ -13,9 +13,12 @@ that marks the job done (both worker modes), and by the synthetic fleet
    :func:`app.analysis.stiffness.alignment.align_runs`);
 3. computes the condition index of every bin (:func:`app.condition.index.store_index`,
    the one place that decides it) and the 10 m and 100 m segments of every wheel
-   (:func:`app.analysis.condition.segment_stats`);
+   (:func:`app.analysis.condition.segment_stats`) with the stated 1-σ of their index from the
+   profile's ``sleeper_amp_sd`` / ``sleeper_amp_sd_shared`` (:func:`app.condition.index.store_index_sd`);
 4. tests every segment against the earlier runs of the line read from the
-   store (:class:`DbHistory`, :func:`app.analysis.condition.assess_run`) and
+   store (:class:`DbHistory`, :func:`app.analysis.condition.assess_run`; with the stated 1-σ
+   and the rail-surface interventions of the line's maintenance records,
+   :mod:`app.analysis.condition.change`) and
    writes the rows, the flags and the run's entry, replacing the run's earlier
    ones.
 
@@ -48,9 +51,10 @@ from app.analysis.condition import (
     assess_run,
     segment_stats,
 )
+from app.analysis.condition.change import intervention_margin_m
 from app.analysis.stiffness.alignment import align_runs
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
-from app.condition.index import STORE_INDEX, store_index
+from app.condition.index import STORE_INDEX, store_index, store_index_sd
 from app.core.jsonable import finite_or_none
 from app.db import results_reader
 from app.db.bulk import insert_frame
@@ -60,6 +64,7 @@ from app.db.models import (
     ConditionLine,
     ConditionOverview,
     ConditionRun,
+    Job,
     Run,
     SegmentCondition,
 )
@@ -73,6 +78,8 @@ __all__ = [
     "store_run_condition",
     "write_assessed_run",
     "wheel_segments",
+    "uncertainty_settings",
+    "rail_surface_interventions",
 ]
 
 #: advisory lock key of the flag feed (PostgreSQL): flag ids become visible in order
@@ -95,11 +102,14 @@ _OVERVIEW_PG_TYPES: dict[str, str] = {
 
 @dataclass(frozen=True)
 class RunBins:
-    """One wheel of a run on the 25 cm grid: bin numbers, amplitude (m/s²) and speed (m/s)."""
+    """One wheel of a run on the 25 cm grid: bin numbers, amplitude (m/s²) and speed (m/s), and the
+    amplitude's stated 1-σ and its shared part (m/s², NaN where not stated)."""
 
     bins: np.ndarray
     amplitude: np.ndarray
     speed_mps: np.ndarray
+    sd: np.ndarray | None = None
+    sd_shared: np.ndarray | None = None
 
 
 def run_time_of(run: Run) -> dt.datetime:
@@ -112,18 +122,52 @@ def days_of(when: dt.datetime) -> float:
     return (when - _EPOCH).total_seconds() / 86400.0
 
 
+_SD_COLUMNS = ("sleeper_amp_sd", "sleeper_amp_sd_shared")
+
+
 def _job_bins(session: Session, job_id: int, profiles: pd.DataFrame | None) -> dict[str, RunBins]:
     if profiles is None:
-        profiles = results_reader.job_profile_frame(session, job_id, columns=["speed_mean", "sleeper_amp"])
+        profiles = results_reader.job_profile_frame(session, job_id,
+                                                    columns=["speed_mean", "sleeper_amp", *_SD_COLUMNS])
     out = {}
     for wheel, g in profiles.groupby(profiles["wheel"].astype(str), sort=True):
         g = g.sort_values("bin")
+        sd = [g[c].to_numpy(dtype=np.float64, na_value=np.nan) if c in g else None for c in _SD_COLUMNS]
         out[str(wheel)] = RunBins(
             g["bin"].to_numpy(dtype=np.int64),
             g["sleeper_amp"].to_numpy(dtype=np.float64, na_value=np.nan),
             g["speed_mean"].to_numpy(dtype=np.float64, na_value=np.nan),
+            *sd,
         )
     return out
+
+
+def rail_surface_interventions(session: Session, line_id: str, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The line's imported maintenance actions that change the rails' surface (grinding, rail renewal:
+    :data:`~app.analysis.condition.change.RAIL_SURFACE_ACTIONS`) as ``(start_m, end_m, day)`` arrays
+    (m on the km axis, days since 1970)."""
+    from app.analysis.condition.change import RAIL_SURFACE_ACTIONS
+    from app.db import reference_crud
+
+    frame = reference_crud.reference_frame(session, "maintenance", line_id=line_id, track=track,
+                                           types=list(RAIL_SURFACE_ACTIONS))
+    if frame.empty:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    day = np.array([days_of(dt.datetime.combine(d, dt.time(), tzinfo=dt.UTC)) for d in frame["date"]])
+    return (frame["km_from"].to_numpy(dtype=np.float64) * 1000.0, frame["km_to"].to_numpy(dtype=np.float64) * 1000.0,
+            day)
+
+
+def uncertainty_settings(settings: Mapping[str, Any] | None) -> tuple[float, int]:
+    """The track orders' resolution (m) and q of a job's processing settings, which set the along-track
+    correlation of the stated 1-σ (:func:`app.analysis.uncertainty.segment_sd`); the recipe's defaults
+    (3 m, 2) where the settings do not say (a resolution of none: the profile's own default)."""
+    s = settings or {}
+    res = s.get("track_resolution_m")
+    q = s.get("filter_order")
+    res_m = float(res) if isinstance(res, (int, float)) and np.isfinite(res) and res > 0 else 3.0
+    order = int(q) if q in (1, 2, 3) else 2
+    return res_m, order
 
 
 def _valid(b: RunBins, bin_length_m: float, cfg: ConditionConfig) -> np.ndarray:
@@ -168,22 +212,30 @@ def _align(line: ConditionLine, run_id: int, bins: np.ndarray, amp: np.ndarray, 
 
 
 def wheel_segments(
-    wheels: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    wheels: Mapping[str, tuple[np.ndarray, ...]],
     *, bin_length_m: float, segment_lengths_m: tuple[float, ...] = SEGMENT_LENGTHS_M, bins_per_cell: int = 1,
+    resolution_m: float = 3.0, filter_order: int = 2,
 ) -> dict[float, dict[str, SegmentStats]]:
-    """Segments of every wheel from its bins: ``{wheel: (position_m, amplitude, speed_mps)}``
-    (positions aligned, amplitude NaN where not valid), with the store's index
-    (:func:`app.condition.index.store_index`).
+    """Segments of every wheel from its bins: ``{wheel: (position_m, amplitude, speed_mps[, sd, sd_shared])}``
+    (positions aligned, amplitude NaN where not valid; ``sd``/``sd_shared`` the amplitude's stated 1-σ,
+    m/s², None or NaN where not stated), with the store's index and its stated 1-σ
+    (:func:`app.condition.index.store_index`, :func:`app.condition.index.store_index_sd`).
 
     ``bins_per_cell``: each value stands for that many bins (a generated fleet
     on a coarser grid); ``n_valid`` counts bins.
     """
     out: dict[float, dict[str, SegmentStats]] = {s: {} for s in segment_lengths_m}
-    for wheel, (pos, amp, speed) in wheels.items():
-        index, index_sd = store_index(amp)
+    for wheel, cols in wheels.items():
+        pos, amp, speed = cols[:3]
+        sd = cols[3] if len(cols) > 3 else None
+        shared = cols[4] if len(cols) > 4 else None
+        index = store_index(amp)
         for seg_m in segment_lengths_m:
-            st = segment_stats(pos, amp, speed, index, index_sd, segment_m=seg_m, bin_length_m=bin_length_m)
-            out[seg_m][wheel] = replace(st, n_valid=st.n_valid * bins_per_cell) if bins_per_cell != 1 else st
+            st = segment_stats(pos, amp, speed, index, segment_m=seg_m, bin_length_m=bin_length_m)
+            isd = store_index_sd(pos, amp, sd, shared, st.seg, segment_m=seg_m, bin_length_m=bin_length_m,
+                                 resolution_m=resolution_m, filter_order=filter_order)
+            out[seg_m][wheel] = replace(st, index_sd=isd,
+                                        n_valid=st.n_valid * bins_per_cell if bins_per_cell != 1 else st.n_valid)
     return out
 
 
@@ -233,7 +285,7 @@ class DbHistory:
             return HistoryMatrix.empty(seg.size)
         col = {rid: k for k, (rid, _) in enumerate(runs)}
         sc = SegmentCondition
-        stmt = select(sc.run_id, sc.seg, sc.index, sc.speed_mean).where(
+        stmt = select(sc.run_id, sc.seg, sc.index, sc.speed_mean, sc.index_sd).where(
             sc.run_id.in_(list(col)), sc.seg_m == int(round(seg_m)), sc.wheel == wheel,
             sc.seg >= int(seg.min()), sc.seg <= int(seg.max()),
         )
@@ -242,17 +294,19 @@ class DbHistory:
             raw = result.cursor.fetchall()
         finally:
             result.close()
-        values = np.array(raw, dtype=np.float64).reshape(len(raw), 4)
+        values = np.array(raw, dtype=np.float64).reshape(len(raw), 5)  # NULL -> NaN
         index = np.full((seg.size, len(runs)), np.nan)
         speed = np.full_like(index, np.nan)
+        sd = np.full_like(index, np.nan)
         if len(raw):
             cols = np.array([col[int(r)] for r in values[:, 0]], dtype=np.int64)
             j = np.searchsorted(seg, values[:, 1].astype(np.int64))
             hit = (j < seg.size) & (seg[np.minimum(j, seg.size - 1)] == values[:, 1])
             index[j[hit], cols[hit]] = values[hit, 2]
             speed[j[hit], cols[hit]] = values[hit, 3]
+            sd[j[hit], cols[hit]] = values[hit, 4]
         days = np.array([days_of(t if t.tzinfo else t.replace(tzinfo=dt.UTC)) for _, t in runs])
-        return HistoryMatrix(index, speed, days)
+        return HistoryMatrix(index, speed, days, sd)
 
 
 def _segment_frame(run_id: int, job_id: int, line_key: int, segments: Mapping[float, Mapping[str, SegmentStats]],
@@ -415,12 +469,17 @@ def store_run_condition(
         return RunCondition(False, "the job has no profile rows")
     sig_bins, sig_amp = _signature(wheels, amps)
     shift, confidence = _align(line, run_id, sig_bins, sig_amp, bin_length, config)
-    positions = {w: ((b.bins + 0.5) * bin_length + shift, amps[w], b.speed_mps) for w, b in wheels.items()}
-    segments = wheel_segments(positions, bin_length_m=bin_length)
+    positions = {w: ((b.bins + 0.5) * bin_length + shift, amps[w], b.speed_mps, b.sd, b.sd_shared)
+                 for w, b in wheels.items()}
+    job = session.get(Job, job_id)
+    res_m, order = uncertainty_settings(job.settings if job is not None else None)
+    segments = wheel_segments(positions, bin_length_m=bin_length, resolution_m=res_m, filter_order=order)
     when = run_time_of(run)
     history = DbHistory(session, line.id, run_id, when, config.change)
     assessment = assess_run(segments, history, days_of(when), params=config.change,
-                            previous_flags=history.previous_flags())
+                            previous_flags=history.previous_flags(),
+                            interventions=rail_surface_interventions(session, run.line_id, run.track or ""),
+                            intervention_margin_m=intervention_margin_m(res_m, order))
     flags = write_assessed_run(session, run_id=run_id, job_id=job_id, line=line, when=when, segments=segments,
                                assessment=assessment, shift_m=shift, shift_confidence=confidence)
     exponents = {f"{s:g}": float(np.mean(list(e.values()))) if e else None

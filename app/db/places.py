@@ -86,12 +86,13 @@ def segment_frame(session: Session, run_ids: Sequence[int], seg_m: int = 10) -> 
     Returns
     -------
     values : numpy.ndarray
-        (n, 5) float64: run id, wheel code (index into ``wheels``), segment, ``ln A``, speed (m/s).
+        (n, 6) float64: run id, wheel code (index into ``wheels``), segment, ``ln A``, speed (m/s), the stated
+        1-σ of ``ln A`` (``index_sd``; NaN: none).
     wheels : list of str
         The wheel names.
     """
     if not run_ids:
-        return np.zeros((0, 5)), []
+        return np.zeros((0, 6)), []
     sc = SegmentCondition
     ids = [int(r) for r in run_ids]
     wheels = sorted(str(w) for w in session.scalars(select(sc.wheel).where(sc.run_id.in_(ids), sc.seg_m == int(seg_m))
@@ -99,16 +100,16 @@ def segment_frame(session: Session, run_ids: Sequence[int], seg_m: int = 10) -> 
     parts = []
     for code, wheel in enumerate(wheels):
         # numeric columns only, through the driver's cursor: a year of a long line is millions of rows
-        stmt = select(sc.run_id, sc.seg, sc.index, sc.speed_mean).where(sc.run_id.in_(ids), sc.seg_m == int(seg_m),
-                                                                         sc.wheel == wheel)
+        stmt = select(sc.run_id, sc.seg, sc.index, sc.speed_mean, sc.index_sd).where(
+            sc.run_id.in_(ids), sc.seg_m == int(seg_m), sc.wheel == wheel)
         result = session.connection().execute(stmt)
         try:
             raw = result.cursor.fetchall()
         finally:
             result.close()
-        a = np.array(raw, dtype=np.float64).reshape(len(raw), 4)
+        a = np.array(raw, dtype=np.float64).reshape(len(raw), 5)  # NULL -> NaN
         parts.append(np.column_stack([a[:, 0], np.full(len(raw), float(code)), a[:, 1:]]))
-    return (np.concatenate(parts) if parts else np.zeros((0, 5))), wheels
+    return (np.concatenate(parts) if parts else np.zeros((0, 6))), wheels
 
 
 def run_time(session: Session, run_id: int) -> dt.datetime | None:

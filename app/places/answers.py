@@ -50,7 +50,9 @@ def _date(t: dt.datetime | None, days: float | None) -> str | None:
 def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (),
                assets: Sequence[dict[str, Any]] = (), muted_reason: str | None = None) -> dict[str, Any]:
     """The contract's ``Place``: extent in km, peak (the index at the peak segment, ln units, and in
-    per cent), tier and its action, evidence, wheels, runs, outlook, status, actions, assets."""
+    per cent), tier and its action, evidence, wheels, runs, outlook, status, actions, assets; and the
+    stated 1-σ of the peak, the change and the severity (``peak_sd``, ``change_sd``, ``severity_sd``; None:
+    none stated)."""
     tier = TIER_NAMES[int(p.tier)]
     nxt = TIER_NAMES[int(p.tier) + 1] if int(p.tier) + 1 < len(TIER_NAMES) else None
     level = float(p.level)
@@ -62,6 +64,8 @@ def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (
         "tier": tier, "action": TIER_ACTIONS[tier], "evidence": evidence_names(int(p.evidence)),
         "wheels": [w for w in (p.wheel_labels or "").split(",") if w],
         "change": finite_or_none(p.change), "severity": finite_or_none(p.severity), "class": p.cls,
+        "peak_sd": finite_or_none(p.level_sd), "change_sd": finite_or_none(p.change_sd),
+        "severity_sd": finite_or_none(p.severity_sd),
         "runs_confirming": int(p.runs_confirming), "first_seen": iso_time(p.first_seen),
         "last_confirmed": iso_time(p.last_confirmed), "first_run_id": p.first_run_id, "last_run_id": p.last_run_id,
         "active": bool(p.active), "listed": bool(p.listed), "tendency": p.tendency,

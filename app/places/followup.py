@@ -53,6 +53,7 @@ from app.places.update import (
     PlacesUpdate,
     PreparedRun,
     history_of,
+    line_actions,
     method_version,
     prepare_run,
     update_places,
@@ -187,7 +188,8 @@ def due_runs(session: Session, now: dt.datetime | None = None, *, line_key: int 
 
 def _inputs(session: Session, run_id: int, line: ConditionLine, version: str, config: PlacesConfig) -> tuple:
     """What a run's places are found from, in short: its condition rows' job and publication, its history runs
-    and their publications (a run reprocessed or deleted meanwhile changes it)."""
+    and their publications (a run reprocessed or deleted meanwhile changes it), and the line's maintenance
+    actions (a grinding recorded meanwhile changes which changes its places take as the rail's)."""
     cr = session.get(ConditionRun, run_id)
     if cr is None:
         return (None,)
@@ -197,7 +199,8 @@ def _inputs(session: Session, run_id: int, line: ConditionLine, version: str, co
         if ids else None
     n = session.scalar(select(func.count()).select_from(ConditionRun).where(ConditionRun.run_id.in_(ids))) \
         if ids else 0
-    return cr.job_id, cr.published_at, cr.run_time, tuple(ids), published, n
+    actions = tuple((a.id, a.start_m, a.end_m, a.day, a.kind) for a in line_actions(session, line)[0])
+    return cr.job_id, cr.published_at, cr.run_time, tuple(ids), published, n, actions
 
 
 def _set_summary(session: Session, job_id: int, summary: dict[str, Any]) -> None:

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
+from app.analysis.condition.change import RAIL_SURFACE_ACTIONS, surface_change_days
 from app.analysis.condition.lifecycle import (
     Action,
     Observation,
@@ -149,7 +150,7 @@ def _classes(session: Session, line: ConditionLine, seg: np.ndarray, margin_m: f
                            sections["type"].to_numpy(dtype=object), boundary_margin_m=margin_m)
 
 
-def _actions(session: Session, line: ConditionLine) -> tuple[list[Action], dict[int, Any]]:
+def line_actions(session: Session, line: ConditionLine) -> tuple[list[Action], dict[int, Any]]:
     frame = reference_crud.reference_frame(session, "maintenance", line_id=line.line_id, track=line.track)
     acts, rows = [], {}
     for r in frame.itertuples(index=False):
@@ -161,7 +162,7 @@ def _actions(session: Session, line: ConditionLine) -> tuple[list[Action], dict[
 
 
 def _grids(values: np.ndarray, wheels: list[str], run_ids: list[int]):
-    """Per run: (segments, wheel names, ln A, speed) as wheels × segments arrays."""
+    """Per run: (segments, wheel names, ln A, speed, stated 1-σ of ln A) as wheels × segments arrays."""
     order = np.argsort(values[:, 0], kind="stable")
     v_sorted = values[order]
     bounds = np.searchsorted(v_sorted[:, 0], np.asarray(run_ids, dtype=np.float64), side="left")
@@ -173,10 +174,11 @@ def _grids(values: np.ndarray, wheels: list[str], run_ids: list[int]):
         codes = np.unique(part[:, 1].astype(np.int64))
         la = np.full((codes.size, seg.size), np.nan)
         v = np.full_like(la, np.nan)
+        sd = np.full_like(la, np.nan)
         i = np.searchsorted(codes, part[:, 1].astype(np.int64))
         j = np.searchsorted(seg, part[:, 2].astype(np.int64))
-        la[i, j], v[i, j] = part[:, 3], part[:, 4]
-        out[rid] = (seg, [wheels[c] for c in codes], la, v)
+        la[i, j], v[i, j], sd[i, j] = part[:, 3], part[:, 4], part[:, 5]
+        out[rid] = (seg, [wheels[c] for c in codes], la, v, sd)
     return out
 
 
@@ -204,8 +206,13 @@ def _state(p: Place, obs: list[PlaceObservation], links: list[PlaceAction], vers
         observations=[Observation(run_id=o.run_id, day=o.day, start_m=o.start_m, end_m=o.end_m, centre_m=o.centre_m,
                                   peak_m=o.peak_m, level=o.level, change=np.nan if o.change is None else o.change,
                                   tier=int(o.tier), severity=o.severity, evidence=int(o.evidence),
-                                  wheels=int(o.wheels)) for o in obs],
+                                  wheels=int(o.wheels), level_sd=_nan(o.level_sd), change_sd=_nan(o.change_sd),
+                                  severity_sd=_nan(o.severity_sd)) for o in obs],
     )
+
+
+def _nan(x: float | None) -> float:
+    return float("nan") if x is None else float(x)
 
 
 def _finite(x: float) -> float | None:
@@ -232,6 +239,8 @@ class RunIndex:
         Days (since 1970) of the history runs.
     classes : numpy.ndarray
         Superstructure class of each segment (None near a change of class).
+    index_sd, history_sd : numpy.ndarray
+        The stated 1-σ of ``index`` and ``history`` (the store's ``index_sd``; NaN: none).
     """
 
     seg: np.ndarray
@@ -241,6 +250,8 @@ class RunIndex:
     history: np.ndarray
     history_days: np.ndarray
     classes: np.ndarray
+    index_sd: np.ndarray | None = None
+    history_sd: np.ndarray | None = None
 
     @property
     def mean_index(self) -> np.ndarray:
@@ -261,7 +272,7 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
     run_ids = [r for r, _ in history] + [run_id]
     values, wheel_names = q.segment_frame(session, run_ids, SEGMENT_M)
     grids = _grids(values, wheel_names, run_ids)
-    seg, wheels, la, v = grids[run_id]
+    seg, wheels, la, v, la_sd = grids[run_id]
     if seg.size == 0:
         return None
     all_seg = np.unique(values[:, 2].astype(np.int64))
@@ -282,9 +293,11 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
                                                      np.array([cls_of[int(s)] for s in grids[r][0].tolist()],
                                                               dtype=object), curves))
             for r, _ in history]
+    hist_sd = [_on(grids[r], seg, wheels, grids[r][4]) for r, _ in history]
     return RunIndex(seg=seg, wheels=wheels, index=idx, speed=v,
                     history=np.stack(hist, axis=2) if hist else np.zeros((*idx.shape, 0)),
-                    history_days=np.array([days_of(t) for _, t in history], dtype=np.float64), classes=classes)
+                    history_days=np.array([days_of(t) for _, t in history], dtype=np.float64), classes=classes,
+                    index_sd=la_sd, history_sd=np.stack(hist_sd, axis=2) if hist_sd else np.zeros((*idx.shape, 0)))
 
 
 def run_segment_index(session: Session, line: ConditionLine, run_id: int, *,
@@ -380,8 +393,15 @@ def prepare_run(session: Session, run_id: int, line: ConditionLine, version: str
     ri = run_index(session, line, run_id, hist_ids, config=config)
     if ri is None:
         return PlacesUpdate(False, "the run has no 10 m condition rows", version)
-    found = find_places(ri.seg, ri.index, ri.history, ri.history_days, days_of(when), ri.classes,
-                        segment_m=SEGMENT_M, params=params)
+    now_day = days_of(when)
+    acts, _ = line_actions(session, line)
+    surface = [a for a in acts if a.kind in RAIL_SURFACE_ACTIONS]
+    surface_days = surface_change_days(ri.seg, SEGMENT_M, np.array([a.start_m for a in surface]),
+                                       np.array([a.end_m for a in surface]), np.array([a.day for a in surface]),
+                                       now_day)
+    found = find_places(ri.seg, ri.index, ri.history, ri.history_days, now_day, ri.classes,
+                        segment_m=SEGMENT_M, params=params, index_sd=ri.index_sd, history_sd=ri.history_sd,
+                        surface_days=surface_days)
     return PreparedRun(run_id, when, version, hist_ids, ri, found)
 
 
@@ -403,6 +423,7 @@ def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
     seg, wheels, v = ri.seg, ri.wheels, ri.speed
     now_day = days_of(when)
     params = config.place
+    acts, act_rows = line_actions(session, line)
     rows = q.line_places(session, line.id)
     by_id = {p.id: p for p in rows}
     obs = q.observations_of(session, list(by_id))
@@ -410,7 +431,6 @@ def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
     known = [_state(p, obs[p.id], links[p.id], version) for p in rows]
     version_runs = {p.id: {o.run_id for o in obs[p.id] if o.method_version == version} for p in rows}
     before = {k.id: (k.active, k.listed, list(k.actions)) for k in known}
-    acts, act_rows = _actions(session, line)
     covered = (float(seg.min() * SEGMENT_M), float((seg.max() + 1) * SEGMENT_M))
     events, _, _ = advance_places(known, found, run_id=run_id, day=now_day, covered_m=covered,
                                   params=config.lifecycle, next_id=q.next_place_id(session), place_params=params,
@@ -479,6 +499,8 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
         row.tier, row.listed, row.active, row.misses, row.lower_runs = st.tier, st.listed, st.active, st.misses, \
             st.lower_runs
         row.level, row.change, row.severity = last.level, _finite(last.change), last.severity
+        row.level_sd, row.change_sd, row.severity_sd = (_finite(last.level_sd), _finite(last.change_sd),
+                                                        _finite(last.severity_sd))
         row.evidence, row.wheels = last.evidence, last.wheels
         if new_obs:
             row.wheel_labels = _wheel_labels(last.wheels, wheels)
@@ -496,6 +518,8 @@ def _write(session: Session, line: ConditionLine, run_id: int, when: dt.datetime
             session.add(PlaceObservation(place_id=st.id, run_id=run_id, run_time=when, day=o.day, start_m=o.start_m,
                                          end_m=o.end_m, centre_m=o.centre_m, peak_m=o.peak_m, level=o.level,
                                          change=_finite(o.change), tier=o.tier, severity=o.severity,
+                                         level_sd=_finite(o.level_sd), change_sd=_finite(o.change_sd),
+                                         severity_sd=_finite(o.severity_sd),
                                          evidence=o.evidence, wheels=o.wheels,
                                          wheel_labels=row.wheel_labels if o.wheels else "",
                                          speed_kmh=_speed(seg, speed_kmh, o.start_m, o.end_m),

@@ -41,6 +41,7 @@ CSV_COLUMNS: tuple[str, ...] = (
     "tier", "evidence", "wheels", "runs_confirming", "first_seen", "last_confirmed", "tendency", "rate_per_year",
     "rate_low", "rate_high", "next_tier", "projected_date", "days_to_next_tier", "status", "status_comment",
     "status_by", "status_at", "actions", "assets", "active", "muted", "muted_reason", "method_version",
+    "peak_sd", "change", "change_sd", "severity", "severity_sd",
 )
 
 
@@ -194,7 +195,7 @@ def place_history(db: Database, place_id: int, config: PlacesConfig = DEFAULT_PL
                               .order_by(PlaceObservation.day, PlaceObservation.id))
         out["observations"] = [
             {"run_id": o.run_id, "run_time": iso_time(o.run_time), "speed_kmh": o.speed_kmh, "level": o.level,
-             "change": o.change, "tier": TIER_NAMES[int(o.tier)], "km_from": o.start_m / 1000.0,
+             "level_sd": o.level_sd, "change": o.change, "change_sd": o.change_sd, "tier": TIER_NAMES[int(o.tier)], "km_from": o.start_m / 1000.0,
              "km_to": o.end_m / 1000.0, "peak_km": o.peak_m / 1000.0, "evidence": evidence_names(int(o.evidence)),
              "wheels": [w for w in (o.wheel_labels or "").split(",") if w], "method_version": o.method_version}
             for o in obs]

@@ -40,7 +40,7 @@ from app.analysis.condition import (
     assess_run,
     segment_stats,
 )
-from app.analysis.condition.index import log_amplitude_index
+from app.condition.index import store_index, store_index_sd
 from app.simulate.track import LineModel
 
 __all__ = [
@@ -345,17 +345,21 @@ def run_segments(
     """Segment statistics of a generated run with the condition index (ln amplitude).
 
     ``n_valid`` counts bins of ``bin_length_m`` (the grid cells stand for
-    ``grid_m / bin_length_m`` bins each).
+    ``grid_m / bin_length_m`` bins each). The index and its stated 1-σ come from the store's
+    functions (:mod:`app.condition.index`); the generator states no 1-σ (``index_sd`` NaN): its
+    noise is a run-to-run repeatability model (:class:`FleetNoise`), which the change tests'
+    spread of the history measures already — a stated 1-σ is what one pass cannot know and
+    repeats from run to run (rail roughness), which the generator does not simulate.
     """
     out: dict[float, dict[str, SegmentStats]] = {}
     per_cell = int(round(grid_m / bin_length_m))
     for seg_m in segment_lengths_m:
         out[seg_m] = {}
         for wheel, t in tracks.items():
-            index, index_sd = log_amplitude_index(t.amplitude)
-            st = segment_stats(t.position_m, t.amplitude, t.speed_mps, index, index_sd,
-                               segment_m=seg_m, bin_length_m=grid_m)
-            out[seg_m][wheel] = replace(st, n_valid=st.n_valid * per_cell)
+            index = store_index(t.amplitude)
+            st = segment_stats(t.position_m, t.amplitude, t.speed_mps, index, segment_m=seg_m, bin_length_m=grid_m)
+            isd = store_index_sd(t.position_m, t.amplitude, None, None, st.seg, segment_m=seg_m, bin_length_m=grid_m)
+            out[seg_m][wheel] = replace(st, n_valid=st.n_valid * per_cell, index_sd=isd)
     return out
 
 

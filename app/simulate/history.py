@@ -58,6 +58,7 @@ import pandas as pd
 
 from app.simulate.run import DEFAULT_TRUE_DIAMETERS_M, simulate_run
 from app.simulate.speed import SpeedProfile
+from app.simulate.surface import RailGrinding, generate_surface
 from app.simulate.track import (
     SUPERSTRUCTURE_LABELS,
     SUPERSTRUCTURE_TYPES,
@@ -78,6 +79,7 @@ __all__ = [
     "ramp_profile",
     "planted_history",
     "uniform_history",
+    "grinding_history",
     "demo_history",
     "write_history",
 ]
@@ -524,6 +526,48 @@ def uniform_history(*, seed: int = 0, n_runs: int = 12, every_days: float = 14.0
     runs = _runs(seed, n_runs, every_days, cruise_kmh, cruise_spread, km_error_sd_m)
     return HistorySpec(line=line, runs=runs, km_start=km_start, length_km=length_km, line_id=line_id,
                        track=track, fs=fs, vehicle_seed=seed + 1)
+
+
+def grinding_history(*, seed: int = 21, n_runs: int = 10, every_days: float = 7.0, length_km: float = 1.2,
+                     km_start: float = 12.0, cruise_kmh: float = 126.0, start: dt.datetime | None = None,
+                     line_id: str = "ROUGH", track: str = "1") -> tuple[HistorySpec, dict]:
+    """A rough line ground between its last two runs, with a real support change beside the grinding.
+
+    One superstructure type (B91 without pads), random rail roughness fixed to the track (Sato, good
+    rail; no welds), all runs at one speed (``cruise_kmh``; the ramps are flat). Between the last two
+    runs a grinding over 200 m (from 0.33 of the run's length: the rails' roughness there is replaced by
+    a new, smoother one) and a −30 % support change over 20 m (from 0.71 of the length): the first must
+    not read as a stiffness change where it is recorded, the second must. The grinding is **not** in
+    :meth:`HistorySpec.maintenance` (only tampings are): the caller records it or not
+    (``info["maintenance"]``, the record as the reference import's row).
+
+    Returns
+    -------
+    spec : HistorySpec
+    info : dict
+        ``ground`` and ``soft`` extents (m), ``grind_day`` (days from the start), ``maintenance`` (a row).
+    """
+    if n_runs < 2:
+        raise ValueError(f"n_runs: must be >= 2, got {n_runs!r}")
+    start = start or dt.datetime(2025, 4, 7, 8, 0, tzinfo=dt.UTC)
+    x0, length = 1000.0 * km_start, 1000.0 * length_km
+    lo, hi = x0 - 150.0, x0 + length + 150.0
+    ground = (x0 + round(0.33 * length, -1), x0 + round(0.33 * length, -1) + 200.0)
+    soft = (x0 + round(0.71 * length, -1), x0 + round(0.71 * length, -1) + 20.0)
+    grind_day = (n_runs - 2) * every_days + every_days / 2
+    date = (start + dt.timedelta(days=grind_day)).date().isoformat()
+    surface = generate_surface(lo, hi, seed, weld_spacing_m=None).with_grindings([RailGrinding(*ground, date)])
+    line = generate_line(lo, hi, np.random.default_rng([seed, 7]), sections=(TrackSection(lo, hi, "b91_no_pads"),),
+                         anomalies=(), surface=surface)
+    runs = tuple(HistoryRun(day=i * every_days, cruise_kmh=cruise_kmh, km_error_m=0.0, seed=seed * 100 + i)
+                 for i in range(n_runs))
+    spec = HistorySpec(line=line, runs=runs, changes=(TrackChange("change", *soft, grind_day, 0.7, taper_m=2.0),),
+                       km_start=km_start, length_km=length_km, start=start, line_id=line_id, track=track,
+                       v_start_kmh=cruise_kmh, v_end_kmh=cruise_kmh, ramp_in_m=50.0, ramp_out_m=50.0,
+                       vehicle_seed=seed + 1)
+    record = {"line_id": line_id, "track": track, "km_from": ground[0] / 1000.0, "km_to": ground[1] / 1000.0,
+              "type": "grinding", "date": date}
+    return spec, {"ground": ground, "soft": soft, "grind_day": grind_day, "maintenance": record}
 
 
 def demo_history(line: LineModel, *, km_start: float, length_km: float, n_runs: int = 10,

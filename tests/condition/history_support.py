@@ -11,7 +11,7 @@ from typing import Any
 
 from app.simulate.history import HistoryFiles, HistorySpec, write_history
 
-__all__ = ["ProcessedHistory", "history_service", "process_history"]
+__all__ = ["ProcessedHistory", "history_service", "process_history", "store_flags_without", "places_without_sd"]
 
 
 @dataclass
@@ -125,6 +125,7 @@ class StoredRun:
     log_amp: Any
     speed: Any
     classes: Any
+    index_sd: Any = None
 
 
 def stored_runs(database_url: str, spec: HistorySpec, *, margin_m: float = 50.0) -> list[StoredRun]:
@@ -148,23 +149,71 @@ def stored_runs(database_url: str, spec: HistorySpec, *, margin_m: float = 50.0)
             runs = s.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(ConditionRun.line_key == line.id)
                              .order_by(ConditionRun.run_time)).all()
             for run_id, when in runs:
-                rows = pd.DataFrame(s.execute(select(SC.wheel, SC.seg, SC.index, SC.speed_mean)
+                rows = pd.DataFrame(s.execute(select(SC.wheel, SC.seg, SC.index, SC.speed_mean, SC.index_sd)
                                               .where(SC.run_id == run_id, SC.seg_m == 10)).all(),
-                                    columns=["wheel", "seg", "index", "speed"])
+                                    columns=["wheel", "seg", "index", "speed", "index_sd"])
                 seg = np.sort(rows.seg.unique())
                 wheels = sorted(rows.wheel.unique())
                 la = np.full((len(wheels), seg.size), np.nan)
                 v = np.full((len(wheels), seg.size), np.nan)
+                sd = np.full((len(wheels), seg.size), np.nan)
                 for i, w in enumerate(wheels):
                     a = rows[rows.wheel == w]
                     j = np.searchsorted(seg, a.seg.to_numpy())
                     la[i, j] = a["index"].to_numpy(dtype=float)
                     v[i, j] = a["speed"].to_numpy(dtype=float)
+                    sd[i, j] = a["index_sd"].to_numpy(dtype=float, na_value=np.nan)
                 day = (when.replace(tzinfo=spec.start.tzinfo) - spec.start).total_seconds() / 86400.0
                 cls = section_classes((seg + 0.5) * 10.0, sections["km_from"].to_numpy() * 1000.0,
                                       sections["km_to"].to_numpy() * 1000.0, sections["type"].to_numpy(dtype=object),
                                       boundary_margin_m=margin_m)
-                out.append(StoredRun(int(run_id), day, seg, wheels, la, v, cls))
+                out.append(StoredRun(int(run_id), day, seg, wheels, la, v, cls, sd))
     finally:
         db.dispose()
     return out
+
+
+def store_flags_without(db: Any, run_id: int, job_id: int, *, line_id: str, track: str,
+                        stated_sd: bool = True) -> tuple[list[tuple[int, int, float]], list[tuple[int, str, float]]]:
+    """A run's 10 m step flags ``(seg, direction, score)`` and per-wheel ``(seg, wheel, change_z)`` as the store
+    computes them with the line's maintenance records deleted and, ``stated_sd=False``, the history's
+    ``index_sd`` too (the change tests before issue 26 item 3) — in a transaction rolled back: a
+    counterfactual of what the service did."""
+    from sqlalchemy import select, update
+
+    from app.condition.writer import store_run_condition
+    from app.db import reference_crud
+    from app.db.models import SegmentCondition as SC
+
+    with db.read() as s:
+        reference_crud.delete_reference(s, "maintenance", line_id, track)
+        if not stated_sd:
+            s.execute(update(SC).values(index_sd=None))
+        rc = store_run_condition(s, run_id, job_id)
+        flags = [(int(f.seg), int(f.direction), float(f.score)) for f in rc.flags if f.kind == "step" and f.seg_m == 10]
+        z = [(int(a), str(b), c) for a, b, c in s.execute(select(SC.seg, SC.wheel, SC.change_z)
+                                                          .where(SC.run_id == run_id, SC.seg_m == 10)).all()]
+        s.rollback()
+    return flags, z
+
+
+def places_without_sd(db: Any, run_id: int) -> list[tuple[float, float, int]]:
+    """A run's places ``(start_m, end_m, evidence)`` as find_places gives them from the store's rows without
+    the stated 1-σ and the rail-surface interventions (the places before issue 26 item 3)."""
+
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS, find_places
+    from app.condition.writer import days_of
+    from app.db import places as q
+    from app.db.models import ConditionLine, ConditionRun, Job
+    from app.places.update import method_version, run_index
+
+    with db.read() as s:
+        entry = s.get(ConditionRun, run_id)
+        line = s.get(ConditionLine, entry.line_key)
+        version = method_version(s.get(Job, entry.job_id).settings)
+        hist = q.history_runs(s, line.id, entry.run_time, version, scan_runs=60, window_days=180)
+        ri = run_index(s, line, run_id, hist)
+    rp = find_places(ri.seg, ri.index, ri.history, ri.history_days, days_of(entry.run_time), ri.classes,
+                     segment_m=10.0, params=DEFAULT_PLACE_PARAMS)
+    return [(float(a), float(b), int(e)) for a, b, e in zip(rp.places.start_m, rp.places.end_m, rp.places.evidence,
+                                                             strict=True)]

@@ -19,10 +19,12 @@ __all__ = ["profile_frame_of", "publish_tracks", "publish_history", "DAY0"]
 DAY0 = dt.datetime(2025, 1, 1, 8, 0, tzinfo=dt.UTC)
 
 
-def profile_frame_of(tracks: dict[str, WheelTrack], bin_length_m: float = 0.25, shift_m: float = 0.0) -> pd.DataFrame:
+def profile_frame_of(tracks: dict[str, WheelTrack], bin_length_m: float = 0.25, shift_m: float = 0.0,
+                     sd_rel: float | None = None) -> pd.DataFrame:
     """Profile rows (the columns the condition store reads) of generated tracks on a 25 cm grid.
 
-    ``shift_m`` is an odometry error: the run's positions are reported that much too far.
+    ``shift_m`` is an odometry error: the run's positions are reported that much too far. ``sd_rel``:
+    the rows state ``sleeper_amp_sd = sd_rel · A`` (half of it shared), else none.
     """
     frames = []
     for wheel, t in tracks.items():
@@ -31,6 +33,8 @@ def profile_frame_of(tracks: dict[str, WheelTrack], bin_length_m: float = 0.25, 
         frames.append(pd.DataFrame({
             "wheel": wheel, "bin": bins, "km": (bins + 0.5) * bin_length_m / 1000.0,
             "n_samples": np.full(bins.size, 100), "speed_mean": t.speed_mps, "sleeper_amp": t.amplitude,
+            **({} if sd_rel is None else {"sleeper_amp_sd": sd_rel * t.amplitude,
+                                          "sleeper_amp_sd_shared": 0.5 * sd_rel * t.amplitude}),
         }))
     return pd.concat(frames, ignore_index=True)
 
@@ -38,7 +42,7 @@ def profile_frame_of(tracks: dict[str, WheelTrack], bin_length_m: float = 0.25, 
 def publish_tracks(
     db: Database, tracks: dict[str, WheelTrack], when: dt.datetime, *, line_id: str | None = "L1",
     track: str = "1", shift_m: float = 0.0, config: ConditionConfig | None = None, sha: str | None = None,
-    run_id: int | None = None, places: Any = None, followup: bool = True,
+    run_id: int | None = None, places: Any = None, followup: bool = True, sd_rel: float | None = None,
 ) -> tuple[int, int, dict[str, Any]]:
     """Publish generated tracks as a processed run through :func:`app.publish.publish_job`
     (the local worker's path); returns (run id, job id, the job's condition summary). ``followup`` False:
@@ -62,7 +66,7 @@ def publish_tracks(
         kw["places"] = places
     if not followup:
         kw["places_followup"] = None
-    assert publish.publish_job(db, job_id, run_id, profile_frame_of(tracks, shift_m=shift_m), [], {},
+    assert publish.publish_job(db, job_id, run_id, profile_frame_of(tracks, shift_m=shift_m, sd_rel=sd_rel), [], {},
                               worker_id="test-worker", **kw)
     with db.read() as s:
         meta = s.get(Job, job_id).meta

@@ -28,7 +28,7 @@ def test_segment_stats_match_a_brute_force_per_segment():
     amp[300:420] = -1.0  # not valid: a gap of 30 m
     speed = rng.uniform(20, 40, pos.size)
     index = np.log(np.where(amp > 0, amp, np.nan))
-    st = segment_stats(pos, amp, speed, index, np.full(pos.size, 0.01), segment_m=10.0, min_valid_fraction=0.5)
+    st = segment_stats(pos, amp, speed, index, segment_m=10.0, min_valid_fraction=0.5)
     seg = np.floor(pos / 10.0)
     for k, s in enumerate(st.seg):
         m = (seg == s) & np.isfinite(amp) & (amp > 0)
@@ -37,8 +37,7 @@ def test_segment_stats_match_a_brute_force_per_segment():
         assert st.amp_p95[k] == pytest.approx(np.percentile(amp[m], 95))
         assert st.speed_mean[k] == pytest.approx(speed[m].mean())
         assert st.index[k] == pytest.approx(np.log(amp[m]).mean())
-        within = np.log(amp[m]).std(ddof=1)
-        assert st.index_sd[k] == pytest.approx(np.sqrt(within**2 / 1.0 + 0.01**2))  # 10 m = one sample
+        assert np.isnan(st.index_sd[k])  # the spread of the bins is not an uncertainty: none stated
     covered = {int(s) for s in np.unique(seg)}
     assert set(st.seg.tolist()) < covered  # the gap's segments are left out
     with pytest.raises(ValueError, match="segment_m"):
@@ -198,3 +197,37 @@ def test_action_effect_before_after_and_how_long_it_lasted():
     assert none.recovery is None and none.n_after == 0
     with pytest.raises(ValueError, match="regain_fraction"):
         action_effect(days, values, 99.5, regain_fraction=0)
+
+
+def test_store_index_sd_is_segment_sd_over_the_mean_amplitude():
+    """The store's stated 1-σ of a segment's ln A: segment_sd of the valid bins' sd (and shared part) on the
+    aligned axis over their mean amplitude (delta method); NaN where no bin states one."""
+    from app.analysis.uncertainty import segment_sd
+    from app.condition.index import store_index_sd
+
+    rng = np.random.default_rng(3)
+    bins = np.arange(4000, 4800)
+    shift = 3.3
+    pos = (bins + 0.5) * 0.25 + shift
+    amp = rng.lognormal(0.0, 0.2, bins.size)
+    amp[50:90] = np.nan
+    sd = 0.3 * amp * rng.uniform(0.5, 1.5, bins.size)
+    sd[400:440] = np.nan  # no stated 1-sigma there
+    shared = 0.5 * sd
+    st = segment_stats(pos, amp, np.full(bins.size, 30.0), np.log(amp), segment_m=10.0)
+    got = store_index_sd(pos, amp, sd, shared, st.seg, segment_m=10.0, bin_length_m=0.25, resolution_m=3.0,
+                         filter_order=2)
+    ok = np.isfinite(amp) & np.isfinite(sd)
+    aligned = np.floor(pos / 0.25).astype(np.int64)
+    segs, ref = segment_sd(aligned[ok], sd[ok], 10.0, 0.25, 3.0, 2, shared=shared[ok])
+    seg_of = np.floor(pos[ok] / 10.0).astype(np.int64)
+    want = {g: r / amp[ok][seg_of == g].mean() for g, r in zip(segs.tolist(), ref.tolist(), strict=True)}
+    assert np.all(np.isfinite(got)) and np.all(got > 0)
+    for s_, g in zip(st.seg.tolist(), got.tolist(), strict=True):
+        assert g == pytest.approx(want[s_], rel=1e-12)
+    # a 10 m mean of bins correlated over ~4 m: between sd/sqrt(n bins) and the bins' sd
+    rel = np.nanmedian(sd / amp)
+    assert rel / np.sqrt(40) < np.median(got) < rel
+    assert np.all(np.isnan(store_index_sd(pos, amp, None, None, st.seg, segment_m=10.0, bin_length_m=0.25)))
+    nan_sd = np.full(bins.size, np.nan)
+    assert np.all(np.isnan(store_index_sd(pos, amp, nan_sd, nan_sd, st.seg, segment_m=10.0, bin_length_m=0.25)))

@@ -80,7 +80,11 @@ def lifecycle_of(spec, runs: list[StoredRun]):
         hist = np.stack([_on(runs[j], run, segment_index(runs[j].log_amp, runs[j].speed, runs[j].classes, curves))
                          for j in range(k)], axis=2) if k else np.zeros((*idx.shape, 0))
         days = np.array([r.day for r in runs[:k]])
-        rp = find_places(run.seg, idx, hist, days, run.day, run.classes, segment_m=SEG_M, params=DEFAULT_PLACE_PARAMS)
+        # with the store's stated 1-sigma, as the publish step grades them
+        hist_sd = np.stack([_on(runs[j], run, runs[j].index_sd) for j in range(k)], axis=2) if k \
+            else np.zeros((*idx.shape, 0))
+        rp = find_places(run.seg, idx, hist, days, run.day, run.classes, segment_m=SEG_M, params=DEFAULT_PLACE_PARAMS,
+                         index_sd=run.index_sd, history_sd=hist_sd)
         covered = (float(run.seg.min() * SEG_M), float((run.seg.max() + 1) * SEG_M))
         events, _, next_id = advance_places(known, rp, run_id=run.run_id, day=run.day, covered_m=covered,
                                             params=LifecycleParams(), next_id=next_id,

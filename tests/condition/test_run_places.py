@@ -352,3 +352,63 @@ def test_a_trend_alone_makes_a_watch_place_only_where_it_reaches_the_alert_limit
 def _trend_args(rng, base, spot, days, cls):
     runs = _runs(rng, base, days.size, lambda r: spot * (0.05 + 0.35 * (days[r] - days[-1]) / 365.25))
     return SEG, runs[:, :, -1], runs[:, :, :-1], days[:-1], days[-1], cls
+
+
+def test_a_place_whose_size_is_within_its_uncertainty_is_not_in_the_top_tier():
+    """The tier rests on the size's lower 1-sigma bound: a lasting hard spot of 0.70 (immediate: ≥ 0.625) stated
+    ±0.2 is graded on 0.50 (intervention), ±0.4 on 0.30 (alert); ±0.5 leaves 0.20, within its uncertainty of
+    the typical track (below the alert limit 0.25): no anomaly at all. Without a stated 1-sigma (NaN) it is
+    immediate as before."""
+    rng = np.random.default_rng(11)
+    track = _track(rng) * 0.3 + _box(11_000.0, 11_030.0, 0.70)  # lasting, in the history too
+    hist = _runs(rng, track, 8)
+    new = _runs(rng, track, 1)[:, :, 0]
+    cls = np.full(SEG.size, "b91", dtype=object)
+    tiers = {}
+    for sd in (np.nan, 0.2, 0.4, 0.5):
+        rp = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls, segment_m=10.0, params=PARAMS,
+                         index_sd=np.full(new.shape, sd), history_sd=np.full(hist.shape, sd))
+        if sd == 0.5:
+            assert len(rp) == 0
+            continue
+        assert len(rp) == 1 and rp.places.evidence[0] == EVIDENCE_ANOMALY
+        assert rp.level[0] == pytest.approx(0.70, abs=0.03)
+        assert rp.severity[0] == pytest.approx(abs(rp.level[0]) / 0.25)
+        if np.isnan(sd):
+            assert np.isnan(rp.level_sd[0]) and np.isnan(rp.severity_sd[0])
+        else:
+            assert rp.level_sd[0] == pytest.approx(sd) and rp.severity_sd[0] == pytest.approx(sd / 0.25)
+        tiers[sd] = int(rp.tier[0])
+    assert tiers[np.nan] == 3 and tiers[0.2] == 2 and tiers[0.4] == 1
+
+
+def test_a_change_within_its_uncertainty_is_graded_on_its_lower_bound_and_a_grinding_widens_it():
+    """A new −30 % step (change 0.36: intervention) where the new run states more than the history: the excess
+    enters the step's denominator (shared by the wheels) and the change's tier rests on change − 1-sigma;
+    across a recorded grinding on its segments the history's stated 1-sigma enters too: no step is found,
+    while the same stated 1-sigma without a grinding repeats and changes nothing."""
+    rng = np.random.default_rng(12)
+    track = _track(rng) * 0.3
+    hist = _runs(rng, track, 8)
+    step = _box(11_500.0, 11_530.0, np.log(0.70))
+    new = _runs(rng, track, 1, lambda r: step)[:, :, 0]
+    cls = np.full(SEG.size, "b91", dtype=object)
+    plain = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls, segment_m=10.0, params=PARAMS)
+    assert len(plain) == 1 and plain.change_tier[0] == 2 and plain.tier[0] == 2
+    hist_sd = np.full(hist.shape, 0.01)
+    new_sd = np.full(new.shape, 0.01)
+    new_sd[:, (SEG >= 1145) & (SEG < 1158)] = 0.07  # this run states more there (another vehicle, say)
+    wide = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls, segment_m=10.0, params=PARAMS,
+                       index_sd=new_sd, history_sd=hist_sd)
+    assert len(wide) == 1 and wide.places.evidence[0] & EVIDENCE_STEP
+    assert abs(wide.change_z[0]) < abs(plain.change_z[0]) / 3  # sqrt(0.07² − 0.01²) ≈ 0.069 joins 0.02/√4
+    assert wide.change_sd[0] == pytest.approx(0.07, abs=0.01)
+    assert wide.change[0] == pytest.approx(plain.change[0])
+    assert wide.change_tier[0] == 1 and wide.tier[0] == 1  # 0.36 − 0.07 < 0.30
+    ground = np.where((SEG >= 1140) & (SEG < 1160), 7.5, np.nan)  # ground between the history and the run
+    sd = {"index_sd": np.full(new.shape, 0.1), "history_sd": np.full(hist.shape, 0.1)}
+    across = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls, segment_m=10.0, params=PARAMS, surface_days=ground,
+                         **sd)
+    assert not any(e & EVIDENCE_STEP for e in across.places.evidence)  # 0.36 / sqrt(0.1² + 0.1²) ≈ 2.5
+    same = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls, segment_m=10.0, params=PARAMS, **sd)
+    assert len(same) == 1 and same.change_tier[0] == 2  # the same sd without a grinding: repeats, no widening

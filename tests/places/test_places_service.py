@@ -42,6 +42,8 @@ def test_the_planted_step_is_one_listed_place_with_its_history(places_fleet):
     assert "step" in p["evidence"] or "anomaly" in p["evidence"]
     assert p["status"] == "open" and p["active"] and p["runs_confirming"] >= 2
     assert p["method_version"].startswith("trackvkf-pipeline/")
+    # the generated fleet states no 1-sigma: none answered (not 0), the tier as before
+    assert p["peak_sd"] is None and p["change_sd"] is None and p["severity_sd"] is None
     h = places_fleet.clients["viewer"].get(f"{URL}/{p['id']}")
     assert h.status_code == 200, h.text
     hist = h.json()

@@ -13,6 +13,10 @@ The step test runs on every segment length, the trend test on
 ``trend_segment_m`` (100 m: a gradual change is slow and wide, and the
 longer segments are the more repeatable).
 
+With the stated 1-σ of each run's index (``SegmentStats.index_sd``, :attr:`HistoryMatrix.index_sd`)
+and the rail-surface interventions of the line (``interventions``: grinding, rail renewal), the
+step test widens as :mod:`app.analysis.condition.change` says (a grinding is not a stiffness change).
+
 Two history sources share the same matrices: the database (the publish step,
 :mod:`app.condition.writer`) and :class:`RollingHistory`, an in-memory
 window over the runs of one line in date order (the fleet generator and the
@@ -33,6 +37,7 @@ from app.analysis.condition.change import (
     WheelChange,
     combine_wheels,
     detect_changes,
+    surface_change_days,
 )
 from app.analysis.condition.segments import SegmentStats
 
@@ -60,16 +65,19 @@ class HistoryMatrix:
         (segments, runs) index and speed (m/s); NaN where a run has no value.
     days : numpy.ndarray
         (runs,) time of each run, days.
+    index_sd : numpy.ndarray, optional
+        (segments, runs) stated 1-σ of the index (NaN or None: none stated).
     """
 
     index: np.ndarray
     speed: np.ndarray
     days: np.ndarray
+    index_sd: np.ndarray | None = None
 
     @classmethod
     def empty(cls, n_segments: int) -> HistoryMatrix:
         """No earlier run."""
-        return cls(np.zeros((n_segments, 0)), np.zeros((n_segments, 0)), np.zeros(0))
+        return cls(np.zeros((n_segments, 0)), np.zeros((n_segments, 0)), np.zeros(0), np.zeros((n_segments, 0)))
 
 
 class HistorySource(Protocol):
@@ -180,6 +188,8 @@ def assess_run(
     params: ChangeParams = DEFAULT_CHANGE_PARAMS,
     previous_flags: set[tuple[int, int, str, int]] | None = None,
     trend_segment_m: float = TREND_SEGMENT_M,
+    interventions: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    intervention_margin_m: float | None = None,
 ) -> RunAssessment:
     """Change tests of a run's segments against their history, and the flags.
 
@@ -196,6 +206,12 @@ def assess_run(
         :attr:`Flag.key` of the flags of the line's previous run (what is not new).
     trend_segment_m : float
         Segment length the trend test runs on.
+    interventions : tuple of numpy.ndarray, optional
+        ``(start_m, end_m, day)`` of the line's rail-surface interventions (grinding, rail renewal) on
+        the run's km axis and time axis (:func:`~app.analysis.condition.change.surface_change_days`).
+    intervention_margin_m : float, optional
+        Their extents widened by this much, m (default
+        :func:`~app.analysis.condition.change.intervention_margin_m` at 3 m resolution).
 
     Returns
     -------
@@ -206,13 +222,18 @@ def assess_run(
     for seg_m, wheels in run.items():
         trend = abs(seg_m - trend_segment_m) < 1e-9
         changes: dict[str, WheelChange] = {}
+        n_wheels = max(sum(1 for st in wheels.values() if len(st)), 1)
         for wheel, st in wheels.items():
             if len(st) == 0:
                 continue
             hist = history.matrix(seg_m, wheel, st.seg, trend=trend)
+            surface = None
+            if interventions is not None:
+                surface = surface_change_days(st.seg, seg_m, *interventions, now_days, margin_m=intervention_margin_m)
             changes[wheel] = detect_changes(
                 hist.index, hist.speed, hist.days, st.index, st.speed_mean, now_days, st.seg,
-                segment_m=seg_m, params=params, trend=trend,
+                segment_m=seg_m, params=params, trend=trend, sd_value=st.index_sd, sd_history=hist.index_sd,
+                surface_days=surface, stated_wheels=n_wheels,
             )
         out.changes[seg_m] = changes
         out.exponents[seg_m] = {w: c.exponent for w, c in changes.items()}
@@ -235,7 +256,7 @@ class RollingHistory:
     def __init__(self, params: ChangeParams = DEFAULT_CHANGE_PARAMS, trend_segment_m: float = TREND_SEGMENT_M) -> None:
         self.params = params
         self.trend_segment_m = trend_segment_m
-        self._cols: dict[tuple[float, str], list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self._cols: dict[tuple[float, str], list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
         self.flags: set[tuple[int, int, str, int]] = set()
 
     def matrix(self, seg_m: float, wheel: str, seg: np.ndarray, *, trend: bool) -> HistoryMatrix:
@@ -244,12 +265,14 @@ class RollingHistory:
         seg = np.asarray(seg, dtype=np.int64)
         index = np.full((seg.size, len(cols)), np.nan)
         speed = np.full_like(index, np.nan)
-        for k, (_, s, idx, v) in enumerate(cols):
+        sd = np.full_like(index, np.nan)
+        for k, (_, s, idx, v, isd) in enumerate(cols):
             j = np.searchsorted(s, seg)
             hit = (j < s.size) & (s[np.minimum(j, s.size - 1)] == seg)
             index[hit, k] = idx[j[hit]]
             speed[hit, k] = v[j[hit]]
-        return HistoryMatrix(index, speed, np.array([c[0] for c in cols], dtype=np.float64))
+            sd[hit, k] = isd[j[hit]]
+        return HistoryMatrix(index, speed, np.array([c[0] for c in cols], dtype=np.float64), sd)
 
     def append(self, day: float, run: Mapping[float, Mapping[str, SegmentStats]],
                flags: list[Flag] | None = None) -> None:
@@ -258,7 +281,7 @@ class RollingHistory:
             trend = abs(seg_m - self.trend_segment_m) < 1e-9
             for wheel, st in wheels.items():
                 cols = self._cols.setdefault((seg_m, wheel), [])
-                cols.append((float(day), st.seg.copy(), st.index.copy(), st.speed_mean.copy()))
+                cols.append((float(day), st.seg.copy(), st.index.copy(), st.speed_mean.copy(), st.index_sd.copy()))
                 keep = self.params.history_scan_runs
                 if trend:
                     keep = max(keep, sum(1 for c in cols if c[0] > day - self.params.trend_window_days))

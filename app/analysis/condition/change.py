@@ -14,6 +14,58 @@ score
 counts the change in repeatability units, the second term being the
 uncertainty of the median of ``n`` values. ``|z| ≥ step_z`` flags it.
 
+**Stated uncertainty in the step test** (``sd_value``, ``sd_history``: the 1-σ of each run's
+index that the profile states, :mod:`app.condition.index`; NaN where none is stated). The
+stated 1-σ of one pass is mostly the response of the rail's roughness inside the sleeper
+order's band (plus noise and too few sleeper bays). Rail roughness is fixed to the track: at
+matched speed its response **repeats** from run to run, so the history's spread does not see it
+and it does not move the newest value against the baseline either — it is an error against
+the support's truth, not against the history. The denominator therefore changes only where
+the physics says the errors no longer cancel:
+
+* (a) **a newer run states more than the history did** (another vehicle, sensor or speed: more
+  noise or floor than the typical run) — the repeatability already holds the typical run's
+  noise, so only the excess counts. The floor is an absolute power (m/s²), not a share of the
+  amplitude: a softer support lowers ``A`` and raises ``sd / A`` with the same floor, which is no
+  new noise. The history's 1-σ are therefore brought to the new value's amplitude first
+  (``sd_hist · e^(h − x)``, the ratio of the two amplitudes)::
+
+      σ² = spread² (1 + π / (2 n)) + max(0, sd_new² − median(sd_hist² e^(2(h − x))))
+
+* (b) **the rail surface changed** between the baseline's runs and the newest (a grinding or a
+  rail renewal in the maintenance records over the segment, ``surface_days``): the old
+  roughness response is in the baseline, the new one in the newest value, independent of each
+  other. Both sides' whole stated 1-σ enter::
+
+      σ² = spread² (1 + π / (2 n)) + sd_new² + median(sd_hist² of the runs before it)
+
+  The whole 1-σ, not only its shared part (``sleeper_amp_sd_shared``): both the broadband part
+  (roughness response in the order's band, correlated over ≈ 4 m) and the shared part (the
+  floor bias not taken off, over ≈ 20 m) are made by the rail surface and change with it; on a
+  10 m segment the broadband part is the larger. The noise share of the stated 1-σ, already in
+  the spread, is counted a second time only across an intervention (a little conservative,
+  there only). Where at least half of the baseline's runs predate the intervention the median
+  is the old surface's; after that the new surface repeats in both and the test is as before.
+  The trend test leaves out the runs before such an intervention (they measured another rail
+  surface), and the run level (below) is taken from the segments it did not cover. The
+  intervention's extent counts with a margin (:func:`intervention_margin_m`): a bin's estimate
+  reaches half the floor window and the filter's correlation beyond itself. Tamping and other
+  actions change the support, not the rail's surface: the test stays as it was, so their effect is
+  found. Measured (``bench/bench_uncertainty.py``, BENCHMARKS.md): a recorded grinding over 200 m of a
+  rough line, 15–20 step flags over its extent before, none after; a −30 % support change beside it
+  flagged either way.
+
+**Wheels share the stated error.** The wheels of a run meet the same rails at the same speed: their
+roughness responses are the same where they run on one rail, and the two-rail estimate gives both
+wheels of an axle one value. The stated part is therefore taken as common to the ``w`` wheels whose
+scores are combined (``stated_wheels``): each wheel's denominator carries ``w ×`` the stated variance,
+so that the wheels' Stouffer sum ``Σ z / √w`` is the change over ``sqrt(spread²(…)/w + stated)`` —
+the repeatability averages over the wheels, the roughness does not (full correlation: the upper
+bound). Without it four wheels would turn one grinding's roughness into twice its score.
+
+Where no 1-σ is stated (old rows, the synthetic fleet) the extra terms are 0: exactly the test
+above.
+
 **Trend** (:func:`trend_change`) — a gradual degradation. Over the last
 ``trend_window_days`` (history and the newest run), the index is winsorised at
 ``median ± 3 · spread`` and regressed on time; the score is the slope over its
@@ -56,8 +108,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
+from app.analysis.uncertainty import correlation_zero, shared_window_m
 
 __all__ = [
+    "RAIL_SURFACE_ACTIONS",
+    "surface_change_days",
+    "intervention_margin_m",
     "ChangeParams",
     "DEFAULT_CHANGE_PARAMS",
     "StepResult",
@@ -65,6 +121,7 @@ __all__ = [
     "SpeedMatch",
     "speed_matched",
     "step_change",
+    "stated_variance",
     "trend_change",
     "robust_spread",
     "nan_median",
@@ -77,6 +134,63 @@ __all__ = [
 
 _MAD_TO_SD = 1.4826
 _DAYS_PER_YEAR = 365.25
+#: Maintenance types (the reference import's ``type``) that change the rails' running surface, hence
+#: their roughness response: grinding (and milling, recorded as grinding) and rail renewal.
+RAIL_SURFACE_ACTIONS: tuple[str, ...] = ("grinding", "rail_replacement")
+
+
+def intervention_margin_m(resolution_m: float = 3.0, filter_order: int = 2) -> float:
+    """How far beyond a rail-surface intervention's recorded extent the indicator still changes, m: half
+    the floor window (:func:`app.analysis.uncertainty.shared_window_m`, whose estimates mix both surfaces)
+    plus the first zero of the envelope's correlation (:func:`app.analysis.uncertainty.correlation_zero`);
+    14.2 m at 3 m resolution, q = 2."""
+    return shared_window_m(resolution_m, filter_order) / 2.0 + correlation_zero(resolution_m, filter_order)
+
+
+def surface_change_days(
+    seg: np.ndarray, segment_m: float, start_m: np.ndarray, end_m: np.ndarray, day: np.ndarray, now_days: float,
+    margin_m: float | None = None,
+) -> np.ndarray:
+    """Day of the latest rail-surface intervention on each segment up to ``now_days`` (NaN: none).
+
+    Parameters
+    ----------
+    seg : numpy.ndarray
+        (segments,) segment numbers (``[seg · segment_m, (seg + 1) · segment_m)``, m).
+    segment_m : float
+        Segment length, m (> 0).
+    start_m, end_m, day : numpy.ndarray
+        (actions,) extent (m, same axis) and day of each intervention (e.g. the maintenance
+        records of :data:`RAIL_SURFACE_ACTIONS`).
+    now_days : float
+        Day of the newest run; later interventions do not count.
+    margin_m : float, optional
+        The extents are widened by this much on either side, m (default :func:`intervention_margin_m`).
+
+    Returns
+    -------
+    numpy.ndarray
+        (segments,) day, NaN where no intervention overlaps the segment.
+    """
+    if not (np.isfinite(segment_m) and segment_m > 0):
+        raise ValueError(f"segment_m: must be > 0, got {segment_m!r}")
+    s = np.asarray(seg, dtype=np.float64)
+    a, b, d = (np.asarray(v, dtype=np.float64).reshape(-1) for v in (start_m, end_m, day))
+    if not (a.shape == b.shape == d.shape):
+        raise ValueError("start_m, end_m, day: must have one value per intervention")
+    out = np.full(s.shape, np.nan)
+    if s.size == 0 or a.size == 0:
+        return out
+    pad = intervention_margin_m() if margin_m is None else float(margin_m)
+    if not (np.isfinite(pad) and pad >= 0):
+        raise ValueError(f"margin_m: must be >= 0, got {margin_m!r}")
+    lo, hi = s * segment_m, (s + 1) * segment_m
+    for x0, x1, t in zip(np.minimum(a, b) - pad, np.maximum(a, b) + pad, d, strict=True):
+        if not (np.isfinite(t) and t <= now_days):
+            continue
+        hit = (lo < x1) & (hi > x0)
+        out[hit] = np.fmax(out[hit], t)
+    return out
 
 
 @dataclass(frozen=True)
@@ -182,6 +296,8 @@ class StepResult:
         Score (NaN: fewer than ``min_history`` runs).
     n_history : numpy.ndarray
         int64 number of history values used.
+    sd : numpy.ndarray
+        The score's denominator σ: the 1-σ of ``change`` (log units; module docstring).
     """
 
     baseline: np.ndarray
@@ -189,6 +305,7 @@ class StepResult:
     change: np.ndarray
     z: np.ndarray
     n_history: np.ndarray
+    sd: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -367,6 +484,10 @@ def step_change(
     *,
     seg: np.ndarray | None = None,
     segment_m: float | None = None,
+    sd_value: np.ndarray | None = None,
+    sd_history: np.ndarray | None = None,
+    crossed: np.ndarray | None = None,
+    stated_wheels: int = 1,
 ) -> StepResult:
     """Step test of the newest value of each segment against its history.
 
@@ -381,10 +502,19 @@ def step_change(
     seg, segment_m : numpy.ndarray and float, optional
         Segment numbers and length (m): with them, the spreads are pooled
         within blocks (:func:`pooled_spread`).
+    sd_value : numpy.ndarray, optional
+        (segments,) stated 1-σ of the newest value (log units; NaN: none).
+    sd_history : numpy.ndarray, optional
+        (segments, runs) stated 1-σ of the history values (NaN: none).
+    crossed : numpy.ndarray, optional
+        (segments, runs) bool: the rail surface was changed between that history run and the newest.
+    stated_wheels : int, optional
+        Wheels whose scores will be combined and share the stated error (module docstring; default 1).
 
     Returns
     -------
     StepResult
+        With the denominator of the module docstring (the stated terms 0 where no 1-σ is stated).
     """
     x = np.asarray(value, dtype=np.float64)
     if x.ndim != 1:
@@ -397,9 +527,67 @@ def step_change(
                                prior_runs=params.spread_prior_runs)
     change = x - med
     se = spread * np.sqrt(1.0 + np.pi / (2.0 * np.maximum(n, 1)))
+    if not (isinstance(stated_wheels, (int, np.integer)) and stated_wheels >= 1):
+        raise ValueError(f"stated_wheels: must be an int >= 1, got {stated_wheels!r}")
+    se = np.sqrt(se**2 + stated_wheels * stated_variance(h, sd_value, sd_history, crossed, value=x))
     with np.errstate(invalid="ignore", divide="ignore"):
         z = np.where((n >= params.min_history) & np.isfinite(x), change / se, np.nan)
-    return StepResult(baseline=med, spread=spread, change=change, z=z, n_history=n.astype(np.int64))
+    return StepResult(baseline=med, spread=spread, change=change, z=z, n_history=n.astype(np.int64), sd=se)
+
+
+def stated_variance(history: np.ndarray, sd_value: np.ndarray | None, sd_history: np.ndarray | None,
+                    crossed: np.ndarray | None = None, *, value: np.ndarray | None = None) -> np.ndarray:
+    """The stated uncertainty's share of the step test's variance (module docstring), log units².
+
+    Parameters
+    ----------
+    history : numpy.ndarray
+        (segments, runs) the history values the baseline is the median of (NaN: not used).
+    sd_value : numpy.ndarray or None
+        (segments,) stated 1-σ of the newest value (NaN or None: none).
+    sd_history : numpy.ndarray or None
+        (segments, runs) stated 1-σ of the history values (NaN or None: none).
+    crossed : numpy.ndarray or None
+        (segments, runs) bool: a rail-surface intervention lies between that run and the newest.
+    value : numpy.ndarray, optional
+        (segments,) the newest value (log units): the history's 1-σ are brought to its amplitude for
+        the excess (a), ``sd · e^(h − x)``; without it they are taken as they are.
+
+    Returns
+    -------
+    numpy.ndarray
+        (segments,) ≥ 0; 0 where nothing is stated.
+    """
+    h = np.asarray(history, dtype=np.float64)
+    used = np.isfinite(h)
+    n_seg = h.shape[0]
+    sv = np.full(n_seg, np.nan) if sd_value is None else np.asarray(sd_value, dtype=np.float64)
+    if sv.shape != (n_seg,):
+        raise ValueError(f"sd_value: must have one value per segment ({n_seg}), got shape {sv.shape}")
+    sh = np.full(h.shape, np.nan) if sd_history is None else np.asarray(sd_history, dtype=np.float64)
+    if sh.shape != h.shape:
+        raise ValueError(f"sd_history: must have the shape of history {h.shape}, got {sh.shape}")
+    cr = np.zeros(h.shape, bool) if crossed is None else np.asarray(crossed, dtype=bool)
+    if cr.shape != h.shape:
+        raise ValueError(f"crossed: must have the shape of history {h.shape}, got {cr.shape}")
+    new_var = np.where(np.isfinite(sv), sv**2, np.nan)
+    scale = np.ones(h.shape)
+    if value is not None:
+        xv = np.asarray(value, dtype=np.float64)
+        if xv.shape != (n_seg,):
+            raise ValueError(f"value: must have one value per segment ({n_seg}), got shape {xv.shape}")
+        with np.errstate(invalid="ignore", over="ignore"):
+            scale = np.where(np.isfinite(h) & np.isfinite(xv)[:, None], np.exp(2.0 * (h - xv[:, None])), 1.0)
+    hist_var = nan_median(np.where(used & np.isfinite(sh), sh**2 * scale, np.nan), axis=1)
+    # (a) what the newest run states beyond the history's typical run (where both are stated)
+    excess = np.where(np.isfinite(new_var) & np.isfinite(hist_var), np.maximum(new_var - hist_var, 0.0), 0.0)
+    # (b) across a rail-surface intervention the old and the new roughness response, whole
+    n = used.sum(axis=1)
+    c = (used & cr).sum(axis=1)
+    across = (c > 0) & (2 * c >= n)
+    old_var = nan_median(np.where(used & cr & np.isfinite(sh), sh**2, np.nan), axis=1)
+    rough = np.nan_to_num(new_var) + np.nan_to_num(old_var)
+    return np.where(across, rough, excess)
 
 
 def trend_change(
@@ -538,6 +726,10 @@ class WheelChange:
         Trend per year and its score (NaN when no trend test was asked or possible).
     exponent : float
         Speed exponent used to move the history to the newest run's speed.
+    change_sd : numpy.ndarray
+        The step score's denominator (log units): the 1-σ of ``change`` with the stated part counted
+        ``stated_wheels`` times; the 1-σ of the mean change over those wheels is its mean over them
+        divided by ``sqrt(stated_wheels)``.
     """
 
     n_history: np.ndarray
@@ -547,6 +739,7 @@ class WheelChange:
     trend_rate: np.ndarray
     trend_z: np.ndarray
     exponent: float
+    change_sd: np.ndarray | None = None
 
 
 def detect_changes(
@@ -561,6 +754,10 @@ def detect_changes(
     segment_m: float,
     params: ChangeParams = DEFAULT_CHANGE_PARAMS,
     trend: bool = True,
+    sd_value: np.ndarray | None = None,
+    sd_history: np.ndarray | None = None,
+    surface_days: np.ndarray | None = None,
+    stated_wheels: int = 1,
 ) -> WheelChange:
     """The newest run of one wheel against its history: speed matching, run level, step and trend.
 
@@ -582,6 +779,13 @@ def detect_changes(
     params : ChangeParams
     trend : bool
         Also run the trend test.
+    sd_value, sd_history : numpy.ndarray, optional
+        (segments,) and (segments, runs) stated 1-σ of the newest and the history's index (NaN: none).
+    surface_days : numpy.ndarray, optional
+        (segments,) day of the latest rail-surface intervention on the segment up to the newest run
+        (:func:`surface_change_days`; NaN: none).
+    stated_wheels : int, optional
+        Wheels whose scores will be combined (:func:`step_change`; default 1).
 
     Returns
     -------
@@ -597,18 +801,30 @@ def detect_changes(
     base = nan_median(np.where(recent, h, np.nan), axis=1)
     y = np.concatenate([h, x[:, None]], axis=1)
     dev = y - base[:, None]
+    crossed = None
+    if surface_days is not None:
+        sdays = np.asarray(surface_days, dtype=np.float64)
+        if sdays.shape != (x.size,):
+            raise ValueError(f"surface_days: must have one day per segment ({x.size}), got shape {sdays.shape}")
+        with np.errstate(invalid="ignore"):
+            crossed = times[None, :] < sdays[:, None]  # NaN: False
+        # a new rail surface moves its segments: the run's level comes from the others
+        dev = np.where(crossed.any(axis=1)[:, None], np.nan, dev)
     y = y - level_offsets(dev, seg, segment_m=segment_m, block_m=params.block_m(segment_m),
                           min_segments=params.min_level_segments)
     h_lev, x_lev = y[:, :-1], y[:, -1]
-    step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m)
+    step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m,
+                       sd_value=sd_value, sd_history=sd_history, crossed=crossed, stated_wheels=stated_wheels)
     if trend and h.shape[1]:
-        tr = trend_change(times, h_lev, x_lev, now_days, params, seg=seg, segment_m=segment_m)
+        # the runs before a rail-surface intervention measured another rail: not in the trend
+        h_tr = h_lev if crossed is None else np.where(crossed, np.nan, h_lev)
+        tr = trend_change(times, h_tr, x_lev, now_days, params, seg=seg, segment_m=segment_m)
         rate, tz = tr.rate_per_year, tr.z
     else:
         rate = tz = np.full(x.size, np.nan)
     return WheelChange(
         n_history=step.n_history, baseline=step.baseline, change=step.change, change_z=step.z,
-        trend_rate=rate, trend_z=tz, exponent=matched.exponent,
+        trend_rate=rate, trend_z=tz, exponent=matched.exponent, change_sd=step.sd,
     )
 
 

@@ -130,6 +130,10 @@ class Observation:
     severity: float
     evidence: int
     wheels: int
+    #: 1-σ of ``level``, ``change`` and ``severity`` (NaN: none stated; :mod:`~app.analysis.condition.run_places`)
+    level_sd: float = float("nan")
+    change_sd: float = float("nan")
+    severity_sd: float = float("nan")
 
 
 @dataclass
@@ -287,14 +291,21 @@ def _apply_tier(state: PlaceState, new_tier: int, params: LifecycleParams, event
 
 
 def _graded(place_params: PlaceParams | None, cls: str | None, level: float, change: float,
-            direction: int, tier: int) -> int:
-    """The tier of an observation from its level and its change against the place's baseline."""
+            direction: int, tier: int, level_sd: float = float("nan"), change_sd: float = float("nan")) -> int:
+    """The tier of an observation from its level and its change against the place's baseline, each on its
+    lower 1-σ bound where a 1-σ is stated (a graded size of tier ≥ 1 keeps at least the alert tier)."""
     if place_params is None:
         return tier
     if not np.isfinite(change):
         return tier
-    lt = int(place_params.levels.limits_for(cls).grade(np.array([abs(level)]))[0]) if cls is not None else 0
-    ct = int(place_params.changes.grade(np.array([direction * change]))[0])
+
+    def on_bound(limits, size: float, sd: float) -> int:
+        point = int(limits.grade(np.array([size]))[0])
+        low = int(limits.grade(np.array([size - (sd if np.isfinite(sd) else 0.0)]))[0])
+        return max(min(point, low), 1) if point >= 1 else point
+
+    lt = on_bound(place_params.levels.limits_for(cls), abs(level), level_sd) if cls is not None else 0
+    ct = on_bound(place_params.changes, direction * change, change_sd)
     return max(lt, ct)
 
 
@@ -363,11 +374,14 @@ def advance_places(
         # the change grades a place against its baseline, or where the run's step test fired
         graded_change = change if (state is not None and state.baseline is not None) \
             or (p.evidence[i] & EVIDENCE_STEP) else float("nan")
-        tier = _graded(place_params, found.cls[i], level, graded_change, int(p.direction[i]), int(found.tier[i]))
+        level_sd, change_sd, severity_sd = (float(a[i]) if a.size == len(p) else float("nan")
+                                            for a in (found.level_sd, found.change_sd, found.severity_sd))
+        tier = _graded(place_params, found.cls[i], level, graded_change, int(p.direction[i]), int(found.tier[i]),
+                       level_sd, change_sd)
         obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),
                           centre_m=float(p.centre_m[i]), peak_m=float(found.peak_m[i]), level=level, change=change,
                           tier=tier, severity=float(found.severity[i]), evidence=int(p.evidence[i]),
-                          wheels=int(p.wheels[i]))
+                          wheels=int(p.wheels[i]), level_sd=level_sd, change_sd=change_sd, severity_sd=severity_sd)
         if state is None:
             state = PlaceState(id=next_id, direction=int(p.direction[i]), start_m=obs.start_m, end_m=obs.end_m,
                                peak_m=obs.peak_m, cls=found.cls[i], tier=obs.tier,
@@ -460,7 +474,8 @@ def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: 
     level = float(vals[k])
     change = level - state.baseline
     cls = found.seg_class[a + k]
-    tier = _graded(place_params, cls, level, change, state.direction, state.tier)
+    level_sd = float(found.seg_level_sd[a + k]) if found.seg_level_sd.size == found.seg.size else float("nan")
+    tier = _graded(place_params, cls, level, change, state.direction, state.tier, level_sd)
     lvl_alert = place_params.levels.limits_for(cls).alert if place_params is not None and cls is not None else np.inf
     chg_alert = place_params.changes.alert if place_params is not None else np.inf
     severity = max(abs(level) / lvl_alert, abs(change) / chg_alert) if place_params is not None else 0.0
@@ -468,4 +483,6 @@ def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: 
     # held, not found: the place keeps its extent and the centre the run that last found it located
     return Observation(run_id=run_id, day=float(day), start_m=state.start_m, end_m=state.end_m,
                        centre_m=state.observations[-1].centre_m, peak_m=peak, level=level, change=change, tier=tier, severity=float(severity),
-                       evidence=EVIDENCE_STEP, wheels=0)
+                       evidence=EVIDENCE_STEP, wheels=0, level_sd=level_sd,
+                       severity_sd=level_sd / lvl_alert if abs(level) / lvl_alert >= abs(change) / chg_alert
+                       else float("nan"))

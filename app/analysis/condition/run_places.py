@@ -34,6 +34,22 @@ the change there; its tier is the higher of the level's tier (limits of its
 class) and the change's (``changes``), and its severity in tier units
 (``magnitude / alert limit`` of whichever is higher) orders places of one tier.
 
+**Uncertainty.** With the stated 1-σ of the runs' index (the store's ``index_sd``) the step test
+widens as :mod:`app.analysis.condition.change` says (the newest run's excess over the history's, and
+across a rail-surface intervention — ``surface_days`` — both sides' roughness response: a grinding
+is not a stiffness change). A place's size carries its 1-σ: the level's is the wheels' mean stated
+1-σ at the peak segment (the wheels of a run meet the same rails at the same speed: their errors are
+taken as fully correlated, the upper bound), the change's that of the wheels' mean change (the step
+test's denominators, the stated part shared by the wheels). **Grading rests on the size's lower 1-σ
+bound**: an *anomaly* is found only where the level less its 1-σ reaches the class's alert limit (on
+rough rail one pass's 10 m level is uncertain by tens of per cent: the rail's roughness, not the
+support, would otherwise make the anomalies), the rule "a step back from a former anomaly is that
+anomaly shrinking" judges the former level the same way (with the history's median stated 1-σ), and a
+place reaches the intervention or immediate-action tier only where its level or change less its 1-σ
+reaches that limit (a found place keeps at least the alert tier). ``severity_sd`` is the 1-σ of
+``severity`` (of the size that sets it, in the same units). Without a stated 1-σ (NaN) all this is as
+before.
+
 The speed-conditioned step replaces the stored matched-speed test here
 because on a fleet whose cruise speeds spread over ±10 % the matched-speed test
 finds too few runs within ±10 % of the newest one to test at all (measured:
@@ -47,7 +63,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes
+from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes, nan_median
 from app.analysis.condition.places import (
     EVIDENCE_ANOMALY,
     EVIDENCE_STEP,
@@ -188,6 +204,11 @@ class RunPlaces:
         Per segment: superstructure class (object; None: none).
     seg_evidence : numpy.ndarray
         int64 evidence bits per segment.
+    level_sd, change_sd, severity_sd : numpy.ndarray
+        Per place at its peak segment: the 1-σ of ``level``, of ``change`` and of ``severity`` (NaN: none
+        stated; module docstring).
+    seg_level_sd : numpy.ndarray
+        Per segment: the 1-σ of ``seg_index``.
     """
 
     places: PlaceTable
@@ -210,6 +231,10 @@ class RunPlaces:
     seg_change_z: np.ndarray
     seg_class: np.ndarray
     seg_evidence: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    level_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    change_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    severity_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    seg_level_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __len__(self) -> int:
         return len(self.places)
@@ -276,6 +301,9 @@ def find_places(
     segment_m: float,
     params: PlaceParams,
     wheel_bits: Sequence[int] | None = None,
+    index_sd: np.ndarray | None = None,
+    history_sd: np.ndarray | None = None,
+    surface_days: np.ndarray | None = None,
 ) -> RunPlaces:
     """Find and grade a run's places (module docstring).
 
@@ -299,6 +327,13 @@ def find_places(
     params : PlaceParams
     wheel_bits : sequence of int, optional
         Bit of each wheel (row of ``index``) in the places' wheel masks (default ``1 << row``).
+    index_sd : numpy.ndarray, optional
+        (W, S) stated 1-σ of ``index`` (NaN: none).
+    history_sd : numpy.ndarray, optional
+        (W, S, R) stated 1-σ of ``history`` (NaN: none).
+    surface_days : numpy.ndarray, optional
+        (S,) day of the latest rail-surface intervention (grinding, rail renewal) on each segment up to
+        ``now_day`` (NaN: none; :func:`~app.analysis.condition.change.surface_change_days`).
 
     Returns
     -------
@@ -325,24 +360,40 @@ def find_places(
     bits = np.array([1 << i for i in range(n_w)] if wheel_bits is None else list(wheel_bits), dtype=np.int64)
     if bits.shape != (n_w,):
         raise ValueError(f"wheel_bits: must have one bit per wheel ({n_w})")
+    xsd = np.full(x.shape, np.nan) if index_sd is None else np.asarray(index_sd, dtype=np.float64)
+    if xsd.shape != x.shape:
+        raise ValueError(f"index_sd: must have the shape of index {x.shape}, got {xsd.shape}")
+    hsd = np.full(h.shape, np.nan) if history_sd is None else np.asarray(history_sd, dtype=np.float64)
+    if hsd.shape != h.shape:
+        raise ValueError(f"history_sd: must have the shape of history {h.shape}, got {hsd.shape}")
+    if surface_days is not None and np.shape(surface_days) != s.shape:
+        raise ValueError(f"surface_days: must have one day per segment ({s.size}), got shape {np.shape(surface_days)}")
 
     level = _mean_over_wheels(x)
+    level_sd_seg = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
     has_class = np.array([c is not None for c in cls.tolist()], dtype=bool)
     level_tier = np.zeros(s.size, np.int64)
     if has_class.any():
-        level_tier[has_class] = params.levels.grade(np.abs(level[has_class]), cls[has_class])
+        # graded on the level's lower 1-σ bound: a level within its stated uncertainty of the typical track
+        # is no anomaly (on rough rail one pass's 10 m level is uncertain by tens of per cent)
+        level_lo = np.maximum(np.abs(level) - np.nan_to_num(level_sd_seg), 0.0)
+        level_tier[has_class] = params.levels.grade(np.where(np.isfinite(level), level_lo, np.nan)[has_class],
+                                                    cls[has_class])
     # step against the segment's own history, every wheel
     wz = np.full(x.shape, np.nan)
     wchange = np.full(x.shape, np.nan)
     wtz = np.full(x.shape, np.nan)
     wrate = np.full(x.shape, np.nan)
+    wsd = np.full(x.shape, np.nan)
     if h.shape[2] >= params.min_history:
         cp = params.change_params()
         ones = np.ones(h.shape[1:])
         for w in range(n_w):
             ch = detect_changes(h[w], ones, days, x[w], np.ones(s.size), float(now_day), s, segment_m=segment_m,
-                                params=cp, trend=True)
+                                params=cp, trend=True, sd_value=xsd[w], sd_history=hsd[w], surface_days=surface_days,
+                                stated_wheels=n_w)
             wz[w], wchange[w], wtz[w], wrate[w] = ch.change_z, ch.change, ch.trend_z, ch.trend_rate
+            wsd[w] = ch.change_sd
     cz, agree = combine_wheels(wz, params.agree_z)
     tz, t_agree = combine_wheels(wtz, params.agree_z)
     rate = _mean_over_wheels(wrate)
@@ -359,7 +410,10 @@ def find_places(
     before = level - change
     before_tier = np.zeros(s.size, np.int64)
     if has_class.any():
-        before_tier[has_class] = params.levels.grade(np.abs(np.nan_to_num(before[has_class])), cls[has_class])
+        # the history's level on its lower bound too (the median stated 1-σ of the history's values)
+        before_sd = nan_median(np.where(np.isfinite(h), hsd, np.nan).transpose(1, 0, 2).reshape(s.size, -1), axis=1)
+        before_lo = np.maximum(np.abs(np.nan_to_num(before)) - np.nan_to_num(before_sd), 0.0)
+        before_tier[has_class] = params.levels.grade(before_lo[has_class], cls[has_class])
     back = (before_tier >= 1) & (np.sign(np.nan_to_num(change)) == -np.sign(np.nan_to_num(before))) \
         & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(change))))
     step &= ~back
@@ -404,15 +458,36 @@ def find_places(
         mag = places.direction[p] * np.nan_to_num(value[rows])
         peak[p] = rows[np.lexsort((-mag, -tier_rows))[0]]
     lt, ct = level_tier[peak], change_tier[peak]
+    level_sd = level_sd_seg
+    # the denominators carry the stated part once per wheel (shared by the wheels): the mean change's 1-σ,
+    # answered (and used for the tier) where a 1-σ is stated — without one, as before
+    with np.errstate(invalid="ignore", divide="ignore"):
+        change_sd = _mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan)) \
+            / np.sqrt(np.maximum(np.isfinite(wchange).sum(axis=0), 1))
+    change_sd = np.where(np.isfinite(level_sd), change_sd, np.nan)
+    # the tier rests on the size's lower 1-sigma bound (a found place keeps at least the alert tier)
+    lo_level = np.maximum(np.abs(np.nan_to_num(level[peak])) - np.nan_to_num(level_sd[peak]), 0.0)
+    lo_change = np.maximum(np.abs(np.nan_to_num(change[peak])) - np.nan_to_num(change_sd[peak]), 0.0)
+    lt_lo = np.zeros(n, np.int64)
+    pc = cls[peak]
+    with_cls = np.array([c is not None for c in pc.tolist()], dtype=bool)
+    if with_cls.any():
+        lt_lo[with_cls] = params.levels.grade(lo_level[with_cls], pc[with_cls])
+    ct_lo = np.where(ct >= 1, params.changes.grade(lo_change), 0)
+    lt = np.where(lt >= 1, np.maximum(np.minimum(lt, lt_lo), 1), lt)
+    ct = np.where(ct >= 1, np.maximum(np.minimum(ct, ct_lo), 1), ct)
     tier = np.maximum(lt, ct)
     lvl_alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf
                           for c in cls[peak].tolist()], dtype=np.float64)
     sev_level = np.abs(np.nan_to_num(level[peak])) / lvl_alert
     sev_change = np.where(ct >= 1, np.abs(np.nan_to_num(change[peak])) / params.changes.alert, 0.0)
+    severity_sd = np.where(sev_change > sev_level, change_sd[peak] / params.changes.alert,
+                           level_sd[peak] / lvl_alert)
     return RunPlaces(
         places=places, peak_m=(s[peak] + 0.5) * segment_m, level=level[peak], change=change[peak], change_z=cz[peak], cls=cls[peak],
         level_tier=lt, change_tier=ct, tier=tier, severity=np.maximum(sev_level, sev_change),
         n_agreeing=agree_any[:, peak].sum(axis=0).astype(np.int64), rate_per_year=rate[peak], trend_z=tz[peak],
         seg=s, segment_m=float(segment_m), seg_index=level, seg_change=change, seg_change_z=cz, seg_class=cls,
-        seg_evidence=evidence.astype(np.int64),
+        seg_evidence=evidence.astype(np.int64), level_sd=level_sd[peak], change_sd=change_sd[peak],
+        severity_sd=severity_sd, seg_level_sd=level_sd,
     )

@@ -9,12 +9,10 @@ and index) give:
   the sleeper-passage amplitude, m/s²;
 * ``speed_mean``: mean speed, m/s;
 * ``index``: mean of the bins' condition index (natural log units);
-* ``index_sd``: its uncertainty: the spread of the bins' index within the
-  segment over ``sqrt(n_eff)`` (``n_eff`` = the segment's valid length over
-  ``correlation_m``, at least 1: neighbouring bins are not independent, the
-  VKF envelope is smooth over several wheel revolutions), combined with the
-  bins' own index uncertainty (e.g. a reference curve's band), which is common
-  to the segment and does not average out.
+* ``index_sd``: its stated 1-σ where the caller knows it (``index_sd`` per segment,
+  :func:`app.condition.index.store_index_sd` decides it for the store), else NaN: none known.
+  The spread of the bins within a segment is not its uncertainty (a soft spot inside a
+  segment spreads its bins; a smooth segment of a rough rail does not), so it is not used.
 
 Segments with fewer valid bins than ``min_valid_fraction`` of their length are
 left out.
@@ -53,7 +51,7 @@ class SegmentStats:
     speed_mean : numpy.ndarray
         Mean speed, m/s.
     index, index_sd : numpy.ndarray
-        Mean condition index and its uncertainty (log units).
+        Mean condition index and its stated 1-σ (log units; NaN: none known).
     """
 
     seg: np.ndarray
@@ -80,12 +78,10 @@ def segment_stats(
     amplitude: np.ndarray,
     speed_mps: np.ndarray,
     index: np.ndarray,
-    index_sd: np.ndarray | None = None,
     *,
     segment_m: float,
     bin_length_m: float = 0.25,
     min_valid_fraction: float = 0.5,
-    correlation_m: float = 10.0,
 ) -> SegmentStats:
     """Aggregate one wheel's bins into segments.
 
@@ -99,8 +95,6 @@ def segment_stats(
         Speed per bin, m/s (NaN: not valid).
     index : numpy.ndarray
         Condition index per bin (log units; NaN: not valid).
-    index_sd : numpy.ndarray, optional
-        Uncertainty of each bin's index (log units); 0 when omitted.
     segment_m : float
         Segment length, m (> 0).
     bin_length_m : float
@@ -108,16 +102,14 @@ def segment_stats(
     min_valid_fraction : float
         Segments with fewer valid bins than this fraction of
         ``segment_m / bin_length_m`` are left out, in [0, 1].
-    correlation_m : float
-        Length over which neighbouring bins count as one independent sample, m (> 0).
 
     Returns
     -------
     SegmentStats
+        ``index_sd`` NaN (the caller states it: :func:`app.condition.index.store_index_sd`).
     """
     check_positive(segment_m, "segment_m")
     check_positive(bin_length_m, "bin_length_m")
-    check_positive(correlation_m, "correlation_m")
     if not 0.0 <= min_valid_fraction <= 1.0:
         raise ValueError(f"min_valid_fraction: must be in [0, 1], got {min_valid_fraction!r}")
     x = np.asarray(position_m, dtype=np.float64)
@@ -127,11 +119,9 @@ def segment_stats(
     amp = _as_1d(amplitude, n, "amplitude")
     v = _as_1d(speed_mps, n, "speed_mps")
     idx = _as_1d(index, n, "index")
-    isd = np.zeros(n) if index_sd is None else _as_1d(index_sd, n, "index_sd")
     ok = np.isfinite(x) & np.isfinite(amp) & (amp > 0) & np.isfinite(v) & np.isfinite(idx)
-    isd = np.where(np.isfinite(isd), isd, 0.0)
     seg_all = np.floor(x[ok] / segment_m).astype(np.int64)
-    amp, v, idx, isd = amp[ok], v[ok], idx[ok], isd[ok]
+    amp, v, idx = amp[ok], v[ok], idx[ok]
     order = np.lexsort((amp, seg_all))  # by segment, then amplitude (for the percentile)
     seg_sorted = seg_all[order]
     segs, start, counts = np.unique(seg_sorted, return_index=True, return_counts=True)
@@ -145,8 +135,6 @@ def segment_stats(
     amp_mean = mean_of(amp)
     speed_mean = mean_of(v)
     idx_mean = mean_of(idx)
-    idx_sq = mean_of(idx * idx)
-    bin_var = mean_of(isd * isd)
     # 95th percentile with linear interpolation between order statistics (numpy's default)
     pos = 0.95 * (counts - 1)
     lo = np.floor(pos).astype(np.int64)
@@ -154,9 +142,6 @@ def segment_stats(
     amp_sorted = amp[order]
     frac = pos - lo
     p95 = amp_sorted[start + lo] * (1 - frac) + amp_sorted[start + hi] * frac
-    within_var = np.maximum(idx_sq - idx_mean**2, 0.0) * counts / np.maximum(counts - 1, 1)
-    n_eff = np.maximum(counts * bin_length_m / correlation_m, 1.0)
-    sd = np.sqrt(within_var / n_eff + bin_var)
     return SegmentStats(
         seg=segs[keep],
         n_valid=counts[keep].astype(np.int64),
@@ -164,5 +149,5 @@ def segment_stats(
         amp_p95=p95[keep],
         speed_mean=speed_mean[keep],
         index=idx_mean[keep],
-        index_sd=sd[keep],
+        index_sd=np.full(int(keep.sum()), np.nan),
     )

@@ -67,7 +67,8 @@ class HeatmapOut(BaseModel):
 class TrendWheel(BaseModel):
     wheel: str
     index: float
-    index_sd: float | None
+    index_sd: float | None = Field(description="stated 1-σ of the index from the profile's sleeper_amp_sd "
+                                   "(roughness, noise, too few sleeper bays; log units); null: none stated")
     amp_mean: float = Field(description="m/s²")
     amp_p95: float = Field(description="m/s²")
     speed_kmh: float

@@ -94,7 +94,10 @@
     return `≈ ${T.fmt(p.days_to_next_tier, 0)} d to ${T.esc(p.next_tier)} <span class="muted">(${T.date(p.projected_date)})</span>`;
   }
   function peakText(p) {
-    return `<span title="index ${T.fmt(p.peak, 3)} at km ${T.fmt(p.peak_km, 3)}">${pct(p.peak_percent, 0)} % ${p.direction === "soft" ? "▼ soft" : "▲ hard"}</span>`;
+    // the stated 1-sigma of the peak in per cent (delta method: 100 · sd · e^peak); none where not stated
+    const sd = p.peak_sd === null || p.peak_sd === undefined ? "" :
+      ` <span class="muted" title="stated 1-σ of the peak (roughness, noise)">± ${T.fmt(100 * p.peak_sd * Math.exp(p.peak), 0)} %</span>`;
+    return `<span title="index ${T.fmt(p.peak, 3)} at km ${T.fmt(p.peak_km, 3)}">${pct(p.peak_percent, 0)} %${sd} ${p.direction === "soft" ? "▼ soft" : "▲ hard"}</span>`;
   }
   function assetsText(p) {
     const list = (p.assets || []).map((a) => `${T.esc(a.type.replace(/_/g, " "))}${a.name ? ` <span class="muted">${T.esc(a.name)}</span>` : ""}`).join(", ");
