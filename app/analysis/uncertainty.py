@@ -487,27 +487,25 @@ def segment_sd(
     seg = np.floor_divide(b, k)
     segments, inv = np.unique(seg, return_inverse=True)
     n = np.bincount(inv).astype(np.float64)
-    # dense along the bins so that a lag is an index offset; gaps hold 0 (no contribution)
-    b0 = int(b[0])
-    span = int(b[-1]) - b0 + 1
-    dense_seg = np.full(span, -1, dtype=np.int64)
-    dense_seg[b - b0] = inv
     acc = np.bincount(inv, weights=s * s, minlength=segments.size)
+    # dense along the bins, one row per segment (from the first segment's first bin), so that a lag is a
+    # column offset within a row and pairs never cross a segment's edge; gaps hold 0 (no contribution)
+    first = int(segments[0]) * k
+    rows = int(segments[-1]) - int(segments[0]) + 1
+    at = segments - segments[0]
     parts = [(np.sqrt(np.maximum(s * s - sh * sh, 0.0)), envelope_correlation,
               int(math.ceil(_MAX_LAG_RESOLUTIONS * float(resolution_m) / bl)))]
     if np.any(sh > 0):
         parts.append((sh, shared_correlation, int(math.ceil(shared_window_m(resolution_m, filter_order) / bl))))
     for values, correlation, reach in parts:
-        dense = np.zeros(span)
-        dense[b - b0] = values
-        max_lag = min(span - 1, reach, k - 1)
+        dense = np.zeros(rows * k)
+        dense[b - first] = values
+        grid = dense.reshape(rows, k)
+        max_lag = min(reach, k - 1)
         rho = correlation(np.arange(max_lag + 1) * bl, resolution_m, filter_order)
+        cross = np.zeros(rows)
         for lag in range(1, max_lag + 1):
-            if rho[lag] == 0.0:
-                continue
-            same = (dense_seg[:-lag] == dense_seg[lag:]) & (dense_seg[lag:] >= 0)
-            if not np.any(same):
-                continue
-            prod = dense[:-lag][same] * dense[lag:][same]
-            acc += 2.0 * rho[lag] * np.bincount(dense_seg[lag:][same], weights=prod, minlength=segments.size)
+            if rho[lag] != 0.0:
+                cross += rho[lag] * np.einsum("ij,ij->i", grid[:, :-lag], grid[:, lag:])
+        acc += 2.0 * cross[at]
     return segments, np.sqrt(np.maximum(acc, 0.0)) / n

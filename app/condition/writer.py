@@ -359,18 +359,19 @@ def _insert_flags(session: Session, run_id: int, job_id: int, line_key: int,
         return []
     if session.get_bind().dialect.name == "postgresql":
         session.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _FLAG_FEED_LOCK})
-    rows: list[ConditionFlag] = []
     now = dt.datetime.now(dt.UTC)
-    for f in assessment.flags:
-        row = ConditionFlag(
+    rows = [
+        ConditionFlag(
             run_id=run_id, line_key=line_key, job_id=job_id, wheels=",".join(f.wheels), n_wheels=len(f.wheels),
             seg_m=int(round(f.seg_m)), seg=f.seg, kind=f.kind, direction=f.direction, score=f.score,
             change=finite_or_none(f.change), rate_per_year=finite_or_none(f.rate_per_year),
             is_new=f.is_new, created_at=now,
         )
-        session.add(row)
-        session.flush()
-        rows.append(row)
+        for f in assessment.flags
+    ]
+    # one batched INSERT … RETURNING: the ids follow the list's order, as one flush per row gave them
+    session.add_all(rows)
+    session.flush()
     return rows
 
 
