@@ -110,7 +110,7 @@ def apply_places(
     or older than the newest applied one, is left as it is. Sends no alerts."""
     from app.core.config import get_settings
     from app.places.config import PlacesConfig
-    from app.places.update import apply_stored_runs
+    from app.places.followup import apply_stored_runs
 
     db = database()
     try:

@@ -60,7 +60,8 @@ from app.places.update import (
 )
 
 __all__ = ["PENDING_SUMMARY", "FollowupPolicy", "DEFAULT_FOLLOWUP", "FollowupResult", "mark_pending", "due_runs",
-           "complete_run", "run_pending", "line_places_status"]
+           "complete_run", "run_pending", "line_places_status",
+           "apply_stored_runs"]
 
 log = logging.getLogger(__name__)
 
@@ -351,3 +352,31 @@ def line_places_status(session: Session, line_key: int) -> dict[str, Any]:
     return {"places_pending": int(pending[0]), "places_failed": int(pending[1]),
             "places_run_id": int(last[0]) if last is not None else None,
             "places_updated_at": iso_time(last[1]) if last is not None else None}
+
+
+def apply_stored_runs(db: Any, line_id: str, track: str, *, config: PlacesConfig = DEFAULT_PLACES_CONFIG,
+                      alerts: bool = False) -> list[PlacesUpdate]:
+    """Apply every run of a line in the condition store that its places have not seen, oldest first, one
+    transaction each (runs published before the places existed, a generated fleet history). Alerts are
+    off by default: a history replayed at once is not news."""
+    out = []
+    with db.read() as session:
+        line = session.scalar(select(ConditionLine).where(ConditionLine.line_id == line_id,
+                                                          ConditionLine.track == track))
+        if line is None:
+            return out
+        runs = session.execute(select(ConditionRun.run_id, ConditionRun.job_id).where(
+            ConditionRun.line_key == line.id).order_by(ConditionRun.run_time, ConditionRun.run_id)).all()
+        done = set(session.scalars(select(PlaceRun.run_id).where(PlaceRun.line_key == line.id)))
+        pending = set(session.scalars(select(PlacesPending.run_id).where(PlacesPending.line_key == line.id)))
+    for run_id, job_id in runs:
+        if run_id in done:
+            continue
+        if run_id in pending:  # published with its places to come: its follow-up (marker, job summary, alerts)
+            r = complete_run(db, int(run_id), config=config)
+            out.append(PlacesUpdate(r.outcome == "applied", None if r.outcome == "applied" else r.outcome))
+            continue
+        with db.write() as session:
+            ln = session.get(ConditionLine, line.id)
+            out.append(update_places(session, int(run_id), ln, int(job_id), config=config, alerts=alerts))
+    return out

@@ -63,7 +63,6 @@ from app.db.models import (
     PlaceEventRow,
     PlaceObservation,
     PlaceRun,
-    PlacesPending,
     PlaceStatusChange,
     utcnow,
 )
@@ -71,7 +70,7 @@ from app.pipeline.assemble import ENGINE_VERSION
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
 __all__ = ["SEGMENT_M", "SYSTEM_USER", "PlacesUpdate", "PreparedRun", "RunIndex", "method_version", "update_places",
-           "apply_run", "prepare_run", "apply_prepared", "history_of", "apply_stored_runs", "run_index",
+           "apply_run", "prepare_run", "apply_prepared", "history_of", "run_index",
            "run_segment_index"]
 
 log = logging.getLogger(__name__)
@@ -584,37 +583,3 @@ def _set_status(session: Session, row: Place, status: str, comment: str, when: d
     session.add(PlaceStatusChange(place_id=row.id, by=SYSTEM_USER, at=utcnow(), old=row.status, new=status,
                                   comment=comment))
     row.status, row.status_comment, row.status_by, row.status_at = status, comment, SYSTEM_USER, utcnow()
-
-
-def apply_stored_runs(db: Any, line_id: str, track: str, *, config: PlacesConfig = DEFAULT_PLACES_CONFIG,
-                      alerts: bool = False) -> list[PlacesUpdate]:
-    """Apply every run of a line in the condition store that its places have not seen, oldest first, one
-    transaction each (runs published before the places existed, a generated fleet history). Alerts are
-    off by default: a history replayed at once is not news."""
-    from sqlalchemy import select
-
-    from app.db.models import ConditionRun
-
-    out = []
-    with db.read() as session:
-        line = session.scalar(select(ConditionLine).where(ConditionLine.line_id == line_id,
-                                                          ConditionLine.track == track))
-        if line is None:
-            return out
-        runs = session.execute(select(ConditionRun.run_id, ConditionRun.job_id).where(
-            ConditionRun.line_key == line.id).order_by(ConditionRun.run_time, ConditionRun.run_id)).all()
-        done = set(session.scalars(select(PlaceRun.run_id).where(PlaceRun.line_key == line.id)))
-        pending = set(session.scalars(select(PlacesPending.run_id).where(PlacesPending.line_key == line.id)))
-    for run_id, job_id in runs:
-        if run_id in done:
-            continue
-        if run_id in pending:  # published with its places to come: its follow-up (marker, job summary, alerts)
-            from app.places.followup import complete_run
-
-            r = complete_run(db, int(run_id), config=config)
-            out.append(PlacesUpdate(r.outcome == "applied", None if r.outcome == "applied" else r.outcome))
-            continue
-        with db.write() as session:
-            ln = session.get(ConditionLine, line.id)
-            out.append(update_places(session, int(run_id), ln, int(job_id), config=config, alerts=alerts))
-    return out

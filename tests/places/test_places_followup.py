@@ -258,7 +258,7 @@ def test_pending_places_updates_are_on_the_metrics(db, service_settings):  # noq
 def test_apply_places_completes_the_pending_runs_in_their_order(db):  # noqa: F811
     """``trackvkf apply-places`` (apply_stored_runs) takes a run whose places are pending through its follow-up:
     marker gone, the job's summary set, in the order of the line's runs."""
-    from app.places.update import apply_stored_runs
+    from app.places.followup import apply_stored_runs
 
     runs = _publish_days(db, (0, 1, 2), followup_after=False)
     ups = apply_stored_runs(db, "L1", "1")
