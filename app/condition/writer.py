@@ -51,12 +51,12 @@ from app.analysis.condition import (
     assess_run,
     segment_stats,
 )
-from app.analysis.condition.change import intervention_margin_m
+from app.analysis.condition.change import RAIL_SURFACE_ACTIONS, intervention_margin_m
 from app.analysis.stiffness.alignment import align_runs
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
 from app.condition.index import STORE_INDEX, store_index, store_index_sd
 from app.core.jsonable import finite_or_none
-from app.db import results_reader
+from app.db import reference_crud, results_reader
 from app.db.bulk import insert_frame
 from app.db.condition_store import delete_run_condition, line_of
 from app.db.models import (
@@ -146,9 +146,6 @@ def rail_surface_interventions(session: Session, line_id: str, track: str) -> tu
     """The line's imported maintenance actions that change the rails' surface (grinding, rail renewal:
     :data:`~app.analysis.condition.change.RAIL_SURFACE_ACTIONS`) as ``(start_m, end_m, day)`` arrays
     (m on the km axis, days since 1970)."""
-    from app.analysis.condition.change import RAIL_SURFACE_ACTIONS
-    from app.db import reference_crud
-
     frame = reference_crud.reference_frame(session, "maintenance", line_id=line_id, track=track,
                                            types=list(RAIL_SURFACE_ACTIONS))
     if frame.empty:

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
-from app.analysis.condition.change import RAIL_SURFACE_ACTIONS, surface_change_days
+from app.analysis.condition.change import surface_change_days
 from app.analysis.condition.lifecycle import (
     Action,
     Observation,
@@ -52,7 +52,7 @@ from app.analysis.condition.lifecycle import (
 from app.analysis.condition.run_places import find_places, segment_index
 from app.analysis.condition.segment_curves import fit_segment_curves
 from app.analysis.stiffness.superstructure import section_classes
-from app.condition.writer import days_of
+from app.condition.writer import days_of, rail_surface_interventions
 from app.db import places as q
 from app.db import reference_crud
 from app.db.models import (
@@ -393,10 +393,7 @@ def prepare_run(session: Session, run_id: int, line: ConditionLine, version: str
     if ri is None:
         return PlacesUpdate(False, "the run has no 10 m condition rows", version)
     now_day = days_of(when)
-    acts, _ = line_actions(session, line)
-    surface = [a for a in acts if a.kind in RAIL_SURFACE_ACTIONS]
-    surface_days = surface_change_days(ri.seg, SEGMENT_M, np.array([a.start_m for a in surface]),
-                                       np.array([a.end_m for a in surface]), np.array([a.day for a in surface]),
+    surface_days = surface_change_days(ri.seg, SEGMENT_M, *rail_surface_interventions(session, line.line_id, line.track),
                                        now_day)
     found = find_places(ri.seg, ri.index, ri.history, ri.history_days, now_day, ri.classes,
                         segment_m=SEGMENT_M, params=params, index_sd=ri.index_sd, history_sd=ri.history_sd,
