@@ -98,7 +98,8 @@ def _lookup(request: Request) -> Principal | None:
             user = auth_crud.session_user(session, cookie)
             if user is not None:
                 request.state.session_token = cookie
-                return Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+                return Principal(name=user.username, role=user.role, kind="user", user_id=user.id,
+                                 language=user.language)
     return None
 
 

@@ -10,6 +10,7 @@ written to the audit log.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime as dt
 import functools
 import logging
@@ -34,6 +35,7 @@ from app.api.deps import (
     require_role,
 )
 from app.api.errors import ApiError
+from app.api.language import request_language
 from app.api.schemas.auth import (
     KeyCreated,
     KeyIn,
@@ -41,6 +43,7 @@ from app.api.schemas.auth import (
     KeyOut,
     LoginIn,
     MeOut,
+    MePatch,
     PasswordChangeIn,
     UserIn,
     UserList,
@@ -48,6 +51,7 @@ from app.api.schemas.auth import (
     UserPatch,
 )
 from app.core.config import Settings
+from app.core.i18n import _
 from app.core.ratelimit import RateLimiter
 from app.core.security import (
     csrf_token,
@@ -127,8 +131,9 @@ def _auth_errors_as_422(field: str | None = None) -> Iterator[None]:
         raise ApiError(422, field or exc.field, exc.message) from None
 
 
-def _me(principal: Principal) -> MeOut:
-    return MeOut(name=principal.name, role=principal.role, kind=principal.kind)
+def _me(principal: Principal, request: Request) -> MeOut:
+    return MeOut(name=principal.name, role=principal.role, kind=principal.kind, language=principal.language,
+                 answered_in=request_language(request).code)
 
 
 @dataclass(frozen=True)
@@ -216,15 +221,17 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
             token = auth_crud.create_session(
                 session, user, dt.timedelta(seconds=settings.session_ttl_s), client_ip(request)
             )
-            principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+            principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id,
+                                  language=user.language)
             record(session, request, principal, "auth.login", target=user.username)
             failed = False
     if failed:
-        raise ApiError(401, "credentials", "wrong user name or password")
+        raise ApiError(401, "credentials", _("wrong user name or password"))
     set_session_cookies(response, settings, token)
     if device is None:
         _set_device_cookie(response, settings, user.username, request.url.path)
-    return _me(principal)
+    request.state.principal = principal
+    return _me(principal, request)
 
 
 @router.post(
@@ -246,9 +253,22 @@ def logout(request: Request, db: DbDep, principal: PrincipalDep) -> Response:
 
 
 @router.get("/me", response_model=MeOut, summary="Who am I")
-def me(principal: ViewerDep) -> MeOut:
-    """Name, role and kind (user, api_key) of the authenticated principal."""
-    return _me(principal)
+def me(principal: ViewerDep, request: Request) -> MeOut:
+    """Name, role and kind (user, api_key) of the authenticated principal, the language the user
+    chose and the one this request is answered in."""
+    return _me(principal, request)
+
+
+@router.patch("/me", response_model=MeOut, summary="Change my account: the language")
+def update_me(body: MePatch, request: Request, db: DbDep, principal: ViewerDep) -> MeOut:
+    """Keep the language of the pages, messages and error texts with the user's account (null:
+    follow the browser). Only users have an account (API keys: 409)."""
+    if principal.kind != "user" or principal.user_id is None:
+        raise ApiError(409, "principal", _("only users keep a language (this is an API key)"))
+    with db.write() as session:
+        auth_crud.set_language(session, principal.user_id, body.language)
+    request.state.principal = dataclasses.replace(principal, language=body.language)
+    return _me(request.state.principal, request)
 
 
 @router.post(

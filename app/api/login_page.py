@@ -12,7 +12,6 @@ import re
 from pathlib import Path
 from typing import Annotated, Any
 
-import jinja2
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse
@@ -21,6 +20,8 @@ from fastapi.staticfiles import StaticFiles
 from app.api.deps import API_KEY_HEADER, public, require_page_login, require_role
 from app.api.errors import document_error_responses
 from app.api.headers import content_security_policy, inline_script_hashes
+from app.api.language import request_language
+from app.core.i18n import catalogue_digest, jinja_environment
 
 __all__ = [
     "router", "safe_next", "install_protected_docs", "swagger_ui_dir", "TEMPLATES_DIR",
@@ -39,15 +40,6 @@ _PAGE_HEADERS = {"Cache-Control": "no-store"}
 router = APIRouter(include_in_schema=False, dependencies=[Depends(public)])
 
 
-def _environment() -> jinja2.Environment:
-    return jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(TEMPLATES_DIR)), autoescape=True, auto_reload=False
-    )
-
-
-_ENV = _environment()
-
-
 def safe_next(value: str | None) -> str:
     """A local path to go to after login; anything else (other sites, odd text) gives ``/``."""
     if not value or len(value) > 2000 or not value.startswith("/"):
@@ -58,9 +50,11 @@ def safe_next(value: str | None) -> str:
 
 
 @router.get("/login", response_class=HTMLResponse)
-def login_page(next: Annotated[str | None, Query(max_length=2000)] = None) -> HTMLResponse:  # noqa: A002
-    """The login form; after login the browser goes to ``next`` (a local path)."""
-    html = _ENV.get_template("login.html").render(next_path=safe_next(next))
+def login_page(request: Request, next: Annotated[str | None, Query(max_length=2000)] = None) -> HTMLResponse:  # noqa: A002
+    """The login form, in the browser's language; after login the browser goes to ``next`` (a local path)."""
+    lang = request_language(request).code
+    html = jinja_environment(str(TEMPLATES_DIR), lang).get_template("login.html").render(
+        next_path=safe_next(next), i18n_js=f"/i18n/{lang}.js?v={catalogue_digest(lang)}")
     return HTMLResponse(html, headers=_PAGE_HEADERS)
 
 

@@ -224,6 +224,8 @@ class Principal:
         ``api_key``.
     user_id, key_id : int or None
         Row id of the user or the API key.
+    language : str or None
+        The language the user chose (kept with the account); None: the browser's.
     """
 
     name: str
@@ -231,3 +233,4 @@ class Principal:
     kind: Literal["anonymous", "user", "api_key"] = "anonymous"
     user_id: int | None = None
     key_id: int | None = None
+    language: str | None = None

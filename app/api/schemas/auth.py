@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 __all__ = [
     "LoginIn",
     "MeOut",
+    "MePatch",
     "UserIn",
     "UserPatch",
     "UserOut",
@@ -24,6 +25,8 @@ __all__ = [
 ]
 
 RoleName = Literal["viewer", "engineer", "admin"]
+#: the languages of the service (app.core.i18n.LANGUAGES)
+LanguageCode = Literal["en", "de", "fr", "it"]
 Username = str
 
 
@@ -42,6 +45,19 @@ class MeOut(BaseModel):
     name: str
     role: RoleName
     kind: Literal["anonymous", "user", "api_key"]
+    language: LanguageCode | None = Field(
+        None, description="The language the user chose (pages, messages, error texts); null: the browser's")
+    answered_in: LanguageCode = Field(
+        "en", description="The language of this request's answers: the user's, else the browser's Accept-Language")
+
+
+class MePatch(BaseModel):
+    """What users change of their own account."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    language: LanguageCode | None = Field(
+        description="en, de, fr or it; null: follow the browser's Accept-Language")
 
 
 class PasswordChangeIn(BaseModel):

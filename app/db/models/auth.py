@@ -41,6 +41,8 @@ class User(Base):
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
     updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
     last_login_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
+    #: the language of the pages and messages (en, de, fr, it); None: the browser's
+    language: Mapped[str | None] = mapped_column(String(8))
 
 
 class UserSession(Base):

@@ -1,8 +1,14 @@
 /* Shared plotting helpers: wheel colours, layout, PNG (Plotly modebar) and CSV downloads,
- * empty states, banner, formatting. */
+ * empty states, banner, formatting of numbers and dates in the page's locale (Plotly's too:
+ * its buttons, month names and separators from the page's catalogue). */
 (function () {
   "use strict";
   const T = window.trackvkf;
+  const PLOTLY_LOCALE = T.catalogue.plotly;
+  if (window.Plotly && PLOTLY_LOCALE && T.lang !== "en") {
+    Plotly.register({ moduleType: "locale", name: T.lang, dictionary: PLOTLY_LOCALE.dictionary, format: PLOTLY_LOCALE.format });
+  }
+  const NUMBER = T.boot.number_format || { decimal: ".", thousands: "," };
   const WHEELS = ["11", "12", "41", "42"];
   const WHEEL_COLORS = { "11": "#1f5fa8", "12": "#e07b00", "41": "#2e8b57", "42": "#8e44ad" };
   const FONT = { family: '"DejaVu Sans", "Segoe UI", Roboto, Helvetica, Arial, sans-serif', size: 13, color: "#1d2733" };
@@ -14,8 +20,10 @@
   /* "Z11 · axle 1 right": channel name with axle and side (side 1 right, 2 left; docs/run-format.md). */
   function wheelName(w) {
     const id = wheelId(w);
-    const side = { "1": "right", "2": "left" }[id.slice(-1)];
-    return side ? `${wheelLabel(id)} · axle ${id.slice(0, -1)} ${side}` : wheelLabel(id);
+    const axle = id.slice(0, -1), wheel = wheelLabel(id);
+    if (id.slice(-1) === "1") return T._("{wheel} · axle {axle} right", { wheel, axle });
+    if (id.slice(-1) === "2") return T._("{wheel} · axle {axle} left", { wheel, axle });
+    return wheel;
   }
 
   function axis(title, extra) {
@@ -27,6 +35,7 @@
     return Object.assign({
       font: FONT, paper_bgcolor: "#fff", plot_bgcolor: "#fff",
       margin: { l: 70, r: 30, t: 20, b: 60 },
+      separators: NUMBER.decimal + NUMBER.thousands,
       legend: { orientation: "h", x: 0, y: 1.02, yanchor: "bottom" },
       hoverlabel: { font: { family: FONT.family, size: 12 } },
     }, extra || {});
@@ -34,7 +43,7 @@
 
   function config(filename) {
     return {
-      displaylogo: false, displayModeBar: true, responsive: true,
+      displaylogo: false, displayModeBar: true, responsive: true, locale: T.lang,
       modeBarButtonsToRemove: ["lasso2d", "select2d", "sendChartToCloud", "sendDataToCloud"],
       showSendToCloud: false, showEditInChartStudio: false, plotlyServerURL: "",
       toImageButtonOptions: { format: "png", filename: filename || "trackvkf-plot", scale: 2 },
@@ -116,12 +125,31 @@
   function esc(s) {
     return String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" }[c]));
   }
+  /* Numbers in the page's locale, with `digits` decimals (3 unless told). */
+  const numberFormats = new Map();
   function fmt(v, digits) {
     if (v === null || v === undefined || !Number.isFinite(Number(v))) return "–";
-    return Number(v).toFixed(digits ?? 3);
+    const d = digits ?? 3;
+    if (!numberFormats.has(d)) numberFormats.set(d, new Intl.NumberFormat(T.locale, { minimumFractionDigits: d, maximumFractionDigits: d }));
+    return numberFormats.get(d).format(Number(v));
   }
-  function date(iso) { return iso ? iso.slice(0, 10) : "–"; }
-  function datetime(iso) { return iso ? iso.slice(0, 16).replace("T", " ") + " UTC" : "–"; }
+  /* Dates (of an ISO text) in the page's locale: English keeps ISO (2025-01-15, never 1/15/25),
+   * the other languages their own order (15.01.2025, 15/01/2025). Times are UTC, said so. */
+  const DATE = T.lang === "en" ? null : new Intl.DateTimeFormat(T.locale, { year: "numeric", month: "2-digit", day: "2-digit", timeZone: "UTC" });
+  function date(iso) {
+    if (!iso) return "–";
+    const d = String(iso).slice(0, 10);
+    if (!DATE || !/^\d{4}-\d{2}-\d{2}$/.test(d)) return d;
+    return DATE.format(new Date(d + "T00:00:00Z"));
+  }
+  function datetime(iso) {
+    if (!iso) return "–";
+    const s = String(iso);
+    const ms = Date.parse(/[zZ]|[+-]\d\d:?\d\d$/.test(s) ? s : s + "Z");
+    if (!Number.isFinite(ms)) return s;
+    const u = new Date(ms).toISOString();
+    return `${date(u)} ${u.slice(11, 16)} UTC`;
+  }
   function ready() { document.body.dataset.ready = "1"; }
   function param(name) { return new URLSearchParams(window.location.search).get(name); }
 
@@ -195,7 +223,18 @@
     window.history.replaceState(null, "", u.pathname + u.search);
   }
 
+  /* The words of a code the API answers (a tier, a status, a maintenance type ...) in the page's
+   * language: the boot data's labels (app/web/vocabulary.py), else the code with spaces. */
+  const LABELS = T.boot.labels || {};
+  function label(kind, code) {
+    if (code === null || code === undefined) return "–";
+    const words = LABELS[kind] || {};
+    return words[code] ?? String(code).replace(/_/g, " ");
+  }
+  function jobStatus(code) { return label("job status", code); }
+
   Object.assign(T, {
+    label, jobStatus,
     WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelName, wheelColor, axis, dateAxis, trendMode, layout, config, plot,
     emptyState, banner, downloadCSV, csvText, esc, fmt, date, datetime, ready, param, allRuns,
     lineKey, fillLinePicker, lineOf, rememberLine,
