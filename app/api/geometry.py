@@ -105,7 +105,10 @@ def delete_geometry(geometry_id: GeometryId, request: Request, db: DbDep, princi
 def geometry_indicator(
     geometry_id: GeometryId,
     db: DbDep,
-    quantity: Annotated[str, Query(max_length=64, description="Profile column to colour the line by")] = "sleeper_amp",
+    settings: SettingsDep,
+    quantity: Annotated[str, Query(max_length=64, description=(
+        "stiffness_index (ln(A / A_ref(class, v)) by the line's reference curves) or a profile column "
+        "to colour the line by"))] = "sleeper_amp",
     run_id: Annotated[int | None, Query(ge=1, le=2**31 - 1, description="Default: the latest processed run of the line and track")] = None,
     segment_m: Annotated[float, Query(ge=10.0, le=10_000.0, description="Segment length, m")] = DEFAULT_MAP_SEGMENT_M,
 ) -> IndicatorOut:
@@ -115,4 +118,4 @@ def geometry_indicator(
     a profile column answers 422 naming ``quantity``.
     """
     return IndicatorOut(**map_indicator.geometry_indicator(db, geometry_id, quantity=quantity, run_id=run_id,
-                                                           segment_m=segment_m))
+                                                           segment_m=segment_m, settings=settings))

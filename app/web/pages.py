@@ -24,7 +24,7 @@ from app.api import API_PREFIX
 from app.api.deps import RunId, public, require_page_login
 from app.api.language import request_language
 from app.core.i18n import LANGUAGE_NAMES, LANGUAGES, N_, jinja_environment, translations
-from app.db.models import PLACE_STATUSES
+from app.db.models import MAINTENANCE_TYPES, PLACE_STATUSES
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M
 from app.web.i18n import boot_language, build_i18n_router, catalogue_url
 from app.web.vocabulary import labels
@@ -126,7 +126,8 @@ def build_pages_router() -> APIRouter:
 
     @router.get("/correlations", response_class=HTMLResponse)
     def correlations_page(request: Request) -> HTMLResponse:
-        return page(request, "correlations.html", "correlations", N_("Correlations"))
+        return page(request, "correlations.html", "correlations", N_("Correlations"),
+                    maintenance_types=list(MAINTENANCE_TYPES))
 
     @router.get(PLOTLY_JS)
     def plotly_bundle() -> FileResponse:

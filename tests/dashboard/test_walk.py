@@ -72,7 +72,9 @@ def _check_content(page, name: str, dashboard) -> None:
         legend = page.locator("#map-legend")
         assert legend.is_visible() and legend.locator(".swatch").count() >= 2  # sections + maintenance
         names = page.evaluate("document.getElementById('stiffness-plot').data.map(t => t.name)")
-        assert "Z11 · axle 1 right" in names
+        # the two wheels of an axle share the two-rail value: one trace per axle, said in its name
+        assert "axle 1: Z11 = Z12 (both rails, one value)" in names, names
+        assert not any(n.startswith("Z11 · ") or n.startswith("Z12 · ") for n in names), names
     elif name == "line-view":
         options = page.locator("#line-track option").all_inner_texts()
         assert len(options) == 2 and page.input_value("#line-track").startswith("SIM\u0001"), options

@@ -11,6 +11,8 @@
   const NUMBER = T.boot.number_format || { decimal: ".", thousands: "," };
   const WHEELS = ["11", "12", "41", "42"];
   const WHEEL_COLORS = { "11": "#1f5fa8", "12": "#e07b00", "41": "#2e8b57", "42": "#8e44ad" };
+  /* each tier's colour on every page (the .tier-* badges of app.css) */
+  const TIER_COLORS = { watch: "#607d8b", alert: "#d49b00", intervention: "#e65100", immediate: "#c62828" };
   const FONT = { family: '"DejaVu Sans", "Segoe UI", Roboto, Helvetica, Arial, sans-serif', size: 13, color: "#1d2733" };
   const csvProviders = new Map();
 
@@ -235,7 +237,7 @@
 
   Object.assign(T, {
     label, jobStatus,
-    WHEELS, WHEEL_COLORS, wheelId, wheelLabel, wheelName, wheelColor, axis, dateAxis, trendMode, layout, config, plot,
+    WHEELS, WHEEL_COLORS, TIER_COLORS, wheelId, wheelLabel, wheelName, wheelColor, axis, dateAxis, trendMode, layout, config, plot,
     emptyState, banner, downloadCSV, csvText, esc, fmt, date, datetime, ready, param, allRuns,
     lineKey, fillLinePicker, lineOf, rememberLine,
   });
