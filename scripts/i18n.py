@@ -24,7 +24,7 @@ LOCALE_DIR = ROOT / "app" / "locale"
 TEMPLATE = LOCALE_DIR / "messages.pot"
 MAPPING = ROOT / "babel.cfg"
 #: Babel's keywords plus ours: N_ marks a message without translating it (app.core.i18n)
-KEYWORDS = {"_": None, "N_": None, "ngettext": (1, 2), "pgettext": ((1, "c"), 2)}
+KEYWORDS = {"_": None, "N_": None, "gettext": None, "ngettext": (1, 2), "pgettext": ((1, "c"), 2)}
 #: where the messages are (relative to the repository: the locations in the catalogues)
 SOURCES = ("app", "frontend")
 LANGUAGES = ("de", "fr", "it")

@@ -15,6 +15,7 @@ from fastapi import Depends, HTTPException, Request
 
 from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.routing import iter_routes
 from app.core.security import ROLES, Principal, csrf_matches, role_allows, role_rank
 from app.db import auth_crud
@@ -54,10 +55,10 @@ def client_ip(request: Request) -> str | None:
 def _api_key_token(request: Request) -> str | None:
     header = request.headers.get("authorization")
     if header is not None:
-        scheme, _, value = header.partition(" ")
+        scheme, _sep, value = header.partition(" ")
         if scheme.lower() != "bearer" or not value.strip():
             raise ApiError(
-                401, "authorization", "expected 'Authorization: Bearer <API key>'", _BEARER
+                401, "authorization", _("expected 'Authorization: Bearer <API key>'"), _BEARER
             )
         return value.strip()
     key = request.headers.get(API_KEY_HEADER)
@@ -85,7 +86,7 @@ def _lookup(request: Request) -> Principal | None:
         with db.read() as session:
             key = auth_crud.api_key_by_token(session, token)
             if key is None:
-                raise ApiError(401, "authorization", "invalid, revoked or expired API key", _BEARER)
+                raise ApiError(401, "authorization", _("invalid, revoked or expired API key"), _BEARER)
             principal = Principal(name=f"key:{key.name}", role=key.role, kind="api_key", key_id=key.id)
             stale = auth_crud.needs_touch(key)
         if stale:
@@ -128,13 +129,13 @@ def get_principal(request: Request) -> Principal:
     """
     principal = _authenticate(request)
     if principal is None:
-        raise ApiError(401, "authentication", "log in or send an API key", _BEARER)
+        raise ApiError(401, "authentication", _("log in or send an API key"), _BEARER)
     if principal.kind == "user" and request.method not in _SAFE_METHODS:
         settings: Settings = request.app.state.settings
         token = getattr(request.state, "session_token", "")
         if not csrf_matches(settings.secret_key, token, request.headers.get(CSRF_HEADER)):
             raise ApiError(
-                403, "csrf", f"missing or wrong {CSRF_HEADER} header (value of the {CSRF_COOKIE} cookie)"
+                403, "csrf", _("missing or wrong {header} header (value of the {cookie} cookie)", header=CSRF_HEADER, cookie=CSRF_COOKIE)
             )
     return principal
 
@@ -149,7 +150,7 @@ class _RoleGate:
     def _admit(self, principal: Principal) -> Principal:
         if not role_allows(principal.role, self.role):
             raise ApiError(
-                403, "role", f"needs role {self.role} or higher; {principal.name} is {principal.role}"
+                403, "role", _("needs role {role} or higher; {name} is {has}", role=self.role, name=principal.name, has=principal.role)
             )
         return principal
 

@@ -43,6 +43,7 @@ from app.api.schemas.condition import (
 )
 from app.condition import answers
 from app.condition.answers import HotspotQuery
+from app.core.i18n import _
 
 __all__ = ["router", "segment_length", "LineIdQ", "TrackQ"]
 
@@ -59,7 +60,7 @@ _MAX_FEED = 1000
 def segment_length(value: int) -> int:
     """``segment_m`` checked: one of the store's segment lengths (422 otherwise)."""
     if value not in SEGMENT_LENGTHS_M:
-        raise ApiError(422, "segment_m", f"must be {' or '.join(f'{s:g}' for s in SEGMENT_LENGTHS_M)}, got {value}")
+        raise ApiError(422, "segment_m", _("must be {choices}, got {value}", choices=' or '.join(f'{s:g}' for s in SEGMENT_LENGTHS_M), value=value))
     return value
 
 

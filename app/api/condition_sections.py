@@ -13,6 +13,7 @@ from starlette.concurrency import run_in_threadpool
 from app.api.condition import LineIdQ, TrackQ
 from app.api.deps import DbDep, SettingsDep
 from app.api.errors import ApiError
+from app.core.i18n import _
 from app.sections.service import SEGMENT_M, line_sections
 
 __all__ = ["router"]
@@ -58,6 +59,6 @@ async def sections(
 ) -> SectionsOut:
     """Per section of the newest run: level, spread and rms of the index, class A … E."""
     if section_m is not None and section_m % SEGMENT_M:
-        raise ApiError(422, "section_m", f"must be a multiple of {SEGMENT_M} m, got {section_m}")
+        raise ApiError(422, "section_m", _("must be a multiple of {SEGMENT_M} m, got {section_m}", SEGMENT_M=SEGMENT_M, section_m=section_m))
     out = await run_in_threadpool(line_sections, db, settings, line_id, track, section_m=section_m)
     return SectionsOut(**out)

@@ -20,6 +20,7 @@ from app.api.deps import (
 from app.api.errors import ApiError, not_found
 from app.api.schemas.from_rows import job_out
 from app.api.schemas.jobs import JobList, JobOut, ProcessingSettingsIn
+from app.core.i18n import _
 from app.db import crud
 from app.db.models import JobStatus
 from app.db.session import Database
@@ -102,7 +103,7 @@ def list_jobs(
     """All jobs, newest first, optionally by status and run."""
     check_page_size(limit, settings)
     if status_ is not None and status_ not in JobStatus.ALL:
-        raise ApiError(422, "status", f"must be one of {', '.join(JobStatus.ALL)}")
+        raise ApiError(422, "status", _("must be one of {choices}", choices=', '.join(JobStatus.ALL)))
     return _job_page(db, run_id=run_id, status_=status_, limit=limit, offset=offset)
 
 

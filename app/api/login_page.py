@@ -9,6 +9,7 @@ docs' "Authorize" button and API clients know how to authenticate.
 from __future__ import annotations
 
 import re
+from html import escape
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -21,7 +22,7 @@ from app.api.deps import API_KEY_HEADER, public, require_page_login, require_rol
 from app.api.errors import document_error_responses
 from app.api.headers import content_security_policy, inline_script_hashes
 from app.api.language import request_language
-from app.core.i18n import catalogue_digest, jinja_environment
+from app.core.i18n import N_, catalogue_digest, jinja_environment, translations
 
 __all__ = [
     "router", "safe_next", "install_protected_docs", "swagger_ui_dir", "TEMPLATES_DIR",
@@ -104,6 +105,19 @@ def swagger_ui_dir() -> Path:
     return max(usable)[1]
 
 
+_BACK = N_("← Back to the dashboard")
+_BACK_TITLE = N_("The pages of trackvkf (the API's documentation is in English, as its field names)")
+
+
+def _with_way_back(html: str, lang: str) -> str:
+    """The Swagger UI page with a bar at its top that leads back to the dashboard (in ``lang``)."""
+    t = translations(lang)
+    bar = (f'<nav id="back-to-dashboard" style="font: 14px system-ui, sans-serif; padding: 10px 20px; '
+           f'background: #1f3b57;"><a href="/" style="color: #fff; text-decoration: none;" '
+           f'title="{escape(t.gettext(_BACK_TITLE))}">{escape(t.gettext(_BACK))}</a></nav>')
+    return html.replace("<body>", "<body>\n" + bar, 1)
+
+
 def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
     """Serve ``/openapi.json`` (viewer) and ``/docs`` (logged-in page) with access control.
 
@@ -136,6 +150,7 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
             swagger_css_url=f"{SWAGGER_ASSETS}/swagger-ui.css",
             swagger_favicon_url=f"{SWAGGER_ASSETS}/favicon-32x32.png",
         )
+        html = _with_way_back(page.body.decode("utf-8"), request_language(request).code)
         # the page's one inline script (SwaggerUIBundle setup) is allowed by its hash
-        csp = content_security_policy(inline_script_hashes(page.body.decode("utf-8")))
-        return HTMLResponse(page.body, headers={**_PAGE_HEADERS, "Content-Security-Policy": csp})
+        csp = content_security_policy(inline_script_hashes(html))
+        return HTMLResponse(html, headers={**_PAGE_HEADERS, "Content-Security-Policy": csp})

@@ -15,6 +15,7 @@ from app.analytics.frames import load_profiles, select_runs
 from app.analytics.stiffness_index import index_context
 from app.core.config import Settings
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.jsonable import finite_or_none
 from app.db import crud, recorder_crud, results_reader
 from app.db.models import PROFILE_VALUE_COLUMNS
@@ -74,7 +75,7 @@ def geometry_indicator(db: Database, geometry_id: int, *, quantity: str, run_id:
     """``quantity`` of ``run_id`` (default: the latest processed run of the geometry's line and
     track) per segment of the line, placed on it."""
     if quantity not in INDICATOR_UNITS:
-        raise ApiError(422, "quantity", f"unknown quantity {quantity!r}; one of {', '.join(INDICATOR_UNITS)}")
+        raise ApiError(422, "quantity", _("unknown quantity {quantity}; one of {choices}", quantity=repr(quantity), choices=', '.join(INDICATOR_UNITS)))
     with db.read() as session:
         row = recorder_crud.get_geometry(session, geometry_id)
         if row is None:
@@ -87,7 +88,7 @@ def geometry_indicator(db: Database, geometry_id: int, *, quantity: str, run_id:
             if run is None:
                 raise not_found("run", run_id)
             if (run.line_id, run.track) != (row.line_id, row.track):
-                raise ApiError(422, "run_id", f"run {run_id} is on line {run.line_id} track {run.track}")
+                raise ApiError(422, "run_id", _("run {run_id} is on line {line_id} track {track}", run_id=run_id, line_id=run.line_id, track=run.track))
         frame = None
         if run is not None and quantity != STIFFNESS_INDEX:
             frame = results_reader.profile_rows(session, run.id, columns=[quantity])

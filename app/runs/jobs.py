@@ -13,6 +13,7 @@ from typing import Any
 from app.analysis.settings import ProcessingSettings
 from app.audit import record
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.runstore import RunStore
 from app.core.security import Principal
 from app.db import crud
@@ -49,8 +50,7 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
         raise ApiError(
             422,
             "n_wheel_orders",
-            f"the service stores at most {N_ORDER_COLUMNS} wheel orders per bin, "
-            f"got {settings.n_wheel_orders}",
+            _("the service stores at most {N_ORDER_COLUMNS} wheel orders per bin, got {n_wheel_orders}", N_ORDER_COLUMNS=N_ORDER_COLUMNS, n_wheel_orders=settings.n_wheel_orders),
         )
     return settings
 
@@ -73,7 +73,7 @@ def reprocess(db: Database, run_id: int, changes: dict[str, Any], principal: Pri
             raise ApiError(
                 409,
                 "job",
-                f"run {run_id} already has job {active.id} {active.status}; cancel it first",
+                _("run {run_id} already has job {id} {status}; cancel it first", run_id=run_id, id=active.id, status=active.status),
             )
         job = crud.create_job(session, run_id, settings.to_dict(), principal.name)
         record(session, request, principal, "job.create", target=run_id,
@@ -98,7 +98,7 @@ def cancel(db: Database, store: RunStore, job_id: int, principal: Principal, req
         job = crud.get_job(session, job_id)
         assert job is not None
         if outcome == "final":
-            raise ApiError(409, "job", f"job {job_id} is already {job.status}")
+            raise ApiError(409, "job", _("job {job_id} is already {status}", job_id=job_id, status=job.status))
         record(session, request, principal, "job.cancel", target=job_id, detail={"run_id": job.run_id})
         session.refresh(job)
         counts = crud.chunk_counts(session, [job_id]).get(job_id, {})

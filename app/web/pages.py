@@ -16,7 +16,7 @@ from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
-from app.analysis.condition import OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
+from app.analysis.condition import FINE_SEGMENT_M, OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
 from app.analysis.condition.section_class import SECTION_CLASSES
 from app.analysis.condition.tiers import TIER_NAMES
 from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
@@ -26,6 +26,8 @@ from app.api.language import request_language
 from app.core.i18n import LANGUAGE_NAMES, LANGUAGES, N_, jinja_environment, translations
 from app.db.models import MAINTENANCE_TYPES, PLACE_STATUSES
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M
+from app.places.config import PlacesConfig
+from app.places.worklist import CLOSED_STATUSES
 from app.web.i18n import boot_language, build_i18n_router, catalogue_url
 from app.web.vocabulary import labels
 
@@ -115,10 +117,13 @@ def build_pages_router() -> APIRouter:
 
     @router.get("/condition", response_class=HTMLResponse)
     def condition_page(request: Request) -> HTMLResponse:
+        # the page's rules, as the services state them (the page's scripts restate none)
+        places = PlacesConfig.from_settings(request.app.state.settings)
         return page(request, "condition.html", "condition", N_("Condition"),
                     segment_lengths=[int(s) for s in SEGMENT_LENGTHS_M], overview_segment_m=int(OVERVIEW_SEGMENT_M),
-                    tiers=list(reversed(TIER_NAMES)), statuses=list(PLACE_STATUSES),
-                    section_classes=list(SECTION_CLASSES))
+                    fine_segment_m=int(FINE_SEGMENT_M), tiers=list(reversed(TIER_NAMES)), statuses=list(PLACE_STATUSES),
+                    open_statuses=[s for s in PLACE_STATUSES if s not in CLOSED_STATUSES],
+                    section_classes=list(SECTION_CLASSES), tier_limits=places.levels.to_dict())
 
     @router.get("/wheels", response_class=HTMLResponse)
     def wheels_page(request: Request) -> HTMLResponse:

@@ -18,6 +18,7 @@ from app.analysis.condition.discontinuities import ASSET_TYPES
 from app.analysis.condition.identity import TENDENCIES
 from app.analysis.condition.section_class import SECTION_CLASSES
 from app.analysis.condition.tiers import TIER_ACTIONS, TIER_NAMES
+from app.analysis.stiffness.speed_norm import METHODS
 from app.core.i18n import translations
 from app.db.models import (
     MAINTENANCE_TYPES,
@@ -34,6 +35,14 @@ __all__ = ["KINDS", "messages", "labels", "SECTION_CLASS_MEANINGS"]
 SECTION_CLASS_MEANINGS: dict[str, str] = {
     "A": "best fifth of healthy track", "B": "typical healthy track", "C": "the rest of healthy track",
     "D": "beyond anything healthy measured", "E": "reaches a place's alert limit", "": "not enough data",
+}
+
+
+#: how a reference curve's speed dependence was fitted (app.analysis.stiffness.speed_norm)
+CURVE_METHODS: dict[str, str] = {
+    "within": "speed dependence fitted within locations passed at several speeds",
+    "pooled": "speed dependence fitted over all locations together",
+    "none": "no speed dependence fitted",
 }
 
 
@@ -55,6 +64,7 @@ KINDS: dict[str, Any] = {
     "job status": lambda: _words(JobStatus.ALL),
     "section class": lambda: {c: SECTION_CLASS_MEANINGS[c] for c in (*SECTION_CLASSES, "")},
     "direction": lambda: {"soft": "soft", "hard": "hard"},
+    "curve method": lambda: {m: CURVE_METHODS[m] for m in METHODS},
 }
 
 

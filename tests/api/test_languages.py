@@ -105,3 +105,19 @@ def test_pages_and_login_in_the_browsers_language(service):
     assert '<html lang="de">' in page.text and "Messfahrt hochladen" in page.text
     assert '"locale": "de-CH"' in page.text and '"decimal": "."' in page.text  # Swiss German numbers
     assert '"lang": "de"' in page.text and '"tamping": "Stopfen"' in page.text
+
+
+def test_every_code_the_pages_show_has_its_words():
+    """Each value of the enumerations the pages show (tiers, statuses, types, ...) has words in
+    every language: the vocabulary is made from the enumerations, a new code without words fails."""
+    from app.web import vocabulary
+
+    english = vocabulary.messages()
+    for lang in ("de", "fr", "it"):
+        words = vocabulary.labels(lang)
+        for kind, codes in english.items():
+            assert set(words[kind]) == set(codes), kind
+            assert all(words[kind].values()), (lang, kind)
+    assert vocabulary.labels("de")["maintenance type"]["tamping"] == "Stopfen"
+    assert vocabulary.labels("fr")["asset type"]["weld"] == "soudure"
+    assert vocabulary.labels("it")["maintenance type"]["tamping"] == "rincalzatura"

@@ -108,3 +108,46 @@ def test_the_check_finds_what_is_wrong(tmp_path, monkeypatch):
         assert f"{lang}: missing 'new message'" in found
         assert f"{lang}: obsolete 'gone'" in found
         assert f"{lang}: placeholders of 'one {{x}}'" in found
+
+
+def test_the_extraction_reads_every_call():
+    """Every literal message a page script, template or module passes to the translation functions
+    is in the extraction: a construct the extractor misreads (a regular expression with a quote,
+    say) would otherwise hide the rest of its file from the catalogues without an error."""
+    import re
+
+    script = _script()
+    template = script.extract()
+    ids = {m.id if isinstance(m.id, str) else m.id[0] for m in template if m.id}
+    call = re.compile(r"""(?<![\w.])(?:T\.)?(?:_|N_|ngettext|pgettext\("[^"]*",)\s*\(\s*"((?:[^"\\]|\\.)+)"|"""
+                      r"""\b(?:T\._|T\.ngettext)\(\s*"((?:[^"\\]|\\.)+)\"""")
+    missing = []
+    # (Python is read by its syntax tree, which misses nothing; the pages' scripts and templates by lexers)
+    for pattern in ("frontend/static/js/**/*.js", "frontend/templates/*.html"):
+        for path in ROOT.glob(pattern):
+            for m in call.finditer(path.read_text(encoding="utf-8")):
+                text = (m.group(1) or m.group(2)).encode().decode("unicode_escape") if "\\" in (m.group(1) or m.group(2)) \
+                    else (m.group(1) or m.group(2))
+                if text not in ids:
+                    missing.append(f"{path.relative_to(ROOT)}: {text!r}")
+    assert not missing, "\n".join(missing)
+
+
+def test_no_function_hides_the_marker():
+    """``_`` marks a message: a function of a module that uses it must not assign ``_`` (a throwaway
+    name there would make every ``_("...")`` of the function fail with UnboundLocalError)."""
+    import ast
+
+    bad = []
+    for path in sorted((ROOT / "app").rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        if not any(isinstance(n, ast.Call) and getattr(n.func, "id", None) == "_" for n in ast.walk(tree)):
+            continue
+        for f in ast.walk(tree):
+            if not isinstance(f, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            inner = {id(n) for c in ast.walk(f) if isinstance(c, ast.ListComp | ast.SetComp | ast.DictComp | ast.GeneratorExp)
+                     for n in ast.walk(c)}
+            bad += [f"{path.relative_to(ROOT)}:{n.lineno} ({f.name})" for n in ast.walk(f)
+                    if isinstance(n, ast.Name) and n.id == "_" and isinstance(n.ctx, ast.Store) and id(n) not in inner]
+    assert not bad, bad

@@ -55,6 +55,9 @@ def _check_content(page, name: str, dashboard) -> None:
         assert ops >= 30, f"/docs lists {ops} operations"
         for path in ("/api/v1/runs", "/api/v1/analytics/subsidence-fit", "/api/v1/runs/{run_id}/profile"):
             assert path in body, f"/docs does not show {path}"
+        # a way back to the pages
+        back = page.locator("#back-to-dashboard a")
+        assert back.is_visible() and back.get_attribute("href") == "/" and "dashboard" in back.inner_text()
         return
     banner = page.locator("#banner")
     assert not banner.is_visible(), f"{name}: error banner {banner.inner_text()!r}"

@@ -91,8 +91,8 @@
     await T.plot(el, traces, {
       shapes, annotations,
       xaxis: T.axis(T._("Track position (km)"), { tickformat: ".3f" }),
-      yaxis: index ? T.axis(T._("{wheel}: stiffness index, 10 m mean (ln units)", { wheel: T.wheelLabel(wheel) }), { zeroline: true })
-        : T.axis(T._("{wheel}: amplitude, 10 m mean (m/s²)", { wheel: T.wheelLabel(wheel) }), { rangemode: "tozero" }),
+      yaxis: index ? T.axis(T._("{wheel}: stiffness index (ln units)", { wheel: T.wheelLabel(wheel) }), { zeroline: true })
+        : T.axis(T._("{wheel}: amplitude (m/s²)", { wheel: T.wheelLabel(wheel) }), { rangemode: "tozero" }),
       legend: { orientation: "v", x: 1.01, y: 1, xanchor: "left" },
       margin: { l: 75, r: 20, t: 20, b: 60 },
     }, {
@@ -122,10 +122,10 @@
     await T.plot(el, [{
       type: "scatter", mode: T.trendMode(points.map((p) => p.start_time)), name: T.wheelLabel(wheel), x: points.map((p) => p.start_time), y: points.map((p) => p[key]),
       customdata: points.map((p) => p.run_id), line: { color: T.wheelColor(wheel), width: 2 }, marker: { size: 9 },
-      hovertemplate: `%{x|%Y-%m-%d}<br>%{y:.3f} ${index ? "" : "m/s²"}<br>${T.esc(T._("run {run}", { run: "%{customdata}" }))}<extra></extra>`,
+      hovertemplate: `%{x|${T.DATE_FMT}}<br>%{y:.3f} ${index ? "" : "m/s²"}<br>${T.esc(T._("run {run}", { run: "%{customdata}" }))}<extra></extra>`,
     }], {
       xaxis: T.dateAxis(T._("Run start (date)"), points.map((p) => p.start_time)),
-      yaxis: index ? T.axis(T._("Segment mean: stiffness index (ln units)"), { zeroline: true }) : T.axis(T._("Segment mean: amplitude (m/s²)"), { rangemode: "tozero" }),
+      yaxis: index ? T.axis(T._("Stiffness index (ln units)"), { zeroline: true }) : T.axis(T._("Amplitude (m/s²)"), { rangemode: "tozero" }),
       margin: { l: 75, r: 20, t: 20, b: 55 }, showlegend: true,
     }, {
       filename: `segment-trend-km${k0.toFixed(3)}`,

@@ -96,6 +96,13 @@
                                  marker: Object.assign(marker, { symbol: "circle-open", line: { width: 3 } }) });
   }
 
+  /* The CSV column of the quantity: its name with its unit (as the other pages' CSVs). */
+  function csvColumn(ind) {
+    const suffix = { "m/s²": "_mps2", "m/s": "_mps", kN: "_kn", mm: "_mm", "ln units": "" }[ind.unit] ?? "";
+    const base = ind.quantity === "speed_mean" ? "speed" : ind.quantity.replace(/_mm$/, "");
+    return base + suffix;
+  }
+
   function unitText(unit) { return unit === "ln units" ? T._("ln units") : unit; }
 
   function traces(geom, ind) {
@@ -179,7 +186,7 @@
     legend(places);
     await T.plot(el, all, layoutFor(geom), {
       filename: `map-${geom.line_id}-${geom.track}`,
-      csv: () => ({ columns: ["km_from", "km_to", "km", "lon", "lat", `${ind.quantity}_${ind.unit}`],
+      csv: () => ({ columns: ["km_from", "km_to", "km", "lon", "lat", csvColumn(ind)],
                    rows: ind.segments.map((s) => [s.km_from, s.km_to, s.km, s.lon, s.lat, s.value]) }),
     });
     el.removeAllListeners && el.removeAllListeners("plotly_click");

@@ -137,15 +137,19 @@
 
   function referenceText(ref) {
     if (!ref) return "";
-    if (!ref.available) return T._("No stiffness index: {reason}. Showing the raw amplitude.", { reason: ref.reason });
+    if (!ref.available) return T.esc(T._("No stiffness index: {reason}. Showing the raw amplitude.", { reason: ref.reason }));
+    // the superstructure classes are the reference data's own names (not translated)
     const cls = (ref.classes || []).map((c) => {
       const [lo, hi] = c.speed_range_kmh || [];
       const range = lo == null ? T._("no speeds") : `${T.fmt(lo, 0)}–${T.fmt(hi, 0)} km/h`;
-      return `${c.class || T._("line")} (${range}, ${T.ngettext("{n} run", "{n} runs", c.n_runs)}, ${c.method})`;
+      const name = c.class ? `<span translate="no">${T.esc(c.class)}</span>` : T.esc(T._("line"));
+      return `${name} (${T.esc(range)}, ${T.esc(T.ngettext("{n} run", "{n} runs", c.n_runs))}, ${T.esc(T.label("curve method", c.method))})`;
     }).join("; ");
-    return T._("Index = ln(A / A_ref): 0 is a typical location of its superstructure class at the same speed, +0.1 ≈ 10 % more amplitude (stiffer). Reference curves of line {line} track {track} from runs {runs} (computed {when}, matched speed ±{tol} %): {classes}. Gaps: no reference passes at that speed, or near a change of superstructure.",
-      { line: ref.line_id, track: ref.track, runs: (ref.run_ids || []).join(", "), when: T.datetime(ref.computed_at),
-        tol: T.fmt(100 * ref.speed_tolerance, 0), classes: cls });
+    const text = T._("Index = ln(A / A_ref): 0 is a typical location of its superstructure class at the same speed, +0.1 ≈ 10 % more amplitude (stiffer). Reference curves of line {line} track {track} from runs {runs} (computed {when}, matched speed ±{tol} %): {classes}. Gaps: no reference passes at that speed, or near a change of superstructure.",
+      { line: "\u0001L", track: "\u0001T", runs: (ref.run_ids || []).join(", "), when: T.datetime(ref.computed_at),
+        tol: T.fmt(100 * ref.speed_tolerance, 0), classes: "\u0001C" });
+    return T.esc(text).replace("\u0001L", `<span translate="no">${T.esc(ref.line_id)}</span>`)
+      .replace("\u0001T", T.esc(ref.track)).replace("\u0001C", cls);
   }
 
   /* The value drawn of a row: the stiffness index or the raw amplitude. */
@@ -219,7 +223,7 @@
     const scale = index ? "linear" : document.getElementById("amp-scale").value;
     document.getElementById("amp-scale").disabled = index;
     document.getElementById("map-title").textContent = index ? T._("Stiffness index along the track") : T._("Sleeper-passage amplitude along the track");
-    document.getElementById("reference-info").textContent = index ? referenceText(reference) : "";
+    document.getElementById("reference-info").innerHTML = index ? referenceText(reference) : "";
     const tr = traces();
     const n = wheels.length ? data[wheels[0]].n_rows : 0;
     document.getElementById("map-info").textContent =

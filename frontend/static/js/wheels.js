@@ -155,7 +155,7 @@
         type: "scatter", mode: T.trendMode(items.map((i) => i.start_time)), name: T.wheelLabel(w), line: { color: T.wheelColor(w), width: 2 },
         marker: { size: 8 }, x: items.map((i) => i.start_time), y: items.map((i) => trendValue(i, q)),
         customdata: items.map((i) => i.run_id),
-        hovertemplate: `${T.wheelLabel(w)}<br>%{x|%Y-%m-%d %H:%M}<br>%{y:.${q === "flat" ? 2 : 1}f} ${unit}<br>${T.esc(T._("run {run}", { run: "%{customdata}" }))}<extra></extra>`,
+        hovertemplate: `${T.wheelLabel(w)}<br>%{x|${T.DATE_FMT} %H:%M}<br>%{y:.${q === "flat" ? 2 : 1}f} ${unit}<br>${T.esc(T._("run {run}", { run: "%{customdata}" }))}<extra></extra>`,
       };
     });
     await T.plot(el, traces, {
