@@ -51,6 +51,11 @@ def _page(status: int, *, title: str, message: str, detail: str = "", provider: 
     return HTMLResponse(html, status_code=status, headers=_PAGE_HEADERS)
 
 
+def _not_configured() -> HTMLResponse:
+    return _page(404, title="No corporate sign-in",
+                 message="Corporate sign-in is not configured on this server; log in with a local account.")
+
+
 def _unavailable(config: OidcConfig, exc: ProviderUnavailable) -> HTMLResponse:
     log.warning("OpenID provider %s unavailable: %s", config.issuer, exc.reason)
     return _page(503, title="Sign-in unavailable", provider=config.provider_name,
@@ -71,8 +76,7 @@ def oidc_start(request: Request, next: Annotated[str | None, Query(max_length=20
     settings: Settings = request.app.state.settings
     provider = provider_of_settings(settings)
     if provider is None:
-        return _page(404, title="No corporate sign-in",
-                     message="Corporate sign-in is not configured on this server; log in with a local account.")
+        return _not_configured()
     try:
         url, pending = flow.begin(provider, redirect_uri=callback_url(provider.config, str(request.base_url)),
                                   next_path=safe_next(next), secret_key=settings.secret_key)
@@ -97,8 +101,7 @@ def oidc_callback(
     settings: Settings = request.app.state.settings
     provider = provider_of_settings(settings)
     if provider is None:
-        return _page(404, title="No corporate sign-in",
-                     message="Corporate sign-in is not configured on this server; log in with a local account.")
+        return _not_configured()
     config = provider.config
     pending = flow.unseal(request.cookies.get(flow.PENDING_COOKIE), settings.secret_key)
     if error:

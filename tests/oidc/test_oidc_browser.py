@@ -6,32 +6,18 @@ from __future__ import annotations
 
 import os
 import socket
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from tests.dashboard.conftest import CHROMIUM, CHROMIUM_ARGS, SCREENSHOTS, _install_chromium
+from tests.dashboard.conftest import SCREENSHOTS
 from tests.e2e.conftest import running_service
 from tests.oidc.conftest import PASSWORDS, PROVIDER_NAME, oidc_env
 
 
-@pytest.fixture(scope="module")
-def chromium() -> Iterator[object]:
-    _install_chromium()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        try:
-            yield browser
-        finally:
-            browser.close()
-
-
 @pytest.fixture
-def page(chromium, oidc):
-    ctx = chromium.new_context(base_url=oidc.base_url, viewport={"width": 1200, "height": 800})
+def page(browser, oidc):
+    ctx = browser.new_context(base_url=oidc.base_url, viewport={"width": 1200, "height": 800})
     ctx.set_default_timeout(30_000)
     errors: list[str] = []
     p = ctx.new_page()
@@ -88,12 +74,12 @@ def test_a_user_without_access_gets_a_page_that_says_so(page, oidc):
     page.wait_for_url(f"{oidc.base_url}/login")
 
 
-def test_a_provider_that_is_down_gets_a_clear_page(chromium, tmp_path):
+def test_a_provider_that_is_down_gets_a_clear_page(browser, tmp_path):
     with socket.socket() as sock:  # a port nobody listens on
         sock.bind(("127.0.0.1", 0))
         issuer = f"http://127.0.0.1:{sock.getsockname()[1]}"
     with running_service(tmp_path, env_overrides=oidc_env(issuer)) as svc:
-        ctx = chromium.new_context(base_url=svc.base_url)
+        ctx = browser.new_context(base_url=svc.base_url)
         try:
             p = ctx.new_page()
             p.goto("/login")
