@@ -20,15 +20,17 @@ from typing import Annotated
 from fastapi import APIRouter, Body, Depends, Path, Request, Response, status
 from fastapi.responses import JSONResponse
 
-from app.api.audit import record
 from app.api.deps import (
     CSRF_COOKIE,
     SESSION_COOKIE,
+    Actor,
+    AdminActor,
     AdminDep,
     DbDep,
     Principal,
     PrincipalDep,
     SettingsDep,
+    ViewerActor,
     ViewerDep,
     client_ip,
     public,
@@ -49,6 +51,7 @@ from app.api.schemas.auth import (
     UserOut,
     UserPatch,
 )
+from app.audit import record
 from app.core.config import Settings
 from app.core.ratelimit import RateLimiter
 from app.core.security import (
@@ -210,8 +213,8 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
     with db.write() as session:
         user = auth_crud.get_user(session, body.username) if ok and account and account.active else None
         if user is None or not user.active or user.password_hash != account.password_hash:
-            record(session, request, None, "auth.login", target=body.username, outcome="denied",
-                   actor=body.username)
+            record(session, Actor(None, client_ip(request), claimed=body.username), "auth.login",
+                   target=body.username, outcome="denied")
             failed = True
         else:
             old = request.cookies.get(SESSION_COOKIE)
@@ -221,7 +224,7 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
                 session, user, dt.timedelta(seconds=settings.session_ttl_s), client_ip(request)
             )
             principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
-            record(session, request, principal, "auth.login", target=user.username)
+            record(session, Actor(principal, client_ip(request)), "auth.login", target=user.username)
             failed = False
     if failed:
         raise ApiError(401, "credentials", "wrong user name or password")
@@ -251,7 +254,7 @@ def logout(request: Request, db: DbDep, principal: PrincipalDep, settings: Setti
         id_token = auth_crud.session_id_token(session, token) if principal.kind == "user" and token else None
         if principal.kind == "user" and token:
             auth_crud.delete_session(session, token)
-        record(session, request, principal, "auth.logout", target=principal.name,
+        record(session, Actor(principal, client_ip(request)), "auth.logout", target=principal.name,
                detail={"method": "oidc"} if id_token else None)
     end_session = _provider_sign_out(request, settings, id_token) if id_token else None
     if end_session:
@@ -288,7 +291,8 @@ def me(principal: ViewerDep) -> MeOut:
     summary="Change one's own password (users)",
     responses={401: {"description": "Wrong current password"}},
 )
-def change_password(body: PasswordChangeIn, request: Request, db: DbDep, principal: ViewerDep) -> Response:
+def change_password(body: PasswordChangeIn, db: DbDep, actor: ViewerActor) -> Response:
+    principal = actor.principal
     """Change the logged-in user's password; all the user's sessions end (log in again)."""
     if principal.kind != "user":
         raise ApiError(409, "principal", "only users have passwords (this is an API key)")
@@ -303,7 +307,7 @@ def change_password(body: PasswordChangeIn, request: Request, db: DbDep, princip
             raise ApiError(409, "current_password", "the password was changed meanwhile; try again")
         with _auth_errors_as_422(field="new_password"):
             auth_crud.update_user(session, principal.name, password=body.new_password)
-        record(session, request, principal, "auth.password", target=principal.name)
+        record(session, actor, "auth.password", target=principal.name)
     response = Response(status_code=status.HTTP_204_NO_CONTENT)
     _clear_cookies(response)
     return response
@@ -321,24 +325,24 @@ def list_users(db: DbDep, principal: AdminDep) -> UserList:
     "/users", response_model=UserOut, status_code=status.HTTP_201_CREATED,
     summary="Create a user (admin)", responses={409: {"description": "The user exists"}},
 )
-def create_user(body: UserIn, request: Request, db: DbDep, principal: AdminDep) -> UserOut:
+def create_user(body: UserIn, db: DbDep, actor: AdminActor) -> UserOut:
     """Create a browser user with a role; the password is stored as an Argon2id hash."""
     with db.write() as session:
         if auth_crud.get_user(session, body.username) is not None:
             raise ApiError(409, "username", f"user {body.username!r} exists")
         with _auth_errors_as_422():
             user = auth_crud.create_user(
-                session, body.username, body.password, body.role, created_by=principal.name
+                session, body.username, body.password, body.role, created_by=actor.name
             )
-        record(session, request, principal, "user.create", target=user.username, detail={"role": user.role})
+        record(session, actor, "user.create", target=user.username, detail={"role": user.role})
         return UserOut.model_validate(user)
 
 
 @router.patch("/users/{username}", response_model=UserOut, summary="Change a user (admin)")
 def update_user(
-    username: UsernamePath, request: Request, db: DbDep, principal: AdminDep,
-    body: Annotated[UserPatch, Body()],
+    username: UsernamePath, db: DbDep, actor: AdminActor, body: Annotated[UserPatch, Body()],
 ) -> UserOut:
+    principal = actor.principal
     """Change password, role or active flag; the user's sessions end."""
     if principal.kind == "user" and principal.name == username and (
         body.active is False or (body.role is not None and body.role != "admin")
@@ -354,19 +358,20 @@ def update_user(
         changed = {k: v for k, v in body.model_dump(exclude_none=True).items() if k != "password"}
         if body.password is not None:
             changed["password"] = "changed"
-        record(session, request, principal, "user.update", target=username, detail=changed)
+        record(session, actor, "user.update", target=username, detail=changed)
         return UserOut.model_validate(user)
 
 
 @router.delete("/users/{username}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete a user (admin)")
-def delete_user(username: UsernamePath, request: Request, db: DbDep, principal: AdminDep) -> Response:
+def delete_user(username: UsernamePath, db: DbDep, actor: AdminActor) -> Response:
+    principal = actor.principal
     """Delete a user and end its sessions (its audit entries stay)."""
     if principal.kind == "user" and principal.name == username:
         raise ApiError(409, "username", "an admin cannot delete itself")
     with db.write() as session:
         if not auth_crud.delete_user(session, username):
             raise ApiError(404, "username", f"user {username!r} not found")
-        record(session, request, principal, "user.delete", target=username)
+        record(session, actor, "user.delete", target=username)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
@@ -382,25 +387,25 @@ def list_keys(db: DbDep, principal: AdminDep) -> KeyList:
     "/keys", response_model=KeyCreated, status_code=status.HTTP_201_CREATED,
     summary="Create an API key (admin): shown once",
 )
-def create_key(body: KeyIn, request: Request, db: DbDep, principal: AdminDep) -> KeyCreated:
+def create_key(body: KeyIn, db: DbDep, actor: AdminActor) -> KeyCreated:
     """Create a key scoped to a role. The answer's ``key`` is shown this once; only its hash is kept."""
     expires = utcnow() + dt.timedelta(days=body.expires_in_days) if body.expires_in_days else None
     with db.write() as session:
         with _auth_errors_as_422():
             row, key = auth_crud.create_api_key(
-                session, body.name, body.role, created_by=principal.name, expires_at=expires
+                session, body.name, body.role, created_by=actor.name, expires_at=expires
             )
-        record(session, request, principal, "key.create", target=row.id,
+        record(session, actor, "key.create", target=row.id,
                detail={"name": row.name, "role": row.role, "prefix": row.prefix})
         return KeyCreated(**KeyOut.model_validate(row).model_dump(), key=key)
 
 
 @router.delete("/keys/{key_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Revoke an API key (admin)")
-def revoke_key(key_id: KeyIdPath, request: Request, db: DbDep, principal: AdminDep) -> Response:
+def revoke_key(key_id: KeyIdPath, db: DbDep, actor: AdminActor) -> Response:
     """Revoke a key: requests with it get 401 from now on. It stays listed as revoked."""
     with db.write() as session:
         row = auth_crud.revoke_api_key(session, key_id)
         if row is None:
             raise ApiError(404, "key_id", f"API key {key_id} not found")
-        record(session, request, principal, "key.revoke", target=key_id, detail={"name": row.name})
+        record(session, actor, "key.revoke", target=key_id, detail={"name": row.name})
     return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Path, Query, Request, Response, status
+from fastapi import APIRouter, Depends, Path, Query, Response, status
 from sqlalchemy.exc import IntegrityError
 
-from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, require_role
+from app.api.deps import DbDep, EngineerActor, require_role
 from app.api.errors import ApiError, not_found
 from app.api.schemas.recorder import ChannelMapIn, ChannelMapList, ChannelMapOut
+from app.audit import record
 from app.db import recorder_crud
 from app.db.models import ChannelMapRow
 from app.io.channel_map import parse_channel_map
@@ -44,7 +44,7 @@ def list_channel_maps(
 
 @router.post("", response_model=ChannelMapOut, status_code=201, summary="Store a channel map (engineer)",
              dependencies=[Depends(require_role("engineer"))])
-def create_channel_map(body: ChannelMapIn, request: Request, db: DbDep, principal: EngineerDep) -> ChannelMapOut:
+def create_channel_map(body: ChannelMapIn, db: DbDep, actor: EngineerActor) -> ChannelMapOut:
     """Validate and store a channel map; 409 if the vehicle has one of that name."""
     channels = _validated(body)
     try:
@@ -53,9 +53,9 @@ def create_channel_map(body: ChannelMapIn, request: Request, db: DbDep, principa
                 raise ApiError(409, "name", f"vehicle {body.vehicle_id!r} already has a map {body.name!r}")
             row = recorder_crud.save_channel_map(
                 session, None, vehicle_id=body.vehicle_id, name=body.name, channels=channels,
-                by=principal.name,
+                by=actor.name,
             )
-            record(session, request, principal, "channel_map.create", target=row.id,
+            record(session, actor, "channel_map.create", target=row.id,
                    detail={"vehicle_id": body.vehicle_id, "name": body.name})
             return _out(row)
     except IntegrityError:
@@ -75,7 +75,7 @@ def get_channel_map(map_id: MapId, db: DbDep) -> ChannelMapOut:
 @router.put("/{map_id}", response_model=ChannelMapOut, summary="Replace a channel map (engineer)",
             dependencies=[Depends(require_role("engineer"))])
 def update_channel_map(
-    map_id: MapId, body: ChannelMapIn, request: Request, db: DbDep, principal: EngineerDep
+    map_id: MapId, body: ChannelMapIn, db: DbDep, actor: EngineerActor
 ) -> ChannelMapOut:
     """Replace vehicle, name and channels of a stored map."""
     channels = _validated(body)
@@ -89,9 +89,9 @@ def update_channel_map(
                 raise ApiError(409, "name", f"vehicle {body.vehicle_id!r} already has a map {body.name!r}")
             recorder_crud.save_channel_map(
                 session, row, vehicle_id=body.vehicle_id, name=body.name, channels=channels,
-                by=principal.name,
+                by=actor.name,
             )
-            record(session, request, principal, "channel_map.update", target=map_id,
+            record(session, actor, "channel_map.update", target=map_id,
                    detail={"vehicle_id": body.vehicle_id, "name": body.name})
             return _out(row)
     except IntegrityError:
@@ -100,10 +100,10 @@ def update_channel_map(
 
 @router.delete("/{map_id}", status_code=status.HTTP_204_NO_CONTENT,
                summary="Delete a channel map (engineer)", dependencies=[Depends(require_role("engineer"))])
-def delete_channel_map(map_id: MapId, request: Request, db: DbDep, principal: EngineerDep) -> Response:
+def delete_channel_map(map_id: MapId, db: DbDep, actor: EngineerActor) -> Response:
     """Delete a stored map (runs ingested with it keep the channel sources in their report)."""
     with db.write() as session:
         if not recorder_crud.delete_channel_map(session, map_id):
             raise not_found("channel_map", map_id)
-        record(session, request, principal, "channel_map.delete", target=map_id)
+        record(session, actor, "channel_map.delete", target=map_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

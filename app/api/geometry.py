@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, File, Path, Query, Request, Response, UploadFile, status
+from fastapi import APIRouter, Depends, File, Path, Query, Response, UploadFile, status
 from starlette.concurrency import run_in_threadpool
 
-from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, SettingsDep, require_role
+from app.api.deps import DbDep, EngineerActor, SettingsDep, require_role
 from app.api.errors import ApiError, not_found
 from app.api.schemas.recorder import (
     GeometryImportOut,
@@ -17,6 +16,7 @@ from app.api.schemas.recorder import (
     GeometrySummary,
     IndicatorOut,
 )
+from app.audit import record
 from app.db import recorder_crud
 from app.db.models import LineGeometryRow
 from app.io.isolation import parse_geojson_upload
@@ -40,8 +40,7 @@ def _summary(row: LineGeometryRow) -> GeometrySummary:
              summary="Import line geometries (GeoJSON with km stations; engineer)",
              dependencies=[Depends(require_role("engineer"))])
 async def import_geometry(
-    request: Request,
-    principal: EngineerDep,
+    actor: EngineerActor,
     db: DbDep,
     settings: SettingsDep,
     file: Annotated[UploadFile, File(description="GeoJSON FeatureCollection (see docs/positioning.md)")],
@@ -60,8 +59,8 @@ async def import_geometry(
 
     def write() -> list[GeometrySummary]:
         with db.write() as session:
-            rows = recorder_crud.upsert_geometries(session, geometries, principal.name)
-            record(session, request, principal, "geometry.import", target=file.filename,
+            rows = recorder_crud.upsert_geometries(session, geometries, actor.name)
+            record(session, actor, "geometry.import", target=file.filename,
                    detail={"lines": [[g.line_id, g.track] for g in geometries]})
             return [_summary(r) for r in rows]
 
@@ -91,12 +90,12 @@ def get_geometry(geometry_id: GeometryId, db: DbDep) -> GeometryOut:
 
 @router.delete("/{geometry_id}", status_code=status.HTTP_204_NO_CONTENT,
                summary="Delete a line geometry (engineer)", dependencies=[Depends(require_role("engineer"))])
-def delete_geometry(geometry_id: GeometryId, request: Request, db: DbDep, principal: EngineerDep) -> Response:
+def delete_geometry(geometry_id: GeometryId, db: DbDep, actor: EngineerActor) -> Response:
     """Delete a stored geometry (runs placed with it keep their km)."""
     with db.write() as session:
         if not recorder_crud.delete_geometry(session, geometry_id):
             raise not_found("geometry", geometry_id)
-        record(session, request, principal, "geometry.delete", target=geometry_id)
+        record(session, actor, "geometry.delete", target=geometry_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

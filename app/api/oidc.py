@@ -22,7 +22,7 @@ from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from app.api.auth import set_session_cookies
-from app.api.deps import SESSION_COOKIE, public
+from app.api.deps import SESSION_COOKIE, client_ip, public
 from app.api.login_page import TEMPLATES_DIR, safe_next
 from app.core.config import Settings
 from app.oidc import flow
@@ -113,7 +113,7 @@ def oidc_callback(
     try:
         signed = flow.finish(provider, pending, state=state, code=code,
                              redirect_uri=callback_url(config, str(request.base_url)))
-        result = sign_in(db=request.app.state.db, provider=provider, signed=signed, request=request,
+        result = sign_in(db=request.app.state.db, provider=provider, signed=signed, address=client_ip(request),
                          ttl_s=settings.session_ttl_s, previous_session=request.cookies.get(SESSION_COOKIE))
     except ProviderUnavailable as exc:
         response = _unavailable(config, exc)

@@ -10,11 +10,10 @@ import datetime as dt
 from dataclasses import asdict, dataclass
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Depends, File, Query, Request, UploadFile
+from fastapi import APIRouter, Depends, File, Query, UploadFile
 from starlette.concurrency import run_in_threadpool
 
-from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, SettingsDep, check_km, km_query
+from app.api.deps import DbDep, EngineerActor, SettingsDep, check_km, km_query
 from app.api.errors import ApiError
 from app.api.schemas.reference import (
     DeleteOut,
@@ -23,6 +22,7 @@ from app.api.schemas.reference import (
     SubsidenceList,
     SuperstructureList,
 )
+from app.audit import record
 from app.db import reference_crud
 from app.io.isolation import read_reference_upload
 from app.io.reference import MAINTENANCE_TYPES
@@ -42,8 +42,7 @@ KmToQ = Annotated[float | None, km_query("Upper km bound")]
              summary="Import reference data (CSV or Parquet)")
 async def import_reference(
     kind: Kind,
-    request: Request,
-    principal: EngineerDep,
+    actor: EngineerActor,
     db: DbDep,
     settings: SettingsDep,
     file: Annotated[UploadFile, File(description="CSV or Parquet file")],
@@ -69,7 +68,7 @@ async def import_reference(
                 for line_id, track in sorted({(r["line_id"], r["track"]) for r in rows}):
                     replaced += reference_crud.delete_reference(session, kind, line_id, track)
             imported = reference_crud.insert_reference(session, kind, rows)
-            record(session, request, principal, "reference.import", target=kind,
+            record(session, actor, "reference.import", target=kind,
                    detail={"imported": imported, "replaced": replaced, "mode": mode,
                            "filename": file.filename})
             return imported, replaced
@@ -79,12 +78,12 @@ async def import_reference(
 
 
 @router.delete("/{kind}", response_model=DeleteOut, summary="Delete reference data of a line")
-def delete_reference(kind: Kind, request: Request, principal: EngineerDep, db: DbDep,
+def delete_reference(kind: Kind, actor: EngineerActor, db: DbDep,
                      line_id: Annotated[str, Query(max_length=128)], track: TrackQ = None) -> DeleteOut:
     """Delete the rows of ``kind`` of a line (and track)."""
     with db.write() as session:
         n = reference_crud.delete_reference(session, kind, line_id, track)
-        record(session, request, principal, "reference.delete", target=kind,
+        record(session, actor, "reference.delete", target=kind,
                detail={"line_id": line_id, "track": track, "deleted": n})
     return DeleteOut(kind=kind, deleted=n)
 

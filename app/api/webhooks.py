@@ -15,12 +15,12 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Path, Query, Request, Response, status
+from fastapi import APIRouter, Depends, Path, Query, Response, status
 from pydantic import BaseModel, Field
 
-from app.api.audit import record
-from app.api.deps import AdminDep, DbDep, PageOffset, SettingsDep, check_page_size, require_role
+from app.api.deps import AdminActor, DbDep, PageOffset, SettingsDep, check_page_size, require_role
 from app.api.errors import ApiError, not_found
+from app.audit import record
 from app.core.jsonable import iso_time
 from app.core.url_policy import AddressPolicy, UrlError, redact_url, resolve
 from app.db import webhooks
@@ -116,12 +116,12 @@ def _out(session, hook: Webhook) -> dict:
 
 
 @router.post("", response_model=WebhookCreated, status_code=201, summary="Register a webhook (admin)")
-def create(body: WebhookIn, request: Request, db: DbDep, principal: AdminDep, settings: SettingsDep) -> dict:
+def create(body: WebhookIn, db: DbDep, actor: AdminActor, settings: SettingsDep) -> dict:
     url = _url(body.url, settings)
     with db.write() as session:
         hook = webhooks.create_webhook(session, url, description=body.description, secret=body.secret,
-                                       created_by=principal.name)
-        record(session, request, principal, "webhook.create", target=hook.id, detail={"url": redact_url(url)})
+                                       created_by=actor.name)
+        record(session, actor, "webhook.create", target=hook.id, detail={"url": redact_url(url)})
         return {**_out(session, hook), "secret": hook.secret}
 
 
@@ -132,7 +132,7 @@ def list_hooks(db: DbDep) -> dict:
 
 
 @router.patch("/{webhook_id}", response_model=WebhookOut, summary="Change a webhook (admin)")
-def change(webhook_id: WebhookId, body: WebhookPatch, request: Request, db: DbDep, principal: AdminDep,
+def change(webhook_id: WebhookId, body: WebhookPatch, db: DbDep, actor: AdminActor,
            settings: SettingsDep) -> dict:
     """Change a webhook's URL, description or active flag, or rotate its secret (``secret``)."""
     changed = body.model_dump(exclude_none=True)
@@ -151,19 +151,19 @@ def change(webhook_id: WebhookId, body: WebhookPatch, request: Request, db: DbDe
         if "secret" in changed:
             webhooks.rotate_secret(hook, changed["secret"], grace_s=settings.webhook_secret_grace_s)
             changed["secret"] = "rotated"  # never the secret itself
-        record(session, request, principal, "webhook.update", target=webhook_id, detail=changed)
+        record(session, actor, "webhook.update", target=webhook_id, detail=changed)
         return _out(session, hook)
 
 
 @router.delete("/{webhook_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete a webhook (admin)")
-def delete(webhook_id: WebhookId, request: Request, db: DbDep, principal: AdminDep) -> Response:
+def delete(webhook_id: WebhookId, db: DbDep, actor: AdminActor) -> Response:
     with db.write() as session:
         hook = session.get(Webhook, webhook_id)
         if hook is None:
             raise not_found("webhook", webhook_id)
         session.query(WebhookDelivery).filter(WebhookDelivery.webhook_id == webhook_id).delete()
         session.delete(hook)
-        record(session, request, principal, "webhook.delete", target=webhook_id, detail={"url": redact_url(hook.url)})
+        record(session, actor, "webhook.delete", target=webhook_id, detail={"url": redact_url(hook.url)})
     return Response(status_code=204)
 
 

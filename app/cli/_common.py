@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-
 import typer
 
 from app.core.config import get_settings
@@ -101,12 +99,10 @@ def database():
 
 def cli_audit(session, action: str, target: str, detail: dict | None = None) -> None:
     """Append a command-line action to the audit log (actor ``cli:<user>``)."""
-    from app.db import auth_crud
+    from app.audit import record
+    from app.core.security import Actor
 
-    auth_crud.audit(
-        session, actor=f"{CLI_ACTOR}:{os.environ.get('USER', 'unknown')}", actor_kind="cli",
-        action=action, target=target, detail=detail,
-    )
+    record(session, Actor.command_line(), action, target=target, detail=detail)
 
 
 def new_password() -> str:

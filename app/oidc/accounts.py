@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.audit import record
-from app.core.security import Principal
+from app.core.security import Actor, Principal
 from app.db import auth_crud
 from app.db.models import utcnow
 from app.db.session import Database
@@ -65,7 +65,7 @@ def _refusal(session: Any, config: Any, claims: dict[str, Any], username: str | 
     return None
 
 
-def sign_in(db: Database, provider: Provider, signed: SignedIn, *, request: Any, ttl_s: float,
+def sign_in(db: Database, provider: Provider, signed: SignedIn, *, address: str | None, ttl_s: float,
             previous_session: str | None = None) -> SignInResult:
     """Let a user the provider vouched for in: the account created or updated, a session begun,
     ``auth.login`` audited (``detail.method = "oidc"``).
@@ -76,8 +76,8 @@ def sign_in(db: Database, provider: Provider, signed: SignedIn, *, request: Any,
     provider : Provider
     signed : SignedIn
         The checked ID token (:func:`app.oidc.flow.finish`).
-    request : object
-        The HTTP request (client address of the session and the audit entry).
+    address : str or None
+        The client's address (of the session and the audit entry).
     ttl_s : float
         Lifetime of the session, s.
     previous_session : str, optional
@@ -98,8 +98,9 @@ def sign_in(db: Database, provider: Provider, signed: SignedIn, *, request: Any,
     with db.write() as session:
         refusal = _refusal(session, config, claims, username, groups, role)
         if refusal is not None:
-            record(session, request, None, "auth.login", target=username or str(claims.get("sub"))[:128],
-                   outcome="denied", actor=username or "oidc", detail={**detail, "reason": refusal})
+            record(session, Actor(None, address, claimed=username or "oidc"), "auth.login",
+                   target=username or str(claims.get("sub"))[:128], outcome="denied",
+                   detail={**detail, "reason": refusal})
         else:
             subject = config.subject_of(claims)
             user = auth_crud.user_by_external_subject(session, subject)
@@ -113,11 +114,10 @@ def sign_in(db: Database, provider: Provider, signed: SignedIn, *, request: Any,
                 user.updated_at = utcnow()
             if previous_session:
                 auth_crud.delete_session(session, previous_session)
-            ip = request.client.host if getattr(request, "client", None) else None
-            token = auth_crud.create_session(session, user, dt.timedelta(seconds=ttl_s), ip,
+            token = auth_crud.create_session(session, user, dt.timedelta(seconds=ttl_s), address,
                                              id_token=signed.id_token)
             principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
-            record(session, request, principal, "auth.login", target=user.username,
+            record(session, Actor(principal, address), "auth.login", target=user.username,
                    detail={**detail, "role": role, "created": created})
     if refusal is not None:
         raise SignInRefused(refusal)
