@@ -3,7 +3,7 @@
 Every route declares its access policy through a dependency (:func:`route_policy`):
 ``public`` (health, login), :func:`require_role` (API: 401/403 as JSON) or
 :func:`require_page_login` (pages: 303 to the login page, 403). The checks use the
-primitives of :mod:`app.core.security` and the rows of :mod:`app.db.auth_crud`.
+primitives of :mod:`app.core.security` and the accounts of :mod:`app.accounts.sessions`.
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from urllib.parse import quote
 
 from fastapi import Depends, HTTPException, Request
 
+from app.accounts.sessions import key_principal, session_principal
 from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.routing import iter_routes
 from app.core.security import ROLES, Actor, Principal, csrf_matches, role_allows, role_rank
-from app.db import auth_crud
 from app.db.session import Database
 from app.oidc.accounts import bearer_principal
 from app.oidc.provider import ProviderUnavailable, provider_of_settings
@@ -90,23 +90,13 @@ def _lookup(request: Request) -> Principal | None:
     if token is not None and looks_like_jwt(token) and settings.oidc_api_audience:
         return _provider_token_principal(request, settings, token)
     if token is not None:
-        with db.read() as session:
-            key = auth_crud.api_key_by_token(session, token)
-            if key is None:
-                raise ApiError(401, "authorization", "invalid, revoked or expired API key", _BEARER)
-            principal = Principal(name=f"key:{key.name}", role=key.role, kind="api_key", key_id=key.id)
-            stale = auth_crud.needs_touch(key)
-        if stale:
-            with db.write() as session:
-                auth_crud.touch_api_key(session, key.id)
-        return principal
+        return key_principal(db, token)  # 401 for a bad key: no fallback to the cookie
     cookie = request.cookies.get(SESSION_COOKIE)
     if cookie:
-        with db.read() as session:
-            user = auth_crud.session_user(session, cookie)
-            if user is not None:
-                request.state.session_token = cookie
-                return Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+        principal = session_principal(db, cookie)
+        if principal is not None:
+            request.state.session_token = cookie
+            return principal
     return None
 
 

@@ -7,12 +7,9 @@ import typer
 from app.core.config import get_settings
 
 __all__ = [
-    "CLI_ACTOR", "echo", "refuse_unsafe_production", "database", "database_problem",
+    "echo", "refuse_unsafe_production", "database", "database_problem",
     "require_migrated_database", "cli_audit", "new_password",
 ]
-
-#: ``created_by`` of users and keys made on the command line
-CLI_ACTOR = "cli"
 
 
 def echo(message: str) -> None:
