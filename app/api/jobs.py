@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Depends, Query, Request, status
+from fastapi import APIRouter, Body, Depends, Query, status
 
 from app.api.deps import (
     DbDep,
-    EngineerDep,
+    EngineerActor,
     JobId,
     PageOffset,
     RunId,
@@ -74,9 +74,8 @@ def run_jobs(
 )
 def reprocess(
     run_id: RunId,
-    request: Request,
     db: DbDep,
-    principal: EngineerDep,
+    actor: EngineerActor,
     body: Annotated[ProcessingSettingsIn | None, Body()] = None,
 ) -> JobOut:
     """Queue a new processing job for a run.
@@ -85,7 +84,7 @@ def reprocess(
     is done its results replace the run's stored profiles and wheels.
     """
     changes = body.model_dump(exclude_none=True) if body is not None else {}
-    return job_out(jobs.reprocess(db, run_id, changes, principal, request))
+    return job_out(jobs.reprocess(db, run_id, changes, actor))
 
 
 @router.get("/jobs", response_model=JobList, summary="List jobs")
@@ -126,7 +125,7 @@ def get_job(job_id: JobId, db: DbDep) -> JobOut:
     responses={409: {"description": "The job is already done, failed or cancelled"}},
 )
 def cancel_job(
-    job_id: JobId, request: Request, db: DbDep, store: StoreDep, principal: EngineerDep
+    job_id: JobId, db: DbDep, store: StoreDep, actor: EngineerActor
 ) -> JobOut:
     """Cancel a queued job at once, a running one at its next chunk boundary.
 
@@ -135,5 +134,5 @@ def cancel_job(
     an attempt interrupted by a worker's shutdown) are removed at once; a
     running job's by its worker.
     """
-    job, counts = jobs.cancel(db, store, job_id, principal, request)
+    job, counts = jobs.cancel(db, store, job_id, actor)
     return job_out(job, counts)

@@ -12,6 +12,7 @@ import re
 from html import escape
 from pathlib import Path
 from typing import Annotated, Any
+from urllib.parse import urlencode
 
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.openapi.docs import get_swagger_ui_html
@@ -52,10 +53,14 @@ def safe_next(value: str | None) -> str:
 
 @router.get("/login", response_class=HTMLResponse)
 def login_page(request: Request, next: Annotated[str | None, Query(max_length=2000)] = None) -> HTMLResponse:  # noqa: A002
-    """The login form, in the browser's language; after login the browser goes to ``next`` (a local path)."""
+    """The login form, in the browser's language; after login the browser goes to ``next`` (a local
+    path). With corporate sign-in configured it offers "Sign in with <provider>" (``/login/oidc``) too."""
+    settings = request.app.state.settings
+    oidc_name = settings.oidc_provider_name if settings.oidc_enabled else None
     lang = request_language(request).code
     html = jinja_environment(str(TEMPLATES_DIR), lang).get_template("login.html").render(
-        next_path=safe_next(next), i18n_js=f"/i18n/{lang}.js?v={catalogue_digest(lang)}")
+        next_path=safe_next(next), i18n_js=f"/i18n/{lang}.js?v={catalogue_digest(lang)}", oidc_name=oidc_name,
+        oidc_href="/login/oidc?" + urlencode({"next": safe_next(next)}))
     return HTMLResponse(html, headers=_PAGE_HEADERS)
 
 

@@ -8,11 +8,10 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
-from app.api.audit import record
 from app.api.deps import (
-    AdminDep,
+    AdminActor,
     DbDep,
-    EngineerDep,
+    EngineerActor,
     PageOffset,
     RunId,
     SettingsDep,
@@ -31,6 +30,7 @@ from app.api.schemas.runs import (
     RunMetadataPatch,
 )
 from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
+from app.audit import record
 from app.core.config import API_PREFIX
 from app.db import crud
 from app.db.session import Database
@@ -96,7 +96,7 @@ async def upload_run(
     settings: SettingsDep,
     db: DbDep,
     store: StoreDep,
-    principal: EngineerDep,
+    actor: EngineerActor,
     format: Annotated[
         str | None,
         Query(description="hdf5, csv, parquet, mdf4 or tdms (raw body uploads)", max_length=16),
@@ -124,7 +124,7 @@ async def upload_run(
         settings=settings,
         db=db,
         store=store,
-        principal=principal,
+        actor=actor,
         query_format=format,
         query_metadata=metadata,
         query_filename=filename,
@@ -202,8 +202,7 @@ def get_run(run_id: RunId, db: DbDep) -> RunDetail:
     },
 )
 async def patch_run_metadata(
-    run_id: RunId, body: RunMetadataPatch, request: Request, db: DbDep, store: StoreDep,
-    principal: EngineerDep,
+    run_id: RunId, body: RunMetadataPatch, db: DbDep, store: StoreDep, actor: EngineerActor,
 ) -> RunMetadataOut:
     """Change metadata fields of a run (e.g. the line, km or start time of a re-uploaded file).
 
@@ -213,7 +212,7 @@ async def patch_run_metadata(
     change nothing (no job). The previous results stay until the new job is done.
     """
     outcome = await run_in_threadpool(
-        revise_run_metadata, db, store, run_id, body.metadata, principal, request
+        revise_run_metadata, db, store, run_id, body.metadata, actor
     )
     detail = await run_in_threadpool(_detail, db, run_id)
     return RunMetadataOut(
@@ -230,7 +229,7 @@ async def patch_run_metadata(
     dependencies=[Depends(require_role("admin"))],
 )
 async def delete_run(
-    run_id: RunId, request: Request, db: DbDep, store: StoreDep, principal: AdminDep
+    run_id: RunId, db: DbDep, store: StoreDep, actor: AdminActor
 ) -> Response:
     """Delete the run's rows (jobs, chunks, profiles, wheels) and its files.
 
@@ -243,7 +242,7 @@ async def delete_run(
             detail = {"sha256": run.sha256, "original_filename": run.original_filename} if run else None
             deleted = crud.delete_run(session, run_id)
             if deleted:
-                record(session, request, principal, "run.delete", target=run_id, detail=detail)
+                record(session, actor, "run.delete", target=run_id, detail=detail)
         if deleted:
             store.remove_run(run_id)
         return deleted

@@ -35,11 +35,12 @@ from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect, Request
 
-from app.api.audit import record_now
-from app.api.deps import Principal
+from app.api.deps import Actor
 from app.api.errors import ApiError, run_file_error
+from app.audit import record_now
 from app.core.config import Settings
 from app.core.diskspace import DiskFullError, is_disk_full, require_free
+from app.core.i18n import _
 from app.core.runstore import RunStore
 from app.db.session import Database
 from app.io import RunFileError, load_metadata_json
@@ -125,21 +126,20 @@ class _Sink:
 
 def _too_large(cap: int) -> ApiError:
     return ApiError(
-        413, "file", f"upload exceeds the size limit of {cap} bytes (TRACKVKF_MAX_UPLOAD_BYTES)"
+        413, "file", _("upload exceeds the size limit of {cap} bytes (TRACKVKF_MAX_UPLOAD_BYTES)", cap=cap)
     )
 
 
 def _storage_full(exc: BaseException) -> ApiError:
     reason = str(exc) if isinstance(exc, DiskFullError) else "the run store or the database is full"
-    return ApiError(507, "storage", f"{reason}; the upload was not kept, free space and try again")
+    return ApiError(507, "storage", _("{reason}; the upload was not kept, free space and try again", reason=reason))
 
 
 def _unsupported_type(ctype: str) -> ApiError:
     return ApiError(
         415,
         "content_type",
-        f"unsupported content type {ctype[:80]!r}; send a run file as "
-        "application/octet-stream, application/x-hdf5, text/csv or application/vnd.apache.parquet",
+        _("unsupported content type {ctype}; send a run file as application/octet-stream, application/x-hdf5, text/csv or application/vnd.apache.parquet", ctype=repr(ctype[:80])),
     )
 
 
@@ -218,17 +218,17 @@ class _MultipartState:
         self.header_value = bytearray()
 
     def on_headers_finished(self) -> None:
-        _, options = parse_options_header(self.headers.get("content-disposition"))
+        _kind, options = parse_options_header(self.headers.get("content-disposition"))
         name = options.get(b"name", b"").decode("utf-8", "replace")
         if name not in _FORM_FIELDS:
             self.error = self.error or ApiError(
                 422, "form",
-                f"unknown form field {name!r} (expected file, metadata, format or channel_map)",
+                _("unknown form field {name} (expected file, metadata, format or channel_map)", name=repr(name)),
             )
         self.name = name
         if name == "file":
             if self.file_seen:
-                self.error = self.error or ApiError(422, "file", "more than one file part")
+                self.error = self.error or ApiError(422, "file", _("more than one file part"))
             self.file_seen = True
             self.is_file = True
             raw = options.get(b"filename")
@@ -247,18 +247,18 @@ class _MultipartState:
             self.field_data += data[start:end]
             if len(self.field_data) > self.max_field_bytes:
                 self.error = ApiError(
-                    413, self.name or "form", f"form field larger than {self.max_field_bytes} bytes"
+                    413, self.name or "form", _("form field larger than {max_field_bytes} bytes", max_field_bytes=self.max_field_bytes)
                 )
 
     def on_part_end(self) -> None:
         if self.error is None and not self.is_file and self.name:
             if self.name in self.fields:
-                self.error = ApiError(422, self.name, "given more than once")
+                self.error = ApiError(422, self.name, _("given more than once"))
                 return
             try:
                 self.fields[self.name] = self.field_data.decode("utf-8")
             except UnicodeDecodeError:
-                self.error = ApiError(422, self.name, "not valid UTF-8 text")
+                self.error = ApiError(422, self.name, _("not valid UTF-8 text"))
 
     def on_end(self) -> None:
         self.ended = True
@@ -267,15 +267,15 @@ class _MultipartState:
 async def _receive_multipart(
     request: Request, path: Path, settings: Settings, content_type: str
 ) -> _Received:
-    _, params = parse_options_header(content_type)
+    _kind, params = parse_options_header(content_type)
     boundary = params.get(b"boundary")
     if not boundary:
-        raise ApiError(400, "file", "multipart body without a boundary in Content-Type")
+        raise ApiError(400, "file", _("multipart body without a boundary in Content-Type"))
     state = _MultipartState(settings.max_metadata_bytes)
     try:
         parser = MultipartParser(boundary, state.callbacks())
     except FormParserError as exc:
-        raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+        raise ApiError(400, "file", _("malformed multipart body: {exc}", exc=exc)) from None
     sink = _Sink(path, settings.upload_block_bytes, settings.min_free_bytes)
     received = 0
     try:
@@ -286,7 +286,7 @@ async def _receive_multipart(
             try:
                 parser.write(chunk)
             except FormParserError as exc:
-                raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+                raise ApiError(400, "file", _("malformed multipart body: {exc}", exc=exc)) from None
             if state.error is not None:
                 raise state.error
             for data in state.pending_file_data:
@@ -295,7 +295,7 @@ async def _receive_multipart(
         try:
             parser.finalize()
         except FormParserError as exc:
-            raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+            raise ApiError(400, "file", _("malformed multipart body: {exc}", exc=exc)) from None
         if state.error is not None:
             raise state.error
         await sink.close()
@@ -303,9 +303,9 @@ async def _receive_multipart(
         sink.abort()
         raise
     if not state.file_seen:
-        raise ApiError(422, "file", "the multipart body has no 'file' part")
+        raise ApiError(422, "file", _("the multipart body has no 'file' part"))
     if not state.ended:
-        raise ApiError(400, "file", "multipart body ended early (truncated upload)")
+        raise ApiError(400, "file", _("multipart body ended early (truncated upload)"))
     return _Received(
         path=path,
         sha256=sink.hash.hexdigest(),
@@ -345,7 +345,7 @@ def infer_format(
             raise ApiError(
                 422,
                 "format",
-                f"unknown format {explicit!r}; supported formats are {', '.join(SUPPORTED_FORMATS)}",
+                _("unknown format {format}; supported formats are {choices}", format=repr(explicit), choices=', '.join(SUPPORTED_FORMATS)),
             )
         return _FORMAT_ALIASES[key]
     suffix = _known_suffix(filename)
@@ -364,7 +364,7 @@ def _parse_metadata(text: str | None) -> dict[str, Any] | None:
 
 def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
     if form_value is not None and query_value is not None:
-        raise ApiError(422, name, "given both as form field and as query parameter")
+        raise ApiError(422, name, _("given both as form field and as query parameter"))
     return form_value if form_value is not None else query_value
 
 
@@ -374,7 +374,7 @@ async def receive_and_create_run(
     settings: Settings,
     db: Database,
     store: RunStore,
-    principal: Principal,
+    actor: Actor,
     query_format: str | None = None,
     query_metadata: str | None = None,
     query_filename: str | None = None,
@@ -398,20 +398,19 @@ async def receive_and_create_run(
         database) has not enough free space. Nothing is left behind but the
         audit entry of the rejection.
     """
-    wait = request.app.state.upload_limiter.hit(
-        f"key:{principal.key_id}" if principal.key_id is not None else f"user:{principal.name}"
-    )
+    key_id = actor.principal.key_id if actor.principal is not None else None
+    wait = request.app.state.upload_limiter.hit(f"key:{key_id}" if key_id is not None else f"user:{actor.name}")
     if wait is not None:
         seconds = max(1, int(wait + 0.999))
         error = ApiError(
-            429, "rate_limit", f"too many uploads; retry in {seconds} s", {"Retry-After": str(seconds)}
+            429, "rate_limit", _("too many uploads; retry in {seconds} s", seconds=seconds), {"Retry-After": str(seconds)}
         )
-        await run_in_threadpool(_record_rejection, db, request, principal, error, "denied")
+        await run_in_threadpool(_record_rejection, db, actor, error, "denied")
         raise error
     try:
         try:
             return await _receive_and_create(
-                request, settings=settings, db=db, store=store, principal=principal,
+                request, settings=settings, db=db, store=store, actor=actor,
                 query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
                 query_channel_map=query_channel_map,
             )
@@ -422,20 +421,18 @@ async def receive_and_create_run(
             raise
     except (ApiError, RunFileError) as exc:
         rejection = exc if isinstance(exc, ApiError) else run_file_error(exc)
-        await run_in_threadpool(_record_rejection, db, request, principal, rejection, "rejected")
+        await run_in_threadpool(_record_rejection, db, actor, rejection, "rejected")
         raise
     except Exception as exc:
         # not the client's fault (a bug, the database away): answered 500, audited all the same
-        error = ApiError(500, "server", f"{type(exc).__name__}: {exc}")
-        await run_in_threadpool(_record_rejection, db, request, principal, error, "error")
+        error = ApiError(500, "server", _("{type}: {exc}", type=type(exc).__name__, exc=exc))
+        await run_in_threadpool(_record_rejection, db, actor, error, "error")
         raise
 
 
-def _record_rejection(
-    db: Database, request: Request, principal: Principal, exc: ApiError, outcome: str
-) -> None:
+def _record_rejection(db: Database, actor: Actor, exc: ApiError, outcome: str) -> None:
     try:
-        record_now(db, request, principal, "run.upload", outcome=outcome, detail={
+        record_now(db, actor, "run.upload", outcome=outcome, detail={
             "status": exc.status_code, "field": exc.field, "message": exc.message[:500],
         })
     except Exception:  # noqa: BLE001 - the client gets the rejection; the failure is logged
@@ -448,7 +445,7 @@ async def _receive_and_create(
     settings: Settings,
     db: Database,
     store: RunStore,
-    principal: Principal,
+    actor: Actor,
     query_format: str | None,
     query_metadata: str | None,
     query_filename: str | None,
@@ -472,9 +469,9 @@ async def _receive_and_create(
                 received = await _receive_raw(request, path, settings)
                 received.filename = _safe_filename(query_filename)
         except ClientDisconnect:
-            raise ApiError(400, "file", "client disconnected during the upload") from None
+            raise ApiError(400, "file", _("client disconnected during the upload")) from None
         if received.size == 0:
-            raise ApiError(422, "file", "the uploaded file is empty")
+            raise ApiError(422, "file", _("the uploaded file is empty"))
         # A known extension helps ingest recognise e.g. gzip-compressed CSV.
         suffix = _known_suffix(received.filename)
         if suffix:
@@ -497,6 +494,6 @@ async def _receive_and_create(
             lambda: create_run_from_file(
                 db, store, upload_dir, file, fmt=fmt, metadata=metadata,
                 channel_map=_one_of("channel_map", received.fields.get("channel_map"), query_channel_map),
-                principal=principal, request=request, settings=settings,
+                actor=actor, settings=settings,
             ),
         )

@@ -15,7 +15,7 @@ from app.audit import record
 from app.core.errors import ApiError, not_found
 from app.core.i18n import _
 from app.core.runstore import RunStore
-from app.core.security import Principal
+from app.core.security import Actor
 from app.db import crud
 from app.db.models import N_ORDER_COLUMNS, Job
 from app.db.session import Database
@@ -55,7 +55,7 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
     return settings
 
 
-def reprocess(db: Database, run_id: int, changes: dict[str, Any], principal: Principal, request: Any = None) -> Job:
+def reprocess(db: Database, run_id: int, changes: dict[str, Any], actor: Actor) -> Job:
     """Queue a new processing job for a run with its latest settings changed by ``changes`` (audited).
 
     Raises
@@ -75,14 +75,13 @@ def reprocess(db: Database, run_id: int, changes: dict[str, Any], principal: Pri
                 "job",
                 _("run {run_id} already has job {id} {status}; cancel it first", run_id=run_id, id=active.id, status=active.status),
             )
-        job = crud.create_job(session, run_id, settings.to_dict(), principal.name)
-        record(session, request, principal, "job.create", target=run_id,
+        job = crud.create_job(session, run_id, settings.to_dict(), actor.name)
+        record(session, actor, "job.create", target=run_id,
                detail={"job_id": job.id, "settings": changes})
     return job
 
 
-def cancel(db: Database, store: RunStore, job_id: int, principal: Principal, request: Any = None,
-           ) -> tuple[Job, dict[str, int]]:
+def cancel(db: Database, store: RunStore, job_id: int, actor: Actor) -> tuple[Job, dict[str, int]]:
     """Cancel a job: a queued one at once (its leftover chunk files removed), a running one at its
     worker's next chunk boundary (audited). The job after the change and its chunk counts.
 
@@ -99,7 +98,7 @@ def cancel(db: Database, store: RunStore, job_id: int, principal: Principal, req
         assert job is not None
         if outcome == "final":
             raise ApiError(409, "job", _("job {job_id} is already {status}", job_id=job_id, status=job.status))
-        record(session, request, principal, "job.cancel", target=job_id, detail={"run_id": job.run_id})
+        record(session, actor, "job.cancel", target=job_id, detail={"run_id": job.run_id})
         session.refresh(job)
         counts = crud.chunk_counts(session, [job_id]).get(job_id, {})
     if outcome == "cancelled":

@@ -29,6 +29,8 @@ PUBLIC = {
     ("GET", "/api/v1/health"),
     ("POST", "/api/v1/auth/login"),
     ("GET", "/login"),
+    ("GET", "/login/oidc"),  # issue 34: corporate sign-in, its start and the provider's callback
+    ("GET", "/login/oidc/callback"),
     ("GET", "/favicon.ico"),
     ("GET", "/i18n/{lang}.js"),  # the pages' words: the login page speaks the browser's language too
 }

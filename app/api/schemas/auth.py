@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 __all__ = [
     "LoginIn",
+    "LogoutOut",
     "MeOut",
     "MePatch",
     "UserIn",
@@ -44,7 +45,9 @@ class MeOut(BaseModel):
 
     name: str
     role: RoleName
-    kind: Literal["anonymous", "user", "api_key"]
+    kind: Literal["anonymous", "user", "api_key", "oidc_token"] = Field(
+        description="anonymous (authentication off), user (browser session), api_key, "
+                    "oidc_token (an access token of the OpenID provider)")
     language: LanguageCode | None = Field(
         None, description="The language the user chose (pages, messages, error texts); null: the browser's")
     answered_in: LanguageCode = Field(
@@ -58,6 +61,12 @@ class MePatch(BaseModel):
 
     language: LanguageCode | None = Field(
         description="en, de, fr or it; null: follow the browser's Accept-Language")
+
+
+class LogoutOut(BaseModel):
+    """A session begun at the OpenID provider has ended here; the browser signs out there too."""
+
+    end_session_url: str = Field(description="The provider's sign-out (RP-initiated logout) for this session")
 
 
 class PasswordChangeIn(BaseModel):
@@ -104,6 +113,8 @@ class UserOut(BaseModel):
     created_at: dt.datetime
     updated_at: dt.datetime | None = None
     last_login_at: dt.datetime | None = None
+    auth_source: Literal["local", "oidc"] = Field(
+        default="local", description="local: a password here; oidc: signs in at the OpenID provider")
 
 
 class UserList(BaseModel):
