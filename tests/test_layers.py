@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SOURCES = sorted([*ROOT.glob("app/**/*.py"), *ROOT.glob("worker/*.py")])
 SERVICES = ("app.condition", "app.analytics", "app.profiles", "app.runs", "app.maps", "app.publish",
             "app.spectrogram", "app.wheels", "app.audit", "app.operations", "app.observability", "app.alerts",
-            "app.places", "app.accounts", "app.reference")
+            "app.places", "app.accounts", "app.reference", "app.oidc")
 
 
 def _module(path: Path) -> str:

@@ -150,12 +150,19 @@ def login(db: Database, settings: Settings, username: str, password: str, addres
     return started
 
 
-def logout(db: Database, actor: Actor, token: str | None) -> None:
-    """End a user's browser session ``token`` (an API key has none); audited ``auth.logout``."""
+def logout(db: Database, actor: Actor, token: str | None) -> str | None:
+    """End a user's browser session ``token`` (an API key has none); audited ``auth.logout``.
+
+    Returns the ID token the session began with at the OpenID provider (None for a local
+    login): the provider's sign-out is asked with it (:func:`app.oidc.flow.end_session_url`).
+    """
+    id_token = None
     with db.write() as session:
         if actor.principal is not None and actor.principal.kind == "user" and token:
+            id_token = auth_crud.session_id_token(session, token)
             auth_crud.delete_session(session, token)
-        record(session, actor, "auth.logout", target=actor.name)
+        record(session, actor, "auth.logout", target=actor.name, detail={"method": "oidc"} if id_token else None)
+    return id_token
 
 
 def change_password(db: Database, actor: Actor, current: str, new: str) -> None:

@@ -20,6 +20,9 @@ from app.core.errors import ApiError
 from app.core.routing import iter_routes
 from app.core.security import ROLES, Actor, Principal, csrf_matches, role_allows, role_rank
 from app.db.session import Database
+from app.oidc.accounts import bearer_principal
+from app.oidc.provider import ProviderUnavailable, provider_of_settings
+from app.oidc.tokens import TokenRejected, looks_like_jwt
 
 __all__ = [
     "Principal",
@@ -84,6 +87,8 @@ def _lookup(request: Request) -> Principal | None:
         )
     db: Database = request.app.state.db
     token = _api_key_token(request)
+    if token is not None and looks_like_jwt(token) and settings.oidc_api_audience:
+        return _provider_token_principal(request, settings, token)
     if token is not None:
         return key_principal(db, token)  # 401 for a bad key: no fallback to the cookie
     cookie = request.cookies.get(SESSION_COOKIE)
@@ -93,6 +98,28 @@ def _lookup(request: Request) -> Principal | None:
             request.state.session_token = cookie
             return principal
     return None
+
+
+def _provider_token_principal(request: Request, settings: Settings, token: str) -> Principal:
+    """The principal of an access token of the OpenID provider (:func:`app.oidc.accounts.bearer_principal`).
+
+    Raises
+    ------
+    ApiError
+        401 naming ``authorization`` for a token that fails a check, 503 when the provider's
+        keys cannot be fetched.
+    """
+    provider = provider_of_settings(settings)
+    if provider is None:  # pragma: no cover - oidc_api_audience needs an issuer to mean anything
+        raise ApiError(401, "authorization", "provider tokens are not accepted", _BEARER)
+    try:
+        return bearer_principal(request.app.state.db, provider, token)
+    except TokenRejected as exc:
+        raise ApiError(401, "authorization", f"token of the OpenID provider refused: {exc.reason}",
+                       _BEARER) from None
+    except ProviderUnavailable as exc:
+        raise ApiError(503, "authorization", "the OpenID provider cannot be reached to check the token: "
+                       f"{exc.reason}") from None
 
 
 def _authenticate(request: Request) -> Principal | None:
@@ -107,7 +134,8 @@ def get_principal(request: Request) -> Principal:
     """The authenticated principal of a request.
 
     An API key (``Authorization: Bearer <key>`` or ``X-API-Key``) is checked
-    first, then the session cookie ``trackvkf_session``. A state-changing
+    first — or, with ``TRACKVKF_OIDC_API_AUDIENCE`` set, a JWT access token of the OpenID
+    provider as ``Authorization: Bearer`` — then the session cookie ``trackvkf_session``. A state-changing
     request (POST/PUT/PATCH/DELETE) authenticated by the cookie must carry the
     session's CSRF token in ``X-CSRF-Token`` (the value of the
     ``trackvkf_csrf`` cookie). With ``auth_disabled`` (development only)

@@ -13,6 +13,7 @@ import logging
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Depends, Path, Request, Response, status
+from fastapi.responses import JSONResponse
 
 from app.accounts import admin, sessions
 from app.accounts.sessions import too_many_attempts
@@ -36,6 +37,7 @@ from app.api.schemas.auth import (
     KeyList,
     KeyOut,
     LoginIn,
+    LogoutOut,
     MeOut,
     PasswordChangeIn,
     UserIn,
@@ -46,6 +48,8 @@ from app.api.schemas.auth import (
 from app.core.config import Settings
 from app.core.ratelimit import RateLimiter
 from app.core.security import csrf_token, device_cookie_id, new_device_cookie
+from app.oidc.flow import end_session_url, post_logout_url
+from app.oidc.provider import ProviderUnavailable, provider_of_settings
 
 __all__ = ["router", "login_router", "set_session_cookies", "DEVICE_COOKIE"]
 
@@ -156,13 +160,38 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
     status_code=status.HTTP_204_NO_CONTENT,
     summary="Log out: end the session and clear its cookies",
     dependencies=[Depends(require_role("viewer"))],
+    responses={200: {"model": LogoutOut,
+                     "description": "Logged out here; sign out at the OpenID provider too at `end_session_url`"}},
 )
-def logout(request: Request, db: DbDep, actor: ViewerActor) -> Response:
-    """End the browser session (an API key request only gets its cookies cleared)."""
-    sessions.logout(db, actor, getattr(request.state, "session_token", None))
-    response = Response(status_code=status.HTTP_204_NO_CONTENT)
+def logout(request: Request, db: DbDep, actor: ViewerActor, settings: SettingsDep) -> Response:
+    """End the browser session (an API key request only gets its cookies cleared).
+
+    A session begun at the OpenID provider whose provider offers RP-initiated logout answers
+    200 with ``end_session_url``: the page sends the browser there to sign out at the provider
+    too. Otherwise 204.
+    """
+    id_token = sessions.logout(db, actor, getattr(request.state, "session_token", None))
+    end_session = _provider_sign_out(request, settings, id_token) if id_token else None
+    if end_session:
+        response: Response = JSONResponse(LogoutOut(end_session_url=end_session).model_dump())
+    else:
+        response = Response(status_code=status.HTTP_204_NO_CONTENT)
     _clear_cookies(response)
     return response
+
+
+def _provider_sign_out(request: Request, settings: Settings, id_token: str) -> str | None:
+    """The provider's sign-out URL for a session begun there (None: it offers none, or cannot
+    be reached now: the local session has ended all the same)."""
+    provider = provider_of_settings(settings)
+    if provider is None:
+        return None
+    try:
+        return end_session_url(provider, id_token=id_token,
+                               post_logout_redirect_uri=post_logout_url(provider.config, str(request.base_url)))
+    except ProviderUnavailable as exc:
+        log.warning("sign-out at the OpenID provider skipped: %s", exc.reason)
+        return None
 
 
 @router.get("/me", response_model=MeOut, summary="Who am I")

@@ -222,15 +222,16 @@ class Principal:
     role : str
         ``viewer``, ``engineer`` or ``admin``.
     kind : str
-        ``anonymous`` (``auth_disabled``), ``user`` (session cookie),
-        ``api_key`` or ``cli`` (the ``trackvkf`` command).
+        ``anonymous`` (``auth_disabled``), ``user`` (session cookie), ``api_key``,
+        ``oidc_token`` (an access token of the OpenID provider, :mod:`app.oidc`) or ``cli``
+        (the ``trackvkf`` command).
     user_id, key_id : int or None
         Row id of the user or the API key.
     """
 
     name: str
     role: Literal["viewer", "engineer", "admin"]
-    kind: Literal["anonymous", "user", "api_key", "cli"] = "anonymous"
+    kind: Literal["anonymous", "user", "api_key", "oidc_token", "cli"] = "anonymous"
     user_id: int | None = None
     key_id: int | None = None
 
