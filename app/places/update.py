@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
-from app.analysis.condition.change import surface_change_days
+from app.analysis.condition.interventions import surface_change_days
 from app.analysis.condition.lifecycle import (
     Action,
     Observation,
