@@ -5,8 +5,8 @@ The store keeps the condition index ``ln A`` (at matched speed); the places grad
 ``segment_condition`` and ``condition_overview`` now say which index they hold. A rename in place
 (``ALTER TABLE … RENAME COLUMN``: SQLite ≥ 3.25 and PostgreSQL), no row rewritten.
 
-Revision ID: 0021_condition_index
-Revises: 0020_place_uncertainty
+Revision ID: 0022_condition_index
+Revises: 0021_oidc_sign_in
 Create Date: 2026-11-27
 """
 
@@ -14,8 +14,8 @@ from collections.abc import Sequence
 
 from alembic import op
 
-revision: str = "0021_condition_index"
-down_revision: str | None = "0020_place_uncertainty"
+revision: str = "0022_condition_index"
+down_revision: str | None = "0021_oidc_sign_in"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
