@@ -81,7 +81,8 @@ def process_history(client: Any, spec: HistorySpec, file_dir: Path, *, runs: sli
     runs : slice, optional
         Only these runs (default all).
     reference : bool
-        Import the superstructure sections and the maintenance actions first.
+        Import the superstructure sections, the maintenance actions and the asset register (where the
+        history has one) first.
     """
     from app.db.session import Database
     from worker.runner import LocalWorker
@@ -92,6 +93,8 @@ def process_history(client: Any, spec: HistorySpec, file_dir: Path, *, runs: sli
         _post(client, "/api/v1/reference/superstructure", files.superstructure, {"mode": "replace"})
         if spec.maintenance().shape[0]:
             _post(client, "/api/v1/reference/maintenance", files.maintenance, {"mode": "replace"})
+        if files.assets is not None:
+            _post(client, "/api/v1/assets", files.assets)
     db = Database(client.settings.database_url)
     try:
         worker = LocalWorker(client.settings, db=db)
