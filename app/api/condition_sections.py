@@ -14,7 +14,7 @@ from app.api.condition import LineIdQ, TrackQ
 from app.api.deps import DbDep, SettingsDep
 from app.api.errors import ApiError
 from app.core.i18n import _
-from app.sections.service import SEGMENT_M, line_sections
+from app.places.sections import SEGMENT_M, line_sections
 
 __all__ = ["router"]
 

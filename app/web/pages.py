@@ -24,9 +24,10 @@ from app.api import API_PREFIX
 from app.api.deps import RunId, public, require_page_login
 from app.api.language import request_language
 from app.core.i18n import LANGUAGE_NAMES, LANGUAGES, N_, jinja_environment, translations
-from app.db.models import MAINTENANCE_TYPES, PLACE_STATUSES
+from app.io.reference import MAINTENANCE_TYPES
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M
 from app.places.config import PlacesConfig
+from app.places.workflow import PLACE_STATUSES
 from app.places.worklist import CLOSED_STATUSES
 from app.web.i18n import boot_language, build_i18n_router, catalogue_url
 from app.web.vocabulary import labels

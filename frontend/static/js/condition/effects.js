@@ -56,7 +56,7 @@
     const traces = [
       { type: "scatter", mode: "lines", name: T.ngettext("before (n = {n} run)", "before (n = {n} runs)", e.n_runs_before), x: xs, y: e.profile_before, line: { color: "#c62828", width: 2 } },
       { type: "scatter", mode: "lines", name: T.ngettext("after (n = {n} run)", "after (n = {n} runs)", e.n_runs_after), x: xs, y: e.profile_after, line: { color: "#1565c0", width: 2 } },
-      { type: "scatter", mode: "markers", name: T._("per run"), x: e.series.map((p) => p.start_time), y: e.series.map((p) => p.index),
+      { type: "scatter", mode: "markers", name: T._("per run"), x: e.series.map((p) => p.start_time), y: e.series.map((p) => p.condition_index),
         xaxis: "x2", yaxis: "y2", marker: { size: 4, color: "#5d6b7a" } },
     ];
     await T.plot(el, traces, {

@@ -34,7 +34,7 @@
     const valueOf = (p, w) => {
       if (index) return byWheel[w].has(p.run_id) ? byWheel[w].get(p.run_id) : null;
       const r = p.wheels.find((q) => q.wheel === w);
-      return r ? r.index : null;
+      return r ? r.condition_index : null;
     };
     const traces = T.WHEELS.map((w) => ({
       type: "scatter", mode: "lines", name: T.wheelLabel(w), x, line: { color: T.wheelColor(w), width: 1 }, opacity: 0.55,

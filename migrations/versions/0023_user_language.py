@@ -1,7 +1,7 @@
 """The language a user chose for the pages and messages: users.language (None: the browser's).
 
-Revision ID: 0022_user_language
-Revises: 0021_oidc_sign_in
+Revision ID: 0023_user_language
+Revises: 0022_condition_index
 Create Date: 2026-11-27
 """
 
@@ -10,8 +10,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0022_user_language"
-down_revision: str | None = "0021_oidc_sign_in"
+revision: str = "0023_user_language"
+down_revision: str | None = "0022_condition_index"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
