@@ -124,5 +124,5 @@ PLACES_PATH = "/api/v1/condition/places"
 @router.get("/hotspots.geojson", include_in_schema=False)
 def hotspots_gone() -> None:
     """The hotspot work list was retired: 410 naming the places (the work list since issue 25)."""
-    raise ApiError(410, "path", f"the hotspot work list was retired: use {PLACES_PATH} (.csv, .geojson)",
+    raise ApiError(410, "path", _("the hotspot work list was retired: use {path} (.csv, .geojson)", path=PLACES_PATH),
                    headers={"Link": f'<{PLACES_PATH}>; rel="alternate"'})

@@ -25,6 +25,7 @@ from app.condition.lines import check_line_km, resolve_line
 from app.condition.readers import OVERVIEW_M, line_runs
 from app.condition.writer import days_of
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.db import reference_crud
 from app.db.models import (
     ConditionLine,
@@ -182,7 +183,8 @@ def action_effect_detail(db: Database, action_id: int, *, before_days: float, af
         return [lookup.get(k) for k in km.tolist()]
 
     if not runs:
-        raise ApiError(409, "action_id", f"no run of line {line.line_id!r} covers action {action_id}")
+        raise ApiError(409, "action_id", _("no run of line {line} covers action {action_id}", line=repr(line.line_id),
+                                                    action_id=action_id))
     return {
         **_out(a, line, effect, len(runs)),
         "series": [{"run_id": r.run_id, "start_time": r.run_time.isoformat(), "condition_index": float(v)}

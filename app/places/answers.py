@@ -11,9 +11,15 @@ from typing import Any
 from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP, EVIDENCE_TREND
 from app.analysis.condition.tiers import TIER_ACTIONS, TIER_NAMES
 from app.core.jsonable import finite_or_none, iso_time
-from app.db.models import ConditionLine, Place, PlaceAction
+from app.db.models import (
+    PLACE_ACTION_RELATIONS,
+    PLACE_EVENT_KINDS,
+    ConditionLine,
+    Place,
+    PlaceAction,
+)
 
-__all__ = ["QUANTITY", "EVIDENCE_NAMES", "place_dict", "action_dict", "evidence_names", "tier_name"]
+__all__ = ["QUANTITY", "EVIDENCE_NAMES", "PLACE_EVENT_KINDS", "PLACE_ACTION_RELATIONS", "place_dict", "action_dict", "evidence_names", "tier_name"]
 
 #: What every value of a place is: the speed-conditioned stiffness index.
 QUANTITY = "stiffness index ln(A/A_ref(class, v))"

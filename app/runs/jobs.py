@@ -21,7 +21,10 @@ from app.db.models import N_ORDER_COLUMNS, Job, JobStatus
 from app.db.session import Database
 from app.runs.catalog import JobView, job_views
 
-__all__ = ["N_ORDER_COLUMNS", "settings_from_request", "reprocess", "cancel", "job_page", "job_view"]
+__all__ = ["JOB_STATUSES", "N_ORDER_COLUMNS", "settings_from_request", "reprocess", "cancel", "job_page", "job_view"]
+
+#: the states of a job (the pages' words for them: app.web.vocabulary)
+JOB_STATUSES: tuple[str, ...] = tuple(JobStatus.ALL)
 
 _SETTING_FIELDS = tuple(f.name for f in dataclasses.fields(ProcessingSettings))
 

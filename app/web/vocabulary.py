@@ -20,14 +20,10 @@ from app.analysis.condition.section_class import SECTION_CLASSES
 from app.analysis.condition.tiers import TIER_ACTIONS, TIER_NAMES
 from app.analysis.stiffness.speed_norm import METHODS
 from app.core.i18n import translations
-from app.db.models import (
-    MAINTENANCE_TYPES,
-    PLACE_ACTION_RELATIONS,
-    PLACE_EVENT_KINDS,
-    PLACE_STATUSES,
-    JobStatus,
-)
-from app.places.answers import EVIDENCE_NAMES
+from app.io.reference import MAINTENANCE_TYPES
+from app.places.answers import EVIDENCE_NAMES, PLACE_ACTION_RELATIONS, PLACE_EVENT_KINDS
+from app.places.workflow import PLACE_STATUSES
+from app.runs.jobs import JOB_STATUSES
 
 __all__ = ["KINDS", "messages", "labels", "SECTION_CLASS_MEANINGS"]
 
@@ -61,7 +57,7 @@ KINDS: dict[str, Any] = {
     "tendency": lambda: _words(TENDENCIES),
     "maintenance type": lambda: _words(MAINTENANCE_TYPES),
     "asset type": lambda: _words(ASSET_TYPES),
-    "job status": lambda: _words(JobStatus.ALL),
+    "job status": lambda: _words(JOB_STATUSES),
     "section class": lambda: {c: SECTION_CLASS_MEANINGS[c] for c in (*SECTION_CLASSES, "")},
     "direction": lambda: {"soft": "soft", "hard": "hard"},
     "curve method": lambda: {m: CURVE_METHODS[m] for m in METHODS},

@@ -34,7 +34,8 @@ LOCALE_DIR = Path(__file__).resolve().parents[2] / "app" / "locale"
 #: the languages walked and the locale the browser asks for
 LANGUAGES = {"de": "de-CH", "fr": "fr-CH", "it": "it-CH"}
 _WORD = re.compile(r"[A-Za-z]{3,}")
-_MARKUP = re.compile(r"<[^>]+>|\{[^{}]*\}|%\(\w+\)[sd]|&\w+;")
+#: what is not language in a message: markup, fields, entities and URL paths (``/runs/``)
+_MARKUP = re.compile(r"<[^>]+>|\{[^{}]*\}|%\(\w+\)[sd]|&\w+;|(?:/[A-Za-z_][\w.-]*)+/")
 
 #: the visible text of the page: text nodes of visible elements (HTML and SVG), option texts,
 #: outside anything marked translate="no" and outside scripts and styles
@@ -94,6 +95,13 @@ def english_leftovers(lang: str) -> tuple[frozenset[str], tuple[tuple[str, str],
         if len(ids) == 1 and strings and strings[0] != single and " " in single and not _MARKUP.search(single) \
                 and len(single) >= 16:
             phrases.append((single, strings[0]))
+    # the locale's month and day names are its own words (Plotly's date axes: "set 2025" in Italian)
+    from babel.dates import get_day_names, get_month_names
+
+    where = LANGUAGES[lang].replace("-", "_")
+    for width in ("abbreviated", "wide"):
+        for names in (get_month_names(width, locale=where), get_day_names(width, locale=where)):
+            target.update(w.lower() for name in names.values() for w in _WORD.findall(name))
     return frozenset(english - target), tuple(phrases)
 
 
