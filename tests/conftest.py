@@ -18,6 +18,16 @@ from tests.api.support import auth_headers, create_api_key, make_settings
 
 
 @pytest.fixture
+def clock():
+    """The service's clock moved on by the test instead of waiting (:class:`app.core.clock.OffsetClock`,
+    installed for this process: in-process apps, workers and loops read it; subprocesses do not)."""
+    from app.core.clock import OffsetClock, clock_in_use
+
+    with clock_in_use(OffsetClock()) as c:
+        yield c
+
+
+@pytest.fixture
 def service_settings(tmp_path: Path) -> Settings:
     """Settings on a fresh, migrated SQLite database in ``tmp_path``."""
     from app.db import migrate
