@@ -35,9 +35,9 @@ from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect, Request
 
-from app.api.audit import record_now
-from app.api.deps import Principal
+from app.api.deps import Actor
 from app.api.errors import ApiError, run_file_error
+from app.audit import record_now
 from app.core.config import Settings
 from app.core.diskspace import DiskFullError, is_disk_full, require_free
 from app.core.runstore import RunStore
@@ -374,7 +374,7 @@ async def receive_and_create_run(
     settings: Settings,
     db: Database,
     store: RunStore,
-    principal: Principal,
+    actor: Actor,
     query_format: str | None = None,
     query_metadata: str | None = None,
     query_filename: str | None = None,
@@ -398,20 +398,19 @@ async def receive_and_create_run(
         database) has not enough free space. Nothing is left behind but the
         audit entry of the rejection.
     """
-    wait = request.app.state.upload_limiter.hit(
-        f"key:{principal.key_id}" if principal.key_id is not None else f"user:{principal.name}"
-    )
+    key_id = actor.principal.key_id if actor.principal is not None else None
+    wait = request.app.state.upload_limiter.hit(f"key:{key_id}" if key_id is not None else f"user:{actor.name}")
     if wait is not None:
         seconds = max(1, int(wait + 0.999))
         error = ApiError(
             429, "rate_limit", f"too many uploads; retry in {seconds} s", {"Retry-After": str(seconds)}
         )
-        await run_in_threadpool(_record_rejection, db, request, principal, error, "denied")
+        await run_in_threadpool(_record_rejection, db, actor, error, "denied")
         raise error
     try:
         try:
             return await _receive_and_create(
-                request, settings=settings, db=db, store=store, principal=principal,
+                request, settings=settings, db=db, store=store, actor=actor,
                 query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
                 query_channel_map=query_channel_map,
             )
@@ -422,20 +421,18 @@ async def receive_and_create_run(
             raise
     except (ApiError, RunFileError) as exc:
         rejection = exc if isinstance(exc, ApiError) else run_file_error(exc)
-        await run_in_threadpool(_record_rejection, db, request, principal, rejection, "rejected")
+        await run_in_threadpool(_record_rejection, db, actor, rejection, "rejected")
         raise
     except Exception as exc:
         # not the client's fault (a bug, the database away): answered 500, audited all the same
         error = ApiError(500, "server", f"{type(exc).__name__}: {exc}")
-        await run_in_threadpool(_record_rejection, db, request, principal, error, "error")
+        await run_in_threadpool(_record_rejection, db, actor, error, "error")
         raise
 
 
-def _record_rejection(
-    db: Database, request: Request, principal: Principal, exc: ApiError, outcome: str
-) -> None:
+def _record_rejection(db: Database, actor: Actor, exc: ApiError, outcome: str) -> None:
     try:
-        record_now(db, request, principal, "run.upload", outcome=outcome, detail={
+        record_now(db, actor, "run.upload", outcome=outcome, detail={
             "status": exc.status_code, "field": exc.field, "message": exc.message[:500],
         })
     except Exception:  # noqa: BLE001 - the client gets the rejection; the failure is logged
@@ -448,7 +445,7 @@ async def _receive_and_create(
     settings: Settings,
     db: Database,
     store: RunStore,
-    principal: Principal,
+    actor: Actor,
     query_format: str | None,
     query_metadata: str | None,
     query_filename: str | None,
@@ -497,6 +494,6 @@ async def _receive_and_create(
             lambda: create_run_from_file(
                 db, store, upload_dir, file, fmt=fmt, metadata=metadata,
                 channel_map=_one_of("channel_map", received.fields.get("channel_map"), query_channel_map),
-                principal=principal, request=request, settings=settings,
+                actor=actor, settings=settings,
             ),
         )
