@@ -18,7 +18,7 @@ from app.db.models import PLACE_STATUSES, ConditionLine, Place, PlaceStatusChang
 from app.db.session import Database
 from app.places.answers import place_dict
 
-__all__ = ["MAX_COMMENT_CHARS", "set_status"]
+__all__ = ["MAX_COMMENT_CHARS", "PLACE_STATUSES", "set_status"]
 
 #: Longest status comment, characters.
 MAX_COMMENT_CHARS = 2000
