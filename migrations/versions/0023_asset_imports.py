@@ -3,8 +3,8 @@
 
 The assets stored before become import 1, live on every line and track they are on.
 
-Revision ID: 0022_asset_imports
-Revises: 0021_oidc_sign_in
+Revision ID: 0023_asset_imports
+Revises: 0022_condition_index
 Create Date: 2026-11-28
 """
 
@@ -13,8 +13,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0022_asset_imports"
-down_revision: str | None = "0021_oidc_sign_in"
+revision: str = "0023_asset_imports"
+down_revision: str | None = "0022_condition_index"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
