@@ -249,3 +249,71 @@ def test_a_bad_webhook_url_shows_the_api_message(browser, history_service):
         assert page.locator("#webhooks-body tr[data-hook]").count() == 1
     finally:
         ctx.close()
+
+
+# --- the planning report (issue 34 item 3) ---------------------------------------------------------
+def _report_tools() -> None:
+    """What making and reading the report needs from Debian, installed with apt-get when missing (as
+    root, like chromium): Pango for WeasyPrint (the service makes the PDF), poppler-utils
+    (pdftotext, pdftoppm, pdfinfo) for the test."""
+    import ctypes.util
+    import os
+    import shutil
+    import subprocess
+
+    missing = [] if ctypes.util.find_library("pango-1.0") and ctypes.util.find_library("pangoft2-1.0") else [
+        "libpango-1.0-0", "libpangoft2-1.0-0", "fonts-dejavu-core"]
+    if not (shutil.which("pdftotext") and shutil.which("pdftoppm") and shutil.which("pdfinfo")):
+        missing.append("poppler-utils")
+    if not missing:
+        return
+    if shutil.which("apt-get") is None or os.geteuid() != 0:
+        pytest.fail(f"missing Debian packages {' '.join(missing)} (install them: needs root and apt-get)")
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    for cmd in (["apt-get", "update", "-qq"], ["apt-get", "install", "-y", "-qq", "--no-install-recommends", *missing]):
+        done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=900)
+        assert done.returncode == 0, done.stderr[-2000:]
+
+
+def test_the_planning_report_has_a_sheet_with_its_plot_per_open_place(engineer_page, history_service, tmp_path):
+    """The Condition page's button gives the line's report; its pages, rendered to images by
+    pdftoppm and read back by pdftotext: the section classes, the work list, one sheet per open
+    place with its history plot, where it is on the line and on the map, the maintenance effects."""
+    import subprocess
+
+    from PIL import Image
+
+    _report_tools()
+    page, log = engineer_page
+    _open(page)
+    line_id = history_service.spec.line_id
+    page.wait_for_selector("#report-pdf[href*='report.pdf']")
+    with page.expect_download() as info:
+        page.click("#report-pdf")
+    pdf = tmp_path / "report.pdf"
+    info.value.save_as(pdf)
+    assert info.value.suggested_filename.startswith(f"report-{line_id}-")
+    with history_service.client(timeout=120) as client:
+        places = client.get("/api/v1/condition/places", params={"line_id": line_id, "limit": 500}).json()["items"]
+    assert places, "the demo line has open places"
+    pages = int(next(line.split()[-1] for line in subprocess.run(["pdfinfo", str(pdf)], capture_output=True, text=True,
+                                                                  check=True).stdout.splitlines() if line.startswith("Pages:")))
+    texts = [subprocess.run(["pdftotext", "-layout", "-f", str(i), "-l", str(i), str(pdf), "-"], capture_output=True,
+                            text=True, check=True).stdout for i in range(1, pages + 1)]
+    assert "Condition report" in texts[0] and f"line {line_id}" in texts[0] and "Section classes" in texts[0]
+    assert any("Work list" in t for t in texts) and any("Maintenance effects" in t for t in texts)
+    subprocess.run(["pdftoppm", "-r", "40", "-png", str(pdf), str(tmp_path / "page")], check=True)
+    images = sorted(tmp_path.glob("page-*.png"))
+    assert len(images) == pages
+    for p in places:
+        sheet = [i for i, t in enumerate(texts) if f"Place {p['id']}: km {p['km_from']:.3f}" in t]
+        assert len(sheet) == 1, f"place {p['id']}: {len(sheet)} sheets"
+        text = texts[sheet[0]]
+        for part in ("History", "index (ln units)", "On the line", "On the map", "Maintenance over it", p["tier"]):
+            assert part in text, (p["id"], part)
+        # the history plot is drawn: the points' blue on the sheet's image
+        rgb = Image.open(images[sheet[0]]).convert("RGB")
+        blue = sum(1 for px in rgb.getdata() if abs(px[0] - 0x1F) < 40 and abs(px[1] - 0x77) < 40 and abs(px[2] - 0xB4) < 40)
+        assert blue > 20, (p["id"], blue)
+    save_screenshot(page, "condition-report-button")
+    log.assert_clean()

@@ -44,6 +44,7 @@
   async function drawSections() {
     const el = $("cond-sections");
     const { line_id, track } = current();
+    $("report-pdf").href = `${T.boot.api}/condition/report.pdf?${new URLSearchParams({ line_id, track })}`;
     const s = await T.api.get("/condition/sections", { line_id, track });
     $("sections-sub").textContent = `(per ${T.fmt(s.section_m, 0)} m, run of ${T.date(s.run_time)})`;
     $("sections-info").textContent = `class from the rms of the index over a section: A ≤ ${s.limits.map((x) => T.fmt(x, 2)).join(" < B ≤ ").replace(/ < B ≤ (\S+) < B ≤ (\S+) < B ≤ (\S+)$/, " < B ≤ $1 < C ≤ $2 < D ≤ $3 < E")}`;
