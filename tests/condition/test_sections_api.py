@@ -123,3 +123,14 @@ def test_a_bad_class_scheme_stops_the_start_naming_it(sections_client):
     with pytest.raises(ValueError, match=r"classes\[1\]\.of"):
         create_app(sections_client.settings.model_copy(update={"places_class_scheme": {
             "classes": [{"code": "1", "of": ["A", "B", "C", "D"]}, {"code": "2", "of": ["F"]}]}}))
+
+
+def test_the_report_of_a_line_is_a_pdf_and_bad_input_is_named(sections_client):
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE, "date": "2025-03-04"})
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "application/pdf" and r.content.startswith(b"%PDF-")
+    assert f'filename="report-{LINE}-' in r.headers["content-disposition"] and "2025-03-04" in r.headers["content-disposition"]
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": "NOPE"})
+    assert r.status_code == 404 and r.json()["field"] == "line_id"
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE, "date": "2025-13-01"})
+    assert r.status_code == 422 and "date" in r.text

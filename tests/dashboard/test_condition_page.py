@@ -16,7 +16,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from tests.dashboard.conftest import PageLog, save_screenshot
+from tests.dashboard.conftest import SCREENSHOTS, PageLog, save_screenshot
 from tests.e2e.conftest import running_service
 
 pytestmark = pytest.mark.timeout(900)
@@ -117,7 +117,9 @@ def test_the_page_is_an_exception_report_with_every_part_filled(engineer_page, h
     assert "ln(A / Aref(class, v))" in note.replace("\n", "") and "ln A" in note
     # section classes and the length per class
     classes = page.evaluate("document.getElementById('cond-sections').data.map(t => t.name)")
-    assert any(c.startswith("class ") for c in classes)
+    # one trace per class of the railway's scheme (default: A … E with their names)
+    assert classes and set(classes) <= {"A: very good", "B: good", "C: fair", "D: poor", "E: very poor", "no class"}, classes
+    assert page.inner_text("#class-lengths-scheme") == "Class"
     assert page.locator("#class-lengths-body tr").count() >= 1
     # places: tier, extent, peak, trend, time to limit, status, first seen
     rows = page.locator("#places-body tr[data-place]")
@@ -279,6 +281,7 @@ def test_the_planning_report_has_a_sheet_with_its_plot_per_open_place(engineer_p
     """The Condition page's button gives the line's report; its pages, rendered to images by
     pdftoppm and read back by pdftotext: the section classes, the work list, one sheet per open
     place with its history plot, where it is on the line and on the map, the maintenance effects."""
+    import shutil
     import subprocess
 
     from PIL import Image
@@ -316,4 +319,8 @@ def test_the_planning_report_has_a_sheet_with_its_plot_per_open_place(engineer_p
         blue = sum(1 for px in rgb.getdata() if abs(px[0] - 0x1F) < 40 and abs(px[1] - 0x77) < 40 and abs(px[2] - 0xB4) < 40)
         assert blue > 20, (p["id"], blue)
     save_screenshot(page, "condition-report-button")
+    shutil.copy(images[0], SCREENSHOTS / "condition-report-page-1.png")
+    shutil.copy(images[[i for i, t in enumerate(texts) if "History" in t][0]], SCREENSHOTS / "condition-report-sheet.png")
+    # a download ends the navigation the click began: Chromium reports that request as aborted
+    log.failed = [f for f in log.failed if not ("/condition/report.pdf" in f and "ERR_ABORTED" in f)]
     log.assert_clean()
