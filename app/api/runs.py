@@ -27,11 +27,12 @@ from app.api.schemas.runs import (
     RunMetadataOut,
     RunMetadataPatch,
 )
-from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
+from app.api.upload import receive_and_create_run
 from app.core.config import API_PREFIX
 from app.db.session import Database
 from app.runs import catalog
 from app.runs.metadata import revise_run_metadata
+from app.runs.upload import SUPPORTED_FORMATS
 
 __all__ = ["router"]
 

@@ -4,6 +4,7 @@ jobs of a run (reprocess, cancel), and the channel maps recorder files are read 
 
 - :mod:`~app.runs.lookup`: a run, and the job whose results it shows (404, 409 otherwise);
 - :mod:`~app.runs.catalog`: runs and jobs as listed and shown (latest job, chunks done), a run deleted;
+- :mod:`~app.runs.upload`: what is decided of a received upload (format, metadata, rate, refusals);
 - :mod:`~app.runs.create`: a run row and its queued job from an ingested file (upload, CLI);
 - :mod:`~app.runs.metadata`: a run's metadata compared with a re-upload's, corrected by PATCH;
 - :mod:`~app.runs.jobs`: the settings of a new job (reprocessing) from a request, a cancel, the job lists;

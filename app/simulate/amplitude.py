@@ -41,7 +41,8 @@ __all__ = [
 ]
 
 #: Support (ballast) stiffness per rail seat of each simulated superstructure type, MN/m.
-DEFAULT_SUPPORT_STIFFNESS_MNM: dict[str, float] = {"slab": 320.0, "b91_no_pads": 110.0, "b91_pads": 40.0}
+DEFAULT_SUPPORT_STIFFNESS_MNM: dict[str, float] = {"slab": 320.0, "b91_no_pads": 110.0, "b91_pads": 40.0,
+                                                   "timber": 60.0}
 #: Speeds tabulated by :class:`ResonanceResponse`, m/s (log-spaced).
 _TABLE_SPEEDS = np.geomspace(2.0, 150.0, 400)
 
@@ -116,6 +117,11 @@ class ResonanceResponse:
     track : TrackParameters
         Rail, pad, sleeper, wheel and load (its ballast stiffness and damping
         are replaced per type).
+    reference_track : TrackParameters, optional
+        The vehicle ``K_type`` is the amplitude of at ``v_ref`` (default ``track``): another
+        vehicle on the same line (e.g. a heavier unsprung mass) is
+        ``R = A(track, k_type, v) / A(reference_track, k_type, v_ref)``, its own resonance
+        against the line's amplitudes.
 
     ``A(k, v)`` is tabulated once per type on 2 … 150 m/s (400 log-spaced
     speeds) and interpolated linearly in ``(ln v, ln A)``.
@@ -126,6 +132,7 @@ class ResonanceResponse:
     v_ref_mps: float = 100.0 / 3.6
     track: TrackParameters = TrackParameters()
     kind: Literal["resonance"] = "resonance"
+    reference_track: TrackParameters | None = None
 
     def __post_init__(self) -> None:
         stiff = dict(self.support_stiffness_mnm)
@@ -139,24 +146,25 @@ class ResonanceResponse:
         if not (_TABLE_SPEEDS[0] <= self.v_ref_mps <= _TABLE_SPEEDS[-1]):
             raise ValueError(f"v_ref_mps must be within {_TABLE_SPEEDS[0]:g} … {_TABLE_SPEEDS[-1]:g} m/s")
 
-    def params(self, type_name: str) -> TrackParameters:
-        """The track of one superstructure type."""
-        base = self.track
+    def params(self, type_name: str, *, reference: bool = False) -> TrackParameters:
+        """The track of one superstructure type (``reference``: under the reference vehicle)."""
+        base = self.reference_track if reference and self.reference_track is not None else self.track
         return base.replace(
             ballast_stiffness=dict(self.support_stiffness_mnm)[type_name] * 1e6,
             ballast_damping=47e3 * self.damping_factor,
             pad_damping=28e3 * self.damping_factor,
         )
 
-    def amplitude(self, type_name: str, speed_mps: np.ndarray) -> np.ndarray:
-        """``A(k_type, v)``: the model's absolute amplitude, m/s²."""
+    def amplitude(self, type_name: str, speed_mps: np.ndarray, *, reference: bool = False) -> np.ndarray:
+        """``A(k_type, v)``: the model's absolute amplitude, m/s² (``reference``: of the reference vehicle)."""
         v = _check_speed(speed_mps)
         if np.any(v < _TABLE_SPEEDS[0]) or np.any(v > _TABLE_SPEEDS[-1]):
             raise ValueError(f"speed_mps: must be within {_TABLE_SPEEDS[0]:g} … {_TABLE_SPEEDS[-1]:g} m/s")
-        return np.exp(np.interp(np.log(v), np.log(_TABLE_SPEEDS), _log_table(self.params(type_name))))
+        return np.exp(np.interp(np.log(v), np.log(_TABLE_SPEEDS),
+                                _log_table(self.params(type_name, reference=reference))))
 
     def factor(self, type_code: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
-        """``A(k_type, v) / A(k_type, v_ref)`` per sample."""
+        """``A(k_type, v) / A_ref(k_type, v_ref)`` per sample (``A_ref``: the reference vehicle's)."""
         v = _check_speed(speed_mps)
         code = np.asarray(type_code)
         code, v = np.broadcast_arrays(code, v)
@@ -164,14 +172,17 @@ class ResonanceResponse:
         for i, name in enumerate(SUPERSTRUCTURE_TYPES):
             m = code == i
             if m.any():
-                ref = self.amplitude(name, np.array([self.v_ref_mps]))[0]
+                ref = self.amplitude(name, np.array([self.v_ref_mps]), reference=True)[0]
                 out[m] = self.amplitude(name, v[m]) / ref
         return out
 
     def to_json(self) -> str:
-        return json.dumps({"kind": self.kind, "support_stiffness_mnm": dict(self.support_stiffness_mnm),
-                           "damping_factor": self.damping_factor, "v_ref_mps": self.v_ref_mps,
-                           "track": {k: v for k, v in vars(self.track).items()}})
+        doc = {"kind": self.kind, "support_stiffness_mnm": dict(self.support_stiffness_mnm),
+               "damping_factor": self.damping_factor, "v_ref_mps": self.v_ref_mps,
+               "track": {k: v for k, v in vars(self.track).items()}}
+        if self.reference_track is not None:
+            doc["reference_track"] = dict(vars(self.reference_track))
+        return json.dumps(doc)
 
 
 def speed_response(kind: str, *, v_ref_mps: float, alpha: float = 1.5) -> SpeedResponse:
@@ -190,8 +201,11 @@ def speed_response_from_json(text: str) -> SpeedResponse:
         return PowerLawResponse(alpha=float(d["alpha"]), v_ref_mps=float(d["v_ref_mps"]))
     if d.get("kind") == "resonance":
         return ResonanceResponse(
-            support_stiffness_mnm=tuple((str(k), float(v)) for k, v in d["support_stiffness_mnm"].items()),
+            # a file written before a type was appended lacks it: the default (no sample of the file has it)
+            support_stiffness_mnm=tuple((str(k), float(v)) for k, v in
+                                        {**DEFAULT_SUPPORT_STIFFNESS_MNM, **d["support_stiffness_mnm"]}.items()),
             damping_factor=float(d["damping_factor"]), v_ref_mps=float(d["v_ref_mps"]),
             track=TrackParameters(**d["track"]),
+            reference_track=TrackParameters(**d["reference_track"]) if d.get("reference_track") else None,
         )
     raise ValueError(f"unknown amplitude model {d.get('kind')!r}")

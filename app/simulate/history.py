@@ -56,9 +56,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from app.analysis.stiffness.track_dynamics import TrackParameters
+from app.simulate.amplitude import ResonanceResponse
 from app.simulate.run import DEFAULT_TRUE_DIAMETERS_M, simulate_run
 from app.simulate.speed import SpeedProfile
-from app.simulate.surface import RailGrinding, generate_surface
+from app.simulate.surface import RailGrinding, TrackImpact, as_date, generate_surface
 from app.simulate.track import (
     SUPERSTRUCTURE_LABELS,
     SUPERSTRUCTURE_TYPES,
@@ -80,6 +82,11 @@ __all__ = [
     "planted_history",
     "uniform_history",
     "grinding_history",
+    "real_line_history",
+    "REAL_LINE_SPEEDS_MPS",
+    "HistoryVehicle",
+    "HistoryAsset",
+    "RailFeature",
     "demo_history",
     "write_history",
 ]
@@ -164,12 +171,91 @@ class HistoryRun:
         Start odometry error, m (the file states the start that much too far).
     seed : int
         Seed of the run's noise.
+    vehicle : int
+        Which of :attr:`HistorySpec.vehicles` made the run (0 without vehicles: the spec's own
+        ``vehicle_id`` and ``vehicle_seed``).
     """
 
     day: float
     cruise_kmh: float
     km_error_m: float = 0.0
     seed: int = 0
+    vehicle: int = 0
+
+
+@dataclass(frozen=True)
+class HistoryVehicle:
+    """A measuring vehicle of a history (its wheels are the same in every run it makes).
+
+    Attributes
+    ----------
+    vehicle_id : str
+        Metadata of its runs.
+    seed : int
+        Seed of its wheels' out-of-roundness.
+    wheel_diameter_m : float, optional
+        True (and reported) diameter of all its wheels, m; None: the simulator's defaults
+        (:data:`app.simulate.run.DEFAULT_TRUE_DIAMETERS_M`).
+    unsprung_mass_factor : float
+        Its unsprung mass against the line's reference vehicle (1.25: 25 % heavier): its
+        sleeper-passage response and its response to the rail surface are those of that wheel
+        on the same track (:class:`app.simulate.amplitude.ResonanceResponse` with the
+        reference vehicle), its forces carry that mass.
+    sensor_gain : float
+        Its accelerometers' true gain against their calibration (1.15: they read 15 % high,
+        and nothing in the file says so).
+    """
+
+    vehicle_id: str
+    seed: int
+    wheel_diameter_m: float | None = None
+    unsprung_mass_factor: float = 1.0
+    sensor_gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.wheel_diameter_m is not None and not (math.isfinite(self.wheel_diameter_m)
+                                                      and 0.5 <= self.wheel_diameter_m <= 1.5):
+            raise ValueError(f"wheel_diameter_m: must be in 0.5 … 1.5 m, got {self.wheel_diameter_m!r}")
+        for name in ("unsprung_mass_factor", "sensor_gain"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and 0.2 <= v <= 5.0):
+                raise ValueError(f"{name}: must be in 0.2 … 5, got {v!r}")
+
+    def diameters(self) -> dict[str, float]:
+        """True diameter per wheel, m."""
+        if self.wheel_diameter_m is None:
+            return dict(DEFAULT_TRUE_DIAMETERS_M)
+        return {w: float(self.wheel_diameter_m) for w in DEFAULT_TRUE_DIAMETERS_M}
+
+    def simulation_options(self) -> dict:
+        """The :func:`app.simulate.run.simulate_run` options of this vehicle (besides its wheels)."""
+        opts: dict = {"vehicle_id": self.vehicle_id}
+        if self.unsprung_mass_factor != 1.0:
+            base = TrackParameters()
+            opts["amplitude_model"] = ResonanceResponse(
+                track=base.replace(wheel_mass=base.wheel_mass * self.unsprung_mass_factor), reference_track=base)
+            opts["unsprung_mass_kg"] = 300.0 * self.unsprung_mass_factor
+        if self.sensor_gain != 1.0:
+            opts["sensor_gain"] = float(self.sensor_gain)
+        return opts
+
+
+#: Types of the asset register rows a history can write (those of ``POST /assets``).
+ASSET_TYPES = ("switch", "crossing", "bridge", "level_crossing", "insulated_joint", "weld", "other")
+
+
+@dataclass(frozen=True)
+class HistoryAsset:
+    """A row of the line's asset register (``POST /assets``): a known discontinuity at ``track_m``."""
+
+    type: str
+    track_m: float
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        if self.type not in ASSET_TYPES:
+            raise ValueError(f"type: must be one of {ASSET_TYPES}, got {self.type!r}")
+        _finite("track_m", self.track_m)
 
 
 @dataclass(frozen=True)
@@ -202,6 +288,31 @@ class TruthPlace:
 
 
 @dataclass(frozen=True)
+class RailFeature:
+    """A dipped weld or joint of the line (both rails at one position), the truth of a rail finding.
+
+    Attributes
+    ----------
+    track_m : float
+        Position, m on the km axis.
+    kind : str
+        ``"weld"`` or ``"joint"``.
+    depth_m : dict of int to float
+        Depth per rail side, m.
+    length_m : float
+        The longer of the two rails' dips, m.
+    in_register : bool
+        Whether the line's asset register holds it.
+    """
+
+    track_m: float
+    kind: str
+    depth_m: dict[int, float]
+    length_m: float
+    in_register: bool = False
+
+
+@dataclass(frozen=True)
 class HistorySpec:
     """A history: the line, what happens to it, the runs and how they are written.
 
@@ -229,6 +340,13 @@ class HistorySpec:
         Lengths of the acceleration and braking ramps, m.
     vehicle_seed : int
         Seed of the vehicle's wheels (the same in every run).
+    vehicles : tuple of HistoryVehicle
+        The vehicles the runs name (:attr:`HistoryRun.vehicle`); empty: one vehicle,
+        ``vehicle_id`` with the wheels of ``vehicle_seed``.
+    assets : tuple of HistoryAsset
+        The line's asset register (written as the assets CSV).
+    record_grindings : bool
+        Whether the line surface's grindings are maintenance records too (:meth:`maintenance`).
     """
 
     line: LineModel
@@ -247,6 +365,9 @@ class HistorySpec:
     ramp_in_m: float = 500.0
     ramp_out_m: float = 400.0
     vehicle_seed: int = 1
+    vehicles: tuple[HistoryVehicle, ...] = ()
+    assets: tuple[HistoryAsset, ...] = ()
+    record_grindings: bool = False
 
     def __post_init__(self) -> None:
         if not self.runs:
@@ -263,6 +384,15 @@ class HistorySpec:
         for r in self.runs:
             if not r.cruise_kmh > 0:
                 raise ValueError(f"runs: cruise_kmh must be > 0, got {r.cruise_kmh!r}")
+            if not 0 <= r.vehicle < max(1, len(self.vehicles)):
+                raise ValueError(f"runs: vehicle {r.vehicle!r} is not one of the spec's vehicles")
+
+    # --- the vehicles --------------------------------------------------------------
+    def vehicle_of(self, run: HistoryRun) -> HistoryVehicle:
+        """The vehicle that made a run."""
+        if not self.vehicles:
+            return HistoryVehicle(self.vehicle_id, self.vehicle_seed)
+        return self.vehicles[run.vehicle]
 
     # --- the track on a day ------------------------------------------------------
     def log_factor(self, day: float, x: np.ndarray) -> np.ndarray:
@@ -294,12 +424,31 @@ class HistorySpec:
                             self.ramp_in_m, self.ramp_out_m)
 
     def maintenance(self) -> pd.DataFrame:
-        """The tamping actions as maintenance records (the reference import's columns)."""
+        """The tamping actions (and, with ``record_grindings``, the line surface's grindings) as
+        maintenance records (the reference import's columns), by date."""
         rows = [{"line_id": self.line_id, "track": self.track, "km_from": c.track_from_m / 1000.0,
                  "km_to": c.track_to_m / 1000.0, "type": "tamping",
                  "date": (self.start + dt.timedelta(days=c.day)).date().isoformat()}
                 for c in self.changes if c.kind == "tamping"]
+        if self.record_grindings and self.line.surface is not None:
+            rows += [{"line_id": self.line_id, "track": self.track, "km_from": g.track_from_m / 1000.0,
+                      "km_to": g.track_to_m / 1000.0, "type": "grinding", "date": g.date}
+                     for g in self.line.surface.grindings]
+        rows.sort(key=lambda r: r["date"])
         return pd.DataFrame(rows, columns=["line_id", "track", "km_from", "km_to", "type", "date"])
+
+    def grinding_days(self) -> list[float]:
+        """Day of each grinding of the line surface (days from ``start``)."""
+        if self.line.surface is None:
+            return []
+        return [(dt.datetime.combine(as_date(g.date), self.start.timetz()) - self.start).total_seconds() / 86400.0
+                for g in self.line.surface.grindings]
+
+    def asset_register(self) -> pd.DataFrame:
+        """The asset register as the assets import reads it (``line_id,track,type,km,km_to,name``)."""
+        return pd.DataFrame([{"line_id": self.line_id, "track": self.track, "type": a.type,
+                              "km": a.track_m / 1000.0, "km_to": "", "name": a.name} for a in self.assets],
+                            columns=["line_id", "track", "type", "km", "km_to", "name"])
 
     def superstructure(self) -> pd.DataFrame:
         """The line's sections as superstructure records."""
@@ -330,6 +479,24 @@ class HistorySpec:
             out.append(TruthPlace(c.kind, c.track_from_m, c.track_to_m, now, c.day))
         return out
 
+    def rail_features(self) -> list[RailFeature]:
+        """The welds and joints of the line's rails over the runs' extent, one per position, by position."""
+        if self.line.surface is None:
+            return []
+        x0 = 1000.0 * self.km_start
+        groups: dict[tuple[float, str], list[TrackImpact]] = {}
+        for imp in self.line.surface.impacts_between(x0 - 50.0, x0 + 1000.0 * self.length_km + 50.0):
+            groups.setdefault((round(imp.track_m, 3), imp.kind), []).append(imp)
+        reg = {"joint": "insulated_joint", "weld": "weld"}
+        return [RailFeature(float(x), kind, {i.side: i.depth_m for i in imps}, max(i.length_m for i in imps),
+                            any(a.type == reg[kind] and abs(a.track_m - x) <= 1.0 for a in self.assets))
+                for (x, kind), imps in sorted(groups.items())]
+
+    def ramps(self) -> tuple[float, float]:
+        """Where the acceleration ramp ends and the braking ramp begins, m on the km axis."""
+        x0 = 1000.0 * self.km_start
+        return x0 + self.ramp_in_m, x0 + 1000.0 * self.length_km - self.ramp_out_m
+
     def tamping_effect(self, tamping: TrackChange, *, margin_m: float = 0.0) -> float:
         """True effect of a tamping: the median change of ``ln f`` over its extent on its day.
 
@@ -349,13 +516,28 @@ class HistorySpec:
             "line": hashlib.sha256(np.ascontiguousarray(self.line.factor).tobytes()
                                    + self.line.type_code.tobytes()).hexdigest(),
             "first_bin": self.line.first_bin,
-            "runs": [asdict(r) for r in self.runs],
+            "runs": [{k: v for k, v in asdict(r).items() if k != "vehicle"} for r in self.runs],
             "changes": [asdict(c) for c in self.changes],
             **{k: getattr(self, k) for k in ("km_start", "length_km", "line_id", "track", "vehicle_id", "fs",
                                              "noise_std", "v_start_kmh", "v_end_kmh", "ramp_in_m", "ramp_out_m",
                                              "vehicle_seed")},
             "start": self.start.isoformat(),
         }
+        # what came with the vehicles, assets and recorded grindings; a history without them keeps the name it
+        # had before them (the rails' surface included only then: roughness seed, welds, joints, grindings)
+        if self.line.surface is not None and (self.vehicles or self.assets or self.record_grindings):
+            surf = self.line.surface
+            doc["surface"] = {"seed": surf.seed, "spectrum": None if surf.spectrum is None else asdict(surf.spectrum),
+                              "impacts": [asdict(i) for i in surf.impacts],
+                              "grindings": [asdict(g) for g in surf.grindings]}
+        if self.vehicles:
+            doc["vehicles"] = [asdict(v) for v in self.vehicles]
+        if self.assets:
+            doc["assets"] = [asdict(a) for a in self.assets]
+        if self.record_grindings:
+            doc["record_grindings"] = True
+        if any(r.vehicle for r in self.runs):
+            doc["run_vehicles"] = [r.vehicle for r in self.runs]
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:10]
 
 
@@ -370,6 +552,8 @@ class HistoryFiles:
         Run files in the order of :attr:`HistorySpec.runs`.
     superstructure, maintenance : Path
         Reference CSV files (the maintenance file may hold no rows).
+    assets : Path or None
+        The asset register (CSV of ``POST /assets``), where the history has one.
     written : list of Path
         Files made by this call (the others existed).
     """
@@ -378,6 +562,7 @@ class HistoryFiles:
     runs: list[Path] = field(default_factory=list)
     superstructure: Path | None = None
     maintenance: Path | None = None
+    assets: Path | None = None
     written: list[Path] = field(default_factory=list)
 
 
@@ -570,6 +755,94 @@ def grinding_history(*, seed: int = 21, n_runs: int = 10, every_days: float = 7.
     return spec, {"ground": ground, "soft": soft, "grind_day": grind_day, "maintenance": record}
 
 
+#: The real line's cruise speeds, m/s (two speed groups: regional and fast trains).
+REAL_LINE_SPEEDS_MPS: tuple[float, float] = (26.0, 40.0)
+
+
+def real_line_history(*, seed: int = 0, n_runs: int = 24, every_days: float = 15.0, length_km: float = 3.0,
+                      km_start: float = 12.0, km_error_sd_m: float = 5.0, fs: float = 10_000.0,
+                      line_id: str = "REAL", track: str = "1") -> HistorySpec:
+    """A line like a real one: every confounder of the work list at once, with its truth (issue 33).
+
+    On ``length_km`` (3 km) of track passed ``n_runs`` times (24, every 15 days: a year):
+
+    * **four superstructure classes** along the line: slab (the first fifth, under the
+      acceleration ramp), B91 without pads, timber sleepers, B91 with pads;
+    * **both rails rough**, independently (Sato's short-wave ``k⁻³`` spectrum, good rail), with
+      **dipped welds** every 60–120 m (0.2–0.4 mm over 0.8–1.2 m, each rail its own; not in the
+      asset register) and **two insulated joints** (0.4 m, 0.6 mm, both rails) that the asset
+      register holds (``insulated_joint``);
+    * **two speed groups**: cruise 26 and 40 m/s (±3 %), two runs of each in every four, with
+      ramps at both ends (60 km/h to cruise over the first 500 m, cruise to 55 km/h over the
+      last 400 m; shorter on a shorter line);
+    * **two vehicles**: every third run (one in each three, drawn) by the second one, with 25 %
+      more unsprung mass, 0.86 m wheels and accelerometers reading 15 % high; the first run is
+      the first vehicle's (the store's alignment reference);
+    * **maintenance**: a tamping over 200 m (×0.8, settling back 10 %/year) at 0.23–0.30 of the
+      line, after 30 % of the runs (beside the ramp's end and a change of class), and a grinding
+      of both rails over 500 m (a sixth of the line) from the middle, after 62 % of the runs
+      (the rails' roughness there ×0.3 from then on; the support unchanged); both recorded;
+    * **support changes**: a lasting soft spot (×0.6 over 30 m), a place developing softer over
+      the last ten runs (−1.1 ln units a year over 40 m: −35 % by the newest run) and a new
+      −20 % step over 20 m in the newest run;
+    * start odometry errors N(0, ``km_error_sd_m``) (none in the first run).
+
+    The truth: :meth:`HistorySpec.truth_places` (support changes), :meth:`HistorySpec.rail_features`
+    (welds, joints), :meth:`HistorySpec.maintenance` (actions), :meth:`HistorySpec.speed_group`.
+    Features are placed at fixed fractions of the line, so a shorter line (≥ 1.2 km) keeps them all.
+    """
+    if not length_km >= 1.2:
+        raise ValueError(f"length_km: the real line needs >= 1.2 km, got {length_km!r}")
+    if n_runs < 6:
+        raise ValueError(f"n_runs: the real line needs >= 6 runs, got {n_runs!r}")
+    if not every_days > 0:
+        raise ValueError(f"every_days: must be > 0, got {every_days!r}")
+    x0, L = 1000.0 * km_start, 1000.0 * length_km
+    lo, hi = x0 - 150.0, x0 + L + 150.0
+    rng = np.random.default_rng([seed, 33])
+    sections = (TrackSection(lo, x0 + 0.2 * L, "slab"), TrackSection(x0 + 0.2 * L, x0 + 0.47 * L, "b91_no_pads"),
+                TrackSection(x0 + 0.47 * L, x0 + 0.7 * L, "timber"), TrackSection(x0 + 0.7 * L, hi, "b91_pads"))
+    soft = StiffnessAnomaly(x0 + 0.38 * L, x0 + 0.38 * L + 30.0, 0.6, 8.0, "soft spot")
+    start = dt.datetime(2025, 1, 6, 8, 0, tzinfo=dt.UTC)
+    between = lambda k: (k - 0.5) * every_days  # noqa: E731 - the day half way before run k
+    grind_day = between(round(0.62 * n_runs))
+    ground = (x0 + round(0.5 * L, -1), x0 + round(0.5 * L, -1) + round(L / 6.0, -1))
+    joints = tuple(TrackImpact(x0 + f * L, 0.4, 0.6e-3, side, "joint") for f in (0.31, 0.75) for side in (1, 2))
+    surface = generate_surface(lo, hi, np.random.default_rng([seed, 34]), weld_spacing_m=(60.0, 120.0))
+    surface = replace(surface, impacts=(*surface.impacts, *joints)).with_grindings(
+        [RailGrinding(*ground, (start + dt.timedelta(days=grind_day)).date().isoformat())])
+    line = generate_line(lo, hi, np.random.default_rng([seed, 11]), sections=sections, anomalies=(soft,),
+                         surface=surface)
+    n_dev = min(10, n_runs - 3)
+    dev, step, tamp = x0 + round(0.8 * L, -1), x0 + round(0.433 * L, -1), x0 + round(0.233 * L, -1)
+    changes = (
+        TrackChange("tamping", tamp, tamp + 200.0, between(round(0.3 * n_runs)), 0.8, rate_per_year=0.1,
+                    taper_m=10.0),
+        TrackChange("developing", dev, dev + 40.0, between(n_runs - n_dev), 1.0, rate_per_year=-1.1, taper_m=8.0),
+        TrackChange("change", step, step + 20.0, between(n_runs - 1), 0.8, taper_m=2.0),
+    )
+    # speed groups: two runs of each in every four; vehicles: one run in every three by the second
+    group = np.concatenate([rng.permutation([0, 0, 1, 1]) for _ in range((n_runs + 3) // 4)])[:n_runs]
+    vehicle = np.zeros(n_runs, dtype=np.int64)
+    for b in range(0, n_runs, 3):
+        vehicle[b + int(rng.integers(0, min(3, n_runs - b)))] = 1
+    vehicle[0] = 0
+    cruise = np.array(REAL_LINE_SPEEDS_MPS)[group] * 3.6 * (1.0 + rng.uniform(-0.03, 0.03, n_runs))
+    errors = np.clip(rng.normal(0.0, km_error_sd_m, n_runs), -3 * km_error_sd_m, 3 * km_error_sd_m)
+    errors[0] = 0.0
+    runs = tuple(HistoryRun(day=i * every_days, cruise_kmh=float(round(cruise[i], 2)),
+                            km_error_m=float(round(errors[i], 2)), seed=int(seed * 1000 + i), vehicle=int(vehicle[i]))
+                 for i in range(n_runs))
+    vehicles = (HistoryVehicle(f"{line_id}-V1", seed + 1),
+                HistoryVehicle(f"{line_id}-V2", seed + 2, wheel_diameter_m=0.86, unsprung_mass_factor=1.25,
+                               sensor_gain=1.15))
+    assets = tuple(HistoryAsset("insulated_joint", x0 + f * L, f"IJ {i + 1}") for i, f in enumerate((0.31, 0.75)))
+    return HistorySpec(line=line, runs=runs, changes=changes, km_start=km_start, length_km=length_km, start=start,
+                       line_id=line_id, track=track, fs=fs, v_start_kmh=60.0, v_end_kmh=55.0,
+                       ramp_in_m=min(500.0, L / 6.0), ramp_out_m=min(400.0, L / 7.5), vehicle_seed=seed + 1,
+                       vehicles=vehicles, assets=assets, record_grindings=True)
+
+
 def demo_history(line: LineModel, *, km_start: float, length_km: float, n_runs: int = 10,
                  every_days: float = 14.0, start: dt.datetime = dt.datetime(2025, 3, 3, 8, 0, tzinfo=dt.UTC),
                  line_id: str = "SIM", track: str = "1", vehicle_id: str = "SIM-1", fs: float = 10_000.0,
@@ -621,20 +894,26 @@ def write_history(spec: HistorySpec, directory: Path | str) -> HistoryFiles:
     out.mkdir(parents=True, exist_ok=True)
     tag = spec.fingerprint()
     files = HistoryFiles(directory=out)
-    rng = np.random.default_rng([spec.vehicle_seed, 3])
-    wheels = {w: random_wheel_oor(rng, w, d) for w, d in DEFAULT_TRUE_DIAMETERS_M.items()}
+    wheels_of: dict[int, dict] = {}
     for i, run in enumerate(spec.runs):
         when = spec.run_time(run)
         path = out / f"{spec.line_id}-{spec.track}-{tag}-{i:03d}-{when:%Y%m%d}.h5"
         files.runs.append(path)
         if path.is_file():
             continue
+        vehicle = spec.vehicle_of(run)
+        if run.vehicle not in wheels_of:  # the vehicle's wheels: the same in every run it makes
+            rng = np.random.default_rng([vehicle.seed, 3])
+            wheels_of[run.vehicle] = {w: random_wheel_oor(rng, w, d) for w, d in vehicle.diameters().items()}
         simulate_run(path, length_km=spec.length_km, fs=spec.fs, seed=run.seed, line=spec.line_at(run.day),
-                     wheels=wheels, speed_profile=spec.speed_profile(run), noise_std=spec.noise_std,
-                     start_time=when.isoformat(), vehicle_id=spec.vehicle_id, line_id=spec.line_id,
-                     track=spec.track, km_start=spec.km_start, km_error_m=run.km_error_m, with_forces=True)
+                     wheels=wheels_of[run.vehicle], speed_profile=spec.speed_profile(run), noise_std=spec.noise_std,
+                     start_time=when.isoformat(), line_id=spec.line_id, track=spec.track, km_start=spec.km_start,
+                     km_error_m=run.km_error_m, with_forces=True, **vehicle.simulation_options())
         files.written.append(path)
-    for name, frame in (("superstructure", spec.superstructure()), ("maintenance", spec.maintenance())):
+    frames = [("superstructure", spec.superstructure()), ("maintenance", spec.maintenance())]
+    if spec.assets:
+        frames.append(("assets", spec.asset_register()))
+    for name, frame in frames:
         path = out / f"{spec.line_id}-{spec.track}-{tag}-{name}.csv"
         setattr(files, name, path)
         if not path.is_file():

@@ -119,7 +119,7 @@ class SimulationConfig:
 
     Grouped: *extent* (``length_km``, ``duration_s``, ``speed_profile``), *signal*
     (``fs``, ``seed``, ``with_forces``, ``noise_std``, ``force_noise_std``,
-    ``block_samples``, ``compression``, ``calibration``), *track* (``line``,
+    ``block_samples``, ``compression``, ``calibration``, ``sensor_gain``), *track* (``line``,
     ``line_seed``, ``rail_surface``, ``amplitude_model``, ``alpha``,
     ``v_ref_kmh``, ``sleeper_spacing``), *vehicle* (``wheels``,
     ``wheel_diameters``, ``reported_wheel_diameters``, ``wheel_flats``,
@@ -160,6 +160,7 @@ class SimulationConfig:
     track: str = "1"
     direction: str = "up"
     calibration: Mapping[str, Calibration | Mapping[str, float]] | None = None
+    sensor_gain: float = 1.0
     block_samples: int = 2**18
     compression: Compression = "auto"
     confounders: Confounders = field(default_factory=Confounders)
@@ -179,6 +180,7 @@ class SimulationConfig:
         _non_negative("alpha", self.alpha)
         _positive("v_ref_kmh", self.v_ref_kmh)
         _positive("sleeper_spacing", self.sleeper_spacing)
+        _positive("sensor_gain", self.sensor_gain)
         if int(self.block_samples) != self.block_samples or self.block_samples < 256:
             raise ValueError(f"block_samples must be an integer >= 256, got {self.block_samples!r}")
         if not isinstance(self.confounders, Confounders):
@@ -326,6 +328,10 @@ def simulate_run(dest: Path | str, config: SimulationConfig | None = None, **opt
         the rail surface is taken (grinding actions up to it apply).
     calibration : mapping, optional
         Channel → ``{"gain", "offset"}``: the file stores ``(physical - offset) / gain``.
+    sensor_gain : float
+        The accelerometers' true gain against what their calibration says (default 1): the Z
+        channels read ``sensor_gain`` times the physical acceleration and nothing in the file says
+        so (a vehicle whose sensors read 15 % high: 1.15). The forces are not affected.
     block_samples : int
         Samples generated per block (memory bound).
     compression : {"auto", "lzf", "gzip", None}
@@ -533,7 +539,7 @@ def _write_signals(plan: RunPlan, h5: h5py.File) -> None:
             if plan.contact:
                 z += _surface_response(plan, w, a, b)
             z += z_noise[w].next(b - a)
-            put(f"Z{w}", a, z)
+            put(f"Z{w}", a, z * float(c.sensor_gain) if c.sensor_gain != 1.0 else z)
             if c.with_forces:
                 q = float(c.static_load_kn) + float(c.unsprung_mass_kg) * z / 1000.0
                 if c.force_noise_std > 0:

@@ -32,6 +32,7 @@ from app.simulate.surface import RailSurface, generate_surface
 
 __all__ = [
     "SUPERSTRUCTURE_TYPES",
+    "RANDOM_SECTION_TYPES",
     "SUPERSTRUCTURE_AMPLITUDE",
     "SUPERSTRUCTURE_LABELS",
     "BIN_LENGTH_M",
@@ -41,15 +42,19 @@ __all__ = [
     "generate_line",
 ]
 
-#: Superstructure types, index = type code.
-SUPERSTRUCTURE_TYPES: tuple[str, ...] = ("slab", "b91_no_pads", "b91_pads")
+#: Superstructure types, index = type code (a new type is appended: the codes of stored truths stay valid).
+SUPERSTRUCTURE_TYPES: tuple[str, ...] = ("slab", "b91_no_pads", "b91_pads", "timber")
+#: The types a random line's sections are drawn from (the first three: lines drawn before ``timber`` existed
+#: stay the same).
+RANDOM_SECTION_TYPES: tuple[str, ...] = ("slab", "b91_no_pads", "b91_pads")
 #: Sleeper-passage acceleration amplitude at v_ref per type, m/s².
-SUPERSTRUCTURE_AMPLITUDE: dict[str, float] = {"slab": 3.0, "b91_no_pads": 1.8, "b91_pads": 0.8}
+SUPERSTRUCTURE_AMPLITUDE: dict[str, float] = {"slab": 3.0, "b91_no_pads": 1.8, "b91_pads": 0.8, "timber": 1.2}
 #: Human-readable names.
 SUPERSTRUCTURE_LABELS: dict[str, str] = {
     "slab": "slab track (L77-B)",
     "b91_no_pads": "B91 concrete sleepers without under-sleeper pads",
     "b91_pads": "B91 concrete sleepers with under-sleeper pads (Sylomer)",
+    "timber": "timber sleepers on ballast",
 }
 #: Profile bin length, m.
 BIN_LENGTH_M = 0.25
@@ -236,7 +241,7 @@ def _make_sections(
     prev = None
     while x < hi:
         length = rng.uniform(*length_range)
-        choices = [t for t in SUPERSTRUCTURE_TYPES if t != prev]
+        choices = [t for t in RANDOM_SECTION_TYPES if t != prev]
         typ = choices[int(rng.integers(len(choices)))]
         end = min(x + length, hi)
         if hi - end < 0.5 * length_range[0]:  # avoid a tiny last section

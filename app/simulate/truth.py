@@ -40,7 +40,13 @@ import numpy as np
 from app.simulate.amplitude import PowerLawResponse, SpeedResponse, speed_response_from_json
 from app.simulate.speed import SpeedProfile
 from app.simulate.surface import RailGrinding, RailSurface, RoughnessSpectrum, TrackImpact
-from app.simulate.track import SUPERSTRUCTURE_TYPES, LineModel, StiffnessAnomaly, TrackSection
+from app.simulate.track import (
+    SUPERSTRUCTURE_AMPLITUDE,
+    SUPERSTRUCTURE_TYPES,
+    LineModel,
+    StiffnessAnomaly,
+    TrackSection,
+)
 from app.simulate.wheels import WheelFlat, WheelOOR
 
 __all__ = [
@@ -401,7 +407,7 @@ def load_truth(path: Path | str) -> SimulationTruth:
             raise ValueError(f"path: {path.name} is not a trackvkf truth file (version 1)")
         g = h5["line"]
         types = json.loads(g.attrs["types"])
-        if types != list(SUPERSTRUCTURE_TYPES):
+        if types != list(SUPERSTRUCTURE_TYPES[: len(types)]):  # types are only ever appended
             raise ValueError(f"path: unsupported superstructure types {types}")
         sec = g["sections"]
         sections = tuple(
@@ -428,7 +434,8 @@ def load_truth(path: Path | str) -> SimulationTruth:
             factor=g["factor"][()],
             sections=sections,
             anomalies=anomalies,
-            amplitude_vref=json.loads(g.attrs["amplitude_vref"]),
+            # a file written before a type was appended lacks it: the default (no bin of the file has it)
+            amplitude_vref={**SUPERSTRUCTURE_AMPLITUDE, **json.loads(g.attrs["amplitude_vref"])},
             bin_length=float(g.attrs["bin_length"]),
             surface=_load_surface(g["surface"]) if "surface" in g else None,
         )

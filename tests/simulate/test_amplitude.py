@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,16 @@ def test_resonance_is_the_track_model_relative_to_v_ref() -> None:
     k = [dict(m.support_stiffness_mnm)[n] for n in SUPERSTRUCTURE_TYPES]
     assert np.argsort(f_res).tolist() == np.argsort(k).tolist()
     assert speed_response_from_json(m.to_json()) == m
+    # another vehicle on the same line: its own resonance against the reference vehicle's amplitude at v_ref
+    heavy = ResonanceResponse(v_ref_mps=V_REF, track=m.track.replace(wheel_mass=740.0), reference_track=m.track)
+    ref = sleeper_passage_amplitude(m.params("b91_pads"), np.array([V_REF]))[0]
+    assert heavy.factor(np.array([2]), np.array([40.0]))[0] == pytest.approx(
+        sleeper_passage_amplitude(heavy.params("b91_pads"), np.array([40.0]))[0] / ref, rel=1e-2)
+    assert speed_response_from_json(heavy.to_json()) == heavy
+    # a truth written before a type was appended lacks it: the default stiffness of that type
+    old = json.loads(m.to_json())
+    del old["support_stiffness_mnm"]["timber"]
+    assert speed_response_from_json(json.dumps(old)) == m
     with pytest.raises(ValueError, match="lacks types"):
         ResonanceResponse(support_stiffness_mnm=(("slab", 100.0),))
     with pytest.raises(ValueError, match="amplitude_model"):

@@ -123,3 +123,86 @@ def test_demo_history_on_the_demo_line():
     assert len(spec.maintenance()) == 1
     with pytest.raises(ValueError, match="length_km"):
         demo_history(line, km_start=12.0, length_km=1.0)
+
+
+def test_the_real_line_holds_every_confounder_with_its_truth():
+    from app.simulate.history import REAL_LINE_SPEEDS_MPS, real_line_history
+
+    spec = real_line_history(seed=0)
+    x0, x1 = 12_000.0, 15_000.0
+    # four superstructure classes, the ramps at both ends
+    assert [s.type for s in spec.line.sections] == ["slab", "b91_no_pads", "timber", "b91_pads"]
+    assert spec.ramps() == (x0 + 500.0, x1 - 400.0)
+    # rough rails, welds every 60–120 m (each rail its own dip), two joints: only the joints in the register
+    surf = spec.line.surface
+    assert surf is not None and surf.spectrum is not None
+    feats = spec.rail_features()
+    welds = [f for f in feats if f.kind == "weld"]
+    joints = [f for f in feats if f.kind == "joint"]
+    assert 28 <= len(welds) <= 40 and len(joints) == 2
+    gaps = np.diff([f.track_m for f in welds])
+    assert gaps.min() >= 60.0 - 1e-9 and gaps.max() <= 120.0 + 1e-9
+    depths = np.array([d for f in welds for d in f.depth_m.values()])
+    assert depths.min() >= 0.2e-3 and depths.max() <= 0.4e-3 and len(depths) == 2 * len(welds)
+    assert all(f.in_register for f in joints) and not any(f.in_register for f in welds)
+    assert list(spec.asset_register()["type"]) == ["insulated_joint"] * 2
+    # two speed groups, two of each in every four runs; every third run by the second vehicle
+    runs = spec.runs
+    assert len(runs) == 24 and runs[-1].day == pytest.approx(345.0)
+    v = np.array([r.cruise_kmh for r in runs]) / 3.6
+    group = np.abs(v[:, None] - np.array(REAL_LINE_SPEEDS_MPS)[None, :]).argmin(axis=1)
+    assert np.all(np.abs(v / np.array(REAL_LINE_SPEEDS_MPS)[group] - 1) <= 0.03 + 1e-9)
+    assert all(group[i:i + 4].sum() == 2 for i in range(0, 24, 4))
+    assert runs[0].vehicle == 0 and runs[0].km_error_m == 0.0
+    assert 7 <= sum(r.vehicle for r in runs) <= 8
+    v2 = spec.vehicle_of(next(r for r in runs if r.vehicle == 1))
+    assert (v2.wheel_diameter_m, v2.unsprung_mass_factor, v2.sensor_gain) == (0.86, 1.25, 1.15)
+    # maintenance: the tamping and the grinding recorded, the grinding in the rails' surface
+    m = spec.maintenance()
+    assert list(m["type"]) == ["tamping", "grinding"]
+    assert m.iloc[1]["km_to"] - m.iloc[1]["km_from"] == pytest.approx(0.5)
+    (gday,) = spec.grinding_days()
+    assert sum(r.day > gday for r in runs) == 9
+    # the support truth of the newest run: the soft spot, the tamping, the developing place, the new step
+    truth = {t.kind: t for t in spec.truth_places(runs[-1].day)}
+    assert set(truth) == {"anomaly", "tamping", "developing", "change"}
+    assert truth["anomaly"].log_change == pytest.approx(np.log(0.6))
+    assert truth["change"].log_change == pytest.approx(np.log(0.8))
+    assert runs[-2].day < truth["change"].since_day < runs[-1].day
+    assert sum(r.day > truth["developing"].since_day for r in runs) == 10
+    assert np.expm1(truth["developing"].log_change) == pytest.approx(-0.35, abs=0.01)
+    # the fingerprint names the rails, the vehicles and the register; the history is the same from its seed
+    assert spec.fingerprint() == real_line_history(seed=0).fingerprint() != real_line_history(seed=1).fingerprint()
+    short = real_line_history(seed=0, length_km=1.2, n_runs=6)
+    assert {t.kind for t in short.truth_places(short.runs[-1].day)} == {"anomaly", "tamping", "developing", "change"}
+    with pytest.raises(ValueError, match="length_km"):
+        real_line_history(length_km=1.0)
+    with pytest.raises(ValueError, match="n_runs"):
+        real_line_history(n_runs=5)
+
+
+def test_a_vehicle_brings_its_own_wheels_mass_and_sensor_gain():
+    from app.simulate.amplitude import ResonanceResponse
+    from app.simulate.history import HistoryVehicle
+
+    plain = HistoryVehicle("A", 1)
+    assert plain.simulation_options() == {"vehicle_id": "A"}
+    assert plain.diameters()["11"] == pytest.approx(0.92)
+    heavy = HistoryVehicle("B", 2, wheel_diameter_m=0.86, unsprung_mass_factor=1.25, sensor_gain=1.15)
+    opts = heavy.simulation_options()
+    assert set(heavy.diameters().values()) == {0.86}
+    assert opts["sensor_gain"] == 1.15 and opts["unsprung_mass_kg"] == pytest.approx(375.0)
+    resp = opts["amplitude_model"]
+    assert isinstance(resp, ResonanceResponse) and resp.track.wheel_mass == pytest.approx(1.25 * 592.0)
+    # the line's amplitudes are the reference vehicle's: the heavier wheel answers with its own resonance
+    ratio = resp.factor(np.array([1]), np.array([resp.v_ref_mps]))[0]
+    assert ratio != pytest.approx(1.0, abs=0.02)
+    assert ResonanceResponse(reference_track=ResonanceResponse().track).factor(
+        np.array([1]), np.array([40.0])) == pytest.approx(ResonanceResponse().factor(np.array([1]), np.array([40.0])))
+    with pytest.raises(ValueError, match="sensor_gain"):
+        HistoryVehicle("C", 3, sensor_gain=0.0)
+    with pytest.raises(ValueError, match="wheel_diameter_m"):
+        HistoryVehicle("C", 3, wheel_diameter_m=2.0)
+    spec = _spec([])
+    with pytest.raises(ValueError, match="vehicle"):
+        dataclasses.replace(spec, runs=(HistoryRun(0.0, 100.0, vehicle=1),))

@@ -193,3 +193,15 @@ def test_argument_validation(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="noise_std"):
         simulate_run(tmp_path / "x.h5", duration_s=1.0, fs=2000.0, noise_std=-1.0)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_uncalibrated_sensor_gain_scales_the_accelerations_only(tmp_path: Path) -> None:
+    kw = {"duration_s": 0.5, "fs": 2000.0, "seed": 4, "speed_profile": SpeedProfile.constant(V)}
+    plain = simulate_run(tmp_path / "a.h5", **kw)
+    high = simulate_run(tmp_path / "b.h5", sensor_gain=1.15, **kw)
+    with open_run(plain.run_path) as a, open_run(high.run_path) as b:
+        np.testing.assert_allclose(b.read("Z11"), 1.15 * a.read("Z11"), rtol=1e-6, atol=1e-6)
+        np.testing.assert_array_equal(b.read("Q11"), a.read("Q11"))
+        assert b.calibration("Z11") == a.calibration("Z11") == (1.0, 0.0)  # nothing in the file says so
+    with pytest.raises(ValueError, match="sensor_gain"):
+        simulate_run(tmp_path / "c.h5", sensor_gain=0.0, **kw)

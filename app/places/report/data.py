@@ -1,5 +1,5 @@
 """What the planning report shows, read through the services that answer the Condition page:
-the section classes in the railway's scheme (:func:`app.sections.service.line_sections`), the
+the section classes in the railway's scheme (:func:`app.places.sections.line_sections`), the
 work list (:func:`app.places.worklist.list_places`), each open place's history with the
 maintenance over it (:func:`app.places.worklist.place_history`), the maintenance effects
 (:func:`app.condition.maintenance.action_effects`) and the line's geometry (the map).
@@ -17,8 +17,8 @@ from app.db import recorder_crud
 from app.db.session import Database
 from app.io.geometry import LineGeometry
 from app.places.config import PlacesConfig
+from app.places.sections import line_sections
 from app.places.worklist import PlaceQuery, list_places, place_history
-from app.sections.service import line_sections
 
 __all__ = ["ReportData", "MAX_PLACES", "gather"]
 

@@ -1,0 +1,208 @@
+"""The work list on a line like a real one (issue 33): a year of runs with every confounder at once,
+through the real service, scored against the history's truth.
+
+Per seed a :func:`app.simulate.history.real_line_history` (3 km, 24 runs every 15 days; four
+superstructure classes; both rails rough with ~32 dipped welds; two insulated joints in the asset
+register; cruise 26 and 40 m/s with ramps at both ends; two vehicles, the second with 25 % more
+unsprung mass, 0.86 m wheels and sensors reading 15 % high; a tamping and a 500 m grinding recorded;
+a lasting soft spot, a place developing over the last ten runs and a new −20 % step in the newest run)
+is uploaded run by run over the API, processed by the local worker and published (condition store,
+flags, places), as in the service. Then, from the service's own answers (``/condition/places``,
+``/condition/flags``, ``/condition/maintenance-effect``) scored by :mod:`app.simulate.line_scoring`:
+
+* the work list after the newest run: places listed against the real ones, the share of real ones
+  among the first 10, what the others lie on (welds, joints, ramps, the ground stretch, class edges,
+  noise), the developing place's rank and projected date, the new step listed (within 5 m);
+* the false 10 m step flags of the last four runs per speed group and on the ramps, per vehicle, and
+  over the ground stretch in the runs after the grinding;
+* the tamping's and the grinding's effect against their truth (−20 % and 0 on the support).
+
+The processed databases are kept in ``--workdir`` (one per seed and history fingerprint) and reused;
+``--json`` writes every number. :func:`evaluate` is the scoring alone, for other benches and tests.
+
+Usage::
+
+    .venv/bin/python bench/bench_real_line.py [--seeds 0 1 2] [--workdir /tmp/real-line-bench] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from app.simulate.history import REAL_LINE_SPEEDS_MPS, HistorySpec, real_line_history  # noqa: E402
+from app.simulate.line_scoring import score_effects, score_flags, score_work_list  # noqa: E402
+
+#: the issue's targets, for the summary
+TARGETS = {"first_real_share": 0.8, "listed_per_real": 1.5, "flag_share": 0.01, "tamping_pp": 5.0,
+           "grinding_pct": 5.0}
+
+
+def build(spec: HistorySpec, workdir: Path) -> Path:
+    """The history processed through the service into ``workdir/db-<line>-<fingerprint>`` (made once)."""
+    from tests.condition.history_support import history_service, process_history
+
+    root = workdir / f"db-{spec.line_id}-{spec.fingerprint()}"
+    if (root / "done.json").is_file():
+        return root
+    shutil.rmtree(root, ignore_errors=True)
+    root.mkdir(parents=True)
+    t0 = time.perf_counter()
+    with history_service(root) as client:
+        processed = process_history(client, spec, workdir / "files")
+    (root / "done.json").write_text(json.dumps({"run_ids": processed.run_ids, "wall_s": time.perf_counter() - t0}))
+    print(f"  {len(spec.runs)} runs through the pipeline in {time.perf_counter() - t0:.0f} s", flush=True)
+    return root
+
+
+def _all_flags(client: Any, line_id: str) -> list[dict]:
+    out, since = [], 0
+    while True:
+        r = client.get("/api/v1/condition/flags", params={"line_id": line_id, "since": since, "limit": 1000})
+        assert r.status_code == 200, r.text
+        body = r.json()
+        out += body["items"]
+        if not body["items"]:
+            return out
+        since = body["next_since"]
+
+
+def tested_segments(database_url: str, run_id: int, segment_m: int = 10) -> set[int]:
+    """The segments of a run the store's step test scored (a change score on at least one wheel)."""
+    from sqlalchemy import select
+
+    from app.db.models import SegmentCondition as SC
+    from app.db.session import Database
+
+    db = Database(database_url)
+    try:
+        with db.read() as s:
+            return {int(x) for x in s.scalars(select(SC.seg).where(SC.run_id == run_id, SC.seg_m == segment_m,
+                                                                  SC.change_z.isnot(None)).distinct())}
+    finally:
+        db.dispose()
+
+
+def evaluate(client: Any, spec: HistorySpec, run_ids: list[int], *, last_runs: int = 4) -> dict[str, Any]:
+    """Every score of a processed history from the service's answers (``client``: an API client on it).
+
+    ``run_ids`` in the order of ``spec.runs``; the flags are scored over the last ``last_runs`` runs.
+    """
+    line = spec.line_id
+    r = client.get("/api/v1/condition/places", params={"line_id": line, "track": spec.track, "limit": 1000})
+    assert r.status_code == 200, r.text
+    places = r.json()["items"]
+    day = spec.runs[-1].day
+    work = score_work_list(spec, places, day)
+    work["first10"] = [{"km": f"{p['km_from']:.3f}-{p['km_to']:.3f}", "tier": p["tier"], "peak_percent":
+                        round(p["peak_percent"], 1)} for p in places[:10]]
+    flags = _all_flags(client, line)
+    url = client.settings.database_url
+    n = len(spec.runs)
+    runs = [{"run_id": run_ids[i], "index": i, "tested": tested_segments(url, run_ids[i])}
+            for i in range(n - last_runs, n)]
+    fl = score_flags(spec, flags, runs, groups_mps=REAL_LINE_SPEEDS_MPS)
+    # the ground stretch in the runs after the grinding
+    gdays = spec.grinding_days()
+    ground = spec.line.surface.grindings[0] if spec.line.surface is not None and gdays else None
+    after = [i for i, run in enumerate(spec.runs) if gdays and run.day > gdays[0]]
+    on_ground = 0
+    if ground is not None:
+        ids = {run_ids[i] for i in after}
+        on_ground = sum(1 for f in flags if f["run_id"] in ids and f["segment_m"] == 10 and f["kind"] == "step"
+                        and 1000 * f["km_from"] < ground.track_to_m and 1000 * f["km_to"] > ground.track_from_m)
+    r = client.get("/api/v1/condition/maintenance-effect", params={"line_id": line, "track": spec.track})
+    assert r.status_code == 200, r.text
+    effects = score_effects(spec, r.json()["items"])
+    return {"work_list": work, "flags": {k: v for k, v in fl.items() if k != "false_flags"},
+            "false_flags": fl["false_flags"], "ground_flags_after_grinding": on_ground,
+            "runs_after_grinding": len(after), "effects": effects}
+
+
+def one(seed: int, workdir: Path, length_km: float, n_runs: int) -> dict[str, Any]:
+    from tests.condition.history_support import history_service
+
+    spec = real_line_history(seed=seed, length_km=length_km, n_runs=n_runs)
+    root = build(spec, workdir)
+    run_ids = json.loads((root / "done.json").read_text())["run_ids"]
+    with history_service(root) as client:
+        res = evaluate(client, spec, run_ids)
+    res["seed"] = seed
+    res["welds"] = sum(1 for f in spec.rail_features() if f.kind == "weld")
+    return res
+
+
+def _fmt(v: Any, pct: bool = False) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    return f"{100 * v:.1f} %" if pct else (f"{v:.1f}" if isinstance(v, float) else str(v))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--workdir", type=Path, default=Path("/tmp/real-line-bench"))
+    ap.add_argument("--length-km", type=float, default=3.0)
+    ap.add_argument("--runs", type=int, default=24)
+    ap.add_argument("--json", type=Path, help="write every number here")
+    args = ap.parse_args(argv)
+    args.workdir.mkdir(parents=True, exist_ok=True)
+    results = []
+    for seed in args.seeds:
+        print(f"seed {seed}", flush=True)
+        res = one(seed, args.workdir, args.length_km, args.runs)
+        results.append(res)
+        w, f = res["work_list"], res["flags"]
+        print(json.dumps({"work_list": {k: v for k, v in w.items() if k != "first10"}, "flags": f,
+                          "ground": res["ground_flags_after_grinding"], "effects": res["effects"]}, default=str),
+              flush=True)
+        for p in w["first10"]:
+            print("   ", p)
+    groups = [f"{v:g} m/s" for v in REAL_LINE_SPEEDS_MPS]
+    print("\n| seed | listed / real | first 10 real | on a weld / joint | developing: rank, projected | new step "
+          "listed (gap) | false 10 m flags, last 4 runs: " + " / ".join(groups) + " / ramps | per vehicle | ground "
+          "flags after grinding | tamping: reported (truth) | grinding: reported (truth 0) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for res in results:
+        w, f = res["work_list"], res["flags"]
+        vehicles = " / ".join(f"{_fmt(v['share'], True)}" for k, v in sorted(f.items()) if k.startswith("vehicle"))
+        eff = {e["type"]: e for e in res["effects"]}
+        tamp, grind = eff.get("tamping"), eff.get("grinding")
+        print(f"| {res['seed']} | {w['listed']} / {w['real_truth']} | {_fmt(w['first_real_share'], True)} | "
+              f"{w['on_rail_feature']} | {_fmt(w['developing_rank'])}, {_fmt(w['developing_projected'])} | "
+              f"{_fmt(w['new_step_listed'])} ({_fmt(w['new_step_gap_m'])} m) | "
+              + " / ".join(f"{_fmt(f[g]['share'], True)} ({f[g]['false']}/{f[g]['tested']})" for g in [*groups, "ramps"]
+                           if g in f)
+              + f" | {vehicles} | {res['ground_flags_after_grinding']} in {res['runs_after_grinding']} runs | "
+              f"{_fmt(tamp and tamp['reported_pct'])} % ({_fmt(tamp and tamp['truth_pct'])} %) | "
+              f"{_fmt(grind and grind['reported_pct'])} % |")
+    causes: dict[str, int] = {}
+    for res in results:
+        for k, v in res["work_list"]["causes"].items():
+            causes[k] = causes.get(k, 0) + v
+    print("\nWhat the listed places lie on (all seeds):", causes)
+    fc: dict[str, int] = {}
+    for res in results:
+        for _, _, c in res["false_flags"]:
+            fc[c] = fc.get(c, 0) + 1
+    print("What the false flags of the last four runs lie on (all seeds):", fc)
+    mean = {k: float(np.mean([r["work_list"][k] for r in results if r["work_list"][k] is not None] or [np.nan]))
+            for k in ("listed_per_real", "first_real_share")}
+    print("Mean over seeds:", {k: round(v, 3) for k, v in mean.items()}, "targets:", TARGETS)
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1, default=lambda o: sorted(o) if isinstance(o, set) else str(o)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
