@@ -134,3 +134,14 @@ def test_the_report_of_a_line_is_a_pdf_and_bad_input_is_named(sections_client):
     assert r.status_code == 404 and r.json()["field"] == "line_id"
     r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE, "date": "2025-13-01"})
     assert r.status_code == 422 and "date" in r.text
+
+
+def test_the_report_without_weasyprints_libraries_is_a_clear_503(sections_client, monkeypatch):
+    """Pango missing (WeasyPrint's import fails, as it does without the library): the answer names
+    the packages, not a traceback."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "weasyprint", None)  # import weasyprint → ImportError
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE})
+    assert r.status_code == 503, r.text
+    assert r.json()["field"] == "report" and "libpango-1.0-0" in r.json()["detail"]

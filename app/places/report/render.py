@@ -20,10 +20,14 @@ import jinja2
 import numpy as np
 from markupsafe import Markup
 
+from app.core.errors import ApiError
 from app.places.report import svg
 from app.places.report.data import ReportData
 
-__all__ = ["render_html", "render_pdf", "TEMPLATES_DIR"]
+__all__ = ["render_html", "render_pdf", "SYSTEM_PACKAGES", "TEMPLATES_DIR"]
+
+#: the Debian packages WeasyPrint needs (scripts/setup.sh installs them)
+SYSTEM_PACKAGES = ("libpango-1.0-0", "libpangoft2-1.0-0", "fonts-dejavu-core")
 
 TEMPLATES_DIR = Path(__file__).resolve().parents[3] / "frontend" / "templates"
 _STATIC = Path(__file__).resolve().parents[3] / "frontend" / "static"
@@ -33,6 +37,7 @@ _NO_CLASS = "#cfd8dc"
 
 def _environment(gettext: Callable[[str], str]) -> jinja2.Environment:
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES_DIR)), autoescape=True,
+                             undefined=jinja2.StrictUndefined,
                              extensions=["jinja2.ext.i18n"])
     env.install_gettext_callables(gettext, lambda s, p, n: gettext(s if n == 1 else p), newstyle=True)  # type: ignore[attr-defined]
     env.filters["num"] = _num
@@ -94,9 +99,18 @@ def render_html(data: ReportData, *, lang: str = "en", gettext: Callable[[str], 
 
 
 def render_pdf(data: ReportData, *, lang: str = "en", gettext: Callable[[str], str] = lambda s: s) -> bytes:
-    """The report as PDF bytes (WeasyPrint; no network: nothing is fetched)."""
-    from weasyprint import HTML  # imported here: Pango is loaded only when a report is made
+    """The report as PDF bytes (WeasyPrint; no network: nothing is fetched).
 
+    Raises
+    ------
+    ApiError
+        503 naming ``report`` when WeasyPrint cannot load Pango (the system library it needs).
+    """
+    try:  # imported here: Pango is loaded only when a report is made
+        from weasyprint import HTML
+    except (ImportError, OSError) as exc:
+        raise ApiError(503, "report", "the PDF report needs WeasyPrint and its system libraries (Pango: Debian "
+                       f"packages {' '.join(SYSTEM_PACKAGES)}), which cannot be loaded: {exc}") from exc
     html = render_html(data, lang=lang, gettext=gettext)
 
     def no_fetch(url: str, *args: Any, **kwargs: Any) -> dict:
