@@ -1,7 +1,7 @@
 """The language a user chose for the pages and messages: users.language (None: the browser's).
 
-Revision ID: 0023_user_language
-Revises: 0022_condition_index
+Revision ID: 0024_user_language
+Revises: 0023_asset_imports
 Create Date: 2026-11-27
 """
 
@@ -10,8 +10,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0023_user_language"
-down_revision: str | None = "0022_condition_index"
+revision: str = "0024_user_language"
+down_revision: str | None = "0023_asset_imports"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
