@@ -151,7 +151,7 @@ def action_effects(db: Database, line_id: str, track: str | None, *, types: list
         rows = [session.get(MaintenanceAction, int(i)) for i in actions["id"]]
     items = []
     for a in sorted(rows, key=lambda r: (r.date, r.km_from)):
-        effect, runs, _ = _effect_of(db, line, a, before_days=before_days, after_days=after_days,
+        effect, runs, _series = _effect_of(db, line, a, before_days=before_days, after_days=after_days,
                                      regain=regain_fraction)
         items.append(_out(a, line, effect, len(runs)))
     return {"regain_fraction": regain_fraction, "items": items}
