@@ -16,6 +16,7 @@ from app.api.condition import LineIdQ, TrackQ
 from app.api.deps import DbDep, SettingsDep, check_km, km_query
 from app.api.reference import parse_types
 from app.api.schemas.condition import EffectDetailOut, EffectsOut
+from app.core.ids import MAX_ID
 from app.places.config import PlacesConfig
 from app.places.effect import action_effect_detail, action_effects
 
@@ -49,7 +50,7 @@ def maintenance_effects(
 @router.get("/maintenance-effect/{action_id}", response_model=EffectDetailOut,
             summary="Before/after view of one maintenance action")
 def maintenance_effect(
-    db: DbDep, settings: SettingsDep, action_id: Annotated[int, Path(ge=1, le=2**31 - 1)],
+    db: DbDep, settings: SettingsDep, action_id: Annotated[int, Path(ge=1, le=MAX_ID)],
     before_days: BeforeQ = 90.0, after_days: AfterQ = 30.0, regain_fraction: RegainQ = 0.5,
 ) -> dict:
     """The action's effect, the index over its extent per run, and the index along km (extent

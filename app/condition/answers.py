@@ -16,6 +16,7 @@ import numpy as np
 from sqlalchemy import select
 
 from app.analysis.condition.extent_level import DEFAULT_AROUND_M, DEFAULT_MARGIN_M
+from app.analysis.units import KMH_PER_MPS
 from app.condition import readers as reader
 from app.condition.index import STORE_INDEX
 from app.condition.lines import check_line_km, resolve_line
@@ -92,7 +93,7 @@ def trend(db: Database, line_id: str, track: str | None, *, km: float, segment_m
             "wheels": [{
                 "wheel": r.wheel, "condition_index": float(r.condition_index),
                 "condition_index_sd": finite_or_none(r.condition_index_sd),
-                "amp_mean": float(r.amp_mean), "amp_p95": float(r.amp_p95), "speed_kmh": float(r.speed_mean) * 3.6,
+                "amp_mean": float(r.amp_mean), "amp_p95": float(r.amp_p95), "speed_kmh": float(r.speed_mean) * KMH_PER_MPS,
                 "n_valid": r.n_valid, "n_history": r.n_history, "change": finite_or_none(r.change),
                 "change_z": finite_or_none(r.change_z), "trend_rate_per_year": finite_or_none(r.trend_rate),
                 "trend_z": finite_or_none(r.trend_z),
