@@ -18,6 +18,7 @@ from pydantic import BaseModel, Field
 
 from app.api.deps import DbDep, EngineerActor, SettingsDep
 from app.api.schemas.text import Text
+from app.core.ids import MAX_ID
 from app.places import workflow, worklist
 from app.places.config import PlacesConfig
 from app.places.worklist import PlaceQuery
@@ -26,7 +27,7 @@ __all__ = ["router"]
 
 router = APIRouter(prefix="/condition", tags=["places"])
 
-PlaceId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Place id (stable across runs)")]
+PlaceId = Annotated[int, Path(ge=1, le=MAX_ID, description="Place id (stable across runs)")]
 
 
 def _query(

@@ -21,12 +21,13 @@ from pydantic import BaseModel, Field
 from app.alerts import webhooks as service
 from app.api.deps import AdminActor, DbDep, PageOffset, SettingsDep, check_page_size, require_role
 from app.api.schemas.text import Text
+from app.core.ids import MAX_ID
 
 __all__ = ["router"]
 
 router = APIRouter(prefix="/webhooks", tags=["webhooks"], dependencies=[Depends(require_role("admin"))])
 
-WebhookId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Webhook id")]
+WebhookId = Annotated[int, Path(ge=1, le=MAX_ID, description="Webhook id")]
 
 
 class WebhookIn(BaseModel):
@@ -120,7 +121,7 @@ def test(webhook_id: WebhookId, db: DbDep) -> dict:
 
 @router.get("/deliveries", response_model=DeliveryList, summary="The delivery log, newest first (admin)")
 def deliveries(db: DbDep, settings: SettingsDep,
-               webhook_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
+               webhook_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None,
                status_: Annotated[str | None, Query(alias="status", description="pending, sending, delivered, failed")] = None,
                limit: Annotated[int, Query(ge=1)] = 100, offset: PageOffset = 0) -> dict:
     check_page_size(limit, settings)
