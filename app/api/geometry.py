@@ -17,6 +17,7 @@ from app.api.schemas.recorder import (
     IndicatorOut,
 )
 from app.core.i18n import _
+from app.core.ids import MAX_ID
 from app.maps import geometries as service
 from app.maps import indicator as map_indicator
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M, INDICATOR_UNITS
@@ -24,7 +25,7 @@ from app.maps.indicator import DEFAULT_MAP_SEGMENT_M, INDICATOR_UNITS
 __all__ = ["router", "INDICATOR_UNITS"]
 
 router = APIRouter(prefix="/geometry", tags=["line geometry"])
-GeometryId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Geometry id")]
+GeometryId = Annotated[int, Path(ge=1, le=MAX_ID, description="Geometry id")]
 
 def _summary(row) -> GeometrySummary:
     return GeometrySummary(
@@ -89,7 +90,7 @@ def geometry_indicator(
     quantity: Annotated[str, Query(max_length=64, description=(
         "stiffness_index (ln(A / A_ref(class, v)) by the line's reference curves) or a profile column "
         "to colour the line by"))] = "sleeper_amp",
-    run_id: Annotated[int | None, Query(ge=1, le=2**31 - 1, description="Default: the latest processed run of the line and track")] = None,
+    run_id: Annotated[int | None, Query(ge=1, le=MAX_ID, description="Default: the latest processed run of the line and track")] = None,
     segment_m: Annotated[float, Query(ge=10.0, le=10_000.0, description="Segment length, m")] = DEFAULT_MAP_SEGMENT_M,
 ) -> IndicatorOut:
     """Mean of ``quantity`` over the bins and wheels of each segment of the run, placed on the line.

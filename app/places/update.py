@@ -43,6 +43,7 @@ from sqlalchemy.orm import Session
 from app.analysis.condition.interventions import surface_change_days
 from app.analysis.condition.lifecycle import Action, advance_places
 from app.analysis.condition.run_places import find_places
+from app.analysis.units import KMH_PER_MPS
 from app.condition.writer import days_of, rail_surface_interventions
 from app.db import places as q
 from app.db import reference_crud
@@ -225,7 +226,7 @@ def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
                                   actions=acts)
     kept = {k.id for k in known}
     q.delete_places(session, [i for i in by_id if i not in kept])
-    speed_kmh = mean_over_wheels(v) * 3.6
+    speed_kmh = mean_over_wheels(v) * KMH_PER_MPS
     written = write_run(session, line, run_id, when, version, known, by_id, before, events, acts, act_rows,
                      seg, wheels, speed_kmh, version_runs, config)
     session.add(PlaceRun(run_id=run_id, line_key=line.id, run_time=when, method_version=version,

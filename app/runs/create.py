@@ -22,6 +22,7 @@ from app.audit import record
 from app.core.config import API_PREFIX, Settings
 from app.core.errors import ApiError
 from app.core.i18n import _
+from app.core.ids import MAX_ID
 from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
 from app.core.security import Actor
@@ -119,7 +120,7 @@ def channel_map_id(text: str | None) -> int | None:
     if text is None or not text.strip():
         return None
     value = text.strip()
-    if not value.isdigit() or not 0 < int(value) < 2**31:
+    if not value.isdigit() or not 0 < int(value) <= MAX_ID:
         raise ApiError(422, "channel_map", _("must be the id of a stored channel map, got {value}", value=repr(value[:40])))
     return int(value)
 

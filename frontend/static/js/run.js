@@ -40,7 +40,7 @@
     const items = [
       [T._("Vehicle"), r.vehicle_id, true], [T._("Line / track"), `${r.line_id} / ${r.track}`, true], [T._("Direction"), r.direction, true],
       [T._("Start"), T.datetime(r.start_time)], ["km", `${T.fmt(a)} – ${T.fmt(b)}`],
-      [T._("Speed"), `${T.fmt((r.summary.speed_min || 0) * 3.6, 0)} – ${T.fmt((r.summary.speed_max || 0) * 3.6, 0)} km/h`],
+      [T._("Speed"), `${T.fmt(r.summary.speed_min_kmh || 0, 0)} – ${T.fmt(r.summary.speed_max_kmh || 0, 0)} km/h`],
       [T._("Sample rate"), `${T.fmt(r.summary.fs / 1000, 1)} kHz`],
       [T._("Job"), `${job.id ?? "–"} (${job.status ? T.jobStatus(job.status) : T._("none")})`],
       [T._("Bandwidth"), T._("{orders} orders · track resolution {m} m · q = {q}",

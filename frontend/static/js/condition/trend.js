@@ -41,7 +41,7 @@
       y: t.points.map((p) => valueOf(p, w)),
       hovertemplate: `${T.wheelLabel(w)} %{x|${T.DATE_FMT}}: %{y:.3f}<extra></extra>`,
     })).filter((tr) => tr.y.some((v) => v !== null));
-    const relative = T._("relative to the surrounding ±1 km (right axis)");
+    const relative = T._("relative to its surroundings (right axis)");
     traces.push({ type: "scatter", mode: "lines+markers", name: relative, x, yaxis: "y2",
       y: t.points.map((p) => p.relative), line: { color: "#1d2733", width: 2 }, marker: { size: 4 },
       hovertemplate: `%{x|${T.DATE_FMT}}: %{y:.3f} ${T.esc(T._("relative"))}<extra></extra>` });
