@@ -1,6 +1,19 @@
 """What maintenance did: the condition index over a stretch of line, per run and along km, relative
 to its surroundings, and the effect of every imported action (:func:`action_effects`).
 
+**The effect rule** (one, by action type; issue 33): per run the stretch's index is read against the
+track around it **of its own superstructure class passed at its speed** (:func:`extent_readings`:
+:func:`~app.analysis.condition.extent_level.extent_level` over the segments within
+``NEIGHBOURHOOD_KM`` of the same class whose speed matches the stretch's in that run — a ramp or a
+section of another class in the surroundings moves with the speed differently and is left out), and each
+run after the action is compared with the runs before it **at its own speed**
+(:func:`~app.analysis.condition.maintenance_effect.action_effect` with the runs' speeds): a speed mix in
+the windows no longer sets the figure (measured: a tamping of −20 % beside a ramp and a change of class
+read −10.6 %, or +79.6 % on another seed). A tamping's ``recovery`` is its effect on the support; a
+grinding or a rail renewal reports the rail surface's response change (``rail_surface_change``) and the
+support's change (``support_change``, read against the new surface's own baseline) apart
+(:func:`~app.analysis.condition.maintenance_effect.split_effect`); its ``recovery`` is the support's.
+
 Values are *relative to the surrounding track of the same run*: the index over
 the stretch minus the run's mean over the ``NEIGHBOURHOOD_KM`` either side
 (the stretch and ``GAP_KM`` either side left out; from the runs' 100 m overview
@@ -20,7 +33,15 @@ import numpy as np
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.analysis.condition.maintenance_effect import ActionEffect, action_effect
+from app.analysis.condition.extent_level import extent_level
+from app.analysis.condition.maintenance_effect import (
+    ActionEffect,
+    SplitEffect,
+    action_effect,
+    split_effect,
+)
+from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
+from app.analysis.stiffness.superstructure import section_classes
 from app.condition.lines import check_line_km, resolve_line
 from app.condition.readers import OVERVIEW_M, line_runs
 from app.condition.writer import days_of
@@ -37,13 +58,15 @@ from app.db.numeric import fetch_numeric
 from app.db.session import Database
 from app.io import WHEELS
 
-__all__ = ["NEIGHBOURHOOD_KM", "GAP_KM", "extent_segments", "run_levels", "extent_series", "extent_profile",
-           "action_effects", "action_effect_detail"]
+__all__ = ["NEIGHBOURHOOD_KM", "GAP_KM", "CLASS_MARGIN_M", "extent_segments", "run_levels",
+           "extent_readings", "extent_profile", "action_effects", "action_effect_detail"]
 
 #: Surroundings of a stretch each run's level is taken from, km either side.
 NEIGHBOURHOOD_KM = 1.0
 #: Left out between the stretch and its surroundings, km either side.
 GAP_KM = 0.05
+#: Segments this close to a change of superstructure class belong to neither side, m.
+CLASS_MARGIN_M = 50.0
 
 
 def extent_segments(km_from: float, km_to: float, seg_m: int) -> tuple[int, int]:
@@ -78,19 +101,70 @@ def _wheel_rows(session: Session, runs: list[int], seg_m: int, a: int, b: int, *
     return fetch_numeric(session, stmt, len(keys) + 1)
 
 
-def extent_series(session: Session, line: ConditionLine, km_from: float, km_to: float,
-                  seg_m: int = 10) -> tuple[list[ConditionRun], np.ndarray]:
-    """The line's runs holding the stretch (oldest first) and its index relative to the surroundings."""
+def extent_readings(session: Session, line: ConditionLine, km_from: float, km_to: float, *, seg_m: int = 10,
+                    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
+                    ) -> tuple[list[ConditionRun], np.ndarray, np.ndarray]:
+    """The line's runs holding the stretch (oldest first), its index relative to the track around it of its
+    own class passed at its speed (module docstring), and its speed in each run (m/s; median over its
+    segments)."""
     runs = line_runs(session, line.id)
     ids = [r.run_id for r in runs]
     if not ids:
-        return [], np.zeros(0)
-    a, b = extent_segments(km_from, km_to, seg_m)
-    values = _wheel_rows(session, ids, seg_m, a, b, by_seg=False)
-    levels = run_levels(session, ids, km_from, km_to)
-    mean = {int(r): v - levels[int(r)] for r, v in values if int(r) in levels}
-    runs = [r for r in runs if r.run_id in mean]
-    return runs, np.array([mean[r.run_id] for r in runs])
+        return [], np.zeros(0), np.zeros(0)
+    lo, hi = sorted((km_from, km_to))
+    a = math.floor((lo - NEIGHBOURHOOD_KM) * 1000.0 / seg_m)
+    b = math.floor((hi + NEIGHBOURHOOD_KM) * 1000.0 / seg_m)
+    sc = SegmentCondition
+    rows = fetch_numeric(session, select(sc.run_id, sc.seg, func.avg(sc.condition_index), func.avg(sc.speed_mean))
+                         .where(sc.run_id.in_(ids), sc.seg_m == seg_m, sc.wheel.in_(list(WHEELS)), sc.seg >= a,
+                                sc.seg <= b).group_by(sc.run_id, sc.seg), 4)
+    segs = np.arange(a, b + 1, dtype=np.int64)
+    sections = reference_crud.reference_frame(session, "superstructure", line_id=line.line_id, track=line.track)
+    cls = section_classes((segs + 0.5) * seg_m, sections["km_from"].to_numpy(dtype=float) * 1000.0,
+                          sections["km_to"].to_numpy(dtype=float) * 1000.0, sections["type"].to_numpy(dtype=object),
+                          boundary_margin_m=CLASS_MARGIN_M) if len(sections) else np.full(segs.size, "", dtype=object)
+    start_m, end_m = lo * 1000.0, hi * 1000.0
+    centres = (segs + 0.5) * seg_m
+    inside = (centres >= start_m) & (centres < end_m)
+    if not inside.any():  # a stretch shorter than a segment: the segment holding its middle
+        inside = segs == math.floor((start_m + end_m) / 2 / seg_m)
+        start_m, end_m = float(segs[inside][0] * seg_m), float((segs[inside][0] + 1) * seg_m)
+    own = [c for c in cls[inside].tolist() if c is not None]
+    mine = max(set(own), key=own.count) if own else None
+    typed = np.array([c is not None for c in cls.tolist()], dtype=bool)  # not at a change of class
+    same_class = np.array([c == mine for c in cls.tolist()], dtype=bool) if mine is not None else typed
+    by_run: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    if len(rows):
+        order = np.argsort(rows[:, 0], kind="stable")
+        rows = rows[order]
+        cuts = np.flatnonzero(np.diff(rows[:, 0])) + 1
+        for part in np.split(rows, cuts):
+            index = np.full(segs.size, np.nan)
+            speed = np.full(segs.size, np.nan)
+            k = part[:, 1].astype(np.int64) - a
+            index[k], speed[k] = part[:, 2], part[:, 3]
+            by_run[int(part[0, 0])] = (index, speed)
+    out_runs, values, speeds = [], [], []
+    for r in runs:
+        if r.run_id not in by_run:
+            continue
+        index, speed = by_run[r.run_id]
+        v = float(np.nanmedian(speed[inside])) if np.isfinite(speed[inside]).any() else math.nan
+        matched = speeds_matched(speed, v, speed_tolerance)
+        level = math.nan
+        # the track of its own class around it; where the stretch is (nearly) its whole class section, the
+        # track of any class at its speed (a run's calibration moves them all alike)
+        for around in (same_class & matched, typed & matched):
+            level = extent_level(segs, np.where(inside | around, index, np.nan), start_m, end_m,
+                                 segment_m=float(seg_m), around_m=NEIGHBOURHOOD_KM * 1000.0 + (end_m - start_m) / 2.0,
+                                 margin_m=GAP_KM * 1000.0)
+            if math.isfinite(level):
+                break
+        if math.isfinite(level):
+            out_runs.append(r)
+            values.append(level)
+            speeds.append(v)
+    return out_runs, np.array(values, dtype=np.float64), np.array(speeds, dtype=np.float64)
 
 
 def extent_profile(session: Session, run_ids: list[int], km_from: float, km_to: float, *,
@@ -116,22 +190,30 @@ MARGIN_KM = 0.1
 
 
 def _effect_of(db: Database, line: ConditionLine, a: MaintenanceAction, *, before_days: float, after_days: float,
-               regain: float) -> tuple[ActionEffect, list, np.ndarray]:
+               regain: float) -> tuple[ActionEffect, SplitEffect, list, np.ndarray]:
     with db.read() as session:
-        runs, values = extent_series(session, line, a.km_from, a.km_to)
+        runs, values, speeds = extent_readings(session, line, a.km_from, a.km_to)
     day = days_of(dt.datetime.combine(a.date, dt.time(12, 0), tzinfo=dt.UTC))
     days = np.array([days_of(r.run_time) for r in runs])
     effect = action_effect(days, values, day, before_days=before_days, after_days=after_days,
-                           regain_fraction=regain)
-    return effect, runs, values
+                           regain_fraction=regain, speeds=speeds)
+    split = split_effect(str(a.type), days, values, speeds, day, effect, after_days=after_days)
+    return effect, split, runs, values
 
 
-def _out(a: MaintenanceAction, line: ConditionLine, e: ActionEffect, n_runs: int) -> dict:
+def _pct(x: float | None) -> float | None:
+    return 100.0 * math.expm1(x) if x is not None else None
+
+
+def _out(a: MaintenanceAction, line: ConditionLine, e: ActionEffect, split: SplitEffect, n_runs: int) -> dict:
     return {
         "action_id": a.id, "line_id": line.line_id, "track": line.track, "type": a.type, "date": a.date.isoformat(),
         "km_from": a.km_from, "km_to": a.km_to, "n_runs": n_runs, "n_runs_before": e.n_before, "n_runs_after": e.n_after,
-        "condition_index_before": e.index_before, "condition_index_after": e.index_after, "recovery": e.recovery,
-        "recovery_pct": 100.0 * math.expm1(e.recovery) if e.recovery is not None else None,
+        "condition_index_before": e.index_before, "condition_index_after": e.index_after,
+        "recovery": split.support_change, "recovery_pct": _pct(split.support_change),
+        "support_change": split.support_change, "support_change_pct": _pct(split.support_change),
+        "rail_surface": split.rail_surface, "rail_surface_change": split.rail_surface_change,
+        "rail_surface_change_pct": _pct(split.rail_surface_change),
         "slope_after_per_year": e.slope_after_per_year, "lasted_days_observed": e.lasted_days_observed,
         "lasted_days_projected": e.lasted_days_projected,
     }
@@ -150,9 +232,9 @@ def action_effects(db: Database, line_id: str, track: str | None, *, types: list
         rows = [session.get(MaintenanceAction, int(i)) for i in actions["id"]]
     items = []
     for a in sorted(rows, key=lambda r: (r.date, r.km_from)):
-        effect, runs, _ = _effect_of(db, line, a, before_days=before_days, after_days=after_days,
-                                     regain=regain_fraction)
-        items.append(_out(a, line, effect, len(runs)))
+        effect, split, runs, _ = _effect_of(db, line, a, before_days=before_days, after_days=after_days,
+                                            regain=regain_fraction)
+        items.append(_out(a, line, effect, split, len(runs)))
     return {"regain_fraction": regain_fraction, "items": items}
 
 
@@ -165,8 +247,8 @@ def action_effect_detail(db: Database, action_id: int, *, before_days: float, af
     if a is None:
         raise not_found("action", action_id)
     line = resolve_line(db, a.line_id, a.track)
-    effect, runs, values = _effect_of(db, line, a, before_days=before_days, after_days=after_days,
-                                      regain=regain_fraction)
+    effect, split, runs, values = _effect_of(db, line, a, before_days=before_days, after_days=after_days,
+                                             regain=regain_fraction)
     day = days_of(dt.datetime.combine(a.date, dt.time(12, 0), tzinfo=dt.UTC))
     days = np.array([days_of(r.run_time) for r in runs])
     before = [r.run_id for r, d in zip(runs, days, strict=True) if day - before_days <= d < day]
@@ -184,7 +266,7 @@ def action_effect_detail(db: Database, action_id: int, *, before_days: float, af
     if not runs:
         raise ApiError(409, "action_id", f"no run of line {line.line_id!r} covers action {action_id}")
     return {
-        **_out(a, line, effect, len(runs)),
+        **_out(a, line, effect, split, len(runs)),
         "series": [{"run_id": r.run_id, "start_time": r.run_time.isoformat(), "condition_index": float(v)}
                    for r, v in zip(runs, values, strict=True)],
         "profile_km": km.tolist(), "profile_before": on(km_b, v_b), "profile_after": on(km_a, v_a),

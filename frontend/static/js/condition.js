@@ -318,7 +318,7 @@
     const covered = (a) => a.n_runs > 0;
     body.innerHTML = res.items.map((a) => `<tr ${covered(a) ? `data-action="${a.action_id}" style="cursor:pointer"` : `class="muted" title="no run of this line covers it"`}>
       <td>${T.esc(a.date)}</td><td>${T.esc(a.type)}</td><td>${a.km_from.toFixed(3)}–${a.km_to.toFixed(3)}</td>
-      <td class="num">${a.n_runs_before} / ${a.n_runs_after}</td><td class="num">${pct(a.recovery_pct)}</td>
+      <td class="num">${a.n_runs_before} / ${a.n_runs_after}</td><td class="num">${pct(a.recovery_pct)}${a.rail_surface ? `<br><span class="muted" title="the rail surface's response across the work; the support's change is read against the new surface's own baseline">rail surface ${pct(a.rail_surface_change_pct)}</span>` : ""}</td>
       <td class="num" title="${a.slope_after_per_year === null ? "" : `${pct(a.slope_after_per_year, 2)} ln units a year`}">${a.slope_after_per_year === null ? "–" : pct(ampRate(a.slope_after_per_year))}</td>
       <td class="num">${a.lasted_days_observed !== null ? T.fmt(a.lasted_days_observed, 0) : a.lasted_days_projected !== null ? "≈ " + T.fmt(a.lasted_days_projected, 0) : "–"}</td></tr>`).join("");
     const best = res.items.find((a) => a.recovery !== null) || res.items.find(covered);
