@@ -313,6 +313,11 @@ class DbHistory:
             select(ConditionRun.run_id, ConditionRun.run_time)
             .where(earlier, ConditionRun.run_time >= when - dt.timedelta(days=params.trend_window_days))
         ).all()
+        rows = [tuple(r) for r in rows]
+        window = [tuple(r) for r in window]
+        ids = list({r[0] for r in (*rows, *window)})
+        self.vehicles = dict(session.execute(select(Run.id, Run.vehicle_id).where(Run.id.in_(ids))).all()) \
+            if ids else {}
         self.step_runs = sorted(rows, key=lambda r: (r[1], r[0]))
         self.trend_runs = sorted({*rows, *window}, key=lambda r: (r[1], r[0]))
         self.previous_run_id = self.step_runs[-1][0] if self.step_runs else None
@@ -356,7 +361,8 @@ class DbHistory:
             speed[j[hit], cols[hit]] = values[hit, 3]
             sd[j[hit], cols[hit]] = values[hit, 4]
         days = np.array([days_of(t if t.tzinfo else t.replace(tzinfo=dt.UTC)) for _, t in runs])
-        return HistoryMatrix(index, speed, days, sd)
+        vehicle = np.array([self.vehicles.get(rid) for rid, _ in runs], dtype=object)
+        return HistoryMatrix(index, speed, days, sd, vehicle)
 
 
 def _segment_frame(run_id: int, job_id: int, line_key: int, segments: Mapping[float, Mapping[str, SegmentStats]],
@@ -532,7 +538,7 @@ def store_run_condition(
     assessment = assess_run(segments, history, days_of(when), params=config.change,
                             previous_flags=history.previous_flags(),
                             interventions=rail_surface_interventions(session, run.line_id, run.track or ""),
-                            intervention_margin_m=intervention_margin_m(res_m, order))
+                            intervention_margin_m=intervention_margin_m(res_m, order), vehicle=run.vehicle_id)
     flags = write_assessed_run(session, run_id=run_id, job_id=job_id, line=line, when=when, segments=segments,
                                assessment=assessment, shift_m=shift, shift_confidence=confidence)
     exponents = {f"{s:g}": float(np.mean(list(e.values()))) if e else None
