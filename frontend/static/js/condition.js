@@ -87,7 +87,7 @@
     if (p.rate_per_year === null) return `<span class="muted">${T.esc(p.tendency || "–")}</span>`;
     // the rate is of the severity (direction · index, ln units a year); shown as the amplitude's change a year
     const d = p.direction === "soft" ? -1 : 1;
-    const r = (v) => `${pct(ampRate(d * v), 0)} %`;
+    const r = (v) => { const a = ampRate(d * v); return a > 999 ? "> +999 %" : `${pct(a, 0)} %`; };
     const arrow = { growing: "↗", shrinking: "↘", stable: "→" }[p.tendency] || "";
     const [lo, hi] = d > 0 ? [p.rate_low, p.rate_high] : [p.rate_high, p.rate_low];
     const iv = lo !== null && hi !== null ? ` <span class="muted">(${r(lo)} … ${r(hi)})</span>` : "";
