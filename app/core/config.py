@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -252,6 +253,13 @@ class Settings(BaseSettings):
         Length of the sections classed A … E by the index's level and spread, m.
     places_section_limits : [float, float, float, float]
         rms limits of the section classes A/B, B/C, C/D, D/E (ln units).
+    places_class_scheme : dict, optional
+        The railway's own class scheme: each section class A … E mapped to one of its classes,
+        with their names per language (JSON; :mod:`app.places.class_scheme`), e.g.
+        ``{"name": {"en": "Condition class", "de": "Zustandsklasse"}, "classes": [{"code": "1",
+        "of": ["A"], "name": {"en": "as new", "de": "neuwertig"}}, …]}``. The API, CSV, the
+        Condition page and the planning report show it; checked when the service starts.
+        Default: none (classes A … E).
     places_asset_buffer_m : float
         Assets (switches, bridges, …) within this distance of a place label it, m.
     places_muted_asset_types : str
@@ -445,6 +453,7 @@ class Settings(BaseSettings):
     places_explain_days: float = Field(default=60.0, ge=0)
     places_section_m: float = Field(default=200.0, gt=0)
     places_section_limits: list[float] = Field(default_factory=lambda: [0.05, 0.10, 0.17, 0.25])
+    places_class_scheme: dict[str, Any] | None = None
     places_asset_buffer_m: float = Field(default=20.0, ge=0)
     places_muted_asset_types: str = Field(default="", max_length=500)
     places_alerts: bool = True
