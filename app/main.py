@@ -53,7 +53,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     configure_logging(settings.log_level, settings.log_format)
     settings.check_production()
     class_scheme(settings)  # a bad TRACKVKF_PLACES_CLASS_SCHEME stops the start, naming the part at fault
-    db = Database(settings.database_url)
+    db = Database(settings.database_url, lock_wait_s=settings.db_lock_wait_s)
     if settings.is_production:
         check_production_database(db)
     store = RunStore(settings.run_store, settings.shared_store)

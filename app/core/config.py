@@ -140,6 +140,18 @@ class Settings(BaseSettings):
     profile_concurrency : int
         Profile answers each API process computes at once; further requests
         wait their turn without holding up uploads, logins and other requests.
+    assets_import_max_rows : int
+        Most assets one import may write (default 200 000, the reader's limit); more: 413.
+    assets_import_max_lines : int
+        Most (line, track) pairs one import may replace (default 1000); more: 413. The
+        transaction that makes an import live writes one row per pair.
+    assets_import_batch_rows : int
+        Rows an import writes (and replaced rows it deletes) per transaction: the longest it
+        holds the write lock (2000 rows: ≈ 0.03 s on SQLite).
+    db_lock_wait_s : float
+        How long a request waits for the database's write lock (SQLite: the busy timeout, its
+        retries within this deadline), s; past it the answer is 503 with ``Retry-After``
+        (``"field": "database"``), never a 500.
     max_reference_bytes : int
         Largest accepted reference data file (subsidence, maintenance,
         superstructure), bytes.
@@ -408,6 +420,10 @@ class Settings(BaseSettings):
     login_name_failure_window_s: float = Field(default=3600.0, gt=0)
     upload_rate_limit: int = Field(default=60, ge=1)
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
+    assets_import_max_rows: int = Field(default=200_000, ge=1, le=200_000)
+    assets_import_max_lines: int = Field(default=1000, ge=1, le=100_000)
+    assets_import_batch_rows: int = Field(default=2000, ge=100, le=100_000)
+    db_lock_wait_s: float = Field(default=15.0, gt=0, le=600)
     max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
     parse_isolated: bool = True
     parse_seconds: float = Field(default=120.0, gt=0)

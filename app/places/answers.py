@@ -48,6 +48,14 @@ def _date(t: dt.datetime | None, days: float | None) -> str | None:
         return None
 
 
+def _amplitude_interval(direction: int, low: float | None, high: float | None) -> dict[str, float | None]:
+    """The 95 % interval of the severity's rate as the amplitude's change a year, per cent, low ≤ high."""
+    a, b = (amplitude_percent_per_year(direction, x) for x in (low, high))
+    if a is None or b is None:
+        return {"amplitude_percent_low": None, "amplitude_percent_high": None}
+    return {"amplitude_percent_low": min(a, b), "amplitude_percent_high": max(a, b)}
+
+
 def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (),
                assets: Sequence[dict[str, Any]] = (), muted_reason: str | None = None,
                speed_kmh: float | None = None) -> dict[str, Any]:
@@ -62,7 +70,8 @@ def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (
     (:func:`~app.analysis.condition.reading.direction_words`: stiffer / softer only from 42 m/s, else higher /
     lower amplitude). ``rate_per_year`` (and its 95 % interval ``rate_low`` … ``rate_high``) is in ln units a
     year of the severity (``direction · index``; positive: growing); ``amplitude_percent_per_year`` the same as
-    the amplitude's change, per cent a year (``100 · expm1(direction · rate)``)."""
+    the amplitude's change, per cent a year (``100 · expm1(direction · rate)``), ``amplitude_percent_low`` …
+    ``amplitude_percent_high`` its interval."""
     tier = TIER_NAMES[int(p.tier)]
     nxt = TIER_NAMES[int(p.tier) + 1] if int(p.tier) + 1 < len(TIER_NAMES) else None
     level = float(p.level)
@@ -84,6 +93,7 @@ def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (
         "rate_per_year": finite_or_none(p.rate_per_year), "rate_low": finite_or_none(p.rate_low),
         "rate_high": finite_or_none(p.rate_high), "rate_unit": "ln units per year",
         "amplitude_percent_per_year": amplitude_percent_per_year(1 if p.direction > 0 else -1, p.rate_per_year),
+        **_amplitude_interval(1 if p.direction > 0 else -1, p.rate_low, p.rate_high),
         "next_tier": nxt, "next_limit": finite_or_none(p.next_limit) if nxt else None,
         "projected_date": _date(p.last_confirmed, p.days_to_next) if nxt else None,
         "days_to_next_tier": finite_or_none(p.days_to_next) if nxt else None,

@@ -44,6 +44,7 @@ CSV_COLUMNS: tuple[str, ...] = (
     "id", "line_id", "track", "km_from", "km_to", "length_m", "peak", "peak_percent", "peak_km", "direction",
     "reading", "speed_kmh", "tier", "confirmed", "evidence", "wheels", "runs_confirming", "first_seen",
     "last_confirmed", "tendency", "rate_per_year", "rate_low", "rate_high", "amplitude_percent_per_year",
+    "amplitude_percent_low", "amplitude_percent_high",
     "next_tier", "projected_date", "days_to_next_tier", "status", "status_comment",
     "status_by", "status_at", "actions", "assets", "active", "muted", "muted_reason", "method_version",
     "peak_sd", "change", "change_sd", "severity", "severity_sd",

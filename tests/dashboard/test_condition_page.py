@@ -288,7 +288,11 @@ def test_the_planning_report_has_a_sheet_with_its_plot_per_open_place(engineer_p
     _open(page)
     line_id = history_service.spec.line_id
     page.wait_for_selector("#report-pdf[href*='report.pdf']")
-    with page.expect_download() as info:
+    with history_service.client(timeout=300) as client:  # the same answer over REST: its error, if any, named
+        r = client.get("/api/v1/condition/report.pdf", params={"line_id": line_id})
+        assert r.status_code == 200 and r.content.startswith(b"%PDF-"), r.text[:2000]
+    # made on request: seconds alone, longer on a loaded machine
+    with page.expect_download(timeout=300_000) as info:
         page.click("#report-pdf")
     pdf = tmp_path / "report.pdf"
     info.value.save_as(pdf)

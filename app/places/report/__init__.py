@@ -11,18 +11,17 @@ map, the maintenance over it) and the maintenance effects, in the user's languag
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Callable
 from typing import Any
 
 from app.db.session import Database
 from app.places.report.data import ReportData, gather
-from app.places.report.render import render_html, render_pdf
+from app.places.report.render import ENGLISH, Speech, render_html, render_pdf
 
-__all__ = ["line_report", "ReportData", "gather", "render_html", "render_pdf"]
+__all__ = ["line_report", "ReportData", "Speech", "gather", "render_html", "render_pdf"]
 
 
 def line_report(db: Database, settings: Any, line_id: str, track: str | None, *, date: dt.date | None = None,
-                lang: str = "en", gettext: Callable[[str], str] = lambda s: s) -> tuple[ReportData, bytes]:
+                speech: Speech | None = None) -> tuple[ReportData, bytes]:
     """The report of a line and track as PDF (and what it shows).
 
     Parameters
@@ -33,10 +32,8 @@ def line_report(db: Database, settings: Any, line_id: str, track: str | None, *,
         The line (404 naming ``line_id`` without runs; 422 naming ``track`` when ambiguous).
     date : datetime.date, optional
         The meeting's date the report is made for (default: today, UTC); printed on it.
-    lang : str
-        Language of the report.
-    gettext : callable
-        The catalogue of ``lang``.
+    speech : Speech, optional
+        The report's language and its catalogue (the class scheme's names follow ``speech.lang``).
     """
-    data = gather(db, settings, line_id, track, date=date or dt.datetime.now(dt.UTC).date(), lang=lang)
-    return data, render_pdf(data, lang=lang, gettext=gettext)
+    data = gather(db, settings, line_id, track, date=date or dt.datetime.now(dt.UTC).date(), lang=(speech or ENGLISH).lang)
+    return data, render_pdf(data, speech=speech)
