@@ -46,6 +46,7 @@ from app.analysis.condition.lifecycle import Action, PlaceState, advance_places,
 from app.analysis.condition.outlook import Trend
 from app.analysis.condition.places import EVIDENCE_TREND
 from app.analysis.condition.run_places import find_places
+from app.analysis.units import KMH_PER_MPS
 from app.condition.writer import days_of, rail_surface_interventions
 from app.db import places as q
 from app.db import reference_crud
@@ -245,7 +246,7 @@ def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
                                   actions=acts)
     kept = {k.id for k in known}
     q.delete_places(session, [i for i in by_id if i not in kept])
-    speed_kmh = mean_over_wheels(v) * 3.6
+    speed_kmh = mean_over_wheels(v) * KMH_PER_MPS
     written = write_run(session, line, run_id, when, version, known, by_id, before, events, acts, act_rows,
                      seg, wheels, speed_kmh, version_runs, config, trends=developing_trends(known, run_id, ri, now_day))
     session.add(PlaceRun(run_id=run_id, line_key=line.id, run_time=when, method_version=version,

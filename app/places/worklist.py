@@ -13,8 +13,6 @@ long list costs one query.
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -24,6 +22,7 @@ from sqlalchemy.orm import Session
 
 from app.analysis.condition.tiers import TIER_NAMES
 from app.assets.labels import label_places
+from app.core.csv_export import csv_text
 from app.core.errors import ApiError, not_found
 from app.core.jsonable import iso_time
 from app.db import places as q
@@ -160,19 +159,27 @@ def list_places(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLA
             "places_updated_at": max(updated) if updated else None, "lines": current}
 
 
-def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> str:
-    """The work list as CSV (one row per place; lists joined by ``+``, actions as ``kind date``)."""
-    out = io.StringIO()
-    w = csv.writer(out, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
-    for item in list_places(db, qy, config)["items"]:
+def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> tuple[str, int, int]:
+    """The work list as CSV (one row per place; lists joined by ``+``, actions as ``kind date``), written
+    by :mod:`app.core.csv_export` (text cells a spreadsheet would run are defused).
+
+    Returns
+    -------
+    tuple[str, int, int]
+        The CSV text, the number of places the filters match (all pages) and how many of them this page
+        leaves out (before ``offset`` and after ``limit``): the route says both in headers.
+    """
+    answer = list_places(db, qy, config)
+    rows = []
+    for item in answer["items"]:
         row = dict(item)
         row["evidence"] = "+".join(item["evidence"])
         row["wheels"] = "+".join(item["wheels"])
         row["actions"] = "+".join(f"{a['kind']} {a['date']}" for a in item["actions"])
         row["assets"] = "+".join(f"{a['type']} {a['km']:.3f}" for a in item["assets"])
-        w.writerow(["" if row.get(c) is None else row.get(c) for c in CSV_COLUMNS])
-    return out.getvalue()
+        rows.append([row.get(c) for c in CSV_COLUMNS])
+    total = int(answer["total"])
+    return csv_text(CSV_COLUMNS, rows), total, max(0, total - len(rows))
 
 
 def places_geojson(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> dict:

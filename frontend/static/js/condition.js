@@ -286,7 +286,7 @@
       y: t.points.map((p) => { const r = p.wheels.find((q) => q.wheel === w); return r ? r.condition_index : null; }),
       hovertemplate: `${T.wheelLabel(w)} %{x|%Y-%m-%d}: %{y:.3f}<extra></extra>`,
     })).filter((tr) => tr.y.some((v) => v !== null));
-    traces.push({ type: "scatter", mode: "lines+markers", name: "relative to the surrounding ±1 km (right axis)", x, yaxis: "y2",
+    traces.push({ type: "scatter", mode: "lines+markers", name: "relative to its surroundings (right axis)", x, yaxis: "y2",
       y: t.points.map((p) => p.relative), line: { color: "#1d2733", width: 2 }, marker: { size: 4 },
       hovertemplate: "%{x|%Y-%m-%d}: %{y:.3f} relative<extra></extra>" });
     const flagged = t.points.filter((p) => p.flagged);
