@@ -125,8 +125,11 @@ def labelled(session: Session, lines: dict[int, ConditionLine], rows: list[Place
     out = []
     for p in rows:
         lab = labels.get(p.id)
-        out.append(place_dict(p, lines[p.line_key], links[p.id], assets=lab.assets if lab else (),
-                              muted_reason=lab.muted_reason if lab is not None and lab.muted else None))
+        item = place_dict(p, lines[p.line_key], links[p.id], assets=lab.assets if lab else (),
+                          muted_reason=lab.muted_reason if lab is not None and lab.muted else None)
+        if lab is not None and lab.assets_more:  # only when capped: the answers of a place on few assets keep their shape
+            item["assets_more"] = lab.assets_more
+        out.append(item)
     return out
 
 
