@@ -67,6 +67,13 @@ def test_geojson_import_keeps_the_coordinates(make_client):
     ('{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": null,'
      ' "properties": {"line_id": "G", "track": "1", "type": "switch"}}]}', "feature 1, property km"),
     ('{"type": "Feature"}', "file"),
+    # issue 32 finding 8: a 400-digit number overflowed float() uncaught (500 without parse isolation)
+    ('{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": null,'
+     ' "properties": {"line_id": "G", "track": "1", "type": "switch", "km": 1' + "0" * 400 + '}}]}',
+     "feature 1, property km"),
+    ('{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": {"type": "Point", "coordinates": [1'
+     + "0" * 400 + ', 46]}, "properties": {"line_id": "G", "track": "1", "type": "switch", "km": 1}}]}',
+     "feature 1, geometry"),
 ])
 def test_a_bad_file_is_refused_whole_naming_the_row_and_column(make_client, body, field):
     client = make_client(parse_isolated=False)
