@@ -138,9 +138,12 @@ def labelled(session: Session, lines: dict[int, ConditionLine], rows: list[Place
     out = []
     for p in rows:
         lab = labels.get(p.id)
-        out.append(place_dict(p, lines[p.line_key], links[p.id], assets=lab.assets if lab else (),
-                              muted_reason=lab.muted_reason if lab is not None and lab.muted else None,
-                              speed_kmh=speeds.get(p.id)))
+        item = place_dict(p, lines[p.line_key], links[p.id], assets=lab.assets if lab else (),
+                          muted_reason=lab.muted_reason if lab is not None and lab.muted else None,
+                          speed_kmh=speeds.get(p.id))
+        if lab is not None and lab.assets_more:  # only when capped: the answers of a place on few assets keep their shape
+            item["assets_more"] = lab.assets_more
+        out.append(item)
     return out
 
 
