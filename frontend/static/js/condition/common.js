@@ -48,12 +48,19 @@
   function canEdit() { return !!state.me && (state.me.role === "engineer" || state.me.role === "admin"); }
   function mapLink(runId, a, b) { return `/runs/${runId}?km_from=${(a - 0.05).toFixed(3)}&km_to=${(b + 0.05).toFixed(3)}`; }
 
+  // a rate of the amplitude, per cent a year, from its ln rate (expm1: −1 ln unit a year is −63 %, never "−100 %")
+  function ampRate(ln) { return 100 * Math.expm1(ln); }
   function trendText(p) {
     if (p.rate_per_year === null) return `<span class="muted">${T.esc(p.tendency ? T.label("tendency", p.tendency) : "–")}</span>`;
-    const r = (v) => signed(100 * v, 0);
+    // the rate is of the severity (direction · index, ln units a year); shown as the amplitude's change a year
+    const d = p.direction === "soft" ? -1 : 1;
+    const r = (v) => { const a = ampRate(d * v); return a > 999 ? "> +999 %" : `${signed(a, 0)} %`; };
     const arrow = { growing: "↗", shrinking: "↘", stable: "→" }[p.tendency] || "";
-    const iv = p.rate_low !== null && p.rate_high !== null ? ` <span class="muted">(${r(p.rate_low)} … ${r(p.rate_high)})</span>` : "";
-    return `${arrow} ${T.esc(T.label("tendency", p.tendency))} ${r(p.rate_per_year)} %${iv}`;
+    const [lo, hi] = d > 0 ? [p.rate_low, p.rate_high] : [p.rate_high, p.rate_low];
+    const iv = lo !== null && hi !== null ? ` <span class="muted">(${r(lo)} … ${r(hi)})</span>` : "";
+    const title = T._("severity {rate} ln units a year", { rate: signed(p.rate_per_year, 2) });
+    const text = T._("{tendency}: amplitude {rate} a year", { tendency: T.label("tendency", p.tendency), rate: r(p.rate_per_year) });
+    return `<span title="${T.esc(title)}">${arrow} ${T.esc(text)}</span>${iv}`;
   }
   /* The time to limit: the projected days until the next tier's limit (the one word of the page). */
   function limitText(p) {
@@ -62,14 +69,25 @@
     if (p.days_to_next_tier === null) return `<span class="muted">${T.esc(T._("no significant trend towards {tier}", { tier: next }))}</span>`;
     return `${T.esc(T._("≈ {days} d to {tier}", { days: T.fmt(p.days_to_next_tier, 0), tier: next }))} <span class="muted">(${T.date(p.projected_date)})</span>`;
   }
+  const READING = { stiffer: T._("stiffer"), softer: T._("softer"), "higher amplitude": T._("higher amplitude"),
+                    "lower amplitude": T._("lower amplitude") };
   function peakText(p) {
     // the stated 1-sigma of the peak in per cent (delta method: 100 · sd · e^peak); none where not stated
     const sdTitle = T._("stated 1-σ of the peak (roughness, noise)");
     const sd = p.peak_sd === null || p.peak_sd === undefined ? "" :
       ` <span class="muted" title="${T.esc(sdTitle)}">± ${T.fmt(100 * p.peak_sd * Math.exp(p.peak), 0)} %</span>`;
-    const dir = p.direction === "soft" ? `▼ ${T.esc(T.label("direction", "soft"))}` : `▲ ${T.esc(T.label("direction", "hard"))}`;
-    const where = T._("index {index} at km {km}", { index: T.fmt(p.peak, 3), km: T.fmt(p.peak_km, 3) });
+    // stiffer / softer only where the place was read fast enough for the amplitude to rank stiffness (API: reading)
+    const words = READING[p.reading] || (p.direction === "soft" ? READING["lower amplitude"] : READING["higher amplitude"]);
+    const dir = `${p.direction === "soft" ? "▼" : "▲"} ${T.esc(words)}`;
+    let where = T._("index {index} at km {km}", { index: T.fmt(p.peak, 3), km: T.fmt(p.peak_km, 3) });
+    if (p.speed_kmh !== null && p.speed_kmh !== undefined) where += T._(", read at {v} km/h", { v: T.fmt(p.speed_kmh, 0) });
     return `<span title="${T.esc(where)}">${signed(p.peak_percent, 0)} %${sd} ${dir}</span>`;
+  }
+  /* a new place: found by the newest run, on the list at once, confirmed (and alerted) by the next run */
+  function confirmText(p) {
+    if (p.confirmed !== false) return "";
+    const title = T._("found by one run"), text = T._("new, to be confirmed by the next run");
+    return `<br><span class="badge unconfirmed" title="${T.esc(title)}">${T.esc(text)}</span>`;
   }
   function assetsText(p) {
     const list = (p.assets || []).map((a) => `${T.esc(T.label("asset type", a.type))}${a.name ? ` <span class="muted" translate="no">${T.esc(a.name)}</span>` : ""}`).join(", ");
@@ -89,6 +107,6 @@
 
   window.trackvkfCondition = {
     T, $, RULES, state, current, qs, signed, tierBadge, statusBadge, canEdit, mapLink,
-    trendText, limitText, peakText, assetsText, statusDate, fail,
+    ampRate, trendText, limitText, peakText, confirmText, assetsText, statusDate, fail,
   };
 })();

@@ -19,6 +19,17 @@
     return `<span class="muted" title="${T.esc(still)}">–</span>`;
   }
 
+  /* the rail surface's response across a grinding (the support's change is read against the new surface) */
+  function railText(a) {
+    if (!a.rail_surface) return "";
+    const title = T._("the rail surface's response across the work; the support's change is read against the new surface's own baseline");
+    const text = T._("rail surface {pct} %", { pct: C.signed(a.rail_surface_change_pct, 1) });
+    return `<br><span class="muted" title="${T.esc(title)}">${T.esc(text)}</span>`;
+  }
+  function slopeTitle(a) {
+    if (a.slope_after_per_year === null) return "";
+    return T.esc(T._("{rate} ln units a year", { rate: C.signed(a.slope_after_per_year, 2) }));
+  }
   async function drawActions() {
     const body = $("actions-body");
     const { line_id, track } = C.current();
@@ -33,8 +44,8 @@
     const uncovered = T.esc(T._("no run of this line covers it"));
     body.innerHTML = res.items.map((a) => `<tr ${covered(a) ? `data-action="${a.action_id}" style="cursor:pointer"` : `class="muted" title="${uncovered}"`}>
       <td>${T.date(a.date)}</td><td>${T.esc(T.label("maintenance type", a.type))}</td><td>${T.fmt(a.km_from, 3)}–${T.fmt(a.km_to, 3)}</td>
-      <td class="num">${a.n_runs_before} / ${a.n_runs_after}</td><td class="num">${changeText(a)}</td>
-      <td class="num">${a.slope_after_per_year === null ? "–" : C.signed(100 * a.slope_after_per_year, 1)}</td>
+      <td class="num">${a.n_runs_before} / ${a.n_runs_after}</td><td class="num">${changeText(a)}${railText(a)}</td>
+      <td class="num" title="${slopeTitle(a)}">${a.slope_after_per_year === null ? "–" : C.signed(C.ampRate(a.slope_after_per_year), 1)}</td>
       <td class="num">${heldText(a)}</td></tr>`).join("");
     const best = res.items.find((a) => a.recovery !== null) || res.items.find(covered);
     if (!best) {

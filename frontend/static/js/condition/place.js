@@ -29,7 +29,7 @@
       [T._("Wheels"), `<span translate="no">${T.esc(p.wheels.join(", ") || "–")}</span>`],
       [T._("Trend per year (95 %)"), C.trendText(p)], [T._("Time to limit"), C.limitText(p)],
       [T._("First seen / last confirmed"), `${T.date(p.first_seen)} / ${T.date(p.last_confirmed)}`],
-      [T._("Runs confirming"), String(p.runs_confirming) + (p.active ? "" : ` <span class="muted">(${T.esc(T._("not seen lately"))})</span>`)],
+      [T._("Runs confirming"), String(p.runs_confirming) + (p.active ? "" : ` <span class="muted">(${T.esc(T._("not seen lately"))})</span>`) + C.confirmText(p)],
       [T._("Status"), C.statusBadge(p.status) + (when ? ` <span class="muted">${T.esc(when.text)}</span>` : "")],
       [T._("Assets"), C.assetsText(p)], [T._("Method version"), `<span class="muted" translate="no">${T.esc(p.method_version || "–")}</span>`],
     ];

@@ -40,7 +40,7 @@
     }
     const confirming = T.esc(T._("runs confirming"));
     body.innerHTML = res.items.map((p, i) => `<tr data-place="${p.id}" class="${p.id === state.placeId ? "selected" : ""}${p.muted ? " is-muted" : ""}">
-      <td class="num">${i + 1}</td><td>${C.tierBadge(p.tier)}</td>
+      <td class="num">${i + 1}</td><td>${C.tierBadge(p.tier)}${C.confirmText(p)}</td>
       <td>${T.fmt(p.km_from, 3)}–${T.fmt(p.km_to, 3)}<br><span class="muted">${T.fmt(p.length_m, 0)} m · ${T.esc(T._("place {id}", { id: p.id }))}</span></td>
       <td class="num nowrap">${C.peakText(p)}</td><td class="wrap">${C.trendText(p)}</td><td class="wrap">${C.limitText(p)}</td>
       <td>${C.statusBadge(p.status)}</td>
