@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from app.core.config import get_settings
+from app.settings import get_settings
 
 __all__ = [
     "echo", "refuse_unsafe_production", "database", "database_problem",

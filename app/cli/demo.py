@@ -15,7 +15,7 @@ from typing import Annotated
 import typer
 
 from app.cli._common import cli_audit, database, echo, new_password
-from app.core.config import get_settings
+from app.settings import get_settings
 
 __all__ = ["demo"]
 

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from app.cli._common import echo
-from app.core.config import get_settings
+from app.settings import get_settings
 
 __all__ = ["backup", "restore"]
 

@@ -8,8 +8,8 @@ from typing import Annotated
 import typer
 
 from app.cli._common import echo, refuse_unsafe_production, require_migrated_database
-from app.core.config import get_settings
 from app.core.logging import configure_logging
+from app.settings import get_settings
 
 __all__ = ["serve", "worker", "migrate", "default_api_workers"]
 

@@ -41,7 +41,7 @@ class ConditionConfig:
 
     @classmethod
     def from_settings(cls, settings: Any) -> ConditionConfig:
-        """From :class:`app.core.config.Settings` (``condition_*`` and ``analytics_*`` settings)."""
+        """From :class:`app.settings.Settings` (``condition_*`` and ``analytics_*`` settings)."""
         return cls(
             change=ChangeParams(
                 step_z=settings.condition_step_z,
