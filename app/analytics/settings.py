@@ -7,11 +7,16 @@ from pydantic import Field
 
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE
 from app.analysis.units import MIN_SPEED_KMH
-from app.condition.config import ConditionConfig
 from app.core.config import SettingsGroup
-from app.places.config import PlacesConfig
 
-__all__ = ["AnalyticsSettings"]
+__all__ = ["AnalyticsSettings", "EDGE_TRIM_M", "SECTION_MARGIN_M", "REFERENCE_SPEED_KMH"]
+
+#: Metres at each end of a run's profile left out (the filters' end transients), m.
+EDGE_TRIM_M = 50.0
+#: Bins this close to a change of superstructure type get no stiffness index, m.
+SECTION_MARGIN_M = 50.0
+#: Reference speed of the speed-normalised indicator, km/h.
+REFERENCE_SPEED_KMH = 100.0
 
 
 class AnalyticsSettings(SettingsGroup):
@@ -39,7 +44,7 @@ class AnalyticsSettings(SettingsGroup):
     """
 
     analytics_min_speed_kmh: float = Field(default=MIN_SPEED_KMH, ge=0)
-    analytics_reference_speed_kmh: float = Field(default=100.0, gt=0)
-    analytics_edge_trim_m: float = Field(default=ConditionConfig.edge_trim_m, ge=0)
+    analytics_reference_speed_kmh: float = Field(default=REFERENCE_SPEED_KMH, gt=0)
+    analytics_edge_trim_m: float = Field(default=EDGE_TRIM_M, ge=0)
     analytics_speed_tolerance: float = Field(default=DEFAULT_SPEED_TOLERANCE, gt=0, le=1)
-    analytics_section_margin_m: float = Field(default=PlacesConfig.section_margin_m, ge=0)
+    analytics_section_margin_m: float = Field(default=SECTION_MARGIN_M, ge=0)

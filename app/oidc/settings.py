@@ -6,6 +6,7 @@ from pydantic import Field, field_validator, model_validator
 
 from app.core.config import SettingsGroup
 from app.core.security import ROLES
+from app.oidc.config import OidcConfig
 
 __all__ = ["OidcSettings"]
 
@@ -68,22 +69,22 @@ class OidcSettings(SettingsGroup):
     """
 
     oidc_issuer: str | None = Field(default=None, max_length=500)
-    oidc_provider_name: str = Field(default="corporate account", min_length=1, max_length=80)
+    oidc_provider_name: str = Field(default=OidcConfig.provider_name, min_length=1, max_length=80)
     oidc_client_id: str | None = Field(default=None, max_length=255)
     oidc_client_secret: str | None = Field(default=None, max_length=1000)
     oidc_token_auth_method: str = Field(
-        default="client_secret_basic", pattern="^(client_secret_basic|client_secret_post|none)$")
-    oidc_scopes: str = Field(default="openid profile email", max_length=500)
-    oidc_username_claim: str = Field(default="preferred_username", min_length=1, max_length=100)
-    oidc_groups_claim: str = Field(default="groups", min_length=1, max_length=200)
+        default=OidcConfig.token_auth_method, pattern="^(client_secret_basic|client_secret_post|none)$")
+    oidc_scopes: str = Field(default=OidcConfig.scopes, max_length=500)
+    oidc_username_claim: str = Field(default=OidcConfig.username_claim, min_length=1, max_length=100)
+    oidc_groups_claim: str = Field(default=OidcConfig.groups_claim, min_length=1, max_length=200)
     oidc_role_groups: dict[str, str] = Field(default_factory=dict)
     oidc_default_role: str | None = None
     oidc_redirect_uri: str | None = Field(default=None, max_length=500)
     oidc_post_logout_redirect_uri: str | None = Field(default=None, max_length=500)
     oidc_api_audience: str | None = Field(default=None, max_length=500)
-    oidc_timeout_s: float = Field(default=10.0, gt=0, le=120)
-    oidc_metadata_ttl_s: float = Field(default=3600.0, gt=0)
-    oidc_leeway_s: float = Field(default=60.0, ge=0, le=600)
+    oidc_timeout_s: float = Field(default=OidcConfig.timeout_s, gt=0, le=120)
+    oidc_metadata_ttl_s: float = Field(default=OidcConfig.metadata_ttl_s, gt=0)
+    oidc_leeway_s: float = Field(default=OidcConfig.leeway_s, ge=0, le=600)
 
     @field_validator("oidc_role_groups")
     @classmethod

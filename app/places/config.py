@@ -14,6 +14,7 @@ from app.analysis.condition.lifecycle import LifecycleParams
 from app.analysis.condition.run_places import PlaceParams
 from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
 from app.analysis.condition.tiers import TIER_NAMES, TierLimits, TierTable
+from app.analytics.settings import SECTION_MARGIN_M
 
 __all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "tier_table", "default_places_config", "DEFAULT_LEVEL_LIMITS",
            "DEFAULT_CHANGE_LIMITS", "DEFAULT_SECTION_LIMITS"]
@@ -74,7 +75,7 @@ class PlacesConfig:
     muted_asset_types: frozenset[str] = frozenset()
     effect_around_m: float = DEFAULT_AROUND_M
     effect_margin_m: float = DEFAULT_MARGIN_M
-    section_margin_m: float = 50.0
+    section_margin_m: float = SECTION_MARGIN_M
     alerts: bool = True
 
     def asset_settings(self) -> Any:
