@@ -8,7 +8,7 @@ hands the modules out by their number of tests, largest first. Two things that c
   one worker makes it.
 - **The tail.** A module of few tests but a long set-up (a history processed through the real service)
   came last and ran alone while the other worker had finished. The modules of :data:`HEAVY_FIRST` are
-  handed out first, longest first (their set-up and test times measured with ``--durations``), so the
+  handed out first, longest first (by the suite's ``--durations``), so the
   short modules fill the other worker meanwhile and the two end together.
 
 :func:`cost_ordered_scopes` is installed by ``pytest_xdist_make_scheduler`` in tests/conftest.py; a run
@@ -35,8 +35,8 @@ GROUPS: dict[str, str] = {
     "tests/analytics/test_stiffness_index_api.py": "analytics-sim-set",
 }
 
-#: units of work handed out first, longest first (seconds on the 2-core CI machine: the module's
-#: set-up + tests, from ``pytest <module> --durations=0``)
+#: units of work handed out first, longest first (rough seconds of set-up + tests on the 2-core CI
+#: machine, from the suite's ``--durations`` list; the order matters, not the figures)
 HEAVY_FIRST: tuple[str, ...] = (
     "dashboard",                                        # ~400 s: pages, walk, languages, map, wheels, CSP
     "tests/dashboard/test_condition_page.py",           # ~200 s: 10-run history through the service
