@@ -16,12 +16,12 @@ from app.analysis.units import KMH_PER_MPS
 from app.analytics import frames as data
 from app.analytics.frames import RunsQuery, Selection
 from app.analytics.stiffness_index import index_context
-from app.core.config import Settings
 from app.core.errors import ApiError, not_found
 from app.core.i18n import _
 from app.core.jsonable import finite_list, finite_or_none
 from app.db import crud
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["DETREND_M", "run_alignment", "segments", "segment_trend"]
 

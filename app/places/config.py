@@ -14,19 +14,22 @@ from app.analysis.condition.lifecycle import LifecycleParams
 from app.analysis.condition.run_places import PlaceParams
 from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
 from app.analysis.condition.tiers import TIER_NAMES, TierLimits, TierTable
+from app.analytics.settings import SECTION_MARGIN_M
 
-__all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "tier_table", "default_places_config"]
+__all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "tier_table", "default_places_config", "DEFAULT_LEVEL_LIMITS",
+           "DEFAULT_CHANGE_LIMITS", "DEFAULT_SECTION_LIMITS"]
 
-#: Defaults of the settings (``docs/places.md``, "Settings"); :class:`app.core.config.Settings` has the same.
-_DEFAULT_LEVELS = {"": [0.25, 0.375, 0.625], "b91_pads": [0.30, 0.45, 0.75]}
-_DEFAULT_CHANGES = [0.10, 0.30, 0.50]
-_DEFAULT_SECTIONS = (0.05, 0.10, 0.17, 0.25)
+#: Defaults of the tier and section limits (``docs/places.md``, "Settings"): the settings' defaults
+#: (:class:`app.places.settings.PlacesSettings`) are these.
+DEFAULT_LEVEL_LIMITS = {"": [0.25, 0.375, 0.625], "b91_pads": [0.30, 0.45, 0.75]}
+DEFAULT_CHANGE_LIMITS = [0.10, 0.30, 0.50]
+DEFAULT_SECTION_LIMITS = (0.05, 0.10, 0.17, 0.25)
 
 
 def tier_table(levels: dict[str, list[float]]) -> TierTable:
     """A :class:`TierTable` from ``{class: [alert, intervention, immediate]}`` (``""``: every other class)."""
     rows = {str(k): TierLimits(*[float(v) for v in lim]) for k, lim in levels.items()}
-    default = rows.pop("", TierLimits(*_DEFAULT_LEVELS[""]))
+    default = rows.pop("", TierLimits(*DEFAULT_LEVEL_LIMITS[""]))
     return TierTable(default, rows)
 
 
@@ -61,18 +64,18 @@ class PlacesConfig:
         (``TRACKVKF_ANALYTICS_SECTION_MARGIN_M``).
     """
 
-    place: PlaceParams = field(default_factory=lambda: PlaceParams(tier_table(_DEFAULT_LEVELS),
-                                                                    TierLimits(*_DEFAULT_CHANGES)))
+    place: PlaceParams = field(default_factory=lambda: PlaceParams(tier_table(DEFAULT_LEVEL_LIMITS),
+                                                                    TierLimits(*DEFAULT_CHANGE_LIMITS)))
     lifecycle: LifecycleParams = field(default_factory=LifecycleParams)
     curve_min_locations: int = DEFAULT_MIN_LOCATIONS
     curve_runs: int = 20
     section_m: float = 200.0
-    section_limits: tuple[float, ...] = _DEFAULT_SECTIONS
+    section_limits: tuple[float, ...] = DEFAULT_SECTION_LIMITS
     asset_buffer_m: float = 20.0
     muted_asset_types: frozenset[str] = frozenset()
     effect_around_m: float = DEFAULT_AROUND_M
     effect_margin_m: float = DEFAULT_MARGIN_M
-    section_margin_m: float = 50.0
+    section_margin_m: float = SECTION_MARGIN_M
     alerts: bool = True
 
     def asset_settings(self) -> Any:
@@ -103,7 +106,7 @@ class PlacesConfig:
 
     @classmethod
     def from_settings(cls, settings: Any) -> PlacesConfig:
-        """From :class:`app.core.config.Settings` (``places_*``).
+        """From :class:`app.settings.Settings` (``places_*``).
 
         Raises
         ------
