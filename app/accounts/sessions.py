@@ -15,13 +15,13 @@ from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 from app.audit import record
-from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.i18n import _
 from app.core.security import Actor, Principal, hash_password, verify_password
 from app.db import auth_crud
 from app.db.models import User, utcnow
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = [
     "StartedSession",

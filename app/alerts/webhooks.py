@@ -12,7 +12,6 @@ from __future__ import annotations
 from typing import Any
 
 from app.audit import record
-from app.core.config import Settings
 from app.core.errors import ApiError, not_found
 from app.core.i18n import _
 from app.core.jsonable import iso_time
@@ -21,6 +20,7 @@ from app.core.url_policy import AddressPolicy, UrlError, redact_url, resolve
 from app.db import webhooks as q
 from app.db.models import DeliveryStatus, Webhook, WebhookDelivery
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["register", "webhook_list", "change", "remove", "ping", "delivery_log"]
 

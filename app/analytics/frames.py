@@ -24,13 +24,13 @@ from sqlalchemy.orm import Session
 from app.analysis.stiffness.speed_norm import SpeedFit, fit_speed_exponent, normalise_amplitude
 from app.analysis.stiffness.superstructure import assign_sections
 from app.analysis.units import KMH_PER_MPS
-from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.i18n import _
 from app.core.ids import MAX_ID
 from app.db import crud, reference_crud, results_reader
 from app.db.models import ProfileBin, Run
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["Selection", "RunsQuery", "hac_lag", "ANALYTICS_COLUMNS", "parse_run_ids", "select_runs", "analytics_frame", "load_profiles",
            "own_amplitude", "reference", "speed_exponents", "normalised", "section_types", "PROFILE_CACHE_ROWS"]

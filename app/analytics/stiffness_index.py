@@ -20,11 +20,11 @@ from app.analysis.stiffness.speed_norm import power_law_misfit
 from app.analysis.units import KMH_PER_MPS
 from app.analytics import reference_curves as curves_db
 from app.analytics.frames import select_runs
-from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.i18n import _
 from app.core.jsonable import finite_list, finite_or_none
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["INDEX_COLUMNS", "IndexContext", "index_context", "curve_misfits", "reference_curves_answer"]
 

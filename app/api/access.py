@@ -15,7 +15,6 @@ from urllib.parse import quote
 from fastapi import Depends, HTTPException, Request
 
 from app.accounts.sessions import key_principal, session_principal
-from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.i18n import _
 from app.core.routing import iter_routes
@@ -24,6 +23,7 @@ from app.db.session import Database
 from app.oidc.accounts import bearer_principal
 from app.oidc.provider import ProviderUnavailable, provider_of_settings
 from app.oidc.tokens import TokenRejected, looks_like_jwt
+from app.settings import Settings
 
 __all__ = [
     "Principal",

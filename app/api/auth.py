@@ -47,12 +47,12 @@ from app.api.schemas.auth import (
     UserOut,
     UserPatch,
 )
-from app.core.config import Settings
 from app.core.ids import MAX_ID
 from app.core.ratelimit import RateLimiter
 from app.core.security import csrf_token, device_cookie_id, new_device_cookie
 from app.oidc.flow import end_session_url, post_logout_url
 from app.oidc.provider import ProviderUnavailable, provider_of_settings
+from app.settings import Settings
 
 __all__ = ["router", "login_router", "set_session_cookies", "DEVICE_COOKIE"]
 

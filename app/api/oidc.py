@@ -24,7 +24,6 @@ from app.api.auth import set_session_cookies
 from app.api.deps import SESSION_COOKIE, client_ip, public
 from app.api.language import request_language
 from app.api.login_page import TEMPLATES_DIR, safe_next
-from app.core.config import Settings
 from app.core.i18n import Msg, _, jinja_environment
 from app.oidc import flow
 from app.oidc.accounts import SignInRefused, sign_in
@@ -32,6 +31,7 @@ from app.oidc.config import OidcConfig
 from app.oidc.flow import CALLBACK_PATH, START_PATH, callback_url
 from app.oidc.provider import ProviderUnavailable, provider_of_settings
 from app.oidc.tokens import TokenRejected
+from app.settings import Settings
 
 __all__ = ["router"]
 

@@ -13,11 +13,11 @@ from typing import Annotated, Any, Literal
 
 from fastapi import Path, Query
 
-from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.i18n import _
 from app.core.ids import MAX_ID
 from app.io import WHEELS
+from app.settings import Settings
 
 __all__ = [
     "RunId",

@@ -38,7 +38,6 @@ from starlette.requests import ClientDisconnect, Request
 
 from app.api.deps import Actor
 from app.api.errors import ApiError
-from app.core.config import Settings
 from app.core.diskspace import require_free
 from app.core.i18n import _
 from app.core.runstore import RunStore
@@ -48,6 +47,7 @@ from app.operations.heavy import run_heavy
 from app.runs import upload as uploads
 from app.runs.create import UploadOutcome, create_run_from_file, existing_outcome
 from app.runs.upload import Received
+from app.settings import Settings
 
 __all__ = ["UploadOutcome", "receive_and_create_run", "ACCEPTED_CONTENT_TYPES"]
 

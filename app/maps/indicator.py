@@ -13,7 +13,6 @@ import numpy as np
 
 from app.analytics.frames import load_profiles, select_runs
 from app.analytics.stiffness_index import index_context
-from app.core.config import Settings
 from app.core.errors import ApiError, not_found
 from app.core.i18n import _
 from app.core.jsonable import finite_or_none
@@ -21,6 +20,7 @@ from app.db import crud, recorder_crud, results_reader
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
 from app.io.channels import UNITS
+from app.settings import Settings
 
 __all__ = ["STIFFNESS_INDEX", "INDICATOR_UNITS", "DEFAULT_MAP_SEGMENT_M", "segment_means", "geometry_indicator"]
 

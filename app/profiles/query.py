@@ -11,7 +11,6 @@ from dataclasses import dataclass
 from datetime import datetime
 
 from app.analytics.stiffness_index import IndexContext, index_context
-from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.i18n import _
 from app.db import crud, results_reader
@@ -20,6 +19,7 @@ from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
 from app.profiles.encoding import etag
 from app.runs.lookup import run_with_results
+from app.settings import Settings
 
 __all__ = ["AGGREGATED_COLUMNS", "ProfileQuery", "indicator_columns", "results_context", "level_ratio",
            "run_index_context", "profile_query"]

@@ -19,7 +19,7 @@ from sqlalchemy.exc import IntegrityError
 
 from app.analysis.settings import ProcessingSettings
 from app.audit import record
-from app.core.config import API_PREFIX, Settings
+from app.core.config import API_PREFIX
 from app.core.errors import ApiError
 from app.core.i18n import _
 from app.core.ids import MAX_ID
@@ -34,6 +34,7 @@ from app.io.channel_map import ChannelMap, parse_channel_map
 from app.io.geometry import LineGeometry
 from app.io.isolation import ingest_upload
 from app.runs.metadata import describe_differences, metadata_differences, run_fields
+from app.settings import Settings
 
 __all__ = ["UploadedFile", "UploadOutcome", "create_run_from_file", "existing_outcome", "existing_run_id",
            "check_same_metadata", "insert_run", "load_channel_map", "channel_map_id"]
