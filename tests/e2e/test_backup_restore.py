@@ -1,7 +1,7 @@
 """Issue 24 defect 7: no backup and restore (a plain copy of the SQLite file without its WAL was
 corrupt 1 time in 5). Over the real service in both modes (SQLite + local worker, PostgreSQL +
 Procrastinate worker, pg_dump/pg_restore): backups are taken with ``trackvkf backup`` while a
-worker processes six runs; one taken mid-way is restored with ``trackvkf restore`` into a fresh
+worker processes five runs; one taken mid-way is restored with ``trackvkf restore`` into a fresh
 database and run store, where every run, job, profile and condition row of the snapshot is found,
 every run file matches its checksum, and a worker on the restored service finishes the jobs that
 were waiting with the same profiles as the original service. A corrupted backup is refused
@@ -29,7 +29,7 @@ from tests.faults.support import hdf5_run
 
 pytestmark = pytest.mark.timeout(900)
 
-N_RUNS = 6
+N_RUNS = 5
 
 
 def _cli(args: list[str], database_url: str, run_store: Path, cwd: Path) -> subprocess.CompletedProcess:
@@ -64,7 +64,7 @@ def test_backup_while_the_worker_writes_then_restore(service, tmp_path):
         for i in range(N_RUNS):
             md = runfiles.metadata(sample_rate_hz=None, start_time=(
                 dt.datetime(2026, 3, 2, 8, tzinfo=dt.UTC) + dt.timedelta(days=i)).isoformat())
-            path = hdf5_run(work, md=md, n=300_000)
+            path = hdf5_run(work, md=md, n=200_000)
             with open(path, "rb") as fh:
                 r = client.post("/api/v1/runs", files={"file": (path.name, fh)})
             assert r.status_code == 201, r.text
