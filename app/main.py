@@ -20,6 +20,7 @@ from app.api.health import software_version
 from app.api.login_page import install_protected_docs
 from app.api.login_page import router as login_page_router
 from app.api.metrics import install_metrics
+from app.api.oidc import router as oidc_router
 from app.core.bytecache import ByteLRU
 from app.core.config import ProductionConfigError, Settings, get_settings
 from app.core.logging import configure_logging
@@ -108,6 +109,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(SecurityHeadersMiddleware)  # CSP, framing, sniffing, referrer: every answer
     app.include_router(build_api_router())
     app.include_router(login_page_router)
+    app.include_router(oidc_router)
     install_protected_docs(app, {f"{API_PREFIX}/health", f"{API_PREFIX}/auth/login"})
     install_pages(app)  # dashboard: HTML pages at /, /runs/{id}, ..., /static, Plotly.js
     install_metrics(app)  # GET /metrics (admin), every request counted (outermost middleware)

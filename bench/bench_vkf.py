@@ -101,7 +101,7 @@ def case_sparse(duration: float) -> dict:
     import scipy.sparse as sp
     import scipy.sparse.linalg as spl
 
-    from app.analysis._vkf_weights import weight_squared
+    from app.analysis.vkf._weights import weight_squared
 
     y, v, mult, _ = railway_case(duration)
     n = y.size

@@ -262,7 +262,7 @@ class OrderRecipe:
         The wheel orders inside a track order's band are *stationary* orders of
         the engine (a wheel's out-of-roundness responds to the speed, not to the
         place: their envelopes are functions of frequency, see
-        :mod:`app.analysis._vkf_stationary` and docs/indicator.md), so that they
+        :mod:`app.analysis.vkf._stationary` and docs/indicator.md), so that they
         do not take the track orders' changes at their lines (issue 26).
 
         Parameters

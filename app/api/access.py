@@ -3,26 +3,32 @@
 Every route declares its access policy through a dependency (:func:`route_policy`):
 ``public`` (health, login), :func:`require_role` (API: 401/403 as JSON) or
 :func:`require_page_login` (pages: 303 to the login page, 403). The checks use the
-primitives of :mod:`app.core.security` and the rows of :mod:`app.db.auth_crud`.
+primitives of :mod:`app.core.security` and the accounts of :mod:`app.accounts.sessions`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Annotated, Any, TypeVar
 from urllib.parse import quote
 
 from fastapi import Depends, HTTPException, Request
 
+from app.accounts.sessions import key_principal, session_principal
 from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.routing import iter_routes
-from app.core.security import ROLES, Principal, csrf_matches, role_allows, role_rank
-from app.db import auth_crud
+from app.core.security import ROLES, Actor, Principal, csrf_matches, role_allows, role_rank
 from app.db.session import Database
+from app.oidc.accounts import bearer_principal
+from app.oidc.provider import ProviderUnavailable, provider_of_settings
+from app.oidc.tokens import TokenRejected, looks_like_jwt
 
 __all__ = [
     "Principal",
+    "Actor",
     "get_principal",
+    "acting",
     "require_role",
     "require_page_login",
     "public",
@@ -81,25 +87,39 @@ def _lookup(request: Request) -> Principal | None:
         )
     db: Database = request.app.state.db
     token = _api_key_token(request)
+    if token is not None and looks_like_jwt(token) and settings.oidc_api_audience:
+        return _provider_token_principal(request, settings, token)
     if token is not None:
-        with db.read() as session:
-            key = auth_crud.api_key_by_token(session, token)
-            if key is None:
-                raise ApiError(401, "authorization", "invalid, revoked or expired API key", _BEARER)
-            principal = Principal(name=f"key:{key.name}", role=key.role, kind="api_key", key_id=key.id)
-            stale = auth_crud.needs_touch(key)
-        if stale:
-            with db.write() as session:
-                auth_crud.touch_api_key(session, key.id)
-        return principal
+        return key_principal(db, token)  # 401 for a bad key: no fallback to the cookie
     cookie = request.cookies.get(SESSION_COOKIE)
     if cookie:
-        with db.read() as session:
-            user = auth_crud.session_user(session, cookie)
-            if user is not None:
-                request.state.session_token = cookie
-                return Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+        principal = session_principal(db, cookie)
+        if principal is not None:
+            request.state.session_token = cookie
+            return principal
     return None
+
+
+def _provider_token_principal(request: Request, settings: Settings, token: str) -> Principal:
+    """The principal of an access token of the OpenID provider (:func:`app.oidc.accounts.bearer_principal`).
+
+    Raises
+    ------
+    ApiError
+        401 naming ``authorization`` for a token that fails a check, 503 when the provider's
+        keys cannot be fetched.
+    """
+    provider = provider_of_settings(settings)
+    if provider is None:  # pragma: no cover - oidc_api_audience needs an issuer to mean anything
+        raise ApiError(401, "authorization", "provider tokens are not accepted", _BEARER)
+    try:
+        return bearer_principal(request.app.state.db, provider, token)
+    except TokenRejected as exc:
+        raise ApiError(401, "authorization", f"token of the OpenID provider refused: {exc.reason}",
+                       _BEARER) from None
+    except ProviderUnavailable as exc:
+        raise ApiError(503, "authorization", "the OpenID provider cannot be reached to check the token: "
+                       f"{exc.reason}") from None
 
 
 def _authenticate(request: Request) -> Principal | None:
@@ -114,7 +134,8 @@ def get_principal(request: Request) -> Principal:
     """The authenticated principal of a request.
 
     An API key (``Authorization: Bearer <key>`` or ``X-API-Key``) is checked
-    first, then the session cookie ``trackvkf_session``. A state-changing
+    first — or, with ``TRACKVKF_OIDC_API_AUDIENCE`` set, a JWT access token of the OpenID
+    provider as ``Authorization: Bearer`` — then the session cookie ``trackvkf_session``. A state-changing
     request (POST/PUT/PATCH/DELETE) authenticated by the cookie must carry the
     session's CSRF token in ``X-CSRF-Token`` (the value of the
     ``trackvkf_csrf`` cookie). With ``auth_disabled`` (development only)
@@ -223,6 +244,31 @@ _PAGE_LOGINS: dict[str, PageLogin] = {role: PageLogin(role) for role in ROLES}
 def require_page_login(role: str = "viewer") -> PageLogin:
     """Dependency of HTML pages: logged in (any role >= ``role``) or 303 → ``/login?next=``."""
     return _gate_of(_PAGE_LOGINS, role)
+
+
+def _acting(requirement: RoleRequirement) -> Callable[..., Actor]:
+    # the dependency in the default: a closure's name cannot be resolved from a string annotation
+    def actor(request: Request, principal: Principal = Depends(requirement)) -> Actor:  # noqa: B008
+        return Actor(principal, client_ip(request))
+
+    actor.__name__ = f"acting_{requirement.role}"
+    return actor
+
+
+_ACTINGS: dict[str, Callable[..., Actor]] = {role: _acting(req) for role, req in _REQUIREMENTS.items()}
+
+
+def acting(role: str) -> Callable[..., Actor]:
+    """The dependency that answers the request's :class:`~app.core.security.Actor` (its principal,
+    admitted with ``role`` or a higher one, and the client's address): what a service that
+    writes takes. :func:`route_policy` sees the role inside it::
+
+        def change(..., actor: Annotated[Actor, Depends(acting("admin"))]) -> ...
+    """
+    try:
+        return _ACTINGS[role]
+    except KeyError:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}") from None
 
 
 def public() -> None:

@@ -6,15 +6,15 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, File, Path, Query, Request, Response, UploadFile, status
+from fastapi import APIRouter, Depends, File, Path, Query, Response, UploadFile, status
 from pydantic import BaseModel, Field
 from starlette.concurrency import run_in_threadpool
 
 from app.analysis.condition.discontinuities import ASSET_TYPES
-from app.api.audit import record
-from app.api.deps import AdminDep, DbDep, EngineerDep, SettingsDep, require_role
+from app.api.deps import AdminActor, DbDep, EngineerActor, SettingsDep, require_role
 from app.api.errors import ApiError, not_found
 from app.assets import service
+from app.audit import record
 
 __all__ = ["router"]
 
@@ -63,8 +63,7 @@ def list_assets(
 
 @router.post("", response_model=AssetImportOut, status_code=201, summary="Import assets (CSV or GeoJSON; engineer)")
 async def import_assets(
-    request: Request,
-    principal: EngineerDep,
+    actor: EngineerActor,
     db: DbDep,
     settings: SettingsDep,
     file: Annotated[UploadFile, File(description="CSV (line_id,track,type,km[,km_to,name]) or GeoJSON")],
@@ -81,7 +80,7 @@ async def import_assets(
     rows = await run_in_threadpool(service.parse_upload, settings, data, file.filename)  # RunFileError: 422/413
 
     def audit(session, imported: int, replaced: int) -> None:
-        record(session, request, principal, "assets.import", target=file.filename,
+        record(session, actor, "assets.import", target=file.filename,
                detail={"imported": imported, "replaced": replaced})
 
     imported, replaced = await run_in_threadpool(service.store_assets, db, rows, audit)
@@ -90,9 +89,9 @@ async def import_assets(
 
 @router.delete("/{asset_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete an asset (admin)",
                dependencies=[Depends(require_role("admin"))])
-def delete_asset(asset_id: AssetId, request: Request, db: DbDep, principal: AdminDep) -> Response:
+def delete_asset(asset_id: AssetId, db: DbDep, actor: AdminActor) -> Response:
     """Delete one asset."""
-    if not service.remove_asset(db, asset_id, lambda s: record(s, request, principal, "assets.delete",
+    if not service.remove_asset(db, asset_id, lambda s: record(s, actor, "assets.delete",
                                                                target=asset_id)):
         raise not_found("asset", asset_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -1,5 +1,5 @@
-"""The audit log's read endpoint (admin). Entries are written by :func:`app.audit.record`
-(re-exported here for the routes), in the transaction of the change they record."""
+"""The audit log's read endpoint (admin). Entries are written by :func:`app.audit.record`, by
+the services, in the transaction of the change they record."""
 
 from __future__ import annotations
 
@@ -16,10 +16,9 @@ from app.api.deps import (
     require_role,
 )
 from app.api.schemas.auth import AuditList, AuditOut
-from app.audit import ACTIONS, record, record_now
-from app.db import auth_crud
+from app.audit import read_log
 
-__all__ = ["router", "record", "record_now", "ACTIONS"]
+__all__ = ["router"]
 
 router = APIRouter(tags=["audit"], dependencies=[Depends(require_role("admin"))])
 
@@ -38,9 +37,5 @@ def read_audit(
     """Audit entries (who, when, what), newest first; append-only, nothing can change them."""
     check_page_size(limit, settings)
     start, end = parse_time_range(since, until, ("since", "until"))
-    with db.read() as session:
-        rows, total = auth_crud.list_audit(
-            session, action=action, actor=actor, since=start, until=end, limit=limit, offset=offset
-        )
-        items = [AuditOut.model_validate(r) for r in rows]
-    return AuditList(items=items, total=total, limit=limit, offset=offset)
+    rows, total = read_log(db, action=action, actor=actor, since=start, until=end, limit=limit, offset=offset)
+    return AuditList(items=[AuditOut.model_validate(r) for r in rows], total=total, limit=limit, offset=offset)

@@ -9,37 +9,35 @@ written to the audit log.
 
 from __future__ import annotations
 
-import contextlib
-import datetime as dt
-import functools
 import logging
-from collections.abc import Iterator
-from dataclasses import dataclass
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Depends, Path, Request, Response, status
+from fastapi.responses import JSONResponse
 
-from app.api.audit import record
+from app.accounts import admin, sessions
+from app.accounts.sessions import too_many_attempts
 from app.api.deps import (
     CSRF_COOKIE,
     SESSION_COOKIE,
+    AdminActor,
     AdminDep,
     DbDep,
     Principal,
-    PrincipalDep,
     SettingsDep,
+    ViewerActor,
     ViewerDep,
     client_ip,
     public,
     require_role,
 )
-from app.api.errors import ApiError
 from app.api.schemas.auth import (
     KeyCreated,
     KeyIn,
     KeyList,
     KeyOut,
     LoginIn,
+    LogoutOut,
     MeOut,
     PasswordChangeIn,
     UserIn,
@@ -49,15 +47,9 @@ from app.api.schemas.auth import (
 )
 from app.core.config import Settings
 from app.core.ratelimit import RateLimiter
-from app.core.security import (
-    csrf_token,
-    device_cookie_id,
-    hash_password,
-    new_device_cookie,
-    verify_password,
-)
-from app.db import auth_crud
-from app.db.models import User, utcnow
+from app.core.security import csrf_token, device_cookie_id, new_device_cookie
+from app.oidc.flow import end_session_url, post_logout_url
+from app.oidc.provider import ProviderUnavailable, provider_of_settings
 
 __all__ = ["router", "login_router", "set_session_cookies", "DEVICE_COOKIE"]
 
@@ -75,19 +67,6 @@ DEVICE_COOKIE = "trackvkf_device"
 DEVICE_COOKIE_MAX_AGE_S = 365 * 24 * 3600
 
 KeyIdPath = Annotated[int, Path(ge=1, le=2**31 - 1, description="API key id")]
-
-
-@functools.lru_cache(maxsize=1)
-def _dummy_hash() -> str:
-    """A hash to verify against for unknown users (same time as for known ones)."""
-    return hash_password("not-a-password-of-anyone")
-
-
-def _too_many(retry_after: float) -> ApiError:
-    seconds = max(1, int(retry_after + 0.999))
-    return ApiError(
-        429, "rate_limit", f"too many attempts; retry in {seconds} s", {"Retry-After": str(seconds)}
-    )
 
 
 def set_session_cookies(response: Response, settings: Settings, token: str) -> None:
@@ -118,34 +97,8 @@ def _clear_cookies(response: Response) -> None:
     response.delete_cookie(CSRF_COOKIE, path="/", samesite="strict")
 
 
-@contextlib.contextmanager
-def _auth_errors_as_422(field: str | None = None) -> Iterator[None]:
-    """Answer an :class:`auth_crud.AuthError` with 422 naming its field (or ``field``)."""
-    try:
-        yield
-    except auth_crud.AuthError as exc:
-        raise ApiError(422, field or exc.field, exc.message) from None
-
-
 def _me(principal: Principal) -> MeOut:
     return MeOut(name=principal.name, role=principal.role, kind=principal.kind)
-
-
-@dataclass(frozen=True)
-class _Account:
-    """What a login needs of a user, read before the password is verified."""
-
-    id: int
-    username: str
-    role: str
-    password_hash: str
-    active: bool
-
-
-def _account(user: User | None) -> _Account | None:
-    if user is None:
-        return None
-    return _Account(user.id, user.username, user.role, user.password_hash, bool(user.active))
 
 
 def _check_login_rate(request: Request, username: str, device: str | None) -> None:
@@ -167,7 +120,7 @@ def _check_login_rate(request: Request, username: str, device: str | None) -> No
         if wait is not None:
             # not audited: a flood must not grow the append-only log; the service log has it
             log.warning("login rate limit hit by %s for user %r", ip, username[:64])
-            raise _too_many(wait)
+            raise too_many_attempts(wait)
 
 
 @login_router.post(
@@ -194,37 +147,12 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
     """
     device = device_cookie_id(settings.secret_key, request.cookies.get(DEVICE_COOKIE), body.username)
     _check_login_rate(request, body.username, device)
-    with db.read() as session:
-        account = _account(auth_crud.get_user(session, body.username))
-        since = utcnow() - dt.timedelta(seconds=settings.login_name_failure_window_s)
-        failures = 0 if device else auth_crud.count_failed_logins(session, body.username, since)
-    if failures >= settings.login_name_failure_limit:
-        log.warning("login of %r from %s refused: %d failed logins of the name within %g s",
-                    body.username[:64], client_ip(request), failures, settings.login_name_failure_window_s)
-        raise _too_many(settings.login_rate_window_s)
-    ok = verify_password(account.password_hash if account else _dummy_hash(), body.password)
-    with db.write() as session:
-        user = auth_crud.get_user(session, body.username) if ok and account and account.active else None
-        if user is None or not user.active or user.password_hash != account.password_hash:
-            record(session, request, None, "auth.login", target=body.username, outcome="denied",
-                   actor=body.username)
-            failed = True
-        else:
-            old = request.cookies.get(SESSION_COOKIE)
-            if old:  # the same browser logs in again: its previous session ends
-                auth_crud.delete_session(session, old)
-            token = auth_crud.create_session(
-                session, user, dt.timedelta(seconds=settings.session_ttl_s), client_ip(request)
-            )
-            principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
-            record(session, request, principal, "auth.login", target=user.username)
-            failed = False
-    if failed:
-        raise ApiError(401, "credentials", "wrong user name or password")
-    set_session_cookies(response, settings, token)
+    started = sessions.login(db, settings, body.username, body.password, client_ip(request),
+                             known_device=device is not None, previous_token=request.cookies.get(SESSION_COOKIE))
+    set_session_cookies(response, settings, started.token)
     if device is None:
-        _set_device_cookie(response, settings, user.username, request.url.path)
-    return _me(principal)
+        _set_device_cookie(response, settings, started.principal.name, request.url.path)
+    return _me(started.principal)
 
 
 @router.post(
@@ -232,17 +160,38 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
     status_code=status.HTTP_204_NO_CONTENT,
     summary="Log out: end the session and clear its cookies",
     dependencies=[Depends(require_role("viewer"))],
+    responses={200: {"model": LogoutOut,
+                     "description": "Logged out here; sign out at the OpenID provider too at `end_session_url`"}},
 )
-def logout(request: Request, db: DbDep, principal: PrincipalDep) -> Response:
-    """End the browser session (an API key request only gets its cookies cleared)."""
-    response = Response(status_code=status.HTTP_204_NO_CONTENT)
-    token = getattr(request.state, "session_token", None)
-    with db.write() as session:
-        if principal.kind == "user" and token:
-            auth_crud.delete_session(session, token)
-        record(session, request, principal, "auth.logout", target=principal.name)
+def logout(request: Request, db: DbDep, actor: ViewerActor, settings: SettingsDep) -> Response:
+    """End the browser session (an API key request only gets its cookies cleared).
+
+    A session begun at the OpenID provider whose provider offers RP-initiated logout answers
+    200 with ``end_session_url``: the page sends the browser there to sign out at the provider
+    too. Otherwise 204.
+    """
+    id_token = sessions.logout(db, actor, getattr(request.state, "session_token", None))
+    end_session = _provider_sign_out(request, settings, id_token) if id_token else None
+    if end_session:
+        response: Response = JSONResponse(LogoutOut(end_session_url=end_session).model_dump())
+    else:
+        response = Response(status_code=status.HTTP_204_NO_CONTENT)
     _clear_cookies(response)
     return response
+
+
+def _provider_sign_out(request: Request, settings: Settings, id_token: str) -> str | None:
+    """The provider's sign-out URL for a session begun there (None: it offers none, or cannot
+    be reached now: the local session has ended all the same)."""
+    provider = provider_of_settings(settings)
+    if provider is None:
+        return None
+    try:
+        return end_session_url(provider, id_token=id_token,
+                               post_logout_redirect_uri=post_logout_url(provider.config, str(request.base_url)))
+    except ProviderUnavailable as exc:
+        log.warning("sign-out at the OpenID provider skipped: %s", exc.reason)
+        return None
 
 
 @router.get("/me", response_model=MeOut, summary="Who am I")
@@ -257,22 +206,9 @@ def me(principal: ViewerDep) -> MeOut:
     summary="Change one's own password (users)",
     responses={401: {"description": "Wrong current password"}},
 )
-def change_password(body: PasswordChangeIn, request: Request, db: DbDep, principal: ViewerDep) -> Response:
+def change_password(body: PasswordChangeIn, db: DbDep, actor: ViewerActor) -> Response:
     """Change the logged-in user's password; all the user's sessions end (log in again)."""
-    if principal.kind != "user":
-        raise ApiError(409, "principal", "only users have passwords (this is an API key)")
-    with db.read() as session:
-        account = _account(auth_crud.get_user(session, principal.name))
-    # verified outside any transaction (see login)
-    if account is None or not verify_password(account.password_hash, body.current_password):
-        raise ApiError(401, "current_password", "wrong password")
-    with db.write() as session:
-        user = auth_crud.get_user(session, principal.name)
-        if user is None or user.password_hash != account.password_hash:
-            raise ApiError(409, "current_password", "the password was changed meanwhile; try again")
-        with _auth_errors_as_422(field="new_password"):
-            auth_crud.update_user(session, principal.name, password=body.new_password)
-        record(session, request, principal, "auth.password", target=principal.name)
+    sessions.change_password(db, actor, body.current_password, body.new_password)
     response = Response(status_code=status.HTTP_204_NO_CONTENT)
     _clear_cookies(response)
     return response
@@ -282,60 +218,31 @@ def change_password(body: PasswordChangeIn, request: Request, db: DbDep, princip
 @router.get("/users", response_model=UserList, summary="List users (admin)")
 def list_users(db: DbDep, principal: AdminDep) -> UserList:
     """All users by name."""
-    with db.read() as session:
-        return UserList(items=[UserOut.model_validate(u) for u in auth_crud.list_users(session)])
+    return UserList(items=[UserOut.model_validate(u) for u in admin.list_users(db)])
 
 
 @router.post(
     "/users", response_model=UserOut, status_code=status.HTTP_201_CREATED,
     summary="Create a user (admin)", responses={409: {"description": "The user exists"}},
 )
-def create_user(body: UserIn, request: Request, db: DbDep, principal: AdminDep) -> UserOut:
+def create_user(body: UserIn, db: DbDep, actor: AdminActor) -> UserOut:
     """Create a browser user with a role; the password is stored as an Argon2id hash."""
-    with db.write() as session:
-        if auth_crud.get_user(session, body.username) is not None:
-            raise ApiError(409, "username", f"user {body.username!r} exists")
-        with _auth_errors_as_422():
-            user = auth_crud.create_user(
-                session, body.username, body.password, body.role, created_by=principal.name
-            )
-        record(session, request, principal, "user.create", target=user.username, detail={"role": user.role})
-        return UserOut.model_validate(user)
+    return UserOut.model_validate(admin.create_user(db, actor, body.username, body.password, body.role))
 
 
 @router.patch("/users/{username}", response_model=UserOut, summary="Change a user (admin)")
 def update_user(
-    username: UsernamePath, request: Request, db: DbDep, principal: AdminDep,
-    body: Annotated[UserPatch, Body()],
+    username: UsernamePath, db: DbDep, actor: AdminActor, body: Annotated[UserPatch, Body()],
 ) -> UserOut:
     """Change password, role or active flag; the user's sessions end."""
-    if principal.kind == "user" and principal.name == username and (
-        body.active is False or (body.role is not None and body.role != "admin")
-    ):
-        raise ApiError(409, "username", "an admin cannot deactivate or demote itself")
-    with db.write() as session:
-        with _auth_errors_as_422():
-            user = auth_crud.update_user(
-                session, username, password=body.password, role=body.role, active=body.active
-            )
-        if user is None:
-            raise ApiError(404, "username", f"user {username!r} not found")
-        changed = {k: v for k, v in body.model_dump(exclude_none=True).items() if k != "password"}
-        if body.password is not None:
-            changed["password"] = "changed"
-        record(session, request, principal, "user.update", target=username, detail=changed)
-        return UserOut.model_validate(user)
+    return UserOut.model_validate(admin.update_user(db, actor, username, password=body.password, role=body.role,
+                                                    active=body.active))
 
 
 @router.delete("/users/{username}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete a user (admin)")
-def delete_user(username: UsernamePath, request: Request, db: DbDep, principal: AdminDep) -> Response:
+def delete_user(username: UsernamePath, db: DbDep, actor: AdminActor) -> Response:
     """Delete a user and end its sessions (its audit entries stay)."""
-    if principal.kind == "user" and principal.name == username:
-        raise ApiError(409, "username", "an admin cannot delete itself")
-    with db.write() as session:
-        if not auth_crud.delete_user(session, username):
-            raise ApiError(404, "username", f"user {username!r} not found")
-        record(session, request, principal, "user.delete", target=username)
+    admin.delete_user(db, actor, username)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
@@ -343,33 +250,21 @@ def delete_user(username: UsernamePath, request: Request, db: DbDep, principal: 
 @router.get("/keys", response_model=KeyList, summary="List API keys (admin)")
 def list_keys(db: DbDep, principal: AdminDep) -> KeyList:
     """All API keys, newest first, with last use and revocation; never the keys themselves."""
-    with db.read() as session:
-        return KeyList(items=[KeyOut.model_validate(k) for k in auth_crud.list_api_keys(session)])
+    return KeyList(items=[KeyOut.model_validate(k) for k in admin.list_keys(db)])
 
 
 @router.post(
     "/keys", response_model=KeyCreated, status_code=status.HTTP_201_CREATED,
     summary="Create an API key (admin): shown once",
 )
-def create_key(body: KeyIn, request: Request, db: DbDep, principal: AdminDep) -> KeyCreated:
+def create_key(body: KeyIn, db: DbDep, actor: AdminActor) -> KeyCreated:
     """Create a key scoped to a role. The answer's ``key`` is shown this once; only its hash is kept."""
-    expires = utcnow() + dt.timedelta(days=body.expires_in_days) if body.expires_in_days else None
-    with db.write() as session:
-        with _auth_errors_as_422():
-            row, key = auth_crud.create_api_key(
-                session, body.name, body.role, created_by=principal.name, expires_at=expires
-            )
-        record(session, request, principal, "key.create", target=row.id,
-               detail={"name": row.name, "role": row.role, "prefix": row.prefix})
-        return KeyCreated(**KeyOut.model_validate(row).model_dump(), key=key)
+    row, key = admin.create_key(db, actor, body.name, body.role, body.expires_in_days)
+    return KeyCreated(**KeyOut.model_validate(row).model_dump(), key=key)
 
 
 @router.delete("/keys/{key_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Revoke an API key (admin)")
-def revoke_key(key_id: KeyIdPath, request: Request, db: DbDep, principal: AdminDep) -> Response:
+def revoke_key(key_id: KeyIdPath, db: DbDep, actor: AdminActor) -> Response:
     """Revoke a key: requests with it get 401 from now on. It stays listed as revoked."""
-    with db.write() as session:
-        row = auth_crud.revoke_api_key(session, key_id)
-        if row is None:
-            raise ApiError(404, "key_id", f"API key {key_id} not found")
-        record(session, request, principal, "key.revoke", target=key_id, detail={"name": row.name})
+    admin.revoke_key(db, actor, key_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

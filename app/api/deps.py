@@ -18,9 +18,11 @@ from app.api.access import (
     CSRF_COOKIE,
     CSRF_HEADER,
     SESSION_COOKIE,
+    Actor,
     PageLogin,
     Principal,
     RoleRequirement,
+    acting,
     client_ip,
     get_principal,
     iter_routes,
@@ -59,7 +61,12 @@ __all__ = [
     "ViewerDep",
     "EngineerDep",
     "AdminDep",
+    "ViewerActor",
+    "EngineerActor",
+    "AdminActor",
     # from app.api.access
+    "Actor",
+    "acting",
     "API_KEY_HEADER",
     "CSRF_COOKIE",
     "CSRF_HEADER",
@@ -117,3 +124,7 @@ PrincipalDep = Annotated[Principal, Depends(get_principal)]
 ViewerDep = Annotated[Principal, Depends(require_role("viewer"))]
 EngineerDep = Annotated[Principal, Depends(require_role("engineer"))]
 AdminDep = Annotated[Principal, Depends(require_role("admin"))]
+#: who writes, with the client's address (:class:`~app.core.security.Actor`), admitted by role
+ViewerActor = Annotated[Actor, Depends(acting("viewer"))]
+EngineerActor = Annotated[Actor, Depends(acting("engineer"))]
+AdminActor = Annotated[Actor, Depends(acting("admin"))]

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, File, Path, Query, Request, Response, UploadFile, status
+from fastapi import APIRouter, Depends, File, Path, Query, Response, UploadFile, status
 from starlette.concurrency import run_in_threadpool
 
-from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, SettingsDep, require_role
-from app.api.errors import ApiError, not_found
+from app.api.deps import DbDep, EngineerActor, SettingsDep, require_role
+from app.api.errors import ApiError
 from app.api.schemas.recorder import (
     GeometryImportOut,
     GeometryList,
@@ -17,9 +16,7 @@ from app.api.schemas.recorder import (
     GeometrySummary,
     IndicatorOut,
 )
-from app.db import recorder_crud
-from app.db.models import LineGeometryRow
-from app.io.isolation import parse_geojson_upload
+from app.maps import geometries as service
 from app.maps import indicator as map_indicator
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M, INDICATOR_UNITS
 
@@ -28,7 +25,7 @@ __all__ = ["router", "INDICATOR_UNITS"]
 router = APIRouter(prefix="/geometry", tags=["line geometry"])
 GeometryId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Geometry id")]
 
-def _summary(row: LineGeometryRow) -> GeometrySummary:
+def _summary(row) -> GeometrySummary:
     return GeometrySummary(
         id=row.id, line_id=row.line_id, track=row.track, source_crs=row.source_crs,
         n_vertices=len(row.km), length_m=row.length_m, km_from=row.km[0], km_to=row.km[-1],
@@ -40,8 +37,7 @@ def _summary(row: LineGeometryRow) -> GeometrySummary:
              summary="Import line geometries (GeoJSON with km stations; engineer)",
              dependencies=[Depends(require_role("engineer"))])
 async def import_geometry(
-    request: Request,
-    principal: EngineerDep,
+    actor: EngineerActor,
     db: DbDep,
     settings: SettingsDep,
     file: Annotated[UploadFile, File(description="GeoJSON FeatureCollection (see docs/positioning.md)")],
@@ -56,47 +52,30 @@ async def import_geometry(
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    geometries = await run_in_threadpool(parse_geojson_upload, settings, data)  # RunFileError: 422 naming the feature
-
-    def write() -> list[GeometrySummary]:
-        with db.write() as session:
-            rows = recorder_crud.upsert_geometries(session, geometries, principal.name)
-            record(session, request, principal, "geometry.import", target=file.filename,
-                   detail={"lines": [[g.line_id, g.track] for g in geometries]})
-            return [_summary(r) for r in rows]
-
-    return GeometryImportOut(imported=await run_in_threadpool(write))
+    rows = await run_in_threadpool(service.import_geometries, db, settings, actor, data, file.filename)
+    return GeometryImportOut(imported=[_summary(r) for r in rows])
 
 
 @router.get("", response_model=GeometryList, summary="List line geometries")
 def list_geometry(db: DbDep, line_id: Annotated[str | None, Query(max_length=128)] = None) -> GeometryList:
     """Stored geometries (without vertices)."""
-    with db.read() as session:
-        return GeometryList(items=[_summary(r) for r in recorder_crud.list_geometries(session, line_id)])
+    return GeometryList(items=[_summary(r) for r in service.geometries(db, line_id)])
 
 
 @router.get("/{geometry_id}", response_model=GeometryOut, summary="A line geometry with its vertices")
 def get_geometry(geometry_id: GeometryId, db: DbDep) -> GeometryOut:
     """Vertices in WGS84 and in a local metric plane centred on the line (for maps without tiles)."""
-    with db.read() as session:
-        row = recorder_crud.get_geometry(session, geometry_id)
-        if row is None:
-            raise not_found("geometry", geometry_id)
-        geom = recorder_crud.to_line_geometry(row)
-        summary = _summary(row)
+    row, geom = service.geometry(db, geometry_id)
     pl = geom.polyline()
-    return GeometryOut(**summary.model_dump(), lon=geom.lon.tolist(), lat=geom.lat.tolist(),
+    return GeometryOut(**_summary(row).model_dump(), lon=geom.lon.tolist(), lat=geom.lat.tolist(),
                        x_m=pl.x.tolist(), y_m=pl.y.tolist(), km=geom.km.tolist())
 
 
 @router.delete("/{geometry_id}", status_code=status.HTTP_204_NO_CONTENT,
                summary="Delete a line geometry (engineer)", dependencies=[Depends(require_role("engineer"))])
-def delete_geometry(geometry_id: GeometryId, request: Request, db: DbDep, principal: EngineerDep) -> Response:
+def delete_geometry(geometry_id: GeometryId, db: DbDep, actor: EngineerActor) -> Response:
     """Delete a stored geometry (runs placed with it keep their km)."""
-    with db.write() as session:
-        if not recorder_crud.delete_geometry(session, geometry_id):
-            raise not_found("geometry", geometry_id)
-        record(session, request, principal, "geometry.delete", target=geometry_id)
+    service.delete_geometry(db, actor, geometry_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Depends, Query, Request, status
+from fastapi import APIRouter, Body, Depends, Query, status
 
 from app.api.deps import (
     DbDep,
-    EngineerDep,
+    EngineerActor,
     JobId,
     PageOffset,
     RunId,
@@ -17,34 +17,17 @@ from app.api.deps import (
     check_page_size,
     require_role,
 )
-from app.api.errors import ApiError, not_found
 from app.api.schemas.from_rows import job_out
 from app.api.schemas.jobs import JobList, JobOut, ProcessingSettingsIn
-from app.db import crud
-from app.db.models import JobStatus
-from app.db.session import Database
 from app.runs import jobs
+from app.runs.catalog import JobView
 
 __all__ = ["router"]
 
 router = APIRouter(tags=["jobs"])
 
-def _job_page(
-    db: Database,
-    *,
-    run_id: int | None = None,
-    status_: str | None = None,
-    limit: int = 50,
-    offset: int = 0,
-) -> JobList:
-    with db.read() as session:
-        jobs, total = crud.list_jobs(
-            session, run_id=run_id, status=status_, limit=limit, offset=offset
-        )
-        counts = crud.chunk_counts(session, [j.id for j in jobs])
-    return JobList(
-        items=[job_out(j, counts.get(j.id)) for j in jobs], total=total, limit=limit, offset=offset
-    )
+def _job_list(views: list, total: int, limit: int, offset: int) -> JobList:
+    return JobList(items=[job_out(v) for v in views], total=total, limit=limit, offset=offset)
 
 
 @router.get("/runs/{run_id}/jobs", response_model=JobList, summary="Jobs of a run")
@@ -57,10 +40,8 @@ def run_jobs(
 ) -> JobList:
     """The processing jobs of a run, newest first."""
     check_page_size(limit, settings)
-    with db.read() as session:
-        if crud.get_run(session, run_id) is None:
-            raise not_found("run", run_id)
-    return _job_page(db, run_id=run_id, limit=limit, offset=offset)
+    views, total = jobs.job_page(db, run_id=run_id, limit=limit, offset=offset, run_must_exist=True)
+    return _job_list(views, total, limit, offset)
 
 
 @router.post(
@@ -73,9 +54,8 @@ def run_jobs(
 )
 def reprocess(
     run_id: RunId,
-    request: Request,
     db: DbDep,
-    principal: EngineerDep,
+    actor: EngineerActor,
     body: Annotated[ProcessingSettingsIn | None, Body()] = None,
 ) -> JobOut:
     """Queue a new processing job for a run.
@@ -84,7 +64,7 @@ def reprocess(
     is done its results replace the run's stored profiles and wheels.
     """
     changes = body.model_dump(exclude_none=True) if body is not None else {}
-    return job_out(jobs.reprocess(db, run_id, changes, principal, request))
+    return job_out(JobView(jobs.reprocess(db, run_id, changes, actor)))
 
 
 @router.get("/jobs", response_model=JobList, summary="List jobs")
@@ -101,20 +81,14 @@ def list_jobs(
 ) -> JobList:
     """All jobs, newest first, optionally by status and run."""
     check_page_size(limit, settings)
-    if status_ is not None and status_ not in JobStatus.ALL:
-        raise ApiError(422, "status", f"must be one of {', '.join(JobStatus.ALL)}")
-    return _job_page(db, run_id=run_id, status_=status_, limit=limit, offset=offset)
+    views, total = jobs.job_page(db, run_id=run_id, status=status_, limit=limit, offset=offset)
+    return _job_list(views, total, limit, offset)
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut, summary="Job detail")
 def get_job(job_id: JobId, db: DbDep) -> JobOut:
     """Status, progress, error, timings, settings and provenance of a job."""
-    with db.read() as session:
-        job = crud.get_job(session, job_id)
-        if job is None:
-            raise not_found("job", job_id)
-        counts = crud.chunk_counts(session, [job_id])
-        return job_out(job, counts.get(job_id))
+    return job_out(jobs.job_view(db, job_id))
 
 
 @router.post(
@@ -125,7 +99,7 @@ def get_job(job_id: JobId, db: DbDep) -> JobOut:
     responses={409: {"description": "The job is already done, failed or cancelled"}},
 )
 def cancel_job(
-    job_id: JobId, request: Request, db: DbDep, store: StoreDep, principal: EngineerDep
+    job_id: JobId, db: DbDep, store: StoreDep, actor: EngineerActor
 ) -> JobOut:
     """Cancel a queued job at once, a running one at its next chunk boundary.
 
@@ -134,5 +108,4 @@ def cancel_job(
     an attempt interrupted by a worker's shutdown) are removed at once; a
     running job's by its worker.
     """
-    job, counts = jobs.cancel(db, store, job_id, principal, request)
-    return job_out(job, counts)
+    return job_out(jobs.cancel(db, store, job_id, actor))

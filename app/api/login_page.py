@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 from typing import Annotated, Any
+from urllib.parse import urlencode
 
 import jinja2
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
@@ -58,9 +59,13 @@ def safe_next(value: str | None) -> str:
 
 
 @router.get("/login", response_class=HTMLResponse)
-def login_page(next: Annotated[str | None, Query(max_length=2000)] = None) -> HTMLResponse:  # noqa: A002
-    """The login form; after login the browser goes to ``next`` (a local path)."""
-    html = _ENV.get_template("login.html").render(next_path=safe_next(next))
+def login_page(request: Request, next: Annotated[str | None, Query(max_length=2000)] = None) -> HTMLResponse:  # noqa: A002
+    """The login form; after login the browser goes to ``next`` (a local path). With corporate
+    sign-in configured it offers "Sign in with <provider>" (``/login/oidc``) too."""
+    settings = request.app.state.settings
+    oidc_name = settings.oidc_provider_name if settings.oidc_enabled else None
+    html = _ENV.get_template("login.html").render(next_path=safe_next(next), oidc_name=oidc_name,
+                                                  oidc_href="/login/oidc?" + urlencode({"next": safe_next(next)}))
     return HTMLResponse(html, headers=_PAGE_HEADERS)
 
 

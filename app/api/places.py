@@ -12,11 +12,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Path, Query, Request
+from fastapi import APIRouter, Depends, Path, Query
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field
 
-from app.api.deps import DbDep, EngineerDep, SettingsDep
+from app.api.deps import DbDep, EngineerActor, SettingsDep
 from app.places import workflow, worklist
 from app.places.config import PlacesConfig
 from app.places.worklist import PlaceQuery
@@ -91,7 +91,7 @@ def place(db: DbDep, settings: SettingsDep, place_id: PlaceId) -> dict:
 
 
 @router.patch("/places/{place_id}/status", summary="Set a place's workflow status (with a comment)")
-def place_status(db: DbDep, place_id: PlaceId, body: StatusIn, request: Request, principal: EngineerDep) -> dict:
+def place_status(db: DbDep, place_id: PlaceId, body: StatusIn, actor: EngineerActor) -> dict:
     """open → acknowledged → planned → fixed / false_alarm; every change recorded (who, when, old, new,
     comment) and audited."""
-    return workflow.set_status(db, place_id, body.status, body.comment, principal, request)
+    return workflow.set_status(db, place_id, body.status, body.comment, actor)

@@ -1,7 +1,8 @@
-"""Reference data: import (CSV/Parquet, validated, one transaction) and queries.
+"""Reference data: import (CSV/Parquet, validated, one transaction; engineer, audited) and
+queries (:mod:`app.reference.service`).
 
-``POST /reference/{kind}`` (multipart ``file``; ``mode=append|replace``) —
-writes: to be restricted to the engineer role by the access control.
+``POST /reference/{kind}`` (multipart ``file``; ``mode=append|replace``), ``DELETE
+/reference/{kind}?line_id=``; ``GET /reference/{subsidence,maintenance,superstructure}``.
 """
 
 from __future__ import annotations
@@ -10,11 +11,10 @@ import datetime as dt
 from dataclasses import asdict, dataclass
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Depends, File, Query, Request, UploadFile
+from fastapi import APIRouter, Depends, File, Query, UploadFile
 from starlette.concurrency import run_in_threadpool
 
-from app.api.audit import record
-from app.api.deps import DbDep, EngineerDep, SettingsDep, check_km, km_query
+from app.api.deps import DbDep, EngineerActor, SettingsDep, check_km, km_query
 from app.api.errors import ApiError
 from app.api.schemas.reference import (
     DeleteOut,
@@ -23,15 +23,14 @@ from app.api.schemas.reference import (
     SubsidenceList,
     SuperstructureList,
 )
-from app.db import reference_crud
-from app.io.isolation import read_reference_upload
 from app.io.reference import MAINTENANCE_TYPES
+from app.reference import service
+from app.reference.service import Kind
 
 __all__ = ["router"]
 
 router = APIRouter(prefix="/reference", tags=["reference data"])
 
-Kind = Literal["subsidence", "maintenance", "superstructure"]
 LineQ = Annotated[str | None, Query(max_length=128, description="Line id")]
 TrackQ = Annotated[str | None, Query(max_length=64, description="Track")]
 KmFromQ = Annotated[float | None, km_query("Lower km bound")]
@@ -42,8 +41,7 @@ KmToQ = Annotated[float | None, km_query("Upper km bound")]
              summary="Import reference data (CSV or Parquet)")
 async def import_reference(
     kind: Kind,
-    request: Request,
-    principal: EngineerDep,
+    actor: EngineerActor,
     db: DbDep,
     settings: SettingsDep,
     file: Annotated[UploadFile, File(description="CSV or Parquet file")],
@@ -60,33 +58,17 @@ async def import_reference(
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    rows = await run_in_threadpool(read_reference_upload, settings, data, kind, format, file.filename)  # RunFileError: 422
-
-    def write() -> tuple[int, int]:
-        with db.write() as session:
-            replaced = 0
-            if mode == "replace":
-                for line_id, track in sorted({(r["line_id"], r["track"]) for r in rows}):
-                    replaced += reference_crud.delete_reference(session, kind, line_id, track)
-            imported = reference_crud.insert_reference(session, kind, rows)
-            record(session, request, principal, "reference.import", target=kind,
-                   detail={"imported": imported, "replaced": replaced, "mode": mode,
-                           "filename": file.filename})
-            return imported, replaced
-
-    imported, replaced = await run_in_threadpool(write)
+    imported, replaced = await run_in_threadpool(
+        lambda: service.import_reference(db, settings, actor, kind, data, fmt=format, filename=file.filename,
+                                         mode=mode))  # RunFileError: 422
     return ImportOut(kind=kind, imported=imported, replaced=replaced)
 
 
 @router.delete("/{kind}", response_model=DeleteOut, summary="Delete reference data of a line")
-def delete_reference(kind: Kind, request: Request, principal: EngineerDep, db: DbDep,
+def delete_reference(kind: Kind, actor: EngineerActor, db: DbDep,
                      line_id: Annotated[str, Query(max_length=128)], track: TrackQ = None) -> DeleteOut:
     """Delete the rows of ``kind`` of a line (and track)."""
-    with db.write() as session:
-        n = reference_crud.delete_reference(session, kind, line_id, track)
-        record(session, request, principal, "reference.delete", target=kind,
-               detail={"line_id": line_id, "track": track, "deleted": n})
-    return DeleteOut(kind=kind, deleted=n)
+    return DeleteOut(kind=kind, deleted=service.delete_reference(db, actor, kind, line_id, track))
 
 
 @dataclass(frozen=True)
@@ -111,10 +93,7 @@ def _query(db, settings, kind, window: _Window, **kw) -> dict[str, Any]:
     """``items`` of ``kind`` in ``window`` (422 for bad km bounds), at most ``max_profile_rows``
     of them, and whether there were more (``truncated``)."""
     check_km(window.km_from, window.km_to)
-    limit = settings.max_profile_rows
-    with db.read() as session:
-        rows = reference_crud.reference_records(session, kind, limit=limit + 1, **asdict(window), **kw)
-    return {"items": rows[:limit], "truncated": len(rows) > limit}
+    return service.reference_window(db, kind, limit=settings.max_profile_rows, **asdict(window), **kw)
 
 
 @router.get("/subsidence", response_model=SubsidenceList, summary="Subsidence measurements")

@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import logging
 from typing import Annotated
 
 from fastapi import APIRouter, Depends, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
-from app.api.audit import record
 from app.api.deps import (
-    AdminDep,
+    AdminActor,
     DbDep,
-    EngineerDep,
+    EngineerActor,
     PageOffset,
     RunId,
     SettingsDep,
@@ -21,7 +19,6 @@ from app.api.deps import (
     parse_time_range,
     require_role,
 )
-from app.api.errors import not_found
 from app.api.schemas.from_rows import run_detail, run_out
 from app.api.schemas.runs import (
     RunDetail,
@@ -30,15 +27,14 @@ from app.api.schemas.runs import (
     RunMetadataOut,
     RunMetadataPatch,
 )
-from app.api.upload import SUPPORTED_FORMATS, receive_and_create_run
+from app.api.upload import receive_and_create_run
 from app.core.config import API_PREFIX
-from app.db import crud
 from app.db.session import Database
+from app.runs import catalog
 from app.runs.metadata import revise_run_metadata
+from app.runs.upload import SUPPORTED_FORMATS
 
 __all__ = ["router"]
-
-log = logging.getLogger(__name__)
 
 router = APIRouter(prefix="/runs", tags=["runs"])
 
@@ -96,7 +92,7 @@ async def upload_run(
     settings: SettingsDep,
     db: DbDep,
     store: StoreDep,
-    principal: EngineerDep,
+    actor: EngineerActor,
     format: Annotated[
         str | None,
         Query(description="hdf5, csv, parquet, mdf4 or tdms (raw body uploads)", max_length=16),
@@ -124,7 +120,7 @@ async def upload_run(
         settings=settings,
         db=db,
         store=store,
-        principal=principal,
+        actor=actor,
         query_format=format,
         query_metadata=metadata,
         query_filename=filename,
@@ -137,13 +133,7 @@ async def upload_run(
 
 
 def _detail(db: Database, run_id: int) -> RunDetail:
-    with db.read() as session:
-        run = crud.get_run(session, run_id)
-        if run is None:
-            raise not_found("run", run_id)
-        latest = crud.latest_job(session, run_id)
-        counts = crud.chunk_counts(session, [latest.id]) if latest else {}
-        return run_detail(run, latest, counts.get(latest.id) if latest else None)
+    return run_detail(catalog.run_view(db, run_id))
 
 
 @router.get("", response_model=RunList, summary="List runs")
@@ -165,24 +155,9 @@ def list_runs(
     """Runs, newest start time first, filtered by line, vehicle, track and start date."""
     check_page_size(limit, settings)
     start_from, start_to = parse_time_range(date_from, date_to, ("date_from", "date_to"), whole_days=True)
-    with db.read() as session:
-        runs, total = crud.list_runs(
-            session,
-            line_id=line_id,
-            vehicle_id=vehicle_id,
-            track=track,
-            start_from=start_from,
-            start_to=start_to,
-            limit=limit,
-            offset=offset,
-        )
-        latest = crud.latest_jobs(session, [r.id for r in runs])
-        counts = crud.chunk_counts(session, [j.id for j in latest.values()])
-        items = [
-            run_out(r, latest.get(r.id), counts.get(latest[r.id].id) if r.id in latest else None)
-            for r in runs
-        ]
-    return RunList(items=items, total=total, limit=limit, offset=offset)
+    views, total = catalog.run_page(db, line_id=line_id, vehicle_id=vehicle_id, track=track,
+                                    start_from=start_from, start_to=start_to, limit=limit, offset=offset)
+    return RunList(items=[run_out(v) for v in views], total=total, limit=limit, offset=offset)
 
 
 @router.get("/{run_id}", response_model=RunDetail, summary="Run detail")
@@ -202,8 +177,7 @@ def get_run(run_id: RunId, db: DbDep) -> RunDetail:
     },
 )
 async def patch_run_metadata(
-    run_id: RunId, body: RunMetadataPatch, request: Request, db: DbDep, store: StoreDep,
-    principal: EngineerDep,
+    run_id: RunId, body: RunMetadataPatch, db: DbDep, store: StoreDep, actor: EngineerActor,
 ) -> RunMetadataOut:
     """Change metadata fields of a run (e.g. the line, km or start time of a re-uploaded file).
 
@@ -213,7 +187,7 @@ async def patch_run_metadata(
     change nothing (no job). The previous results stay until the new job is done.
     """
     outcome = await run_in_threadpool(
-        revise_run_metadata, db, store, run_id, body.metadata, principal, request
+        revise_run_metadata, db, store, run_id, body.metadata, actor
     )
     detail = await run_in_threadpool(_detail, db, run_id)
     return RunMetadataOut(
@@ -229,26 +203,10 @@ async def patch_run_metadata(
     summary="Delete a run with its jobs, results and files (admin)",
     dependencies=[Depends(require_role("admin"))],
 )
-async def delete_run(
-    run_id: RunId, request: Request, db: DbDep, store: StoreDep, principal: AdminDep
-) -> Response:
+async def delete_run(run_id: RunId, db: DbDep, store: StoreDep, actor: AdminActor) -> Response:
     """Delete the run's rows (jobs, chunks, profiles, wheels) and its files.
 
     A worker processing the run notices that its job is gone and stops.
     """
-
-    def _delete() -> bool:
-        with db.write() as session:
-            run = crud.get_run(session, run_id)
-            detail = {"sha256": run.sha256, "original_filename": run.original_filename} if run else None
-            deleted = crud.delete_run(session, run_id)
-            if deleted:
-                record(session, request, principal, "run.delete", target=run_id, detail=detail)
-        if deleted:
-            store.remove_run(run_id)
-        return deleted
-
-    if not await run_in_threadpool(_delete):
-        raise not_found("run", run_id)
-    log.info("run %s deleted", run_id)
+    await run_in_threadpool(catalog.delete_run, db, store, actor, run_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -1,4 +1,5 @@
-"""Streamed run uploads: request body → run store, sha256, validation, run row.
+"""Streamed run uploads: the request body received into the run store (sha256, size cap,
+multipart parsing), then handed to the run service.
 
 Two request shapes are accepted on ``POST /api/v1/runs``:
 
@@ -15,8 +16,10 @@ any other content type (``application/octet-stream``, ``application/x-hdf5``,
 
 The body is read block by block into ``<run_store>/.uploads/<token>/`` while
 its sha256 is computed and its size checked against the cap; it is never held
-in memory whole. The received file is then handed to the run service
-(:func:`app.runs.create.create_run_from_file`): validated and converted by
+in memory whole. What the service decides of the received file (its format and
+metadata, the upload rate, how a refusal is answered and audited) is
+:mod:`app.runs.upload`; the run is made by
+:func:`app.runs.create.create_run_from_file`: validated and converted by
 :func:`app.io.ingest` to the canonical HDF5 file, and only then are the run
 row and its processing job inserted and the directory moved to its final
 place. Any failure removes the upload directory: no row, job or file remains.
@@ -25,8 +28,6 @@ place. Any failure removes the upload directory: no row, job or file remains.
 from __future__ import annotations
 
 import hashlib
-import logging
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -35,54 +36,26 @@ from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect, Request
 
-from app.api.audit import record_now
-from app.api.deps import Principal
-from app.api.errors import ApiError, run_file_error
+from app.api.deps import Actor
+from app.api.errors import ApiError
 from app.core.config import Settings
-from app.core.diskspace import DiskFullError, is_disk_full, require_free
+from app.core.diskspace import require_free
 from app.core.runstore import RunStore
 from app.db.session import Database
-from app.io import RunFileError, load_metadata_json
 from app.operations.heavy import run_heavy
-from app.runs.create import UploadedFile, UploadOutcome, create_run_from_file, existing_outcome
+from app.runs import upload as uploads
+from app.runs.create import UploadOutcome, create_run_from_file, existing_outcome
+from app.runs.upload import CONTENT_TYPE_FORMATS, Received
 
-__all__ = ["SUPPORTED_FORMATS", "UploadOutcome", "receive_and_create_run", "infer_format"]
+__all__ = ["UploadOutcome", "receive_and_create_run", "ACCEPTED_CONTENT_TYPES"]
 
-log = logging.getLogger(__name__)
-
-SUPPORTED_FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet", "mdf4", "tdms")
-_FORMAT_ALIASES = {"h5": "hdf5", "hdf": "hdf5", "hdf5": "hdf5", "csv": "csv", "parquet": "parquet", "pq": "parquet",
-                   "mdf4": "mdf4", "mf4": "mdf4", "mdf": "mdf4", "tdms": "tdms"}
-_EXTENSIONS = {
-    ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".he5": "hdf5", ".mat": "hdf5",
-    ".csv": "csv", ".tsv": "csv", ".txt": "csv",
-    ".csv.gz": "csv", ".tsv.gz": "csv", ".txt.gz": "csv",
-    ".parquet": "parquet", ".pq": "parquet",
-    ".mf4": "mdf4", ".mdf": "mdf4", ".tdms": "tdms",
-}
-_CONTENT_TYPES = {
-    "application/x-hdf5": "hdf5", "application/x-hdf": "hdf5", "application/hdf5": "hdf5",
-    "text/csv": "csv", "application/csv": "csv",
-    "application/vnd.apache.parquet": "parquet", "application/x-parquet": "parquet",
-    "application/parquet": "parquet",
-}
 #: Content types accepted for a raw body or a multipart file part (besides none at all).
 ACCEPTED_CONTENT_TYPES: frozenset[str] = frozenset(
-    {*_CONTENT_TYPES, "application/octet-stream", "application/gzip", "application/x-gzip",
+    {*CONTENT_TYPE_FORMATS, "application/octet-stream", "application/gzip", "application/x-gzip",
      "text/plain", "text/tab-separated-values"}
 )
 _FORM_FIELDS = ("file", "metadata", "format", "channel_map")
 _UPLOAD_NAME = "upload"
-
-
-@dataclass
-class _Received:
-    path: Path
-    sha256: str
-    size: int
-    filename: str | None = None
-    content_type: str | None = None
-    fields: dict[str, str] = field(default_factory=dict)
 
 
 class _Sink:
@@ -129,11 +102,6 @@ def _too_large(cap: int) -> ApiError:
     )
 
 
-def _storage_full(exc: BaseException) -> ApiError:
-    reason = str(exc) if isinstance(exc, DiskFullError) else "the run store or the database is full"
-    return ApiError(507, "storage", f"{reason}; the upload was not kept, free space and try again")
-
-
 def _unsupported_type(ctype: str) -> ApiError:
     return ApiError(
         415,
@@ -152,7 +120,7 @@ def _safe_filename(name: str | None) -> str | None:
     return name[:255] or None
 
 
-async def _receive_raw(request: Request, path: Path, settings: Settings) -> _Received:
+async def _receive_raw(request: Request, path: Path, settings: Settings) -> Received:
     sink = _Sink(path, settings.upload_block_bytes, settings.min_free_bytes)
     try:
         async for chunk in request.stream():
@@ -164,7 +132,7 @@ async def _receive_raw(request: Request, path: Path, settings: Settings) -> _Rec
         sink.abort()
         raise
     ctype = request.headers.get("content-type", "").split(";")[0].strip().lower() or None
-    return _Received(path=path, sha256=sink.hash.hexdigest(), size=sink.size, content_type=ctype)
+    return Received(path=path, sha256=sink.hash.hexdigest(), size=sink.size, content_type=ctype)
 
 
 class _MultipartState:
@@ -266,7 +234,7 @@ class _MultipartState:
 
 async def _receive_multipart(
     request: Request, path: Path, settings: Settings, content_type: str
-) -> _Received:
+) -> Received:
     _, params = parse_options_header(content_type)
     boundary = params.get(b"boundary")
     if not boundary:
@@ -306,7 +274,7 @@ async def _receive_multipart(
         raise ApiError(422, "file", "the multipart body has no 'file' part")
     if not state.ended:
         raise ApiError(400, "file", "multipart body ended early (truncated upload)")
-    return _Received(
+    return Received(
         path=path,
         sha256=sink.hash.hexdigest(),
         size=sink.size,
@@ -316,65 +284,13 @@ async def _receive_multipart(
     )
 
 
-def _known_suffix(filename: str | None) -> str:
-    """The file name's extension if it is a known run-file extension, else ``""``."""
-    if not filename:
-        return ""
-    name = filename.lower()
-    for suffix in sorted(_EXTENSIONS, key=len, reverse=True):
-        if name.endswith(suffix):
-            return suffix
-    return ""
-
-
-def infer_format(
-    explicit: str | None, filename: str | None, content_type: str | None
-) -> str | None:
-    """The upload's format: explicit value, else file extension, else content type.
-
-    Returns None when nothing tells (ingest then inspects the file).
-
-    Raises
-    ------
-    ApiError
-        422 naming ``format`` if ``explicit`` is not a supported format.
-    """
-    if explicit:
-        key = explicit.strip().lower()
-        if key not in _FORMAT_ALIASES:
-            raise ApiError(
-                422,
-                "format",
-                f"unknown format {explicit!r}; supported formats are {', '.join(SUPPORTED_FORMATS)}",
-            )
-        return _FORMAT_ALIASES[key]
-    suffix = _known_suffix(filename)
-    if suffix:
-        return _EXTENSIONS[suffix]
-    if content_type and content_type in _CONTENT_TYPES:
-        return _CONTENT_TYPES[content_type]
-    return None
-
-
-def _parse_metadata(text: str | None) -> dict[str, Any] | None:
-    if text is None or not text.strip():
-        return None
-    return load_metadata_json(text, field="metadata")  # RunFileError: 422 naming the field
-
-
-def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
-    if form_value is not None and query_value is not None:
-        raise ApiError(422, name, "given both as form field and as query parameter")
-    return form_value if form_value is not None else query_value
-
-
 async def receive_and_create_run(
     request: Request,
     *,
     settings: Settings,
     db: Database,
     store: RunStore,
-    principal: Principal,
+    actor: Actor,
     query_format: str | None = None,
     query_metadata: str | None = None,
     query_filename: str | None = None,
@@ -396,50 +312,25 @@ async def receive_and_create_run(
         malformed body, 422 naming the field for invalid content (format,
         metadata, channels, ...), 507 (``storage``) when the run store (or the
         database) has not enough free space. Nothing is left behind but the
-        audit entry of the rejection.
+        audit entry of the refusal (:func:`app.runs.upload.refusal`).
     """
-    wait = request.app.state.upload_limiter.hit(
-        f"key:{principal.key_id}" if principal.key_id is not None else f"user:{principal.name}"
-    )
+    wait = request.app.state.upload_limiter.hit(uploads.rate_key(actor))
     if wait is not None:
-        seconds = max(1, int(wait + 0.999))
-        error = ApiError(
-            429, "rate_limit", f"too many uploads; retry in {seconds} s", {"Retry-After": str(seconds)}
-        )
-        await run_in_threadpool(_record_rejection, db, request, principal, error, "denied")
+        error = uploads.too_many_uploads(wait)
+        await run_in_threadpool(uploads.record_refusal, db, actor, error, "denied")
         raise error
     try:
-        try:
-            return await _receive_and_create(
-                request, settings=settings, db=db, store=store, principal=principal,
-                query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
-                query_channel_map=query_channel_map,
-            )
-        except Exception as exc:
-            if not isinstance(exc, ApiError) and is_disk_full(exc):
-                log.warning("upload refused: %s", exc)
-                raise _storage_full(exc) from None
-            raise
-    except (ApiError, RunFileError) as exc:
-        rejection = exc if isinstance(exc, ApiError) else run_file_error(exc)
-        await run_in_threadpool(_record_rejection, db, request, principal, rejection, "rejected")
-        raise
+        return await _receive_and_create(
+            request, settings=settings, db=db, store=store, actor=actor,
+            query_format=query_format, query_metadata=query_metadata, query_filename=query_filename,
+            query_channel_map=query_channel_map,
+        )
     except Exception as exc:
-        # not the client's fault (a bug, the database away): answered 500, audited all the same
-        error = ApiError(500, "server", f"{type(exc).__name__}: {exc}")
-        await run_in_threadpool(_record_rejection, db, request, principal, error, "error")
+        error, outcome, instead = uploads.refusal(exc)
+        await run_in_threadpool(uploads.record_refusal, db, actor, error, outcome)
+        if instead is not None:
+            raise instead from None
         raise
-
-
-def _record_rejection(
-    db: Database, request: Request, principal: Principal, exc: ApiError, outcome: str
-) -> None:
-    try:
-        record_now(db, request, principal, "run.upload", outcome=outcome, detail={
-            "status": exc.status_code, "field": exc.field, "message": exc.message[:500],
-        })
-    except Exception:  # noqa: BLE001 - the client gets the rejection; the failure is logged
-        log.exception("could not write the audit entry of a rejected upload")
 
 
 async def _receive_and_create(
@@ -448,7 +339,7 @@ async def _receive_and_create(
     settings: Settings,
     db: Database,
     store: RunStore,
-    principal: Principal,
+    actor: Actor,
     query_format: str | None,
     query_metadata: str | None,
     query_filename: str | None,
@@ -473,30 +364,16 @@ async def _receive_and_create(
                 received.filename = _safe_filename(query_filename)
         except ClientDisconnect:
             raise ApiError(400, "file", "client disconnected during the upload") from None
-        if received.size == 0:
-            raise ApiError(422, "file", "the uploaded file is empty")
-        # A known extension helps ingest recognise e.g. gzip-compressed CSV.
-        suffix = _known_suffix(received.filename)
-        if suffix:
-            path = path.rename(upload_dir / f"upload{suffix}")
-            received.path = path
-        fmt = infer_format(
-            _one_of("format", received.fields.get("format"), query_format),
-            received.filename,
-            received.content_type,
-        )
-        metadata = _parse_metadata(_one_of("metadata", received.fields.get("metadata"), query_metadata))
-
-        file = UploadedFile(path, received.sha256, received.size, received.filename)
-        existing = await run_in_threadpool(existing_outcome, db, file.sha256, metadata)
+        upload = uploads.upload_of(received, query_format=query_format, query_metadata=query_metadata,
+                                   query_channel_map=query_channel_map)
+        existing = await run_in_threadpool(existing_outcome, db, upload.file.sha256, upload.metadata)
         if existing is not None:
             return existing
         # ingest and create: a few at a time per process, so reads keep their share (issue 24)
         return await run_heavy(
             request.app,
             lambda: create_run_from_file(
-                db, store, upload_dir, file, fmt=fmt, metadata=metadata,
-                channel_map=_one_of("channel_map", received.fields.get("channel_map"), query_channel_map),
-                principal=principal, request=request, settings=settings,
+                db, store, upload_dir, upload.file, fmt=upload.fmt, metadata=upload.metadata,
+                channel_map=upload.channel_map, actor=actor, settings=settings,
             ),
         )

@@ -15,16 +15,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Path, Query, Request, Response, status
+from fastapi import APIRouter, Depends, Path, Query, Response, status
 from pydantic import BaseModel, Field
 
-from app.api.audit import record
-from app.api.deps import AdminDep, DbDep, PageOffset, SettingsDep, check_page_size, require_role
-from app.api.errors import ApiError, not_found
-from app.core.jsonable import iso_time
-from app.core.url_policy import AddressPolicy, UrlError, redact_url, resolve
-from app.db import webhooks
-from app.db.models import DeliveryStatus, Webhook, WebhookDelivery
+from app.alerts import webhooks as service
+from app.api.deps import AdminActor, DbDep, PageOffset, SettingsDep, check_page_size, require_role
 
 __all__ = ["router"]
 
@@ -93,97 +88,33 @@ class DeliveryList(BaseModel):
     items: list[DeliveryOut]
 
 
-def _url(value: str, settings) -> str:
-    """The URL if its syntax is acceptable and its host resolves to allowed addresses only (422 naming url)."""
-    try:
-        url = webhooks.check_url(value)
-        resolve(url, AddressPolicy.from_settings(settings))
-    except UrlError as exc:
-        raise ApiError(422, "url", str(exc)) from None
-    return url
-
-
-def _out(session, hook: Webhook) -> dict:
-    counts = {s: 0 for s in DeliveryStatus.ALL}
-    for d in session.query(WebhookDelivery.status).filter(WebhookDelivery.webhook_id == hook.id):
-        counts[d.status] = counts.get(d.status, 0) + 1
-    grace = webhooks.signing_secrets(hook)
-    return {"id": hook.id, "url": redact_url(hook.url), "description": hook.description, "active": hook.active,
-            "created_by": hook.created_by, "created_at": iso_time(hook.created_at),
-            "pending": counts[DeliveryStatus.PENDING] + counts[DeliveryStatus.SENDING],
-            "failed": counts[DeliveryStatus.FAILED], "secret_rotated_at": iso_time(hook.secret_rotated_at),
-            "previous_secret_valid_until": iso_time(hook.previous_secret_until) if len(grace) > 1 else None}
-
-
 @router.post("", response_model=WebhookCreated, status_code=201, summary="Register a webhook (admin)")
-def create(body: WebhookIn, request: Request, db: DbDep, principal: AdminDep, settings: SettingsDep) -> dict:
-    url = _url(body.url, settings)
-    with db.write() as session:
-        hook = webhooks.create_webhook(session, url, description=body.description, secret=body.secret,
-                                       created_by=principal.name)
-        record(session, request, principal, "webhook.create", target=hook.id, detail={"url": redact_url(url)})
-        return {**_out(session, hook), "secret": hook.secret}
+def create(body: WebhookIn, db: DbDep, actor: AdminActor, settings: SettingsDep) -> dict:
+    return service.register(db, settings, actor, body.url, description=body.description, secret=body.secret)
 
 
 @router.get("", response_model=WebhookList, summary="List webhooks (admin)")
 def list_hooks(db: DbDep) -> dict:
-    with db.read() as session:
-        return {"items": [_out(session, h) for h in session.query(Webhook).order_by(Webhook.id)]}
+    return {"items": service.webhook_list(db)}
 
 
 @router.patch("/{webhook_id}", response_model=WebhookOut, summary="Change a webhook (admin)")
-def change(webhook_id: WebhookId, body: WebhookPatch, request: Request, db: DbDep, principal: AdminDep,
+def change(webhook_id: WebhookId, body: WebhookPatch, db: DbDep, actor: AdminActor,
            settings: SettingsDep) -> dict:
     """Change a webhook's URL, description or active flag, or rotate its secret (``secret``)."""
-    changed = body.model_dump(exclude_none=True)
-    url = _url(changed["url"], settings) if "url" in changed else None
-    with db.write() as session:
-        hook = session.get(Webhook, webhook_id)
-        if hook is None:
-            raise not_found("webhook", webhook_id)
-        if url is not None:
-            hook.url = url
-            changed["url"] = redact_url(url)
-        if "description" in changed:
-            hook.description = changed["description"]
-        if "active" in changed:
-            hook.active = changed["active"]
-        if "secret" in changed:
-            webhooks.rotate_secret(hook, changed["secret"], grace_s=settings.webhook_secret_grace_s)
-            changed["secret"] = "rotated"  # never the secret itself
-        record(session, request, principal, "webhook.update", target=webhook_id, detail=changed)
-        return _out(session, hook)
+    return service.change(db, settings, actor, webhook_id, body.model_dump(exclude_none=True))
 
 
 @router.delete("/{webhook_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete a webhook (admin)")
-def delete(webhook_id: WebhookId, request: Request, db: DbDep, principal: AdminDep) -> Response:
-    with db.write() as session:
-        hook = session.get(Webhook, webhook_id)
-        if hook is None:
-            raise not_found("webhook", webhook_id)
-        session.query(WebhookDelivery).filter(WebhookDelivery.webhook_id == webhook_id).delete()
-        session.delete(hook)
-        record(session, request, principal, "webhook.delete", target=webhook_id, detail={"url": redact_url(hook.url)})
+def delete(webhook_id: WebhookId, actor: AdminActor, db: DbDep) -> Response:
+    service.remove(db, actor, webhook_id)
     return Response(status_code=204)
 
 
 @router.post("/{webhook_id}/test", response_model=DeliveryOut, status_code=202, summary="Queue a ping (admin)")
 def test(webhook_id: WebhookId, db: DbDep) -> dict:
     """Queue a ``ping`` delivery to the webhook (sent by the workers' delivery loop)."""
-    with db.write() as session:
-        if session.get(Webhook, webhook_id) is None:
-            raise not_found("webhook", webhook_id)
-        (delivery_id,) = webhooks.enqueue(session, webhooks.EVENT_PING, {"event": webhooks.EVENT_PING},
-                                          webhook_ids=[webhook_id])
-        return _delivery_out(session.get(WebhookDelivery, delivery_id))
-
-
-def _delivery_out(d: WebhookDelivery) -> dict:
-    return {"id": d.id, "webhook_id": d.webhook_id, "event": d.event, "run_id": d.run_id, "status": d.status,
-            "attempts": d.attempts, "next_attempt_at": iso_time(d.next_attempt_at),
-            "last_attempt_at": iso_time(d.last_attempt_at), "last_status_code": d.last_status_code,
-            "last_error": d.last_error, "created_at": iso_time(d.created_at), "delivered_at": iso_time(d.delivered_at),
-            "n_flags": (d.payload or {}).get("n_flags")}
+    return service.ping(db, webhook_id)
 
 
 @router.get("/deliveries", response_model=DeliveryList, summary="The delivery log, newest first (admin)")
@@ -192,9 +123,4 @@ def deliveries(db: DbDep, settings: SettingsDep,
                status_: Annotated[str | None, Query(alias="status", description="pending, sending, delivered, failed")] = None,
                limit: Annotated[int, Query(ge=1)] = 100, offset: PageOffset = 0) -> dict:
     check_page_size(limit, settings)
-    if status_ is not None and status_ not in DeliveryStatus.ALL:
-        raise ApiError(422, "status", f"must be one of {', '.join(DeliveryStatus.ALL)}, got {status_!r}")
-    with db.read() as session:
-        rows, total = webhooks.list_deliveries(session, webhook_id=webhook_id, status=status_, limit=limit,
-                                               offset=offset)
-        return {"total": total, "items": [_delivery_out(d) for d in rows]}
+    return service.delivery_log(db, webhook_id=webhook_id, status=status_, limit=limit, offset=offset)

@@ -2,19 +2,14 @@
 
 from __future__ import annotations
 
-import os
-
 import typer
 
 from app.core.config import get_settings
 
 __all__ = [
-    "CLI_ACTOR", "echo", "refuse_unsafe_production", "database", "database_problem",
+    "echo", "refuse_unsafe_production", "database", "database_problem",
     "require_migrated_database", "cli_audit", "new_password",
 ]
-
-#: ``created_by`` of users and keys made on the command line
-CLI_ACTOR = "cli"
 
 
 def echo(message: str) -> None:
@@ -101,12 +96,10 @@ def database():
 
 def cli_audit(session, action: str, target: str, detail: dict | None = None) -> None:
     """Append a command-line action to the audit log (actor ``cli:<user>``)."""
-    from app.db import auth_crud
+    from app.audit import record
+    from app.core.security import Actor
 
-    auth_crud.audit(
-        session, actor=f"{CLI_ACTOR}:{os.environ.get('USER', 'unknown')}", actor_kind="cli",
-        action=action, target=target, detail=detail,
-    )
+    record(session, Actor.command_line(), action, target=target, detail=detail)
 
 
 def new_password() -> str:

@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from app.cli._common import CLI_ACTOR, cli_audit, database, echo, new_password
+from app.cli._common import database, echo, new_password
 
 __all__ = ["user_app", "key_app"]
 
@@ -17,17 +17,16 @@ key_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None, help="API key
 
 
 @contextlib.contextmanager
-def _session(*, write: bool = False) -> Iterator[Any]:
-    """A transaction on TRACKVKF_DATABASE_URL, its connections closed after; a refused
-    account change (``AuthError``) ends the command with its message (exit status 2)."""
-    from app.db import auth_crud
+def _database() -> Iterator[Any]:
+    """The database of TRACKVKF_DATABASE_URL, its connections closed after; a refused account change
+    (an ``ApiError`` of :mod:`app.accounts.admin`) ends the command with its message (exit status 2)."""
+    from app.core.errors import ApiError
 
     db = database()
     try:
-        with db.write() if write else db.read() as session:
-            yield session
-    except auth_crud.AuthError as exc:
-        typer.echo(f"error: {exc}", err=True)
+        yield db
+    except ApiError as exc:
+        typer.echo(f"error: {exc.field}: {exc.message}", err=True)
         raise typer.Exit(2) from None
     finally:
         db.dispose()
@@ -52,12 +51,12 @@ def user_create(
     generate: Annotated[bool, typer.Option(help="Generate a password and print it")] = False,
 ) -> None:
     """Create a browser user with a role."""
-    from app.db import auth_crud
+    from app.accounts import admin
+    from app.core.security import Actor
 
     password = _password(password, generate, "password")
-    with _session(write=True) as session:
-        auth_crud.create_user(session, username, password, role, created_by=CLI_ACTOR)
-        cli_audit(session, "user.create", username, {"role": role})
+    with _database() as db:
+        admin.create_user(db, Actor.command_line(), username, password, role)
     echo(f"user {username} ({role}) created")
     if generate:
         echo(f"password: {password}")
@@ -70,14 +69,12 @@ def user_set_password(
     generate: Annotated[bool, typer.Option(help="Generate a password and print it")] = False,
 ) -> None:
     """Set a user's password (ends its sessions; clears the demo-credentials mark)."""
-    from app.db import auth_crud
+    from app.accounts import admin
+    from app.core.security import Actor
 
     password = _password(password, generate, "new password")
-    with _session(write=True) as session:
-        if auth_crud.update_user(session, username, password=password) is None:
-            typer.echo(f"error: no user {username!r}", err=True)
-            raise typer.Exit(2)
-        cli_audit(session, "user.update", username, {"password": "changed"})
+    with _database() as db:
+        admin.update_user(db, Actor.command_line(), username, password=password)
     echo(f"password of {username} changed")
     if generate:
         echo(f"password: {password}")
@@ -86,10 +83,10 @@ def user_set_password(
 @user_app.command("list")
 def user_list() -> None:
     """List users: name, role, active, last login."""
-    from app.db import auth_crud
+    from app.accounts import admin
 
-    with _session() as session:
-        for u in auth_crud.list_users(session):
+    with _database() as db:
+        for u in admin.list_users(db):
             flags = ("" if u.active else " inactive") + (" demo-credentials" if u.demo_credentials else "")
             echo(f"{u.username}\t{u.role}\tlast login {u.last_login_at or '-'}{flags}")
 
@@ -101,15 +98,11 @@ def key_create(
     expires_in_days: Annotated[int | None, typer.Option(help="Lifetime in days (default: none)")] = None,
 ) -> None:
     """Create an API key and print it once (only its hash is stored)."""
-    import datetime as dt
+    from app.accounts import admin
+    from app.core.security import Actor
 
-    from app.db import auth_crud
-    from app.db.models import utcnow
-
-    expires = utcnow() + dt.timedelta(days=expires_in_days) if expires_in_days else None
-    with _session(write=True) as session:
-        row, key = auth_crud.create_api_key(session, name, role, created_by=CLI_ACTOR, expires_at=expires)
-        cli_audit(session, "key.create", str(row.id), {"name": name, "role": role, "prefix": row.prefix})
+    with _database() as db:
+        row, key = admin.create_key(db, Actor.command_line(), name, role, expires_in_days)
         key_id = row.id
     typer.echo(f"API key {key_id} ({name}, {role}); shown once, keep it safe:", err=True)
     echo(key)
@@ -118,23 +111,20 @@ def key_create(
 @key_app.command("revoke")
 def key_revoke(key_id: Annotated[int, typer.Argument(help="Key id (see `trackvkf key list`)")]) -> None:
     """Revoke an API key."""
-    from app.db import auth_crud
+    from app.accounts import admin
+    from app.core.security import Actor
 
-    with _session(write=True) as session:
-        row = auth_crud.revoke_api_key(session, key_id)
-        if row is None:
-            typer.echo(f"error: no API key {key_id}", err=True)
-            raise typer.Exit(2)
-        cli_audit(session, "key.revoke", str(key_id), {"name": row.name})
+    with _database() as db:
+        admin.revoke_key(db, Actor.command_line(), key_id)
     echo(f"API key {key_id} revoked")
 
 
 @key_app.command("list")
 def key_list() -> None:
     """List API keys: id, prefix, name, role, last use, revocation."""
-    from app.db import auth_crud
+    from app.accounts import admin
 
-    with _session() as session:
-        for k in auth_crud.list_api_keys(session):
+    with _database() as db:
+        for k in admin.list_keys(db):
             state = f"revoked {k.revoked_at}" if k.revoked_at else "active"
             echo(f"{k.id}\ttvk_{k.prefix}_…\t{k.name}\t{k.role}\tlast used {k.last_used_at or '-'}\t{state}")

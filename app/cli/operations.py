@@ -37,14 +37,15 @@ def backup(
 def restore(
     src: Annotated[Path, typer.Argument(help="Backup directory written by `trackvkf backup`")],
     force: Annotated[bool, typer.Option(help="Replace a database and run store that hold data "
-                                             "(the run store is kept aside)")] = False,
+                                             "(both are kept aside)")] = False,
     verify_only: Annotated[bool, typer.Option(help="Only verify the backup (checksums, database, "
                                                    "revision); change nothing")] = False,
 ) -> None:
     """Restore a backup into TRACKVKF_DATABASE_URL and TRACKVKF_RUN_STORE (stop the service first).
 
-    The backup is verified first (run file checksums, integrity_check or pg_restore --list, a known
-    Alembic revision); the database is upgraded to the head if the backup is older; jobs that were
+    The backup is verified, read-only, before anything is touched (no symbolic links, relative paths,
+    run file checksums, the snapshot's integrity, revision and row counts against the manifest); the
+    target's database and run store are kept aside; the database is upgraded to the head if the backup is older; jobs that were
     running at backup time are queued again. See docs/operations.md.
     """
     from app.operations.backup import BackupError, verify_backup
@@ -57,10 +58,11 @@ def restore(
                  f"{len(manifest['files'])} run files")
             return
         result = put_back(get_settings(), src, force=force)
-    except BackupError as exc:
+    except (BackupError, OSError) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1) from None
     echo(f"restored {result.database} database ({result.revision_in_backup} -> {result.revision_now}) and "
          f"{result.n_files} run files in {result.seconds:.1f} s"
          + (f"; jobs queued again: {result.requeued_jobs}" if result.requeued_jobs else "")
+         + (f"; the previous database is at {result.previous_database}" if result.previous_database else "")
          + (f"; the previous run store is at {result.previous_run_store}" if result.previous_run_store else ""))

@@ -19,7 +19,7 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,8 +35,38 @@ from app.db.models import Job, JobStatus, Run, SegmentCondition, utcnow
 from app.db.session import Database
 from app.simulate.fleet import FLEET_WHEELS, FleetDay, FleetSimulator
 
-__all__ = ["FleetIngest", "FLEET_SOURCE_FORMAT", "ingest_fleet"]
+__all__ = ["FleetIngest", "FLEET_SOURCE_FORMAT", "fleet_history", "ingest_fleet"]
 
+def _segments(sim: FleetSimulator, tracks: dict) -> dict:
+    """A generated run's segments with the store's index (:func:`app.condition.writer.wheel_segments`;
+    the generator states no 1-sigma: ``index_sd`` NaN, its noise being a run-to-run repeatability
+    model the change tests' spread of the history measures already)."""
+    positions = {w: (t.position_m, t.amplitude, t.speed_mps) for w, t in tracks.items()}
+    return wheel_segments(positions, bin_length_m=sim.grid_m, bins_per_cell=int(round(sim.grid_m / sim.line.bin_length)))
+
+
+def fleet_history(
+    sim: FleetSimulator,
+    n_runs: int,
+    *,
+    every_days: float = 1.0,
+    seed: int = 0,
+    params: ChangeParams = DEFAULT_CHANGE_PARAMS,
+) -> Iterator[FleetDay]:
+    """Generate ``n_runs`` runs ``every_days`` apart (day 0 first) and assess each against the
+    ones before it (:func:`~app.analysis.condition.assess_run` over a
+    :class:`~app.analysis.condition.RollingHistory`), in date order, in memory: what a detection
+    is scored against the plan with (:func:`app.simulate.fleet_scoring.score_history`)."""
+    if n_runs < 1:
+        raise ValueError(f"n_runs: must be >= 1, got {n_runs!r}")
+    history = RollingHistory(params)
+    for i in range(n_runs):
+        day = i * every_days
+        speed, tracks = sim.run(day, np.random.default_rng([seed, i]))
+        segs = _segments(sim, tracks)
+        assessment = assess_run(segs, history, day, params=params, previous_flags=history.flags)
+        history.append(day, segs, assessment.flags)
+        yield FleetDay(i, day, speed, tracks, segs, assessment)
 
 
 @dataclass(frozen=True)
@@ -98,7 +128,6 @@ def ingest_fleet(
     t0 = time.perf_counter()
     write_s = 0.0
     history = RollingHistory(params)
-    cells = int(round(sim.grid_m / sim.line.bin_length))
     written = skipped = rows = n_flags = 0
     settings = ProcessingSettings().to_dict()
     length_m = sim.line.track_to_m - sim.line.track_from_m
@@ -110,8 +139,7 @@ def ingest_fleet(
         t1 = time.perf_counter()
         with db.write() as session:
             line = line_of(session, line_id, track, sim.line.bin_length)
-            positions = {w: (t.position_m, t.amplitude, t.speed_mps) for w, t in tracks.items()}
-            segments = wheel_segments(positions, bin_length_m=sim.grid_m, bins_per_cell=cells)
+            segments = _segments(sim, tracks)
             assessment = assess_run(segments, history, days_of(when), params=params, previous_flags=history.flags)
             if session.scalar(select(Run.id).where(Run.sha256 == sha)) is not None:
                 skipped += 1

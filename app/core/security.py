@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import os
 import secrets
 from dataclasses import dataclass
 from typing import Literal
@@ -35,6 +36,7 @@ from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatc
 
 __all__ = [
     "Principal",
+    "Actor",
     "ROLES",
     "Role",
     "role_rank",
@@ -220,14 +222,56 @@ class Principal:
     role : str
         ``viewer``, ``engineer`` or ``admin``.
     kind : str
-        ``anonymous`` (``auth_disabled``), ``user`` (session cookie) or
-        ``api_key``.
+        ``anonymous`` (``auth_disabled``), ``user`` (session cookie), ``api_key``,
+        ``oidc_token`` (an access token of the OpenID provider, :mod:`app.oidc`) or ``cli``
+        (the ``trackvkf`` command).
     user_id, key_id : int or None
         Row id of the user or the API key.
     """
 
     name: str
     role: Literal["viewer", "engineer", "admin"]
-    kind: Literal["anonymous", "user", "api_key"] = "anonymous"
+    kind: Literal["anonymous", "user", "api_key", "oidc_token", "cli"] = "anonymous"
     user_id: int | None = None
     key_id: int | None = None
+
+
+@dataclass(frozen=True)
+class Actor:
+    """Who makes an administrative write, and from where: what its audit entry records.
+
+    The services that change something administrative (users, keys, webhooks, channel maps,
+    geometries, reference data, runs) take an Actor, never the HTTP request: a route builds it
+    from its principal and the peer's address, the command line with :meth:`command_line`.
+
+    Attributes
+    ----------
+    principal : Principal or None
+        Who acts; None for somebody not authenticated (a failed login), named by ``claimed``.
+    address : str or None
+        The client's address (the reverse proxy's when there is one); None on the command line.
+    claimed : str or None
+        The name an actor without a principal gave (the user name of a failed login).
+    """
+
+    principal: Principal | None
+    address: str | None = None
+    claimed: str | None = None
+
+    @property
+    def name(self) -> str:
+        """The audit log's actor: the principal's name, else the claimed one, else ``unknown``."""
+        if self.principal is not None:
+            return self.principal.name
+        return self.claimed if self.claimed is not None else "unknown"
+
+    @property
+    def kind(self) -> str:
+        """The audit log's actor kind: the principal's kind, else ``none``."""
+        return self.principal.kind if self.principal is not None else "none"
+
+    @classmethod
+    def command_line(cls, user: str | None = None) -> Actor:
+        """The ``trackvkf`` command run by ``user`` (default: ``$USER``): ``cli:<user>``, an admin."""
+        who = user if user is not None else os.environ.get("USER", "unknown")
+        return cls(Principal(name=f"cli:{who}", role="admin", kind="cli"))

@@ -26,7 +26,10 @@ from app.db.models import ApiKey, AuditEntry, User, UserSession, utcnow
 __all__ = [
     "AuthError",
     "create_user",
+    "create_external_user",
     "get_user",
+    "user_by_external_subject",
+    "session_id_token",
     "list_users",
     "update_user",
     "delete_user",
@@ -114,6 +117,35 @@ def create_user(
     return user
 
 
+def create_external_user(
+    session: Session, username: str, role: str, external_subject: str, *, created_by: str | None = None
+) -> User:
+    """Insert a user who signs in at the OpenID provider (``auth_source`` ``oidc``, no password).
+
+    Raises
+    ------
+    AuthError
+        For a bad user name or role, or a name already taken.
+    """
+    _check_username(username)
+    _check_role(role)
+    if get_user(session, username) is not None:
+        raise AuthError("username", f"user {username!r} exists")
+    user = User(
+        username=username, password_hash="", role=role, active=True, demo_credentials=False,
+        created_by=created_by, created_at=utcnow(), auth_source="oidc",
+        external_subject=external_subject[:512],
+    )
+    session.add(user)
+    session.flush()
+    return user
+
+
+def user_by_external_subject(session: Session, external_subject: str) -> User | None:
+    """The user the provider knows as ``external_subject`` (``"<issuer> <sub>"``), or None."""
+    return session.scalar(select(User).where(User.external_subject == external_subject[:512]))
+
+
 def get_user(session: Session, username: str) -> User | None:
     """The user called ``username``, or None."""
     return session.scalar(select(User).where(User.username == username))
@@ -143,6 +175,8 @@ def update_user(
     if role is not None:
         user.role = _check_role(role)
     if password is not None:
+        if user.auth_source != "local":
+            raise AuthError("password", f"{username} signs in at the OpenID provider and has no password here")
         user.password_hash = _hash(password)
         user.demo_credentials = False
     if active is not None:
@@ -180,11 +214,13 @@ def count_users(session: Session) -> int:
 
 # --- sessions ----------------------------------------------------------------------
 def create_session(
-    session: Session, user: User, ttl: dt.timedelta, client_ip: str | None = None
+    session: Session, user: User, ttl: dt.timedelta, client_ip: str | None = None,
+    *, id_token: str | None = None,
 ) -> str:
     """Start a browser session for ``user``; returns the token (stored hashed).
 
-    Expired sessions of all users are removed on the way.
+    ``id_token``: the OpenID provider's ID token the session began with (kept for the
+    provider's sign-out). Expired sessions of all users are removed on the way.
     """
     now = utcnow()
     session.execute(delete(UserSession).where(UserSession.expires_at < now))
@@ -196,6 +232,7 @@ def create_session(
             created_at=now,
             expires_at=now + ttl,
             client_ip=(client_ip or None) and client_ip[:64],
+            id_token=id_token,
         )
     )
     user.last_login_at = now
@@ -218,6 +255,13 @@ def session_user(session: Session, token: str) -> User | None:
     if expires_at <= utcnow() or not user.active:
         return None
     return user
+
+
+def session_id_token(session: Session, token: str) -> str | None:
+    """The ID token a session began with at the OpenID provider; None for a local login."""
+    if not token or len(token) > 256:
+        return None
+    return session.scalar(select(UserSession.id_token).where(UserSession.token_hash == token_digest(token)))
 
 
 def delete_session(session: Session, token: str) -> None:

@@ -47,6 +47,9 @@ __all__ = [
     "claim_due",
     "finish_attempt",
     "list_deliveries",
+    "list_webhooks",
+    "delivery_counts",
+    "delete_webhook",
 ]
 
 #: Event of new condition flags in a published run.
@@ -247,3 +250,29 @@ def list_deliveries(session: Session, *, webhook_id: int | None = None, status: 
     rows = session.scalars(select(WebhookDelivery).where(*conds).order_by(WebhookDelivery.id.desc())
                            .limit(limit).offset(offset))
     return list(rows), int(total)
+
+
+def list_webhooks(session: Session) -> list[Webhook]:
+    """All webhooks by id."""
+    return list(session.scalars(select(Webhook).order_by(Webhook.id)))
+
+
+def delivery_counts(session: Session, webhook_id: int) -> dict[str, int]:
+    """How many deliveries of the webhook are in each status (every status of
+    :data:`~app.db.models.DeliveryStatus.ALL`, zero where none)."""
+    counts = {s: 0 for s in DeliveryStatus.ALL}
+    for status, n in session.execute(select(WebhookDelivery.status, func.count())
+                                     .where(WebhookDelivery.webhook_id == webhook_id)
+                                     .group_by(WebhookDelivery.status)):
+        counts[status] = counts.get(status, 0) + int(n)
+    return counts
+
+
+def delete_webhook(session: Session, webhook_id: int) -> Webhook | None:
+    """Delete a webhook with its delivery log; the deleted row, or None when there was none."""
+    hook = session.get(Webhook, webhook_id)
+    if hook is None:
+        return None
+    session.query(WebhookDelivery).filter(WebhookDelivery.webhook_id == webhook_id).delete()
+    session.delete(hook)
+    return hook

@@ -1,9 +1,11 @@
-"""Validate an input run file and write it in the canonical HDF5 form."""
+"""Validate an input run file and write it in the canonical HDF5 form: the plan (metadata,
+channels, sample rate), every block checked (:mod:`app.io.plausibility`) and written, then what
+follows from the whole run (line km, the missing one of speed and position:
+:func:`app.io.kinematics.derive_kinematics`; GNSS positions)."""
 
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,20 +18,25 @@ from pydantic import ConfigDict
 from app.io.canonical import CanonicalWriter, Compression, canonical_output
 from app.io.channel_map import ChannelMap, parse_channel_map
 from app.io.channels import (
-    ACCEL_CHANNELS,
     ALL_CHANNELS,
-    FORCE_CHANNELS,
     TIME_COLUMN,
-    UNITS,
     storage_dtype,
 )
 from app.io.detect import resolve_format
 from app.io.errors import RunFileError
 from app.io.gapfill import GapFiller
 from app.io.geometry import LineGeometry
-from app.io.kinematics import POSITION_BLOCK, SPEED_WINDOW_S, integrate_block, speed_from_position
+from app.io.kinematics import derive_kinematics
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
 from app.io.metadata import DEFAULT_AXLE_POSITIONS_M, RunMetadata, parse_metadata
+from app.io.plausibility import (
+    SampleChecks,
+    check_channels,
+    check_duration,
+    check_sample_rate,
+    resolve_sample_rate,
+    too_many_nan,
+)
 from app.io.positioning import (
     GeometryLookup,
     GnssFixes,
@@ -205,187 +212,6 @@ def _merge_metadata(
     return parse_metadata(merged)
 
 
-def _check_channels(channels: list[str]) -> list[str]:
-    if not any(c in channels for c in ACCEL_CHANNELS):
-        raise RunFileError(
-            "Z11", f"missing channel: at least one of {', '.join(ACCEL_CHANNELS)} is required"
-        )
-    if "speed" not in channels and "position" not in channels:
-        raise RunFileError("speed", "missing channel: speed or position is required")
-    return [c for c in ALL_CHANNELS if c in channels]
-
-
-def _resolve_fs(
-    meta: RunMetadata, source: Source, first: dict[str, np.ndarray]
-) -> tuple[float, bool]:
-    """Return ``(fs, from_time)``."""
-    fs = meta.sample_rate_hz
-    hint = source.info.fs_hint
-    if fs is not None and hint is not None and not math.isclose(fs, hint, rel_tol=1e-9):
-        raise RunFileError(
-            "sample_rate_hz", f"metadata gives {fs:g} Hz but the file attribute says {hint:g} Hz"
-        )
-    fs = fs if fs is not None else hint
-    time_fs = _fs_from_time(first.get(TIME_COLUMN))
-    if fs is None:
-        if time_fs is None:
-            raise RunFileError(
-                "sample_rate_hz",
-                "sample rate missing: give sample_rate_hz in the metadata (or a time column)",
-            )
-        return time_fs, True
-    if time_fs is not None and abs(time_fs - fs) > 1e-3 * fs:
-        raise RunFileError(
-            "sample_rate_hz",
-            f"sample rate {fs:g} Hz disagrees with the time column ({time_fs:.6g} Hz)",
-        )
-    return float(fs), False
-
-
-def _fs_from_time(t: np.ndarray | None) -> float | None:
-    if t is None:
-        return None
-    idx = np.flatnonzero(np.isfinite(t))
-    if idx.size < 2 or t[idx[-1]] <= t[idx[0]]:
-        raise RunFileError("time", "time column must increase (cannot derive the sample rate)")
-    fs = float((idx[-1] - idx[0]) / (t[idx[-1]] - t[idx[0]]))
-    rounded = round(fs)
-    return float(rounded) if abs(fs - rounded) <= 1e-6 * fs else fs
-
-
-_FLOAT32_MAX = float(np.finfo(np.float32).max)
-
-
-class _Checks:
-    """Per-block checks on physical values of speed, position and time."""
-
-    def __init__(
-        self, meta: RunMetadata, fs: float, limits: IngestLimits, from_time: bool, direction: int
-    ) -> None:
-        self.meta, self.fs, self.limits, self.from_time = meta, fs, limits, from_time
-        self.last_pos: float | None = None
-        self.first_pos: float | None = None
-        #: +1: position must not decrease (relative); 0: the first change decides (line km)
-        self.direction = direction
-        self.t0: tuple[int, float] | None = None
-
-    def physical(self, name: str, x: np.ndarray) -> np.ndarray:
-        gain, offset = self.meta.gain_offset(name)
-        if (gain, offset) == (1.0, 0.0):
-            return x
-        with np.errstate(over="ignore", invalid="ignore"):
-            return x * gain + offset
-
-    def _bound(self, name: str) -> float | None:
-        if name in ACCEL_CHANNELS:
-            return self.limits.max_abs_accel_mps2
-        if name in FORCE_CHANNELS:
-            return self.limits.max_abs_force_kn
-        if name == "position":
-            return self.limits.max_abs_position_m
-        return None  # speed: checked by speed()
-
-    def magnitude(self, name: str, offset: int, raw: np.ndarray) -> None:
-        """Raw values must fit their storage type and calibrated values a plausible range."""
-        if storage_dtype(name) == np.float32:
-            big = np.flatnonzero(np.abs(raw) > _FLOAT32_MAX)
-            if big.size:
-                i = int(big[0])
-                raise RunFileError(
-                    name,
-                    f"value {raw[i]:.6g} at sample {offset + i} does not fit the float32 storage of the "
-                    f"channel (|x| <= {_FLOAT32_MAX:.3g})",
-                )
-        bound = self._bound(name)
-        if bound is None:
-            return
-        with np.errstate(invalid="ignore"):
-            bad = np.flatnonzero(~(np.abs(self.physical(name, raw)) <= bound) & ~np.isnan(raw))
-        if not bad.size:
-            return
-        i = int(bad[0])
-        value = float(self.physical(name, raw[i : i + 1])[0])
-        gain, off = self.meta.gain_offset(name)
-        unit = UNITS[name]
-        if (gain, off) != (1.0, 0.0) and abs(raw[i]) <= bound:
-            raise RunFileError(
-                f"calibration.{name}",
-                f"gain {gain:.6g} and offset {off:.6g} make sample {offset + i} ({raw[i]:.6g}) "
-                f"{value:.6g} {unit}, beyond ±{bound:g} {unit}; check the calibration",
-            )
-        raise RunFileError(
-            name, f"value {value:.6g} {unit} at sample {offset + i} is beyond ±{bound:g} {unit}"
-        )
-
-    def position(self, offset: int, raw: np.ndarray) -> None:
-        p = self.physical("position", raw)
-        idx = np.flatnonzero(~np.isnan(p))
-        if idx.size == 0:
-            return
-        v = p[idx]
-        if self.first_pos is None:
-            self.first_pos = float(v[0])
-        if self.direction == 0:
-            moved = np.flatnonzero(v != self.first_pos)
-            if moved.size:
-                self.direction = 1 if v[moved[0]] > self.first_pos else -1
-        d = self.direction or 1
-        prev = np.concatenate(([v[0] if self.last_pos is None else self.last_pos], v[:-1]))
-        bad = np.flatnonzero(d * v < d * prev)
-        if bad.size:
-            i = int(bad[0])
-            if self.direction == 1 and self.meta.position_kind != "line_km":
-                rule = (
-                    "position must be non-decreasing along the run (the km direction is given "
-                    "by metadata km_increasing; an absolute line km is position_kind line_km)"
-                )
-            else:
-                rule = "a line km channel must change in one direction along the run"
-            raise RunFileError(
-                "position",
-                f"non-monotonic position: {'decreases' if d > 0 else 'increases'} from "
-                f"{prev[i]:.6g} m to {v[i]:.6g} m at sample {offset + int(idx[i])}; {rule}",
-            )
-        self.last_pos = float(v[-1])
-
-    def speed(self, offset: int, raw: np.ndarray) -> None:
-        v = self.physical("speed", raw)
-        with np.errstate(invalid="ignore"):
-            hi = np.flatnonzero(v > self.limits.max_speed_mps)
-            lo = np.flatnonzero(v < -self.limits.speed_tolerance_mps)
-        if hi.size:
-            i = int(hi[0])
-            raise RunFileError(
-                "speed",
-                f"speed {v[i]:.6g} m/s at sample {offset + i} exceeds {self.limits.max_speed_mps:g} m/s; "
-                "speed must be given in m/s (not km/h)",
-            )
-        if lo.size:
-            i = int(lo[0])
-            raise RunFileError(
-                "speed", f"negative speed {v[i]:.6g} m/s at sample {offset + i}; speed must be >= 0"
-            )
-
-    def time(self, offset: int, t: np.ndarray) -> None:
-        idx = np.flatnonzero(np.isfinite(t))
-        if idx.size == 0:
-            return
-        if self.t0 is None:
-            self.t0 = (offset + int(idx[0]), float(t[idx[0]]))
-        k0, t0 = self.t0
-        expected = t0 + (offset + idx - k0) / self.fs
-        err = np.abs(t[idx] - expected)
-        bad = np.flatnonzero(err > 0.5 / self.fs)
-        if bad.size:
-            i = int(idx[bad[0]])
-            what = "derived from the time column" if self.from_time else "given"
-            raise RunFileError(
-                "time",
-                f"time {t[i]:.9g} s at sample {offset + i} is off the uniform grid of the "
-                f"sample rate {self.fs:g} Hz ({what}); one sample rate per file is required",
-            )
-
-
 @dataclass
 class _Plan:
     """What is settled before any sample is written: metadata, channels, length, sample rate."""
@@ -455,7 +281,7 @@ def _plan(
     info = source.info
     meta = _merge_metadata(source, given, warnings)
     kind = resolve_position_kind(meta, info.channels, warnings)
-    stored = _check_channels(info.channels)
+    stored = check_channels(info.channels)
     n_known = info.n_samples
     if n_known is not None:
         if n_known == 0:
@@ -468,15 +294,10 @@ def _plan(
     first = next(blocks, None)
     if first is None or len(next(iter(first.values()))) == 0:
         raise RunFileError("file", "no samples")
-    fs, from_time = _resolve_fs(meta, source, first)
-    if not (limits.min_sample_rate_hz <= fs <= limits.max_sample_rate_hz):
-        raise RunFileError(
-            "sample_rate_hz",
-            f"invalid sample rate {fs:g} Hz; accepted {limits.min_sample_rate_hz:g} … "
-            f"{limits.max_sample_rate_hz:g} Hz",
-        )
+    fs, from_time = resolve_sample_rate(meta, source, first)
+    check_sample_rate(fs, limits)
     if n_known is not None:
-        _check_duration(n_known, fs, limits)
+        check_duration(n_known, fs, limits)
     return _Plan(
         meta=meta.model_copy(update={"sample_rate_hz": fs}),
         kind=kind,
@@ -493,7 +314,7 @@ class _BlockWriter:
 
     def __init__(self, writer: CanonicalWriter, plan: _Plan, limits: IngestLimits) -> None:
         self.writer, self.plan, self.limits = writer, plan, limits
-        self.checks = _Checks(plan.meta, plan.fs, limits, plan.from_time, 0 if plan.kind == "line_km" else 1)
+        self.checks = SampleChecks(plan.meta, plan.fs, limits, plan.from_time, 0 if plan.kind == "line_km" else 1)
         self.fixes = GnssFixes(plan.fs, limits) if plan.kind == "gnss" else None
         self.fillers = {
             c: GapFiller(lambda a, v, c=c: writer.write(c, a, v), chunk=limits.block_samples)
@@ -518,10 +339,10 @@ class _BlockWriter:
             offset += m
         if n_known is not None and offset != n_known:
             raise RunFileError("file", f"read {offset} samples but the file declares {n_known}")
-        _check_duration(offset, self.plan.fs, limits)
+        check_duration(offset, self.plan.fs, limits)
         for c, filler in self.fillers.items():
             if filler.n_nan > limits.max_nan_fraction * offset:
-                _too_many_nan(c, filler.n_nan, offset, limits)
+                too_many_nan(c, filler.n_nan, offset, limits)
             filler.finish(offset)
         return offset
 
@@ -536,7 +357,7 @@ class _BlockWriter:
         filler = self.fillers[c]
         filler.process(offset, x)
         if n_known is not None and filler.n_nan > limits.max_nan_fraction * n_known:
-            _too_many_nan(c, filler.n_nan, n_known, limits)
+            too_many_nan(c, filler.n_nan, n_known, limits)
         if c == "position":
             self.checks.position(offset, x)
         elif c == "speed":
@@ -566,7 +387,7 @@ def _finish(
             "not 0 m; it was taken as distance travelled (its first sample subtracted). "
             "If it is the line chainage, upload with position_kind line_km"
         )
-    stats = _derive_kinematics(writer, plan.stored, n, plan.fs, limits)
+    stats = derive_kinematics(writer, plan.stored, n, plan.fs, limits)
     if blocks.fixes is not None:
         meta = plan.meta
         lookup = geometry(meta.line_id, meta.track) if callable(geometry) else geometry
@@ -580,73 +401,3 @@ def _canonical_bytes_per_sample(stored: list[str]) -> int:
     """Bytes per sample of the canonical file: the stored channels plus speed and position."""
     names = set(stored) | {"speed", "position"}
     return sum(storage_dtype(c).itemsize for c in names)
-
-
-def _check_duration(n: int, fs: float, limits: IngestLimits) -> None:
-    if n < limits.min_duration_s * fs:
-        raise RunFileError(
-            "file",
-            f"the run lasts {n / fs:.3g} s ({n} samples at {fs:g} Hz); at least "
-            f"{limits.min_duration_s:g} s are needed to process it",
-        )
-
-
-def _too_many_nan(channel: str, count: int, n: int, limits: IngestLimits) -> None:
-    raise RunFileError(
-        channel,
-        f"too many NaN: {count} of {n} samples ({100.0 * count / n:.3g} %) exceed the limit of "
-        f"{100.0 * limits.max_nan_fraction:.3g} %",
-    )
-
-
-def _derive_kinematics(
-    writer: CanonicalWriter, stored: list[str], n: int, fs: float, limits: IngestLimits
-) -> dict[str, float]:
-    """Store the missing one of speed/position; return distance and speed range."""
-    h5 = writer.h5
-    meta = writer.metadata
-
-    def read(name: str, a: int, b: int) -> np.ndarray:
-        gain, offset = (1.0, 0.0) if h5[name].attrs["derived"] else meta.gain_offset(name)
-        return h5[name][a:b].astype(np.float64) * gain + offset
-
-    vmin, vmax = math.inf, -math.inf
-    if "speed" not in stored:
-        writer.add_channel(
-            "speed", derived=f"smoothed gradient of position, window {SPEED_WINDOW_S:g} s"
-        )
-        for a in range(0, n, limits.block_samples):
-            b = min(a + limits.block_samples, n)
-            v = speed_from_position(lambda i, j: read("position", i, j), n, fs, a, b)
-            writer.write("speed", a, v)
-            vmin, vmax = min(vmin, float(v.min())), max(vmax, float(v.max()))
-    # integrate speed block-wise (POSITION_BLOCK grid) for the stored position or the check
-    derive_pos = "position" not in stored
-    if derive_pos:
-        writer.add_channel("position", derived="cumulative trapezoid of max(speed, 0)")
-    p = 0.0
-    for a in range(0, n, POSITION_BLOCK):
-        length = min(POSITION_BLOCK, n - a)
-        v_ext = read("speed", a, min(a + length + 1, n))
-        if "speed" in stored:
-            vmin, vmax = min(vmin, float(v_ext.min())), max(vmax, float(v_ext.max()))
-        pos, p_next = integrate_block(v_ext, fs, p, length)
-        if derive_pos:
-            writer.write("position", a, pos)
-        p = p_next
-    integrated = p
-    if derive_pos:
-        distance = integrated
-    else:
-        first = float(read("position", 0, 1)[0])
-        last = float(read("position", n - 1, n)[0])
-        distance = last - first
-        if "speed" in stored and max(distance, integrated) > 20.0:
-            rel = abs(integrated - distance) / max(distance, integrated)
-            if rel > limits.speed_position_tolerance:
-                raise RunFileError(
-                    "speed",
-                    f"integrated speed gives {integrated:.1f} m but position covers {distance:.1f} m "
-                    f"({100 * rel:.0f} % apart); check the units (m/s, m) and calibration",
-                )
-    return {"distance": float(distance), "vmin": vmin, "vmax": vmax}

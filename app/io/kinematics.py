@@ -1,4 +1,5 @@
-"""Speed from position and position from speed, computed block-wise.
+"""Speed from position and position from speed, computed block-wise, and stored for a run that
+lacks one of them (:func:`derive_kinematics`).
 
 Both derivations are defined so that any slice gives exactly the values of a
 single pass over the whole run:
@@ -15,9 +16,14 @@ single pass over the whole run:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
+
+from app.io.canonical import CanonicalWriter
+from app.io.errors import RunFileError
+from app.io.limits import IngestLimits
 
 __all__ = [
     "SPEED_WINDOW_S",
@@ -27,6 +33,7 @@ __all__ = [
     "integrate_block",
     "position_table",
     "position_from_speed",
+    "derive_kinematics",
 ]
 
 #: Length of the smoothing window for speed derived from position, s.
@@ -174,3 +181,67 @@ def position_from_speed(
         out[lo - start : hi - start] = pos[lo - a : hi - a]
         b += 1
     return out
+
+
+def derive_kinematics(
+    writer: CanonicalWriter, stored: list[str], n: int, fs: float, limits: IngestLimits
+) -> dict[str, float]:
+    """Store the missing one of speed and position of a written run, and check that the two agree.
+
+    Speed from position: :func:`speed_from_position`; position from speed: the block-wise
+    cumulative trapezoid (:func:`integrate_block`). Where both are given, the integrated speed
+    and the position's distance agree within ``limits.speed_position_tolerance`` (a
+    :class:`~app.io.errors.RunFileError` naming ``speed`` otherwise).
+
+    Returns
+    -------
+    dict
+        ``distance`` (m) and ``vmin``, ``vmax`` (m/s).
+    """
+    h5 = writer.h5
+    meta = writer.metadata
+
+    def read(name: str, a: int, b: int) -> np.ndarray:
+        gain, offset = (1.0, 0.0) if h5[name].attrs["derived"] else meta.gain_offset(name)
+        return h5[name][a:b].astype(np.float64) * gain + offset
+
+    vmin, vmax = math.inf, -math.inf
+    if "speed" not in stored:
+        writer.add_channel(
+            "speed", derived=f"smoothed gradient of position, window {SPEED_WINDOW_S:g} s"
+        )
+        for a in range(0, n, limits.block_samples):
+            b = min(a + limits.block_samples, n)
+            v = speed_from_position(lambda i, j: read("position", i, j), n, fs, a, b)
+            writer.write("speed", a, v)
+            vmin, vmax = min(vmin, float(v.min())), max(vmax, float(v.max()))
+    # integrate speed block-wise (POSITION_BLOCK grid) for the stored position or the check
+    derive_pos = "position" not in stored
+    if derive_pos:
+        writer.add_channel("position", derived="cumulative trapezoid of max(speed, 0)")
+    p = 0.0
+    for a in range(0, n, POSITION_BLOCK):
+        length = min(POSITION_BLOCK, n - a)
+        v_ext = read("speed", a, min(a + length + 1, n))
+        if "speed" in stored:
+            vmin, vmax = min(vmin, float(v_ext.min())), max(vmax, float(v_ext.max()))
+        pos, p_next = integrate_block(v_ext, fs, p, length)
+        if derive_pos:
+            writer.write("position", a, pos)
+        p = p_next
+    integrated = p
+    if derive_pos:
+        distance = integrated
+    else:
+        first = float(read("position", 0, 1)[0])
+        last = float(read("position", n - 1, n)[0])
+        distance = last - first
+        if "speed" in stored and max(distance, integrated) > 20.0:
+            rel = abs(integrated - distance) / max(distance, integrated)
+            if rel > limits.speed_position_tolerance:
+                raise RunFileError(
+                    "speed",
+                    f"integrated speed gives {integrated:.1f} m but position covers {distance:.1f} m "
+                    f"({100 * rel:.0f} % apart); check the units (m/s, m) and calibration",
+                )
+    return {"distance": float(distance), "vmin": vmin, "vmax": vmax}

@@ -10,24 +10,21 @@ event ``back``) with its history.
 
 from __future__ import annotations
 
-from typing import Any
-
 from app.audit import record
 from app.core.errors import ApiError, not_found
-from app.core.security import Principal
+from app.core.security import Actor
 from app.db import places as q
 from app.db.models import PLACE_STATUSES, ConditionLine, Place, PlaceStatusChange, utcnow
 from app.db.session import Database
 from app.places.answers import place_dict
 
-__all__ = ["MAX_COMMENT_CHARS", "set_status"]
+__all__ = ["MAX_COMMENT_CHARS", "PLACE_STATUSES", "set_status"]
 
 #: Longest status comment, characters.
 MAX_COMMENT_CHARS = 2000
 
 
-def set_status(db: Database, place_id: int, status: str, comment: str, principal: Principal,
-               request: Any = None) -> dict:
+def set_status(db: Database, place_id: int, status: str, comment: str, actor: Actor) -> dict:
     """Set a place's status with a comment; the place as answered.
 
     Raises
@@ -47,9 +44,9 @@ def set_status(db: Database, place_id: int, status: str, comment: str, principal
         if p is None:
             raise not_found("place", place_id)
         old, now = p.status, utcnow()
-        session.add(PlaceStatusChange(place_id=p.id, by=principal.name, at=now, old=old, new=status, comment=text))
-        p.status, p.status_comment, p.status_by, p.status_at = status, text, principal.name, now
-        record(session, request, principal, "place.status", target=p.id,
+        session.add(PlaceStatusChange(place_id=p.id, by=actor.name, at=now, old=old, new=status, comment=text))
+        p.status, p.status_comment, p.status_by, p.status_at = status, text, actor.name, now
+        record(session, actor, "place.status", target=p.id,
                detail={"old": old, "new": status, "comment": text})
         session.flush()
         line = session.get(ConditionLine, p.line_key)

@@ -23,7 +23,7 @@ from app.core.config import API_PREFIX, Settings
 from app.core.errors import ApiError
 from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
-from app.core.security import Principal
+from app.core.security import Actor
 from app.db import crud, recorder_crud
 from app.db.models import Run, utcnow
 from app.db.session import Database
@@ -133,8 +133,7 @@ def insert_run(
     summary: RunSummary,
     file: UploadedFile,
     fmt: str | None,
-    principal: Principal,
-    request: Any = None,
+    actor: Actor,
 ) -> int:
     """Insert the run, its queued job (default settings) and the audit entry; move the upload to the
     run's directory.
@@ -146,12 +145,12 @@ def insert_run(
     installed: int | None = None
     try:
         with db.write() as session:
-            run = _run_row(summary, file, fmt, principal.name)
+            run = _run_row(summary, file, fmt, actor.name)
             session.add(run)
             session.flush()
             run.file_path = store.relative_run_file(run.id)
-            job = crud.create_job(session, run.id, ProcessingSettings().to_dict(), principal.name)
-            record(session, request, principal, "run.upload", target=run.id, detail={
+            job = crud.create_job(session, run.id, ProcessingSettings().to_dict(), actor.name)
+            record(session, actor, "run.upload", target=run.id, detail={
                 "sha256": file.sha256, "size_bytes": file.size,
                 "filename": file.filename, "format": run.source_format, "job_id": job.id,
             })
@@ -184,9 +183,8 @@ def create_run_from_file(
     fmt: str | None,
     metadata: dict[str, Any] | None,
     channel_map: str | None,
-    principal: Principal,
+    actor: Actor,
     settings: Settings,
-    request: Any = None,
 ) -> UploadOutcome:
     """The run of a received file: the existing one (same sha256), or a new one with its queued job.
 
@@ -223,7 +221,7 @@ def create_run_from_file(
     )
     file.path.unlink()
     try:
-        run_id = insert_run(db, store, upload_dir, summary, file, fmt, principal, request)
+        run_id = insert_run(db, store, upload_dir, summary, file, fmt, actor)
     except IntegrityError:
         # The same file was uploaded concurrently and committed first.
         existing = existing_run_id(db, file.sha256)

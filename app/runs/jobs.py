@@ -14,12 +14,13 @@ from app.analysis.settings import ProcessingSettings
 from app.audit import record
 from app.core.errors import ApiError, not_found
 from app.core.runstore import RunStore
-from app.core.security import Principal
+from app.core.security import Actor
 from app.db import crud
-from app.db.models import N_ORDER_COLUMNS, Job
+from app.db.models import N_ORDER_COLUMNS, Job, JobStatus
 from app.db.session import Database
+from app.runs.catalog import JobView, job_views
 
-__all__ = ["settings_from_request", "reprocess", "cancel"]
+__all__ = ["N_ORDER_COLUMNS", "settings_from_request", "reprocess", "cancel", "job_page", "job_view"]
 
 _SETTING_FIELDS = tuple(f.name for f in dataclasses.fields(ProcessingSettings))
 
@@ -55,7 +56,7 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
     return settings
 
 
-def reprocess(db: Database, run_id: int, changes: dict[str, Any], principal: Principal, request: Any = None) -> Job:
+def reprocess(db: Database, run_id: int, changes: dict[str, Any], actor: Actor) -> Job:
     """Queue a new processing job for a run with its latest settings changed by ``changes`` (audited).
 
     Raises
@@ -75,16 +76,15 @@ def reprocess(db: Database, run_id: int, changes: dict[str, Any], principal: Pri
                 "job",
                 f"run {run_id} already has job {active.id} {active.status}; cancel it first",
             )
-        job = crud.create_job(session, run_id, settings.to_dict(), principal.name)
-        record(session, request, principal, "job.create", target=run_id,
+        job = crud.create_job(session, run_id, settings.to_dict(), actor.name)
+        record(session, actor, "job.create", target=run_id,
                detail={"job_id": job.id, "settings": changes})
     return job
 
 
-def cancel(db: Database, store: RunStore, job_id: int, principal: Principal, request: Any = None,
-           ) -> tuple[Job, dict[str, int]]:
+def cancel(db: Database, store: RunStore, job_id: int, actor: Actor) -> JobView:
     """Cancel a job: a queued one at once (its leftover chunk files removed), a running one at its
-    worker's next chunk boundary (audited). The job after the change and its chunk counts.
+    worker's next chunk boundary (audited). The job after the change.
 
     Raises
     ------
@@ -99,9 +99,37 @@ def cancel(db: Database, store: RunStore, job_id: int, principal: Principal, req
         assert job is not None
         if outcome == "final":
             raise ApiError(409, "job", f"job {job_id} is already {job.status}")
-        record(session, request, principal, "job.cancel", target=job_id, detail={"run_id": job.run_id})
+        record(session, actor, "job.cancel", target=job_id, detail={"run_id": job.run_id})
         session.refresh(job)
-        counts = crud.chunk_counts(session, [job_id]).get(job_id, {})
+        (view,) = job_views(session, [job])
     if outcome == "cancelled":
         store.remove_job_files(job.run_id, job_id)
-    return job, counts
+    return view
+
+
+def job_page(db: Database, *, run_id: int | None = None, status: str | None = None, limit: int = 50,
+             offset: int = 0, run_must_exist: bool = False) -> tuple[list[JobView], int]:
+    """Jobs, newest first, of one run and/or one status if given, and how many match.
+
+    Raises
+    ------
+    ApiError
+        422 naming ``status`` for an unknown one; 404 naming ``run_id`` when ``run_must_exist``
+        and there is no such run.
+    """
+    if status is not None and status not in JobStatus.ALL:
+        raise ApiError(422, "status", f"must be one of {', '.join(JobStatus.ALL)}")
+    with db.read() as session:
+        if run_must_exist and run_id is not None and crud.get_run(session, run_id) is None:
+            raise not_found("run", run_id)
+        jobs, total = crud.list_jobs(session, run_id=run_id, status=status, limit=limit, offset=offset)
+        return job_views(session, jobs), total
+
+
+def job_view(db: Database, job_id: int) -> JobView:
+    """A job and its done chunks; 404 naming ``job_id``."""
+    with db.read() as session:
+        job = crud.get_job(session, job_id)
+        if job is None:
+            raise not_found("job", job_id)
+        return job_views(session, [job])[0]

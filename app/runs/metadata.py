@@ -21,7 +21,7 @@ from app.audit import record
 from app.core.errors import ApiError, not_found
 from app.core.jsonable import finite_or_none
 from app.core.runstore import RunStore
-from app.core.security import Principal
+from app.core.security import Actor
 from app.db import crud
 from app.db.models import Run
 from app.db.session import Database
@@ -98,7 +98,7 @@ def _check_no_active_job(session, run_id: int) -> None:
 
 
 def revise_run_metadata(db: Database, store: RunStore, run_id: int, given: Mapping[str, Any],
-                        principal: Principal, request: Any = None) -> RevisionOutcome:
+                        actor: Actor) -> RevisionOutcome:
     """Correct a run's metadata: re-ingest, update, audit and queue its reprocessing.
 
     Runs in a worker thread (file work). Nothing changes when the given fields equal the
@@ -136,8 +136,8 @@ def revise_run_metadata(db: Database, store: RunStore, run_id: int, given: Mappi
             run.file_path = new_relative
             latest = crud.latest_job(session, run_id)
             settings = settings_from_request(latest.settings if latest else None, {})
-            job = crud.create_job(session, run_id, settings.to_dict(), principal.name)
-            record(session, request, principal, "run.metadata", target=run_id, detail={
+            job = crud.create_job(session, run_id, settings.to_dict(), actor.name)
+            record(session, actor, "run.metadata", target=run_id, detail={
                 "changed": {k: [old, new] for k, (old, new) in changed.items()},
                 "job_id": job.id, "file": new_relative, "previous_file": old_relative,
             })

@@ -20,27 +20,18 @@ per 10 m segment, 0.011 per 100 m, wheels independent), because the field adds
 what the simulator leaves out (rail temperature, wheel wear, sensor mounting).
 
 Everything is reproducible from the seed; :meth:`FleetPlan.factor` is the
-truth a detection is scored against (:mod:`app.simulate.fleet_scoring`).
+truth a detection is scored against (:mod:`app.simulate.fleet_scoring`). The runs' segments
+with the store's index and their change tests are the condition store's business
+(:func:`app.condition.fleet.fleet_history`, :func:`app.condition.fleet.ingest_fleet`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.analysis.condition import (
-    DEFAULT_CHANGE_PARAMS,
-    SEGMENT_LENGTHS_M,
-    ChangeParams,
-    RollingHistory,
-    RunAssessment,
-    SegmentStats,
-    assess_run,
-    segment_stats,
-)
-from app.condition.index import store_index, store_index_sd
+from app.analysis.condition import RunAssessment, SegmentStats
 from app.simulate.track import LineModel
 
 __all__ = [
@@ -53,9 +44,7 @@ __all__ = [
     "WheelTrack",
     "FleetSimulator",
     "FLEET_WHEELS",
-    "run_segments",
     "FleetDay",
-    "fleet_history",
 ]
 
 #: Wheels of the simulated vehicle: axle 1 and 4, sides 1 (right) and 2 (left).
@@ -335,37 +324,9 @@ class FleetSimulator:
         return v_run, tracks
 
 
-def run_segments(
-    tracks: dict[str, WheelTrack],
-    *,
-    segment_lengths_m: tuple[float, ...] = SEGMENT_LENGTHS_M,
-    grid_m: float = 1.0,
-    bin_length_m: float = 0.25,
-) -> dict[float, dict[str, SegmentStats]]:
-    """Segment statistics of a generated run with the condition index (ln amplitude).
-
-    ``n_valid`` counts bins of ``bin_length_m`` (the grid cells stand for
-    ``grid_m / bin_length_m`` bins each). The index and its stated 1-σ come from the store's
-    functions (:mod:`app.condition.index`); the generator states no 1-σ (``index_sd`` NaN): its
-    noise is a run-to-run repeatability model (:class:`FleetNoise`), which the change tests'
-    spread of the history measures already — a stated 1-σ is what one pass cannot know and
-    repeats from run to run (rail roughness), which the generator does not simulate.
-    """
-    out: dict[float, dict[str, SegmentStats]] = {}
-    per_cell = int(round(grid_m / bin_length_m))
-    for seg_m in segment_lengths_m:
-        out[seg_m] = {}
-        for wheel, t in tracks.items():
-            index = store_index(t.amplitude)
-            st = segment_stats(t.position_m, t.amplitude, t.speed_mps, index, segment_m=seg_m, bin_length_m=grid_m)
-            isd = store_index_sd(t.position_m, t.amplitude, None, None, st.seg, segment_m=seg_m, bin_length_m=grid_m)
-            out[seg_m][wheel] = replace(st, n_valid=st.n_valid * per_cell, index_sd=isd)
-    return out
-
-
 @dataclass(frozen=True)
 class FleetDay:
-    """One generated run with its assessment (what :func:`fleet_history` yields)."""
+    """One generated run with its assessment (what :func:`app.condition.fleet.fleet_history` yields)."""
 
     number: int
     day: float
@@ -373,26 +334,3 @@ class FleetDay:
     tracks: dict[str, WheelTrack]
     segments: dict[float, dict[str, SegmentStats]]
     assessment: RunAssessment
-
-
-def fleet_history(
-    sim: FleetSimulator,
-    n_runs: int,
-    *,
-    every_days: float = 1.0,
-    seed: int = 0,
-    params: ChangeParams = DEFAULT_CHANGE_PARAMS,
-) -> Iterator[FleetDay]:
-    """Generate ``n_runs`` runs ``every_days`` apart (day 0 first) and assess each against the
-    ones before it (:func:`~app.analysis.condition.assess_run` over a
-    :class:`~app.analysis.condition.RollingHistory`), in date order."""
-    if n_runs < 1:
-        raise ValueError(f"n_runs: must be >= 1, got {n_runs!r}")
-    history = RollingHistory(params)
-    for i in range(n_runs):
-        day = i * every_days
-        speed, tracks = sim.run(day, np.random.default_rng([seed, i]))
-        segs = run_segments(tracks, grid_m=sim.grid_m, bin_length_m=sim.line.bin_length)
-        assessment = assess_run(segs, history, day, params=params, previous_flags=history.flags)
-        history.append(day, segs, assessment.flags)
-        yield FleetDay(i, day, speed, tracks, segs, assessment)

@@ -129,7 +129,7 @@ class FleetScorer:
 
 def score_history(plan: FleetPlan, days: Iterator[FleetDay] | list[FleetDay], *, min_history: int = 8,
                   margin_m: float = 100.0) -> FleetScore:
-    """Score the flags of :func:`fleet_history` against the planted changes (:class:`FleetScorer`)."""
+    """Score the flags of :func:`app.condition.fleet.fleet_history` against the planted changes (:class:`FleetScorer`)."""
     scorer = FleetScorer(plan, min_history=min_history, margin_m=margin_m)
     for fd in days:
         scorer.add(fd)

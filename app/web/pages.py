@@ -17,8 +17,8 @@ from app.analysis.condition.tiers import TIER_NAMES
 from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
 from app.api import API_PREFIX
 from app.api.deps import RunId, public, require_page_login
-from app.db.models import PLACE_STATUSES
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M
+from app.places.workflow import PLACE_STATUSES
 
 __all__ = [
     "FRONTEND_DIR", "PLOTLY_JS", "FAVICON", "build_pages_router", "build_public_router",

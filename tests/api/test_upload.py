@@ -254,7 +254,7 @@ def test_concurrent_duplicate_commit_leaves_no_directory(client, tmp_path):
     from sqlalchemy.exc import IntegrityError
 
     from app.core.runstore import RunStore
-    from app.core.security import Principal
+    from app.core.security import Actor, Principal
     from app.io import ingest
     from app.runs.create import UploadedFile, insert_run
 
@@ -267,7 +267,7 @@ def test_concurrent_duplicate_commit_leaves_no_directory(client, tmp_path):
     db = Database(client.settings.database_url)
     try:
         with pytest.raises(IntegrityError):
-            insert_run(db, store, upload_dir, summary, received, "hdf5", Principal("test", "admin"))
+            insert_run(db, store, upload_dir, summary, received, "hdf5", Actor(Principal("test", "admin")))
     finally:
         db.dispose()
     assert store.run_ids_on_disk() == [first["id"]]

@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.simulate.fleet import FleetSimulator, fleet_history, random_plan
+from app.condition.fleet import fleet_history
+from app.simulate.fleet import FleetSimulator, random_plan
 from app.simulate.fleet_scoring import score_history
 from app.simulate.track import generate_line
 

@@ -171,7 +171,7 @@ def test_a_damaged_backup_is_refused_and_a_full_target_needs_force(client, tmp_p
     assert not target_store.exists()
 
 
-def test_force_keeps_the_replaced_run_store_aside(client, tmp_path):
+def test_force_keeps_the_replaced_database_and_run_store_aside(client, tmp_path):
     settings = client.settings
     path = hdf5_run(tmp_path, n=20_000)
     assert client.post("/api/v1/runs", files={"file": (path.name, path.read_bytes())}).status_code == 201
@@ -182,9 +182,12 @@ def test_force_keeps_the_replaced_run_store_aside(client, tmp_path):
     client.app.state.db.dispose()
     r = _cli(["restore", "--force", str(dest)], settings.database_url, settings.run_store, tmp_path)
     assert r.returncode == 0, r.stderr
-    assert "previous run store" in r.stdout
+    assert "previous run store" in r.stdout and "previous database" in r.stdout
     aside = [p for p in Path(settings.run_store).parent.iterdir() if ".before-restore-" in p.name]
-    assert len(aside) == 1 and sorted(p.name for p in aside[0].iterdir() if p.name.isdigit()) == ["1", "2"]
+    stores = [p for p in aside if p.is_dir()]
+    assert len(stores) == 1 and sorted(p.name for p in stores[0].iterdir() if p.name.isdigit()) == ["1", "2"]
+    (old_db,) = [p for p in aside if p.is_file() and p.name.startswith("db.sqlite")]
+    assert len(_rows(f"sqlite:///{old_db}")["runs"]) == 2  # the replaced database, kept whole
     assert len(_rows(settings.database_url)["runs"]) == 1
     # ids handed out after the restore never repeat those of the lost period (run 2 here)
     third = hdf5_run(tmp_path, n=20_000)

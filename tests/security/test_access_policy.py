@@ -29,6 +29,8 @@ PUBLIC = {
     ("GET", "/api/v1/health"),
     ("POST", "/api/v1/auth/login"),
     ("GET", "/login"),
+    ("GET", "/login/oidc"),  # issue 34: corporate sign-in, its start and the provider's callback
+    ("GET", "/login/oidc/callback"),
     ("GET", "/favicon.ico"),
 }
 #: State-changing routes any authenticated principal may use (their own session).

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-import app.api.auth as auth_api
+import app.accounts.sessions as accounts_sessions
 from app.core.security import device_cookie_id, new_device_cookie
 from app.db import auth_crud, migrate
 from app.db.models import AuditEntry
@@ -62,7 +62,7 @@ def _browser(client: TestClient, address: str) -> TestClient:
 # --- item 3: no write lock while Argon2 runs ---------------------------------------------
 def _probe_write_lock(db_file: Path, seen: list[str]):
     """A verify_password that first writes to the database from another connection, never waiting."""
-    original = auth_api.verify_password
+    original = accounts_sessions.verify_password
 
     def verify(password_hash: str, password: str) -> bool:
         conn = sqlite3.connect(db_file, timeout=0)  # no busy wait: a held write lock fails at once
@@ -85,7 +85,7 @@ def _probe_write_lock(db_file: Path, seen: list[str]):
 def test_login_verifies_the_password_while_other_writers_can_write(service, tmp_path, monkeypatch, password):
     client = service()
     seen: list[str] = []
-    monkeypatch.setattr(auth_api, "verify_password", _probe_write_lock(tmp_path / "db.sqlite", seen))
+    monkeypatch.setattr(accounts_sessions, "verify_password", _probe_write_lock(tmp_path / "db.sqlite", seen))
     r = _login(client, password=password)
     assert r.status_code == (200 if password == PASSWORD else 401)
     assert seen == ["free"]
@@ -101,7 +101,7 @@ def test_unknown_user_and_password_change_verify_outside_the_write_transaction(s
     client = service()
     assert _login(client).status_code == 200
     seen: list[str] = []
-    monkeypatch.setattr(auth_api, "verify_password", _probe_write_lock(tmp_path / "db.sqlite", seen))
+    monkeypatch.setattr(accounts_sessions, "verify_password", _probe_write_lock(tmp_path / "db.sqlite", seen))
     assert _login(client, username="nobody").status_code == 401
     r = client.post(
         "/api/v1/auth/password",

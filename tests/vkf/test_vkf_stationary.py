@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.analysis._vkf_stationary import fit_over_log_frequency
 from app.analysis.vkf import vkf
+from app.analysis.vkf._stationary import fit_over_log_frequency
 
 FS = 2000.0
 

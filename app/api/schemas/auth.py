@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 __all__ = [
     "LoginIn",
+    "LogoutOut",
     "MeOut",
     "UserIn",
     "UserPatch",
@@ -41,7 +42,15 @@ class MeOut(BaseModel):
 
     name: str
     role: RoleName
-    kind: Literal["anonymous", "user", "api_key"]
+    kind: Literal["anonymous", "user", "api_key", "oidc_token"] = Field(
+        description="anonymous (authentication off), user (browser session), api_key, "
+                    "oidc_token (an access token of the OpenID provider)")
+
+
+class LogoutOut(BaseModel):
+    """A session begun at the OpenID provider has ended here; the browser signs out there too."""
+
+    end_session_url: str = Field(description="The provider's sign-out (RP-initiated logout) for this session")
 
 
 class PasswordChangeIn(BaseModel):
@@ -88,6 +97,8 @@ class UserOut(BaseModel):
     created_at: dt.datetime
     updated_at: dt.datetime | None = None
     last_login_at: dt.datetime | None = None
+    auth_source: Literal["local", "oidc"] = Field(
+        default="local", description="local: a password here; oidc: signs in at the OpenID provider")
 
 
 class UserList(BaseModel):

@@ -1,4 +1,5 @@
-"""Response models built from database rows: a job, a run in a list, a run's detail (with links)."""
+"""Response models built from the services' views of runs and jobs (:mod:`app.runs.catalog`): a
+job, a run in a list, a run's detail (with links)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from app.analysis.settings import ProcessingSettings
 from app.api.schemas.jobs import JobOut
 from app.api.schemas.runs import RunDetail, RunOut, RunSummaryOut
 from app.core.config import API_PREFIX
-from app.db.models import ChunkStatus, Job, Run
+from app.runs.catalog import JobView, RunView
 
 __all__ = ["job_out", "run_out", "run_detail"]
 
@@ -19,9 +20,9 @@ def _settings_shown(stored: dict | None) -> dict:
         return dict(stored or {})
 
 
-def job_out(job: Job, chunk_counts: dict[str, int] | None = None) -> JobOut:
-    """Response model of a job; ``chunk_counts`` maps chunk status to count."""
-    counts = chunk_counts or {}
+def job_out(view: JobView) -> JobOut:
+    """Response model of a job."""
+    job = view.job
     return JobOut(
         id=job.id,
         run_id=job.run_id,
@@ -32,7 +33,7 @@ def job_out(job: Job, chunk_counts: dict[str, int] | None = None) -> JobOut:
         meta=job.meta,
         warnings=[str(w) for w in (job.meta or {}).get("warnings") or []],
         n_chunks=job.n_chunks,
-        chunks_done=int(counts.get(ChunkStatus.DONE, 0)),
+        chunks_done=view.chunks_done,
         attempts=int(job.attempts or 0),
         cancel_requested=bool(job.cancel_requested),
         created_by=job.created_by,
@@ -54,8 +55,9 @@ def _links(run_id: int) -> dict[str, str]:
     }
 
 
-def run_out(run: Run, latest: Job | None, chunk_counts: dict[str, int] | None = None) -> RunOut:
+def run_out(view: RunView) -> RunOut:
     """Response model of a run in a list."""
+    run = view.run
     return RunOut(
         id=run.id,
         sha256=run.sha256,
@@ -80,15 +82,16 @@ def run_out(run: Run, latest: Job | None, chunk_counts: dict[str, int] | None = 
             speed_max=run.speed_max,
             channels=list(run.channels or []),
         ),
-        latest_job=job_out(latest, chunk_counts) if latest is not None else None,
+        latest_job=job_out(view.latest) if view.latest is not None else None,
         links=_links(run.id),
         warnings=list((run.ingest_report or {}).get("warnings", [])),
     )
 
 
-def run_detail(run: Run, latest: Job | None, chunk_counts: dict[str, int] | None = None) -> RunDetail:
+def run_detail(view: RunView) -> RunDetail:
     """Response model of one run with its metadata."""
-    base = run_out(run, latest, chunk_counts)
+    run = view.run
+    base = run_out(view)
     return RunDetail(
         **base.model_dump(),
         metadata=dict(run.meta or {}),

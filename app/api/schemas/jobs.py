@@ -10,7 +10,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from app.analysis.settings import ProcessingSettings, setting_help
-from app.db.models import N_ORDER_COLUMNS
+from app.runs.jobs import N_ORDER_COLUMNS
 
 __all__ = ["JobOut", "JobList", "ProcessingSettingsIn"]
 
@@ -54,7 +54,7 @@ class JobList(BaseModel):
 def _settings_in() -> type[BaseModel]:
     """The request body of a reprocessing job, derived from :class:`ProcessingSettings`: every setting
     optional (omitted: the run's latest value), described by its metadata; wheel orders limited to
-    what the service stores (:data:`~app.db.models.N_ORDER_COLUMNS`)."""
+    what the service stores (:data:`~app.runs.jobs.N_ORDER_COLUMNS`)."""
     hints = typing.get_type_hints(ProcessingSettings)
     fields: dict[str, Any] = {}
     for f in dataclasses.fields(ProcessingSettings):

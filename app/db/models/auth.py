@@ -2,8 +2,11 @@
 
 users       browser users: name, Argon2id password hash, role, active flag;
             ``demo_credentials`` marks a user whose password was printed by
-            ``trackvkf demo`` (production mode refuses to start while one is active)
-sessions    browser sessions: SHA-256 of the session token, user, expiry
+            ``trackvkf demo`` (production mode refuses to start while one is active);
+            ``auth_source`` ``local`` (password here) or ``oidc`` (corporate sign-in:
+            no password here, ``external_subject`` = ``<issuer> <sub>``)
+sessions    browser sessions: SHA-256 of the session token, user, expiry; the ID
+            token of a session begun at the OpenID provider (for its sign-out)
 api_keys    keys of data systems: SHA-256 of the key, clear 8-character prefix,
             role, creator, last use, revocation
 audit_log   append-only record of uploads, deletions, reprocessing, imports,
@@ -17,7 +20,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any
 
-from sqlalchemy import Boolean, ForeignKey, Index, Integer, String
+from sqlalchemy import Boolean, ForeignKey, Index, Integer, String, Text
 from sqlalchemy.orm import Mapped, mapped_column
 
 from app.db.models.base import Base, JSONType, UTCDateTime, utcnow
@@ -29,7 +32,10 @@ class User(Base):
     """A browser user."""
 
     __tablename__ = "users"
-    __table_args__ = ({"sqlite_autoincrement": True},)
+    __table_args__ = (
+        Index("ix_users_external_subject", "external_subject", unique=True),
+        {"sqlite_autoincrement": True},
+    )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     username: Mapped[str] = mapped_column(String(64), unique=True)
@@ -41,6 +47,8 @@ class User(Base):
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
     updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
     last_login_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
+    auth_source: Mapped[str] = mapped_column(String(16), default="local", server_default="local")
+    external_subject: Mapped[str | None] = mapped_column(String(512))
 
 
 class UserSession(Base):
@@ -54,6 +62,7 @@ class UserSession(Base):
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
     expires_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), index=True)
     client_ip: Mapped[str | None] = mapped_column(String(64))
+    id_token: Mapped[str | None] = mapped_column(Text)
 
 
 class ApiKey(Base):

@@ -101,8 +101,10 @@
     const out = document.getElementById("logout");
     if (!out) return;
     out.addEventListener("click", async () => {
-      try { await request("POST", "/auth/logout"); } catch (_) { /* already logged out */ }
-      window.location.assign("/login");
+      let answer = null;
+      try { answer = await request("POST", "/auth/logout"); } catch (_) { /* already logged out */ }
+      /* a session begun at the OpenID provider: sign out there too (it comes back to /login) */
+      window.location.assign(answer && answer.end_session_url ? answer.end_session_url : "/login");
     });
   });
 

@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._vkf_banded import BandedSolution, solve_orders
+from ._banded import BandedSolution, solve_orders
 
 __all__ = ["STATIONARY_KERNEL_REL", "LogFrequencyFit", "fit_over_log_frequency", "solve_with_stationary"]
 

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from .orders import OrderTrack
+from app.analysis.orders import OrderTrack
 
 __all__ = ["VKFInput", "prepare_input", "check_mode"]
 

@@ -49,7 +49,7 @@ from scipy.linalg.lapack import zpbtrf, zpbtrs
 from scipy.special import comb
 from threadpoolctl import threadpool_limits
 
-from ._vkf_kernels import assemble_band, structural_residual
+from ._kernels import assemble_band, structural_residual
 
 __all__ = ["BandedSolution", "solve_orders"]
 
@@ -117,7 +117,7 @@ def _assemble(expo: np.ndarray, w: np.ndarray, q: int) -> np.ndarray:
     ``Cᴴ C`` couples the orders within one sample, ``M[(k, n+d), (k, n)] =
     conj(c_{n+d}) c_n``; ``(R S)ᵀ (R S)`` adds the lag-δ products of the
     stencil, weighted by the rows that contain both samples. Filled in one
-    compiled pass (:func:`._vkf_kernels.assemble_band`), in Fortran order as
+    compiled pass (:func:`._kernels.assemble_band`), in Fortran order as
     LAPACK wants it: ``zpbtrf`` then factorises in place instead of copying
     the largest array of the solve.
     """
@@ -134,7 +134,7 @@ def _residual(
 
     ``Cᴴ (y − C a − I a*) − (R S)ᵀ (R S) a`` for a of shape (channels, s, N)
     and y of shape (channels, N); ``I`` the image carriers (none: ``I = 0``).
-    One compiled pass per channel (:func:`._vkf_kernels.structural_residual`).
+    One compiled pass per channel (:func:`._kernels.structural_residual`).
     """
     out = np.empty_like(a)
     structural_residual(y, expo, _NO_IMAGE if image is None else image, w, _stencil(q), a, out)

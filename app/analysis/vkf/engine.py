@@ -1,4 +1,5 @@
-"""Multi-order Vold–Kalman filter (VKF) order tracking.
+"""The VKF engine: multi-order Vold–Kalman filter (VKF) order tracking (the public API is
+:mod:`app.analysis.vkf`, which re-exports it).
 
 The VKF (Hoelzl et al., paper Eqs. 1–20) models a measured signal as a sum of
 ``s`` orders with slowly varying complex envelopes,
@@ -41,8 +42,10 @@ from typing import Any
 
 import numpy as np
 
-from ._vkf_banded import solve_orders
-from ._vkf_baseband import (
+from app.analysis.chunking import Chunk, plan_chunk_layout
+
+from ._banded import solve_orders
+from ._baseband import (
     BasebandPlan,
     EnvelopeSpline,
     filter_gain,
@@ -51,10 +54,9 @@ from ._vkf_baseband import (
     plan_baseband,
     to_baseband,
 )
-from ._vkf_input import InputStats, VKFInput, check_mode, extremes_over, prepare_input, scan_input
-from ._vkf_stationary import solve_with_stationary
-from ._vkf_weights import bandwidth_from_weight, impulse_length, weight_squared
-from .chunking import Chunk, plan_chunk_layout
+from ._input import InputStats, VKFInput, check_mode, extremes_over, prepare_input, scan_input
+from ._stationary import solve_with_stationary
+from ._weights import bandwidth_from_weight, impulse_length, weight_squared
 
 __all__ = [
     "vkf",

@@ -1,0 +1,191 @@
+"""What the service decides about a received run upload: its format, its metadata, the name it
+is kept under, how often a principal may upload, and how a refused upload is answered and
+audited. The HTTP side (the streamed body into the run store, multipart parsing, the size cap,
+the accepted content types) is :mod:`app.api.upload`; the run itself is made by
+:func:`app.runs.create.create_run_from_file`.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from app.audit import record_now
+from app.core.diskspace import DiskFullError, is_disk_full
+from app.core.errors import ApiError
+from app.core.security import Actor
+from app.db.session import Database
+from app.io import RunFileError, load_metadata_json
+from app.runs.create import UploadedFile
+
+__all__ = [
+    "SUPPORTED_FORMATS",
+    "CONTENT_TYPE_FORMATS",
+    "Received",
+    "Upload",
+    "infer_format",
+    "upload_of",
+    "rate_key",
+    "too_many_uploads",
+    "refusal",
+    "record_refusal",
+]
+
+log = logging.getLogger(__name__)
+
+SUPPORTED_FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet", "mdf4", "tdms")
+_FORMAT_ALIASES = {"h5": "hdf5", "hdf": "hdf5", "hdf5": "hdf5", "csv": "csv", "parquet": "parquet", "pq": "parquet",
+                   "mdf4": "mdf4", "mf4": "mdf4", "mdf": "mdf4", "tdms": "tdms"}
+_EXTENSIONS = {
+    ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".he5": "hdf5", ".mat": "hdf5",
+    ".csv": "csv", ".tsv": "csv", ".txt": "csv",
+    ".csv.gz": "csv", ".tsv.gz": "csv", ".txt.gz": "csv",
+    ".parquet": "parquet", ".pq": "parquet",
+    ".mf4": "mdf4", ".mdf": "mdf4", ".tdms": "tdms",
+}
+#: The format a content type names.
+CONTENT_TYPE_FORMATS: dict[str, str] = {
+    "application/x-hdf5": "hdf5", "application/x-hdf": "hdf5", "application/hdf5": "hdf5",
+    "text/csv": "csv", "application/csv": "csv",
+    "application/vnd.apache.parquet": "parquet", "application/x-parquet": "parquet",
+    "application/parquet": "parquet",
+}
+
+
+@dataclass
+class Received:
+    """An upload as received: the file in its upload directory, its sha256 and size, the client's
+    file name and content type, and the form fields that came with it (multipart)."""
+
+    path: Path
+    sha256: str
+    size: int
+    filename: str | None = None
+    content_type: str | None = None
+    fields: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Upload:
+    """What a run is created from: the file, its format (None: ingest inspects it), its metadata and
+    the channel map as given."""
+
+    file: UploadedFile
+    fmt: str | None
+    metadata: dict[str, Any] | None
+    channel_map: str | None
+
+
+def _known_suffix(filename: str | None) -> str:
+    """The file name's extension if it is a known run-file extension, else ``""``."""
+    if not filename:
+        return ""
+    name = filename.lower()
+    for suffix in sorted(_EXTENSIONS, key=len, reverse=True):
+        if name.endswith(suffix):
+            return suffix
+    return ""
+
+
+def infer_format(explicit: str | None, filename: str | None, content_type: str | None) -> str | None:
+    """The upload's format: explicit value, else file extension, else content type.
+
+    Returns None when nothing tells (ingest then inspects the file).
+
+    Raises
+    ------
+    ApiError
+        422 naming ``format`` if ``explicit`` is not a supported format.
+    """
+    if explicit:
+        key = explicit.strip().lower()
+        if key not in _FORMAT_ALIASES:
+            raise ApiError(422, "format",
+                           f"unknown format {explicit!r}; supported formats are {', '.join(SUPPORTED_FORMATS)}")
+        return _FORMAT_ALIASES[key]
+    suffix = _known_suffix(filename)
+    if suffix:
+        return _EXTENSIONS[suffix]
+    if content_type and content_type in CONTENT_TYPE_FORMATS:
+        return CONTENT_TYPE_FORMATS[content_type]
+    return None
+
+
+def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
+    if form_value is not None and query_value is not None:
+        raise ApiError(422, name, "given both as form field and as query parameter")
+    return form_value if form_value is not None else query_value
+
+
+def _metadata(text: str | None) -> dict[str, Any] | None:
+    if text is None or not text.strip():
+        return None
+    return load_metadata_json(text, field="metadata")  # RunFileError: 422 naming the field
+
+
+def upload_of(received: Received, *, query_format: str | None = None, query_metadata: str | None = None,
+              query_channel_map: str | None = None) -> Upload:
+    """The upload a run is created from: format, metadata and channel map from the form fields or
+    the query (not both), the file renamed to its known extension (helps ingest recognise e.g. a
+    gzip-compressed CSV).
+
+    Raises
+    ------
+    ApiError
+        422 naming ``file`` (empty), ``format`` (unknown), or a value given both ways.
+    RunFileError
+        422 naming ``metadata`` (not a JSON object).
+    """
+    if received.size == 0:
+        raise ApiError(422, "file", "the uploaded file is empty")
+    path = received.path
+    suffix = _known_suffix(received.filename)
+    if suffix:
+        path = path.rename(path.with_name(f"upload{suffix}"))
+        received.path = path
+    fmt = infer_format(_one_of("format", received.fields.get("format"), query_format), received.filename,
+                       received.content_type)
+    metadata = _metadata(_one_of("metadata", received.fields.get("metadata"), query_metadata))
+    channel_map = _one_of("channel_map", received.fields.get("channel_map"), query_channel_map)
+    return Upload(UploadedFile(path, received.sha256, received.size, received.filename), fmt, metadata, channel_map)
+
+
+def rate_key(actor: Actor) -> str:
+    """Whose upload budget an upload counts against: the API key's, else the user's."""
+    key_id = actor.principal.key_id if actor.principal is not None else None
+    return f"key:{key_id}" if key_id is not None else f"user:{actor.name}"
+
+
+def too_many_uploads(retry_after_s: float) -> ApiError:
+    """The 429 of an upload over ``TRACKVKF_UPLOAD_RATE_LIMIT`` (``Retry-After`` in whole seconds)."""
+    seconds = max(1, int(retry_after_s + 0.999))
+    return ApiError(429, "rate_limit", f"too many uploads; retry in {seconds} s", {"Retry-After": str(seconds)})
+
+
+def refusal(exc: BaseException) -> tuple[ApiError, str, ApiError | None]:
+    """How a failed upload is answered and audited: the error the audit entry describes, its outcome
+    (``rejected``: the client's input or a full disk; ``error``: not the client's fault, answered 500),
+    and the error to answer instead of ``exc`` (507 ``storage`` for a full disk), or None."""
+    if isinstance(exc, ApiError):
+        return exc, "rejected", None
+    if is_disk_full(exc):
+        log.warning("upload refused: %s", exc)
+        reason = str(exc) if isinstance(exc, DiskFullError) else "the run store or the database is full"
+        full = ApiError(507, "storage", f"{reason}; the upload was not kept, free space and try again")
+        return full, "rejected", full
+    if isinstance(exc, RunFileError):
+        return ApiError(422, exc.field, exc.message), "rejected", None
+    return ApiError(500, "server", f"{type(exc).__name__}: {exc}"), "error", None
+
+
+def record_refusal(db: Database, actor: Actor, error: ApiError, outcome: str) -> None:
+    """The audit entry of a refused upload (``run.upload`` with its status, field and message); a
+    failure to write it is logged (the client gets the refusal all the same)."""
+    try:
+        record_now(db, actor, "run.upload", outcome=outcome, detail={
+            "status": error.status_code, "field": error.field, "message": error.message[:500],
+        })
+    except Exception:  # noqa: BLE001 - the client gets the rejection; the failure is logged
+        log.exception("could not write the audit entry of a rejected upload")
