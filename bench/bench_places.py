@@ -24,8 +24,7 @@ feature present that day, ±10 m):
 ``trend``   the stored trend test of the 100 m holding the segment.
 
 It also prints the distribution of the index of healthy segments per class (for the tier and
-section-class defaults) and what the current work list (``/condition/hotspots``) answers on the newest
-runs.
+section-class defaults).
 
 Usage::
 
@@ -48,9 +47,8 @@ from sqlalchemy import select
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.analysis.condition.change import combine_wheels  # noqa: E402
+from app.analysis.condition.change import combine_wheels, robust_spread  # noqa: E402
 from app.analysis.condition.extent_level import extent_level  # noqa: E402
-from app.analysis.condition.hotspots import _class_z  # noqa: E402
 from app.analysis.condition.lifecycle import (  # noqa: E402
     Action,
     LifecycleParams,
@@ -131,8 +129,8 @@ def load(url: str, spec: HistorySpec) -> tuple[list[RunData], pd.DataFrame, pd.D
             out = []
             for run_id, when, shift in runs:
                 day = (when.replace(tzinfo=spec.start.tzinfo) - spec.start).total_seconds() / 86400.0
-                rows = pd.DataFrame(s.execute(select(SC.seg_m, SC.wheel, SC.seg, SC.index, SC.speed_mean,
-                                                     SC.change_z, SC.change, SC.trend_z, SC.index_sd)
+                rows = pd.DataFrame(s.execute(select(SC.seg_m, SC.wheel, SC.seg, SC.condition_index, SC.speed_mean,
+                                                     SC.change_z, SC.change, SC.trend_z, SC.condition_index_sd)
                                               .where(SC.run_id == run_id)).all(),
                                     columns=["seg_m", "wheel", "seg", "index", "speed", "change_z", "change",
                                              "trend_z", "index_sd"])
@@ -173,6 +171,17 @@ def _on(src: RunData, dst: RunData, values: np.ndarray) -> np.ndarray:
         if w in src.wheels:
             out[i, hit] = values[src.wheels.index(w), j[hit]]
     return out
+
+
+def _class_z(values: np.ndarray, classes: np.ndarray) -> np.ndarray:
+    """Robust z of each value against the values of its class (the retired hotspot list's anomaly)."""
+    z = np.full(values.shape, np.nan)
+    for c in np.unique(classes):
+        m = classes == c
+        med, spread = robust_spread(values[..., m], axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z[..., m] = np.where(spread[..., None] > 0, (values[..., m] - med[..., None]) / spread[..., None], np.nan)
+    return z
 
 
 def mean_w(a: np.ndarray) -> np.ndarray:
@@ -238,7 +247,7 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         ln_a = mean_w(run.log_amp)
         found_by: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         found_tiers: dict[str, np.ndarray] = {}
-        # the current work list's anomaly and the stored matched-speed step test
+        # ln A against its class (the retired hotspot list's anomaly) and the stored matched-speed step test
         z_a = _class_z(ln_a, cls_lbl)
         p = merge_places(run.seg, z_a, np.abs(z_a) >= 3.5, segment_m=SEG_M, gap_m=10.0)
         found_by["current: lnA z 3.5"] = (p.start_m, p.end_m, p.centre_m, np.argsort(-np.abs(p.peak)))
@@ -407,32 +416,6 @@ def fit_curves(bins: pd.DataFrame, sections: pd.DataFrame, upto: list[int]) -> d
     return dict(ref.curves)
 
 
-def current_work_list(url: str, spec: HistorySpec) -> dict:
-    """What the current /condition/hotspots answers on the newest run: rows, the first 10, where."""
-    from app.condition.hotspots import line_hotspots
-    from app.db.models import ConditionLine
-    from app.db.session import Database
-
-    db = Database(url)
-    try:
-        with db.read() as s:
-            line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == spec.line_id))
-            hs = line_hotspots(s, line, 10)
-    finally:
-        db.dispose()
-    t = hs.table
-    keep = t.priority >= 1.0
-    order = np.argsort(-t.priority[keep])
-    seg = t.seg[keep][order]
-    reasons = [t.reasons[i] for i in np.flatnonzero(keep)[order]]
-    truth = spec.truth_places(spec.runs[-1].day)
-    x = (seg + 0.5) * SEG_M
-    real = np.array([any(tp.track_from_m - 10 < xi < tp.track_to_m + 10 for tp in truth) for xi in x])
-    ramp = (x < spec.km_start * 1000 + spec.ramp_in_m) | (x > spec.km_start * 1000 + spec.length_km * 1000 - spec.ramp_out_m)
-    return {"rows": int(keep.sum()), "first10_real": int(real[:10].sum()), "first10_on_ramps": int(ramp[:10].sum()),
-            "first10_reasons": [",".join(r) for r in reasons[:10]], "rows_real": int(real.sum())}
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--workdir", type=Path, default=Path("/tmp/places-bench"))
@@ -447,8 +430,6 @@ def main(argv: list[str] | None = None) -> int:
     for seed in args.seeds:
         for which in ("uniform", "planted"):
             spec, url = build(which, seed, args.runs, args.workdir)
-            print(f"{which} seed {seed}: the current work list on the newest run: {current_work_list(url, spec)}",
-                  flush=True)
             evaluate(which, seed, spec, url, results, healthy, centre_err)
     df = pd.DataFrame(results)
     pd.set_option("display.width", 250)

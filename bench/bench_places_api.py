@@ -211,7 +211,8 @@ def measure_update(url: str, n_history: int) -> dict:
 
     from app.condition.fleet import ingest_fleet
     from app.db.models import ConditionRun
-    from app.places.update import method_version, update_places
+    from app.places.index import method_version
+    from app.places.update import update_places
     from app.simulate.fleet import FleetSimulator
     from app.simulate.track import generate_line
 

@@ -51,7 +51,7 @@ def _prepare(url: str, n_history: int):
     from app.condition.fleet import ingest_fleet
     from app.db.models import ConditionRun, Job, PlaceRun
     from app.db.webhooks import create_webhook
-    from app.places.update import method_version
+    from app.places.index import method_version
     from app.simulate.fleet import FleetSimulator
     from app.simulate.track import generate_line
 

@@ -75,7 +75,7 @@ def one(seed: int, workdir: Path) -> dict:
         with db.read() as s:
             after = [(int(f.seg), int(f.direction)) for f in s.scalars(select(ConditionFlag).where(
                 ConditionFlag.run_id == run_ids[-1], ConditionFlag.kind == "step", ConditionFlag.seg_m == 10))]
-            sd10 = np.array(s.scalars(select(SC.index_sd).where(SC.seg_m == 10, SC.run_id.in_(run_ids))).all(),
+            sd10 = np.array(s.scalars(select(SC.condition_index_sd).where(SC.seg_m == 10, SC.run_id.in_(run_ids))).all(),
                             dtype=float)
             obs = list(s.scalars(select(PlaceObservation).where(PlaceObservation.run_id == run_ids[-1])))
             earlier = [(int(f.seg), int(f.direction)) for f in s.scalars(select(ConditionFlag).where(

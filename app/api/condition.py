@@ -5,8 +5,9 @@
 ``GET /condition/trend`` — one segment over every run, with maintenance actions;
 ``GET /condition/changes`` and ``GET /condition/runs/{id}/changes`` — the change
 list (flags) of a line's newest run or of any run; ``GET /condition/flags`` — the
-feed of flags for data systems, ``since=`` the last id seen; ``GET /condition/hotspots``
-(``.csv``, ``.geojson``) — the work list: segments ranked by where to act first.
+feed of flags for data systems, ``since=`` the last id seen. ``GET /condition/hotspots``
+(``.csv``, ``.geojson``), the retired hotspot work list, answers 410 naming ``/condition/places``
+(the work list: :mod:`app.api.places`; kept for one release).
 
 A line id (and track) without runs in the store answers 404 naming
 ``line_id``; a km outside the stored extent of the line answers 422 naming the
@@ -18,14 +19,12 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query
-from fastapi.responses import JSONResponse, Response
+from fastapi import APIRouter, Query
 
 from app.analysis.condition import FINE_SEGMENT_M, OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
 from app.api.deps import (
     DbDep,
     RunId,
-    SettingsDep,
     WheelQ,
     check_km,
     km_query,
@@ -38,11 +37,9 @@ from app.api.schemas.condition import (
     ConditionLinesOut,
     FlagFeedOut,
     HeatmapOut,
-    HotspotsOut,
     TrendOut,
 )
 from app.condition import answers
-from app.condition.answers import HotspotQuery
 
 __all__ = ["router", "segment_length", "LineIdQ", "TrackQ"]
 
@@ -116,46 +113,15 @@ def flags(db: DbDep, since: Annotated[int, Query(ge=0, le=2**62, description="la
     return answers.flags(db, since=since, limit=limit, line_id=line_id, track=track, new_only=new_only)
 
 
-# --- hotspots: the work list ---------------------------------------------------------------
-def _hotspot_query(
-    line_id: Annotated[str | None, Query(min_length=1, max_length=128, description="Line id (default: every line)")] = None,
-    track: TrackQ = None,
-    km_from: Annotated[float | None, km_query("Lower km bound (needs line_id)")] = None,
-    km_to: Annotated[float | None, km_query("Upper km bound (needs line_id)")] = None,
-    superstructure: Annotated[str | None, Query(alias="class", max_length=64,
-                                                description="superstructure class ('' = outside the sections)")] = None,
-    segment_m: SegmentQ = _FINE_M,
-    min_priority: Annotated[float, Query(ge=0, le=1000, description="least priority listed (1: beyond a threshold)")] = 1.0,
-    limit: Annotated[int, Query(ge=1, le=10_000)] = 200,
-) -> HotspotQuery:
-    seg_m = segment_length(segment_m)
-    check_km(km_from, km_to)
-    return HotspotQuery(line_id, track, km_from, km_to, superstructure, seg_m, min_priority, limit)
+# --- the old hotspot work list: gone, pointing at the places ---------------------------------
+#: Where the work list is now (docs/places.md).
+PLACES_PATH = "/api/v1/condition/places"
 
 
-HotspotQ = Annotated[HotspotQuery, Depends(_hotspot_query)]
-
-
-@router.get("/hotspots", response_model=HotspotsOut, summary="Work list: segments ranked by where to act first")
-def hotspots(db: DbDep, settings: SettingsDep, q: HotspotQ) -> dict:
-    """Segments of every line's newest run (or one line's), ranked by priority: the anomaly of
-    the segment's index against its superstructure class, the change against its history, the
-    trend per year and the wheels agreeing (docs/condition.md). Filter by line, track, km and class."""
-    return answers.hotspots(db, settings, q)
-
-
-@router.get("/hotspots.csv", summary="Work list as CSV (the filters of /condition/hotspots)",
-            response_class=Response, responses={200: {"content": {"text/csv": {}}}})
-def hotspots_csv(db: DbDep, settings: SettingsDep, q: HotspotQ) -> Response:
-    """One row per segment; ``reasons`` joined by ``+``; km in km, changes in %."""
-    return Response(answers.hotspots_csv(db, settings, q), media_type="text/csv",
-                    headers={"Content-Disposition": 'attachment; filename="hotspots.csv"'})
-
-
-@router.get("/hotspots.geojson", summary="Work list as GeoJSON (the filters of /condition/hotspots)",
-            response_class=JSONResponse, responses={200: {"content": {"application/geo+json": {}}}})
-def hotspots_geojson(db: DbDep, settings: SettingsDep, q: HotspotQ) -> JSONResponse:
-    """A FeatureCollection, one feature per segment with the work-list fields as properties
-    (line, track, km: linear referencing). Where a line geometry is imported
-    (``/geometry``) the geometry is the segment's LineString in WGS84, else null."""
-    return JSONResponse(answers.hotspots_geojson(db, settings, q), media_type="application/geo+json")
+@router.get("/hotspots", include_in_schema=False)
+@router.get("/hotspots.csv", include_in_schema=False)
+@router.get("/hotspots.geojson", include_in_schema=False)
+def hotspots_gone() -> None:
+    """The hotspot work list was retired: 410 naming the places (the work list since issue 25)."""
+    raise ApiError(410, "path", f"the hotspot work list was retired: use {PLACES_PATH} (.csv, .geojson)",
+                   headers={"Link": f'<{PLACES_PATH}>; rel="alternate"'})

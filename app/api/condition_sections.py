@@ -13,7 +13,7 @@ from starlette.concurrency import run_in_threadpool
 from app.api.condition import LineIdQ, TrackQ
 from app.api.deps import DbDep, SettingsDep
 from app.api.errors import ApiError
-from app.sections.service import SEGMENT_M, line_sections
+from app.places.sections import SEGMENT_M, line_sections
 
 __all__ = ["router"]
 

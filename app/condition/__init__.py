@@ -7,7 +7,6 @@ into and out of the store's tables (:mod:`app.db.models.condition`):
 - :mod:`~app.condition.writer`: a published job's segment rows, change tests and flags;
 - :mod:`~app.condition.alerts`: the alerts outbox of new flags (one delivery per webhook);
 - :mod:`~app.condition.readers`: lines, heat maps, segment histories, flags, the feed;
-- :mod:`~app.condition.hotspots`: the work list (segments ranked by where to act first);
 - :mod:`~app.condition.maintenance`: what each maintenance action did;
 - :mod:`~app.condition.answers`: the answers of the ``/condition`` endpoints;
 - :mod:`~app.condition.fleet`: a generated fleet history written like processed runs;

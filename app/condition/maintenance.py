@@ -64,7 +64,7 @@ def run_levels(session: Session, runs: list[int], km_from: float, km_to: float) 
     if not runs:
         return {}
     o = ConditionOverview
-    values = fetch_numeric(session, select(o.run_id, func.avg(o.index)).where(
+    values = fetch_numeric(session, select(o.run_id, func.avg(o.condition_index)).where(
         o.run_id.in_(runs), o.seg >= a, o.seg <= b, (o.seg < ea) | (o.seg > eb)).group_by(o.run_id), 2)
     return dict(zip(values[:, 0].astype(int).tolist(), values[:, 1].tolist(), strict=True))
 
@@ -73,7 +73,7 @@ def _wheel_rows(session: Session, runs: list[int], seg_m: int, a: int, b: int, *
     """``(run_id, [seg,] mean index over the wheels)`` of segments a…b of the runs (primary-key ranges)."""
     sc = SegmentCondition
     keys = (sc.run_id, sc.seg) if by_seg else (sc.run_id,)
-    stmt = select(*keys, func.avg(sc.index)).where(
+    stmt = select(*keys, func.avg(sc.condition_index)).where(
         sc.run_id.in_(runs), sc.seg_m == seg_m, sc.wheel.in_(list(WHEELS)), sc.seg >= a, sc.seg <= b).group_by(*keys)
     return fetch_numeric(session, stmt, len(keys) + 1)
 
@@ -130,7 +130,7 @@ def _out(a: MaintenanceAction, line: ConditionLine, e: ActionEffect, n_runs: int
     return {
         "action_id": a.id, "line_id": line.line_id, "track": line.track, "type": a.type, "date": a.date.isoformat(),
         "km_from": a.km_from, "km_to": a.km_to, "n_runs": n_runs, "n_runs_before": e.n_before, "n_runs_after": e.n_after,
-        "index_before": e.index_before, "index_after": e.index_after, "recovery": e.recovery,
+        "condition_index_before": e.index_before, "condition_index_after": e.index_after, "recovery": e.recovery,
         "recovery_pct": 100.0 * math.expm1(e.recovery) if e.recovery is not None else None,
         "slope_after_per_year": e.slope_after_per_year, "lasted_days_observed": e.lasted_days_observed,
         "lasted_days_projected": e.lasted_days_projected,
@@ -185,7 +185,7 @@ def action_effect_detail(db: Database, action_id: int, *, before_days: float, af
         raise ApiError(409, "action_id", f"no run of line {line.line_id!r} covers action {action_id}")
     return {
         **_out(a, line, effect, len(runs)),
-        "series": [{"run_id": r.run_id, "start_time": r.run_time.isoformat(), "index": float(v)}
+        "series": [{"run_id": r.run_id, "start_time": r.run_time.isoformat(), "condition_index": float(v)}
                    for r, v in zip(runs, values, strict=True)],
         "profile_km": km.tolist(), "profile_before": on(km_b, v_b), "profile_after": on(km_a, v_a),
     }

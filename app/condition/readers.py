@@ -158,11 +158,11 @@ def heatmap(session: Session, runs: Sequence[ConditionRun], seg_m: int, *, wheel
     if hi is not None:
         conds.append(t.seg <= hi)
     if overview:
-        stmt = select(t.run_id, t.seg, t.index, t.flagged).where(*conds)
+        stmt = select(t.run_id, t.seg, t.condition_index, t.flagged).where(*conds)
     elif wheel is None:
-        stmt = select(t.run_id, t.seg, func.avg(t.index), literal(0)).where(*conds).group_by(t.run_id, t.seg)
+        stmt = select(t.run_id, t.seg, func.avg(t.condition_index), literal(0)).where(*conds).group_by(t.run_id, t.seg)
     else:
-        stmt = select(t.run_id, t.seg, t.index, literal(0)).where(*conds)
+        stmt = select(t.run_id, t.seg, t.condition_index, literal(0)).where(*conds)
     values = fetch_numeric(session, stmt, 4)
     segs = np.unique(values[:, 1].astype(np.int64)) if len(values) else np.zeros(0, np.int64)
     order = np.argsort(run_ids)

@@ -88,15 +88,15 @@ _EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
 #: PostgreSQL binary types of a segment row (app.db.models.SegmentCondition)
 _SEGMENT_PG_TYPES: dict[str, str] = {
     "run_id": "int4", "seg_m": "int2", "wheel": "text", "seg": "int4", "line_key": "int4", "job_id": "int4",
-    "n_valid": "int4", "amp_mean": "float4", "amp_p95": "float4", "speed_mean": "float4", "index": "float4",
-    "index_sd": "float4", "n_history": "int2", "baseline": "float4", "change": "float4", "change_z": "float4",
+    "n_valid": "int4", "amp_mean": "float4", "amp_p95": "float4", "speed_mean": "float4", "condition_index": "float4",
+    "condition_index_sd": "float4", "n_history": "int2", "baseline": "float4", "change": "float4", "change_z": "float4",
     "trend_rate": "float4", "trend_z": "float4",
 }
 
 
 #: PostgreSQL binary types of an overview row (app.db.models.ConditionOverview)
 _OVERVIEW_PG_TYPES: dict[str, str] = {
-    "run_id": "int4", "seg": "int4", "line_key": "int4", "index": "float4", "n_wheels": "int2", "flagged": "bool",
+    "run_id": "int4", "seg": "int4", "line_key": "int4", "condition_index": "float4", "n_wheels": "int2", "flagged": "bool",
 }
 
 
@@ -282,7 +282,7 @@ class DbHistory:
             return HistoryMatrix.empty(seg.size)
         col = {rid: k for k, (rid, _) in enumerate(runs)}
         sc = SegmentCondition
-        stmt = select(sc.run_id, sc.seg, sc.index, sc.speed_mean, sc.index_sd).where(
+        stmt = select(sc.run_id, sc.seg, sc.condition_index, sc.speed_mean, sc.condition_index_sd).where(
             sc.run_id.in_(list(col)), sc.seg_m == int(round(seg_m)), sc.wheel == wheel,
             sc.seg >= int(seg.min()), sc.seg <= int(seg.max()),
         )
@@ -320,7 +320,8 @@ def _segment_frame(run_id: int, job_id: int, line_key: int, segments: Mapping[fl
                 "run_id": np.full(n, run_id), "seg_m": np.full(n, int(round(seg_m))),
                 "wheel": np.full(n, wheel, dtype=object), "seg": st.seg, "line_key": np.full(n, line_key),
                 "job_id": np.full(n, job_id), "n_valid": st.n_valid, "amp_mean": st.amp_mean,
-                "amp_p95": st.amp_p95, "speed_mean": st.speed_mean, "index": st.index, "index_sd": st.index_sd,
+                "amp_p95": st.amp_p95, "speed_mean": st.speed_mean, "condition_index": st.index,
+                "condition_index_sd": st.index_sd,
                 "n_history": c.n_history if c is not None else np.zeros(n, dtype=np.int64),
                 "baseline": c.baseline if c is not None else nan, "change": c.change if c is not None else nan,
                 "change_z": c.change_z if c is not None else nan,
@@ -344,7 +345,7 @@ def _overview_frame(run_id: int, line_key: int, segments: Mapping[float, Mapping
     seg = g.index.to_numpy(dtype=np.int64)
     return pd.DataFrame({
         "run_id": np.full(seg.size, run_id), "seg": seg, "line_key": np.full(seg.size, line_key),
-        "index": g["mean"].to_numpy(), "n_wheels": g["count"].to_numpy(dtype=np.int64),
+        "condition_index": g["mean"].to_numpy(), "n_wheels": g["count"].to_numpy(dtype=np.int64),
         "flagged": np.isin(seg, list(cells)),
     })
 
@@ -483,7 +484,7 @@ def store_run_condition(
     exponents = {f"{s:g}": float(np.mean(list(e.values()))) if e else None
                  for s, e in assessment.exponents.items()}
     details = {
-        "index": STORE_INDEX, "line_key": line.id,
+        "condition_index": STORE_INDEX, "line_key": line.id,
         "shift_m": round(shift, 3), "shift_confidence": confidence,
         "segments": int(sum(len(st) for w in segments.values() for st in w.values())),
         "history_runs": len(history.step_runs), "flags": len(flags), "new_flag_ids": [f.id for f in flags if f.is_new],

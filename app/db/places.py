@@ -87,7 +87,7 @@ def segment_frame(session: Session, run_ids: Sequence[int], seg_m: int = 10) -> 
     -------
     values : numpy.ndarray
         (n, 6) float64: run id, wheel code (index into ``wheels``), segment, ``ln A``, speed (m/s), the stated
-        1-σ of ``ln A`` (``index_sd``; NaN: none).
+        1-σ of ``ln A`` (``condition_index_sd``; NaN: none).
     wheels : list of str
         The wheel names.
     """
@@ -100,7 +100,7 @@ def segment_frame(session: Session, run_ids: Sequence[int], seg_m: int = 10) -> 
     parts = []
     for code, wheel in enumerate(wheels):
         # numeric columns only, through the driver's cursor: a year of a long line is millions of rows
-        stmt = select(sc.run_id, sc.seg, sc.index, sc.speed_mean, sc.index_sd).where(
+        stmt = select(sc.run_id, sc.seg, sc.condition_index, sc.speed_mean, sc.condition_index_sd).where(
             sc.run_id.in_(ids), sc.seg_m == int(seg_m), sc.wheel == wheel)
         result = session.connection().execute(stmt)
         try:

@@ -49,12 +49,12 @@ from app.db import places as q
 from app.db.models import ConditionLine, ConditionRun, Job, PlaceRun, PlacesPending, utcnow
 from app.db.session import Database
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
+from app.places.index import method_version
 from app.places.update import (
     PlacesUpdate,
     PreparedRun,
     history_of,
     line_actions,
-    method_version,
     prepare_run,
     update_places,
 )

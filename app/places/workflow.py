@@ -3,7 +3,7 @@
 Any status can be set from any other (an engineer corrects a mistake the same way), always with a
 comment; each change is kept in the place's status history (who, when, old, new, comment) and in the
 audit log (``place.status``), in one transaction. The service sets statuses itself in two cases
-(:mod:`app.places.update`, recorded by ``trackvkf``): a maintenance action that repaired a place
+(:mod:`app.places.store`, recorded by ``trackvkf``): a maintenance action that repaired a place
 marks it ``fixed``; a place marked ``fixed`` that a later run finds again is reopened (``open``,
 event ``back``) with its history.
 """

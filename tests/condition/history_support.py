@@ -152,7 +152,7 @@ def stored_runs(database_url: str, spec: HistorySpec, *, margin_m: float = 50.0)
             runs = s.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(ConditionRun.line_key == line.id)
                              .order_by(ConditionRun.run_time)).all()
             for run_id, when in runs:
-                rows = pd.DataFrame(s.execute(select(SC.wheel, SC.seg, SC.index, SC.speed_mean, SC.index_sd)
+                rows = pd.DataFrame(s.execute(select(SC.wheel, SC.seg, SC.condition_index, SC.speed_mean, SC.condition_index_sd)
                                               .where(SC.run_id == run_id, SC.seg_m == 10)).all(),
                                     columns=["wheel", "seg", "index", "speed", "index_sd"])
                 seg = np.sort(rows.seg.unique())
@@ -191,7 +191,7 @@ def store_flags_without(db: Any, run_id: int, job_id: int, *, line_id: str, trac
     with db.read() as s:
         reference_crud.delete_reference(s, "maintenance", line_id, track)
         if not stated_sd:
-            s.execute(update(SC).values(index_sd=None))
+            s.execute(update(SC).values(condition_index_sd=None))
         rc = store_run_condition(s, run_id, job_id)
         flags = [(int(f.seg), int(f.direction), float(f.score)) for f in rc.flags if f.kind == "step" and f.seg_m == 10]
         z = [(int(a), str(b), c) for a, b, c in s.execute(select(SC.seg, SC.wheel, SC.change_z)
@@ -208,7 +208,7 @@ def places_without_sd(db: Any, run_id: int) -> list[tuple[float, float, int]]:
     from app.condition.writer import days_of
     from app.db import places as q
     from app.db.models import ConditionLine, ConditionRun, Job
-    from app.places.update import method_version, run_index
+    from app.places.index import method_version, run_index
 
     with db.read() as s:
         entry = s.get(ConditionRun, run_id)

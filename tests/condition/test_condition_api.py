@@ -25,7 +25,7 @@ def test_heatmap_runs_by_km_with_flags(fleet):
     r = fleet.client.get("/api/v1/condition/heatmap", params={"line_id": FLEET_LINE})
     assert r.status_code == 200, r.text
     hm = r.json()
-    assert hm["segment_m"] == 100 and hm["wheel"] is None and hm["index"] == "ln_amplitude"
+    assert hm["segment_m"] == 100 and hm["wheel"] is None and hm["condition_index"] == "ln_amplitude"
     assert len(hm["runs"]) == FLEET_RUNS and len(hm["km"]) == 40
     assert [x["start_time"] for x in hm["runs"]] == sorted(x["start_time"] for x in hm["runs"])
     assert all(len(row) == 40 for row in hm["matrix"])
@@ -49,8 +49,8 @@ def test_trend_of_a_segment_with_the_maintenance_action(fleet):
     assert len(t["points"]) == FLEET_RUNS
     assert [a["type"] for a in t["maintenance"]] == ["tamping"] and t["maintenance"][0]["date"] == "2025-03-31"
     p = t["points"]
-    before = sum(x["index"] for x in p[20:30]) / 10
-    after = sum(x["index"] for x in p[30:40]) / 10
+    before = sum(x["condition_index"] for x in p[20:30]) / 10
+    after = sum(x["condition_index"] for x in p[30:40]) / 10
     assert after - before == pytest.approx(math.log(0.85), abs=0.05)  # the recovery
     assert p[30]["flagged"] and len(p[30]["wheels"]) == 4
     w = p[30]["wheels"][0]
@@ -112,69 +112,12 @@ def test_bad_input_names_the_field(fleet, path, params, status, field):
     assert r.json()["field"] == field and r.json()["detail"].startswith(f"{field}: ")
 
 
-def test_hotspots_rank_the_planted_changes_and_filter(fleet):
-    r = fleet.client.get("/api/v1/condition/hotspots", params={"line_id": FLEET_LINE})
-    assert r.status_code == 200, r.text
-    hs = r.json()
-    items = hs["items"]
-    assert hs["total"] == len(items) > 0 and hs["segment_m"] == 10
-    assert [i["rank"] for i in items] == list(range(1, len(items) + 1))
-    prio = [i["priority"] for i in items]
-    assert prio == sorted(prio, reverse=True) and min(prio) >= 1.0
-    assert all(i["reasons"] for i in items)  # priority >= 1: some criterion beyond its threshold
-    # the step of day 45 (km 11.50-11.52, +20 %): by day 59 part of the history, its 100 m rises
-    step = [i for i in items if 11.5 <= i["km_from"] < 11.52]
-    assert step and all(i["direction"] == "up" and {"change", "trend"} & set(i["reasons"]) for i in step)
-    assert any(12.3 <= i["km_from"] < 12.7 and "trend" in i["reasons"] for i in items)
-    assert all(i["run_id"] == items[0]["run_id"] and i["map_url"] is None for i in items)  # fleet runs: no map
-    classes = {i["superstructure"] for i in items}
-    one = next(iter(classes))
-    only = fleet.client.get("/api/v1/condition/hotspots", params={"line_id": FLEET_LINE, "class": one}).json()
-    assert only["items"] and {i["superstructure"] for i in only["items"]} == {one}
-    part = fleet.client.get("/api/v1/condition/hotspots", params={
-        "line_id": FLEET_LINE, "km_from": 11.0, "km_to": 12.0, "limit": 3}).json()
-    assert len(part["items"]) <= 3 and all(11.0 <= i["km_from"] < 12.0 for i in part["items"])
-    every = fleet.client.get("/api/v1/condition/hotspots", params={"segment_m": 100, "min_priority": 0}).json()
-    assert {i["line_id"] for i in every["items"]} == {FLEET_LINE, "F2"}
-    bad = fleet.client.get("/api/v1/condition/hotspots", params={"km_from": 1.0})
-    assert bad.status_code == 422 and bad.json()["field"] == "line_id"
-
-
-def test_hotspot_exports_csv_and_geojson(fleet):
-    import csv
-    import io
-
-    from app.db import recorder_crud
-    from app.db.session import Database
-    from app.io.geometry import LineGeometry
-
-    params = {"line_id": FLEET_LINE, "limit": 20}
-    items = fleet.client.get("/api/v1/condition/hotspots", params=params).json()["items"]
-    r = fleet.client.get("/api/v1/condition/hotspots.csv", params=params)
-    assert r.status_code == 200 and r.headers["content-type"].startswith("text/csv")
-    rows = list(csv.DictReader(io.StringIO(r.text)))
-    assert [int(x["rank"]) for x in rows] == [i["rank"] for i in items]
-    assert {"line_id", "track", "km_from", "km_to", "priority", "reasons"} <= set(rows[0])
-    assert float(rows[0]["km_from"]) == pytest.approx(items[0]["km_from"])
-    g = fleet.client.get("/api/v1/condition/hotspots.geojson", params=params)
-    assert g.status_code == 200 and g.headers["content-type"].startswith("application/geo+json")
-    doc = g.json()
-    assert doc["type"] == "FeatureCollection" and len(doc["features"]) == len(items)
-    f0 = doc["features"][0]
-    assert f0["geometry"] is None  # no line geometry imported yet: linear referencing only
-    assert {"line_id", "track", "km_from", "km_to", "priority"} <= set(f0["properties"])
-    db = Database(fleet.database_url)  # now a geometry of line F1 (a straight line due east)
-    km = [10.0, 14.0]
-    with db.write() as s:
-        geometry = LineGeometry(FLEET_LINE, "1", np.array([11.0, 11.0 + 4 / 75.0]), np.array([48.0, 48.0]),
-                                np.array(km), "EPSG:4326")
-        recorder_crud.upsert_geometries(s, [geometry], by="tests")
-    db.dispose()
-    located = fleet.client.get("/api/v1/condition/hotspots.geojson", params=params).json()["features"][0]
-    coords = located["geometry"]["coordinates"]
-    assert located["geometry"]["type"] == "LineString" and len(coords) == 3
-    frac = (located["properties"]["km_from"] - 10.0) / 4.0
-    assert coords[0][0] == pytest.approx(11.0 + frac * 4 / 75.0, abs=2e-4) and coords[0][1] == pytest.approx(48.0)
+@pytest.mark.parametrize("path", ["hotspots", "hotspots.csv", "hotspots.geojson"])
+def test_the_retired_hotspot_list_answers_gone_naming_the_places(fleet, path):
+    r = fleet.client.get(f"/api/v1/condition/{path}", params={"line_id": FLEET_LINE})
+    assert r.status_code == 410, r.text
+    assert r.json()["field"] == "path" and "/api/v1/condition/places" in r.json()["detail"]
+    assert r.headers["link"] == '</api/v1/condition/places>; rel="alternate"'
 
 
 def test_maintenance_effect_of_the_planted_tamping(fleet):

@@ -152,33 +152,6 @@ def test_change_params_are_validated():
         ChangeParams(min_history=10, history_runs=5)
 
 
-def test_rank_segments_weighs_the_evidence_and_the_wheels():
-    from app.analysis.condition import rank_segments
-
-    rng = np.random.default_rng(7)
-    n = 200
-    seg = np.arange(n)
-    classes = np.where(seg < 100, "slab", "b91_pads")
-    level = np.where(seg < 100, 1.0, -0.2)
-    idx = level + rng.normal(0, 0.05, (4, n))
-    idx[:, 10] += 0.6  # a hard spot on every wheel: an anomaly against the slab segments
-    chg = rng.normal(0, 0.03, (4, n))
-    cz = rng.normal(0, 1, (4, n))
-    cz[:2, 150] = 8.0  # a change on two wheels
-    rate = np.zeros((4, n))
-    tz = rng.normal(0, 1, (4, n))
-    t = rank_segments(seg, classes, idx, chg, cz, rate, tz)
-    order = np.argsort(-t.priority)
-    assert set(order[:2]) == {10, 150}
-    assert t.reasons[10] == ("anomaly",) and t.direction[10] == 1 and t.agreeing[10] == 4
-    assert "change" in t.reasons[150] and t.agreeing[150] == 2
-    assert t.priority[10] == pytest.approx(abs(t.anomaly_z[10]) / 3.5 * 1.5)
-    assert np.all((t.priority >= 1) == np.array([bool(r) for r in t.reasons]))
-    assert abs(t.anomaly_z[120]) < 4  # the pads are judged against pads, not against slab
-    with pytest.raises(ValueError, match="classes"):
-        rank_segments(seg, classes[:5], idx, chg, cz, rate, tz)
-
-
 def test_action_effect_before_after_and_how_long_it_lasted():
     from app.analysis.condition.maintenance_effect import action_effect
 

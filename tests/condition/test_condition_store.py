@@ -32,7 +32,7 @@ def _rows(db, run_id: int, seg_m: int, wheel: str) -> list[SegmentCondition]:
 def test_publish_writes_segment_rows_of_every_wheel_and_length(any_db):
     _, tracks = _sim().run(0.0, 1)
     run_id, job_id, summary = publish_tracks(any_db, tracks, DAY0)
-    assert summary["stored"] and summary["index"] == "ln_amplitude"
+    assert summary["stored"] and summary["condition_index"] == "ln_amplitude"
     assert summary["shift_m"] == 0.0 and summary["history_runs"] == 0 and summary["flags"] == 0
     frame = profile_frame_of(tracks)
     w = frame[frame["wheel"] == "12"].sort_values("bin")
@@ -45,11 +45,11 @@ def test_publish_writes_segment_rows_of_every_wheel_and_length(any_db):
         r = rows[len(rows) // 2]
         inside = keep & (np.floor(pos / seg_m) == r.seg)
         assert r.n_valid == inside.sum() == seg_m * 4
-        assert r.index == pytest.approx(np.log(amp[inside]).mean(), rel=1e-5)  # single precision
+        assert r.condition_index == pytest.approx(np.log(amp[inside]).mean(), rel=1e-5)  # single precision
         assert r.amp_mean == pytest.approx(amp[inside].mean(), rel=1e-5)
         assert r.amp_p95 == pytest.approx(np.percentile(amp[inside], 95), rel=1e-5)
         assert r.speed_mean == pytest.approx(w["speed_mean"].to_numpy()[inside].mean(), rel=1e-5)
-        assert r.index_sd is None  # the rows state no 1-sigma: none known (not 0)
+        assert r.condition_index_sd is None  # the rows state no 1-sigma: none known (not 0)
         assert r.n_history == 0 and r.change_z is None
         assert min(x.seg for x in rows) * seg_m >= pos.min() + 50.0 - seg_m
     with any_db.read() as s:
@@ -118,8 +118,8 @@ def test_a_run_with_an_odometry_error_is_aligned_onto_the_line(db):
     assert summary["shift_confidence"] > 0.2
     first, second = _rows(db, 1, 10, "11"), _rows(db, run2, 10, "11")
     common = {r.seg for r in first} & {r.seg for r in second}
-    a = np.array([r.index for r in first if r.seg in common])
-    b = np.array([r.index for r in second if r.seg in common])
+    a = np.array([r.condition_index for r in first if r.seg in common])
+    b = np.array([r.condition_index for r in second if r.seg in common])
     assert np.corrcoef(a, b)[0, 1] > 0.9  # the same places on the ground
 
 
@@ -179,12 +179,12 @@ def test_stated_sd_is_stored_as_the_segments_index_sd(db):
     amp[(pos < pos.min() + 50.0) | (pos > pos.max() - 50.0)] = np.nan  # the run's ends are left out
     for seg_m in (10, 100):
         rows = _rows(db, run_id, seg_m, "11")
-        got = np.array([r.index_sd for r in rows], dtype=float)
+        got = np.array([r.condition_index_sd for r in rows], dtype=float)
         assert np.all(np.isfinite(got)) and np.all(got > 0)
         want = store_index_sd(pos, amp, w["sleeper_amp_sd"].to_numpy(), w["sleeper_amp_sd_shared"].to_numpy(),
                               np.array([r.seg for r in rows]), segment_m=seg_m, bin_length_m=0.25)
         np.testing.assert_allclose(got, want, rtol=1e-5)  # single precision
-    ten = np.array([r.index_sd for r in _rows(db, run_id, 10, "11")], dtype=float)
+    ten = np.array([r.condition_index_sd for r in _rows(db, run_id, 10, "11")], dtype=float)
     # half shared over ~20 m, half correlated over ~4 m: well below the bins' 0.4, well above 0.4/sqrt(40)
     assert 0.4 / np.sqrt(40) < np.median(ten) < 0.4
 

@@ -70,8 +70,9 @@ def test_stored_index_sd_is_the_profiles_stated_uncertainty(rough):
     spec, db, run_ids, jobs, _ = rough
     run_id, job_id = run_ids[3], jobs[3]["id"]
     with db.read() as s:
-        rows = s.execute(select(SC.wheel, SC.seg, SC.index_sd).where(SC.run_id == run_id, SC.seg_m == 10)).all()
-        assert rows and all(r.index_sd is not None and np.isfinite(r.index_sd) and r.index_sd > 0 for r in rows)
+        rows = s.execute(select(SC.wheel, SC.seg, SC.condition_index_sd).where(SC.run_id == run_id, SC.seg_m == 10)).all()
+        assert rows and all(r.condition_index_sd is not None and np.isfinite(r.condition_index_sd)
+                        and r.condition_index_sd > 0 for r in rows)
         bl = results_reader.job_bin_length(s, job_id)
         bins = _job_bins(s, job_id, None)["11"]
         shift = s.get(ConditionRun, run_id).shift_m
@@ -80,7 +81,7 @@ def test_stored_index_sd_is_the_profiles_stated_uncertainty(rough):
 
     amp = _valid(bins, bl, DEFAULT_CONDITION_CONFIG)
     pos = (bins.bins + 0.5) * bl + shift
-    mine = sorted((r.seg, r.index_sd) for r in rows if r.wheel == "11")
+    mine = sorted((r.seg, r.condition_index_sd) for r in rows if r.wheel == "11")
     want = store_index_sd(pos, amp, bins.sd, bins.sd_shared, np.array([m[0] for m in mine]), segment_m=10.0,
                           bin_length_m=bl, resolution_m=res, filter_order=q)
     np.testing.assert_allclose([m[1] for m in mine], want, rtol=1e-5)

@@ -179,7 +179,10 @@ def test_an_engineer_changes_a_status_with_a_comment(engineer_page):
     page, log = engineer_page
     _open(page)
     pid = page.get_attribute("#places-body tr[data-place]", "data-place")
-    page.click(f"#places-body tr[data-place='{pid}'] button[data-act='history']")
+    # the page may show this place already (its first draw, done when the page is ready): the click's own
+    # draw (the place, then its trend) must land before the form is filled, or it resets the status chosen
+    with page.expect_response(lambda r: "/api/v1/condition/trend" in r.url):
+        page.click(f"#places-body tr[data-place='{pid}'] button[data-act='history']")
     page.wait_for_function(f"() => document.getElementById('place-title').textContent.startsWith('Place {pid}')")
     assert page.locator("#status-form").is_visible() and page.locator("#status-readonly").is_hidden()
     # without a comment: the page says so and sends nothing

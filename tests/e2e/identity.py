@@ -36,6 +36,7 @@ VOLATILE_KEYS = frozenset({
     "created_at", "started_at", "finished_at", "heartbeat_at", "computed_at", "compute_s", "published_at",
     "assemble_s", "store_s", "worker_id", "imported_at", "updated_at", "last_used_at", "next_attempt_at",
     "locked_until", "last_attempt_at", "delivered_at", "secret", "key_hash", "expires_at",
+    "places_updated_at", "status_at",
 })
 #: environment variable naming a directory to write the canonical answers into
 DUMP_ENV = "TRACKVKF_IDENTITY_DUMP"

@@ -158,8 +158,8 @@ def _answers(p: Processed, fp: Fingerprint) -> None:
         ("condition-heatmap", "/condition/heatmap", {**line}),
         ("condition-heatmap-10m-wheel", "/condition/heatmap", {**line, "segment_m": 10, "wheel": "11",
                                                                "km_from": 12.2, "km_to": 12.9}),
-        ("condition-hotspots", "/condition/hotspots", {**line, "segment_m": 10, "limit": 50}),
-        ("condition-hotspots-100m-all", "/condition/hotspots", {"segment_m": 100, "min_priority": 0}),
+        ("condition-places", "/condition/places", {"include_closed": "true"}),
+        ("condition-sections", "/condition/sections", {**line}),
         ("condition-trend", "/condition/trend", {**line, "km": 12.5, "segment_m": 10}),
         ("condition-trend-100m", "/condition/trend", {**line, "km": 12.55, "segment_m": 100}),
         ("condition-maintenance-effect", "/condition/maintenance-effect", {**line}),
@@ -209,11 +209,11 @@ def _answers(p: Processed, fp: Fingerprint) -> None:
         (f"run-{sim}-profile-csv", f"/runs/{sim}/profile.csv", {}),
         (f"run-{sim}-profile-csv-10m-index", f"/runs/{sim}/profile.csv", {"wheel": "12", "level": 10, "index": "true"}),
         (f"run-{simb}-profile-csv-11", f"/runs/{simb}/profile.csv", {"wheel": "11"}),
-        ("condition-hotspots-csv", "/condition/hotspots.csv", {**line, "segment_m": 10, "limit": 10000}),
+        ("condition-places-csv", "/condition/places.csv", {**line, "include_closed": "true"}),
     ]
     for name, path, params in csv_gets:
         fp.add(f"api/{name}", csv_rows(p.get(path, **params).text))
-    fp.add("api/condition-hotspots-geojson", p.get("/condition/hotspots.geojson", **line, segment_m=10).json())
+    fp.add("api/condition-places-geojson", p.get("/condition/places.geojson", **line, include_closed="true").json())
 
 
 def test_processed_demo_identical_to_golden(processed: Processed) -> None:

@@ -150,7 +150,7 @@ def test_another_method_version_does_not_read_as_a_change_of_the_track(places_fl
     with db.write() as s:
         s.execute(update(SegmentCondition).where(SegmentCondition.run_id.in_(nxt), SegmentCondition.seg_m == 10,
                                                  SegmentCondition.seg >= lo, SegmentCondition.seg < hi)
-                  .values(index=SegmentCondition.index + 0.15))
+                  .values(condition_index=SegmentCondition.condition_index + 0.15))
     from app.db.models import ConditionLine, Place
 
     def places_there(version_of) -> list:
@@ -170,7 +170,7 @@ def test_another_method_version_does_not_read_as_a_change_of_the_track(places_fl
     with db.write() as s:  # undo
         s.execute(update(SegmentCondition).where(SegmentCondition.run_id.in_(nxt), SegmentCondition.seg_m == 10,
                                                  SegmentCondition.seg >= lo, SegmentCondition.seg < hi)
-                  .values(index=SegmentCondition.index - 0.15))
+                  .values(condition_index=SegmentCondition.condition_index - 0.15))
 
 
 def test_alerts_only_for_new_places_and_tier_changes_and_a_fixed_place_back(places_fleet):
@@ -212,7 +212,7 @@ def test_alerts_only_for_new_places_and_tier_changes_and_a_fixed_place_back(plac
 
 def test_run_segment_index_is_what_the_places_are_graded_on(places_fleet):
     from app.db.models import ConditionLine, Place
-    from app.places.update import run_segment_index
+    from app.places.index import run_segment_index
 
     db = places_fleet.db
     with db.read() as s:

@@ -1,10 +1,11 @@
 """Track condition over time (pure numpy): segment statistics of a run, change detection
-against a segment's history, hotspot ranking and the effect of maintenance actions.
+against a segment's history, the places (where to act) and the effect of maintenance actions.
 
 Modules: :mod:`segments` (25 cm bins → 10 m / 100 m segment rows), :mod:`change`
 (step and trend tests against the repeatability of the history), :mod:`assess` (a run's
 tests per wheel and its flags per place; the in-memory history of generated runs),
-:mod:`hotspots` (segments ranked by where to act first), :mod:`index` (the condition index ln A).
+:mod:`index` (the condition index ln A); where to act: :mod:`run_places`, :mod:`lifecycle`, :mod:`tiers`
+and their kin (the places, served by :mod:`app.places`).
 """
 
 from app.analysis.condition.assess import (
@@ -33,7 +34,6 @@ from app.analysis.condition.change import (
     step_change,
     trend_change,
 )
-from app.analysis.condition.hotspots import DEFAULT_ANOMALY_Z, HotspotTable, rank_segments
 from app.analysis.condition.segments import (
     FINE_SEGMENT_M,
     OVERVIEW_SEGMENT_M,
@@ -70,7 +70,4 @@ __all__ = [
     "RollingHistory",
     "RunAssessment",
     "assess_run",
-    "DEFAULT_ANOMALY_Z",
-    "HotspotTable",
-    "rank_segments",
 ]

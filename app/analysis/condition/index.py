@@ -35,8 +35,8 @@ from app.analysis.uncertainty import segment_sd
 
 __all__ = ["LOG_AMPLITUDE_INDEX", "log_amplitude_index", "log_amplitude_segment_sd"]
 
-#: Name of the condition index in the provenance of stored rows (``meta["condition"]["index"]``,
-#: the heat map's ``index``).
+#: Name of the condition index in the provenance of stored rows (``meta["condition"]["condition_index"]``,
+#: the heat map's ``condition_index``).
 LOG_AMPLITUDE_INDEX = "ln_amplitude"
 
 

@@ -1,9 +1,10 @@
 """Schemas of the condition endpoints (index in natural-log units, km in km, speeds in km/h).
 
-``index`` in these answers is the store's **condition index**, ``ln(A / 1 m/s²)`` of the
+``condition_index`` in these answers is the store's **condition index**, ``ln(A / 1 m/s²)`` of the
 sleeper-passage amplitude, compared at matched speed (the heat map names it: ``"ln_amplitude"``);
 it is not the **stiffness index** ``ln(A / A_ref(class, v))`` of the profiles (``stiffness_index``
-with ``index=true``) and the analytics (``value=index``). The key stays ``index`` for integrations.
+with ``index=true``), the analytics (``value=index``) and the places. Until issue 31 these keys were
+``index`` (docs/api.md, "Renamed").
 """
 
 from __future__ import annotations
@@ -22,8 +23,6 @@ __all__ = [
     "FlagOut",
     "ChangesOut",
     "FlagFeedOut",
-    "HotspotOut",
-    "HotspotsOut",
 ]
 
 
@@ -56,18 +55,18 @@ class HeatmapOut(BaseModel):
     track: str
     segment_m: int
     wheel: str | None = Field(description="null: mean over the wheels")
-    index: str = Field(description="which index the values are (provenance): \"ln_amplitude\", the condition "
-                       "index ln(A / 1 m/s²) compared at matched speed")
+    condition_index: str = Field(description="which index the values are (provenance): \"ln_amplitude\", the "
+                                 "condition index ln(A / 1 m/s²) compared at matched speed")
     km: list[float] = Field(description="segment starts, km")
     runs: list[HeatmapRun]
-    matrix: list[list[float | None]] = Field(description="index per run (row, oldest first) and segment")
+    matrix: list[list[float | None]] = Field(description="condition index per run (row, oldest first) and segment")
     flagged: list[list[int]] = Field(description="[row, column] of cells holding a flag of the run")
 
 
 class TrendWheel(BaseModel):
     wheel: str
-    index: float
-    index_sd: float | None = Field(description="stated 1-σ of the index from the profile's sleeper_amp_sd "
+    condition_index: float = Field(description="ln A of the wheel over the segment (log units)")
+    condition_index_sd: float | None = Field(description="stated 1-σ of the condition index from the profile's sleeper_amp_sd "
                                    "(roughness, noise, too few sleeper bays; log units); null: none stated")
     amp_mean: float = Field(description="m/s²")
     amp_p95: float = Field(description="m/s²")
@@ -83,7 +82,7 @@ class TrendWheel(BaseModel):
 class TrendPoint(BaseModel):
     run_id: int
     start_time: str
-    index: float | None = Field(description="mean over the wheels")
+    condition_index: float | None = Field(description="mean over the wheels")
     relative: float | None = Field(description="index minus the run's mean over the surrounding ±1 km (log units)")
     flagged: bool
     wheels: list[TrendWheel]
@@ -140,39 +139,6 @@ class FlagFeedOut(BaseModel):
     next_since: int = Field(description="pass as since= to get the flags after these")
 
 
-class HotspotOut(BaseModel):
-    rank: int
-    line_id: str
-    track: str
-    km_from: float
-    km_to: float
-    segment_m: int
-    superstructure: str = Field(description="class of the segment ('' outside the imported sections)")
-    index: float | None = Field(description="mean over the wheels (log units)")
-    anomaly_z: float | None = Field(description="robust z against the segments of its class")
-    change: float | None = Field(description="newest run against the history (log units)")
-    change_pct: float | None
-    change_z: float | None = Field(description="step score, wheels combined")
-    rate_per_year: float | None = Field(description="trend, log units per year")
-    rate_pct_per_year: float | None
-    trend_z: float | None = Field(description="trend score, wheels combined")
-    wheels_agreeing: int
-    n_wheels: int
-    priority: float = Field(description=">= 1: at least one criterion beyond its threshold")
-    direction: str = Field(description="up (stiffer / higher amplitude) or down")
-    reasons: list[str]
-    run_id: int = Field(description="the run the evidence comes from (the line's newest)")
-    run_time: str
-    map_url: str | None = Field(description="the stiffness map of the line's newest run with 25 cm rows there")
-
-
-class HotspotsOut(BaseModel):
-    segment_m: int
-    min_priority: float
-    total: int = Field(description="segments matching the filters (before limit)")
-    items: list[HotspotOut]
-
-
 class EffectOut(BaseModel):
     action_id: int
     line_id: str
@@ -184,9 +150,9 @@ class EffectOut(BaseModel):
     n_runs: int = Field(description="runs of the line over the action's extent (0: no before/after view)")
     n_runs_before: int
     n_runs_after: int
-    index_before: float | None = Field(description="median index over the extent before, relative to the "
-                                                   "surrounding track of each run (log units)")
-    index_after: float | None = Field(description="the same just after")
+    condition_index_before: float | None = Field(description="median condition index over the extent before, "
+                                                             "relative to the surrounding track of each run (log units)")
+    condition_index_after: float | None = Field(description="the same just after")
     recovery: float | None = Field(description="after minus before (negative: lower index, e.g. amplitude)")
     recovery_pct: float | None = Field(description="the recovery as a percentage of the amplitude")
     slope_after_per_year: float | None = Field(description="index change per year after the action")
@@ -202,7 +168,7 @@ class EffectsOut(BaseModel):
 class SeriesPoint(BaseModel):
     run_id: int
     start_time: str
-    index: float
+    condition_index: float = Field(description="over the extent, relative to its surroundings (log units)")
 
 
 class EffectDetailOut(EffectOut):

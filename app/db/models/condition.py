@@ -117,8 +117,8 @@ class SegmentCondition(Base):
     amp_mean: Mapped[float] = mapped_column(REAL)
     amp_p95: Mapped[float] = mapped_column(REAL)
     speed_mean: Mapped[float] = mapped_column(REAL)
-    index: Mapped[float] = mapped_column(REAL)
-    index_sd: Mapped[float | None] = mapped_column(REAL)
+    condition_index: Mapped[float] = mapped_column(REAL)
+    condition_index_sd: Mapped[float | None] = mapped_column(REAL)
     n_history: Mapped[int] = mapped_column(SmallInteger, default=0)
     baseline: Mapped[float | None] = mapped_column(REAL)
     change: Mapped[float | None] = mapped_column(REAL)
@@ -130,7 +130,7 @@ class SegmentCondition(Base):
 class ConditionOverview(Base):
     """A run's 100 m segment as the line overview (heat map runs × km) shows it.
 
-    ``index`` is the mean of the wheels' 100 m index, ``flagged`` whether any
+    ``condition_index`` is the mean of the wheels' 100 m index, ``flagged`` whether any
     flag of the run (10 m or 100 m) lies in the segment: the heat map of a
     year of daily runs reads these ~500 rows per 50 km run instead of
     averaging four times as many segment rows.
@@ -141,7 +141,7 @@ class ConditionOverview(Base):
     run_id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
     seg: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
     line_key: Mapped[int] = mapped_column(Integer)
-    index: Mapped[float] = mapped_column(REAL)
+    condition_index: Mapped[float] = mapped_column(REAL)
     n_wheels: Mapped[int] = mapped_column(SmallInteger)
     flagged: Mapped[bool] = mapped_column(Boolean, default=False)
 

@@ -266,7 +266,7 @@
     const x = t.points.map((p) => p.start_time);
     const traces = T.WHEELS.map((w) => ({
       type: "scatter", mode: "lines", name: T.wheelLabel(w), x, line: { color: T.wheelColor(w), width: 1 }, opacity: 0.55,
-      y: t.points.map((p) => { const r = p.wheels.find((q) => q.wheel === w); return r ? r.index : null; }),
+      y: t.points.map((p) => { const r = p.wheels.find((q) => q.wheel === w); return r ? r.condition_index : null; }),
       hovertemplate: `${T.wheelLabel(w)} %{x|%Y-%m-%d}: %{y:.3f}<extra></extra>`,
     })).filter((tr) => tr.y.some((v) => v !== null));
     traces.push({ type: "scatter", mode: "lines+markers", name: "relative to the surrounding ±1 km (right axis)", x, yaxis: "y2",
@@ -280,14 +280,14 @@
     const annotations = t.maintenance.map((m) => ({ x: m.date, y: 1, xref: "x", yref: "paper", yanchor: "bottom", showarrow: false,
       text: m.type, font: { size: 11, color: "#2e7d32" } }));
     await T.plot(el, traces, {
-      xaxis: T.axis("Run date", { type: "date" }), yaxis: T.axis(indexLabel(heat ? heat.index : "ln_amplitude")),
+      xaxis: T.axis("Run date", { type: "date" }), yaxis: T.axis(indexLabel(heat ? heat.condition_index : "ln_amplitude")),
       yaxis2: T.axis("Relative to the surroundings (log units)", { overlaying: "y", side: "right", showgrid: false }),
       shapes, annotations, margin: { l: 80, r: 80, t: 30, b: 55 },
     }, {
       filename: `condition-trend-km${t.segment_km[0].toFixed(3)}`,
       csv: () => {
         const rows = [];
-        for (const p of t.points) for (const w of p.wheels) rows.push([p.run_id, p.start_time, t.segment_km[0], t.segment_km[1], w.wheel, w.index, p.relative, w.amp_mean, w.speed_kmh, w.change_z, p.flagged ? 1 : 0]);
+        for (const p of t.points) for (const w of p.wheels) rows.push([p.run_id, p.start_time, t.segment_km[0], t.segment_km[1], w.wheel, w.condition_index, p.relative, w.amp_mean, w.speed_kmh, w.change_z, p.flagged ? 1 : 0]);
         return { columns: ["run_id", "start_time", "km_from", "km_to", "wheel", "index", "relative_mean", "amp_mean_mps2", "speed_kmh", "change_z", "flagged"], rows };
       },
     });
@@ -328,7 +328,7 @@
     const traces = [
       { type: "scatter", mode: "lines", name: `before (${e.n_runs_before} runs)`, x: xs, y: e.profile_before, line: { color: "#c62828", width: 2 } },
       { type: "scatter", mode: "lines", name: `after (${e.n_runs_after} runs)`, x: xs, y: e.profile_after, line: { color: "#1565c0", width: 2 } },
-      { type: "scatter", mode: "markers", name: "per run", x: e.series.map((p) => p.start_time), y: e.series.map((p) => p.index),
+      { type: "scatter", mode: "markers", name: "per run", x: e.series.map((p) => p.start_time), y: e.series.map((p) => p.condition_index),
         xaxis: "x2", yaxis: "y2", marker: { size: 4, color: "#5d6b7a" } },
     ];
     await T.plot(el, traces, {

@@ -3,7 +3,7 @@ class A … E from the speed-conditioned stiffness index of the store's 10 m row
 run and for the newest run at least a year before it, with the length per class.
 
 The index is ``ln(A / A_ref(class, v))`` per 10 m segment, mean over the wheels, exactly as the
-places use it (:func:`app.places.update.run_segment_index`: the curves of the run's method-version
+places use it (:func:`app.places.index.run_segment_index`: the curves of the run's method-version
 history; docs/places.md); the classes come from
 :func:`app.analysis.condition.section_class.section_classes` with ``TRACKVKF_PLACES_SECTION_M`` and
 ``TRACKVKF_PLACES_SECTION_LIMITS``.
@@ -28,7 +28,7 @@ from app.condition.lines import resolve_line
 from app.db.models import ConditionLine, ConditionRun
 from app.db.session import Database
 from app.places.config import PlacesConfig
-from app.places.update import SEGMENT_M, run_segment_index
+from app.places.index import SEGMENT_M, run_segment_index
 
 __all__ = ["SEGMENT_M", "line_sections", "section_limits"]
 

@@ -1,0 +1,197 @@
+"""The index the places are graded on: ``ln(A / A_ref(class, v))`` of a run and of its history.
+
+From the condition store's 10 m rows (the store keeps the condition index ``ln A`` at matched speed,
+:mod:`app.condition.index`), with the line's reference curves fitted on those rows
+(:func:`~app.analysis.condition.segment_curves.fit_segment_curves`) and each segment's superstructure
+class: :func:`run_index` (a run and its history, wheels × segments: what the places are found on),
+:func:`run_segment_index` (per segment, mean over the wheels: what the section classes are read from).
+
+Places compare only within one **method version** (:func:`method_version`: the engine and the job's
+processing settings): the history a run's tests see, and the curves of its index, are the store's
+rows of earlier runs processed the same way (docs/places.md, "Method version").
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.analysis.condition.run_places import segment_index
+from app.analysis.condition.segment_curves import fit_segment_curves
+from app.analysis.stiffness.superstructure import section_classes
+from app.condition.writer import days_of
+from app.db import places as q
+from app.db import reference_crud
+from app.db.models import ConditionLine, ConditionRun
+from app.pipeline.assemble import ENGINE_VERSION
+from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
+
+__all__ = ["SEGMENT_M", "RunIndex", "method_version", "mean_over_wheels", "run_index", "run_segment_index"]
+
+#: The store's segment length the places are found on, m.
+SEGMENT_M = 10
+
+
+def method_version(job_settings: dict[str, Any] | None) -> str:
+    """The version of the method a run's condition rows come from: the engine and a digest of the job's
+    processing settings (the recipe), e.g. ``trackvkf-pipeline/3+1a2b3c4d5e6f``."""
+    blob = json.dumps(job_settings or {}, sort_keys=True, separators=(",", ":"), default=str)
+    return f"{ENGINE_VERSION}+{hashlib.sha256(blob.encode()).hexdigest()[:12]}"
+
+
+def _classes(session: Session, line: ConditionLine, seg: np.ndarray, margin_m: float) -> np.ndarray:
+    sections = reference_crud.reference_frame(session, "superstructure", line_id=line.line_id, track=line.track)
+    return section_classes((seg + 0.5) * SEGMENT_M, sections["km_from"].to_numpy(dtype=float) * 1000.0,
+                           sections["km_to"].to_numpy(dtype=float) * 1000.0,
+                           sections["type"].to_numpy(dtype=object), boundary_margin_m=margin_m)
+
+
+def _grids(values: np.ndarray, wheels: list[str], run_ids: list[int]):
+    """Per run: (segments, wheel names, ln A, speed, stated 1-σ of ln A) as wheels × segments arrays."""
+    order = np.argsort(values[:, 0], kind="stable")
+    v_sorted = values[order]
+    bounds = np.searchsorted(v_sorted[:, 0], np.asarray(run_ids, dtype=np.float64), side="left")
+    ends = np.searchsorted(v_sorted[:, 0], np.asarray(run_ids, dtype=np.float64), side="right")
+    out = {}
+    for rid, a, b in zip(run_ids, bounds, ends, strict=True):
+        part = v_sorted[a:b]
+        seg = np.unique(part[:, 2].astype(np.int64))
+        codes = np.unique(part[:, 1].astype(np.int64))
+        la = np.full((codes.size, seg.size), np.nan)
+        v = np.full_like(la, np.nan)
+        sd = np.full_like(la, np.nan)
+        i = np.searchsorted(codes, part[:, 1].astype(np.int64))
+        j = np.searchsorted(seg, part[:, 2].astype(np.int64))
+        la[i, j], v[i, j], sd[i, j] = part[:, 3], part[:, 4], part[:, 5]
+        out[rid] = (seg, [wheels[c] for c in codes], la, v, sd)
+    return out
+
+
+def _on(src, seg: np.ndarray, wheels: list[str], values: np.ndarray) -> np.ndarray:
+    """An earlier run's per-wheel values on this run's segments and wheels (NaN where it has none)."""
+    s_seg, s_wheels = src[0], src[1]
+    out = np.full((len(wheels), seg.size), np.nan)
+    if s_seg.size == 0:
+        return out
+    j = np.minimum(np.searchsorted(s_seg, seg), s_seg.size - 1)
+    hit = s_seg[j] == seg
+    for i, w in enumerate(wheels):
+        if w in s_wheels:
+            out[i, hit] = values[s_wheels.index(w), j[hit]]
+    return out
+
+
+@dataclass(frozen=True)
+class RunIndex:
+    """The speed-conditioned index of a run and of its history on the run's segments and wheels.
+
+    Attributes
+    ----------
+    seg : numpy.ndarray
+        int64 segment numbers (``SEGMENT_M`` m each) of the run.
+    wheels : list of str
+        Wheel of each row.
+    index : numpy.ndarray
+        (wheels, segments) ``ln(A / A_ref(class, v))`` (NaN: none).
+    speed : numpy.ndarray
+        (wheels, segments) speed, m/s.
+    history : numpy.ndarray
+        (wheels, segments, runs) the index of the history runs, oldest first.
+    history_days : numpy.ndarray
+        Days (since 1970) of the history runs.
+    classes : numpy.ndarray
+        Superstructure class of each segment (None near a change of class).
+    index_sd, history_sd : numpy.ndarray
+        The stated 1-σ of ``index`` and ``history`` (the store's ``index_sd``; NaN: none).
+    """
+
+    seg: np.ndarray
+    wheels: list[str]
+    index: np.ndarray
+    speed: np.ndarray
+    history: np.ndarray
+    history_days: np.ndarray
+    classes: np.ndarray
+    index_sd: np.ndarray | None = None
+    history_sd: np.ndarray | None = None
+
+    @property
+    def mean_index(self) -> np.ndarray:
+        """The index per segment, mean over the wheels (what a place is graded on)."""
+        return mean_over_wheels(self.index)
+
+
+def mean_over_wheels(a: np.ndarray) -> np.ndarray:
+    """Mean over axis 0 (the wheels) of the finite values (NaN where there is none)."""
+    ok = np.isfinite(a)
+    n = ok.sum(axis=0)
+    return np.where(n > 0, np.where(ok, a, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
+
+
+def run_index(session: Session, line: ConditionLine, run_id: int, history: list[tuple[int, dt.datetime]], *,
+              config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> RunIndex | None:
+    """The index of a run and of ``history`` (run id, time; oldest first) from the store's 10 m rows, with
+    the line's reference curves fitted on those rows (None: the run has no 10 m rows)."""
+    run_ids = [r for r, _ in history] + [run_id]
+    values, wheel_names = q.segment_frame(session, run_ids, SEGMENT_M)
+    grids = _grids(values, wheel_names, run_ids)
+    seg, wheels, la, v, la_sd = grids[run_id]
+    if seg.size == 0:
+        return None
+    all_seg = np.unique(values[:, 2].astype(np.int64))
+    all_cls = _classes(session, line, all_seg, config.section_margin_m)
+    cls_of = dict(zip(all_seg.tolist(), all_cls.tolist(), strict=True))
+    row_cls = np.asarray(all_cls, dtype=object)[np.searchsorted(all_seg, values[:, 2].astype(np.int64))]
+    # the curves from the run and its newest history runs (``curve_runs``: enough passes over the ±10 %
+    # speed spread of a fleet; fitting a long history costs seconds a run and changes the curve little)
+    fit = np.isin(values[:, 0], [r for r, _ in history[-config.curve_runs:]] + [run_id]) \
+        if len(history) > config.curve_runs else np.ones(values.shape[0], dtype=bool)
+    wheel_of = np.array(wheel_names, dtype=object)
+    curves = fit_segment_curves(values[fit, 2].astype(np.int64), values[fit, 3], values[fit, 4], values[fit, 0],
+                                wheel_of[values[fit, 1].astype(np.int64)], row_cls[fit],
+                                min_locations=config.curve_min_locations)
+    classes = np.array([cls_of[int(s)] for s in seg.tolist()], dtype=object)
+    idx = segment_index(la, v, classes, curves)
+    hist = [_on(grids[r], seg, wheels, segment_index(grids[r][2], grids[r][3],
+                                                     np.array([cls_of[int(s)] for s in grids[r][0].tolist()],
+                                                              dtype=object), curves))
+            for r, _ in history]
+    hist_sd = [_on(grids[r], seg, wheels, grids[r][4]) for r, _ in history]
+    return RunIndex(seg=seg, wheels=wheels, index=idx, speed=v,
+                    history=np.stack(hist, axis=2) if hist else np.zeros((*idx.shape, 0)),
+                    history_days=np.array([days_of(t) for _, t in history], dtype=np.float64), classes=classes,
+                    index_sd=la_sd, history_sd=np.stack(hist_sd, axis=2) if hist_sd else np.zeros((*idx.shape, 0)))
+
+
+def run_segment_index(session: Session, line: ConditionLine, run_id: int, *,
+                      config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> tuple[np.ndarray, np.ndarray]:
+    """The speed-conditioned index per 10 m segment of a run (mean over the wheels) as the places use it:
+    segment numbers (int64) and the index (NaN: none).
+
+    A run applied to its line's places: the curves of its method version's history, exactly as the places
+    were found on it. Another run: the curves of the line's most recent runs up to it (``history_runs``).
+    """
+    when = q.run_time(session, run_id)
+    if when is None:
+        return np.zeros(0, np.int64), np.zeros(0)
+    applied = q.applied_run(session, run_id)
+    if applied is not None:
+        history = q.history_runs(session, line.id, when, applied.method_version,
+                                 scan_runs=max(config.place.history_runs, 60),
+                                 window_days=config.place.trend_window_days)
+    else:
+        rows = session.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(
+            ConditionRun.line_key == line.id, ConditionRun.run_time < when)
+            .order_by(ConditionRun.run_time.desc()).limit(config.place.history_runs)).all()
+        history = sorted(((int(r), t) for r, t in rows), key=lambda x: (x[1], x[0]))
+    ri = run_index(session, line, run_id, history, config=config)
+    if ri is None:
+        return np.zeros(0, np.int64), np.zeros(0)
+    return ri.seg, ri.mean_index
