@@ -47,7 +47,7 @@ from sqlalchemy import select
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.analysis.condition.change import combine_wheels, robust_spread  # noqa: E402
+from app.analysis.condition.change import combine_wheels  # noqa: E402
 from app.analysis.condition.extent_level import extent_level  # noqa: E402
 from app.analysis.condition.lifecycle import (  # noqa: E402
     Action,
@@ -70,6 +70,7 @@ from app.analysis.condition.run_places import (  # noqa: E402
 from app.analysis.condition.section_class import DEFAULT_SECTION_LIMITS, section_classes  # noqa: E402
 from app.analysis.condition.segment_curves import fit_segment_curves  # noqa: E402
 from app.analysis.condition.tiers import TierLimits, TierTable, rank_places  # noqa: E402
+from app.analysis.robust import robust_spread  # noqa: E402
 from app.analysis.stiffness.reference_curve import fit_reference_from_rows  # noqa: E402
 from app.analysis.stiffness.superstructure import section_classes as superstructure_classes  # noqa: E402
 from app.simulate.history import HistorySpec, TruthPlace, planted_history, uniform_history  # noqa: E402

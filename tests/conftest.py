@@ -124,3 +124,21 @@ def demo_data(tmp_path_factory):
     from app.simulate.demo import write_demo_dataset
 
     return write_demo_dataset(tmp_path_factory.mktemp("demo"), length_km=DEMO_LENGTH_KM, fs=DEMO_FS)
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[object]:
+    """Headless Debian chromium driven by Playwright (no Playwright browser download): one for the
+    whole session, shared by every browser test (a second Playwright in the same thread would
+    refuse to start while the first runs)."""
+    from playwright.sync_api import sync_playwright
+
+    from tests.dashboard.conftest import CHROMIUM, CHROMIUM_ARGS, _install_chromium
+
+    _install_chromium()
+    with sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            yield b
+        finally:
+            b.close()

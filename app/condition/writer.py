@@ -53,7 +53,7 @@ from app.analysis.condition import (
     assess_run,
     segment_stats,
 )
-from app.analysis.condition.change import RAIL_SURFACE_ACTIONS, intervention_margin_m
+from app.analysis.condition.interventions import RAIL_SURFACE_ACTIONS, intervention_margin_m
 from app.analysis.impacts.mask import DEFAULT_RATIO, impact_mask, mask_half_width
 from app.analysis.stiffness.alignment import align_runs
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
@@ -151,7 +151,7 @@ def _job_bins(session: Session, job_id: int, profiles: pd.DataFrame | None) -> d
 
 def rail_surface_interventions(session: Session, line_id: str, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The line's imported maintenance actions that change the rails' surface (grinding, rail renewal:
-    :data:`~app.analysis.condition.change.RAIL_SURFACE_ACTIONS`) as ``(start_m, end_m, day)`` arrays
+    :data:`~app.analysis.condition.interventions.RAIL_SURFACE_ACTIONS`) as ``(start_m, end_m, day)`` arrays
     (m on the km axis, days since 1970)."""
     frame = reference_crud.reference_frame(session, "maintenance", line_id=line_id, track=track,
                                            types=list(RAIL_SURFACE_ACTIONS))

@@ -40,7 +40,7 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
-from app.analysis.condition.change import surface_change_days
+from app.analysis.condition.interventions import surface_change_days
 from app.analysis.condition.lifecycle import Action, advance_places
 from app.analysis.condition.run_places import find_places
 from app.condition.writer import days_of, rail_surface_interventions

@@ -116,20 +116,6 @@ def dashboard(tmp_path_factory, demo_data) -> Iterator[Dashboard]:
 
 
 @pytest.fixture(scope="session")
-def browser() -> Iterator[object]:
-    """Headless Debian chromium driven by Playwright (no Playwright browser download)."""
-    _install_chromium()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
-
-
-@pytest.fixture(scope="session")
 def login_state(browser, dashboard) -> dict:
     """Cookies of a browser session logged in as the engineer (one login for all tests)."""
     ctx = browser.new_context(base_url=dashboard.base_url)

@@ -27,7 +27,6 @@ import httpx
 import pytest
 from authlib.oauth2.rfc7636 import create_s256_code_challenge
 
-from tests.dashboard.conftest import browser  # noqa: F401 - the session's Chromium, for the browser tests
 from tests.e2e.conftest import Service, running_service
 from tests.oidc.provider import OpenIDProvider, ProviderUser
 

@@ -37,8 +37,8 @@ from app.analysis.condition.change import (
     WheelChange,
     combine_wheels,
     detect_changes,
-    surface_change_days,
 )
+from app.analysis.condition.interventions import surface_change_days
 from app.analysis.condition.segments import SegmentStats
 
 __all__ = [
@@ -208,10 +208,10 @@ def assess_run(
         Segment length the trend test runs on.
     interventions : tuple of numpy.ndarray, optional
         ``(start_m, end_m, day)`` of the line's rail-surface interventions (grinding, rail renewal) on
-        the run's km axis and time axis (:func:`~app.analysis.condition.change.surface_change_days`).
+        the run's km axis and time axis (:func:`~app.analysis.condition.interventions.surface_change_days`).
     intervention_margin_m : float, optional
         Their extents widened by this much, m (default
-        :func:`~app.analysis.condition.change.intervention_margin_m` at 3 m resolution).
+        :func:`~app.analysis.condition.interventions.intervention_margin_m` at 3 m resolution).
 
     Returns
     -------

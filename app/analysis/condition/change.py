@@ -6,7 +6,8 @@ speed-matched value of that run):
 **Step** (:func:`step_change`) — a sudden change (a new soft spot, a broken
 support, a repair). The baseline is the median of the segment's history, the
 repeatability its robust spread ``1.4826 · MAD`` (consistent with σ for normal
-noise, with a small-sample correction, and never below ``min_spread``). The
+noise, with a small-sample correction, and never below ``min_spread``:
+:func:`app.analysis.robust.robust_spread`). The
 score
 
     z = (x − median) / (spread · √(1 + π / (2 n)))
@@ -48,7 +49,7 @@ the physics says the errors no longer cancel:
   is the old surface's; after that the new surface repeats in both and the test is as before.
   The trend test leaves out the runs before such an intervention (they measured another rail
   surface), and the run level (below) is taken from the segments it did not cover. The
-  intervention's extent counts with a margin (:func:`intervention_margin_m`): a bin's estimate
+  intervention's extent counts with a margin (:func:`~app.analysis.condition.interventions.intervention_margin_m`): a bin's estimate
   reaches half the floor window and the filter's correlation beyond itself. Tamping and other
   actions change the support, not the rail's surface: the test stays as it was, so their effect is
   found. Measured (``bench/bench_uncertainty.py``, BENCHMARKS.md): a recorded grinding over 200 m of a
@@ -107,13 +108,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.analysis.robust import nan_median, robust_spread
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
-from app.analysis.uncertainty import correlation_zero, shared_window_m
 
 __all__ = [
-    "RAIL_SURFACE_ACTIONS",
-    "surface_change_days",
-    "intervention_margin_m",
     "ChangeParams",
     "DEFAULT_CHANGE_PARAMS",
     "StepResult",
@@ -123,8 +121,6 @@ __all__ = [
     "step_change",
     "stated_variance",
     "trend_change",
-    "robust_spread",
-    "nan_median",
     "pooled_spread",
     "level_offsets",
     "WheelChange",
@@ -132,65 +128,7 @@ __all__ = [
     "combine_wheels",
 ]
 
-_MAD_TO_SD = 1.4826
 _DAYS_PER_YEAR = 365.25
-#: Maintenance types (the reference import's ``type``) that change the rails' running surface, hence
-#: their roughness response: grinding (and milling, recorded as grinding) and rail renewal.
-RAIL_SURFACE_ACTIONS: tuple[str, ...] = ("grinding", "rail_replacement")
-
-
-def intervention_margin_m(resolution_m: float = 3.0, filter_order: int = 2) -> float:
-    """How far beyond a rail-surface intervention's recorded extent the indicator still changes, m: half
-    the floor window (:func:`app.analysis.uncertainty.shared_window_m`, whose estimates mix both surfaces)
-    plus the first zero of the envelope's correlation (:func:`app.analysis.uncertainty.correlation_zero`);
-    14.2 m at 3 m resolution, q = 2."""
-    return shared_window_m(resolution_m, filter_order) / 2.0 + correlation_zero(resolution_m, filter_order)
-
-
-def surface_change_days(
-    seg: np.ndarray, segment_m: float, start_m: np.ndarray, end_m: np.ndarray, day: np.ndarray, now_days: float,
-    margin_m: float | None = None,
-) -> np.ndarray:
-    """Day of the latest rail-surface intervention on each segment up to ``now_days`` (NaN: none).
-
-    Parameters
-    ----------
-    seg : numpy.ndarray
-        (segments,) segment numbers (``[seg · segment_m, (seg + 1) · segment_m)``, m).
-    segment_m : float
-        Segment length, m (> 0).
-    start_m, end_m, day : numpy.ndarray
-        (actions,) extent (m, same axis) and day of each intervention (e.g. the maintenance
-        records of :data:`RAIL_SURFACE_ACTIONS`).
-    now_days : float
-        Day of the newest run; later interventions do not count.
-    margin_m : float, optional
-        The extents are widened by this much on either side, m (default :func:`intervention_margin_m`).
-
-    Returns
-    -------
-    numpy.ndarray
-        (segments,) day, NaN where no intervention overlaps the segment.
-    """
-    if not (np.isfinite(segment_m) and segment_m > 0):
-        raise ValueError(f"segment_m: must be > 0, got {segment_m!r}")
-    s = np.asarray(seg, dtype=np.float64)
-    a, b, d = (np.asarray(v, dtype=np.float64).reshape(-1) for v in (start_m, end_m, day))
-    if not (a.shape == b.shape == d.shape):
-        raise ValueError("start_m, end_m, day: must have one value per intervention")
-    out = np.full(s.shape, np.nan)
-    if s.size == 0 or a.size == 0:
-        return out
-    pad = intervention_margin_m() if margin_m is None else float(margin_m)
-    if not (np.isfinite(pad) and pad >= 0):
-        raise ValueError(f"margin_m: must be >= 0, got {margin_m!r}")
-    lo, hi = s * segment_m, (s + 1) * segment_m
-    for x0, x1, t in zip(np.minimum(a, b) - pad, np.maximum(a, b) + pad, d, strict=True):
-        if not (np.isfinite(t) and t <= now_days):
-            continue
-        hit = (lo < x1) & (hi > x0)
-        out[hit] = np.fmax(out[hit], t)
-    return out
 
 
 @dataclass(frozen=True)
@@ -335,41 +273,6 @@ def _matrix(history: object, n_segments: int | None = None) -> np.ndarray:
     if n_segments is not None and h.shape[0] != n_segments:
         raise ValueError(f"history: must have one row per segment ({n_segments}), got {h.shape[0]}")
     return h
-
-
-def nan_median(values: np.ndarray, axis: int = 1) -> np.ndarray:
-    """Median along ``axis`` ignoring NaN (NaN where a slice has none).
-
-    ``numpy.nanmedian`` takes a masked-array path for small slices that is
-    ~20x slower than sorting: the change tests take thousands of medians per run.
-    """
-    v = np.moveaxis(np.asarray(values, dtype=np.float64), axis, -1)
-    if v.shape[-1] == 0:
-        return np.full(v.shape[:-1], np.nan)
-    s = np.sort(v, axis=-1)  # NaN last
-    n = np.isfinite(v).sum(axis=-1)
-    lo = np.clip((n - 1) // 2, 0, v.shape[-1] - 1)[..., None]
-    hi = np.clip(n // 2, 0, v.shape[-1] - 1)[..., None]
-    med = 0.5 * (np.take_along_axis(s, lo, -1) + np.take_along_axis(s, hi, -1))[..., 0]
-    return np.where(n > 0, med, np.nan)
-
-
-def robust_spread(history: np.ndarray, *, min_spread: float = 0.0, axis: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Median and robust spread (1.4826 · MAD, small-sample corrected) along ``axis``, NaN ignored.
-
-    Returns
-    -------
-    median, spread : numpy.ndarray
-        NaN where fewer than two values; ``spread`` at least ``min_spread``.
-    """
-    h = np.asarray(history, dtype=np.float64)
-    n = np.isfinite(h).sum(axis=axis)
-    with np.errstate(invalid="ignore"):
-        med = nan_median(h, axis=axis)
-        mad = nan_median(np.abs(h - np.expand_dims(med, axis)), axis=axis)
-    spread = _MAD_TO_SD * mad * n / np.maximum(n - 0.8, 0.2)
-    spread = np.where(n >= 2, np.maximum(spread, min_spread), np.nan)
-    return np.where(n >= 1, med, np.nan), spread
 
 
 @dataclass(frozen=True)
@@ -783,7 +686,7 @@ def detect_changes(
         (segments,) and (segments, runs) stated 1-σ of the newest and the history's index (NaN: none).
     surface_days : numpy.ndarray, optional
         (segments,) day of the latest rail-surface intervention on the segment up to the newest run
-        (:func:`surface_change_days`; NaN: none).
+        (:func:`~app.analysis.condition.interventions.surface_change_days`; NaN: none).
     stated_wheels : int, optional
         Wheels whose scores will be combined (:func:`step_change`; default 1).
 

@@ -63,7 +63,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes, nan_median
+from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes
 from app.analysis.condition.places import (
     EVIDENCE_ANOMALY,
     EVIDENCE_STEP,
@@ -72,6 +72,7 @@ from app.analysis.condition.places import (
     merge_places,
 )
 from app.analysis.condition.tiers import TierLimits, TierTable
+from app.analysis.robust import nan_median
 from app.analysis.stiffness.reference_curve import ReferenceCurve
 
 __all__ = [
@@ -333,7 +334,7 @@ def find_places(
         (W, S, R) stated 1-σ of ``history`` (NaN: none).
     surface_days : numpy.ndarray, optional
         (S,) day of the latest rail-surface intervention (grinding, rail renewal) on each segment up to
-        ``now_day`` (NaN: none; :func:`~app.analysis.condition.change.surface_change_days`).
+        ``now_day`` (NaN: none; :func:`~app.analysis.condition.interventions.surface_change_days`).
 
     Returns
     -------

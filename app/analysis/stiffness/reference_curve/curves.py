@@ -18,6 +18,7 @@ import numpy as np
 from scipy import stats
 
 from app.analysis._checks import check_positive
+from app.analysis.robust import mad_sd
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, log_speed_tolerance
 from app.analysis.stiffness.reference_curve.smoother import group_median, interp_nan, local_fit
 
@@ -422,7 +423,7 @@ def fit_reference_curve(
     fit = _backfit(y, u, loc, n_loc, nodes, h, min_support, method)
     g = fit.g_nodes
     g, m = _level(g, y, u, loc, n_loc, nodes)
-    spread = float(1.4826 * np.nanmedian(np.abs(m - np.nanmedian(m)))) if np.isfinite(m).any() else float("nan")
+    spread = mad_sd(m)
     # support: passes and runs within the window of each node
     order = np.argsort(u, kind="stable")
     us, runs_sorted = u[order], samples.run[order]

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.analysis.robust import mad_sd
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, log_speeds_matched
 from app.analysis.stiffness.reference_curve.curves import GROUP_BLOCKS, BlockSamples, ReferenceCurve
 from app.analysis.stiffness.reference_curve.smoother import group_median
@@ -50,7 +51,7 @@ def bin_repeatability(
 
     Pairs are passes (``pass_id``: e.g. run and wheel) of the same rail and bin
     whose speeds differ by at most ``tol``; the robust standard deviation
-    (1.4826 MAD) of their differences over √2. NaN with fewer than 100 pairs.
+    (:func:`app.analysis.robust.mad_sd`) of their differences over √2. NaN with fewer than 100 pairs.
     """
     y = np.asarray(log_amp, dtype=np.float64)
     u = np.asarray(log_speed, dtype=np.float64)
@@ -68,7 +69,7 @@ def bin_repeatability(
     d = (y[1:] - y[:-1])[same]
     if d.size < 100:
         return float("nan")
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+    return mad_sd(d) / math.sqrt(2.0)
 
 
 def wheel_offsets(samples: BlockSamples, curves: Mapping[str, ReferenceCurve], *, n_boot: int = 200,

@@ -1,0 +1,71 @@
+"""Rail-surface interventions (a grinding, a rail renewal): which maintenance actions change the
+rails' running surface — hence their roughness response, which the stated 1-σ of a pass is mostly
+made of — how far beyond its recorded extent an intervention changes the indicator, and the day
+of the latest one on each segment. The change tests (:mod:`app.analysis.condition.change`, its
+docstring: "the rail surface changed") take these days."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.analysis.uncertainty import correlation_zero, shared_window_m
+
+__all__ = ["RAIL_SURFACE_ACTIONS", "intervention_margin_m", "surface_change_days"]
+
+#: Maintenance types (the reference import's ``type``) that change the rails' running surface, hence
+#: their roughness response: grinding (and milling, recorded as grinding) and rail renewal.
+RAIL_SURFACE_ACTIONS: tuple[str, ...] = ("grinding", "rail_replacement")
+
+
+def intervention_margin_m(resolution_m: float = 3.0, filter_order: int = 2) -> float:
+    """How far beyond a rail-surface intervention's recorded extent the indicator still changes, m: half
+    the floor window (:func:`app.analysis.uncertainty.shared_window_m`, whose estimates mix both surfaces)
+    plus the first zero of the envelope's correlation (:func:`app.analysis.uncertainty.correlation_zero`);
+    14.2 m at 3 m resolution, q = 2."""
+    return shared_window_m(resolution_m, filter_order) / 2.0 + correlation_zero(resolution_m, filter_order)
+
+
+def surface_change_days(
+    seg: np.ndarray, segment_m: float, start_m: np.ndarray, end_m: np.ndarray, day: np.ndarray, now_days: float,
+    margin_m: float | None = None,
+) -> np.ndarray:
+    """Day of the latest rail-surface intervention on each segment up to ``now_days`` (NaN: none).
+
+    Parameters
+    ----------
+    seg : numpy.ndarray
+        (segments,) segment numbers (``[seg · segment_m, (seg + 1) · segment_m)``, m).
+    segment_m : float
+        Segment length, m (> 0).
+    start_m, end_m, day : numpy.ndarray
+        (actions,) extent (m, same axis) and day of each intervention (e.g. the maintenance
+        records of :data:`RAIL_SURFACE_ACTIONS`).
+    now_days : float
+        Day of the newest run; later interventions do not count.
+    margin_m : float, optional
+        The extents are widened by this much on either side, m (default :func:`intervention_margin_m`).
+
+    Returns
+    -------
+    numpy.ndarray
+        (segments,) day, NaN where no intervention overlaps the segment.
+    """
+    if not (np.isfinite(segment_m) and segment_m > 0):
+        raise ValueError(f"segment_m: must be > 0, got {segment_m!r}")
+    s = np.asarray(seg, dtype=np.float64)
+    a, b, d = (np.asarray(v, dtype=np.float64).reshape(-1) for v in (start_m, end_m, day))
+    if not (a.shape == b.shape == d.shape):
+        raise ValueError("start_m, end_m, day: must have one value per intervention")
+    out = np.full(s.shape, np.nan)
+    if s.size == 0 or a.size == 0:
+        return out
+    pad = intervention_margin_m() if margin_m is None else float(margin_m)
+    if not (np.isfinite(pad) and pad >= 0):
+        raise ValueError(f"margin_m: must be >= 0, got {margin_m!r}")
+    lo, hi = s * segment_m, (s + 1) * segment_m
+    for x0, x1, t in zip(np.minimum(a, b) - pad, np.maximum(a, b) + pad, d, strict=True):
+        if not (np.isfinite(t) and t <= now_days):
+            continue
+        hit = (lo < x1) & (hi > x0)
+        out[hit] = np.fmax(out[hit], t)
+    return out
