@@ -273,12 +273,12 @@ def transitions() -> None:
               f"{r['lockin_less_line']:.3f} ({r['lockin_less_line'] / r['a_bay'] - 1:+.1%}) |")
 
 
-def weak_steps(fe_files: list[Path], sigmas: tuple[float, ...] = (0.0, 0.5, 1.0, 2.0), seeds: tuple[int, ...] = (5, 6, 7)
-               ) -> None:
+def weak_steps(fe_files: list[Path], sigmas: tuple[float, ...] = (0.0, 0.5, 1.0, 2.0), seeds: tuple[int, ...] = (5, 6, 7),
+               kappa: float = 8.0) -> None:
     """Small steps where the signal is weak (issue 33): FE step runs of the harness (``--ks 80 52 --edges 200
     --speed 50 --length 400``: 1.5 → 1.0 m/s²) with band-limited measurement noise of ``sigmas`` m/s² (the
     simulator's, 2 Hz … 0.4 fs), processed once per noise draw and assembled without and with the
-    edge-preserving smoothing (``edge_preserving_sd`` 0 and the default)."""
+    edge-preserving smoothing (``edge_preserving_sd`` 0 and ``kappa``)."""
     import tempfile
 
     from physics_runs import write_run
@@ -287,7 +287,7 @@ def weak_steps(fe_files: list[Path], sigmas: tuple[float, ...] = (0.0, 0.5, 1.0,
     from app.pipeline import run_pipeline as run_pl
     from app.simulate.noise import BandLimitedNoise
 
-    default = ProcessingSettings().edge_preserving_sd
+    default = float(kappa)
     print(f"| FE run | noise m/s² | draws | 10–90 % width m, off → edge-preserving {default:g} σ (max) | ringing "
           "(max) | rise width m (max) | level error 10–190 m / 210–390 m (max) |")
     print("|---|---|---|---|---|---|---|")

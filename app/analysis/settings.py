@@ -106,9 +106,12 @@ class ProcessingSettings:
         Edge-preserving smoothing of ``sleeper_amp`` by its stated 1-σ
         (:mod:`app.analysis.denoise`: total variation, a jump costs this many
         standard deviations; steps stay as sharp, the fluctuation between them
-        flattens). 0: off (before issue 33). Range 0–20. Default 8 (issue 33:
-        a −35 % step at 50 m/s, 1.5 → 1.0 m/s², under 1 m/s² of noise reads
-        3.3 m wide with 7 % ringing instead of 36 m and 16 %).
+        flattens). 0: off. Range 0–20. Default 0: at 8 a −35 % step at 50 m/s,
+        1.5 → 1.0 m/s², under 1 m/s² of noise reads 3.3 m wide with 7 % ringing
+        instead of 36 m and 16 % (issue 33, ``bench_indicator.py --only
+        weak-steps``), but a short soft spot loses about ``2 κ σ / n`` of its
+        depth and a uniform run's mean moves by a few 1e-4 (the issue-26 physics
+        tests), so it is a choice per job, not yet the default.
     bin_length_m : float
         Length of a profile bin along the track, m. Default 0.25.
     min_speed_kmh : float
@@ -132,7 +135,7 @@ class ProcessingSettings:
         12.0, "Moving mean removed from the force channels (static wheel load), m; 0: off", "0 or 1.2..200")
     filter_order: int = _setting(2, "VKF structural order q", "1, 2 or 3")
     edge_preserving_sd: float = _setting(
-        8.0, "Edge-preserving smoothing of sleeper_amp: a jump costs this many of its stated standard "
+        0.0, "Edge-preserving smoothing of sleeper_amp: a jump costs this many of its stated standard "
         "deviations (total variation); 0: off", "0..20")
     bin_length_m: float = _setting(0.25, "Profile bin length, m", "0.05..10")
     min_speed_kmh: float = _setting(25.0, "Slowest speed used for indicators, km/h", "0..200")

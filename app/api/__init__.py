@@ -27,6 +27,7 @@ from app.api import (
     jobs,
     places,
     profiles,
+    rail_findings,
     reference,
     runs,
     spectrogram,
@@ -47,7 +48,7 @@ def build_api_router() -> APIRouter:
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
         runs, jobs, profiles, impacts, wheels, spectrogram, reference, analytics, condition,
-        condition_effects, condition_sections, places, auth, audit, channel_maps, geometry, webhooks, assets,
+        condition_effects, condition_sections, places, rail_findings, auth, audit, channel_maps, geometry, webhooks, assets,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
-from app.analysis.impacts.findings import RunImpacts, finding_kind, follow_findings
+from app.analysis.impacts.findings import RunImpacts, finding_kind, follow_findings, run_offset
 
 
 def _run(run_id: int, day: float, impacts, covered=(0.0, 1000.0)) -> RunImpacts:
@@ -45,3 +46,18 @@ def test_the_kind_of_a_finding():
     assert finding_kind(0.3, "unknown-thing") == "joint"
     with pytest.raises(ValueError, match="match_m"):
         follow_findings([], match_m=0.0)
+
+
+def test_a_run_off_by_metres_is_registered_on_the_known_findings():
+    """A run whose alignment failed (its km 2.9 m off) finds the same welds: registered on the findings known, its
+    sightings join them instead of starting new ones; a run whose impacts agree on no offset is taken as it is."""
+    welds = [103.9, 194.6, 284.3, 377.7, 471.5, 575.9, 668.7]
+    first = _run(1, 0.0, [(x, 0.3, 1.0) for x in welds])
+    off = _run(2, 15.0, [(x + 2.9, 0.3, 1.0) for x in welds[:-1]] + [(830.0, 0.25, 1.0)])
+    found = follow_findings([first, off])
+    assert [f.runs_seen for f in found] == [2, 2, 2, 2, 2, 2, 1, 1]
+    assert found[0].sightings[1].track_m == pytest.approx(103.9) and found[-1].anchor_m == pytest.approx(827.1)
+    assert found[-1].runs_passed == 1 and found[-2].runs_passed == 2  # the covered stretch moved along
+    assert run_offset(np.array(welds[:4]) - 2.9, np.array(welds)) == pytest.approx(2.9)
+    assert run_offset(np.array([150.0, 333.0, 520.0]), np.array(welds)) == 0.0  # no offset most agree on
+    assert len(follow_findings([first, off], register_m=0.0)) == 14  # not registered: each of its 7 a new one

@@ -252,7 +252,9 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
     # the surface is G (d t + b), G what the estimate kept: numerator weight G / P, denominator G² / P
     inband = (gain > 0.05) & (kappa > 0)
     floor = 1e-9 * float(psd[inband].max()) if inband.any() else 1.0
-    num_w = np.where(inband, gain / np.maximum(psd, floor), 0.0)
+    held = np.maximum(psd, floor)
+    # only where the estimate kept the surface and the spectrum is positive (a zero spectrum: no weight, not inf)
+    num_w = np.divide(gain, held, out=np.zeros_like(held), where=inband & (held > 0))
     den_w = num_w * gain
     r = np.fft.rfft(np.where(valid, h, 0.0), nfft)
     blocks = sorted({max(int(SCALE_BLOCK_M / step), 256), max(int(scale_block_m / step), 256)})
@@ -273,8 +275,7 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
         scale = _robust_scale(depth, valid, blocks[0])
         for block in blocks[1:]:
             scale = np.fmax(scale, _robust_scale(depth, valid, block))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            score = np.where(valid & (scale > 0), depth / scale, -np.inf)
+        score = np.divide(depth, scale, out=np.full(n, -np.inf), where=valid & (scale > 0))
         if per_length is not None:
             per_length.append((score, depth))
         better = score > best

@@ -6,7 +6,10 @@ track, so the runs that pass it find it again at the same position (the runs' al
 the impact's position error are a few decimetres). :func:`follow_findings` takes the runs in time order:
 an impact within :data:`MATCH_M` of a finding already known joins it, else it starts a new one, whose
 identity is its first sighting (run and position) — so a later run never changes a finding that exists,
-it adds a sighting or a finding. Per finding: its position (median of the sightings), its kind (the
+it adds a sighting or a finding. A run whose km axis is off by more than that (its alignment to the line
+failed or was not confident: a positioning error of metres) is first registered on the findings already
+known (:func:`run_offset`: the offset most of its impacts agree on, within :data:`REGISTER_M`), so its
+sightings join the findings they are. Per finding: its position (median of the sightings), its kind (the
 asset register's where an asset lies within :data:`ASSET_M`, else by the dip's length: a joint's dip is
 short, a weld's about a metre), the depth of each sighting, the runs that saw it out of those that passed
 it, and the depth's trend (:func:`app.analysis.condition.outlook.linear_trend`, mm a year).
@@ -24,11 +27,17 @@ import numpy as np
 
 from app.analysis.condition.outlook import Trend, linear_trend
 
-__all__ = ["MATCH_M", "ASSET_M", "JOINT_MAX_LENGTH_M", "FINDING_KINDS", "Sighting", "RunImpacts", "RailFinding",
+__all__ = ["MATCH_M", "REGISTER_M", "MIN_AGREE", "AGREE_M", "run_offset", "ASSET_M", "JOINT_MAX_LENGTH_M", "FINDING_KINDS", "Sighting", "RunImpacts", "RailFinding",
            "finding_kind", "follow_findings"]
 
 #: An impact this close to a finding (its first sighting's position) is that finding again, m.
 MATCH_M = 1.5
+#: A run's impacts are registered on the known findings within this offset, m.
+REGISTER_M = 12.0
+#: Impacts that must agree on a run's offset (within :data:`AGREE_M`) before it is applied.
+MIN_AGREE = 3
+#: How closely the impacts must agree on the offset, m.
+AGREE_M = 0.3
 #: A finding this close to an asset of the register takes the asset's kind, m.
 ASSET_M = 2.0
 #: A dip this short or shorter is a joint's (a rail end: 0.3–0.5 m), longer a weld's (0.8–1.2 m), m.
@@ -130,8 +139,40 @@ def finding_kind(length_m: float, asset_type: str | None = None) -> str:
     return "weld"
 
 
+def run_offset(impacts_m: np.ndarray, anchors_m: np.ndarray, *, register_m: float = REGISTER_M,
+               agree_m: float = AGREE_M, min_agree: int = MIN_AGREE) -> float:
+    """The offset (m) that moves a run's impacts onto the known findings, 0 where they do not agree on one.
+
+    Every pair of an impact and a finding within ``register_m`` votes for its difference; the difference
+    that most pairs share within ``agree_m`` wins when at least ``min_agree`` distinct impacts and more than
+    a third of the run's impacts near a finding share it (a line of welds every 60–120 m has no second
+    offset as good within 12 m); the offset is the median of those pairs.
+    """
+    x = np.asarray(impacts_m, dtype=np.float64)
+    a = np.asarray(anchors_m, dtype=np.float64)
+    x, a = x[np.isfinite(x)], a[np.isfinite(a)]
+    if x.size < min_agree or a.size < min_agree:
+        return 0.0
+    d = a[None, :] - x[:, None]
+    i, j = np.nonzero(np.abs(d) <= register_m)
+    if i.size < min_agree:
+        return 0.0
+    diffs = d[i, j]
+    order = np.argsort(diffs, kind="stable")
+    diffs, i = diffs[order], i[order]
+    hi = np.searchsorted(diffs, diffs + agree_m, side="right")
+    support = [np.unique(i[k:h]).size for k, h in enumerate(hi)]
+    best = int(np.argmax(support))
+    near = np.unique(i).size
+    if support[best] < min_agree or 3 * support[best] <= near:
+        return 0.0
+    off = float(np.median(diffs[best:hi[best]]))
+    return off if abs(off) > 0.5 * agree_m else 0.0
+
+
 def follow_findings(runs: Sequence[RunImpacts], *, assets: Sequence[Mapping[str, object]] = (),
-                    match_m: float = MATCH_M, asset_m: float = ASSET_M) -> list[RailFinding]:
+                    match_m: float = MATCH_M, asset_m: float = ASSET_M, register_m: float = REGISTER_M
+                    ) -> list[RailFinding]:
     """The line's rail findings from its runs' track impacts (module docstring).
 
     Parameters
@@ -140,23 +181,25 @@ def follow_findings(runs: Sequence[RunImpacts], *, assets: Sequence[Mapping[str,
         Any order (taken in time order, then run id).
     assets : sequence of dict
         The register's assets of the line and track: ``type``, ``track_m`` (m), optional ``name``.
-    match_m, asset_m : float
-        See :data:`MATCH_M`, :data:`ASSET_M`.
+    match_m, asset_m, register_m : float
+        See :data:`MATCH_M`, :data:`ASSET_M`, :data:`REGISTER_M` (0: runs are taken as aligned).
 
     Returns
     -------
     list of RailFinding
         Ascending position.
     """
-    if not (math.isfinite(match_m) and match_m > 0 and math.isfinite(asset_m) and asset_m >= 0):
-        raise ValueError("match_m: must be > 0, asset_m: >= 0")
+    if not (math.isfinite(match_m) and match_m > 0 and math.isfinite(asset_m) and asset_m >= 0
+            and math.isfinite(register_m) and register_m >= 0):
+        raise ValueError("match_m: must be > 0, asset_m and register_m: >= 0")
     found: list[RailFinding] = []
     anchors = np.zeros(0)
     for run in sorted(runs, key=lambda r: (float(r.day), int(r.run_id))):
-        lo, hi = sorted(float(v) for v in run.covered_m)
+        off = run_offset(np.array([float(i[0]) for i in run.impacts]), anchors, register_m=register_m)
+        lo, hi = sorted(float(v) + off for v in run.covered_m)
         taken: set[int] = set()
         for x, depth, length in sorted(run.impacts, key=lambda i: float(i[0])):
-            x = float(x)
+            x = float(x) + off
             if not (math.isfinite(x) and math.isfinite(float(depth))):
                 continue
             j = -1
