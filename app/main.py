@@ -29,6 +29,7 @@ from app.core.runstore import RunStore
 from app.db.display_arrays import DisplayArrays
 from app.db.session import Database
 from app.operations.heavy import install_heavy_limiter
+from app.places.class_scheme import class_scheme
 from app.web import install_pages
 
 __all__ = ["create_app", "check_production_database"]
@@ -51,7 +52,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or get_settings()
     configure_logging(settings.log_level, settings.log_format)
     settings.check_production()
-    db = Database(settings.database_url)
+    class_scheme(settings)  # a bad TRACKVKF_PLACES_CLASS_SCHEME stops the start, naming the part at fault
+    db = Database(settings.database_url, lock_wait_s=settings.db_lock_wait_s)
     if settings.is_production:
         check_production_database(db)
     store = RunStore(settings.run_store, settings.shared_store)

@@ -2,6 +2,9 @@
 # Create or refresh .venv with trackvkf.
 #   bash scripts/setup.sh         the runtime only (pip install -e .): what the demo and the service need
 #   bash scripts/setup.sh --dev   also the test and lint tools (pip install -e '.[dev]')
+# System libraries (Debian, apt-get, as root, only when missing): Pango and a font for WeasyPrint
+# (the planning report's PDF); with --dev also poppler-utils (the tests read the PDF back).
+# Without root or apt-get a missing one stops --dev with the packages named (the runtime warns).
 # Idempotent: re-installs only when pyproject.toml changed, the package is missing, or
 # --dev is asked of a runtime-only environment. Set PYTHON=/path/to/python3.11 to choose
 # the interpreter.
@@ -16,6 +19,40 @@ for arg in "$@"; do
   esac
 done
 
+# --- system libraries ------------------------------------------------------------------------------
+have_lib() {  # have_lib SONAME: the dynamic linker knows it
+  local ldconfig
+  ldconfig="$(command -v ldconfig || echo /sbin/ldconfig)"
+  "$ldconfig" -p 2>/dev/null | grep -q "^[[:space:]]*$1 "
+}
+missing_pkgs=()
+have_lib libpango-1.0.so.0 || missing_pkgs+=(libpango-1.0-0)
+have_lib libpangoft2-1.0.so.0 || missing_pkgs+=(libpangoft2-1.0-0)
+have_lib libfontconfig.so.1 || missing_pkgs+=(libfontconfig1)
+[[ -e /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf ]] || fc-list 2>/dev/null | grep -q . || missing_pkgs+=(fonts-dejavu-core)
+if [[ "$want_kind" == dev ]]; then
+  for tool in pdftotext pdftoppm pdfinfo; do
+    command -v "$tool" >/dev/null 2>&1 || { missing_pkgs+=(poppler-utils); break; }
+  done
+fi
+if (( ${#missing_pkgs[@]} )); then
+  if command -v apt-get >/dev/null 2>&1 && [[ "$(id -u)" == 0 ]]; then
+    echo "setup: installing Debian packages ${missing_pkgs[*]} (the planning report's PDF) ..."
+    if ! { DEBIAN_FRONTEND=noninteractive apt-get update -qq \
+           && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing_pkgs[@]}"; } \
+         >/tmp/trackvkf-apt.log 2>&1; then
+      tail -n 20 /tmp/trackvkf-apt.log >&2
+      echo "error: apt-get install ${missing_pkgs[*]} failed (log: /tmp/trackvkf-apt.log)" >&2
+      exit 1
+    fi
+  else
+    msg="the planning report (WeasyPrint) and its tests need the Debian packages ${missing_pkgs[*]}: install them as root (apt-get install ${missing_pkgs[*]}) or the equivalent Pango/poppler packages of your system"
+    if [[ "$want_kind" == dev ]]; then echo "error: $msg" >&2; exit 1; fi
+    echo "warning: $msg; until then GET /condition/report.pdf answers 503" >&2
+  fi
+fi
+
+# --- the virtual environment -------------------------------------------------------------------------
 py="${PYTHON:-}"
 if [[ -z "$py" ]]; then
   for candidate in python3.11 python3 python; do

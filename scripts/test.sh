@@ -2,7 +2,15 @@
 # Run the whole test suite (pytest) in .venv, creating/refreshing it first with the
 # dev extras (pytest, playwright, ruff, ...; the demo installs the runtime only).
 # Extra arguments go to pytest, e.g.  ./scripts/test.sh tests/api -x
+# The 20 slowest set-ups and tests are listed at the end (--durations=20). Processed data sets
+# are built once and kept in .pytest_cache/d/trackvkf-datasets (tests/datasets.py; a clean
+# checkout builds each once per session; `pytest --cache-clear` empties it).
+# TRACKVKF_TEST_WORKERS=N runs the tests in N processes (pytest-xdist; 2 for the 2-core CI
+# machine): a module's tests stay together in one of them (--dist loadscope: module fixtures
+# are made once), the data sets are built by whichever asks first and read by the others.
+# Unset or 0: everything in this one process.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh --dev
-exec .venv/bin/python -m pytest -q "$@"
+workers="${TRACKVKF_TEST_WORKERS:-0}"
+exec .venv/bin/python -m pytest -q --durations=20 -n "$workers" --dist loadscope "$@"

@@ -17,6 +17,25 @@ from app.core.config import Settings
 from tests.api.support import auth_headers, create_api_key, make_settings
 
 
+@pytest.fixture(scope="session")
+def datasets(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory):
+    """The tests' data sets built once and kept on disk (:class:`tests.datasets.DatasetCache`):
+    simulated runs, their processing by the real pipeline, processed databases."""
+    from tests.datasets import DatasetCache, cache_root
+
+    return DatasetCache(cache_root(request.config, lambda: tmp_path_factory.mktemp("datasets")))
+
+
+@pytest.fixture
+def clock():
+    """The service's clock moved on by the test instead of waiting (:class:`app.core.clock.OffsetClock`,
+    installed for this process: in-process apps, workers and loops read it; subprocesses do not)."""
+    from app.core.clock import OffsetClock, clock_in_use
+
+    with clock_in_use(OffsetClock()) as c:
+        yield c
+
+
 @pytest.fixture
 def service_settings(tmp_path: Path) -> Settings:
     """Settings on a fresh, migrated SQLite database in ``tmp_path``."""
@@ -68,24 +87,26 @@ SIM_FS = 10_000.0
 SIM_SEED = 1
 
 
+def _sim_run(length_km: float) -> Callable[[Path], tuple[Path, object]]:
+    def build(root: Path) -> tuple[Path, object]:
+        from app.simulate.run import simulate_run
+
+        path = root / "sim-run.h5"
+        return path, simulate_run(path, length_km=length_km, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
+
+    return build
+
+
 @pytest.fixture(scope="session")
-def sim_run(tmp_path_factory) -> tuple[Path, object]:
-    """A short simulated run (1.5 km at 10 kHz, with forces) and its truth."""
-    from app.simulate.run import simulate_run
-
-    path = tmp_path_factory.mktemp("sim") / "sim-run.h5"
-    truth = simulate_run(path, length_km=SIM_LENGTH_KM, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
-    return path, truth
+def sim_run(datasets) -> tuple[Path, object]:
+    """A short simulated run (1.5 km at 10 kHz, with forces) and its truth (read only: a cached data set)."""
+    return datasets.get("sim-run", {"length_km": SIM_LENGTH_KM}, _sim_run(SIM_LENGTH_KM))
 
 
 @pytest.fixture(scope="session")
-def short_sim_run(tmp_path_factory) -> tuple[Path, object]:
-    """A shorter simulated run (0.8 km, ~36 s at 10 kHz) for the fault tests."""
-    from app.simulate.run import simulate_run
-
-    path = tmp_path_factory.mktemp("sim-short") / "sim-short.h5"
-    truth = simulate_run(path, length_km=0.8, fs=SIM_FS, seed=SIM_SEED, with_forces=True)
-    return path, truth
+def short_sim_run(datasets) -> tuple[Path, object]:
+    """A shorter simulated run (0.8 km, ~36 s at 10 kHz) for the fault tests (read only: cached)."""
+    return datasets.get("sim-run", {"length_km": 0.8}, _sim_run(0.8))
 
 
 @pytest.fixture(scope="session")
@@ -117,13 +138,28 @@ DEMO_LENGTH_KM = 1.2
 DEMO_FS = 10_000.0
 
 
-@pytest.fixture(scope="session")
-def demo_data(tmp_path_factory):
-    """The demo's data set (``app.simulate.demo.write_demo_dataset``: 4 runs of 1.2 km at 10 kHz on
-    two lines, reference data of line SIM, both lines' geometry), written once per session."""
+def _demo_dataset(root: Path):
     from app.simulate.demo import write_demo_dataset
 
-    return write_demo_dataset(tmp_path_factory.mktemp("demo"), length_km=DEMO_LENGTH_KM, fs=DEMO_FS)
+    return write_demo_dataset(root, length_km=DEMO_LENGTH_KM, fs=DEMO_FS)
+
+
+@pytest.fixture(scope="session")
+def demo_data(datasets):
+    """The demo's data set (``app.simulate.demo.write_demo_dataset``: 4 runs of 1.2 km at 10 kHz on
+    two lines, reference data of line SIM, both lines' geometry), written once (a cached data set:
+    read only)."""
+    return datasets.get("demo-files", {"length_km": DEMO_LENGTH_KM, "fs": DEMO_FS}, _demo_dataset)
+
+
+@pytest.fixture(scope="session")
+def processed_demo(datasets, demo_data):
+    """The demo data set uploaded and processed once (:mod:`tests.demo_db`: a SQLite database and its
+    run store, cached); tests work on a copy (``processed_demo.copy_to(dir)``)."""
+    from tests.demo_db import build_processed_demo
+
+    return datasets.get("demo-processed", {"length_km": DEMO_LENGTH_KM, "fs": DEMO_FS},
+                        lambda root: build_processed_demo(root, demo_data))
 
 
 @pytest.fixture(scope="session")

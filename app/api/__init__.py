@@ -20,6 +20,7 @@ from app.api import (
     channel_maps,
     condition,
     condition_effects,
+    condition_report,
     condition_sections,
     geometry,
     health,
@@ -48,7 +49,8 @@ def build_api_router() -> APIRouter:
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
         runs, jobs, profiles, impacts, wheels, spectrogram, reference, analytics, condition,
-        condition_effects, condition_sections, places, rail_findings, auth, audit, channel_maps, geometry, webhooks, assets,
+        condition_effects, condition_sections, condition_report, places, rail_findings, auth, audit, channel_maps,
+        geometry, webhooks, assets,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

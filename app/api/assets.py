@@ -1,6 +1,6 @@
 """Known discontinuities (assets): ``GET /assets``, ``POST /assets`` (CSV or GeoJSON; engineer),
 ``DELETE /assets/{id}`` (admin). An import replaces the stored assets of each line and track
-it holds (the asset register is the truth), in one transaction with its audit entry."""
+it holds (the asset register is the truth): :func:`app.assets.service.import_assets`."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ from app.analysis.condition.discontinuities import ASSET_TYPES
 from app.api.deps import AdminActor, DbDep, EngineerActor, SettingsDep, require_role
 from app.api.errors import ApiError, not_found
 from app.assets import service
-from app.audit import record
 
 __all__ = ["router"]
 
@@ -68,30 +67,26 @@ async def import_assets(
     settings: SettingsDep,
     file: Annotated[UploadFile, File(description="CSV (line_id,track,type,km[,km_to,name]) or GeoJSON")],
 ) -> AssetImportOut:
-    """Validate the whole file, then replace the assets of its lines and tracks in one transaction.
+    """Validate the whole file, then replace the assets of its lines and tracks: written in short
+    batches, live at once in one short transaction with the audit entry (docs/security.md,
+    "What an import may hold").
 
     A bad value answers 422 naming the row (CSV, 1 = first data row) or feature (GeoJSON) and
-    the column; nothing is imported then.
+    the column; nothing is imported then. A file beyond ``TRACKVKF_ASSETS_IMPORT_MAX_ROWS`` rows
+    or ``TRACKVKF_ASSETS_IMPORT_MAX_LINES`` lines and tracks answers 413.
     """
     cap = settings.max_reference_bytes
     data = await file.read(cap + 1)
     if len(data) > cap:
         raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
-    rows = await run_in_threadpool(service.parse_upload, settings, data, file.filename)  # RunFileError: 422/413
-
-    def audit(session, imported: int, replaced: int) -> None:
-        record(session, actor, "assets.import", target=file.filename,
-               detail={"imported": imported, "replaced": replaced})
-
-    imported, replaced = await run_in_threadpool(service.store_assets, db, rows, audit)
-    return AssetImportOut(imported=imported, replaced=replaced)
+    got = await run_in_threadpool(service.import_assets, db, settings, actor, data, file.filename)
+    return AssetImportOut(imported=got["imported"], replaced=got["replaced"])
 
 
 @router.delete("/{asset_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete an asset (admin)",
                dependencies=[Depends(require_role("admin"))])
 def delete_asset(asset_id: AssetId, db: DbDep, actor: AdminActor) -> Response:
     """Delete one asset."""
-    if not service.remove_asset(db, asset_id, lambda s: record(s, actor, "assets.delete",
-                                                               target=asset_id)):
+    if not service.remove_asset(db, actor, asset_id):
         raise not_found("asset", asset_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -7,7 +7,8 @@ or reference file, metadata or channel map that is not valid: 422 naming the fie
 (:class:`fastapi.exceptions.RequestValidationError`), whose list of problems is reduced to
 the first one, naming its parameter, Starlette's HTTP errors (unknown path → ``path``,
 method → ``method``, a body that cannot be parsed → ``body``), PostgreSQL's refusal of NUL
-characters in text (a query filter holding one) and, last, any exception a route did not
+characters in text (a query filter holding one), the database's write lock busy past
+``TRACKVKF_DB_LOCK_WAIT_S`` (503 ``database`` with ``Retry-After``) and, last, any exception a route did not
 expect: answered ``500`` with ``"field": "server"`` (its traceback goes to the log, never to
 the client) by :class:`CatchAllMiddleware`, on a connection that stays open. Messages are
 cut to :data:`MAX_MESSAGE_CHARS`: no answer echoes a large input.
@@ -23,7 +24,7 @@ from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from sqlalchemy.exc import DataError
+from sqlalchemy.exc import DataError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -141,6 +142,32 @@ async def _data_error_handler(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+#: seconds a client is asked to wait after the database's write lock was busy past the deadline
+LOCK_RETRY_AFTER_S = 2
+
+
+def is_lock_timeout(exc: BaseException) -> bool:
+    """Whether a database error is a write lock not obtained within the deadline (SQLite ``database is
+    locked``/``busy``; PostgreSQL ``lock_not_available``, 55P03)."""
+    orig = getattr(exc, "orig", None)
+    text = str(orig if orig is not None else exc).lower()
+    return ("database is locked" in text or "database table is locked" in text or "database is busy" in text
+            or getattr(orig, "sqlstate", None) == "55P03")
+
+
+async def _operational_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    """The write lock not obtained within ``TRACKVKF_DB_LOCK_WAIT_S`` (the driver retried until then):
+    503 with ``Retry-After``, the request changed nothing. Any other operational error is unexpected."""
+    assert isinstance(exc, OperationalError)
+    if not is_lock_timeout(exc):
+        raise exc
+    log.warning("%s %s: the database's write lock stayed busy past the deadline (503)", request.method,
+                request.url.path)
+    return await _api_error_handler(request, ApiError(
+        503, "database", f"busy with another write; nothing was changed, retry in {LOCK_RETRY_AFTER_S} s",
+        {"Retry-After": str(LOCK_RETRY_AFTER_S)}))
+
+
 async def _http_error_handler(request: Request, exc: Exception) -> Any:
     """Starlette's HTTP errors (404, 405, 400 of body parsing …) in the project's error shape."""
     assert isinstance(exc, StarletteHTTPException)
@@ -228,6 +255,7 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RunFileError, _run_file_error_handler)
     app.add_exception_handler(RequestValidationError, _validation_error_handler)
     app.add_exception_handler(DataError, _data_error_handler)
+    app.add_exception_handler(OperationalError, _operational_error_handler)
     app.add_exception_handler(StarletteHTTPException, _http_error_handler)
     app.add_exception_handler(Exception, _unexpected_error_handler)
     app.add_middleware(CatchAllMiddleware)

@@ -70,6 +70,7 @@ from app.db.models import (
     Job,
     Run,
     SegmentCondition,
+    utcnow,
 )
 from app.pipeline.impacts import IMPACT_COLUMN
 
@@ -387,7 +388,7 @@ def _insert_flags(session: Session, run_id: int, job_id: int, line_key: int,
         return []
     if session.get_bind().dialect.name == "postgresql":
         session.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _FLAG_FEED_LOCK})
-    now = dt.datetime.now(dt.UTC)
+    now = utcnow()
     rows = [
         ConditionFlag(
             run_id=run_id, line_key=line_key, job_id=job_id, wheels=",".join(f.wheels), n_wheels=len(f.wheels),
@@ -417,7 +418,7 @@ def write_assessed_run(
                  _OVERVIEW_PG_TYPES)
     session.add(ConditionRun(run_id=run_id, line_key=line.id, job_id=job_id, run_time=when, shift_m=shift_m,
                              shift_confidence=shift_confidence, n_segments=len(frame), n_flags=len(flags),
-                             published_at=dt.datetime.now(dt.UTC)))
+                             published_at=utcnow()))
     if len(frame):
         ten = frame[frame["seg_m"] == frame["seg_m"].min()]
         lo = float(ten["seg"].min() * ten["seg_m"].iloc[0] / 1000.0)

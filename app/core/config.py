@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -139,6 +140,18 @@ class Settings(BaseSettings):
     profile_concurrency : int
         Profile answers each API process computes at once; further requests
         wait their turn without holding up uploads, logins and other requests.
+    assets_import_max_rows : int
+        Most assets one import may write (default 200 000, the reader's limit); more: 413.
+    assets_import_max_lines : int
+        Most (line, track) pairs one import may replace (default 1000); more: 413. The
+        transaction that makes an import live writes one row per pair.
+    assets_import_batch_rows : int
+        Rows an import writes (and replaced rows it deletes) per transaction: the longest it
+        holds the write lock (2000 rows: ≈ 0.03 s on SQLite).
+    db_lock_wait_s : float
+        How long a request waits for the database's write lock (SQLite: the busy timeout, its
+        retries within this deadline), s; past it the answer is 503 with ``Retry-After``
+        (``"field": "database"``), never a 500.
     max_reference_bytes : int
         Largest accepted reference data file (subsidence, maintenance,
         superstructure), bytes.
@@ -252,6 +265,13 @@ class Settings(BaseSettings):
         Length of the sections classed A … E by the index's level and spread, m.
     places_section_limits : [float, float, float, float]
         rms limits of the section classes A/B, B/C, C/D, D/E (ln units).
+    places_class_scheme : dict, optional
+        The railway's own class scheme: each section class A … E mapped to one of its classes,
+        with their names per language (JSON; :mod:`app.places.class_scheme`), e.g.
+        ``{"name": {"en": "Condition class", "de": "Zustandsklasse"}, "classes": [{"code": "1",
+        "of": ["A"], "name": {"en": "as new", "de": "neuwertig"}}, …]}``. The API, CSV, the
+        Condition page and the planning report show it; checked when the service starts.
+        Default: none (classes A … E).
     places_asset_buffer_m : float
         Assets (switches, bridges, …) within this distance of a place label it, m.
     places_muted_asset_types : str
@@ -400,6 +420,10 @@ class Settings(BaseSettings):
     login_name_failure_window_s: float = Field(default=3600.0, gt=0)
     upload_rate_limit: int = Field(default=60, ge=1)
     upload_rate_window_s: float = Field(default=3600.0, gt=0)
+    assets_import_max_rows: int = Field(default=200_000, ge=1, le=200_000)
+    assets_import_max_lines: int = Field(default=1000, ge=1, le=100_000)
+    assets_import_batch_rows: int = Field(default=2000, ge=100, le=100_000)
+    db_lock_wait_s: float = Field(default=15.0, gt=0, le=600)
     max_reference_bytes: int = Field(default=256 * 1024 * 1024, gt=0)
     parse_isolated: bool = True
     parse_seconds: float = Field(default=120.0, gt=0)
@@ -445,6 +469,7 @@ class Settings(BaseSettings):
     places_explain_days: float = Field(default=60.0, ge=0)
     places_section_m: float = Field(default=200.0, gt=0)
     places_section_limits: list[float] = Field(default_factory=lambda: [0.05, 0.10, 0.17, 0.25])
+    places_class_scheme: dict[str, Any] | None = None
     places_asset_buffer_m: float = Field(default=20.0, ge=0)
     places_muted_asset_types: str = Field(default="", max_length=500)
     places_alerts: bool = True

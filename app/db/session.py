@@ -26,18 +26,22 @@ __all__ = ["Database", "make_engine"]
 _SQLITE_BUSY_TIMEOUT_MS = 60_000
 
 
-def make_engine(url: str, *, sqlite_foreign_keys: bool = True, **kwargs) -> Engine:
+def make_engine(url: str, *, sqlite_foreign_keys: bool = True, lock_wait_s: float | None = None,
+                **kwargs) -> Engine:
     """Create an engine for ``url`` with the service's connection settings.
 
     Parameters
     ----------
     url : str
         SQLAlchemy database URL. For a file SQLite URL the parent directory is
-        created; connections get WAL journaling, foreign keys on and a 60 s
-        busy timeout.
+        created; connections get WAL journaling, foreign keys on and a busy
+        timeout (``lock_wait_s``).
     sqlite_foreign_keys : bool
         Enforce foreign keys on SQLite connections (default). Migrations turn
         it off: SQLite batch operations recreate tables.
+    lock_wait_s : float, optional
+        SQLite: how long a connection waits for the write lock, retrying, before
+        it fails with ``database is locked`` (default 60 s).
     **kwargs
         Passed to :func:`sqlalchemy.create_engine`.
     """
@@ -51,7 +55,8 @@ def make_engine(url: str, *, sqlite_foreign_keys: bool = True, **kwargs) -> Engi
         Path(database).expanduser().parent.mkdir(parents=True, exist_ok=True)
     connect_args = kwargs.pop("connect_args", {})
     connect_args.setdefault("check_same_thread", False)
-    connect_args.setdefault("timeout", _SQLITE_BUSY_TIMEOUT_MS / 1000)
+    busy_ms = _SQLITE_BUSY_TIMEOUT_MS if lock_wait_s is None else max(1, round(lock_wait_s * 1000))
+    connect_args.setdefault("timeout", busy_ms / 1000)
     engine = create_engine(url, connect_args=connect_args, **kwargs)
 
     @event.listens_for(engine, "connect")
@@ -60,7 +65,7 @@ def make_engine(url: str, *, sqlite_foreign_keys: bool = True, **kwargs) -> Engi
         dbapi_connection.isolation_level = None
         cursor = dbapi_connection.cursor()
         cursor.execute(f"PRAGMA foreign_keys={'ON' if sqlite_foreign_keys else 'OFF'}")
-        cursor.execute(f"PRAGMA busy_timeout={_SQLITE_BUSY_TIMEOUT_MS}")
+        cursor.execute(f"PRAGMA busy_timeout={busy_ms}")
         if database and database != ":memory:":
             cursor.execute("PRAGMA journal_mode=WAL")
             cursor.execute("PRAGMA synchronous=NORMAL")

@@ -45,5 +45,9 @@ def prepare_multiprocess_dir() -> tuple[Path, bool]:
 
 
 def remove_multiprocess_dir(path: Path) -> None:
-    """Remove a directory made by :func:`prepare_multiprocess_dir`."""
+    """Remove a directory made by :func:`prepare_multiprocess_dir`, and the variable set for it (a
+    process that goes on after ``serve``, such as a test runner, must not count into a directory
+    that is gone)."""
     shutil.rmtree(path, ignore_errors=True)
+    if os.environ.get(MULTIPROC_ENV) == str(path):
+        del os.environ[MULTIPROC_ENV]

@@ -27,10 +27,11 @@ from app.condition import readers as reader
 from app.condition.lines import resolve_line
 from app.db.models import ConditionLine, ConditionRun
 from app.db.session import Database
+from app.places.class_scheme import class_scheme
 from app.places.config import PlacesConfig
 from app.places.index import SEGMENT_M, run_segment_index
 
-__all__ = ["SEGMENT_M", "line_sections", "section_limits"]
+__all__ = ["SEGMENT_M", "line_sections", "section_limits", "sections_csv"]
 
 _YEAR = dt.timedelta(days=365)
 
@@ -52,7 +53,7 @@ def section_limits(settings: Any) -> SectionClassLimits:
 
 
 def line_sections(db: Database, settings: Any, line_id: str, track: str | None, *,
-                  section_m: float | None = None) -> dict[str, Any]:
+                  section_m: float | None = None, lang: str = "en") -> dict[str, Any]:
     """The section classes of a line's newest run, and the length per class now and a year before.
 
     Parameters
@@ -65,13 +66,16 @@ def line_sections(db: Database, settings: Any, line_id: str, track: str | None, 
         The store's line (404 naming ``line_id`` without runs, 422 naming ``track`` when ambiguous).
     section_m : float, optional
         Section length, m (a whole multiple of 10 m; default ``places_section_m``).
+    lang : str
+        Language of the class scheme's names.
 
     Returns
     -------
     dict
-        ``section_m, limits, sections [{km_from, km_to, class, level, spread, rms, fill}],
-        length_by_class {A..E, "": m}, length_by_class_year_ago (or None), run_id, run_time,
-        run_id_year_ago, run_time_year_ago``.
+        ``section_m, limits, sections [{km_from, km_to, class, scheme_class, level, spread, rms,
+        fill}], length_by_class {A..E, "": m}, length_by_class_year_ago (or None), the same per
+        class of the railway's scheme (``scheme``: :mod:`app.places.class_scheme`), run_id,
+        run_time, run_id_year_ago, run_time_year_ago``.
     """
     line = resolve_line(db, line_id, track)
     limits = section_limits(settings)
@@ -89,8 +93,10 @@ def line_sections(db: Database, settings: Any, line_id: str, track: str | None, 
             osegs, oidx = _run_index(session, line, runs[j], config)
             old = (runs[j], section_classes(osegs, oidx, segment_m=SEGMENT_M, limits=limits, section_m=section_m))
     per = int(round(section_m / SEGMENT_M))
+    scheme = class_scheme(settings)
     sections = [
         {"km_from": float(sc.start_m[i]) / 1000.0, "km_to": float(sc.end_m[i]) / 1000.0, "class": str(sc.cls[i]),
+         "scheme_class": scheme.code(str(sc.cls[i])),
          "level": _finite(sc.level[i]), "spread": _finite(sc.spread[i]), "rms": _finite(sc.rms[i]),
          "fill": float(sc.n_segments[i]) / per}
         for i in range(len(sc))
@@ -101,6 +107,27 @@ def line_sections(db: Database, settings: Any, line_id: str, track: str | None, 
         "quantity": "stiffness index ln(A/A_ref(class, v)), mean over the wheels",
         "sections": sections, "length_by_class": sc.length_by_class(),
         "length_by_class_year_ago": old[1].length_by_class() if old else None,
+        "scheme": scheme.describe(lang),
+        "length_by_scheme_class": scheme.lengths(sc.length_by_class()),
+        "length_by_scheme_class_year_ago": scheme.lengths(old[1].length_by_class()) if old else None,
         "run_id": runs[k].run_id, "run_time": runs[k].run_time,
         "run_id_year_ago": old[0].run_id if old else None, "run_time_year_ago": old[0].run_time if old else None,
     }
+
+
+def sections_csv(answer: dict[str, Any]) -> str:
+    """The sections of a :func:`line_sections` answer as CSV: one row per section with the
+    internal class and the class of the railway's scheme (its code and name)."""
+    import csv
+    import io
+
+    names = {k["code"]: k["name"] for k in answer["scheme"]["classes"]}
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(["line_id", "track", "km_from", "km_to", "class", "scheme_class", "scheme_class_name",
+                "level", "spread", "rms", "fill"])
+    for x in answer["sections"]:
+        w.writerow([answer["line_id"], answer["track"], f"{x['km_from']:.3f}", f"{x['km_to']:.3f}", x["class"],
+                    x["scheme_class"], names.get(x["scheme_class"], ""),
+                    *("" if x[k] is None else f"{x[k]:.4f}" for k in ("level", "spread", "rms")), f"{x['fill']:.2f}"])
+    return out.getvalue()

@@ -34,8 +34,8 @@ class SimSet:
     runs: dict[str, SimRun]
 
 
-@pytest.fixture(scope="session")
-def sim_set(tmp_path_factory) -> SimSet:
+def _build_sim_set(root: Path) -> SimSet:
+    """The line, its reference data and runs A, B, C processed by the real pipeline, in ``root``."""
     from app.analysis.settings import ProcessingSettings
     from app.pipeline import run_pipeline
     from app.simulate.reference import simulate_reference
@@ -43,7 +43,6 @@ def sim_set(tmp_path_factory) -> SimSet:
     from app.simulate.speed import SpeedProfile
     from app.simulate.track import generate_line
 
-    root = tmp_path_factory.mktemp("analytics")
     line = generate_line(11_900.0, 13_700.0, np.random.default_rng([4, 7]),
                          anomaly_range_m=(12_050.0, 13_450.0), n_anomalies=2)
     reference = simulate_reference(line, root / "reference", line_id=LINE_ID, track=TRACK, seed=1)
@@ -62,6 +61,12 @@ def sim_set(tmp_path_factory) -> SimSet:
         results = run_pipeline(path, ProcessingSettings(), root / f"work-{name}")
         runs[name] = SimRun(name, path, truth, results, speed)
     return SimSet(line, reference, runs)
+
+
+@pytest.fixture(scope="session")
+def sim_set(datasets) -> SimSet:
+    """The analytics' data set (module docstring), built once (a cached data set: read only)."""
+    return datasets.get("analytics-sim-set", {}, _build_sim_set)
 
 
 @pytest.fixture(scope="module")

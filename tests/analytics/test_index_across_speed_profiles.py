@@ -8,13 +8,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from tests.analytics.conftest import SimRun
 from tests.analytics.support import get, store_run
 
 LINE = "IDX"
 LINE_ONE = "IDX1"
 
 
-def _simulate(root, line, length_km, line_id):
+def _simulate(root, line, length_km, line_id) -> list[SimRun]:
     from app.analysis.settings import ProcessingSettings
     from app.pipeline import run_pipeline
     from app.simulate.run import simulate_run
@@ -27,27 +28,35 @@ def _simulate(root, line, length_km, line_id):
         truth = simulate_run(path, length_km=length_km, fs=2000.0, seed=seed, line=line, noise_std=0.5,
                              speed_profile=profile, start_time=start, line_id=line_id, track="1")
         results = run_pipeline(path, ProcessingSettings(), root / f"work-{name}")
-        runs.append(type("Run", (), {"path": path, "truth": truth, "results": results}))
+        runs.append(SimRun(name, path, truth, results, float("nan")))
     return runs
 
 
-@pytest.fixture(scope="module")
-def two_profiles(tmp_path_factory):
-    """A 4 km line of three superstructure types, two runs at different random speed profiles."""
+def _two_profiles(root):
     from app.simulate.track import generate_line
 
     line = generate_line(11_900.0, 16_100.0, np.random.default_rng([9, 7]), anomaly_range_m=(12_100.0, 15_950.0))
-    return line, _simulate(tmp_path_factory.mktemp("index-speeds"), line, 4.0, LINE)
+    return line, _simulate(root, line, 4.0, LINE)
 
 
-@pytest.fixture(scope="module")
-def one_type(tmp_path_factory):
-    """A 2.5 km line of one superstructure type (nothing to import), two runs as above."""
+def _one_type(root):
     from app.simulate.track import TrackSection, generate_line
 
     line = generate_line(11_900.0, 14_600.0, np.random.default_rng([5, 7]), anomaly_range_m=(12_100.0, 14_400.0),
                          sections=[TrackSection(11_900.0, 14_600.0, "b91_no_pads")])
-    return line, _simulate(tmp_path_factory.mktemp("index-one-type"), line, 2.5, LINE_ONE)
+    return line, _simulate(root, line, 2.5, LINE_ONE)
+
+
+@pytest.fixture(scope="module")
+def two_profiles(datasets):
+    """A 4 km line of three superstructure types, two runs at different random speed profiles."""
+    return datasets.get("index-two-profiles", {}, _two_profiles)
+
+
+@pytest.fixture(scope="module")
+def one_type(datasets):
+    """A 2.5 km line of one superstructure type (nothing to import), two runs as above."""
+    return datasets.get("index-one-type", {}, _one_type)
 
 
 def _rows(client, run_id, wheel):

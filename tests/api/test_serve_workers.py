@@ -42,3 +42,12 @@ def test_serve_defaults_to_one_process_per_usable_core(started):
 def test_serve_refuses_zero_workers(started):
     result = CliRunner().invoke(app, ["serve", "--workers", "0"])
     assert result.exit_code == 2 and not started
+
+
+def test_serve_leaves_no_metrics_directory_behind_in_the_environment(started, monkeypatch):
+    """``serve`` makes a metrics directory for its processes and removes it when they end; the
+    variable naming it goes too (a process that goes on, such as a test runner, would otherwise
+    hand a directory that is gone to every service it starts)."""
+    monkeypatch.delenv("PROMETHEUS_MULTIPROC_DIR", raising=False)
+    assert CliRunner().invoke(app, ["serve"]).exit_code == 0
+    assert "PROMETHEUS_MULTIPROC_DIR" not in os.environ

@@ -1,6 +1,7 @@
 """GET /condition/sections on a real SQLite store holding a generated year of runs: per 200 m section a
 class from the speed-conditioned index of the 10 m rows, a lasting stiff section and a new one classed
-E, healthy track A–C, the length per class now and a year before, and the bad-input answers."""
+E, healthy track A–C, the length per class now and a year before, the bad-input answers, and the
+railway's own class scheme (TRACKVKF_PLACES_CLASS_SCHEME) in the answer and the CSV."""
 
 from __future__ import annotations
 
@@ -35,6 +36,8 @@ def sections_client(tmp_path_factory):
     db.dispose()
     key = create_api_key(settings.database_url, "viewer")
     with TestClient(create_app(settings), headers=auth_headers(key)) as client:
+        client.settings = settings
+        client.key = key
         yield client
 
 
@@ -72,3 +75,73 @@ def test_sections_bad_input(sections_client):
     assert r.status_code == 422 and r.json()["field"] == "section_m"
     r = sections_client.get("/api/v1/condition/sections", params={"line_id": LINE, "section_m": 0})
     assert r.status_code == 422 and r.json()["field"] == "section_m"
+
+
+#: a railway's three classes: A and B are "1", C is "2", D and E are "3"
+SCHEME = {"name": {"en": "Condition class", "de": "Zustandsklasse"},
+          "classes": [{"code": "1", "of": ["A", "B"], "name": {"en": "good", "de": "gut"}},
+                      {"code": "2", "of": ["C"], "name": {"en": "watch", "de": "beobachten"}},
+                      {"code": "3", "of": ["D", "E"], "name": {"en": "plan work", "de": "Arbeit planen"}, "colour": "#c00"}]}
+
+
+def test_sections_in_the_railways_class_scheme(sections_client):
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+    from tests.api.support import auth_headers
+
+    default = sections_client.get("/api/v1/condition/sections", params={"line_id": LINE}).json()
+    assert [k["code"] for k in default["scheme"]["classes"]] == ["A", "B", "C", "D", "E"]
+    assert all(s["scheme_class"] == s["class"] for s in default["sections"])
+    settings = sections_client.settings.model_copy(update={"places_class_scheme": SCHEME})
+    with TestClient(create_app(settings), headers=auth_headers(sections_client.key)) as client:
+        body = client.get("/api/v1/condition/sections", params={"line_id": LINE}).json()
+        csv_text = client.get("/api/v1/condition/sections.csv", params={"line_id": LINE}).text
+    assert body["scheme"]["name"] == "Condition class"
+    assert [(k["code"], k["of"]) for k in body["scheme"]["classes"]] == [("1", ["A", "B"]), ("2", ["C"]), ("3", ["D", "E"])]
+    assert body["scheme"]["classes"][2]["colour"] == "#c00"
+    code = {"A": "1", "B": "1", "C": "2", "D": "3", "E": "3", "": ""}
+    assert [s["scheme_class"] for s in body["sections"]] == [code[s["class"]] for s in body["sections"]]
+    by_class = body["length_by_class"]
+    assert body["length_by_scheme_class"]["3"] == pytest.approx(by_class["D"] + by_class["E"])
+    assert body["length_by_scheme_class"]["1"] == pytest.approx(by_class["A"] + by_class["B"])
+    old = body["length_by_class_year_ago"]
+    assert body["length_by_scheme_class_year_ago"]["3"] == pytest.approx(old["D"] + old["E"])
+    lines = csv_text.strip().split("\n")
+    assert lines[0].split(",")[4:7] == ["class", "scheme_class", "scheme_class_name"]
+    assert len(lines) == len(body["sections"]) + 1
+    e_row = next(row.split(",") for row in lines[1:] if row.split(",")[4] == "E")
+    assert e_row[5:7] == ["3", "plan work"]
+
+
+def test_a_bad_class_scheme_stops_the_start_naming_it(sections_client):
+    from app.main import create_app
+
+    bad = {"classes": [{"code": "1", "of": ["A", "B", "C"]}, {"code": "2", "of": ["D"]}]}  # E nowhere
+    with pytest.raises(ValueError, match="TRACKVKF_PLACES_CLASS_SCHEME: classes: every class"):
+        create_app(sections_client.settings.model_copy(update={"places_class_scheme": bad}))
+    with pytest.raises(ValueError, match=r"classes\[1\]\.of"):
+        create_app(sections_client.settings.model_copy(update={"places_class_scheme": {
+            "classes": [{"code": "1", "of": ["A", "B", "C", "D"]}, {"code": "2", "of": ["F"]}]}}))
+
+
+def test_the_report_of_a_line_is_a_pdf_and_bad_input_is_named(sections_client):
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE, "date": "2025-03-04"})
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "application/pdf" and r.content.startswith(b"%PDF-")
+    assert f'filename="report-{LINE}-' in r.headers["content-disposition"] and "2025-03-04" in r.headers["content-disposition"]
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": "NOPE"})
+    assert r.status_code == 404 and r.json()["field"] == "line_id"
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE, "date": "2025-13-01"})
+    assert r.status_code == 422 and "date" in r.text
+
+
+def test_the_report_without_weasyprints_libraries_is_a_clear_503(sections_client, monkeypatch):
+    """Pango missing (WeasyPrint's import fails, as it does without the library): the answer names
+    the packages, not a traceback."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "weasyprint", None)  # import weasyprint → ImportError
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE})
+    assert r.status_code == 503, r.text
+    assert r.json()["field"] == "report" and "libpango-1.0-0" in r.json()["detail"]

@@ -393,7 +393,7 @@ def test_one_slow_receiver_does_not_hold_the_others(admin, servers):
         fast.stop()
 
 
-def test_a_rotated_secret_signs_beside_the_old_one_for_the_grace_period(admin):
+def test_a_rotated_secret_signs_beside_the_old_one_for_the_grace_period(admin, clock):
     receiver = Receiver()
     receiver.start()
     try:
@@ -407,7 +407,7 @@ def test_a_rotated_secret_signs_beside_the_old_one_for_the_grace_period(admin):
         try:
             _ping(admin, hook)
             assert deliver_due(db, admin.settings) == 1
-            time.sleep(admin.settings.webhook_secret_grace_s + 0.2)
+            clock.advance(admin.settings.webhook_secret_grace_s + 0.2)
             _ping(admin, hook)
             assert deliver_due(db, admin.settings) == 1
         finally:
@@ -429,7 +429,7 @@ def test_the_transport_validates_its_arguments():
         transport.post("http://8.8.8.8/", b"", {}, policy=AddressPolicy(), timeout_s=1, max_answer_bytes=-1)
 
 
-def test_a_backlog_of_one_webhook_does_not_keep_the_others_waiting(admin):
+def test_a_backlog_of_one_webhook_does_not_keep_the_others_waiting(admin, clock):
     db = Database(admin.settings.database_url)
     try:
         with db.write() as s:
@@ -437,7 +437,7 @@ def test_a_backlog_of_one_webhook_does_not_keep_the_others_waiting(admin):
             other = webhooks.create_webhook(s, "http://127.0.0.1:9/b").id
             for _ in range(30):
                 webhooks.enqueue(s, webhooks.EVENT_PING, {"event": "ping"}, webhook_ids=[backlog])
-            time.sleep(0.01)
+            clock.advance(0.01)
             (late,) = webhooks.enqueue(s, webhooks.EVENT_PING, {"event": "ping"}, webhook_ids=[other])
         claimed = webhooks.claim_due(db, limit=2, one_per_webhook=True)
         assert sorted(c.webhook_id for c in claimed) == [backlog, other]

@@ -76,7 +76,9 @@ def receiver():
 
 @pytest.fixture
 def admin(make_client):
-    return make_client(webhook_retry_base_s=0.3, webhook_timeout_s=2.0, webhook_max_attempts=3,
+    """An admin client; deliveries back off as configured by default (5 s doubling: the tests move the
+    service's clock on instead of waiting)."""
+    return make_client(webhook_timeout_s=2.0, webhook_max_attempts=3,
                        webhook_allowed_networks="127.0.0.1/32")  # the local receiver: allow-listed
 
 
@@ -114,7 +116,7 @@ def test_only_admins_manage_webhooks(make_client):
     assert engineer.post("/api/v1/webhooks", json={"url": "http://127.0.0.1:9/x"}).status_code == 403
 
 
-def test_new_flags_are_delivered_signed_to_a_receiver_that_was_down(admin, receiver):
+def test_new_flags_are_delivered_signed_to_a_receiver_that_was_down(admin, receiver, clock):
     created = admin.post("/api/v1/webhooks", json={"url": receiver.url, "description": "asset system"})
     assert created.status_code == 201, created.text
     hook = created.json()
@@ -135,7 +137,9 @@ def test_new_flags_are_delivered_signed_to_a_receiver_that_was_down(admin, recei
         assert item["last_error"].startswith("no answer")
         assert deliver_due(db, admin.settings) == 0  # backing off: not due yet
         receiver.start()  # the receiver comes back
-        time.sleep(0.4)
+        clock.advance(admin.settings.webhook_retry_base_s - 0.5)
+        assert deliver_due(db, admin.settings) == 0  # still backing off
+        clock.advance(0.6)
         assert deliver_due(db, admin.settings) == 1
         item = admin.get("/api/v1/webhooks/deliveries", params={"status": "delivered"}).json()["items"][0]
         assert item["attempts"] == 2 and item["last_status_code"] == 200 and item["delivered_at"]
@@ -157,16 +161,16 @@ def test_new_flags_are_delivered_signed_to_a_receiver_that_was_down(admin, recei
     assert publish_s < 120
 
 
-def test_a_delivery_is_given_up_after_the_last_attempt(admin, receiver):
+def test_a_delivery_is_given_up_after_the_last_attempt(admin, receiver, clock):
     receiver.status = 500
     receiver.start()
     hook = admin.post("/api/v1/webhooks", json={"url": receiver.url}).json()
     assert admin.post(f"/api/v1/webhooks/{hook['id']}/test").status_code == 202
     db = Database(admin.settings.database_url)
     try:
-        for _ in range(3):
+        for attempt in range(1, 4):
             assert deliver_due(db, admin.settings) == 1
-            time.sleep(0.3 * 2 ** 2 + 0.1)
+            clock.advance(admin.settings.webhook_retry_base_s * 2 ** (attempt - 1) + 0.1)  # its back-off
         assert deliver_due(db, admin.settings) == 0
     finally:
         db.dispose()

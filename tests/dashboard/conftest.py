@@ -1,7 +1,8 @@
 """Browser tests of the dashboard: Debian's chromium driven by Playwright against the real
 service (uvicorn + worker subprocesses, tests/e2e/conftest.py) holding the demo data (short
 runs): three processed runs of line SIM at three dates, one of line SIM-B, the reference data
-of line SIM and the geometry of both lines, all uploaded and imported over HTTP.
+of line SIM and the geometry of both lines, all uploaded and imported over HTTP and processed
+once per session (tests/demo_db.py, shared with the golden identity test).
 
 No browser is downloaded: /usr/bin/chromium comes from the Debian package, installed here
 with apt-get when it is missing (the CI machine runs as root).
@@ -70,20 +71,22 @@ class Dashboard:
 
 
 @pytest.fixture(scope="session")
-def dashboard(tmp_path_factory, demo_data) -> Iterator[Dashboard]:
-    """The real service with the demo data processed (the ``demo_data`` fixture: 4 runs of 1.2 km at
-    10 kHz on two lines, reference data of line SIM), two workers left running, a further run
+def dashboard(tmp_path_factory, processed_demo) -> Iterator[Dashboard]:
+    """The real service (uvicorn, two workers left running) on a copy of the processed demo (the
+    ``processed_demo`` fixture, tests/demo_db.py: 4 runs of 1.2 km at 10 kHz on two lines, reference
+    data of line SIM, both lines' geometry, processed once per session and shared with the golden
+    identity test; its webhook is deleted here, the browser tests have no receiver), a further run
     file for the upload test and a bad file."""
     from app.simulate.run import simulate_run
 
     work = tmp_path_factory.mktemp("dashboard")
-    demo = demo_data
     upload = work / "upload-run.h5"
     simulate_run(upload, length_km=0.6, fs=RUN_FS, seed=21, line_seed=LINE_SEED,
                  start_time="2025-01-15T09:30:00+01:00", with_forces=False)
     bad = work / "broken-run.csv"
     bad.write_text("time,Z11,speed\n0.0,1.0,20\n0.0001,oops,20\n")
-    with running_service(work / "service") as svc:
+    url, store = processed_demo.copy_to(work / "service")
+    with running_service(work / "service", url, run_store=store) as svc:
         from app.db import auth_crud
         from app.db.session import Database
 
@@ -91,28 +94,14 @@ def dashboard(tmp_path_factory, demo_data) -> Iterator[Dashboard]:
         with db.write() as session:
             auth_crud.create_user(session, USER, PASSWORD, "engineer")
         db.dispose()
-        svc.start_worker()
-        svc.start_worker()
-        run_ids, jobs = [], []
         with svc.client(timeout=120) as client:
-            for path in demo.runs:
-                with open(path, "rb") as fh:
-                    r = client.post("/api/v1/runs", files={"file": (path.name, fh, "application/x-hdf5")})
-                assert r.status_code == 201, r.text
-                run_ids.append(r.json()["id"])
-                jobs.append(r.json()["latest_job"]["id"])
-            for kind, path in demo.reference.items():
-                with open(path, "rb") as fh:
-                    r = client.post(f"/api/v1/reference/{kind}", files={"file": (path.name, fh, "text/csv")})
-                assert r.status_code == 201, r.text
-            for path in demo.geometry:
-                with open(path, "rb") as fh:
-                    r = client.post("/api/v1/geometry", files={"file": (path.name, fh, "application/geo+json")})
-                assert r.status_code in (200, 201), r.text
-            for job_id in jobs:
-                job = svc.wait_job(client, job_id)
-                assert job["status"] == "done", f"{job['error']}\n{svc.log_text()}"
-        yield Dashboard(service=svc, run_ids=run_ids, upload_file=upload, bad_file=bad)
+            r = client.delete(f"/api/v1/webhooks/{processed_demo.webhook_id}")
+            assert r.status_code == 204, r.text
+            for job_id in processed_demo.job_ids:
+                assert client.get(f"/api/v1/jobs/{job_id}").json()["status"] == "done"
+        svc.start_worker()
+        svc.start_worker()
+        yield Dashboard(service=svc, run_ids=list(processed_demo.run_ids), upload_file=upload, bad_file=bad)
 
 
 @pytest.fixture(scope="session")

@@ -18,7 +18,7 @@ TABLES = {
     "webhooks", "webhook_deliveries", "condition_overview",
     "channel_maps", "line_geometries", "worker_heartbeats",
     "places", "place_observations", "place_events", "place_status_history", "place_actions", "place_runs",
-    "assets", "places_pending",
+    "assets", "places_pending", "asset_imports", "asset_lines",
 }
 
 
@@ -35,7 +35,7 @@ def test_upgrade_downgrade_upgrade(tmp_path):
     migrate.upgrade(url)
     assert _tables(url) == TABLES
     head = migrate.current_revision(url)
-    assert head == "0022_condition_index"  # one chain: the newest migration is the head
+    assert head == "0023_asset_imports"  # one chain: the newest migration is the head
 
     migrate.downgrade(url, "base")
     assert _tables(url) == set()

@@ -63,9 +63,14 @@ def _norm(value: Any) -> Any:
     return str(value)
 
 
+def _dumps(norm: Any) -> bytes:
+    """JSON bytes of an already normalised value (:func:`_norm`)."""
+    return json.dumps(norm, sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode()
+
+
 def canonical(value: Any) -> bytes:
     """Canonical JSON bytes of ``value`` (see the module docstring)."""
-    return json.dumps(_norm(value), sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode()
+    return _dumps(_norm(value))
 
 
 def csv_rows(text: str) -> list[dict[str, Any]]:
@@ -86,13 +91,13 @@ def _sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def _part(value: Any) -> str:
-    return _sha(canonical(value))[:16]
+def _part(norm: Any) -> str:
+    return _sha(_dumps(norm))[:16]
 
 
-def _parts(value: Any) -> dict[str, str]:
-    """A (short) sha256 per top-level key of an object, or per column of a list of row objects."""
-    norm = _norm(value)
+def _parts(norm: Any) -> dict[str, str]:
+    """A (short) sha256 per top-level key of an object, or per column of a list of row objects
+    (``norm``: the answer normalised once by :func:`_norm`, which a second pass would not change)."""
     if isinstance(norm, dict):
         return {k: _part(v) for k, v in norm.items()}
     if isinstance(norm, list) and norm and all(isinstance(r, dict) for r in norm):
@@ -115,8 +120,9 @@ class Fingerprint:
         """Fingerprint ``value`` as ``name`` (and dump it when :data:`DUMP_ENV` is set)."""
         if name in self.answers:
             raise ValueError(f"{name}: fingerprinted twice")
-        data = canonical(value)
-        self.answers[name] = {"sha256": _sha(data), "parts": _parts(value)}
+        norm = _norm(value)
+        data = _dumps(norm)
+        self.answers[name] = {"sha256": _sha(data), "parts": _parts(norm)}
         dump = os.environ.get(DUMP_ENV) if self.dump else None
         if dump:
             path = Path(dump) / f"{name.replace('/', '_')}.json"

@@ -9,6 +9,9 @@ import pytest
 pytestmark = pytest.mark.timeout(600)
 
 
+# SQLite only: the backend's part (upload, queue, COPY, the worker) is covered on both by
+# test_service_e2e.py; the analytics read the same rows through the same queries on either
+@pytest.mark.parametrize("service", ["sqlite"], indirect=True)
 def test_reference_import_and_analytics_over_http(service, tmp_path):
     from app.simulate.reference import simulate_reference
     from app.simulate.run import simulate_run

@@ -3,7 +3,9 @@
 The demo's four runs (two lines, three dates of line SIM), its reference data and line
 geometries are uploaded and imported through the API (in-process app, SQLite), processed by
 the local worker one job after the other (the order the change tests see their history in),
-with one webhook registered so that the alerts outbox is written too. Then every stored row
+with one webhook registered so that the alerts outbox is written too (tests/demo_db.py: the
+``processed_demo`` data set, processed once per session and shared with the dashboard tests;
+this module reads a copy of it). Then every stored row
 that the processing decides (profiles, wheels, jobs, the segment condition store, reference
 curves, the outbox) and the answer of every GET the dashboard pages make (with their query
 parameters) are fingerprinted (:mod:`tests.e2e.identity`) and compared with the committed
@@ -41,8 +43,6 @@ TABLES = (
     "segment_condition", "condition_overview", "condition_flags", "reference_curves", "webhooks",
     "webhook_deliveries", "ref_subsidence", "ref_maintenance", "ref_superstructure", "line_geometries",
 )
-#: a receiver that is never called (no delivery loop runs here): its outbox rows are what counts
-WEBHOOK_URL = "https://93.184.215.14/trackvkf-alerts"
 
 
 class Processed:
@@ -58,48 +58,29 @@ class Processed:
 
 
 @pytest.fixture(scope="module")
-def processed(demo_data, tmp_path_factory) -> Iterator[Processed]:
+def processed(processed_demo, tmp_path_factory) -> Iterator[Processed]:
+    """A test client on a copy of the processed demo (tests/demo_db.py: processed once per session)."""
     from fastapi.testclient import TestClient
 
-    from app.db import migrate
     from app.db.session import Database
     from app.main import create_app
-    from worker.runner import LocalWorker
 
     tmp = tmp_path_factory.mktemp("identity")
-    settings = make_settings(tmp)
-    migrate.upgrade(settings.database_url)
-    key = create_api_key(settings.database_url, "admin", "identity")
+    url, store = processed_demo.copy_to(tmp)
+    settings = make_settings(tmp, database_url=url, run_store=store)
+    key = create_api_key(settings.database_url, "admin", "identity-reader")
     db = Database(settings.database_url)
     with TestClient(create_app(settings), headers=auth_headers(key)) as client:
-        r = client.post("/api/v1/webhooks", json={"url": WEBHOOK_URL, "description": "identity test"})
-        assert r.status_code == 201, r.text
-        run_ids = []
-        for path in demo_data.runs:
-            with open(path, "rb") as fh:
-                r = client.post("/api/v1/runs", files={"file": (path.name, fh, "application/x-hdf5")})
-            assert r.status_code == 201, r.text
-            run_ids.append(r.json()["id"])
-        for kind, path in demo_data.reference.items():
-            with open(path, "rb") as fh:
-                r = client.post(f"/api/v1/reference/{kind}", files={"file": (path.name, fh, "text/csv")})
-            assert r.status_code == 201, r.text
-        for path in demo_data.geometry:
-            with open(path, "rb") as fh:
-                r = client.post("/api/v1/geometry", files={"file": (path.name, fh, "application/geo+json")})
-            assert r.status_code in (200, 201), r.text
-        worker = LocalWorker(settings, db=db, worker_id="identity-worker")
-        assert worker.run(exit_when_idle=True) == len(run_ids)
-        geometry_ids = [g["id"] for g in client.get("/api/v1/geometry").json()["items"]]
-        yield Processed(client, db, run_ids, geometry_ids)
+        yield Processed(client, db, list(processed_demo.run_ids), list(processed_demo.geometry_ids))
     db.dispose()
 
 
-def _tables(p: Processed, fp: Fingerprint) -> None:
-    """Every row of :data:`TABLES`, ordered by the primary key (columns from the schema itself)."""
+def _tables(p: Processed, fp: Fingerprint, tables: tuple[str, ...] = TABLES) -> None:
+    """Every row of ``tables`` (default :data:`TABLES`), ordered by the primary key (columns from the
+    schema itself)."""
     insp = inspect(p.db.engine)
     with p.db.engine.connect() as conn:
-        for table in TABLES:
+        for table in tables:
             keys = insp.get_pk_constraint(table)["constrained_columns"]
             rows = conn.execute(text(f"SELECT * FROM {table} ORDER BY {', '.join(keys)}")).mappings().all()
             values = []
@@ -242,7 +223,7 @@ _SET_AMP = "UPDATE segment_condition SET amp_mean = :v WHERE run_id = :r AND seg
 def test_fingerprint_sees_a_changed_number(processed: Processed) -> None:
     """The fingerprint is not blind: one stored amplitude changed by 1e-6 changes its table's and part's hash."""
     fp = Fingerprint(dump=False)
-    _tables(processed, fp)
+    _tables(processed, fp, ("segment_condition",))
     before = fp.answers["table/segment_condition"]
     with processed.db.write() as session:
         row = session.execute(text("SELECT run_id, seg_m, wheel, seg, amp_mean FROM segment_condition "
@@ -251,7 +232,7 @@ def test_fingerprint_sees_a_changed_number(processed: Processed) -> None:
         session.execute(text(_SET_AMP), {"v": row.amp_mean * (1 + 1e-6), **key})
     try:
         after = Fingerprint(dump=False)
-        _tables(processed, after)
+        _tables(processed, after, ("segment_condition",))
         now = after.answers["table/segment_condition"]
         assert now["sha256"] != before["sha256"]
         changed = [k for k in before["parts"] if before["parts"][k] != now["parts"][k]]

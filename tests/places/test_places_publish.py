@@ -61,7 +61,7 @@ def test_publish_applies_places_and_survives_their_failure(any_db, monkeypatch):
             assert s.get(Job, job_id).meta["condition"]["places"]["applied"] is True
 
 
-def test_a_failing_places_update_is_given_up_after_its_attempts(any_db, monkeypatch):  # noqa: F811
+def test_a_failing_places_update_is_given_up_after_its_attempts(any_db, monkeypatch, clock):  # noqa: F811
     import datetime as dt
 
     import app.places.followup as followup
@@ -71,16 +71,15 @@ def test_a_failing_places_update_is_given_up_after_its_attempts(any_db, monkeypa
         raise RuntimeError("places broke")
 
     monkeypatch.setattr(followup, "prepare_run", broken)
-    policy = followup.FollowupPolicy(max_attempts=3, retry_base_s=0.001, retry_max_s=0.001)
+    policy = followup.FollowupPolicy(max_attempts=3)  # the default back-off: the clock moves on instead
     sim = FleetSimulator(generate_line(12_000.0, 13_500.0, seed=7), grid_m=0.25)
     _, tracks = sim.run(0.0, np.random.default_rng(0))
     run_id, job_id, _ = publish_tracks(any_db, tracks, DAY0, followup=False)
-    import time
-
     outcomes = []
     for _ in range(4):
-        time.sleep(0.01)
         outcomes += [r.outcome for r in followup.run_pending(any_db, policy=policy)]
+        assert followup.run_pending(any_db, policy=policy) == []  # backing off: not due yet
+        clock.advance(policy.retry_max_s + 1.0)
     assert outcomes == ["failed", "failed", "gave_up"]
     with any_db.read() as s:
         marker = s.get(PlacesPending, run_id)

@@ -23,7 +23,7 @@ module                 tables
 =====================  ==============================================================
 """
 
-from app.db.models.assets import Asset
+from app.db.models.assets import ASSET_IMPORT_STATES, NO_TRACK, Asset, AssetImport, AssetLine
 from app.db.models.auth import ApiKey, AuditEntry, User, UserSession
 from app.db.models.base import NAMING, Base, JSONType, UTCDateTime, utcnow
 from app.db.models.condition import (
@@ -73,6 +73,10 @@ from app.db.models.webhooks import DeliveryStatus, Webhook, WebhookDelivery
 __all__ = [
     "ApiKey",
     "Asset",
+    "AssetImport",
+    "AssetLine",
+    "ASSET_IMPORT_STATES",
+    "NO_TRACK",
     "AuditEntry",
     "Base",
     "ChannelMapRow",

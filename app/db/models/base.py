@@ -14,12 +14,9 @@ from sqlalchemy import JSON, DateTime, MetaData, TypeDecorator
 from sqlalchemy.dialects.postgresql import JSONB
 from sqlalchemy.orm import DeclarativeBase
 
+from app.core.clock import utcnow  # the service's clock (injectable): every "now" of a stored row
+
 __all__ = ["Base", "NAMING", "UTCDateTime", "JSONType", "utcnow"]
-
-
-def utcnow() -> dt.datetime:
-    """Current time, timezone-aware UTC."""
-    return dt.datetime.now(dt.UTC)
 
 
 class UTCDateTime(TypeDecorator):

@@ -44,16 +44,19 @@
   async function drawSections() {
     const el = $("cond-sections");
     const { line_id, track } = current();
+    $("report-pdf").href = `${T.boot.api}/condition/report.pdf?${new URLSearchParams({ line_id, track })}`;
     const s = await T.api.get("/condition/sections", { line_id, track });
     $("sections-sub").textContent = `(per ${T.fmt(s.section_m, 0)} m, run of ${T.date(s.run_time)})`;
     $("sections-info").textContent = `class from the rms of the index over a section: A ≤ ${s.limits.map((x) => T.fmt(x, 2)).join(" < B ≤ ").replace(/ < B ≤ (\S+) < B ≤ (\S+) < B ≤ (\S+)$/, " < B ≤ $1 < C ≤ $2 < D ≤ $3 < E")}`;
-    const traces = s.classes.concat([""]).map((c) => {
-      const part = s.sections.filter((x) => x.class === c);
+    /* the railway's class scheme (TRACKVKF_PLACES_CLASS_SCHEME; default A … E): one trace per class */
+    const groups = s.scheme.classes.concat([{ code: "", name: "no class", colour: CLASS_COLORS[""], of: [""] }]);
+    const traces = groups.map((g) => {
+      const part = s.sections.filter((x) => x.scheme_class === g.code);
       return {
-        type: "bar", orientation: "v", name: c ? `class ${c}` : "no class", x: part.map((x) => (x.km_from + x.km_to) / 2),
-        y: part.map(() => 1), width: part.map((x) => (x.km_to - x.km_from) * 0.98), marker: { color: CLASS_COLORS[c] },
-        customdata: part.map((x) => [x.km_from, x.km_to, x.level, x.spread, x.rms, Math.round(100 * x.fill)]),
-        hovertemplate: `class ${c || "–"}<br>km %{customdata[0]:.2f}–%{customdata[1]:.2f}<br>rms %{customdata[4]:.3f}, level %{customdata[2]:.3f}, spread %{customdata[3]:.3f}<br>data %{customdata[5]} %<extra></extra>`,
+        type: "bar", orientation: "v", name: g.name, x: part.map((x) => (x.km_from + x.km_to) / 2),
+        y: part.map(() => 1), width: part.map((x) => (x.km_to - x.km_from) * 0.98), marker: { color: g.colour },
+        customdata: part.map((x) => [x.km_from, x.km_to, x.level, x.spread, x.rms, Math.round(100 * x.fill), x.class || "–"]),
+        hovertemplate: `${T.esc(g.name)} (class %{customdata[6]})<br>km %{customdata[0]:.2f}–%{customdata[1]:.2f}<br>rms %{customdata[4]:.3f}, level %{customdata[2]:.3f}, spread %{customdata[3]:.3f}<br>data %{customdata[5]} %<extra></extra>`,
       };
     }).filter((t) => t.x.length);
     if (!s.sections.length) { T.emptyState(el, "No section with data.", ""); return s; }
@@ -64,16 +67,18 @@
       margin: { l: 20, r: 20, t: 30, b: 50 },
     }, {
       filename: `section-classes-${line_id}`,
-      csv: () => ({ columns: ["km_from", "km_to", "class", "level", "spread", "rms", "fill"],
-                    rows: s.sections.map((x) => [x.km_from, x.km_to, x.class, x.level, x.spread, x.rms, x.fill]) }),
+      csv: () => ({ columns: ["km_from", "km_to", "class", "scheme_class", "level", "spread", "rms", "fill"],
+                    rows: s.sections.map((x) => [x.km_from, x.km_to, x.class, x.scheme_class, x.level, x.spread, x.rms, x.fill]) }),
     });
-    const old = s.length_by_class_year_ago;
-    $("class-lengths-body").innerHTML = s.classes.concat([""]).map((c) => {
-      const now = (s.length_by_class[c] || 0) / 1000, before = old ? (old[c] || 0) / 1000 : null;
-      if (!c && !now && !before) return "";
-      return `<tr><td><span class="swatch" style="background:${CLASS_COLORS[c]}"></span> ${c || "no class"}</td>
+    const old = s.length_by_scheme_class_year_ago;
+    $("class-lengths-scheme").textContent = s.scheme.name;
+    $("class-lengths-body").innerHTML = groups.map((g) => {
+      const now = (s.length_by_scheme_class[g.code] || 0) / 1000, before = old ? (old[g.code] || 0) / 1000 : null;
+      if (!g.code && !now && !before) return "";
+      const meaning = g.of.map((c) => (c ? `${c}: ` : "") + CLASS_MEANING[c]).join("; ");
+      return `<tr><td><span class="swatch" style="background:${g.colour}"></span> ${T.esc(g.name)}</td>
         <td class="num">${T.fmt(now, 2)}</td><td class="num">${before === null ? "–" : T.fmt(before, 2)}</td>
-        <td class="num">${before === null ? "–" : pct(now - before, 2)}</td><td class="muted">${CLASS_MEANING[c]}</td></tr>`;
+        <td class="num">${before === null ? "–" : pct(now - before, 2)}</td><td class="muted">${meaning}</td></tr>`;
     }).join("") + (old ? "" : `<tr><td colspan="5" class="muted">No run of this line a year or more before the newest: no change over the year yet.</td></tr>`);
     return s;
   }

@@ -1,0 +1,169 @@
+"""The report as HTML (Jinja2, ``frontend/templates/report.html``) and as PDF (WeasyPrint).
+
+One title page (the line, the date, the section classes in the railway's scheme and their change
+over the year), the work list, one sheet per open place (its facts, its history plot, where it is
+on the line and on the map, the maintenance over it) and the maintenance effects. The plots are
+SVG drawn here (:mod:`app.places.report.svg`); WeasyPrint needs Pango (Debian: ``libpango-1.0-0``,
+``libpangoft2-1.0-0``) and reads nothing from the network (every resource is inline or a
+local file).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import jinja2
+import numpy as np
+from markupsafe import Markup
+
+from app.analysis.condition.tiers import TIER_ACTIONS
+from app.core.errors import ApiError
+from app.places.report import svg
+from app.places.report.data import ReportData
+
+__all__ = ["ENGLISH", "Speech", "render_html", "render_pdf", "SYSTEM_PACKAGES", "TEMPLATES_DIR"]
+
+#: the Debian packages WeasyPrint needs (scripts/setup.sh installs them)
+SYSTEM_PACKAGES = ("libpango-1.0-0", "libpangoft2-1.0-0", "fonts-dejavu-core")
+
+TEMPLATES_DIR = Path(__file__).resolve().parents[3] / "frontend" / "templates"
+_STATIC = Path(__file__).resolve().parents[3] / "frontend" / "static"
+_TIER_COLOURS = {"watch": "#607d8b", "alert": "#d49b00", "intervention": "#e65100", "immediate": "#c62828"}
+_NO_CLASS = "#cfd8dc"
+
+
+def _same(text: str) -> str:
+    return text
+
+
+def _words(kind: str, code: str) -> str:
+    return TIER_ACTIONS.get(code, code) if kind == "tier action" else code.replace("_", " ")
+
+
+@dataclass(frozen=True)
+class Speech:
+    """How the report speaks: its language and the words of its catalogue.
+
+    Attributes
+    ----------
+    lang : str
+        The language (``<html lang>``).
+    catalogue : callable
+        The catalogue's gettext: English message → the text in ``lang`` (identity: English).
+    label : callable
+        ``(kind, code)`` → the words of a code (a tier, status, tendency, direction, maintenance
+        or asset type) in ``lang``; the kinds are the pages' (``tier``, ``tier action``,
+        ``place status``, ``tendency``, ``direction``, ``maintenance type``, ``asset type``).
+    """
+
+    lang: str = "en"
+    catalogue: Callable[[str], str] = _same
+    label: Callable[[str, str], str] = _words
+
+    def _(self, message: str, **params: Any) -> str:
+        """``message`` in the report's language with its ``{name}`` fields filled (the name is
+        gettext's, so that the catalogues' extraction finds the message)."""
+        return self.catalogue(message).format(**params)
+
+
+#: the report in English (the messages as written)
+ENGLISH = Speech()
+
+
+def _environment(speech: Speech) -> jinja2.Environment:
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES_DIR)), autoescape=True,
+                             undefined=jinja2.StrictUndefined, extensions=["jinja2.ext.i18n"])
+    gettext = speech.catalogue
+    env.install_gettext_callables(gettext, lambda s, p, n: gettext(s if n == 1 else p), newstyle=True)  # type: ignore[attr-defined]
+    env.filters["num"] = _num
+    env.filters["signed"] = _signed
+    env.globals["label"] = lambda kind, code: speech.label(kind, code) if code else "–"
+    return env
+
+
+def _num(value: Any, digits: int = 2) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "–"
+    return f"{value:.{digits}f}"
+
+
+def _signed(value: Any, digits: int = 2) -> str:
+    text = _num(value, digits)
+    return "+" + text if text[0].isdigit() and float(value) > 0 else text
+
+
+def _time(value: str | None) -> dt.datetime | None:
+    return dt.datetime.fromisoformat(value) if value else None
+
+
+def _section_spans(data: ReportData) -> list[tuple[float, float, str]]:
+    colours = {k["code"]: k["colour"] for k in data.sections["scheme"]["classes"]}
+    return [(s["km_from"], s["km_to"], colours.get(s["scheme_class"], _NO_CLASS)) for s in data.sections["sections"]]
+
+
+def _sheet(data: ReportData, place: dict[str, Any], spans: list[tuple[float, float, str]],
+           speech: Speech) -> dict[str, Any]:
+    history = data.histories[place["id"]]
+    obs = history["observations"]
+    maint = history["maintenance"]
+    limits = []
+    if place.get("next_limit") is not None:
+        sign = 1.0 if place["direction"] == "hard" else -1.0
+        limits.append((sign * place["next_limit"], speech._("limit {tier}", tier=speech.label("tier", place["next_tier"])),
+                       _TIER_COLOURS.get(place["next_tier"], "#c62828")))
+    plot = svg.history_plot([_time(o["run_time"]) for o in obs], [o["level"] for o in obs],
+                            [o.get("level_sd") for o in obs], limits=limits,
+                            markers=[(dt.date.fromisoformat(m["date"]), speech.label("maintenance type", m["kind"]))
+                                     for m in maint],
+                            y_label=speech._("index (ln units)"), label=speech._("Place {id}", id=place["id"]))
+    strip = svg.line_strip(data.km_range, spans, highlight=(place["km_from"], place["km_to"]),
+                           label=speech._("Place {id} on line {line}", id=place["id"], line=data.line_id))
+    mini = None
+    if data.geometry is not None:
+        g = data.geometry
+        gx, gy = g.to_local(g.lon, g.lat)
+        lon, lat = g.lonlat_at_km(np.linspace(place["km_from"], place["km_to"], 5))
+        mx, my = g.to_local(lon, lat)
+        mini = svg.mini_map(gx, gy, mx, my, label=speech._("Place {id} on the map", id=place["id"]))
+    return {"place": place, "history": history, "plot": Markup(plot), "strip": Markup(strip),
+            "map": Markup(mini) if mini else None}
+
+
+def render_html(data: ReportData, *, speech: Speech | None = None) -> str:
+    """The report's HTML (self-contained: CSS and plots inline), in ``speech``'s language."""
+    speech = speech or ENGLISH
+    spans = _section_spans(data)
+    strip = svg.line_strip(data.km_range, spans,
+                           label=speech._("Section classes of line {line}", line=data.line_id))
+    css = (_STATIC / "css" / "report.css").read_text(encoding="utf-8")
+    return _environment(speech).get_template("report.html").render(
+        d=data, lang=speech.lang, css=Markup(css), sections=data.sections, scheme=data.sections["scheme"],
+        sections_strip=Markup(strip), sheets=[_sheet(data, p, spans, speech) for p in data.places],
+        generated=dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"), tier_colours=_TIER_COLOURS,
+    )
+
+
+def render_pdf(data: ReportData, *, speech: Speech | None = None) -> bytes:
+    """The report as PDF bytes (WeasyPrint; no network: nothing is fetched).
+
+    Raises
+    ------
+    ApiError
+        503 naming ``report`` when WeasyPrint cannot load Pango (the system library it needs).
+    """
+    try:  # imported here: Pango is loaded only when a report is made
+        from weasyprint import HTML
+    except (ImportError, OSError) as exc:
+        raise ApiError(503, "report", "the PDF report needs WeasyPrint and its system libraries (Pango: Debian "
+                       f"packages {' '.join(SYSTEM_PACKAGES)}), which cannot be loaded: {exc}") from exc
+    html = render_html(data, speech=speech)
+
+    def no_fetch(url: str, *args: Any, **kwargs: Any) -> dict:
+        raise ValueError(f"the report fetches nothing ({url[:80]})")
+
+    return HTML(string=html, url_fetcher=no_fetch).write_pdf()
