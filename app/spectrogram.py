@@ -14,6 +14,7 @@ from typing import Any
 from app.analysis.recipe import order_overlap, wheel_recipe
 from app.analysis.settings import ProcessingSettings
 from app.analysis.spectrogram import window_spectrograms
+from app.analysis.units import KMH_PER_MPS
 from app.core.errors import ApiError, not_found
 from app.core.jsonable import finite_list
 from app.core.runstore import RunStore
@@ -139,7 +140,7 @@ def spectrogram_answer(db: Database, store: RunStore, run_id: int, *, wheel: str
         "freq_hz": finite_list(spec.freq_hz, 4),
         "raw_db": [finite_list(row, 2) for row in spec.raw_db],
         "components_db": [finite_list(row, 2) for row in spec.components_db],
-        "speed_kmh": finite_list(spec.speed * 3.6, 3),
+        "speed_kmh": finite_list(spec.speed * KMH_PER_MPS, 3),
         "orders": [
             {"label": label, "freq_hz": finite_list(f, 4)}
             for label, f in zip(spec.order_labels, spec.order_freq_hz, strict=True)

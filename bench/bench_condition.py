@@ -7,8 +7,8 @@
    (:class:`app.simulate.fleet_scoring.FleetScorer`): unchanged places flagged, planted 20 % / 20 m
    steps found, days until each planted 10 %/year trend is flagged.
 3. Queries through the ASGI app (median of ``--repeat``): the heat map runs × km (100 m, mean
-   over the wheels, and one wheel), one segment's trend over the year, the change list of the
-   newest run, a page of the flag feed.
+   over the wheels, and one wheel), one segment's trend over the year, the maintenance effect of the
+   line's actions, the change list of the newest run, a page of the flag feed.
 4. Publishing one more run of the line: the condition part of the publish transaction
    (:func:`app.condition.writer.store_run_condition` on its 25 cm rows, history read from
    the store).
@@ -146,6 +146,8 @@ def main() -> None:
               {"line_id": "BENCH", "km": args.km / 2 + 0.005})
         timed("trend of one 100 m segment over the year", "/api/v1/condition/trend",
               {"line_id": "BENCH", "km": args.km / 2 + 0.05, "segment_m": 100})
+        timed("maintenance effect of every action of the line", "/api/v1/condition/maintenance-effect",
+              {"line_id": "BENCH"})
         timed("change list of the newest run", "/api/v1/condition/changes", {"line_id": "BENCH"})
         timed("flag feed, page of 500", "/api/v1/condition/flags", {"since": 0, "limit": 500})
         client.close()

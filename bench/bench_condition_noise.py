@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from app.analysis.condition import segment_stats
+from app.analysis.robust import mad_sd
 from app.analysis.settings import ProcessingSettings
+from app.analysis.units import KMH_PER_MPS
 from app.pipeline import run_pipeline
 from app.simulate.run import simulate_run
 from app.simulate.speed import SpeedProfile
@@ -61,13 +63,13 @@ def main() -> None:
     per_run = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.runs):
-            v = args.speed_kmh * (1 + rng.uniform(-args.speed_jitter, args.speed_jitter)) / 3.6
+            v = args.speed_kmh * (1 + rng.uniform(-args.speed_jitter, args.speed_jitter)) / KMH_PER_MPS
             path = Path(tmp) / f"run{i}.h5"
             t0 = time.perf_counter()
             simulate_run(path, length_km=args.length_km, fs=args.fs, seed=100 + i, line=line,
                          speed_profile=SpeedProfile.constant(v), km_start=km0, with_forces=False)
             res = run_pipeline(path, ProcessingSettings(), Path(tmp) / f"work{i}")
-            print(f"run {i}: {v * 3.6:.1f} km/h, simulated + processed in {time.perf_counter() - t0:.1f} s")
+            print(f"run {i}: {v * KMH_PER_MPS:.1f} km/h, simulated + processed in {time.perf_counter() - t0:.1f} s")
             per_run.append(res.profiles)
     print(f"{args.runs} runs, {args.length_km} km, {args.fs:.0f} Hz, {args.speed_kmh:.0f} km/h ± {100 * args.speed_jitter:.0f} %")
     print("| segment | run-to-run σ of the index (log units) | pairs × segments | wheel-to-wheel correlation of the deviations |")
@@ -83,7 +85,7 @@ def main() -> None:
                 diffs.append(d)
                 dev_by_wheel[w].append(d)
         d = np.concatenate(diffs)
-        sigma = 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2)
+        sigma = mad_sd(d) / np.sqrt(2)
         mats = np.array([np.concatenate(dev_by_wheel[w]) for w in wheels])
         corr = np.corrcoef(mats)
         off = corr[~np.eye(len(wheels), dtype=bool)]

@@ -32,6 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 from sqlalchemy import insert  # noqa: E402
 
+from app.analysis.units import DAYS_PER_YEAR  # noqa: E402
 from app.db import migrate  # noqa: E402
 from app.db.models import (  # noqa: E402
     ConditionLine,
@@ -90,7 +91,7 @@ def generate(db: Database, n_places: int, seed: int = 0) -> dict:
                 "id": pid, "line_key": line.id, "direction": direction, "start_m": start, "end_m": start + length,
                 "peak_m": start + length / 2, "centre_m": start + length / 2, "cls": "b91_pads", "baseline": 0.0,
                 "explained_by": None, "tier": tier, "listed": listed, "active": active, "misses": 0,
-                "lower_runs": 0, "level": level0 + direction * rate * life / 365.25, "change": level0,
+                "lower_runs": 0, "level": level0 + direction * rate * life / DAYS_PER_YEAR, "change": level0,
                 "severity": abs(level0) / 0.3, "evidence": 3, "wheels": 15, "wheel_labels": "11,12,21,22",
                 "runs_confirming": life, "tendency": "growing" if rate > 0.15 else "stable",
                 "rate_per_year": rate, "rate_low": rate - 0.05, "rate_high": rate + 0.05,
@@ -106,7 +107,7 @@ def generate(db: Database, n_places: int, seed: int = 0) -> dict:
                 obs.append({"place_id": pid, "run_id": run_ids[d], "run_time": times[d],
                             "day": (times[d] - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)).total_seconds() / 86400,
                             "start_m": start, "end_m": start + length, "centre_m": start + length / 2,
-                            "peak_m": start + length / 2, "level": level0 + direction * rate * k / 365.25 + noise[k],
+                            "peak_m": start + length / 2, "level": level0 + direction * rate * k / DAYS_PER_YEAR + noise[k],
                             "change": level0, "tier": tier, "severity": abs(level0) / 0.3, "evidence": 3,
                             "wheels": 15, "wheel_labels": "11,12,21,22", "speed_kmh": float(rng.uniform(90, 110)),
                             "method_version": VERSION})

@@ -22,7 +22,7 @@ The processed databases are kept in ``--workdir`` (one per seed and history fing
 
 Usage::
 
-    .venv/bin/python bench/bench_real_line.py [--seeds 0 1 2] [--workdir /tmp/real-line-bench] [--json out.json]
+    .venv/bin/python bench/bench_real_line.py [--seeds 0 1 2] [--workdir /tmp/real-line-bench] [--json out.json] [--again]
 """
 
 from __future__ import annotations
@@ -63,6 +63,58 @@ def build(spec: HistorySpec, workdir: Path) -> Path:
     (root / "done.json").write_text(json.dumps({"run_ids": processed.run_ids, "wall_s": time.perf_counter() - t0}))
     print(f"  {len(spec.runs)} runs through the pipeline in {time.perf_counter() - t0:.0f} s", flush=True)
     return root
+
+
+def replay(root: Path, dest: Path) -> Path:
+    """The processed history of ``root`` (:func:`build`) with its condition store and places made again by the
+    current code, in ``dest`` (a copy; the run store linked): every run's segment rows, change tests and flags
+    from its stored profile rows, oldest first, then the line's places run by run — what the publish step and
+    its follow-up do, without the upload and the pipeline (which the code being measured does not change).
+    """
+    from sqlalchemy import delete, select
+
+    from app.condition.writer import store_run_condition
+    from app.db import migrate
+    from app.db.models import (
+        ConditionLine,
+        ConditionRun,
+        Place,
+        PlaceAction,
+        PlaceEventRow,
+        PlaceObservation,
+        PlaceRun,
+        PlacesPending,
+        PlaceStatusChange,
+    )
+    from app.db.session import Database
+    from app.places.followup import apply_stored_runs
+
+    shutil.rmtree(dest, ignore_errors=True)
+    dest.mkdir(parents=True)
+    shutil.copy2(root / "db.sqlite", dest / "db.sqlite")
+    (dest / "runs").symlink_to((root / "runs").resolve())
+    shutil.copy2(root / "done.json", dest / "done.json")
+    url = f"sqlite:///{dest / 'db.sqlite'}"
+    migrate.upgrade(url)
+    db = Database(url)
+    t0 = time.perf_counter()
+    try:
+        with db.write() as s:
+            runs = s.execute(select(ConditionRun.run_id, ConditionRun.job_id).order_by(ConditionRun.run_time,
+                                                                                       ConditionRun.run_id)).all()
+            lines = s.execute(select(ConditionLine.line_id, ConditionLine.track)).all()
+            for table in (PlaceObservation, PlaceEventRow, PlaceStatusChange, PlaceAction, PlaceRun, PlacesPending,
+                          Place):
+                s.execute(delete(table))
+        for run_id, job_id in runs:
+            with db.write() as s:
+                store_run_condition(s, int(run_id), int(job_id))
+        for line_id, track in lines:
+            apply_stored_runs(db, line_id, track)
+    finally:
+        db.dispose()
+    print(f"  {len(runs)} runs' condition rows and places made again in {time.perf_counter() - t0:.0f} s", flush=True)
+    return dest
 
 
 def _all_flags(client: Any, line_id: str) -> list[dict]:
@@ -159,11 +211,13 @@ def score_rail_findings(client: Any, spec: HistorySpec, *, within_m: float = 1.0
             "false_steady_per_km": false_steady / km if km > 0 else math.nan}
 
 
-def one(seed: int, workdir: Path, length_km: float, n_runs: int) -> dict[str, Any]:
+def one(seed: int, workdir: Path, length_km: float, n_runs: int, *, again: bool = False) -> dict[str, Any]:
     from tests.condition.history_support import history_service
 
     spec = real_line_history(seed=seed, length_km=length_km, n_runs=n_runs)
     root = build(spec, workdir)
+    if again:
+        root = replay(root, workdir / f"again-{spec.line_id}-{spec.fingerprint()}")
     run_ids = json.loads((root / "done.json").read_text())["run_ids"]
     with history_service(root) as client:
         res = evaluate(client, spec, run_ids)
@@ -185,12 +239,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--length-km", type=float, default=3.0)
     ap.add_argument("--runs", type=int, default=24)
     ap.add_argument("--json", type=Path, help="write every number here")
+    ap.add_argument("--again", action="store_true",
+                    help="reuse the processed runs of --workdir and make their condition store and places again with "
+                         "this code (a copy; for changes after the pipeline: change tests, places, effects)")
     args = ap.parse_args(argv)
     args.workdir.mkdir(parents=True, exist_ok=True)
     results = []
     for seed in args.seeds:
         print(f"seed {seed}", flush=True)
-        res = one(seed, args.workdir, args.length_km, args.runs)
+        res = one(seed, args.workdir, args.length_km, args.runs, again=args.again)
         results.append(res)
         w, f = res["work_list"], res["flags"]
         print(json.dumps({"work_list": {k: v for k, v in w.items() if k != "first10"}, "flags": f,

@@ -31,10 +31,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import solveh_banded
 
+from app.analysis.robust import mad_sd
+
 __all__ = ["FusionSettings", "OdometryFusion", "fuse_odometry_gnss"]
 
 _TUKEY_C = 4.685
-_MAD_SCALE = 1.4826
 
 
 @dataclass(frozen=True)
@@ -148,7 +149,7 @@ def _robust_scale(e: np.ndarray, w: np.ndarray, floor: float) -> float:
     used = e[w > 0]
     if used.size == 0:
         return floor
-    return max(_MAD_SCALE * float(np.median(np.abs(used - np.median(used)))), floor)
+    return max(mad_sd(used), floor)
 
 
 def _line_fit(s: np.ndarray, c: np.ndarray, settings: FusionSettings) -> tuple[float, float, np.ndarray]:

@@ -70,6 +70,7 @@ import numpy as np
 
 from app.analysis.orders import OrderTrack, railway_multipliers
 from app.analysis.settings import MAX_SLEEPER_HARMONIC, ProcessingSettings
+from app.analysis.units import KMH_PER_MPS
 from app.analysis.vkf import vkf, vkf_overlap
 
 if TYPE_CHECKING:
@@ -354,7 +355,7 @@ def order_bandwidths(
     if settings.track_resolution_m is not None:
         track = track_bandwidth_per_speed(float(settings.track_resolution_m), int(settings.filter_order))
     per_speed = np.array([wheel if x.isdigit() else track for x in labels], dtype=np.float64)
-    return per_speed, max(float(settings.min_speed_kmh) / 3.6, 1.0)
+    return per_speed, max(float(settings.min_speed_kmh) / KMH_PER_MPS, 1.0)
 
 
 def in_band_wheel_orders(labels: Sequence[str], multipliers: np.ndarray,
@@ -484,7 +485,7 @@ def order_recipe(wheel_diameter: float, sleeper_spacing: float, settings: Proces
         bandwidth_per_speed=per_speed[keep],
         floor_speed=floor_speed,
         filter_order=int(settings.filter_order),
-        min_speed=float(settings.min_speed_kmh) / 3.6,
+        min_speed=float(settings.min_speed_kmh) / KMH_PER_MPS,
         notes=tuple(notes),
     )
 

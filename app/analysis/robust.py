@@ -2,8 +2,10 @@
 ``1.4826 · MAD`` — the median absolute deviation scaled to be consistent with the standard
 deviation of normal noise — in one place (:data:`MAD_TO_SD`).
 
-:func:`robust_spread` is the spread of many histories at once (along an axis, small-sample
-corrected, with a floor); :func:`mad_sd` the spread of one sample.
+:func:`mad_sd` is the spread of a sample (or of many along an axis): the places' class anomaly, the
+reference curves' spread and repeatability, the superstructure's outlier segments, the track-impact
+dips' scale, the GNSS fusion's residual scale; :func:`robust_spread` the change tests' spread of many
+histories at once (small-sample corrected, with a floor).
 """
 
 from __future__ import annotations
@@ -33,8 +35,37 @@ def nan_median(values: np.ndarray, axis: int = 1) -> np.ndarray:
     return np.where(n > 0, med, np.nan)
 
 
+def mad_sd(values: np.ndarray, axis: int | None = None, *,
+           center: np.ndarray | float | None = None) -> np.ndarray | float:
+    """The robust spread ``1.4826 · median |x − center|`` along ``axis``, NaN ignored: the robust standard
+    deviation of a sample, without the small-sample correction of :func:`robust_spread`.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        The sample (NaN, ±inf: no value).
+    axis : int, optional
+        Axis of the samples (None: all values as one sample).
+    center : numpy.ndarray or float, optional
+        The median along ``axis`` when known already (default: computed).
+
+    Returns
+    -------
+    numpy.ndarray or float
+        Units of ``values``; NaN where a sample has no value; a Python float when ``axis`` is None.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    v = np.where(np.isfinite(v), v, np.nan)
+    if axis is None:
+        v, axis = v.reshape(-1), 0
+    med = nan_median(v, axis=axis) if center is None else np.asarray(center, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        out = MAD_TO_SD * nan_median(np.abs(v - np.expand_dims(med, axis)), axis=axis)
+    return float(out) if out.ndim == 0 else out
+
+
 def robust_spread(history: np.ndarray, *, min_spread: float = 0.0, axis: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Median and robust spread (1.4826 · MAD, small-sample corrected) along ``axis``, NaN ignored.
+    """Median and robust spread (:func:`mad_sd`, small-sample corrected) along ``axis``, NaN ignored.
 
     Returns
     -------
@@ -45,17 +76,6 @@ def robust_spread(history: np.ndarray, *, min_spread: float = 0.0, axis: int = 1
     n = np.isfinite(h).sum(axis=axis)
     with np.errstate(invalid="ignore"):
         med = nan_median(h, axis=axis)
-        mad = nan_median(np.abs(h - np.expand_dims(med, axis)), axis=axis)
-    spread = MAD_TO_SD * mad * n / np.maximum(n - 0.8, 0.2)
+    spread = mad_sd(h, axis=axis, center=med) * n / np.maximum(n - 0.8, 0.2)
     spread = np.where(n >= 2, np.maximum(spread, min_spread), np.nan)
     return np.where(n >= 1, med, np.nan), spread
-
-
-def mad_sd(values: np.ndarray) -> float:
-    """``1.4826 · MAD`` of the finite ``values`` (NaN when there are none): the robust standard
-    deviation of one sample, without the small-sample correction of :func:`robust_spread`."""
-    v = np.asarray(values, dtype=np.float64).reshape(-1)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return float("nan")
-    return float(MAD_TO_SD * np.median(np.abs(v - np.median(v))))

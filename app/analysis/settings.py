@@ -27,6 +27,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from app.analysis.units import MIN_SPEED_KMH
+
 __all__ = ["ProcessingSettings", "LEGACY_VALUES", "MAX_SLEEPER_HARMONIC", "MAX_WHEEL_ORDERS", "setting_help"]
 
 #: highest sleeper-passage harmonic that can be extracted (2·f_s and 3·f_s)
@@ -138,7 +140,7 @@ class ProcessingSettings:
         0.0, "Edge-preserving smoothing of sleeper_amp: a jump costs this many of its stated standard "
         "deviations (total variation); 0: off", "0..20")
     bin_length_m: float = _setting(0.25, "Profile bin length, m", "0.05..10")
-    min_speed_kmh: float = _setting(25.0, "Slowest speed used for indicators, km/h", "0..200")
+    min_speed_kmh: float = _setting(MIN_SPEED_KMH, "Slowest speed used for indicators, km/h", "0..200")
     chunk_seconds: float = _setting(60.0, "Core length of a processing chunk, s", "1..3600")
 
     def __post_init__(self) -> None:

@@ -25,6 +25,7 @@ from scipy.signal.windows import hann
 
 from app.analysis.recipe import order_overlap, order_recipe, travel_phase
 from app.analysis.settings import ProcessingSettings
+from app.analysis.units import KMH_PER_MPS
 
 __all__ = [
     "Spectrogram",
@@ -239,7 +240,7 @@ def extract_components(
     env = recipe.solve(x, fs, v).envelope_at(idx)  # (s, m), NaN where not trackable
     # the recipe's phase convention, referred to the first sample
     wave = (env * np.exp(1j * recipe.order_phases(travel_phase(v, fs)[idx]))).real
-    moving = v[idx] >= settings.min_speed_kmh / 3.6
+    moving = v[idx] >= settings.min_speed_kmh / KMH_PER_MPS
     wave[:, ~moving] = 0.0
     return np.nansum(wave, axis=0)
 
@@ -305,9 +306,9 @@ def window_spectrograms(
         raise ValueError(f"core must span at least 64 samples, got {hi - lo}")
     v = v_all[lo:hi]
     v_mean = float(v.mean())
-    if v_mean < settings.min_speed_kmh / 3.6:
+    if v_mean < settings.min_speed_kmh / KMH_PER_MPS:
         raise ValueError(
-            f"speed: the mean speed in the window ({v_mean * 3.6:.1f} km/h) is below "
+            f"speed: the mean speed in the window ({v_mean * KMH_PER_MPS:.1f} km/h) is below "
             f"min_speed_kmh = {settings.min_speed_kmh:g} km/h"
         )
     recipe = order_recipe(wheel_diameter, sleeper_spacing, settings)

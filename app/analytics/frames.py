@@ -23,8 +23,10 @@ from sqlalchemy.orm import Session
 
 from app.analysis.stiffness.speed_norm import SpeedFit, fit_speed_exponent, normalise_amplitude
 from app.analysis.stiffness.superstructure import assign_sections
+from app.analysis.units import KMH_PER_MPS
 from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.ids import MAX_ID
 from app.db import crud, reference_crud, results_reader
 from app.db.models import ProfileBin, Run
 from app.db.session import Database
@@ -83,7 +85,7 @@ def parse_run_ids(value: str | None) -> list[int] | None:
         ids = [int(p) for p in value.split(",") if p.strip()]
     except ValueError:
         raise ApiError(422, "run_ids", f"must be comma-separated integers, got {value!r}") from None
-    if not ids or any(i < 1 or i > 2**31 - 1 for i in ids):
+    if not ids or any(i < 1 or i > MAX_ID for i in ids):
         raise ApiError(422, "run_ids", "must be positive integers")
     return ids
 
@@ -157,7 +159,7 @@ def analytics_frame(
     bins slower than ``min_speed_kmh`` and bins without a positive
     ``sleeper_amp``.
     """
-    min_v = min_speed_kmh / 3.6
+    min_v = min_speed_kmh / KMH_PER_MPS
     values = list(dict.fromkeys(["speed_mean", "sleeper_amp", *columns]))
     out_cols = ["run_id", "wheel", "bin", "km", *values]
     k = edge_trim_m / bin_length_m
@@ -289,7 +291,7 @@ def speed_exponents(df: pd.DataFrame, sections: pd.DataFrame, bin_length: float,
     _, types = section_types(sections, pos)
     amp, v = df["sleeper_amp"].to_numpy(), df["speed_mean"].to_numpy()
     loc = df["wheel"].astype(str).to_numpy() + ":" + df["bin"].astype(str).to_numpy()
-    kw = {"reference_speed_mps": ref_speed_kmh / 3.6, "min_speed_mps": min_speed_kmh / 3.6,
+    kw = {"reference_speed_mps": ref_speed_kmh / KMH_PER_MPS, "min_speed_mps": min_speed_kmh / KMH_PER_MPS,
           "hac_lag": int(round(100.0 / bin_length))}
     out["*"] = fit_speed_exponent(amp, v, loc, **kw)
     for t in sorted(set(types)):
@@ -307,5 +309,5 @@ def normalised(df: pd.DataFrame, sections: pd.DataFrame, fits: dict[str, SpeedFi
     alpha = np.array([fits[t].exponent if t in fits and np.isfinite(fits[t].exponent) else pooled
                       for t in types], dtype=np.float64)
     amp = normalise_amplitude(df["sleeper_amp"].to_numpy(), df["speed_mean"].to_numpy(), alpha,
-                              reference_speed_mps=ref_speed_kmh / 3.6, min_speed_mps=min_speed_kmh / 3.6)
+                              reference_speed_mps=ref_speed_kmh / KMH_PER_MPS, min_speed_mps=min_speed_kmh / KMH_PER_MPS)
     return amp, types

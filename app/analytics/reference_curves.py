@@ -33,6 +33,7 @@ from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE
 from app.analysis.stiffness.reference_curve import ReferenceSet, fit_reference_from_rows
 from app.analysis.stiffness.stiffness_index import StiffnessIndex, stiffness_index
 from app.analysis.stiffness.superstructure import section_classes
+from app.analysis.units import KMH_PER_MPS, MIN_SPEED_KMH
 from app.analytics.frames import analytics_frame
 from app.core.config import Settings
 from app.core.jsonable import finite_or_none
@@ -62,7 +63,7 @@ class CurveParams:
 
     speed_tolerance: float = DEFAULT_SPEED_TOLERANCE
     section_margin_m: float = 50.0
-    min_speed_kmh: float = 25.0
+    min_speed_kmh: float = MIN_SPEED_KMH
     edge_trim_m: float = 50.0
 
     @classmethod
@@ -92,7 +93,7 @@ class StoredReference:
         for c, cu in self.reference.curves.items():
             lo, hi = cu.speed_range_mps
             classes.append({"class": c, "method": cu.method, "n_runs": cu.n_runs,
-                            "speed_range_kmh": [None if v is None else v * 3.6
+                            "speed_range_kmh": [None if v is None else v * KMH_PER_MPS
                                                 for v in (finite_or_none(lo), finite_or_none(hi))]})
         return {"line_id": self.line_id, "track": self.track, "run_ids": self.run_ids,
                 "computed_at": self.computed_at, "speed_tolerance": self.params.speed_tolerance,

@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from app.analysis.stiffness.alignment import Alignment, align_runs, segment_table
+from app.analysis.units import KMH_PER_MPS
 from app.analytics import frames as data
 from app.analytics.frames import RunsQuery, Selection
 from app.analytics.stiffness_index import index_context
@@ -106,7 +107,7 @@ def segments(db: Database, settings: Settings, q: RunsQuery, *, segment_m: float
     return {"segment_m": segment_m, "value": value, "reference_run_id": ref_id, "km": (t.start_m / 1000).tolist(),
             "runs": info, "matrix": [finite_list(row) for row in t.matrix], "mean": finite_list(t.mean),
             "spread": finite_list(t.spread), "change": finite_list(t.change),
-            "speed_kmh": [finite_list(row * 3.6) for row in t.speed],
+            "speed_kmh": [finite_list(row * KMH_PER_MPS) for row in t.speed],
             "speed_tolerance": settings.analytics_speed_tolerance}
 
 
@@ -121,6 +122,6 @@ def segment_trend(db: Database, settings: Settings, q: RunsQuery, *, km: float, 
     j = np.flatnonzero(np.isclose(t.start_m, start))
     points = [{"run_id": r["run_id"], "start_time": r["start_time"],
                value: finite_or_none(t.matrix[i, j[0]]) if j.size else None,
-               "speed_kmh": finite_or_none(t.speed[i, j[0]] * 3.6) if j.size else None} for i, r in enumerate(info)]
+               "speed_kmh": finite_or_none(t.speed[i, j[0]] * KMH_PER_MPS) if j.size else None} for i, r in enumerate(info)]
     return {"km": km, "segment_km": [start / 1000, (start + segment_m) / 1000], "wheel": q.wheel, "value": value,
             "points": points}

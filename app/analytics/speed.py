@@ -11,6 +11,7 @@ import pandas as pd
 
 from app.analysis.stiffness.speed_norm import MAX_POWER_LAW_MISFIT, SpeedFit
 from app.analysis.stiffness.superstructure import flag_segments, type_distributions
+from app.analysis.units import KMH_PER_MPS
 from app.analytics import frames as data
 from app.analytics import reference_curves as curves_db
 from app.analytics.frames import RunsQuery, Selection
@@ -55,7 +56,7 @@ def superstructure(db: Database, settings: Settings, q: RunsQuery, *, segment_m:
             namp, _ = data.normalised(df, sections, fits, sel.bin_length, ref_v, min_v)
         else:
             ctx = index_context(db, settings, sel.line_id, sel.track, sel.bin_length)
-            namp = ctx.at_reference_speed(df, ref_v / 3.6)
+            namp = ctx.at_reference_speed(df, ref_v / KMH_PER_MPS)
         if np.isfinite(namp).any():
             amp, out["normalised"], out["conditioning"] = namp, True, conditioning
     df = df.assign(value=amp)
@@ -124,6 +125,6 @@ def speed_normalised_profile(db: Database, settings: Settings, run_id: int, *, w
         namp, types = np.full(len(df), np.nan), np.full(len(df), "", dtype=object)
     return {"run_id": run_id, "wheel": wheel, "reference_speed_kmh": ref_v, "min_speed_kmh": min_v,
             "exponents": {t: finite_or_none(f.exponent) for t, f in fits.items()},
-            "km": df["km"].tolist(), "speed_kmh": finite_list(df["speed_mean"].to_numpy() * 3.6),
+            "km": df["km"].tolist(), "speed_kmh": finite_list(df["speed_mean"].to_numpy() * KMH_PER_MPS),
             "type": [t or None for t in types], "amplitude": finite_list(df["sleeper_amp"].to_numpy()),
             "amplitude_normalised": finite_list(namp)}

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from app.analysis.stiffness.speed_norm import power_law_misfit
+from app.analysis.units import KMH_PER_MPS
 from app.analytics import reference_curves as curves_db
 from app.analytics.frames import select_runs
 from app.core.config import Settings
@@ -126,8 +127,8 @@ def _curve_body(stored: curves_db.StoredReference | None, line_id: str, track: s
             "n_runs": cu.n_runs, "n_samples": cu.n_samples, "n_locations": cu.n_locations,
             "spread": finite_or_none(cu.spread), "repeatability": finite_or_none(cu.repeatability),
             "confidence": cu.confidence,
-            "speed_range_kmh": [finite_or_none(lo * 3.6), finite_or_none(hi * 3.6)],
-            "speed_kmh": finite_list(np.exp(cu.log_speed[ok]) * 3.6),
+            "speed_range_kmh": [finite_or_none(lo * KMH_PER_MPS), finite_or_none(hi * KMH_PER_MPS)],
+            "speed_kmh": finite_list(np.exp(cu.log_speed[ok]) * KMH_PER_MPS),
             "amplitude": finite_list(np.exp(cu.log_amp[ok])),
             "low": finite_list(np.exp(cu.log_amp_low[ok])), "high": finite_list(np.exp(cu.log_amp_high[ok])),
             "log_se": finite_list(cu.log_amp_se[ok]),

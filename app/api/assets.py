@@ -14,12 +14,13 @@ from app.analysis.condition.discontinuities import ASSET_TYPES
 from app.api.deps import AdminActor, DbDep, EngineerActor, SettingsDep, require_role
 from app.api.errors import ApiError, not_found
 from app.assets import service
+from app.core.ids import MAX_ID
 
 __all__ = ["router"]
 
 router = APIRouter(prefix="/assets", tags=["assets (known discontinuities)"])
 
-AssetId = Annotated[int, Path(ge=1, le=2**31 - 1)]
+AssetId = Annotated[int, Path(ge=1, le=MAX_ID)]
 
 
 class AssetOut(BaseModel):
@@ -51,7 +52,7 @@ def list_assets(
     track: Annotated[str | None, Query(max_length=64, description="assets without a track are on every track")] = None,
     type: Annotated[str | None, Query(max_length=32, description=", ".join(ASSET_TYPES))] = None,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 10_000,
-    offset: Annotated[int, Query(ge=0, le=2**31 - 1)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_ID)] = 0,
 ) -> AssetList:
     """Assets by line, track and km."""
     if type is not None and type not in ASSET_TYPES:

@@ -46,6 +46,7 @@ from app.api.schemas.auth import (
     UserPatch,
 )
 from app.core.config import Settings
+from app.core.ids import MAX_ID
 from app.core.ratelimit import RateLimiter
 from app.core.security import csrf_token, device_cookie_id, new_device_cookie
 from app.oidc.flow import end_session_url, post_logout_url
@@ -66,7 +67,7 @@ UsernamePath = Annotated[
 DEVICE_COOKIE = "trackvkf_device"
 DEVICE_COOKIE_MAX_AGE_S = 365 * 24 * 3600
 
-KeyIdPath = Annotated[int, Path(ge=1, le=2**31 - 1, description="API key id")]
+KeyIdPath = Annotated[int, Path(ge=1, le=MAX_ID, description="API key id")]
 
 
 def set_session_cookies(response: Response, settings: Settings, token: str) -> None:

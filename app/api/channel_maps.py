@@ -9,12 +9,13 @@ from fastapi import APIRouter, Depends, Path, Query, Response, status
 
 from app.api.deps import DbDep, EngineerActor, require_role
 from app.api.schemas.recorder import ChannelMapIn, ChannelMapList, ChannelMapOut
+from app.core.ids import MAX_ID
 from app.runs import channel_maps as service
 
 __all__ = ["router"]
 
 router = APIRouter(prefix="/channel-maps", tags=["channel maps"])
-MapId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Channel map id")]
+MapId = Annotated[int, Path(ge=1, le=MAX_ID, description="Channel map id")]
 
 
 def _out(row) -> ChannelMapOut:

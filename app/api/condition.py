@@ -25,6 +25,7 @@ from app.analysis.condition import FINE_SEGMENT_M, OVERVIEW_SEGMENT_M, SEGMENT_L
 from app.api.deps import (
     DbDep,
     RunId,
+    SettingsDep,
     WheelQ,
     check_km,
     km_query,
@@ -82,13 +83,15 @@ def heatmap(db: DbDep, line_id: LineIdQ, track: TrackQ = None, segment_m: Segmen
 
 
 @router.get("/trend", response_model=TrendOut, summary="One segment over every run of a line")
-def trend(db: DbDep, line_id: LineIdQ, km: Annotated[float, km_query("A km inside the segment")],
+def trend(db: DbDep, settings: SettingsDep, line_id: LineIdQ, km: Annotated[float, km_query("A km inside the segment")],
           track: TrackQ = None, segment_m: SegmentQ = _FINE_M, wheel: WheelQ = None) -> dict:
-    """Per run (oldest first) the segment's index (mean over the wheels), the same relative to
-    the surrounding track of the run (±1 km: what the run's speed and level share cancels) and
-    each wheel's row, with the maintenance actions that cover the segment."""
+    """Per run (oldest first) the segment's condition index (mean over the wheels), the same relative
+    to the surrounding track of the run (within ``TRACKVKF_PLACES_EFFECT_AROUND_M`` of it, the segment
+    widened by ``…_MARGIN_M`` left out: what the run's speed and level share cancels) and each wheel's
+    row, with the maintenance actions that cover the segment."""
     seg_m = segment_length(segment_m)
-    return answers.trend(db, line_id, track, km=km, segment_m=seg_m, wheel=wheel_param(wheel))
+    return answers.trend(db, line_id, track, km=km, segment_m=seg_m, wheel=wheel_param(wheel),
+                         around_m=settings.places_effect_around_m, margin_m=settings.places_effect_margin_m)
 
 
 @router.get("/changes", response_model=ChangesOut, summary="Change list of a line's newest run")

@@ -16,6 +16,7 @@ from app.api.schemas.recorder import (
     GeometrySummary,
     IndicatorOut,
 )
+from app.core.ids import MAX_ID
 from app.maps import geometries as service
 from app.maps import indicator as map_indicator
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M, INDICATOR_UNITS
@@ -23,7 +24,7 @@ from app.maps.indicator import DEFAULT_MAP_SEGMENT_M, INDICATOR_UNITS
 __all__ = ["router", "INDICATOR_UNITS"]
 
 router = APIRouter(prefix="/geometry", tags=["line geometry"])
-GeometryId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Geometry id")]
+GeometryId = Annotated[int, Path(ge=1, le=MAX_ID, description="Geometry id")]
 
 def _summary(row) -> GeometrySummary:
     return GeometrySummary(
@@ -85,7 +86,7 @@ def geometry_indicator(
     geometry_id: GeometryId,
     db: DbDep,
     quantity: Annotated[str, Query(max_length=64, description="Profile column to colour the line by")] = "sleeper_amp",
-    run_id: Annotated[int | None, Query(ge=1, le=2**31 - 1, description="Default: the latest processed run of the line and track")] = None,
+    run_id: Annotated[int | None, Query(ge=1, le=MAX_ID, description="Default: the latest processed run of the line and track")] = None,
     segment_m: Annotated[float, Query(ge=10.0, le=10_000.0, description="Segment length, m")] = DEFAULT_MAP_SEGMENT_M,
 ) -> IndicatorOut:
     """Mean of ``quantity`` over the bins and wheels of each segment of the run, placed on the line.

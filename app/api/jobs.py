@@ -19,6 +19,7 @@ from app.api.deps import (
 )
 from app.api.schemas.from_rows import job_out
 from app.api.schemas.jobs import JobList, JobOut, ProcessingSettingsIn
+from app.core.ids import MAX_ID
 from app.runs import jobs
 from app.runs.catalog import JobView
 
@@ -75,7 +76,7 @@ def list_jobs(
         str | None,
         Query(alias="status", description="queued, running, done, failed or cancelled", max_length=16),
     ] = None,
-    run_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
+    run_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None,
     limit: Annotated[int, Query(ge=1)] = 50,
     offset: PageOffset = 0,
 ) -> JobList:

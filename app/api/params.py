@@ -15,6 +15,7 @@ from fastapi import Path, Query
 
 from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.ids import MAX_ID
 from app.io import WHEELS
 
 __all__ = [
@@ -34,12 +35,10 @@ __all__ = [
     "wheel_param",
 ]
 
-#: Largest id of a row (32-bit integer keys; PostgreSQL ``integer``): every id parameter is bounded by it.
-_MAX_ID = 2**31 - 1
-RunId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Run id")]
-JobId = Annotated[int, Path(ge=1, le=_MAX_ID, description="Job id")]
+RunId = Annotated[int, Path(ge=1, le=MAX_ID, description="Run id")]
+JobId = Annotated[int, Path(ge=1, le=MAX_ID, description="Job id")]
 #: An optional id in the query string (``?reference_run_id=``), bounded like the path ids.
-IdQuery = Annotated[int | None, Query(ge=1, le=_MAX_ID)]
+IdQuery = Annotated[int | None, Query(ge=1, le=MAX_ID)]
 PageOffset = Annotated[int, Query(ge=0, le=10**9)]
 
 

@@ -17,6 +17,8 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field
 
 from app.api.deps import DbDep, EngineerActor, SettingsDep
+from app.api.schemas.text import Text
+from app.core.ids import MAX_ID
 from app.places import workflow, worklist
 from app.places.config import PlacesConfig
 from app.places.worklist import PlaceQuery
@@ -25,7 +27,7 @@ __all__ = ["router"]
 
 router = APIRouter(prefix="/condition", tags=["places"])
 
-PlaceId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Place id (stable across runs)")]
+PlaceId = Annotated[int, Path(ge=1, le=MAX_ID, description="Place id (stable across runs)")]
 
 
 def _query(
@@ -48,8 +50,8 @@ PlaceQ = Annotated[PlaceQuery, Depends(_query)]
 class StatusIn(BaseModel):
     """A status change: the new status and why."""
 
-    status: str = Field(min_length=1, max_length=32, description="open, acknowledged, planned, fixed, false_alarm")
-    comment: str = Field(min_length=1, max_length=workflow.MAX_COMMENT_CHARS,
+    status: Text = Field(min_length=1, max_length=32, description="open, acknowledged, planned, fixed, false_alarm")
+    comment: Text = Field(min_length=1, max_length=workflow.MAX_COMMENT_CHARS,
                          description="What was decided and why (required)")
 
 
@@ -63,8 +65,12 @@ def places(db: DbDep, settings: SettingsDep, q: PlaceQ) -> dict:
 @router.get("/places.csv", summary="Work list as CSV (the filters of /condition/places)",
             response_class=Response, responses={200: {"content": {"text/csv": {}}}})
 def places_csv(db: DbDep, settings: SettingsDep, q: PlaceQ) -> Response:
-    return Response(worklist.places_csv(db, q, PlacesConfig.from_settings(settings)), media_type="text/csv",
-                    headers={"Content-Disposition": 'attachment; filename="places.csv"'})
+    """One row per place of the page; ``X-Total-Count``: the places the filters match, ``X-Omitted-Count``:
+    how many of them the page (``offset``, ``limit``) leaves out."""
+    text, total, omitted = worklist.places_csv(db, q, PlacesConfig.from_settings(settings))
+    return Response(text, media_type="text/csv",
+                    headers={"Content-Disposition": 'attachment; filename="places.csv"',
+                             "X-Total-Count": str(total), "X-Omitted-Count": str(omitted)})
 
 
 @router.get("/places.geojson", summary="Work list as GeoJSON (the filters of /condition/places)",

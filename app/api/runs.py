@@ -30,9 +30,9 @@ from app.api.schemas.runs import (
 from app.api.upload import receive_and_create_run
 from app.core.config import API_PREFIX
 from app.db.session import Database
+from app.io.formats import FORMATS
 from app.runs import catalog
 from app.runs.metadata import revise_run_metadata
-from app.runs.upload import SUPPORTED_FORMATS
 
 __all__ = ["router"]
 
@@ -55,7 +55,7 @@ _UPLOAD_BODY = {
                 "properties": {
                     "file": {"type": "string", "format": "binary"},
                     "metadata": {"type": "string", "description": "JSON object"},
-                    "format": {"type": "string", "enum": list(SUPPORTED_FORMATS)},
+                    "format": {"type": "string", "enum": list(FORMATS)},
                     "channel_map": {
                         "type": "string",
                         "description": "id of a stored channel map (MDF4/TDMS recorder files)",

@@ -42,10 +42,11 @@ from app.core.config import Settings
 from app.core.diskspace import require_free
 from app.core.runstore import RunStore
 from app.db.session import Database
+from app.io.formats import CONTENT_TYPE_FORMATS
 from app.operations.heavy import run_heavy
 from app.runs import upload as uploads
 from app.runs.create import UploadOutcome, create_run_from_file, existing_outcome
-from app.runs.upload import CONTENT_TYPE_FORMATS, Received
+from app.runs.upload import Received
 
 __all__ = ["UploadOutcome", "receive_and_create_run", "ACCEPTED_CONTENT_TYPES"]
 

@@ -20,26 +20,28 @@ from pydantic import BaseModel, Field
 
 from app.alerts import webhooks as service
 from app.api.deps import AdminActor, DbDep, PageOffset, SettingsDep, check_page_size, require_role
+from app.api.schemas.text import Text
+from app.core.ids import MAX_ID
 
 __all__ = ["router"]
 
 router = APIRouter(prefix="/webhooks", tags=["webhooks"], dependencies=[Depends(require_role("admin"))])
 
-WebhookId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Webhook id")]
+WebhookId = Annotated[int, Path(ge=1, le=MAX_ID, description="Webhook id")]
 
 
 class WebhookIn(BaseModel):
-    url: str = Field(max_length=2000, description="http:// or https:// URL receiving the POSTs")
-    description: str | None = Field(default=None, max_length=500)
-    secret: str | None = Field(default=None, min_length=16, max_length=128,
+    url: Text = Field(max_length=2000, description="http:// or https:// URL receiving the POSTs")
+    description: Text | None = Field(default=None, max_length=500)
+    secret: Text | None = Field(default=None, min_length=16, max_length=128,
                                description="signing secret (default: a random one, answered once)")
 
 
 class WebhookPatch(BaseModel):
-    url: str | None = Field(default=None, max_length=2000)
-    description: str | None = Field(default=None, max_length=500)
+    url: Text | None = Field(default=None, max_length=2000)
+    description: Text | None = Field(default=None, max_length=500)
     active: bool | None = None
-    secret: str | None = Field(default=None, min_length=16, max_length=128,
+    secret: Text | None = Field(default=None, min_length=16, max_length=128,
                                description="a new signing secret: rotates it (the previous one keeps signing "
                                            "deliveries, as a second signature, for TRACKVKF_WEBHOOK_SECRET_GRACE_S)")
 
@@ -119,7 +121,7 @@ def test(webhook_id: WebhookId, db: DbDep) -> dict:
 
 @router.get("/deliveries", response_model=DeliveryList, summary="The delivery log, newest first (admin)")
 def deliveries(db: DbDep, settings: SettingsDep,
-               webhook_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
+               webhook_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None,
                status_: Annotated[str | None, Query(alias="status", description="pending, sending, delivered, failed")] = None,
                limit: Annotated[int, Query(ge=1)] = 100, offset: PageOffset = 0) -> dict:
     check_page_size(limit, settings)

@@ -17,17 +17,22 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
-from app.analysis.condition.discontinuities import ASSET_TYPES, assets_at
+from app.analysis.condition.discontinuities import ASSET_TYPES
 from app.db import assets_crud
 
-__all__ = ["PlaceAssets", "muted_types", "label_places"]
+__all__ = ["MAX_LABELS_PER_PLACE", "PlaceAssets", "muted_types", "label_places"]
+
+#: The most assets a place is labelled with; the rest are counted (``assets_more``).
+MAX_LABELS_PER_PLACE = 25
 
 
 @dataclass(frozen=True)
 class PlaceAssets:
-    """The assets on one place (``{"id", "type", "km", "name"}``, by km) and whether that mutes it."""
+    """The assets on one place (``{"id", "type", "km", "name"}``, by km, at most
+    :data:`MAX_LABELS_PER_PLACE`), how many more there are, and whether they mute it."""
 
     assets: list[dict[str, Any]] = field(default_factory=list)
+    assets_more: int = 0
     muted: bool = False
     muted_reason: str | None = None
 
@@ -70,25 +75,30 @@ def label_places(session: Session, settings: Any, line_id: str, track: str, km_f
     b = np.asarray(km_to, dtype=np.float64)
     if a.shape != b.shape or a.ndim != 1:
         raise ValueError("km_from, km_to: must be 1-D of equal length")
-    mute = set(muted_types(settings))
+    mute = sorted(set(muted_types(settings)))
     if not a.size:
         return []
-    assets = assets_crud.line_assets(session, line_id, track)
-    if not assets:
+    extent = assets_crud.max_extent_km(session, line_id, track)
+    if extent is None:
         return [PlaceAssets() for _ in range(a.size)]
-    lo = np.array([x.km for x in assets]) * 1000.0
-    hi = np.array([x.km if x.km_to is None else x.km_to for x in assets]) * 1000.0
-    hits = assets_at(np.minimum(a, b) * 1000.0, np.maximum(a, b) * 1000.0, lo, hi,
-                     buffer_m=float(getattr(settings, "places_asset_buffer_m", 20.0)))
+    buffer_km = float(getattr(settings, "places_asset_buffer_m", 20.0)) / 1000.0
+    if not (np.isfinite(buffer_km) and buffer_km >= 0):
+        raise ValueError(f"places_asset_buffer_m: must be a finite number >= 0, got {buffer_km * 1000.0!r}")
     out = []
-    for i in range(a.size):
-        near = [assets[j] for j in hits.of(i).tolist()]
-        near.sort(key=lambda x: (x.km, x.id))
-        on = sorted({x.type for x in near if x.type in mute})
+    for lo, hi in zip(np.minimum(a, b) - buffer_km, np.maximum(a, b) + buffer_km, strict=True):
+        # one indexed range query per place of the page (never the line's whole register), capped
+        near, total = assets_crud.assets_near(session, line_id, track, float(lo), float(hi), extent,
+                                              limit=MAX_LABELS_PER_PLACE)
+        on = {x.type for x in near if x.type in mute}
+        if total > len(near):  # a muted type beyond the cap still mutes the place
+            on |= {t for t in mute if t not in on and assets_crud.assets_near(
+                session, line_id, track, float(lo), float(hi), extent, limit=1, types=(t,))[0]}
+        on_sorted = sorted(on)
         out.append(PlaceAssets(
             assets=[{"id": x.id, "type": x.type, "km": x.km, "name": x.name} for x in near],
-            muted=bool(on),
-            muted_reason=(f"at {', '.join(t.replace('_', ' ') for t in on)} (TRACKVKF_PLACES_MUTED_ASSET_TYPES)"
-                          if on else None),
+            assets_more=total - len(near),
+            muted=bool(on_sorted),
+            muted_reason=(f"at {', '.join(t.replace('_', ' ') for t in on_sorted)} (TRACKVKF_PLACES_MUTED_ASSET_TYPES)"
+                          if on_sorted else None),
         ))
     return out

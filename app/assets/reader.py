@@ -64,6 +64,8 @@ def _number(v: Any, where: str, required: bool, bound: float = _KM_BOUND) -> flo
         raise RunFileError(where, f"{v!r} is not a number")
     try:
         x = float(v.strip() if isinstance(v, str) else v)
+    except OverflowError:  # an integer too large for a float (e.g. 400 digits of JSON)
+        raise RunFileError(where, f"is not a finite number within ±{bound:g}") from None
     except (TypeError, ValueError):
         raise RunFileError(where, f"{v!r} is not a number") from None
     if not math.isfinite(x) or abs(x) > bound:
@@ -142,7 +144,7 @@ def _lon_lat(geom: Any, where: str) -> tuple[float | None, float | None]:
         else:
             raise RunFileError(where, f"must be a Point or a LineString, got {kind!r}")
         lon, lat = float(pt[0]), float(pt[1])
-    except (TypeError, ValueError, IndexError, KeyError):
+    except (TypeError, ValueError, IndexError, KeyError, OverflowError):
         raise RunFileError(where, "has no valid coordinates [lon, lat]") from None
     if not (math.isfinite(lon) and math.isfinite(lat) and -180 <= lon <= 180 and -90 <= lat <= 90):
         raise RunFileError(where, f"coordinates ({lon}, {lat}) are not WGS84 lon/lat in degrees")

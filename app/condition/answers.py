@@ -15,10 +15,11 @@ import math
 import numpy as np
 from sqlalchemy import select
 
+from app.analysis.condition.extent_level import DEFAULT_AROUND_M, DEFAULT_MARGIN_M
+from app.analysis.units import KMH_PER_MPS
 from app.condition import readers as reader
 from app.condition.index import STORE_INDEX
 from app.condition.lines import check_line_km, resolve_line
-from app.condition.maintenance import run_levels
 from app.core.errors import ApiError, not_found
 from app.core.jsonable import finite_or_none, iso_time
 from app.db import reference_crud
@@ -62,10 +63,12 @@ def heatmap(db: Database, line_id: str, track: str | None, *, segment_m: int, wh
     }
 
 
-def trend(db: Database, line_id: str, track: str | None, *, km: float, segment_m: int, wheel: str | None) -> dict:
-    """One segment over every run of a line (oldest first): its index (mean over the wheels), the
-    same relative to the surrounding track of the run (±1 km) and each wheel's row, with the
-    maintenance actions that cover the segment."""
+def trend(db: Database, line_id: str, track: str | None, *, km: float, segment_m: int, wheel: str | None,
+          around_m: float = DEFAULT_AROUND_M, margin_m: float = DEFAULT_MARGIN_M) -> dict:
+    """One segment over every run of a line (oldest first): its condition index (mean over the wheels),
+    the same relative to the surrounding track of the run (:func:`app.condition.readers.extent_readings`:
+    the mean within ``around_m`` of the segment outside it widened by ``margin_m``) and each wheel's row,
+    with the maintenance actions that cover the segment."""
     line = resolve_line(db, line_id, track)
     check_line_km(line, km=km)
     seg = int(math.floor(km * 1000.0 / segment_m))
@@ -76,20 +79,21 @@ def trend(db: Database, line_id: str, track: str | None, *, km: float, segment_m
             ConditionFlag.line_key == line.id, ConditionFlag.seg_m == segment_m, ConditionFlag.seg == seg)))
         actions = reference_crud.reference_frame(session, "maintenance", line_id=line.line_id, track=line.track,
                                                  km_from=lo, km_to=hi)
-        levels = run_levels(session, [run.run_id for run, _ in history], lo, hi)
+        around = reader.extent_readings(session, [run.run_id for run, _ in history], lo * 1000.0, hi * 1000.0,
+                                        around_m=around_m, margin_m=margin_m)
     points = []
     for run, rows in history:
         idx = [r.condition_index for r in rows if r.condition_index is not None]
         mean = float(np.mean(idx)) if idx else None
-        level = levels.get(run.run_id)
+        level = around[run.run_id].around if run.run_id in around else math.nan
         points.append({
             "run_id": run.run_id, "start_time": iso_time(run.run_time), "condition_index": mean,
-            "relative": mean - level if mean is not None and level is not None else None,
+            "relative": mean - level if mean is not None and math.isfinite(level) else None,
             "flagged": run.run_id in flagged,
             "wheels": [{
                 "wheel": r.wheel, "condition_index": float(r.condition_index),
                 "condition_index_sd": finite_or_none(r.condition_index_sd),
-                "amp_mean": float(r.amp_mean), "amp_p95": float(r.amp_p95), "speed_kmh": float(r.speed_mean) * 3.6,
+                "amp_mean": float(r.amp_mean), "amp_p95": float(r.amp_p95), "speed_kmh": float(r.speed_mean) * KMH_PER_MPS,
                 "n_valid": r.n_valid, "n_history": r.n_history, "change": finite_or_none(r.change),
                 "change_z": finite_or_none(r.change_z), "trend_rate_per_year": finite_or_none(r.trend_rate),
                 "trend_z": finite_or_none(r.trend_z),

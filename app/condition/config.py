@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams
+from app.analysis.units import KMH_PER_MPS, MIN_SPEED_KMH
 
 __all__ = ["ConditionConfig", "DEFAULT_CONDITION_CONFIG", "FLEET_SOURCE_FORMAT"]
 
@@ -33,7 +34,7 @@ class ConditionConfig:
     """
 
     change: ChangeParams = field(default_factory=lambda: DEFAULT_CHANGE_PARAMS)
-    min_speed_mps: float = 25.0 / 3.6
+    min_speed_mps: float = MIN_SPEED_KMH / KMH_PER_MPS
     edge_trim_m: float = 50.0
     max_shift_m: float = 50.0
     min_shift_confidence: float = 0.2
@@ -53,7 +54,7 @@ class ConditionConfig:
                 speed_tolerance=settings.analytics_speed_tolerance,
                 level_block_m=settings.condition_level_block_m,
             ),
-            min_speed_mps=settings.analytics_min_speed_kmh / 3.6,
+            min_speed_mps=settings.analytics_min_speed_kmh / KMH_PER_MPS,
             edge_trim_m=settings.analytics_edge_trim_m,
             max_shift_m=settings.condition_max_shift_m,
             min_shift_confidence=settings.condition_min_shift_confidence,

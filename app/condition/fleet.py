@@ -27,6 +27,7 @@ from sqlalchemy import func, select
 
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams, RollingHistory, assess_run
 from app.analysis.settings import ProcessingSettings
+from app.analysis.units import KMH_PER_MPS
 from app.condition.config import FLEET_SOURCE_FORMAT
 from app.condition.writer import days_of, wheel_segments, write_assessed_run
 from app.db import reference_crud
@@ -147,7 +148,7 @@ def ingest_fleet(
                 run = Run(sha256=sha, file_path="", source_format=FLEET_SOURCE_FORMAT, original_filename=None,
                           size_bytes=0, vehicle_id=vehicle_id, line_id=line_id, track=track, direction="up",
                           start_time=when, km_start=sim.line.track_from_m / 1000.0, km_increasing=True, fs=0.0,
-                          n_samples=0, duration_s=length_m / (speed_kmh / 3.6), distance_m=length_m,
+                          n_samples=0, duration_s=length_m / (speed_kmh / KMH_PER_MPS), distance_m=length_m,
                           speed_min=float(np.min(tracks[FLEET_WHEELS[0]].speed_mps)),
                           speed_max=float(np.max(tracks[FLEET_WHEELS[0]].speed_mps)),
                           channels=[f"Z{w}" for w in FLEET_WHEELS],

@@ -17,7 +17,14 @@ import numpy as np
 from sqlalchemy import func, literal, select
 from sqlalchemy.orm import Session
 
-from app.analysis.condition import OVERVIEW_SEGMENT_M
+from app.analysis.condition import FINE_SEGMENT_M, OVERVIEW_SEGMENT_M
+from app.analysis.condition.extent_level import (
+    DEFAULT_AROUND_M,
+    DEFAULT_MARGIN_M,
+    DEFAULT_MIN_SEGMENTS,
+    extent_level,
+    surroundings_level,
+)
 from app.core.jsonable import finite_or_none, iso_time
 from app.db.models import (
     ConditionFlag,
@@ -27,6 +34,7 @@ from app.db.models import (
     SegmentCondition,
 )
 from app.db.numeric import fetch_numeric
+from app.io import WHEELS
 
 __all__ = [
     "LineSummary",
@@ -40,6 +48,9 @@ __all__ = [
     "flags_since",
     "newest_run",
     "flag_dict",
+    "wheel_mean_rows",
+    "ExtentReading",
+    "extent_readings",
 ]
 
 
@@ -231,3 +242,74 @@ def flag_dict(f: ConditionFlag, line: ConditionLine) -> dict:
         "rate_per_year": finite_or_none(f.rate_per_year), "wheels": [w for w in f.wheels.split(",") if w],
         "is_new": bool(f.is_new), "created_at": iso_time(f.created_at),
     }
+
+
+def wheel_mean_rows(session: Session, run_ids: Sequence[int], seg_m: int, first: int, last: int) -> np.ndarray:
+    """(n, 3) float64 ``(run_id, seg, condition index mean over the wheels)`` of segments ``first … last`` of
+    ``seg_m`` m of the runs, ordered by run and segment (read through the primary key)."""
+    if not run_ids:
+        return np.zeros((0, 3))
+    sc = SegmentCondition
+    stmt = select(sc.run_id, sc.seg, func.avg(sc.condition_index)).where(
+        sc.run_id.in_([int(r) for r in run_ids]), sc.seg_m == int(seg_m), sc.wheel.in_(list(WHEELS)),
+        sc.seg >= int(first), sc.seg <= int(last)).group_by(sc.run_id, sc.seg).order_by(sc.run_id, sc.seg)
+    return fetch_numeric(session, stmt, 3)
+
+
+@dataclass(frozen=True)
+class ExtentReading:
+    """One run's condition index over an extent, read against the track around it.
+
+    Attributes
+    ----------
+    level : float
+        :func:`~app.analysis.condition.extent_level.extent_level`: the median inside minus the
+        surroundings' level (ln units; NaN: too few values on either side).
+    around : float
+        :func:`~app.analysis.condition.extent_level.surroundings_level` (ln units; NaN: too few values).
+    seg : numpy.ndarray
+        Segments read (int64; the extent and its surroundings).
+    index : numpy.ndarray
+        Their condition index, mean over the wheels.
+    """
+
+    level: float
+    around: float
+    seg: np.ndarray
+    index: np.ndarray
+
+
+def extent_readings(session: Session, run_ids: Sequence[int], start_m: float, end_m: float, *,
+                    around_m: float = DEFAULT_AROUND_M, margin_m: float = DEFAULT_MARGIN_M,
+                    seg_m: int = int(FINE_SEGMENT_M)) -> dict[int, ExtentReading]:
+    """Per run (those with rows there) the condition index over ``[start_m, end_m)`` (m on the aligned km axis)
+    against its surroundings, from the store's ``seg_m`` rows (mean over the wheels): the one rule of an
+    extent against the track around it (:mod:`app.analysis.condition.extent_level`, ``around_m`` and
+    ``margin_m``: ``TRACKVKF_PLACES_EFFECT_AROUND_M`` / ``_MARGIN_M``).
+
+    An extent holding fewer segment centres than
+    :data:`~app.analysis.condition.extent_level.DEFAULT_MIN_SEGMENTS` needs a value on each of them (one
+    shorter than a segment: the segment holding its middle).
+    """
+    lo, hi = sorted((float(start_m), float(end_m)))
+    if hi - lo < seg_m and math.floor(lo / seg_m - 0.5) == math.floor(hi / seg_m - 0.5):
+        # no segment centre inside: the segment holding the middle
+        k = math.floor((lo + hi) / 2 / seg_m)
+        lo, hi = k * seg_m, (k + 1) * seg_m
+    n_inside = max(math.ceil(hi / seg_m - 0.5) - math.ceil(lo / seg_m - 0.5), 1)
+    mid = 0.5 * (lo + hi)
+    first = math.floor(min(lo, mid - around_m) / seg_m)
+    last = math.floor(max(hi, mid + around_m) / seg_m)
+    values = wheel_mean_rows(session, run_ids, seg_m, first, last)
+    out: dict[int, ExtentReading] = {}
+    if not len(values):
+        return out
+    runs, starts = np.unique(values[:, 0].astype(np.int64), return_index=True)
+    for run_id, a, b in zip(runs.tolist(), starts.tolist(), [*starts[1:].tolist(), len(values)], strict=True):
+        seg, x = values[a:b, 1].astype(np.int64), values[a:b, 2]
+        kw = {"segment_m": float(seg_m), "around_m": around_m, "margin_m": margin_m}
+        out[int(run_id)] = ExtentReading(
+            level=extent_level(seg, x, lo, hi, min_inside=min(n_inside, DEFAULT_MIN_SEGMENTS), **kw),
+            around=surroundings_level(seg, x, lo, hi, **kw), seg=seg, index=x)
+    return out
+

@@ -12,7 +12,12 @@ that marks the job done (both worker modes), and by the synthetic fleet
    its own, never graded as the support);
 2. aligns the run to its line's reference signature (the first run stored for
    the line, :class:`~app.db.models.ConditionLine`;
-   :func:`app.analysis.stiffness.alignment.align_runs`);
+   :func:`app.analysis.stiffness.alignment.align_runs`); where that alignment is not clear enough and
+   the reference was passed at another speed (on rough rails the signature is the rails' response,
+   which changes with speed: a run at 26 m/s against a 40 m/s reference reached a confidence of
+   0.18–0.20 with its shift right, and was left unaligned by up to 15 m — every segment then compared
+   with its neighbour's history, issue 33's false flags), to the newest earlier run of the line at
+   matched speed (the matched-speed rule) whose own alignment was applied, that run's shift added;
 3. computes the condition index of every bin (:func:`app.condition.index.store_index`,
    the one place that decides it) and the 10 m and 100 m segments of every wheel
    (:func:`app.analysis.condition.segment_stats`) with the stated 1-σ of their index from the
@@ -55,6 +60,7 @@ from app.analysis.condition import (
 )
 from app.analysis.condition.interventions import RAIL_SURFACE_ACTIONS, intervention_margin_m
 from app.analysis.impacts.mask import DEFAULT_RATIO, impact_mask, mask_half_width
+from app.analysis.speed_match import speeds_matched
 from app.analysis.stiffness.alignment import align_runs
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
 from app.condition.index import STORE_INDEX, store_index, store_index_sd
@@ -216,7 +222,8 @@ def _signature(wheels: Mapping[str, RunBins], amps: Mapping[str, np.ndarray]) ->
 
 
 def _align(line: ConditionLine, run_id: int, bins: np.ndarray, amp: np.ndarray, bin_length_m: float,
-           cfg: ConditionConfig) -> tuple[float, float | None]:
+           cfg: ConditionConfig, *, session: Session | None = None, when: dt.datetime | None = None,
+           speed: float | None = None) -> tuple[float, float | None]:
     """Shift (m) of the run onto the line's reference, and its confidence; sets the reference when none."""
     if bins.size == 0:
         return 0.0, None
@@ -236,7 +243,52 @@ def _align(line: ConditionLine, run_id: int, bins: np.ndarray, amp: np.ndarray, 
     al = align_runs(ref_bins[ok], ref[ok], bins, amp, bin_length_m=bin_length_m, max_shift_m=cfg.max_shift_m)
     if np.isfinite(al.shift_m) and al.confidence >= cfg.min_shift_confidence:
         return float(al.shift_m), float(al.confidence)
+    if session is not None and when is not None and speed is not None:
+        got = _align_at_matched_speed(session, line, run_id, when, speed, bins, amp, bin_length_m, cfg)
+        if got is not None:
+            return got
     return 0.0, float(al.confidence)
+
+
+def _run_speed(wheels: Mapping[str, RunBins]) -> float | None:
+    """A run's median speed over its bins, m/s (None: none)."""
+    v = np.concatenate([b.speed_mps for b in wheels.values()]) if wheels else np.zeros(0)
+    v = v[np.isfinite(v) & (v > 0)]
+    return float(np.median(v)) if v.size else None
+
+
+def _align_at_matched_speed(session: Session, line: ConditionLine, run_id: int, when: dt.datetime, speed: float,
+                            bins: np.ndarray, amp: np.ndarray, bin_length_m: float, cfg: ConditionConfig,
+                            candidates: int = 12) -> tuple[float, float] | None:
+    """The shift onto the reference through the newest earlier run at matched speed whose alignment was
+    applied (its shift added), and the confidence against that run; None where there is none or it is not
+    clear enough either (module docstring, step 2)."""
+    earlier = session.execute(
+        select(ConditionRun.run_id, ConditionRun.job_id, ConditionRun.shift_m)
+        .where(ConditionRun.line_key == line.id, ConditionRun.run_id != run_id, ConditionRun.run_time < when,
+               ConditionRun.shift_confidence >= cfg.min_shift_confidence)
+        .order_by(ConditionRun.run_time.desc()).limit(candidates)).all()
+    if not earlier:
+        return None
+    sc = SegmentCondition
+    by_run: dict[int, list[float]] = {}
+    for rid, v in session.execute(select(sc.run_id, sc.speed_mean).where(
+            sc.run_id.in_([r[0] for r in earlier]), sc.seg_m == 100, sc.speed_mean.isnot(None))):
+        by_run.setdefault(int(rid), []).append(float(v))
+    speeds = {rid: float(np.median(v)) for rid, v in by_run.items()}  # the median: cruise, not the ramps
+    for other, job_id, shift in earlier:
+        v = speeds.get(other)
+        if v is None or not bool(speeds_matched(v, speed, cfg.change.speed_tolerance)):
+            continue
+        wheels = _job_bins(session, int(job_id), None)
+        if not wheels:
+            continue
+        o_bins, o_amp = _signature(wheels, {w: _valid(b, bin_length_m, cfg) for w, b in wheels.items()})
+        al = align_runs(o_bins, o_amp, bins, amp, bin_length_m=bin_length_m, max_shift_m=cfg.max_shift_m)
+        if np.isfinite(al.shift_m) and al.confidence >= cfg.min_shift_confidence:
+            return float(al.shift_m) + float(shift or 0.0), float(al.confidence)
+        return None
+    return None
 
 
 def wheel_segments(
@@ -291,6 +343,11 @@ class DbHistory:
             select(ConditionRun.run_id, ConditionRun.run_time)
             .where(earlier, ConditionRun.run_time >= when - dt.timedelta(days=params.trend_window_days))
         ).all()
+        rows = [tuple(r) for r in rows]
+        window = [tuple(r) for r in window]
+        ids = list({r[0] for r in (*rows, *window)})
+        self.vehicles = dict(session.execute(select(Run.id, Run.vehicle_id).where(Run.id.in_(ids))).all()) \
+            if ids else {}
         self.step_runs = sorted(rows, key=lambda r: (r[1], r[0]))
         self.trend_runs = sorted({*rows, *window}, key=lambda r: (r[1], r[0]))
         self.previous_run_id = self.step_runs[-1][0] if self.step_runs else None
@@ -334,7 +391,8 @@ class DbHistory:
             speed[j[hit], cols[hit]] = values[hit, 3]
             sd[j[hit], cols[hit]] = values[hit, 4]
         days = np.array([days_of(t if t.tzinfo else t.replace(tzinfo=dt.UTC)) for _, t in runs])
-        return HistoryMatrix(index, speed, days, sd)
+        vehicle = np.array([self.vehicles.get(rid) for rid, _ in runs], dtype=object)
+        return HistoryMatrix(index, speed, days, sd, vehicle)
 
 
 def _segment_frame(run_id: int, job_id: int, line_key: int, segments: Mapping[float, Mapping[str, SegmentStats]],
@@ -509,7 +567,8 @@ def store_run_condition(
                                                              if b.impact_bins is not None}, res_m, order)
     amps = {w: _valid(b, bin_length, config, masks.get(w)) for w, b in wheels.items()}
     sig_bins, sig_amp = _signature(wheels, amps)
-    shift, confidence = _align(line, run_id, sig_bins, sig_amp, bin_length, config)
+    shift, confidence = _align(line, run_id, sig_bins, sig_amp, bin_length, config, session=session,
+                               when=run_time_of(run), speed=_run_speed(wheels))
     positions = {w: ((b.bins + 0.5) * bin_length + shift, amps[w], b.speed_mps, b.sd, b.sd_shared)
                  for w, b in wheels.items()}
     segments = wheel_segments(positions, bin_length_m=bin_length, resolution_m=res_m, filter_order=order)
@@ -518,7 +577,7 @@ def store_run_condition(
     assessment = assess_run(segments, history, days_of(when), params=config.change,
                             previous_flags=history.previous_flags(),
                             interventions=rail_surface_interventions(session, run.line_id, run.track or ""),
-                            intervention_margin_m=intervention_margin_m(res_m, order))
+                            intervention_margin_m=intervention_margin_m(res_m, order), vehicle=run.vehicle_id)
     flags = write_assessed_run(session, run_id=run_id, job_id=job_id, line=line, when=when, segments=segments,
                                assessment=assessment, shift_m=shift, shift_confidence=confidence)
     exponents = {f"{s:g}": float(np.mean(list(e.values()))) if e else None

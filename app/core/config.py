@@ -282,8 +282,10 @@ class Settings(BaseSettings):
         webhook event ``condition.places``) to the webhooks; the flags'
         alerts (``condition.flags``) go whatever this says.
     places_effect_around_m, places_effect_margin_m : float
-        An action's effect is its extent's index against the track within
-        ``around`` m outside the extent widened by ``margin`` m.
+        An extent against its surroundings (an action's effect on
+        ``/condition/maintenance-effect``, a trend's ``relative``): its condition
+        index against the track within ``around`` m of its centre, outside the
+        extent widened by ``margin`` m.
     webhook_timeout_s : float
         Total time of one webhook request, s: name resolution, connection,
         TLS, sending and the receiver's answer together, however slowly the

@@ -31,6 +31,7 @@ __all__ = [
     "run_time",
     "line_places",
     "observations_of",
+    "latest_speeds",
     "actions_of",
     "events_of",
     "status_history_of",
@@ -132,6 +133,18 @@ def observations_of(session: Session, place_ids: Sequence[int]) -> dict[int, lis
     for r in rows:
         out[r.place_id].append(r)
     return out
+
+
+def latest_speeds(session: Session, place_ids: Sequence[int]) -> dict[int, float]:
+    """The speed of each place's latest observation (its last run), km/h, by place id (none: left out)."""
+    ids = [int(i) for i in place_ids]
+    if not ids:
+        return {}
+    rows = session.execute(select(PlaceObservation.place_id, PlaceObservation.speed_kmh)
+                           .join(Place, and_(Place.id == PlaceObservation.place_id,
+                                             Place.last_run_id == PlaceObservation.run_id))
+                           .where(Place.id.in_(ids), PlaceObservation.speed_kmh.isnot(None)))
+    return {int(a): float(b) for a, b in rows}
 
 
 def actions_of(session: Session, place_ids: Sequence[int]) -> dict[int, list[PlaceAction]]:

@@ -28,6 +28,7 @@ from typing import Any
 import pydantic
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
+from app.analysis.units import KMH_PER_MPS
 from app.io.channels import (
     ACCEL_CHANNELS,
     INPUT_CHANNELS,
@@ -66,11 +67,11 @@ UNIT_FACTORS: dict[str, dict[str, float]] = {
     "kN": {"kn": 1.0, "n": 1e-3, "dan": 1e-2},
     "m/s": {
         **{u.lower(): 1.0 for u in UNIT_SYNONYMS["m/s"]},
-        "km/h": 1.0 / 3.6,
-        "kmh": 1.0 / 3.6,
-        "kph": 1.0 / 3.6,
-        "km/hr": 1.0 / 3.6,
-        "km h-1": 1.0 / 3.6,
+        "km/h": 1.0 / KMH_PER_MPS,
+        "kmh": 1.0 / KMH_PER_MPS,
+        "kph": 1.0 / KMH_PER_MPS,
+        "km/hr": 1.0 / KMH_PER_MPS,
+        "km h-1": 1.0 / KMH_PER_MPS,
         "mph": 0.44704,
     },
     "m": {"m": 1.0, "km": 1000.0, "mm": 1e-3, "cm": 1e-2},

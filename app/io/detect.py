@@ -1,23 +1,20 @@
-"""Recognise the format of an input run file from its bytes and name."""
+"""Recognise the format of an input run file from its bytes and name (the formats: :mod:`app.io.formats`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from app.io.errors import RunFileError
+from app.io.formats import FORMATS, HDF5_SIGNATURE, RUN_FORMATS, extensions_of
 
-__all__ = ["FORMATS", "HDF5_SIGNATURE", "detect_format", "resolve_format"]
+__all__ = ["detect_format", "resolve_format"]
 
-#: Accepted input formats.
-FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet", "mdf4", "tdms")
-HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 #: Leading bytes of recorder files: ASAM MDF identification block, NI TDMS lead-in.
-_RECORDER_MAGIC = {"mdf4": b"MDF     ", "tdms": b"TDSm"}
-_PARQUET_MAGIC = b"PAR1"
+_RECORDER_MAGIC = {f.name: f.magic for f in RUN_FORMATS if f.recorder}
+_PARQUET_MAGIC = next(f.magic for f in RUN_FORMATS if f.name == "parquet")
 _GZIP_MAGIC = b"\x1f\x8b"
-_CSV_SUFFIXES = (".csv", ".tsv", ".txt", ".csv.gz", ".tsv.gz", ".txt.gz")
-_HDF5_SUFFIXES = (".h5", ".hdf5", ".hdf", ".he5", ".mat")
-_PARQUET_SUFFIXES = (".parquet", ".pq")
+_CSV_SUFFIXES = extensions_of("csv")
+_BINARY_SUFFIXES = extensions_of("hdf5", "parquet")
 
 
 def _has_hdf5_signature(path: Path, size: int) -> bool:
@@ -106,12 +103,12 @@ def detect_format(path: Path) -> tuple[str, str | None]:
         return recorder, None
     name = path.name.lower()
     if _is_gzip(path):
-        if name.endswith(_CSV_SUFFIXES) or not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES):
+        if name.endswith(_CSV_SUFFIXES) or not name.endswith(_BINARY_SUFFIXES):
             return "csv", "gzip"
     elif name.endswith(_CSV_SUFFIXES):
         return "csv", None
     problem = _text_problem(path)
-    if problem is None and not name.endswith(_HDF5_SUFFIXES + _PARQUET_SUFFIXES):
+    if problem is None and not name.endswith(_BINARY_SUFFIXES):
         return "csv", None
     raise RunFileError(
         "format",

@@ -36,6 +36,7 @@ from app.analysis.recipe import (
 )
 from app.analysis.settings import ProcessingSettings
 from app.analysis.static_load import remove_static_load
+from app.analysis.units import KMH_PER_MPS
 from app.analysis.vkf import VKFResult, VKFWarning
 from app.analysis.wheel_oor import radius_phasor
 from app.io import WHEELS, open_run
@@ -257,7 +258,7 @@ def process_chunk(
         lo, hi = chunk.lo, chunk.hi
         speed = run.speed(lo, hi)
         v_abs = np.abs(speed)
-        min_v = settings.min_speed_kmh / 3.6
+        min_v = settings.min_speed_kmh / KMH_PER_MPS
         position = run.position(lo, hi)
         v_max = max(float(v_abs.max()), 1.0)
         step = max(1, int(np.floor(fs * _OUTPUT_SPACING_M / v_max)))

@@ -13,5 +13,6 @@ The numerics are pure (:mod:`app.analysis.condition`: ``run_places``, ``lifecycl
 - :mod:`~app.places.alerts`: the alerts of new places, tier changes and places back;
 - :mod:`~app.places.worklist`, :mod:`~app.places.answers`: the work list, its exports, a place's history;
 - :mod:`~app.places.workflow`: the engineers' status changes;
-- :mod:`~app.places.sections`: the section classes A … E of a line from the same index.
+- :mod:`~app.places.sections`: the section classes A … E of a line from the same index;
+- :mod:`~app.places.effect`: what a maintenance action did, its extent read against its surroundings.
 """

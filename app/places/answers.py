@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP, EVIDENCE_TREND
+from app.analysis.condition.reading import amplitude_percent_per_year, direction_words
 from app.analysis.condition.tiers import TIER_ACTIONS, TIER_NAMES
 from app.core.jsonable import finite_or_none, iso_time
 from app.db.models import ConditionLine, Place, PlaceAction
@@ -47,12 +48,30 @@ def _date(t: dt.datetime | None, days: float | None) -> str | None:
         return None
 
 
+def _amplitude_interval(direction: int, low: float | None, high: float | None) -> dict[str, float | None]:
+    """The 95 % interval of the severity's rate as the amplitude's change a year, per cent, low ≤ high."""
+    a, b = (amplitude_percent_per_year(direction, x) for x in (low, high))
+    if a is None or b is None:
+        return {"amplitude_percent_low": None, "amplitude_percent_high": None}
+    return {"amplitude_percent_low": min(a, b), "amplitude_percent_high": max(a, b)}
+
+
 def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (),
-               assets: Sequence[dict[str, Any]] = (), muted_reason: str | None = None) -> dict[str, Any]:
+               assets: Sequence[dict[str, Any]] = (), muted_reason: str | None = None,
+               speed_kmh: float | None = None) -> dict[str, Any]:
     """The contract's ``Place``: extent in km, peak (the index at the peak segment, ln units, and in
-    per cent), tier and its action, evidence, wheels, runs, outlook, status, actions, assets; and the
+    per cent), tier and its action, evidence, wheels, runs, ``confirmed`` (False: a new place found by one run,
+    to be confirmed by the next), outlook, status, actions, assets; and the
     stated 1-σ of the peak, the change and the severity (``peak_sd``, ``change_sd``, ``severity_sd``; None:
-    none stated)."""
+    none stated).
+
+    ``direction`` is the index's side (``hard``: above typical track, ``soft``: below); ``reading`` says it in
+    the words the physics supports at ``speed_kmh``, the speed of the latest reading
+    (:func:`~app.analysis.condition.reading.direction_words`: stiffer / softer only from 42 m/s, else higher /
+    lower amplitude). ``rate_per_year`` (and its 95 % interval ``rate_low`` … ``rate_high``) is in ln units a
+    year of the severity (``direction · index``; positive: growing); ``amplitude_percent_per_year`` the same as
+    the amplitude's change, per cent a year (``100 · expm1(direction · rate)``), ``amplitude_percent_low`` …
+    ``amplitude_percent_high`` its interval."""
     tier = TIER_NAMES[int(p.tier)]
     nxt = TIER_NAMES[int(p.tier) + 1] if int(p.tier) + 1 < len(TIER_NAMES) else None
     level = float(p.level)
@@ -61,6 +80,8 @@ def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (
         "km_from": p.start_m / 1000.0, "km_to": p.end_m / 1000.0, "length_m": p.end_m - p.start_m,
         "peak": level, "peak_km": p.peak_m / 1000.0, "peak_percent": 100.0 * math.expm1(level),
         "direction": "hard" if p.direction > 0 else "soft",
+        "reading": direction_words(1 if p.direction > 0 else -1, None if speed_kmh is None else speed_kmh / 3.6),
+        "speed_kmh": finite_or_none(speed_kmh),
         "tier": tier, "action": TIER_ACTIONS[tier], "evidence": evidence_names(int(p.evidence)),
         "wheels": [w for w in (p.wheel_labels or "").split(",") if w],
         "change": finite_or_none(p.change), "severity": finite_or_none(p.severity), "class": p.cls,
@@ -68,9 +89,11 @@ def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (
         "severity_sd": finite_or_none(p.severity_sd),
         "runs_confirming": int(p.runs_confirming), "first_seen": iso_time(p.first_seen),
         "last_confirmed": iso_time(p.last_confirmed), "first_run_id": p.first_run_id, "last_run_id": p.last_run_id,
-        "active": bool(p.active), "listed": bool(p.listed), "tendency": p.tendency,
+        "active": bool(p.active), "listed": bool(p.listed), "confirmed": bool(p.listed), "tendency": p.tendency,
         "rate_per_year": finite_or_none(p.rate_per_year), "rate_low": finite_or_none(p.rate_low),
-        "rate_high": finite_or_none(p.rate_high),
+        "rate_high": finite_or_none(p.rate_high), "rate_unit": "ln units per year",
+        "amplitude_percent_per_year": amplitude_percent_per_year(1 if p.direction > 0 else -1, p.rate_per_year),
+        **_amplitude_interval(1 if p.direction > 0 else -1, p.rate_low, p.rate_high),
         "next_tier": nxt, "next_limit": finite_or_none(p.next_limit) if nxt else None,
         "projected_date": _date(p.last_confirmed, p.days_to_next) if nxt else None,
         "days_to_next_tier": finite_or_none(p.days_to_next) if nxt else None,

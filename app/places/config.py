@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.analysis.condition.discontinuities import ASSET_TYPES
+from app.analysis.condition.extent_level import DEFAULT_AROUND_M, DEFAULT_MARGIN_M
 from app.analysis.condition.lifecycle import LifecycleParams
 from app.analysis.condition.run_places import PlaceParams
 from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
@@ -69,8 +70,8 @@ class PlacesConfig:
     section_limits: tuple[float, ...] = _DEFAULT_SECTIONS
     asset_buffer_m: float = 20.0
     muted_asset_types: frozenset[str] = frozenset()
-    effect_around_m: float = 1000.0
-    effect_margin_m: float = 50.0
+    effect_around_m: float = DEFAULT_AROUND_M
+    effect_margin_m: float = DEFAULT_MARGIN_M
     section_margin_m: float = 50.0
     alerts: bool = True
 

@@ -25,6 +25,7 @@ from app.analysis.condition.section_class import (
 )
 from app.condition import readers as reader
 from app.condition.lines import resolve_line
+from app.core.csv_export import csv_text
 from app.db.models import ConditionLine, ConditionRun
 from app.db.session import Database
 from app.places.class_scheme import class_scheme
@@ -118,16 +119,11 @@ def line_sections(db: Database, settings: Any, line_id: str, track: str | None, 
 def sections_csv(answer: dict[str, Any]) -> str:
     """The sections of a :func:`line_sections` answer as CSV: one row per section with the
     internal class and the class of the railway's scheme (its code and name)."""
-    import csv
-    import io
-
     names = {k["code"]: k["name"] for k in answer["scheme"]["classes"]}
-    out = io.StringIO()
-    w = csv.writer(out, lineterminator="\n")
-    w.writerow(["line_id", "track", "km_from", "km_to", "class", "scheme_class", "scheme_class_name",
-                "level", "spread", "rms", "fill"])
-    for x in answer["sections"]:
-        w.writerow([answer["line_id"], answer["track"], f"{x['km_from']:.3f}", f"{x['km_to']:.3f}", x["class"],
-                    x["scheme_class"], names.get(x["scheme_class"], ""),
-                    *("" if x[k] is None else f"{x[k]:.4f}" for k in ("level", "spread", "rms")), f"{x['fill']:.2f}"])
-    return out.getvalue()
+    header = ["line_id", "track", "km_from", "km_to", "class", "scheme_class", "scheme_class_name",
+              "level", "spread", "rms", "fill"]
+    rows = [[answer["line_id"], answer["track"], f"{x['km_from']:.3f}", f"{x['km_to']:.3f}", x["class"],
+             x["scheme_class"], names.get(x["scheme_class"], ""),
+             *("" if x[k] is None else f"{x[k]:.4f}" for k in ("level", "spread", "rms")), f"{x['fill']:.2f}"]
+            for x in answer["sections"]]
+    return csv_text(header, rows)

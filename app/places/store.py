@@ -24,6 +24,7 @@ from app.analysis.condition.lifecycle import (
     PlaceState,
     place_outlook,
 )
+from app.analysis.condition.outlook import Trend
 from app.db.models import (
     ConditionLine,
     Place,
@@ -81,9 +82,11 @@ def _wheel_labels(mask: int, wheels: list[str]) -> str:
 def write_run(session: Session, line: ConditionLine, run_id: int, when: dt.datetime, version: str,
            known: list[PlaceState], by_id: dict[int, Place], before: dict, events: list[PlaceEvent],
            acts: list[Action], act_rows: dict[int, Any], seg: np.ndarray, wheels: list[str],
-           speed_kmh: np.ndarray, version_runs: dict[int, set[int]], config: PlacesConfig) -> list[PlaceEventRow]:
+           speed_kmh: np.ndarray, version_runs: dict[int, set[int]], config: PlacesConfig,
+           trends: dict[int, Trend] | None = None) -> list[PlaceEventRow]:
     """Write the places a run advanced (``known``: the lifecycle's state after it; ``by_id``: their rows
-    before; ``before``: (active, listed, actions) before) and its ``events``; the event rows written."""
+    before; ``before``: (active, listed, actions) before) and its ``events``; the event rows written.
+    ``trends``: the severity trend of the developing places (by id) over their segment's history."""
     now = utcnow()
     out: list[PlaceEventRow] = []
 
@@ -112,7 +115,7 @@ def write_run(session: Session, line: ConditionLine, run_id: int, when: dt.datet
         # the outlook over the observations of the place's current method version
         mine = version_runs.get(st.id, set()) | {run_id}
         same = replace(st, observations=[o for o in st.observations if o.run_id in mine])
-        look = place_outlook(same if same.observations else st, config.levels)
+        look = place_outlook(same if same.observations else st, config.levels, trend=(trends or {}).get(st.id))
         last = st.observations[-1]
         # the peak and level of the latest observation (a held place keeps its extent, its peak moves)
         row.direction, row.start_m, row.end_m, row.peak_m = st.direction, st.start_m, st.end_m, last.peak_m

@@ -38,11 +38,15 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 from sqlalchemy.orm import Session
 
 from app.analysis.condition.interventions import surface_change_days
-from app.analysis.condition.lifecycle import Action, advance_places
+from app.analysis.condition.lifecycle import Action, PlaceState, advance_places, segment_trend
+from app.analysis.condition.outlook import Trend
+from app.analysis.condition.places import EVIDENCE_TREND
 from app.analysis.condition.run_places import find_places
+from app.analysis.units import KMH_PER_MPS
 from app.condition.writer import days_of, rail_surface_interventions
 from app.db import places as q
 from app.db import reference_crud
@@ -203,6 +207,23 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
     return apply_prepared(session, line, prep, config=config)
 
 
+def developing_trends(known: list[PlaceState], run_id: int, ri: RunIndex, now_day: float) -> dict[int, Trend]:
+    """The severity trends of the places the run found by their trend (evidence ``trend``), each over its peak
+    segment's history and the run (:func:`~app.analysis.condition.lifecycle.segment_trend`), by place id."""
+    out: dict[int, Trend] = {}
+    days = np.append(np.asarray(ri.history_days, dtype=np.float64), now_day)
+    for st in known:
+        last = st.observations[-1] if st.observations else None
+        if last is None or last.run_id != run_id or not (last.evidence & EVIDENCE_TREND):
+            continue
+        k = int(np.searchsorted(ri.seg, int(last.peak_m // SEGMENT_M)))
+        if k >= ri.seg.size or ri.seg[k] != int(last.peak_m // SEGMENT_M):
+            continue
+        values = np.append(mean_over_wheels(ri.history[:, k, :]), ri.mean_index[k])
+        out[st.id] = segment_trend(st, days, values, now_day=now_day)
+    return out
+
+
 def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
                    config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> PlacesUpdate:
     """Advance the line's places with a run's places found (:func:`prepare_run`) and write them back
@@ -225,9 +246,9 @@ def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
                                   actions=acts)
     kept = {k.id for k in known}
     q.delete_places(session, [i for i in by_id if i not in kept])
-    speed_kmh = mean_over_wheels(v) * 3.6
+    speed_kmh = mean_over_wheels(v) * KMH_PER_MPS
     written = write_run(session, line, run_id, when, version, known, by_id, before, events, acts, act_rows,
-                     seg, wheels, speed_kmh, version_runs, config)
+                     seg, wheels, speed_kmh, version_runs, config, trends=developing_trends(known, run_id, ri, now_day))
     session.add(PlaceRun(run_id=run_id, line_key=line.id, run_time=when, method_version=version,
                          start_m=covered[0], end_m=covered[1], n_places=len(found), n_events=len(written)))
     session.flush()

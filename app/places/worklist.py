@@ -1,25 +1,28 @@
 """The work list of places, its exports and a place's history (the readers of :mod:`app.places`).
 
-The list holds the **listed** places that are not a maintenance action's effect; by default only the
-open ones (active, status not ``fixed`` / ``false_alarm``), with ``include_closed`` also the inactive
-and closed ones. Ranked by tier (highest first), then by the days to the next tier (soonest first;
-places without a projection after those with one), then by severity (the magnitude in units of the
-alert limit that gives the tier), then id — in the database, so a page of a long list costs one query.
+The list holds the **listed** places that are not a maintenance action's effect, and the **new** ones
+the newest run that covered them found and the lifecycle has not confirmed yet (``confirmed: false``:
+found by one run, to be confirmed by the next; an engineer learns of a new change from the run that
+finds it, the alerts still wait for the confirmation); by default only the open ones (active, status
+not ``fixed`` / ``false_alarm``), with ``include_closed`` also the inactive and closed ones. Ranked by
+tier (highest first), within a tier the confirmed places before the new ones, then by the days to the
+next tier (soonest first; places without a projection after those with one), then by severity (the
+magnitude in units of the alert limit that gives the tier), then id — in the database, so a page of a
+long list costs one query.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from sqlalchemy import and_, case, func, select
+from sqlalchemy import and_, case, func, or_, select
 from sqlalchemy.orm import Session
 
 from app.analysis.condition.tiers import TIER_NAMES
 from app.assets.labels import label_places
+from app.core.csv_export import csv_text
 from app.core.errors import ApiError, not_found
 from app.core.jsonable import iso_time
 from app.db import places as q
@@ -38,8 +41,10 @@ CLOSED_STATUSES: tuple[str, ...] = ("fixed", "false_alarm")
 #: Columns of the CSV export.
 CSV_COLUMNS: tuple[str, ...] = (
     "id", "line_id", "track", "km_from", "km_to", "length_m", "peak", "peak_percent", "peak_km", "direction",
-    "tier", "evidence", "wheels", "runs_confirming", "first_seen", "last_confirmed", "tendency", "rate_per_year",
-    "rate_low", "rate_high", "next_tier", "projected_date", "days_to_next_tier", "status", "status_comment",
+    "reading", "speed_kmh", "tier", "confirmed", "evidence", "wheels", "runs_confirming", "first_seen",
+    "last_confirmed", "tendency", "rate_per_year", "rate_low", "rate_high", "amplitude_percent_per_year",
+    "amplitude_percent_low", "amplitude_percent_high",
+    "next_tier", "projected_date", "days_to_next_tier", "status", "status_comment",
     "status_by", "status_at", "actions", "assets", "active", "muted", "muted_reason", "method_version",
     "peak_sd", "change", "change_sd", "severity", "severity_sd",
 )
@@ -83,8 +88,13 @@ def _lines(session: Session, qy: PlaceQuery) -> dict[int, ConditionLine]:
     return lines
 
 
+#: A place on the list: confirmed by the lifecycle (``listed``), or new — found by the newest run that
+#: covered it (no miss since) and not yet confirmed.
+ON_LIST = or_(Place.listed.is_(True), and_(Place.active.is_(True), Place.misses == 0))
+
+
 def _where(qy: PlaceQuery, line_keys: Sequence[int]):
-    cond = [Place.listed.is_(True), Place.explained_by.is_(None), Place.line_key.in_(list(line_keys))]
+    cond = [ON_LIST, Place.explained_by.is_(None), Place.line_key.in_(list(line_keys))]
     if not qy.include_closed and not qy.statuses:
         cond += [Place.active.is_(True), Place.status.not_in(CLOSED_STATUSES)]
     if qy.statuses:
@@ -95,7 +105,8 @@ def _where(qy: PlaceQuery, line_keys: Sequence[int]):
 
 
 def _ranked(stmt):
-    return stmt.order_by(Place.tier.desc(), case((Place.days_to_next.is_(None), 1), else_=0),
+    return stmt.order_by(Place.tier.desc(), case((Place.listed.is_(True), 0), else_=1),
+                         case((Place.days_to_next.is_(None), 1), else_=0),
                          Place.days_to_next, Place.severity.desc(), Place.id)
 
 
@@ -123,11 +134,16 @@ def labelled(session: Session, lines: dict[int, ConditionLine], rows: list[Place
         got = label_places(session, config.asset_settings(), ln.line_id, ln.track, [p.start_m / 1000.0 for p in ps],
                            [p.end_m / 1000.0 for p in ps])
         labels.update({p.id: lab for p, lab in zip(ps, got, strict=True)})
+    speeds = q.latest_speeds(session, [p.id for p in rows])
     out = []
     for p in rows:
         lab = labels.get(p.id)
-        out.append(place_dict(p, lines[p.line_key], links[p.id], assets=lab.assets if lab else (),
-                              muted_reason=lab.muted_reason if lab is not None and lab.muted else None))
+        item = place_dict(p, lines[p.line_key], links[p.id], assets=lab.assets if lab else (),
+                          muted_reason=lab.muted_reason if lab is not None and lab.muted else None,
+                          speed_kmh=speeds.get(p.id))
+        if lab is not None and lab.assets_more:  # only when capped: the answers of a place on few assets keep their shape
+            item["assets_more"] = lab.assets_more
+        out.append(item)
     return out
 
 
@@ -146,19 +162,27 @@ def list_places(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLA
             "places_updated_at": max(updated) if updated else None, "lines": current}
 
 
-def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> str:
-    """The work list as CSV (one row per place; lists joined by ``+``, actions as ``kind date``)."""
-    out = io.StringIO()
-    w = csv.writer(out, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
-    for item in list_places(db, qy, config)["items"]:
+def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> tuple[str, int, int]:
+    """The work list as CSV (one row per place; lists joined by ``+``, actions as ``kind date``), written
+    by :mod:`app.core.csv_export` (text cells a spreadsheet would run are defused).
+
+    Returns
+    -------
+    tuple[str, int, int]
+        The CSV text, the number of places the filters match (all pages) and how many of them this page
+        leaves out (before ``offset`` and after ``limit``): the route says both in headers.
+    """
+    answer = list_places(db, qy, config)
+    rows = []
+    for item in answer["items"]:
         row = dict(item)
         row["evidence"] = "+".join(item["evidence"])
         row["wheels"] = "+".join(item["wheels"])
         row["actions"] = "+".join(f"{a['kind']} {a['date']}" for a in item["actions"])
         row["assets"] = "+".join(f"{a['type']} {a['km']:.3f}" for a in item["assets"])
-        w.writerow(["" if row.get(c) is None else row.get(c) for c in CSV_COLUMNS])
-    return out.getvalue()
+        rows.append([row.get(c) for c in CSV_COLUMNS])
+    total = int(answer["total"])
+    return csv_text(CSV_COLUMNS, rows), total, max(0, total - len(rows))
 
 
 def places_geojson(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> dict:

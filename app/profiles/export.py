@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 
 from app.analytics.stiffness_index import INDEX_COLUMNS, IndexContext
 from app.core.config import Settings
+from app.core.csv_export import escape_cell
 from app.db import results_reader
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
@@ -98,10 +99,14 @@ def export_filename(run_id: int, wheel: str | None, level: float, ext: str) -> s
 
 
 def csv_stream(export: ProfileExport, db: Database) -> Iterator[bytes]:
-    """The export as CSV, page by page (the header once; only the header without rows)."""
+    """The export as CSV, page by page (the header once; only the header without rows); numbers written by
+    pyarrow, text cells through :func:`app.core.csv_export.escape_cell`."""
     header = True
     for df in export.frames(db):
         buffer = io.BytesIO()
+        text = [c for c in df.columns if df[c].dtype == object]
+        if text:  # the one rule of every CSV export: a text cell a spreadsheet would run is defused
+            df = df.assign(**{c: df[c].map(escape_cell) for c in text})
         pa_csv.write_csv(
             pa.Table.from_pandas(df, preserve_index=False),
             buffer,

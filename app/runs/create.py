@@ -21,6 +21,7 @@ from app.analysis.settings import ProcessingSettings
 from app.audit import record
 from app.core.config import API_PREFIX, Settings
 from app.core.errors import ApiError
+from app.core.ids import MAX_ID
 from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
 from app.core.security import Actor
@@ -121,7 +122,7 @@ def channel_map_id(text: str | None) -> int | None:
     if text is None or not text.strip():
         return None
     value = text.strip()
-    if not value.isdigit() or not 0 < int(value) < 2**31:
+    if not value.isdigit() or not 0 < int(value) <= MAX_ID:
         raise ApiError(422, "channel_map", f"must be the id of a stored channel map, got {value[:40]!r}")
     return int(value)
 

@@ -18,11 +18,10 @@ from app.core.errors import ApiError
 from app.core.security import Actor
 from app.db.session import Database
 from app.io import RunFileError, load_metadata_json
+from app.io.formats import CONTENT_TYPE_FORMATS, FORMATS, format_of_alias, format_of_name
 from app.runs.create import UploadedFile
 
 __all__ = [
-    "SUPPORTED_FORMATS",
-    "CONTENT_TYPE_FORMATS",
     "Received",
     "Upload",
     "infer_format",
@@ -34,25 +33,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-SUPPORTED_FORMATS: tuple[str, ...] = ("hdf5", "csv", "parquet", "mdf4", "tdms")
-_FORMAT_ALIASES = {"h5": "hdf5", "hdf": "hdf5", "hdf5": "hdf5", "csv": "csv", "parquet": "parquet", "pq": "parquet",
-                   "mdf4": "mdf4", "mf4": "mdf4", "mdf": "mdf4", "tdms": "tdms"}
-_EXTENSIONS = {
-    ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".he5": "hdf5", ".mat": "hdf5",
-    ".csv": "csv", ".tsv": "csv", ".txt": "csv",
-    ".csv.gz": "csv", ".tsv.gz": "csv", ".txt.gz": "csv",
-    ".parquet": "parquet", ".pq": "parquet",
-    ".mf4": "mdf4", ".mdf": "mdf4", ".tdms": "tdms",
-}
-#: The format a content type names.
-CONTENT_TYPE_FORMATS: dict[str, str] = {
-    "application/x-hdf5": "hdf5", "application/x-hdf": "hdf5", "application/hdf5": "hdf5",
-    "text/csv": "csv", "application/csv": "csv",
-    "application/vnd.apache.parquet": "parquet", "application/x-parquet": "parquet",
-    "application/parquet": "parquet",
-}
-
 
 @dataclass
 class Received:
@@ -78,17 +58,6 @@ class Upload:
     channel_map: str | None
 
 
-def _known_suffix(filename: str | None) -> str:
-    """The file name's extension if it is a known run-file extension, else ``""``."""
-    if not filename:
-        return ""
-    name = filename.lower()
-    for suffix in sorted(_EXTENSIONS, key=len, reverse=True):
-        if name.endswith(suffix):
-            return suffix
-    return ""
-
-
 def infer_format(explicit: str | None, filename: str | None, content_type: str | None) -> str | None:
     """The upload's format: explicit value, else file extension, else content type.
 
@@ -100,17 +69,14 @@ def infer_format(explicit: str | None, filename: str | None, content_type: str |
         422 naming ``format`` if ``explicit`` is not a supported format.
     """
     if explicit:
-        key = explicit.strip().lower()
-        if key not in _FORMAT_ALIASES:
-            raise ApiError(422, "format",
-                           f"unknown format {explicit!r}; supported formats are {', '.join(SUPPORTED_FORMATS)}")
-        return _FORMAT_ALIASES[key]
-    suffix = _known_suffix(filename)
-    if suffix:
-        return _EXTENSIONS[suffix]
-    if content_type and content_type in CONTENT_TYPE_FORMATS:
-        return CONTENT_TYPE_FORMATS[content_type]
-    return None
+        fmt = format_of_alias(explicit)
+        if fmt is None:
+            raise ApiError(422, "format", f"unknown format {explicit!r}; supported formats are {', '.join(FORMATS)}")
+        return fmt
+    named = format_of_name(filename)
+    if named is not None:
+        return named[0]
+    return CONTENT_TYPE_FORMATS.get(content_type) if content_type else None
 
 
 def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
@@ -141,9 +107,9 @@ def upload_of(received: Received, *, query_format: str | None = None, query_meta
     if received.size == 0:
         raise ApiError(422, "file", "the uploaded file is empty")
     path = received.path
-    suffix = _known_suffix(received.filename)
-    if suffix:
-        path = path.rename(path.with_name(f"upload{suffix}"))
+    named = format_of_name(received.filename)
+    if named is not None:
+        path = path.rename(path.with_name(f"upload{named[1]}"))
         received.path = path
     fmt = infer_format(_one_of("format", received.fields.get("format"), query_format), received.filename,
                        received.content_type)

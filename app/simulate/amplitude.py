@@ -29,6 +29,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 
 from app.analysis.stiffness.track_dynamics import TrackParameters, sleeper_passage_amplitude
+from app.analysis.units import KMH_PER_MPS
 from app.simulate.track import SUPERSTRUCTURE_TYPES
 
 __all__ = [
@@ -74,7 +75,7 @@ class PowerLawResponse:
     """``R(v) = (v / v_ref) ** alpha`` for every superstructure type (the separable model)."""
 
     alpha: float = 1.5
-    v_ref_mps: float = 100.0 / 3.6
+    v_ref_mps: float = 100.0 / KMH_PER_MPS
     kind: Literal["power_law"] = "power_law"
 
     def __post_init__(self) -> None:
@@ -129,7 +130,7 @@ class ResonanceResponse:
 
     support_stiffness_mnm: tuple[tuple[str, float], ...] = tuple(DEFAULT_SUPPORT_STIFFNESS_MNM.items())
     damping_factor: float = 2.0
-    v_ref_mps: float = 100.0 / 3.6
+    v_ref_mps: float = 100.0 / KMH_PER_MPS
     track: TrackParameters = TrackParameters()
     kind: Literal["resonance"] = "resonance"
     reference_track: TrackParameters | None = None

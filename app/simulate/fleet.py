@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.analysis.condition import RunAssessment, SegmentStats
+from app.analysis.units import DAYS_PER_YEAR, KMH_PER_MPS
 from app.simulate.track import LineModel
 
 __all__ = [
@@ -49,7 +50,6 @@ __all__ = [
 
 #: Wheels of the simulated vehicle: axle 1 and 4, sides 1 (right) and 2 (left).
 FLEET_WHEELS: tuple[str, ...] = ("11", "12", "41", "42")
-_DAYS_PER_YEAR = 365.25
 
 
 @dataclass(frozen=True)
@@ -113,7 +113,7 @@ class PlantedTrend:
     def factor_at(self, x: np.ndarray, day: float) -> np.ndarray:
         """Multiplicative factor at positions ``x`` (m) on ``day``."""
         inside = (x >= self.track_from_m) & (x < self.track_to_m)
-        years = max(day - self.day, 0.0) / _DAYS_PER_YEAR
+        years = max(day - self.day, 0.0) / DAYS_PER_YEAR
         return np.where(inside, (1.0 + self.rate_per_year) ** years, 1.0)
 
 
@@ -134,7 +134,7 @@ class PlantedAction:
         """Multiplicative factor at positions ``x`` (m) on ``day``."""
         if day < self.day:
             return np.ones_like(x, dtype=np.float64)
-        years = (day - self.day) / _DAYS_PER_YEAR
+        years = (day - self.day) / DAYS_PER_YEAR
         level = min(1.0 - self.recovery + self.regrowth_per_year * years, 1.0)
         inside = (x >= self.track_from_m) & (x < self.track_to_m)
         return np.where(inside, level, 1.0)
@@ -144,7 +144,7 @@ class PlantedAction:
         """Days until half the recovery is lost again."""
         if self.regrowth_per_year <= 0:
             return float("inf")
-        return 0.5 * self.recovery / self.regrowth_per_year * _DAYS_PER_YEAR
+        return 0.5 * self.recovery / self.regrowth_per_year * DAYS_PER_YEAR
 
 
 @dataclass(frozen=True)
@@ -312,8 +312,8 @@ class FleetSimulator:
         nz = self.noise
         v_run = self.speed_kmh * (1.0 + rng.uniform(-nz.speed_spread, nz.speed_spread))
         wobble = 1.0 + nz.speed_wobble * np.clip(_smooth(rng, n, 2000.0 / self.grid_m), -2.5, 2.5)
-        v = v_run / 3.6 * wobble
-        speed_law = (v / (self.v_ref_kmh / 3.6)) ** self.alpha
+        v = v_run / KMH_PER_MPS * wobble
+        speed_law = (v / (self.v_ref_kmh / KMH_PER_MPS)) ** self.alpha
         planted = self.plan.factor(x, day)
         corr = nz.correlation_m / self.grid_m
         tracks = {}

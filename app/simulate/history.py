@@ -17,7 +17,7 @@ its stiffness factor ``f(x)`` (the sleeper-passage amplitude relative to its
 superstructure type's, both rails) is changed from a day on by
 :class:`TrackChange` s, multiplicatively with raised-cosine tapers::
 
-    ln f(x, t) = ln f0(x) + Σ_c w_c(x) · [ln factor_c + rate_c · (t − day_c) / 365.25]   (t ≥ day_c)
+    ln f(x, t) = ln f0(x) + Σ_c w_c(x) · [ln factor_c + rate_c · (t − day_c) / DAYS_PER_YEAR]   (t ≥ day_c)
 
 * ``kind="change"``: a sudden change (a broken support, a new soft spot):
   ``factor`` from its day on (0.8 = −20 % amplitude);
@@ -57,6 +57,7 @@ import numpy as np
 import pandas as pd
 
 from app.analysis.stiffness.track_dynamics import TrackParameters
+from app.analysis.units import DAYS_PER_YEAR, KMH_PER_MPS
 from app.simulate.amplitude import ResonanceResponse
 from app.simulate.run import DEFAULT_TRUE_DIAMETERS_M, simulate_run
 from app.simulate.speed import SpeedProfile
@@ -91,8 +92,7 @@ __all__ = [
     "write_history",
 ]
 
-_KMH = 1.0 / 3.6
-_DAYS_PER_YEAR = 365.25
+_KMH = 1.0 / KMH_PER_MPS
 #: Kinds of :class:`TrackChange`.
 CHANGE_KINDS = ("change", "developing", "tamping")
 
@@ -151,10 +151,10 @@ class TrackChange:
         return shape.weight(x)
 
     def log_effect(self, day: float) -> float:
-        """``ln factor + rate · (day − self.day) / 365.25`` on ``day`` (0 before ``self.day``)."""
+        """``ln factor + rate · (day − self.day) / DAYS_PER_YEAR`` on ``day`` (0 before ``self.day``)."""
         if day < self.day:
             return 0.0
-        return math.log(self.factor) + self.rate_per_year * (day - self.day) / _DAYS_PER_YEAR
+        return math.log(self.factor) + self.rate_per_year * (day - self.day) / DAYS_PER_YEAR
 
 
 @dataclass(frozen=True)
@@ -827,7 +827,7 @@ def real_line_history(*, seed: int = 0, n_runs: int = 24, every_days: float = 15
     for b in range(0, n_runs, 3):
         vehicle[b + int(rng.integers(0, min(3, n_runs - b)))] = 1
     vehicle[0] = 0
-    cruise = np.array(REAL_LINE_SPEEDS_MPS)[group] * 3.6 * (1.0 + rng.uniform(-0.03, 0.03, n_runs))
+    cruise = np.array(REAL_LINE_SPEEDS_MPS)[group] * KMH_PER_MPS * (1.0 + rng.uniform(-0.03, 0.03, n_runs))
     errors = np.clip(rng.normal(0.0, km_error_sd_m, n_runs), -3 * km_error_sd_m, 3 * km_error_sd_m)
     errors[0] = 0.0
     runs = tuple(HistoryRun(day=i * every_days, cruise_kmh=float(round(cruise[i], 2)),

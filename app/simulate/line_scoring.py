@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from app.analysis.units import KMH_PER_MPS
 from app.simulate.history import HistorySpec, RailFeature, TruthPlace
 
 __all__ = [
@@ -62,7 +63,7 @@ def _gap(a: tuple[float, float], b: tuple[float, float]) -> float:
 
 def speed_group(cruise_kmh: float, groups_mps: Sequence[float]) -> int:
     """The speed group (index into ``groups_mps``, m/s) whose speed is nearest a run's cruise speed."""
-    v = float(cruise_kmh) / 3.6
+    v = float(cruise_kmh) / KMH_PER_MPS
     return int(np.argmin([abs(math.log(v / g)) for g in groups_mps]))
 
 

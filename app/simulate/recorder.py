@@ -29,6 +29,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from app.analysis.units import KMH_PER_MPS
 from app.io import open_run
 from app.io.channel_map import STANDARD_GRAVITY
 from app.io.geometry import LineGeometry
@@ -388,7 +389,7 @@ def simulate_recorder_run(
         channels.pop("lon")
         rec.channel_map["channels"] = channels
     write_recorder_file(
-        canonical, dest, fmt, odometry=odo_cfg.odometry(s), odometry_t=t_odo, speed_kmh=v * 3.6,
+        canonical, dest, fmt, odometry=odo_cfg.odometry(s), odometry_t=t_odo, speed_kmh=v * KMH_PER_MPS,
         gnss=gnss_arrays, start_time=meta.start_time,
     )
     rec.channel_map_path.write_text(json.dumps(rec.channel_map, indent=1), encoding="utf-8")

@@ -47,6 +47,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from app.analysis.units import KMH_PER_MPS
 from app.io import ACCEL_CHANNELS, FORCE_CHANNELS, WHEELS, Calibration, RunMetadata, parse_metadata
 from app.io.canonical import CanonicalWriter, Compression, atomic_output
 from app.simulate.amplitude import ResonanceResponse, SpeedResponse, speed_response
@@ -62,7 +63,7 @@ __all__ = ["simulate_run", "plan_run", "SimulationConfig", "Confounders", "RunPl
 
 #: True wheel diameters used unless given, m (the axles were re-profiled at different times).
 DEFAULT_TRUE_DIAMETERS_M: dict[str, float] = {"11": 0.920, "12": 0.920, "41": 0.912, "42": 0.912}
-_KMH = 1.0 / 3.6
+_KMH = 1.0 / KMH_PER_MPS
 #: Track beyond the wheels' own range that the surface is generated for (the contact filter's memory), m.
 _SURFACE_MARGIN_M = 40.0
 

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from app.analysis.units import KMH_PER_MPS
+
 __all__ = [
     "SyntheticSignal",
     "paper_signal",
@@ -278,7 +280,7 @@ def _speed_profile(speed_kmh: SpeedSpec, t: np.ndarray, duration: float) -> np.n
         )
     if not np.all(np.isfinite(v)) or np.any(v < 0):
         raise ValueError("speed_kmh must be finite and >= 0 everywhere")
-    return v / 3.6
+    return v / KMH_PER_MPS
 
 
 def _default_sleeper_amplitude(t: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -19,9 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.analysis.units import KMH_PER_MPS
+
 __all__ = ["SpeedProfile"]
 
-_KMH = 1.0 / 3.6
+_KMH = 1.0 / KMH_PER_MPS
 
 
 @dataclass(frozen=True)

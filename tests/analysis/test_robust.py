@@ -25,3 +25,13 @@ def test_one_history_spread_is_the_sample_spread_with_its_small_sample_correctio
     _, spread = robust_spread(x[None, :])
     n = x.size
     assert spread[0] == mad_sd(x) * n / (n - 0.8)
+
+
+def test_mad_sd_along_an_axis_ignores_nan_and_takes_a_known_centre():
+    a = np.array([[1.0, 2.0, np.nan, 4.0, 100.0], [np.nan] * 5, [3.0, 3.0, 3.0, 3.0, 3.0]])
+    out = mad_sd(a, axis=1)
+    assert out[0] == MAD_TO_SD * 1.5  # median 3, |x - 3|: 2 1 1 97 -> 1.5
+    assert math.isnan(out[1]) and out[2] == 0.0
+    assert mad_sd(a[0], center=3.0) == out[0] == mad_sd(a[0])
+    np.testing.assert_array_equal(mad_sd(a.T, axis=0), out)
+    assert mad_sd(np.array([-np.inf, 1.0, 2.0, 3.0])) == MAD_TO_SD * 1.0  # ±inf: no value

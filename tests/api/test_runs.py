@@ -81,6 +81,8 @@ def test_detail_and_missing(client, populated):
     assert body["metadata"]["vehicle_id"] == "ICE-1"
     assert len(body["sha256"]) == 64
     assert body["summary"]["channels"][:4] == ["Z11", "Z12", "Z41", "Z42"]
+    # speeds answered in km/h (the file holds 20 m/s)
+    assert body["summary"]["speed_min_kmh"] == pytest.approx(72.0) == body["summary"]["speed_max_kmh"]
     assert body["latest_job"]["status"] == "queued"
     assert client.get("/api/v1/runs/999").status_code == 404
     assert client.get("/api/v1/runs/0").status_code == 422

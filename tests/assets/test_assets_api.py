@@ -67,6 +67,13 @@ def test_geojson_import_keeps_the_coordinates(make_client):
     ('{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": null,'
      ' "properties": {"line_id": "G", "track": "1", "type": "switch"}}]}', "feature 1, property km"),
     ('{"type": "Feature"}', "file"),
+    # issue 32 finding 8: a 400-digit number overflowed float() uncaught (500 without parse isolation)
+    ('{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": null,'
+     ' "properties": {"line_id": "G", "track": "1", "type": "switch", "km": 1' + "0" * 400 + '}}]}',
+     "feature 1, property km"),
+    ('{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": {"type": "Point", "coordinates": [1'
+     + "0" * 400 + ', 46]}, "properties": {"line_id": "G", "track": "1", "type": "switch", "km": 1}}]}',
+     "feature 1, geometry"),
 ])
 def test_a_bad_file_is_refused_whole_naming_the_row_and_column(make_client, body, field):
     client = make_client(parse_isolated=False)
@@ -132,3 +139,25 @@ def test_an_unknown_muted_type_is_an_error_naming_the_setting(tmp_path):
     assert muted_types(make_settings(tmp_path, places_muted_asset_types=" weld, switch")) == ("weld", "switch")
     with pytest.raises(ValueError, match="TRACKVKF_PLACES_MUTED_ASSET_TYPES: 'tunnel'"):
         muted_types(make_settings(tmp_path, places_muted_asset_types="switch,tunnel"))
+
+
+def test_a_place_on_many_assets_gets_a_capped_list_and_the_count_of_the_rest(make_client):
+    """issue 32 finding 7: a place on a dense register was labelled with every asset (16 650 on one
+    place); now at most MAX_LABELS_PER_PLACE, the rest counted, a muted type beyond the cap still mutes."""
+    from app.assets.labels import MAX_LABELS_PER_PLACE, label_places
+    from app.db.session import Database
+
+    n = MAX_LABELS_PER_PLACE + 40
+    rows = "".join(f"L9,1,weld,{5.0 + i * 0.001:.3f},,W{i}\n" for i in range(n))
+    rows += f"L9,1,switch,{5.0 + n * 0.001:.3f},,S1\n"  # after the welds: beyond the cap
+    client = make_client(parse_isolated=False, places_muted_asset_types="switch")
+    assert _post(client, "dense.csv", "line_id,track,type,km,km_to,name\n" + rows).status_code == 201
+    db = Database(client.settings.database_url)
+    try:
+        with db.read() as s:
+            (p, far) = label_places(s, client.settings, "L9", "1", [5.0, 9.0], [5.0 + n * 0.001, 9.01])
+    finally:
+        db.dispose()
+    assert len(p.assets) == MAX_LABELS_PER_PLACE and p.assets_more == n + 1 - MAX_LABELS_PER_PLACE
+    assert [a["name"] for a in p.assets[:2]] == ["W0", "W1"] and p.muted and "switch" in p.muted_reason
+    assert far.assets == [] and far.assets_more == 0 and not far.muted

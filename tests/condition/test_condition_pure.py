@@ -145,6 +145,41 @@ def test_detect_changes_and_combining_wheels():
         combine_wheels(np.zeros(3), 2.0)
 
 
+def test_a_matched_pass_is_by_the_same_vehicle():
+    """Two vehicles whose responses differ segment by segment (0.25 ln units): a run of the second vehicle
+    against a history of mostly the first flags a quarter of its segments; with the history's vehicles the
+    other vehicle's passes are brought to its own (the segment's offset, its uncertainty in the score) and it
+    flags almost none, while a real −0.3 step is still found; with enough passes of its own only they count;
+    a vehicle with fewer than 2 passes is not tested."""
+    from app.analysis.condition.change import vehicle_matched
+
+    rng = np.random.default_rng(12)
+    seg = np.arange(1000, 1300)
+    n_runs = 14
+    own = rng.normal(0, 0.25, seg.size)  # the second vehicle's response, against the first's
+    labels = np.array(["V2" if k in (3, 8, 12) else "V1" for k in range(n_runs)], dtype=object)
+    h = rng.normal(0, 0.03, (seg.size, n_runs)) + np.where(labels == "V2", 1.0, 0.0)[None, :] * own[:, None]
+    x = own + rng.normal(0, 0.03, seg.size)
+    x[150] -= 0.3
+    v = np.full(h.shape, 30.0)
+    args = (h, v, np.arange(float(n_runs)), x, np.full(seg.size, 30.0), float(n_runs), seg)
+    mixed = detect_changes(*args, segment_m=10.0)
+    assert np.mean(np.abs(np.nan_to_num(mixed.change_z)) >= 4.5) > 0.1
+    c = detect_changes(*args, segment_m=10.0, history_vehicle=labels, vehicle="V2")
+    z = np.nan_to_num(c.change_z)
+    assert z[150] <= -4.5 and np.mean(np.abs(np.delete(z, 150)) >= 4.5) < 0.01
+    # a vehicle's own passes alone where it has enough; none to test a vehicle without 2 passes
+    hv, extra, ok = vehicle_matched(h, np.where(labels == "V2", "V1", "V2").astype(object), "V2", min_history=8,
+                                    min_spread=0.005)
+    assert ok.all() and np.all(extra == 0) and np.isnan(hv[:, [3, 8, 12]]).all()
+    _, _, none = vehicle_matched(h, np.array(["V1"] * n_runs, dtype=object), "V3", min_history=8, min_spread=0.005)
+    assert not none.any()
+    c3 = detect_changes(*args, segment_m=10.0, history_vehicle=np.array(["V1"] * n_runs, dtype=object), vehicle="V3")
+    assert np.isnan(c3.change_z).all()
+    same = detect_changes(*args, segment_m=10.0, history_vehicle=labels, vehicle=None)
+    assert np.array_equal(np.nan_to_num(same.change_z), np.nan_to_num(mixed.change_z))
+
+
 def test_change_params_are_validated():
     with pytest.raises(ValueError, match="step_z"):
         ChangeParams(step_z=0)

@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pytest
 
-from app.analysis.condition.extent_level import extent_level
+from app.analysis.condition.extent_level import extent_level, surroundings_level
 from app.analysis.condition.lifecycle import (
     Action,
     LifecycleParams,
@@ -279,3 +279,25 @@ def test_extent_level_reads_nan_without_data_and_checks_arguments():
         extent_level(SEG, x[:5], 12_000.0, 12_100.0, segment_m=10.0)
     with pytest.raises(ValueError, match="min_segments"):
         extent_level(SEG, x, 12_000.0, 12_100.0, segment_m=10.0, min_segments=0)
+    with pytest.raises(ValueError, match="min_inside"):
+        extent_level(SEG, x, 12_000.0, 12_100.0, segment_m=10.0, min_inside=0)
+
+
+def test_the_surroundings_are_the_mean_around_outside_the_widened_extent():
+    x = np.zeros(SEG.size)
+    centres = (SEG + 0.5) * 10.0
+    x[(centres >= 11_950.0) & (centres < 12_150.0)] = 5.0  # the extent and its margins: never the surroundings
+    x[np.abs(centres - 12_050.0) >= 500.0] = 9.0  # beyond around_m: neither
+    x[(centres >= 11_700.0) & (centres < 11_800.0)] = 1.0  # inside the surroundings: 10 of the 80 segments
+    level = surroundings_level(SEG, x, 12_000.0, 12_100.0, segment_m=10.0, around_m=500.0, margin_m=50.0)
+    assert level == pytest.approx(10 * 1.0 / 80)
+    assert extent_level(SEG, x, 12_000.0, 12_100.0, segment_m=10.0, around_m=500.0, margin_m=50.0) == \
+        pytest.approx(5.0 - level)
+    # one segment inside is enough where the caller says so (a trend's segment), the surroundings still need 3
+    one = extent_level(SEG, x, 12_000.0, 12_010.0, segment_m=10.0, around_m=500.0, margin_m=50.0, min_inside=1)
+    assert one == pytest.approx(5.0 - surroundings_level(SEG, x, 12_000.0, 12_010.0, segment_m=10.0,
+                                                         around_m=500.0, margin_m=50.0))
+    assert math.isnan(extent_level(SEG, x, 12_000.0, 12_010.0, segment_m=10.0))
+    assert math.isnan(surroundings_level(SEG, x, 12_000.0, 12_100.0, segment_m=10.0, around_m=60.0,
+                                         margin_m=50.0))
+

@@ -181,9 +181,17 @@ def test_the_publish_step_keeps_the_same_places_as_the_lifecycle(history):
     spec, runs, known, steps, actions, service = history
     assert all(s["applied"] for s in service["summaries"]), service["summaries"]
     pure = sorted((round(x[1]), round(x[2]), x[7], x[3]) for x in steps[-1]["listed"])
-    served = sorted((round(p["km_from"] * 1000), round(p["km_to"] * 1000), 1 if p["direction"] == "hard" else -1,
-                     ["watch", "alert", "intervention", "immediate"].index(p["tier"])) for p in service["open"])
-    assert served == pure
+
+    def served(confirmed: bool) -> list:
+        return sorted((round(p["km_from"] * 1000), round(p["km_to"] * 1000), 1 if p["direction"] == "hard" else -1,
+                       ["watch", "alert", "intervention", "immediate"].index(p["tier"])) for p in service["open"]
+                      if p["confirmed"] is confirmed)
+
+    assert served(True) == pure
+    # the new places (found by the newest run covering them, not yet confirmed) are on the list too
+    new = sorted((round(p.start_m), round(p.end_m), p.direction, p.tier) for p in known
+                 if not p.listed and p.active and p.misses == 0 and p.explained_by is None)
+    assert served(False) == new
     (tamping,) = actions
     fixed = [p for p in service["all"] if p["status"] == "fixed"]
     assert len(fixed) == 1 and not fixed[0]["active"] and fixed[0]["status_by"] == "trackvkf"

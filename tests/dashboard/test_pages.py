@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 
 import httpx
 import pytest
@@ -97,6 +98,11 @@ def test_all_requests_go_to_own_origin(open_page, dashboard):
 
 def test_stiffness_map_zoom_refetches_decimated_range(open_page, dashboard):
     page, log = open_page(f"/runs/{dashboard.run_ids[0]}")
+    # the run's speeds as the API answers them (km/h), shown without a conversion of the page's own
+    summary = page.evaluate(f"fetch('/api/v1/runs/{dashboard.run_ids[0]}').then((r) => r.json())")["summary"]
+    shown = page.locator("#run-meta div", has_text="Speed").locator("b").inner_text()
+    assert re.findall(r"\d+", shown) == [str(round(summary["speed_min_kmh"])), str(round(summary["speed_max_kmh"]))]
+    assert 20 < summary["speed_min_kmh"] <= summary["speed_max_kmh"] < 400 and shown.endswith("km/h")
     whole = page.evaluate("document.getElementById('stiffness-plot').data[0].x.length")
     assert 100 < whole <= 4000  # 6000 bins of 25 cm decimated for display
     with page.expect_response(lambda r: "/profile?" in r.url and "km_from=12.5" in r.url):

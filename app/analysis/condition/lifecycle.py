@@ -66,6 +66,7 @@ __all__ = [
     "Action",
     "PlaceOutlook",
     "place_outlook",
+    "segment_trend",
     "advance_places",
     "severity_trend",
 ]
@@ -264,12 +265,37 @@ class PlaceOutlook:
     tendency: str
 
 
-def place_outlook(state: PlaceState, levels: TierTable, *, window_days: float | None = None) -> PlaceOutlook:
-    """Trend, next limit, time to it and tendency of a place (the limits of its class in ``levels``)."""
-    tr = severity_trend(state, window_days=window_days)
+def place_outlook(state: PlaceState, levels: TierTable, *, window_days: float | None = None,
+                  trend: Trend | None = None) -> PlaceOutlook:
+    """Trend, next limit, time to it and tendency of a place (the limits of its class in ``levels``).
+
+    ``trend``: the severity's trend when fitted elsewhere (a developing place: over its segment's history,
+    :func:`segment_trend`), else over the place's observations."""
+    tr = trend if trend is not None else severity_trend(state, window_days=window_days)
     nxt = float(levels.limits_for(state.cls).next_limit(np.array([state.tier]))[0]) if state.cls is not None \
         else float("nan")
     return PlaceOutlook(trend=tr, next_limit=nxt, projection=time_to_limit(tr, nxt), tendency=tendency(tr))
+
+
+def segment_trend(state: PlaceState, days: np.ndarray, index: np.ndarray, *, now_day: float) -> Trend:
+    """The trend of a developing place's severity over every run of its peak segment's history.
+
+    A place found by the trend test grows steadily: its history is what the test fitted (every run of the
+    window, also those before the place reached a limit and was first found), while its own observations
+    are the few runs since — too few for a significant rate, so no time to its next limit (measured: the
+    demo's place developing at −1 ln unit a year read *stable*).
+
+    Parameters
+    ----------
+    state : PlaceState
+    days : numpy.ndarray
+        Days of the runs (the history and the run), any origin shared with ``now_day``.
+    index : numpy.ndarray
+        The index at the place's peak segment in those runs, ln units (NaN: none).
+    now_day : float
+    """
+    return linear_trend(np.asarray(days, dtype=np.float64), state.direction * np.asarray(index, dtype=np.float64),
+                        now_day=now_day)
 
 
 def _apply_tier(state: PlaceState, new_tier: int, params: LifecycleParams, events: list[PlaceEvent]) -> None:

@@ -25,10 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.analysis._checks import paired_1d
+from app.analysis.units import DAYS_PER_YEAR
 
 __all__ = ["ActionEffect", "action_effect"]
 
-_DAYS_PER_YEAR = 365.25
 
 
 @dataclass(frozen=True)
@@ -114,7 +114,7 @@ def action_effect(
     recovery = ia - ib
     slope = None
     if follow.sum() >= 3 and np.ptp(t[follow]) > 0:
-        slope = float(np.polyfit(t[follow], y[follow], 1)[0] * _DAYS_PER_YEAR)
+        slope = float(np.polyfit(t[follow], y[follow], 1)[0] * DAYS_PER_YEAR)
     target = ia - regain_fraction * recovery  # the level where the given fraction is lost again
     observed = None
     post = np.flatnonzero(t > action_day)
@@ -126,7 +126,7 @@ def action_effect(
             observed = float(t[post[int(np.argmax(back))]] - action_day)
     projected = None
     if slope is not None and recovery != 0 and np.sign(slope) == -np.sign(recovery):
-        projected = float(regain_fraction * abs(recovery) / abs(slope) * _DAYS_PER_YEAR)
+        projected = float(regain_fraction * abs(recovery) / abs(slope) * DAYS_PER_YEAR)
     return ActionEffect(n_b, n_a, ib, ia, recovery, slope, observed, projected)
 
 

@@ -21,9 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from app.analysis.units import DAYS_PER_YEAR
+
 __all__ = ["Trend", "linear_trend", "Projection", "time_to_limit", "DAYS_PER_YEAR"]
 
-DAYS_PER_YEAR = 365.25
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ _NO_TREND = dict(rate_per_year=math.nan, se_per_year=math.nan, low_per_year=math
 
 def linear_trend(days: np.ndarray, values: np.ndarray, *, now_day: float | None = None,
                  confidence: float = 0.95, min_points: int = 3) -> Trend:
-    """Fit ``value = level + rate · (day − now) / 365.25``.
+    """Fit ``value = level + rate · (day − now) / DAYS_PER_YEAR``.
 
     Parameters
     ----------

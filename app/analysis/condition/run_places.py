@@ -25,7 +25,8 @@ stiffness index** ``ln(A / A_ref(class, v))`` of the run and of its history
   least ``min_rate_per_year`` away from the class's typical track, reaching the class's alert
   limit within ``watch_days`` at that rate where it is the only evidence. A place
   growing steadily has a history too spread for the step test and may not
-  have reached a limit yet: the trend finds it (tier *watch* until it does).
+  have reached a limit yet: the trend finds it (tier *watch* until it does). Not on a segment whose
+  rail surface was changed (``surface_days``) within the trend window: a new surface runs in.
 
 Exceeding segments merge into places (:func:`~app.analysis.condition.places.merge_places`;
 a step segment's direction is that of its change, a trend's that of its rate,
@@ -74,6 +75,7 @@ from app.analysis.condition.places import (
 from app.analysis.condition.tiers import TierLimits, TierTable
 from app.analysis.robust import nan_median
 from app.analysis.stiffness.reference_curve import ReferenceCurve
+from app.analysis.units import DAYS_PER_YEAR
 
 __all__ = [
     "DEFAULT_LEVEL_LIMITS",
@@ -430,8 +432,14 @@ def find_places(
     # from any limit, and where the curve is thin (a braking end) such trends were noise (measured)
     alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
     with np.errstate(invalid="ignore", divide="ignore"):
-        to_alert = (alert - np.sign(np.nan_to_num(rate)) * level) / np.abs(rate) * 365.25
+        to_alert = (alert - np.sign(np.nan_to_num(rate)) * level) / np.abs(rate) * DAYS_PER_YEAR
     trend &= anomaly | step | (np.nan_to_num(to_alert, nan=np.inf) <= params.watch_days)
+    # a rail surface changed within the trend window (a grinding, a rail renewal) runs in: its roughness
+    # response settles over the runs after it, which a trend over them would read as the support developing
+    # (issue 33: a trend place 87 days after a grinding) — a ground surface makes no trend place
+    if surface_days is not None:
+        with np.errstate(invalid="ignore"):
+            trend &= ~(float(now_day) - np.asarray(surface_days, dtype=np.float64) < params.trend_window_days)
     evidence = (np.where(anomaly, EVIDENCE_ANOMALY, 0) | np.where(step, EVIDENCE_STEP, 0)
                 | np.where(trend, EVIDENCE_TREND, 0))
     # a step segment goes the way of its change, a trend the way of its rate, an anomaly the way of its index

@@ -32,6 +32,7 @@ import numpy as np
 from scipy.signal import find_peaks, welch
 
 from app.analysis.impacts.surface import SurfaceEstimate
+from app.analysis.robust import mad_sd
 
 __all__ = ["DIP_LENGTHS_M", "WELD_LENGTHS_M", "DETECTION_THRESHOLD", "MIN_DEPTH_M", "SCALE_BLOCK_M", "LONG_SCALE_BLOCK_M",
            "TRACE_STEP_M", "Dips", "DipTrace", "find_dips", "scan_dips"]
@@ -80,7 +81,6 @@ _WELCH_M = 20.48
 #: Dips this long or longer are sought on a grid _COARSE times coarser, m.
 _COARSE_FROM_M = 0.2
 _COARSE = 4
-_MAD = 1.4826
 
 
 @dataclass(frozen=True)
@@ -221,9 +221,7 @@ def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
     out = np.full(x.size, np.nan)
     if not enough.any():
         return out
-    with np.errstate(all="ignore"):
-        med = np.nanmedian(grid[enough], axis=1)
-        mad = _MAD * np.nanmedian(np.abs(grid[enough] - med[:, None]), axis=1)
+    mad = mad_sd(grid[enough], axis=1)
     # constant within a block; a block without enough valid cells takes its nearest good block's
     blocks = np.minimum(np.arange(x.size) // (per * sub), nb - 1)
     good = np.flatnonzero(enough)

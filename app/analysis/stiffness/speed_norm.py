@@ -42,6 +42,7 @@ import numpy as np
 
 from app.analysis._checks import check_positive, paired_1d
 from app.analysis.stiffness.regression import LinearFit, linear_fit
+from app.analysis.units import KMH_PER_MPS, MIN_SPEED_KMH
 
 __all__ = [
     "SpeedFit",
@@ -168,7 +169,7 @@ def fit_speed_exponent(
     location: np.ndarray,
     *,
     reference_speed_mps: float,
-    min_speed_mps: float = 25.0 / 3.6,
+    min_speed_mps: float = MIN_SPEED_KMH / KMH_PER_MPS,
     hac_lag: int = 400,
 ) -> SpeedFit:
     """Fit ``alpha`` of ``A ∝ v ** alpha``.
@@ -241,7 +242,7 @@ def normalise_amplitude(
     exponent: float | np.ndarray,
     *,
     reference_speed_mps: float,
-    min_speed_mps: float = 25.0 / 3.6,
+    min_speed_mps: float = MIN_SPEED_KMH / KMH_PER_MPS,
 ) -> np.ndarray:
     """Amplitude at the reference speed, ``A (v_ref / v) ** alpha`` (m/s²).
 

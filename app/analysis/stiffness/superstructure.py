@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.analysis._checks import check_positive, paired_1d
+from app.analysis.robust import mad_sd
 
 __all__ = ["TypeDistribution", "SegmentFlag", "assign_sections", "section_classes", "type_distributions",
            "flag_segments", "OUTLIER_SEGMENT_M"]
@@ -189,7 +190,7 @@ def flag_segments(
     for t in sorted({r[1] for r in rows}):
         vals = np.array([r[5] for r in rows if r[1] == t])
         med = float(np.median(vals))
-        scale = 1.4826 * float(np.median(np.abs(vals - med)))
+        scale = mad_sd(vals, center=med)
         for r in (r for r in rows if r[1] == t):
             z = (r[5] - med) / scale if vals.size >= min_segments and scale > 0 else float("nan")
             out.append(SegmentFlag(r[0], t, r[2], r[3], r[4], float(np.exp(r[5])), float(z),

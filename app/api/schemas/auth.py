@@ -7,6 +7,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from app.api.schemas.text import Text
+
 __all__ = [
     "LoginIn",
     "LogoutOut",
@@ -33,7 +35,7 @@ class LoginIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    username: str = Field(min_length=1, max_length=64)
+    username: Text = Field(min_length=1, max_length=64)
     password: str = Field(min_length=1, max_length=1024)
 
 
@@ -59,7 +61,7 @@ class PasswordChangeIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     current_password: str = Field(min_length=1, max_length=1024)
-    new_password: str = Field(min_length=10, max_length=1024)
+    new_password: Text = Field(min_length=10, max_length=1024)
 
 
 class UserIn(BaseModel):
@@ -67,10 +69,10 @@ class UserIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    username: str = Field(
+    username: Text = Field(
         min_length=1, max_length=64, pattern=r"^[A-Za-z0-9._@-]+$", description="Login name"
     )
-    password: str = Field(min_length=10, max_length=1024)
+    password: Text = Field(min_length=10, max_length=1024)
     role: RoleName
 
 
@@ -79,7 +81,7 @@ class UserPatch(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    password: str | None = Field(None, min_length=10, max_length=1024)
+    password: Text | None = Field(None, min_length=10, max_length=1024)
     role: RoleName | None = None
     active: bool | None = None
 
@@ -112,7 +114,7 @@ class KeyIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    name: str = Field(min_length=1, max_length=64, description="What the key is for")
+    name: Text = Field(min_length=1, max_length=64, description="What the key is for")
     role: RoleName
     expires_in_days: int | None = Field(None, ge=1, le=3650, description="Lifetime, days")
 

@@ -83,7 +83,8 @@ class TrendPoint(BaseModel):
     run_id: int
     start_time: str
     condition_index: float | None = Field(description="mean over the wheels")
-    relative: float | None = Field(description="index minus the run's mean over the surrounding ±1 km (log units)")
+    relative: float | None = Field(description="condition index minus the run's mean around the segment "
+                                   "(TRACKVKF_PLACES_EFFECT_AROUND_M, …_MARGIN_M; log units)")
     flagged: bool
     wheels: list[TrendWheel]
 

@@ -4,6 +4,7 @@ job, a run in a list, a run's detail (with links)."""
 from __future__ import annotations
 
 from app.analysis.settings import ProcessingSettings
+from app.analysis.units import KMH_PER_MPS
 from app.api.schemas.jobs import JobOut
 from app.api.schemas.runs import RunDetail, RunOut, RunSummaryOut
 from app.core.config import API_PREFIX
@@ -43,6 +44,11 @@ def job_out(view: JobView) -> JobOut:
     )
 
 
+def _kmh(speed_mps: float | None) -> float | None:
+    """A stored speed (m/s) as the API answers speeds: km/h."""
+    return None if speed_mps is None else speed_mps * KMH_PER_MPS
+
+
 def _links(run_id: int) -> dict[str, str]:
     base = f"{API_PREFIX}/runs/{run_id}"
     return {
@@ -78,8 +84,8 @@ def run_out(view: RunView) -> RunOut:
             n_samples=run.n_samples,
             duration_s=run.duration_s,
             distance_m=run.distance_m,
-            speed_min=run.speed_min,
-            speed_max=run.speed_max,
+            speed_min_kmh=_kmh(run.speed_min),
+            speed_max_kmh=_kmh(run.speed_max),
             channels=list(run.channels or []),
         ),
         latest_job=job_out(view.latest) if view.latest is not None else None,

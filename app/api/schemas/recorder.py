@@ -7,6 +7,8 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from app.api.schemas.text import Text
+
 __all__ = [
     "ChannelMapIn",
     "ChannelMapOut",
@@ -25,9 +27,9 @@ class ChannelMapIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    vehicle_id: str = Field(min_length=1, max_length=128, pattern=r"^[^\x00]*$",
+    vehicle_id: Text = Field(min_length=1, max_length=128,
                             description="Vehicle the map belongs to")
-    name: str = Field(min_length=1, max_length=200, pattern=r"^[^\x00]*$", description="Name, unique per vehicle")
+    name: Text = Field(min_length=1, max_length=200, description="Name, unique per vehicle")
     channels: dict[str, Any] = Field(
         description='trackvkf channel → recorder channel: "name" or {"source", "group", "unit"}'
     )

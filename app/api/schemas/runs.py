@@ -22,8 +22,8 @@ class RunSummaryOut(BaseModel):
     n_samples: int
     duration_s: float
     distance_m: float | None = Field(None, description="Distance covered, m")
-    speed_min: float | None = Field(None, description="Lowest speed, m/s")
-    speed_max: float | None = Field(None, description="Highest speed, m/s")
+    speed_min_kmh: float | None = Field(None, description="Lowest speed, km/h")
+    speed_max_kmh: float | None = Field(None, description="Highest speed, km/h")
     channels: list[str]
 
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from app.io.channel_map import ChannelMap
 from app.io.errors import RunFileError
+from app.io.formats import RECORDER_FORMATS
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
 from app.io.sources.base import Source, SourceInfo
 from app.io.sources.csv import CsvSource
@@ -17,8 +18,6 @@ from app.io.sources.tdms import TdmsReader
 
 __all__ = ["Source", "SourceInfo", "RECORDER_FORMATS", "open_source"]
 
-#: Formats of measurement recorders: many channels, several time bases, channel maps apply.
-RECORDER_FORMATS: tuple[str, ...] = ("mdf4", "tdms")
 
 
 def open_source(

@@ -2,7 +2,7 @@
 the section classes in the railway's scheme (:func:`app.places.sections.line_sections`), the
 work list (:func:`app.places.worklist.list_places`), each open place's history with the
 maintenance over it (:func:`app.places.worklist.place_history`), the maintenance effects
-(:func:`app.condition.maintenance.action_effects`) and the line's geometry (the map).
+(:func:`app.places.effect.action_effects`) and the line's geometry (the map).
 """
 
 from __future__ import annotations
@@ -12,11 +12,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.condition.lines import resolve_line
-from app.condition.maintenance import action_effects
 from app.db import recorder_crud
 from app.db.session import Database
 from app.io.geometry import LineGeometry
 from app.places.config import PlacesConfig
+from app.places.effect import action_effects
 from app.places.sections import line_sections
 from app.places.worklist import PlaceQuery, list_places, place_history
 
@@ -56,7 +56,7 @@ def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date
     histories = {p["id"]: place_history(db, p["id"], config) for p in places}
     effects = action_effects(db, line.line_id, line.track, types=None, since=None, km_from=None, km_to=None,
                              before_days=EFFECT_BEFORE_DAYS, after_days=EFFECT_AFTER_DAYS,
-                             regain_fraction=EFFECT_REGAIN)["items"]
+                             regain_fraction=EFFECT_REGAIN, config=config)["items"]
     with db.read() as session:
         row = recorder_crud.find_geometry(session, line.line_id, line.track)
         geometry = recorder_crud.to_line_geometry(row) if row is not None else None

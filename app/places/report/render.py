@@ -11,6 +11,7 @@ local file).
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,6 +20,9 @@ from typing import Any
 
 import jinja2
 import numpy as np
+from babel import Locale
+from babel.dates import format_date
+from babel.numbers import format_decimal
 from markupsafe import Markup
 
 from app.analysis.condition.tiers import TIER_ACTIONS
@@ -41,11 +45,15 @@ def _same(text: str) -> str:
     return text
 
 
+def _plural(singular: str, plural: str, n: int) -> str:
+    return singular if n == 1 else plural
+
+
 def _words(kind: str, code: str) -> str:
     return TIER_ACTIONS.get(code, code) if kind == "tier action" else code.replace("_", " ")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Speech:
     """How the report speaks: its language and the words of its catalogue.
 
@@ -53,8 +61,12 @@ class Speech:
     ----------
     lang : str
         The language (``<html lang>``).
+    tag : str
+        The locale of numbers and dates (``de-CH``: the language with the browser's region).
     catalogue : callable
         The catalogue's gettext: English message → the text in ``lang`` (identity: English).
+    plural : callable
+        The catalogue's ngettext: ``(singular, plural, n)`` → the text in ``lang``.
     label : callable
         ``(kind, code)`` → the words of a code (a tier, status, tendency, direction, maintenance
         or asset type) in ``lang``; the kinds are the pages' (``tier``, ``tier action``,
@@ -62,8 +74,35 @@ class Speech:
     """
 
     lang: str = "en"
+    tag: str = "en"
     catalogue: Callable[[str], str] = _same
+    plural: Callable[[str, str, int], str] = _plural
     label: Callable[[str, str], str] = _words
+
+    @functools.cached_property
+    def locale(self) -> Locale:
+        """Babel's locale of :attr:`tag` (its language alone where CLDR lacks the region)."""
+        try:
+            return Locale.parse(self.tag.replace("-", "_"))
+        except (ValueError, LookupError):
+            return Locale.parse(self.lang)
+
+    def num(self, value: Any, digits: int = 2, *, sign: bool = False) -> str:
+        """``value`` with ``digits`` decimals in the locale ("–" for none or not finite)."""
+        if value is None or (isinstance(value, float) and not math.isfinite(value)):
+            return "–"
+        pattern = ("+" if sign and value > 0 else "") + "#,##0" + ("." + "0" * digits if digits else "")
+        return format_decimal(value, format=pattern, locale=self.locale)
+
+    def date(self, value: Any) -> str:
+        """A date (or the date of an ISO date or time string) in the locale's medium form."""
+        if value is None or value == "":
+            return "–"
+        if isinstance(value, str):
+            value = dt.datetime.fromisoformat(value) if len(value) > 10 else dt.date.fromisoformat(value)
+        if isinstance(value, dt.datetime):
+            value = value.date()
+        return format_date(value, format="medium", locale=self.locale)
 
     def _(self, message: str, **params: Any) -> str:
         """``message`` in the report's language with its ``{name}`` fields filled (the name is
@@ -78,23 +117,12 @@ ENGLISH = Speech()
 def _environment(speech: Speech) -> jinja2.Environment:
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES_DIR)), autoescape=True,
                              undefined=jinja2.StrictUndefined, extensions=["jinja2.ext.i18n"])
-    gettext = speech.catalogue
-    env.install_gettext_callables(gettext, lambda s, p, n: gettext(s if n == 1 else p), newstyle=True)  # type: ignore[attr-defined]
-    env.filters["num"] = _num
-    env.filters["signed"] = _signed
+    env.install_gettext_callables(speech.catalogue, speech.plural, newstyle=True)  # type: ignore[attr-defined]
+    env.filters["num"] = speech.num
+    env.filters["signed"] = lambda value, digits=2: speech.num(value, digits, sign=True)
+    env.filters["date"] = speech.date
     env.globals["label"] = lambda kind, code: speech.label(kind, code) if code else "–"
     return env
-
-
-def _num(value: Any, digits: int = 2) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "–"
-    return f"{value:.{digits}f}"
-
-
-def _signed(value: Any, digits: int = 2) -> str:
-    text = _num(value, digits)
-    return "+" + text if text[0].isdigit() and float(value) > 0 else text
 
 
 def _time(value: str | None) -> dt.datetime | None:

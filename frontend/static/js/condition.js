@@ -86,12 +86,17 @@
   /* ---------------- places (work list) ---------------- */
   function checked(name) { return [...document.querySelectorAll(`#places-filter input[name='${name}']:checked`)].map((x) => x.value); }
 
+  // a rate of the amplitude, per cent a year, from its ln rate (expm1: −1 ln unit a year is −63 %, never "−100 %")
+  function ampRate(ln) { return 100 * Math.expm1(ln); }
   function trendText(p) {
     if (p.rate_per_year === null) return `<span class="muted">${T.esc(p.tendency || "–")}</span>`;
-    const r = (v) => `${v > 0 ? "+" : ""}${T.fmt(100 * v, 0)}`;
+    // the rate is of the severity (direction · index, ln units a year); shown as the amplitude's change a year
+    const d = p.direction === "soft" ? -1 : 1;
+    const r = (v) => { const a = ampRate(d * v); return a > 999 ? "> +999 %" : `${pct(a, 0)} %`; };
     const arrow = { growing: "↗", shrinking: "↘", stable: "→" }[p.tendency] || "";
-    const iv = p.rate_low !== null && p.rate_high !== null ? ` <span class="muted">(${r(p.rate_low)} … ${r(p.rate_high)})</span>` : "";
-    return `${arrow} ${T.esc(p.tendency)} ${r(p.rate_per_year)} %${iv}`;
+    const [lo, hi] = d > 0 ? [p.rate_low, p.rate_high] : [p.rate_high, p.rate_low];
+    const iv = lo !== null && hi !== null ? ` <span class="muted">(${r(lo)} … ${r(hi)})</span>` : "";
+    return `<span title="severity ${pct(p.rate_per_year, 2)} ln units a year">${arrow} ${T.esc(p.tendency)}: amplitude ${r(p.rate_per_year)} a year</span>${iv}`;
   }
   function limitText(p) {
     if (!p.next_tier) return `<span class="muted">top tier</span>`;
@@ -102,7 +107,14 @@
     // the stated 1-sigma of the peak in per cent (delta method: 100 · sd · e^peak); none where not stated
     const sd = p.peak_sd === null || p.peak_sd === undefined ? "" :
       ` <span class="muted" title="stated 1-σ of the peak (roughness, noise)">± ${T.fmt(100 * p.peak_sd * Math.exp(p.peak), 0)} %</span>`;
-    return `<span title="index ${T.fmt(p.peak, 3)} at km ${T.fmt(p.peak_km, 3)}">${pct(p.peak_percent, 0)} %${sd} ${p.direction === "soft" ? "▼ soft" : "▲ hard"}</span>`;
+    // stiffer / softer only where the place was read fast enough for the amplitude to rank stiffness (API: reading)
+    const words = p.reading || (p.direction === "soft" ? "lower amplitude" : "higher amplitude");
+    const speed = p.speed_kmh === null || p.speed_kmh === undefined ? "" : `, read at ${T.fmt(p.speed_kmh, 0)} km/h`;
+    return `<span title="index ${T.fmt(p.peak, 3)} at km ${T.fmt(p.peak_km, 3)}${speed}">${pct(p.peak_percent, 0)} %${sd} ${p.direction === "soft" ? "▼" : "▲"} ${T.esc(words)}</span>`;
+  }
+  function confirmText(p) {
+    // a new place: found by the newest run, on the list at once, confirmed (and alerted) by the next run
+    return p.confirmed === false ? `<br><span class="badge unconfirmed" title="found by one run">new, to be confirmed by the next run</span>` : "";
   }
   function assetsText(p) {
     const list = (p.assets || []).map((a) => `${T.esc(a.type.replace(/_/g, " "))}${a.name ? ` <span class="muted">${T.esc(a.name)}</span>` : ""}`).join(", ");
@@ -135,7 +147,7 @@
       return res;
     }
     body.innerHTML = res.items.map((p, i) => `<tr data-place="${p.id}" class="${p.id === placeId ? "selected" : ""}${p.muted ? " is-muted" : ""}">
-      <td class="num">${i + 1}</td><td>${tierBadge(p.tier)}</td>
+      <td class="num">${i + 1}</td><td>${tierBadge(p.tier)}${confirmText(p)}</td>
       <td title="place ${p.id}">${p.km_from.toFixed(3)}–${p.km_to.toFixed(3)}<br><span class="muted">${T.fmt(p.length_m, 0)} m</span></td>
       <td class="num nowrap">${peakText(p)}</td><td class="wrap">${trendText(p)}</td><td class="wrap">${limitText(p)}</td>
       <td><span class="status status-${T.esc(p.status)}">${T.esc(p.status.replace("_", " "))}</span></td>
@@ -163,7 +175,7 @@
       ["Evidence", T.esc(p.evidence.join(", ") || "–")], ["Wheels", T.esc(p.wheels.join(", ") || "–")],
       ["Trend per year (95 %)", trendText(p)], ["Time to next tier", limitText(p)],
       ["First seen / last confirmed", `${T.date(p.first_seen)} / ${T.date(p.last_confirmed)}`],
-      ["Runs confirming", String(p.runs_confirming) + (p.active ? "" : " <span class='muted'>(not seen lately)</span>")],
+      ["Runs confirming", String(p.runs_confirming) + (p.active ? "" : " <span class='muted'>(not seen lately)</span>") + confirmText(p)],
       ["Status", `<span class="status status-${T.esc(p.status)}">${T.esc(p.status.replace("_", " "))}</span>` + (p.status_by ? ` <span class="muted">by ${T.esc(p.status_by)} ${T.date(p.status_at)}</span>` : "")],
       ["Assets", assetsText(p)], ["Method version", `<span class="muted">${T.esc(p.method_version || "–")}</span>`],
     ];
@@ -274,7 +286,7 @@
       y: t.points.map((p) => { const r = p.wheels.find((q) => q.wheel === w); return r ? r.condition_index : null; }),
       hovertemplate: `${T.wheelLabel(w)} %{x|%Y-%m-%d}: %{y:.3f}<extra></extra>`,
     })).filter((tr) => tr.y.some((v) => v !== null));
-    traces.push({ type: "scatter", mode: "lines+markers", name: "relative to the surrounding ±1 km (right axis)", x, yaxis: "y2",
+    traces.push({ type: "scatter", mode: "lines+markers", name: "relative to its surroundings (right axis)", x, yaxis: "y2",
       y: t.points.map((p) => p.relative), line: { color: "#1d2733", width: 2 }, marker: { size: 4 },
       hovertemplate: "%{x|%Y-%m-%d}: %{y:.3f} relative<extra></extra>" });
     const flagged = t.points.filter((p) => p.flagged);
@@ -311,8 +323,8 @@
     const covered = (a) => a.n_runs > 0;
     body.innerHTML = res.items.map((a) => `<tr ${covered(a) ? `data-action="${a.action_id}" style="cursor:pointer"` : `class="muted" title="no run of this line covers it"`}>
       <td>${T.esc(a.date)}</td><td>${T.esc(a.type)}</td><td>${a.km_from.toFixed(3)}–${a.km_to.toFixed(3)}</td>
-      <td class="num">${a.n_runs_before} / ${a.n_runs_after}</td><td class="num">${pct(a.recovery_pct)}</td>
-      <td class="num">${a.slope_after_per_year === null ? "–" : pct(100 * a.slope_after_per_year)}</td>
+      <td class="num">${a.n_runs_before} / ${a.n_runs_after}</td><td class="num">${pct(a.recovery_pct)}${a.rail_surface ? `<br><span class="muted" title="the rail surface's response across the work; the support's change is read against the new surface's own baseline">rail surface ${pct(a.rail_surface_change_pct)}</span>` : ""}</td>
+      <td class="num" title="${a.slope_after_per_year === null ? "" : `${pct(a.slope_after_per_year, 2)} ln units a year`}">${a.slope_after_per_year === null ? "–" : pct(ampRate(a.slope_after_per_year))}</td>
       <td class="num">${a.lasted_days_observed !== null ? T.fmt(a.lasted_days_observed, 0) : a.lasted_days_projected !== null ? "≈ " + T.fmt(a.lasted_days_projected, 0) : "–"}</td></tr>`).join("");
     const best = res.items.find((a) => a.recovery !== null) || res.items.find(covered);
     if (!best) {

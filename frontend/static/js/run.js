@@ -39,7 +39,7 @@
     const items = [
       ["Vehicle", r.vehicle_id], ["Line / track", `${r.line_id} / ${r.track}`], ["Direction", r.direction],
       ["Start", T.datetime(r.start_time)], ["km", `${T.fmt(a)} – ${T.fmt(b)}`],
-      ["Speed", `${T.fmt((r.summary.speed_min || 0) * 3.6, 0)} – ${T.fmt((r.summary.speed_max || 0) * 3.6, 0)} km/h`],
+      ["Speed", `${T.fmt(r.summary.speed_min_kmh || 0, 0)} – ${T.fmt(r.summary.speed_max_kmh || 0, 0)} km/h`],
       ["Sample rate", `${T.fmt(r.summary.fs / 1000, 1)} kHz`],
       ["Job", `${job.id ?? "–"} (${job.status ?? "none"})`],
       ["Bandwidth", `wheel orders ${s.bandwidth_orders ?? "–"} orders · track ${s.track_resolution_m ?? "–"} m resolution · q = ${s.filter_order ?? "–"}`],
