@@ -22,7 +22,7 @@ from app.api.login_page import router as login_page_router
 from app.api.metrics import install_metrics
 from app.api.oidc import router as oidc_router
 from app.core.bytecache import ByteLRU
-from app.core.config import ProductionConfigError, Settings, get_settings
+from app.core.config import ProductionConfigError
 from app.core.logging import configure_logging
 from app.core.ratelimit import RateLimiter
 from app.core.runstore import RunStore
@@ -30,6 +30,7 @@ from app.db.display_arrays import DisplayArrays
 from app.db.session import Database
 from app.operations.heavy import install_heavy_limiter
 from app.places.class_scheme import class_scheme
+from app.settings import Settings, get_settings
 from app.web import install_pages
 
 __all__ = ["create_app", "check_production_database"]

@@ -16,6 +16,7 @@ from app.analysis.settings import ProcessingSettings
 from app.analysis.spectrogram import window_spectrograms
 from app.analysis.units import KMH_PER_MPS
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.jsonable import finite_list
 from app.core.runstore import RunStore
 from app.db import crud, results_reader
@@ -78,23 +79,23 @@ def spectrogram_answer(db: Database, store: RunStore, run_id: int, *, wheel: str
     the speed (km/h) per frame, with the km of every frame."""
     w = wheel
     if not (math.isfinite(km_from) and math.isfinite(km_to)):
-        raise ApiError(422, "km_from", "must be finite numbers")
+        raise ApiError(422, "km_from", _("must be finite numbers"))
     if km_to <= km_from:
-        raise ApiError(422, "km_to", f"({km_to}) must be greater than km_from ({km_from})")
+        raise ApiError(422, "km_to", _("({km_to}) must be greater than km_from ({km_from})", km_to=km_to, km_from=km_from))
     length_m = 1000.0 * (km_to - km_from)
     if length_m > MAX_WINDOW_M + 1e-6:
         raise ApiError(
-            422, "km_to", f"window is {length_m:.0f} m; at most {MAX_WINDOW_M:.0f} m per spectrogram"
+            422, "km_to", _("window is {length_m:.0f} m; at most {MAX_WINDOW_M:.0f} m per spectrogram", length_m=length_m, MAX_WINDOW_M=MAX_WINDOW_M)
         )
     settings, file_path = _settings_of(db, run_id)
     try:
         run = open_run(store.local_file(file_path))
     except Exception as exc:  # noqa: BLE001 - the run file is missing or unreadable
-        raise ApiError(409, "run", f"run {run_id}: run file not readable ({exc})") from None
+        raise ApiError(409, "run", _("run {run_id}: run file not readable ({exc})", run_id=run_id, exc=exc)) from None
     with run:
         channel = f"Z{w}"
         if w not in WHEELS or not run.has(channel):
-            raise ApiError(404, "wheel", f"run {run_id} has no channel {channel}")
+            raise ApiError(404, "wheel", _("run {run_id} has no channel {channel}", run_id=run_id, channel=channel))
         axle = w[0]
         start, stop = sample_range(run, km_from, km_to, axle)
         if stop - start < 64:
@@ -102,8 +103,7 @@ def spectrogram_answer(db: Database, store: RunStore, run_id: int, *, wheel: str
             last = float(run.km(run.n_samples - 1, run.n_samples, axle=axle)[0])
             raise ApiError(
                 422, "km_from",
-                f"window {km_from}–{km_to} km holds no data of wheel {w} "
-                f"(the run covers {min(first, last):.3f}–{max(first, last):.3f} km)",
+                _("window {km_from}–{km_to} km holds no data of wheel {w} (the run covers {min:.3f}–{max:.3f} km)", km_from=km_from, km_to=km_to, w=w, min=min(first, last), max=max(first, last)),
             )
         recipe = wheel_recipe(run.metadata, w, settings)  # the orders the pipeline tracks
         d_w, d_s = recipe.wheel_diameter, recipe.sleeper_spacing

@@ -14,6 +14,7 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.jsonable import finite_or_none
 from app.db import crud, results_reader
 from app.db.models import Run, WheelOOR
@@ -40,7 +41,7 @@ def run_wheels(db: Database, run_id: int) -> dict[str, Any]:
         if not rows:
             latest = crud.latest_job(session, run_id)
             state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
-            raise ApiError(409, "wheels", f"run {run_id} has no results yet ({state})")
+            raise ApiError(409, "wheels", _("run {run_id} has no results yet ({state})", run_id=run_id, state=state))
         items = [
             {
                 "wheel": row.wheel,
@@ -93,7 +94,7 @@ def vehicle_flats(db: Database, vehicle_id: str) -> dict[str, Any]:
     with db.read() as session:
         history = wheel_history(session, vehicle_id, None, _FLAT_HISTORY)
         latest: dict[str, int] = {}
-        for i, (_, oor) in enumerate(history):
+        for i, (_run, oor) in enumerate(history):
             latest[oor.wheel] = i
         items = []
         for wheel in sorted(latest):

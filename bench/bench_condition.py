@@ -70,11 +70,11 @@ def main() -> None:
     from app.condition.config import ConditionConfig
     from app.condition.fleet import ingest_fleet
     from app.condition.writer import store_run_condition
-    from app.core.config import Settings
     from app.db import migrate
     from app.db.models import ConditionLine, Job, JobStatus, Run, utcnow
     from app.db.session import Database
     from app.main import create_app
+    from app.settings import Settings
     from app.simulate.fleet import FleetSimulator, random_plan
     from app.simulate.fleet_scoring import FleetScorer
     from app.simulate.track import generate_line

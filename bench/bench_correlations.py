@@ -29,12 +29,12 @@ def main() -> None:
 
     from fastapi.testclient import TestClient
 
-    from app.core.config import Settings
     from app.db import auth_crud, crud, migrate, reference_crud, results_writer
     from app.db.models import Run
     from app.db.session import Database
     from app.io.reference import read_reference
     from app.main import create_app
+    from app.settings import Settings
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-corr-"))
     settings = Settings(_env_file=None, database_url=f"sqlite:///{tmp / 'db.sqlite'}",

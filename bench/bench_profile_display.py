@@ -25,9 +25,9 @@ def main() -> None:
     from display_run import store_display_run
     from fastapi.testclient import TestClient
 
-    from app.core.config import Settings
     from app.db import migrate
     from app.main import create_app
+    from app.settings import Settings
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-profile-"))
     settings = Settings(_env_file=None, database_url=f"sqlite:///{tmp / 'db.sqlite'}",

@@ -174,10 +174,10 @@ def main(argv: list[str] | None = None) -> int:
 
     from fastapi.testclient import TestClient
 
-    from app.core.config import Settings
     from app.db import migrate
     from app.db.session import Database
     from app.main import create_app
+    from app.settings import Settings
     from app.simulate.run import simulate_run
 
     work = Path(tempfile.mkdtemp(prefix="trackvkf-bench-scaleout-"))

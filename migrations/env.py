@@ -20,9 +20,9 @@ def _url() -> str:
     url = config.get_main_option("sqlalchemy.url")
     if url:
         return url
-    from app.core.config import Settings
+    from app.core.config import CoreSettings  # the database URL is a core setting
 
-    return Settings().database_url
+    return CoreSettings().database_url
 
 
 def run_migrations_offline() -> None:

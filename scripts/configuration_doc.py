@@ -1,4 +1,4 @@
-"""Write docs/configuration.md from the settings class (app/core/config.py).
+"""Write docs/configuration.md from the settings groups (app/settings.py, GROUPS).
 
     .venv/bin/python scripts/configuration_doc.py          # regenerate
     .venv/bin/python scripts/configuration_doc.py --check  # exit 1 if the file is stale
@@ -13,12 +13,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from app.core.config_doc import render_configuration_doc  # noqa: E402
+from app.settings import GROUPS  # noqa: E402
 
 TARGET = ROOT / "docs" / "configuration.md"
 
 
 def main(argv: list[str]) -> int:
-    text = render_configuration_doc()
+    text = render_configuration_doc(GROUPS)
     if "--check" in argv:
         if not TARGET.is_file() or TARGET.read_text(encoding="utf-8") != text:
             print(f"{TARGET.relative_to(ROOT)} is stale: run .venv/bin/python scripts/configuration_doc.py",

@@ -8,9 +8,9 @@
 # TRACKVKF_TEST_WORKERS=N runs the tests in N processes (pytest-xdist; 2 for the 2-core CI
 # machine): a module's tests stay together in one of them (--dist loadscope: module fixtures
 # are made once), the data sets are built by whichever asks first and read by the others.
-# Unset or 0: everything in this one process.
+# Default 2 (the CI machine has 2 cores); 0: everything in this one process.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh --dev
-workers="${TRACKVKF_TEST_WORKERS:-0}"
+workers="${TRACKVKF_TEST_WORKERS:-2}"
 exec .venv/bin/python -m pytest -q --durations=20 -n "$workers" --dist loadscope "$@"

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from app.core.config import Settings
+from app.settings import Settings
 from tests.api.support import auth_headers, create_api_key, make_settings
 
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from app.core.config import get_settings
 from app.core.logging import configure_logging
+from app.settings import get_settings
 from worker import modes
 
 

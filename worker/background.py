@@ -14,10 +14,10 @@ from __future__ import annotations
 import datetime as dt
 import logging
 
-from app.core.config import Settings
 from app.db.models import utcnow
 from app.db.retention import sweep_profiles
 from app.db.session import Database
+from app.settings import Settings
 from worker.deliveries import DeliveryLoop
 from worker.heartbeat import HeartbeatLoop
 from worker.loops import PeriodicLoop

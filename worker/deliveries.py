@@ -32,12 +32,12 @@ import threading
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 
 from app.alerts.transport import Attempt, post
-from app.core.config import Settings
 from app.core.signing import SIGNATURE_HEADER, signature_header
 from app.core.url_policy import AddressPolicy, Resolver
 from app.db import webhooks
 from app.db.models import utcnow
 from app.db.session import Database
+from app.settings import Settings
 from worker.loops import PeriodicLoop
 
 __all__ = ["DeliveryLoop", "deliver_due", "send_one", "retry_policy", "EVENT_HEADER", "DELIVERY_HEADER"]

@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from app.core.config import get_settings
+from app.settings import get_settings
 
 __all__ = ["alive_file", "status_file", "WorkerCount", "count", "check"]
 

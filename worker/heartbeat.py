@@ -15,9 +15,9 @@ import os
 import socket
 import uuid
 
-from app.core.config import Settings
 from app.db.session import Database
 from app.operations import liveness
+from app.settings import Settings
 from worker.loops import PeriodicLoop
 
 __all__ = ["HeartbeatLoop", "interval_s"]

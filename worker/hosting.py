@@ -25,8 +25,8 @@ import psycopg
 from procrastinate import exceptions as pexc
 from sqlalchemy.engine import make_url
 
-from app.core.config import Settings, get_settings
 from app.db import crud
+from app.settings import Settings, get_settings
 from worker.background import start_background
 from worker.health import alive_file
 from worker.steps import WorkerRuntime

@@ -7,7 +7,7 @@ The database URL picks the mode: SQLite → the local job loop
 
 from __future__ import annotations
 
-from app.core.config import Settings
+from app.settings import Settings
 
 __all__ = ["run"]
 

@@ -35,11 +35,11 @@ from pathlib import Path
 from typing import Any
 
 from app.analysis.settings import ProcessingSettings
-from app.core.config import Settings
 from app.db import queue
 from app.db.models import ChunkStatus, JobStatus
 from app.db.session import Database
 from app.pipeline import ChunkSpec, PipelineCancelled, assemble, process_chunk
+from app.settings import Settings
 from worker.background import Background
 from worker.chunkstore import ChunkStore
 from worker.steps import (

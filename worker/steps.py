@@ -44,7 +44,6 @@ from app import publish
 from app.analysis.settings import ProcessingSettings
 from app.analytics.reference_curves import CurveParams, refresh_reference
 from app.condition.config import ConditionConfig
-from app.core.config import Settings
 from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
@@ -54,6 +53,7 @@ from app.io import WHEELS
 from app.pipeline import ChunkSpec, plan_chunks, results_meta
 from app.places.config import PlacesConfig
 from app.places.followup import FollowupPolicy
+from app.settings import Settings
 from worker.chunkstore import ChunkStore
 
 __all__ = [

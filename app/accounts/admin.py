@@ -10,6 +10,7 @@ from typing import Any
 from app.accounts.sessions import auth_errors_as_422
 from app.audit import record
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.security import Actor
 from app.db import auth_crud
 from app.db.models import ApiKey, User, utcnow
@@ -38,7 +39,7 @@ def create_user(db: Database, actor: Actor, username: str, password: str, role: 
     """
     with db.write() as session:
         if auth_crud.get_user(session, username) is not None:
-            raise ApiError(409, "username", f"user {username!r} exists")
+            raise ApiError(409, "username", _("user {username} exists", username=repr(username)))
         with auth_errors_as_422():
             user = auth_crud.create_user(session, username, password, role, created_by=actor.name)
         record(session, actor, "user.create", target=user.username, detail={"role": user.role})
@@ -56,12 +57,12 @@ def update_user(db: Database, actor: Actor, username: str, *, password: str | No
         an unknown user; 422 naming a bad role or password.
     """
     if _is_self(actor, username) and (active is False or (role is not None and role != "admin")):
-        raise ApiError(409, "username", "an admin cannot deactivate or demote itself")
+        raise ApiError(409, "username", _("an admin cannot deactivate or demote itself"))
     with db.write() as session:
         with auth_errors_as_422():
             user = auth_crud.update_user(session, username, password=password, role=role, active=active)
         if user is None:
-            raise ApiError(404, "username", f"user {username!r} not found")
+            raise ApiError(404, "username", _("user {username} not found", username=repr(username)))
         changed: dict[str, Any] = {k: v for k, v in (("role", role), ("active", active)) if v is not None}
         if password is not None:
             changed["password"] = "changed"
@@ -78,10 +79,10 @@ def delete_user(db: Database, actor: Actor, username: str) -> None:
         409 (``username``) for an admin deleting itself; 404 for an unknown user.
     """
     if _is_self(actor, username):
-        raise ApiError(409, "username", "an admin cannot delete itself")
+        raise ApiError(409, "username", _("an admin cannot delete itself"))
     with db.write() as session:
         if not auth_crud.delete_user(session, username):
-            raise ApiError(404, "username", f"user {username!r} not found")
+            raise ApiError(404, "username", _("user {username} not found", username=repr(username)))
         record(session, actor, "user.delete", target=username)
 
 
@@ -121,6 +122,6 @@ def revoke_key(db: Database, actor: Actor, key_id: int) -> ApiKey:
     with db.write() as session:
         row = auth_crud.revoke_api_key(session, key_id)
         if row is None:
-            raise ApiError(404, "key_id", f"API key {key_id} not found")
+            raise ApiError(404, "key_id", _("API key {key_id} not found", key_id=key_id))
         record(session, actor, "key.revoke", target=key_id, detail={"name": row.name})
         return row

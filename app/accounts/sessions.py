@@ -12,15 +12,16 @@ import datetime as dt
 import functools
 import logging
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from app.audit import record
-from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.security import Actor, Principal, hash_password, verify_password
 from app.db import auth_crud
 from app.db.models import User, utcnow
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = [
     "StartedSession",
@@ -30,6 +31,7 @@ __all__ = [
     "login",
     "logout",
     "session_principal",
+    "set_language",
     "too_many_attempts",
 ]
 
@@ -39,7 +41,7 @@ log = logging.getLogger(__name__)
 def too_many_attempts(retry_after_s: float) -> ApiError:
     """The 429 of a login over its limits, with ``Retry-After`` in whole seconds."""
     seconds = max(1, int(retry_after_s + 0.999))
-    return ApiError(429, "rate_limit", f"too many attempts; retry in {seconds} s", {"Retry-After": str(seconds)})
+    return ApiError(429, "rate_limit", _("too many attempts; retry in {seconds} s", seconds=seconds), {"Retry-After": str(seconds)})
 
 
 @contextlib.contextmanager
@@ -62,7 +64,7 @@ def key_principal(db: Database, token: str) -> Principal:
     with db.read() as session:
         key = auth_crud.api_key_by_token(session, token)
         if key is None:
-            raise ApiError(401, "authorization", "invalid, revoked or expired API key",
+            raise ApiError(401, "authorization", _("invalid, revoked or expired API key"),
                            {"WWW-Authenticate": 'Bearer realm="trackvkf"'})
         principal = Principal(name=f"key:{key.name}", role=key.role, kind="api_key", key_id=key.id)
         stale = auth_crud.needs_touch(key)
@@ -78,7 +80,7 @@ def session_principal(db: Database, token: str) -> Principal | None:
         user = auth_crud.session_user(session, token)
         if user is None:
             return None
-        return Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+        return Principal(name=user.username, role=user.role, kind="user", user_id=user.id, language=user.language)
 
 
 @functools.lru_cache(maxsize=1)
@@ -142,11 +144,12 @@ def login(db: Database, settings: Settings, username: str, password: str, addres
             if previous_token:  # the same browser logs in again: its previous session ends
                 auth_crud.delete_session(session, previous_token)
             token = auth_crud.create_session(session, user, dt.timedelta(seconds=settings.session_ttl_s), address)
-            principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+            principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id,
+                                  language=user.language)
             record(session, Actor(principal, address), "auth.login", target=user.username)
             started = StartedSession(token, principal)
     if started is None:
-        raise ApiError(401, "credentials", "wrong user name or password")
+        raise ApiError(401, "credentials", _("wrong user name or password"))
     return started
 
 
@@ -176,16 +179,35 @@ def change_password(db: Database, actor: Actor, current: str, new: str) -> None:
         an unacceptable new one.
     """
     if actor.principal is None or actor.principal.kind != "user":
-        raise ApiError(409, "principal", "only users have passwords (this is an API key)")
+        raise ApiError(409, "principal", _("only users have passwords (this is an API key)"))
     with db.read() as session:
         account = _account(auth_crud.get_user(session, actor.name))
     # verified outside any transaction (see the module's docstring)
     if account is None or not verify_password(account.password_hash, current):
-        raise ApiError(401, "current_password", "wrong password")
+        raise ApiError(401, "current_password", _("wrong password"))
     with db.write() as session:
         user = auth_crud.get_user(session, actor.name)
         if user is None or user.password_hash != account.password_hash:
-            raise ApiError(409, "current_password", "the password was changed meanwhile; try again")
+            raise ApiError(409, "current_password", _("the password was changed meanwhile; try again"))
         with auth_errors_as_422(field="new_password"):
             auth_crud.update_user(session, actor.name, password=new)
         record(session, actor, "auth.password", target=actor.name)
+
+
+def set_language(db: Database, actor: Actor, language: str | None) -> Principal:
+    """Keep ``language`` (en, de, fr, it; None: the browser's) with the acting user's account.
+
+    A preference of one's own, not an administrative change: not audited. Returns the actor's
+    principal with the language.
+
+    Raises
+    ------
+    ApiError
+        409 (``principal``) for an actor that is not a user (an API key, a provider's token).
+    """
+    principal = actor.principal
+    if principal is None or principal.kind != "user" or principal.user_id is None:
+        raise ApiError(409, "principal", _("only users keep a language (this is an API key)"))
+    with db.write() as session, auth_errors_as_422(field="language"):
+        auth_crud.set_language(session, principal.user_id, language)
+    return replace(principal, language=language)

@@ -12,14 +12,15 @@ from __future__ import annotations
 from typing import Any
 
 from app.audit import record
-from app.core.config import Settings
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.jsonable import iso_time
 from app.core.security import Actor
 from app.core.url_policy import AddressPolicy, UrlError, redact_url, resolve
 from app.db import webhooks as q
 from app.db.models import DeliveryStatus, Webhook, WebhookDelivery
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["register", "webhook_list", "change", "remove", "ping", "delivery_log"]
 
@@ -127,7 +128,7 @@ def delivery_log(db: Database, *, webhook_id: int | None = None, status: str | N
                  offset: int = 0) -> dict[str, Any]:
     """The delivery log, newest first: ``total`` and ``items``; 422 naming ``status`` for an unknown one."""
     if status is not None and status not in DeliveryStatus.ALL:
-        raise ApiError(422, "status", f"must be one of {', '.join(DeliveryStatus.ALL)}, got {status!r}")
+        raise ApiError(422, "status", _("must be one of {choices}, got {status}", choices=', '.join(DeliveryStatus.ALL), status=repr(status)))
     with db.read() as session:
         rows, total = q.list_deliveries(session, webhook_id=webhook_id, status=status, limit=limit, offset=offset)
         return {"total": total, "items": [_delivery(d) for d in rows]}

@@ -26,10 +26,10 @@ from app.analysis.stiffness.unsprung_mass import fit_unsprung_mass
 from app.analytics import frames as data
 from app.analytics.frames import RunsQuery, Selection, hac_lag
 from app.analytics.speed import normalisation_fits
-from app.core.config import Settings
 from app.core.jsonable import finite_list, finite_or_none
 from app.db.session import Database
 from app.runs.lookup import run_with_results
+from app.settings import Settings
 
 __all__ = ["MAX_POINTS", "subsidence_fit", "predicted_subsidence", "unsprung_mass", "maintenance"]
 

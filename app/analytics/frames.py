@@ -24,12 +24,13 @@ from sqlalchemy.orm import Session
 from app.analysis.stiffness.speed_norm import SpeedFit, fit_speed_exponent, normalise_amplitude
 from app.analysis.stiffness.superstructure import assign_sections
 from app.analysis.units import KMH_PER_MPS
-from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.ids import MAX_ID
 from app.db import crud, reference_crud, results_reader
 from app.db.models import ProfileBin, Run
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["Selection", "RunsQuery", "hac_lag", "ANALYTICS_COLUMNS", "parse_run_ids", "select_runs", "analytics_frame", "load_profiles",
            "own_amplitude", "reference", "speed_exponents", "normalised", "section_types", "PROFILE_CACHE_ROWS"]
@@ -84,9 +85,9 @@ def parse_run_ids(value: str | None) -> list[int] | None:
     try:
         ids = [int(p) for p in value.split(",") if p.strip()]
     except ValueError:
-        raise ApiError(422, "run_ids", f"must be comma-separated integers, got {value!r}") from None
+        raise ApiError(422, "run_ids", _("must be comma-separated integers, got {value}", value=repr(value))) from None
     if not ids or any(i < 1 or i > MAX_ID for i in ids):
-        raise ApiError(422, "run_ids", "must be positive integers")
+        raise ApiError(422, "run_ids", _("must be positive integers"))
     return ids
 
 
@@ -98,26 +99,26 @@ def select_runs(db: Database, line_id: str | None, track: str | None, run_ids: l
             for rid in run_ids:
                 run = crud.get_run(session, rid)
                 if run is None:
-                    raise ApiError(404, "run_ids", f"run {rid} not found")
+                    raise ApiError(404, "run_ids", _("run {run_id} not found", run_id=rid))
                 if results_reader.results_job(session, rid) is None:
-                    raise ApiError(409, "run_ids", f"run {rid} has no results yet")
+                    raise ApiError(409, "run_ids", _("run {run_id} has no results yet", run_id=rid))
                 runs.append(run)
             lines = {(r.line_id, r.track) for r in runs}
             if len(lines) > 1:
-                raise ApiError(422, "run_ids", f"runs are on different lines/tracks: {sorted(map(str, lines))}")
+                raise ApiError(422, "run_ids", _("runs are on different lines/tracks: {lines}", lines=sorted(map(str, lines))))
             lid, trk = next(iter(lines))
             if line_id is not None and line_id != lid:
-                raise ApiError(422, "line_id", f"runs {run_ids} are on line {lid!r}, not {line_id!r}")
+                raise ApiError(422, "line_id", _("runs {run_ids} are on line {their_line}, not {line_id}", run_ids=run_ids, their_line=repr(lid), line_id=repr(line_id)))
             if track is not None and track != trk:
-                raise ApiError(422, "track", f"runs {run_ids} are on track {trk!r}, not {track!r}")
+                raise ApiError(422, "track", _("runs {run_ids} are on track {their_track}, not {track}", run_ids=run_ids, their_track=repr(trk), track=repr(track)))
             line_id, track = lid, trk
         else:
             if line_id is None:
-                raise ApiError(422, "line_id", "is required unless run_ids are given")
+                raise ApiError(422, "line_id", _("is required unless run_ids are given"))
             runs = results_reader.runs_with_results(session, line_id, track)
             tracks = {r.track for r in runs}
             if track is None and len(tracks) > 1:
-                raise ApiError(422, "track", f"line {line_id!r} has runs on tracks {sorted(map(str, tracks))}: choose one")
+                raise ApiError(422, "track", _("line {line_id} has runs on tracks {tracks}: choose one", line_id=repr(line_id), tracks=sorted(map(str, tracks))))
             if track is None and tracks:
                 track = next(iter(tracks))
         bin_length = 0.25
@@ -219,7 +220,7 @@ class _FrameCache:
                     self._frames[key] = frame
                     self._rows += len(frame)
                     while self._rows > self.max_rows:
-                        _, old = self._frames.popitem(last=False)
+                        _key, old = self._frames.popitem(last=False)
                         self._rows -= len(old)
             return frame
 
@@ -288,7 +289,7 @@ def speed_exponents(df: pd.DataFrame, sections: pd.DataFrame, bin_length: float,
     if df.empty:
         return out
     pos = (df["bin"].to_numpy() + 0.5) * bin_length
-    _, types = section_types(sections, pos)
+    _codes, types = section_types(sections, pos)
     amp, v = df["sleeper_amp"].to_numpy(), df["speed_mean"].to_numpy()
     loc = df["wheel"].astype(str).to_numpy() + ":" + df["bin"].astype(str).to_numpy()
     kw = {"reference_speed_mps": ref_speed_kmh / KMH_PER_MPS, "min_speed_mps": min_speed_kmh / KMH_PER_MPS,
@@ -304,7 +305,7 @@ def normalised(df: pd.DataFrame, sections: pd.DataFrame, fits: dict[str, SpeedFi
                ref_speed_kmh: float, min_speed_kmh: float) -> tuple[np.ndarray, np.ndarray]:
     """Speed-normalised sleeper amplitude per row (type's exponent, else the pooled one) and the type per row."""
     pos = (df["bin"].to_numpy() + 0.5) * bin_length
-    _, types = section_types(sections, pos)
+    _codes, types = section_types(sections, pos)
     pooled = fits["*"].exponent if "*" in fits else float("nan")
     alpha = np.array([fits[t].exponent if t in fits and np.isfinite(fits[t].exponent) else pooled
                       for t in types], dtype=np.float64)

@@ -35,11 +35,12 @@ from app.analysis.stiffness.stiffness_index import StiffnessIndex, stiffness_ind
 from app.analysis.stiffness.superstructure import section_classes
 from app.analysis.units import KMH_PER_MPS, MIN_SPEED_KMH
 from app.analytics.frames import analytics_frame
-from app.core.config import Settings
+from app.analytics.settings import EDGE_TRIM_M, SECTION_MARGIN_M
 from app.core.jsonable import finite_or_none
 from app.db import reference_crud, results_reader
 from app.db.models import ReferenceCurveRow, utcnow
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = [
     "CURVE_VERSION",
@@ -59,12 +60,12 @@ CURVE_VERSION = 1
 
 @dataclass(frozen=True)
 class CurveParams:
-    """Settings the curves depend on (from :class:`~app.core.config.Settings`)."""
+    """Settings the curves depend on (from :class:`~app.settings.Settings`)."""
 
     speed_tolerance: float = DEFAULT_SPEED_TOLERANCE
-    section_margin_m: float = 50.0
+    section_margin_m: float = SECTION_MARGIN_M
     min_speed_kmh: float = MIN_SPEED_KMH
-    edge_trim_m: float = 50.0
+    edge_trim_m: float = EDGE_TRIM_M
 
     @classmethod
     def from_settings(cls, settings: Settings) -> CurveParams:

@@ -16,11 +16,12 @@ from app.analysis.units import KMH_PER_MPS
 from app.analytics import frames as data
 from app.analytics.frames import RunsQuery, Selection
 from app.analytics.stiffness_index import index_context
-from app.core.config import Settings
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.jsonable import finite_list, finite_or_none
 from app.db import crud
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["DETREND_M", "run_alignment", "segments", "segment_trend"]
 
@@ -57,13 +58,13 @@ def run_alignment(db: Database, settings: Settings, run_id: int, *, reference_ru
         sel = data.select_runs(db, run.line_id, run.track, None) if run.line_id else \
             data.select_runs(db, None, None, [run_id])
         if run_id not in sel.run_ids:
-            raise ApiError(409, "profile", f"run {run_id} has no results yet")
+            raise ApiError(409, "profile", _("run {run_id} has no results yet", run_id=run_id))
         reference_run_id = sel.run_ids[0]
     sel = data.select_runs(db, None, None, sorted({run_id, reference_run_id}))
     df = data.load_profiles(db, settings, sel)
     al = _alignment(sel, df, run_id, reference_run_id, max_shift_m, detrend_m)
     if al is None:
-        raise ApiError(409, "profile", "no amplitude to align (runs too short or too slow)")
+        raise ApiError(409, "profile", _("no amplitude to align (runs too short or too slow)"))
     return {"run_id": run_id, "reference_run_id": reference_run_id, "shift_m": finite_or_none(al.shift_m),
             "shift_confidence": al.confidence, "peak_r": finite_or_none(al.peak_r),
             "second_r": finite_or_none(al.second_r), "overlap_m": al.overlap_m, "lags_m": al.lags_m.tolist(),
@@ -118,7 +119,7 @@ def segment_trend(db: Database, settings: Settings, q: RunsQuery, *, km: float, 
     sel = q.select(db)
     start = np.floor(km * 1000 / segment_m) * segment_m
     lo, hi = (start - max_shift_m - 200) / 1000, (start + segment_m + max_shift_m + 200) / 1000
-    _, info, t = _table(db, settings, sel, lo, hi, q.wheel, segment_m, align, max_shift_m, value)
+    _rows, info, t = _table(db, settings, sel, lo, hi, q.wheel, segment_m, align, max_shift_m, value)
     j = np.flatnonzero(np.isclose(t.start_m, start))
     points = [{"run_id": r["run_id"], "start_time": r["start_time"],
                value: finite_or_none(t.matrix[i, j[0]]) if j.size else None,

@@ -16,10 +16,10 @@ from app.analytics import frames as data
 from app.analytics import reference_curves as curves_db
 from app.analytics.frames import RunsQuery, Selection
 from app.analytics.stiffness_index import curve_misfits, index_context
-from app.core.config import Settings
 from app.core.jsonable import finite_list, finite_or_none
 from app.db.session import Database
 from app.runs.lookup import run_with_results
+from app.settings import Settings
 
 __all__ = ["normalisation_fits", "superstructure", "speed_normalisation", "speed_normalised_profile"]
 

@@ -20,10 +20,11 @@ from app.analysis.stiffness.speed_norm import power_law_misfit
 from app.analysis.units import KMH_PER_MPS
 from app.analytics import reference_curves as curves_db
 from app.analytics.frames import select_runs
-from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.jsonable import finite_list, finite_or_none
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["INDEX_COLUMNS", "IndexContext", "index_context", "curve_misfits", "reference_curves_answer"]
 
@@ -143,7 +144,7 @@ def _curve_body(stored: curves_db.StoredReference | None, line_id: str, track: s
 
 def _line(db: Database, line_id: str | None, track: str | None) -> tuple[str, str | None]:
     if line_id is None:
-        raise ApiError(422, "line_id", "is required")
+        raise ApiError(422, "line_id", _("is required"))
     sel = select_runs(db, line_id, track, None)
     return line_id, sel.track
 

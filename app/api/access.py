@@ -15,14 +15,15 @@ from urllib.parse import quote
 from fastapi import Depends, HTTPException, Request
 
 from app.accounts.sessions import key_principal, session_principal
-from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.routing import iter_routes
 from app.core.security import ROLES, Actor, Principal, csrf_matches, role_allows, role_rank
 from app.db.session import Database
 from app.oidc.accounts import bearer_principal
 from app.oidc.provider import ProviderUnavailable, provider_of_settings
 from app.oidc.tokens import TokenRejected, looks_like_jwt
+from app.settings import Settings
 
 __all__ = [
     "Principal",
@@ -60,10 +61,10 @@ def client_ip(request: Request) -> str | None:
 def _api_key_token(request: Request) -> str | None:
     header = request.headers.get("authorization")
     if header is not None:
-        scheme, _, value = header.partition(" ")
+        scheme, _sep, value = header.partition(" ")
         if scheme.lower() != "bearer" or not value.strip():
             raise ApiError(
-                401, "authorization", "expected 'Authorization: Bearer <API key>'", _BEARER
+                401, "authorization", _("expected 'Authorization: Bearer <API key>'"), _BEARER
             )
         return value.strip()
     key = request.headers.get(API_KEY_HEADER)
@@ -111,15 +112,14 @@ def _provider_token_principal(request: Request, settings: Settings, token: str) 
     """
     provider = provider_of_settings(settings)
     if provider is None:  # pragma: no cover - oidc_api_audience needs an issuer to mean anything
-        raise ApiError(401, "authorization", "provider tokens are not accepted", _BEARER)
+        raise ApiError(401, "authorization", _("provider tokens are not accepted"), _BEARER)
     try:
         return bearer_principal(request.app.state.db, provider, token)
     except TokenRejected as exc:
-        raise ApiError(401, "authorization", f"token of the OpenID provider refused: {exc.reason}",
+        raise ApiError(401, "authorization", _("token of the OpenID provider refused: {reason}", reason=exc.reason),
                        _BEARER) from None
     except ProviderUnavailable as exc:
-        raise ApiError(503, "authorization", "the OpenID provider cannot be reached to check the token: "
-                       f"{exc.reason}") from None
+        raise ApiError(503, "authorization", _("the OpenID provider cannot be reached to check the token: {reason}", reason=exc.reason)) from None
 
 
 def _authenticate(request: Request) -> Principal | None:
@@ -148,13 +148,13 @@ def get_principal(request: Request) -> Principal:
     """
     principal = _authenticate(request)
     if principal is None:
-        raise ApiError(401, "authentication", "log in or send an API key", _BEARER)
+        raise ApiError(401, "authentication", _("log in or send an API key"), _BEARER)
     if principal.kind == "user" and request.method not in _SAFE_METHODS:
         settings: Settings = request.app.state.settings
         token = getattr(request.state, "session_token", "")
         if not csrf_matches(settings.secret_key, token, request.headers.get(CSRF_HEADER)):
             raise ApiError(
-                403, "csrf", f"missing or wrong {CSRF_HEADER} header (value of the {CSRF_COOKIE} cookie)"
+                403, "csrf", _("missing or wrong {header} header (value of the {cookie} cookie)", header=CSRF_HEADER, cookie=CSRF_COOKIE)
             )
     return principal
 
@@ -169,7 +169,7 @@ class _RoleGate:
     def _admit(self, principal: Principal) -> Principal:
         if not role_allows(principal.role, self.role):
             raise ApiError(
-                403, "role", f"needs role {self.role} or higher; {principal.name} is {principal.role}"
+                403, "role", _("needs role {role} or higher; {name} is {has}", role=self.role, name=principal.name, has=principal.role)
             )
         return principal
 

@@ -48,6 +48,7 @@ from app.api.schemas.analytics import (
     SuperstructureOut,
     UnsprungMassOut,
 )
+from app.core.i18n import _
 
 __all__ = ["router"]
 
@@ -112,7 +113,7 @@ def unsprung_mass(db: DbDep, settings: SettingsDep, runs: RunsQ,
     """Slope of the sleeper-passage force amplitude (kN) on the acceleration amplitude
     (m/s²) × 1000 = mass (kg); outside [mass_min_kg, mass_max_kg] → ``plausible: false``."""
     if mass_min_kg >= mass_max_kg:
-        raise ApiError(422, "mass_min_kg", "must be below mass_max_kg")
+        raise ApiError(422, "mass_min_kg", _("must be below mass_max_kg"))
     return correlations.unsprung_mass(db, settings, runs, mass_min_kg=mass_min_kg, mass_max_kg=mass_max_kg,
                                       max_points=max_points)
 

@@ -14,6 +14,7 @@ from app.analysis.condition.discontinuities import ASSET_TYPES
 from app.api.deps import AdminActor, DbDep, EngineerActor, SettingsDep, require_role
 from app.api.errors import ApiError, not_found
 from app.assets import service
+from app.core.i18n import _
 from app.core.ids import MAX_ID
 
 __all__ = ["router"]
@@ -56,7 +57,7 @@ def list_assets(
 ) -> AssetList:
     """Assets by line, track and km."""
     if type is not None and type not in ASSET_TYPES:
-        raise ApiError(422, "type", f"{type!r} is not one of {', '.join(ASSET_TYPES)}")
+        raise ApiError(422, "type", _("{type} is not one of {choices}", type=repr(type), choices=', '.join(ASSET_TYPES)))
     items, total = service.find_assets(db, line_id=line_id, track=track, type_=type, limit=limit, offset=offset)
     return AssetList(items=[AssetOut(**a) for a in items], total=total)
 
@@ -79,7 +80,7 @@ async def import_assets(
     cap = settings.max_reference_bytes
     data = await file.read(cap + 1)
     if len(data) > cap:
-        raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
+        raise ApiError(413, "file", _("exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)", cap=cap))
     got = await run_in_threadpool(service.import_assets, db, settings, actor, data, file.filename)
     return AssetImportOut(imported=got["imported"], replaced=got["replaced"])
 

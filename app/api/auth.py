@@ -31,6 +31,7 @@ from app.api.deps import (
     public,
     require_role,
 )
+from app.api.language import request_language
 from app.api.schemas.auth import (
     KeyCreated,
     KeyIn,
@@ -39,18 +40,19 @@ from app.api.schemas.auth import (
     LoginIn,
     LogoutOut,
     MeOut,
+    MePatch,
     PasswordChangeIn,
     UserIn,
     UserList,
     UserOut,
     UserPatch,
 )
-from app.core.config import Settings
 from app.core.ids import MAX_ID
 from app.core.ratelimit import RateLimiter
 from app.core.security import csrf_token, device_cookie_id, new_device_cookie
 from app.oidc.flow import end_session_url, post_logout_url
 from app.oidc.provider import ProviderUnavailable, provider_of_settings
+from app.settings import Settings
 
 __all__ = ["router", "login_router", "set_session_cookies", "DEVICE_COOKIE"]
 
@@ -98,8 +100,9 @@ def _clear_cookies(response: Response) -> None:
     response.delete_cookie(CSRF_COOKIE, path="/", samesite="strict")
 
 
-def _me(principal: Principal) -> MeOut:
-    return MeOut(name=principal.name, role=principal.role, kind=principal.kind)
+def _me(principal: Principal, request: Request) -> MeOut:
+    return MeOut(name=principal.name, role=principal.role, kind=principal.kind, language=principal.language,
+                 answered_in=request_language(request).code)
 
 
 def _check_login_rate(request: Request, username: str, device: str | None) -> None:
@@ -153,7 +156,8 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
     set_session_cookies(response, settings, started.token)
     if device is None:
         _set_device_cookie(response, settings, started.principal.name, request.url.path)
-    return _me(started.principal)
+    request.state.principal = started.principal
+    return _me(started.principal, request)
 
 
 @router.post(
@@ -196,9 +200,18 @@ def _provider_sign_out(request: Request, settings: Settings, id_token: str) -> s
 
 
 @router.get("/me", response_model=MeOut, summary="Who am I")
-def me(principal: ViewerDep) -> MeOut:
-    """Name, role and kind (user, api_key) of the authenticated principal."""
-    return _me(principal)
+def me(principal: ViewerDep, request: Request) -> MeOut:
+    """Name, role and kind (user, api_key) of the authenticated principal, the language the user
+    chose and the one this request is answered in."""
+    return _me(principal, request)
+
+
+@router.patch("/me", response_model=MeOut, summary="Change my account: the language")
+def update_me(body: MePatch, request: Request, db: DbDep, actor: ViewerActor) -> MeOut:
+    """Keep the language of the pages, messages and error texts with the user's account (null:
+    follow the browser). Only users have an account (API keys: 409)."""
+    request.state.principal = sessions.set_language(db, actor, body.language)
+    return _me(request.state.principal, request)
 
 
 @router.post(

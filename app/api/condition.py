@@ -41,6 +41,7 @@ from app.api.schemas.condition import (
     TrendOut,
 )
 from app.condition import answers
+from app.core.i18n import _
 
 __all__ = ["router", "segment_length", "LineIdQ", "TrackQ"]
 
@@ -57,7 +58,7 @@ _MAX_FEED = 1000
 def segment_length(value: int) -> int:
     """``segment_m`` checked: one of the store's segment lengths (422 otherwise)."""
     if value not in SEGMENT_LENGTHS_M:
-        raise ApiError(422, "segment_m", f"must be {' or '.join(f'{s:g}' for s in SEGMENT_LENGTHS_M)}, got {value}")
+        raise ApiError(422, "segment_m", _("must be {choices}, got {value}", choices=' or '.join(f'{s:g}' for s in SEGMENT_LENGTHS_M), value=value))
     return value
 
 
@@ -126,5 +127,5 @@ PLACES_PATH = "/api/v1/condition/places"
 @router.get("/hotspots.geojson", include_in_schema=False)
 def hotspots_gone() -> None:
     """The hotspot work list was retired: 410 naming the places (the work list since issue 25)."""
-    raise ApiError(410, "path", f"the hotspot work list was retired: use {PLACES_PATH} (.csv, .geojson)",
+    raise ApiError(410, "path", _("the hotspot work list was retired: use {path} (.csv, .geojson)", path=PLACES_PATH),
                    headers={"Link": f'<{PLACES_PATH}>; rel="alternate"'})

@@ -6,13 +6,15 @@ from __future__ import annotations
 import datetime as dt
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, Query, Request, Response
 from pydantic import BaseModel, Field
 from starlette.concurrency import run_in_threadpool
 
 from app.api.condition import LineIdQ, TrackQ
 from app.api.deps import DbDep, SettingsDep
 from app.api.errors import ApiError
+from app.api.language import request_language
+from app.core.i18n import _
 from app.places.sections import SEGMENT_M, line_sections, sections_csv
 
 __all__ = ["router"]
@@ -23,10 +25,11 @@ SectionQ = Annotated[int | None, Query(ge=SEGMENT_M, le=10_000, description="sec
                                                                            "10; default TRACKVKF_PLACES_SECTION_M)")]
 
 
-def _checked_sections(db: Any, settings: Any, line_id: str, track: str | None, section_m: int | None) -> dict:
+def _checked_sections(db: Any, settings: Any, line_id: str, track: str | None, section_m: int | None,
+                      lang: str) -> dict:
     if section_m is not None and section_m % SEGMENT_M:
-        raise ApiError(422, "section_m", f"must be a multiple of {SEGMENT_M} m, got {section_m}")
-    return line_sections(db, settings, line_id, track, section_m=section_m)
+        raise ApiError(422, "section_m", _("must be a multiple of {SEGMENT_M} m, got {section_m}", SEGMENT_M=SEGMENT_M, section_m=section_m))
+    return line_sections(db, settings, line_id, track, section_m=section_m, lang=lang)
 
 
 class SectionOut(BaseModel):
@@ -75,6 +78,7 @@ class SectionsOut(BaseModel):
 @router.get("/sections", response_model=SectionsOut, response_model_by_alias=True,
             summary="Section classes of a line (A … E per section) and the length per class")
 async def sections(
+    request: Request,
     db: DbDep,
     settings: SettingsDep,
     line_id: LineIdQ,
@@ -83,13 +87,15 @@ async def sections(
 ) -> SectionsOut:
     """Per section of the newest run: level, spread and rms of the index, class A … E and the
     class of the railway's scheme."""
-    out = await run_in_threadpool(_checked_sections, db, settings, line_id, track, section_m)
+    out = await run_in_threadpool(_checked_sections, db, settings, line_id, track, section_m,
+                                  request_language(request).code)
     return SectionsOut(**out)
 
 
 @router.get("/sections.csv", summary="Section classes of a line as CSV (with the class of the railway's scheme)",
             response_class=Response, responses={200: {"content": {"text/csv": {}}}})
 async def sections_csv_export(
+    request: Request,
     db: DbDep,
     settings: SettingsDep,
     line_id: LineIdQ,
@@ -97,6 +103,7 @@ async def sections_csv_export(
     section_m: SectionQ = None,
 ) -> Response:
     """The sections of ``GET /condition/sections``, one CSV row each."""
-    out = await run_in_threadpool(_checked_sections, db, settings, line_id, track, section_m)
+    out = await run_in_threadpool(_checked_sections, db, settings, line_id, track, section_m,
+                                  request_language(request).code)
     return Response(sections_csv(out), media_type="text/csv",
                     headers={"Content-Disposition": f'attachment; filename="sections-{out["line_id"]}-{out["track"]}.csv"'})

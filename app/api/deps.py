@@ -46,9 +46,9 @@ from app.api.params import (
     parse_time_range,
     wheel_param,
 )
-from app.core.config import Settings
 from app.core.runstore import RunStore
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = [
     "get_settings",

@@ -12,6 +12,11 @@ characters in text (a query filter holding one), the database's write lock busy 
 expect: answered ``500`` with ``"field": "server"`` (its traceback goes to the log, never to
 the client) by :class:`CatchAllMiddleware`, on a connection that stays open. Messages are
 cut to :data:`MAX_MESSAGE_CHARS`: no answer echoes a large input.
+
+The message is in the request's language (:func:`app.api.language.request_language`) where it
+was marked for translation (``_("...")``, :class:`~app.core.i18n.Msg`), pydantic's wording of
+the common validation errors included; ``field`` and the part of ``detail`` before the colon
+stay as they are: what a program reads of an error does not change with the language.
 """
 
 from __future__ import annotations
@@ -28,7 +33,9 @@ from sqlalchemy.exc import DataError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from app.api.language import request_language
 from app.core.errors import MAX_MESSAGE_CHARS, ApiError, cut_message, not_found
+from app.core.i18n import N_, Msg, _
 from app.io import RunFileError
 
 __all__ = [
@@ -61,6 +68,7 @@ _PARAMETER_KINDS = ("query", "path", "body", "header", "cookie")
 
 #: The answer to an exception no route expected (the details are in the service log).
 INTERNAL_ERROR: dict[str, str] = {"detail": "server: internal error (logged on the server)", "field": "server"}
+_INTERNAL_MESSAGE = _("internal error (logged on the server)")
 #: Starlette's message when the body is not JSON it can parse (too deep, a number too long …).
 _BODY_PARSE_ERROR = "There was an error parsing the body"
 
@@ -79,12 +87,62 @@ def validation_error(errors: Sequence[dict[str, Any]]) -> ApiError:
     a body with a misspelt key says both what is missing and what is unknown.
     """
     if not errors:
-        return ApiError(422, "request", "invalid request")
+        return ApiError(422, "request", _("invalid request"))
     field, message = _described(errors[0])
-    more = [": ".join(_described(err)) for err in errors[1:4]]
-    if more:
-        message = f"{message}; also {'; '.join(more)}"
+    for i, err in enumerate(errors[1:4]):
+        other, text = _described(err)
+        also = _("{message}; also {field}: {problem}", message=message, field=other, problem=text)
+        message = also if i == 0 else _("{message}; {field}: {problem}", message=message, field=other, problem=text)
     return ApiError(422, field, message)
+
+
+#: pydantic's validation errors, by type, in words of ours (other languages; English keeps
+#: pydantic's own): the message id and the context values it names
+_PYDANTIC_MESSAGES: dict[str, str] = {
+    "greater_than": N_("must be greater than {gt}"),
+    "greater_than_equal": N_("must be greater than or equal to {ge}"),
+    "less_than": N_("must be less than {lt}"),
+    "less_than_equal": N_("must be less than or equal to {le}"),
+    "int_parsing": N_("must be a whole number"),
+    "int_type": N_("must be a whole number"),
+    "int_from_float": N_("must be a whole number"),
+    "float_parsing": N_("must be a number"),
+    "float_type": N_("must be a number"),
+    "finite_number": N_("must be a finite number"),
+    "bool_parsing": N_("must be true or false"),
+    "bool_type": N_("must be true or false"),
+    "string_type": N_("must be text"),
+    "string_too_long": N_("must have at most {max_length} characters"),
+    "string_too_short": N_("must have at least {min_length} characters"),
+    "string_pattern_mismatch": N_("does not have the expected form"),
+    "literal_error": N_("must be one of {expected}"),
+    "enum": N_("must be one of {expected}"),
+    "extra_forbidden": N_("is not a field of this request"),
+    "too_long": N_("has too many items"),
+    "too_short": N_("has too few items"),
+    "date_parsing": N_("must be a date (YYYY-MM-DD)"),
+    "date_from_datetime_parsing": N_("must be a date (YYYY-MM-DD)"),
+    "datetime_parsing": N_("must be a date and time (ISO 8601)"),
+    "datetime_from_date_parsing": N_("must be a date and time (ISO 8601)"),
+    "url_parsing": N_("must be a URL"),
+    "url_scheme": N_("must be a URL"),
+    "dict_type": N_("must be an object"),
+    "list_type": N_("must be a list"),
+}
+
+
+def _pydantic_message(err: dict[str, Any]) -> str:
+    """pydantic's message of ``err``, translatable where its type is one of ours."""
+    english = str(err.get("msg", "invalid value")).removeprefix("Value error, ")
+    msgid = _PYDANTIC_MESSAGES.get(str(err.get("type", "")))
+    if msgid is None:
+        return english
+    ctx = {k: str(v) for k, v in (err.get("ctx") or {}).items()}
+    try:
+        msgid.format(**ctx)
+    except (KeyError, IndexError, ValueError):
+        return english
+    return Msg.worded(english, msgid, **ctx)
 
 
 def _described(err: dict[str, Any]) -> tuple[str, str]:
@@ -97,21 +155,22 @@ def _described(err: dict[str, Any]) -> tuple[str, str]:
         place, rest = "request", loc
     if kind == "json_invalid":
         reason = (err.get("ctx") or {}).get("error")
-        return place, f"not valid JSON{f': {reason}' if reason else ''}"
+        return place, _("not valid JSON: {reason}", reason=reason) if reason else _("not valid JSON")
     field = ".".join(rest) or place
-    message = str(err.get("msg", "invalid value")).removeprefix("Value error, ")
+    message = _pydantic_message(err)
     if kind == "missing":
-        message = "required"
+        message = _("required")
     elif "input" in err:
-        message = f"{message} (got {_shown(err['input'])})"
+        message = _("{message} (got {value})", message=message, value=_shown(err["input"]))
     return field, message
 
 
 async def _api_error_handler(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, ApiError)
+    message = exc.message_in(request_language(request).code)
     return JSONResponse(
         status_code=exc.status_code,
-        content={"detail": f"{exc.field}: {exc.message}", "field": exc.field},
+        content={"detail": f"{exc.field}: {message}", "field": exc.field},
         headers=exc.headers,
     )
 
@@ -138,7 +197,7 @@ async def _data_error_handler(request: Request, exc: Exception) -> JSONResponse:
         raise exc
     field = next((k for k, v in request.query_params.multi_items() if "\x00" in k or "\x00" in v), "request")
     return await _api_error_handler(
-        request, ApiError(422, field, "text must not contain NUL characters (\\u0000)")
+        request, ApiError(422, field, _("text must not contain NUL characters (\\u0000)"))
     )
 
 
@@ -174,12 +233,13 @@ async def _http_error_handler(request: Request, exc: Exception) -> Any:
     if exc.status_code < 400:  # the pages' redirect to the login page
         return await http_exception_handler(request, exc)
     detail = str(exc.detail)
+    message: str
     if exc.status_code == 404 and detail == "Not Found":
-        field, message = "path", f"no such path {request.url.path[:200]!r}"
+        field, message = "path", _("no such path {path}", path=repr(request.url.path[:200]))
     elif exc.status_code == 405:
-        field, message = "method", f"{request.method} is not allowed here"
+        field, message = "method", _("{method} is not allowed here", method=request.method)
     elif exc.status_code == 400 and detail == _BODY_PARSE_ERROR:
-        field, message = "body", (
+        field, message = "body", _(
             "cannot be parsed as JSON (nested too deeply or a number with too many digits?)"
         )
     else:
@@ -187,9 +247,16 @@ async def _http_error_handler(request: Request, exc: Exception) -> Any:
     return await _api_error_handler(request, ApiError(exc.status_code, field, message, exc.headers))
 
 
+def _internal_error(scope: Scope) -> JSONResponse:
+    """The 500 answer, in the language of the request's browser."""
+    lang = request_language(Request(scope)).code
+    return JSONResponse(status_code=500, content={
+        "detail": f"server: {_INTERNAL_MESSAGE.in_language(lang)}", "field": "server"})
+
+
 async def _unexpected_error_handler(request: Request, exc: Exception) -> JSONResponse:
     """Last resort of Starlette's outermost middleware (an error raised by a middleware itself)."""
-    return JSONResponse(status_code=500, content=INTERNAL_ERROR)
+    return _internal_error(request.scope)
 
 
 class CatchAllMiddleware:
@@ -223,7 +290,7 @@ class CatchAllMiddleware:
             log.exception("unexpected error answering %s %s", scope.get("method"), scope.get("path"))
             if started:
                 raise
-            await JSONResponse(status_code=500, content=INTERNAL_ERROR)(scope, receive, send)
+            await _internal_error(scope)(scope, receive, send)
 
 
 def document_error_responses(schema: dict[str, Any]) -> dict[str, Any]:

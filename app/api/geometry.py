@@ -16,6 +16,7 @@ from app.api.schemas.recorder import (
     GeometrySummary,
     IndicatorOut,
 )
+from app.core.i18n import _
 from app.core.ids import MAX_ID
 from app.maps import geometries as service
 from app.maps import indicator as map_indicator
@@ -52,7 +53,7 @@ async def import_geometry(
     cap = settings.max_reference_bytes
     data = await file.read(cap + 1)
     if len(data) > cap:
-        raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
+        raise ApiError(413, "file", _("exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)", cap=cap))
     rows = await run_in_threadpool(service.import_geometries, db, settings, actor, data, file.filename)
     return GeometryImportOut(imported=[_summary(r) for r in rows])
 
@@ -85,7 +86,10 @@ def delete_geometry(geometry_id: GeometryId, db: DbDep, actor: EngineerActor) ->
 def geometry_indicator(
     geometry_id: GeometryId,
     db: DbDep,
-    quantity: Annotated[str, Query(max_length=64, description="Profile column to colour the line by")] = "sleeper_amp",
+    settings: SettingsDep,
+    quantity: Annotated[str, Query(max_length=64, description=(
+        "stiffness_index (ln(A / A_ref(class, v)) by the line's reference curves) or a profile column "
+        "to colour the line by"))] = "sleeper_amp",
     run_id: Annotated[int | None, Query(ge=1, le=MAX_ID, description="Default: the latest processed run of the line and track")] = None,
     segment_m: Annotated[float, Query(ge=10.0, le=10_000.0, description="Segment length, m")] = DEFAULT_MAP_SEGMENT_M,
 ) -> IndicatorOut:
@@ -95,4 +99,4 @@ def geometry_indicator(
     a profile column answers 422 naming ``quantity``.
     """
     return IndicatorOut(**map_indicator.geometry_indicator(db, geometry_id, quantity=quantity, run_id=run_id,
-                                                           segment_m=segment_m))
+                                                           segment_m=segment_m, settings=settings))

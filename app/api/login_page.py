@@ -9,11 +9,11 @@ docs' "Authorize" button and API clients know how to authenticate.
 from __future__ import annotations
 
 import re
+from html import escape
 from pathlib import Path
 from typing import Annotated, Any
 from urllib.parse import urlencode
 
-import jinja2
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse
@@ -22,6 +22,8 @@ from fastapi.staticfiles import StaticFiles
 from app.api.deps import API_KEY_HEADER, public, require_page_login, require_role
 from app.api.errors import document_error_responses
 from app.api.headers import content_security_policy, inline_script_hashes
+from app.api.language import request_language
+from app.core.i18n import N_, catalogue_digest, jinja_environment, translations
 
 __all__ = [
     "router", "safe_next", "install_protected_docs", "swagger_ui_dir", "TEMPLATES_DIR",
@@ -40,15 +42,6 @@ _PAGE_HEADERS = {"Cache-Control": "no-store"}
 router = APIRouter(include_in_schema=False, dependencies=[Depends(public)])
 
 
-def _environment() -> jinja2.Environment:
-    return jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(TEMPLATES_DIR)), autoescape=True, auto_reload=False
-    )
-
-
-_ENV = _environment()
-
-
 def safe_next(value: str | None) -> str:
     """A local path to go to after login; anything else (other sites, odd text) gives ``/``."""
     if not value or len(value) > 2000 or not value.startswith("/"):
@@ -60,12 +53,14 @@ def safe_next(value: str | None) -> str:
 
 @router.get("/login", response_class=HTMLResponse)
 def login_page(request: Request, next: Annotated[str | None, Query(max_length=2000)] = None) -> HTMLResponse:  # noqa: A002
-    """The login form; after login the browser goes to ``next`` (a local path). With corporate
-    sign-in configured it offers "Sign in with <provider>" (``/login/oidc``) too."""
+    """The login form, in the browser's language; after login the browser goes to ``next`` (a local
+    path). With corporate sign-in configured it offers "Sign in with <provider>" (``/login/oidc``) too."""
     settings = request.app.state.settings
     oidc_name = settings.oidc_provider_name if settings.oidc_enabled else None
-    html = _ENV.get_template("login.html").render(next_path=safe_next(next), oidc_name=oidc_name,
-                                                  oidc_href="/login/oidc?" + urlencode({"next": safe_next(next)}))
+    lang = request_language(request).code
+    html = jinja_environment(str(TEMPLATES_DIR), lang).get_template("login.html").render(
+        next_path=safe_next(next), i18n_js=f"/i18n/{lang}.js?v={catalogue_digest(lang)}", oidc_name=oidc_name,
+        oidc_href="/login/oidc?" + urlencode({"next": safe_next(next)}))
     return HTMLResponse(html, headers=_PAGE_HEADERS)
 
 
@@ -115,6 +110,19 @@ def swagger_ui_dir() -> Path:
     return max(usable)[1]
 
 
+_BACK = N_("← Back to the dashboard")
+_BACK_TITLE = N_("The pages of trackvkf (the API's documentation is in English, as its field names)")
+
+
+def _with_way_back(html: str, lang: str) -> str:
+    """The Swagger UI page with a bar at its top that leads back to the dashboard (in ``lang``)."""
+    t = translations(lang)
+    bar = (f'<nav id="back-to-dashboard" style="font: 14px system-ui, sans-serif; padding: 10px 20px; '
+           f'background: #1f3b57;"><a href="/" style="color: #fff; text-decoration: none;" '
+           f'title="{escape(t.gettext(_BACK_TITLE))}">{escape(t.gettext(_BACK))}</a></nav>')
+    return html.replace("<body>", "<body>\n" + bar, 1)
+
+
 def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
     """Serve ``/openapi.json`` (viewer) and ``/docs`` (logged-in page) with access control.
 
@@ -147,6 +155,7 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
             swagger_css_url=f"{SWAGGER_ASSETS}/swagger-ui.css",
             swagger_favicon_url=f"{SWAGGER_ASSETS}/favicon-32x32.png",
         )
+        html = _with_way_back(page.body.decode("utf-8"), request_language(request).code)
         # the page's one inline script (SwaggerUIBundle setup) is allowed by its hash
-        csp = content_security_policy(inline_script_hashes(page.body.decode("utf-8")))
-        return HTMLResponse(page.body, headers={**_PAGE_HEADERS, "Content-Security-Policy": csp})
+        csp = content_security_policy(inline_script_hashes(html))
+        return HTMLResponse(html, headers={**_PAGE_HEADERS, "Content-Security-Policy": csp})

@@ -17,20 +17,21 @@ from __future__ import annotations
 import logging
 from typing import Annotated
 
-import jinja2
 from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from app.api.auth import set_session_cookies
 from app.api.deps import SESSION_COOKIE, client_ip, public
+from app.api.language import request_language
 from app.api.login_page import TEMPLATES_DIR, safe_next
-from app.core.config import Settings
+from app.core.i18n import Msg, _, jinja_environment
 from app.oidc import flow
 from app.oidc.accounts import SignInRefused, sign_in
 from app.oidc.config import OidcConfig
 from app.oidc.flow import CALLBACK_PATH, START_PATH, callback_url
 from app.oidc.provider import ProviderUnavailable, provider_of_settings
 from app.oidc.tokens import TokenRejected
+from app.settings import Settings
 
 __all__ = ["router"]
 
@@ -40,27 +41,28 @@ _PAGE_HEADERS = {"Cache-Control": "no-store"}
 
 router = APIRouter(include_in_schema=False, dependencies=[Depends(public)])
 
-_ENV = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES_DIR)), autoescape=True,
-                          auto_reload=False)
-
-
-def _page(status: int, *, title: str, message: str, detail: str = "", provider: str = "",
-          next_path: str | None = None) -> HTMLResponse:
-    html = _ENV.get_template("signin.html").render(title=title, message=message, detail=detail,
-                                                  provider=provider, next_path=next_path)
+def _page(request: Request, status: int, *, title: Msg, message: Msg, detail: str = "", provider: str = "",
+           next_path: str | None = None) -> HTMLResponse:
+    """The sign-in's page in the browser's language (``detail``, the provider's or the check's own
+    words, as it is)."""
+    lang = request_language(request).code
+    html = jinja_environment(str(TEMPLATES_DIR), lang).get_template("signin.html").render(
+        title=title.in_language(lang), message=message.in_language(lang), detail=detail, provider=provider,
+        next_path=next_path)
     return HTMLResponse(html, status_code=status, headers=_PAGE_HEADERS)
 
 
-def _not_configured() -> HTMLResponse:
-    return _page(404, title="No corporate sign-in",
-                 message="Corporate sign-in is not configured on this server; log in with a local account.")
+def _not_configured(request: Request) -> HTMLResponse:
+    return _page(request, 404, title=_("No corporate sign-in"),
+                 message=_("Corporate sign-in is not configured on this server; log in with a local account."))
 
 
-def _unavailable(config: OidcConfig, exc: ProviderUnavailable) -> HTMLResponse:
+def _unavailable(request: Request, config: OidcConfig, exc: ProviderUnavailable) -> HTMLResponse:
     log.warning("OpenID provider %s unavailable: %s", config.issuer, exc.reason)
-    return _page(503, title="Sign-in unavailable", provider=config.provider_name,
-                 message=f"Sign-in with {config.provider_name} is not available at the moment: the "
-                         "provider cannot be reached. Try again later; local accounts can still log in.",
+    return _page(request, 503, title=_("Sign-in unavailable"), provider=config.provider_name,
+                 message=_("Sign-in with {provider} is not available at the moment: the provider cannot be "
+                           "reached. Try again later; local accounts can still log in.",
+                           provider=config.provider_name),
                  detail=exc.reason)
 
 
@@ -76,12 +78,12 @@ def oidc_start(request: Request, next: Annotated[str | None, Query(max_length=20
     settings: Settings = request.app.state.settings
     provider = provider_of_settings(settings)
     if provider is None:
-        return _not_configured()
+        return _not_configured(request)
     try:
         url, pending = flow.begin(provider, redirect_uri=callback_url(provider.config, str(request.base_url)),
                                   next_path=safe_next(next), secret_key=settings.secret_key)
     except ProviderUnavailable as exc:
-        return _unavailable(provider.config, exc)
+        return _unavailable(request, provider.config, exc)
     response = RedirectResponse(url, status_code=303, headers=_PAGE_HEADERS)
     # Lax, not Strict: the browser must send it on the provider's redirect back to the callback
     response.set_cookie(flow.PENDING_COOKIE, pending, max_age=flow.PENDING_TTL_S, path=CALLBACK_PATH,
@@ -101,12 +103,12 @@ def oidc_callback(
     settings: Settings = request.app.state.settings
     provider = provider_of_settings(settings)
     if provider is None:
-        return _not_configured()
+        return _not_configured(request)
     config = provider.config
     pending = flow.unseal(request.cookies.get(flow.PENDING_COOKIE), settings.secret_key)
     if error:
-        response = _page(400, title="Sign-in not completed", provider=config.provider_name,
-                         message=f"{config.provider_name} did not sign you in.",
+        response = _page(request, 400, title=_("Sign-in not completed"), provider=config.provider_name,
+                         message=_("{provider} did not sign you in.", provider=config.provider_name),
                          detail=f"{error}: {error_description}" if error_description else error)
         _clear_pending(response, settings)
         return response
@@ -116,21 +118,23 @@ def oidc_callback(
         result = sign_in(db=request.app.state.db, provider=provider, signed=signed, address=client_ip(request),
                          ttl_s=settings.session_ttl_s, previous_session=request.cookies.get(SESSION_COOKIE))
     except ProviderUnavailable as exc:
-        response = _unavailable(config, exc)
+        response = _unavailable(request, config, exc)
     except TokenRejected as exc:
         log.warning("OpenID sign-in from %s not verified: %s",
                     request.client.host if request.client else "?", exc.reason)
-        response = _page(400, title="Sign-in not verified", provider=config.provider_name,
-                         message=f"The answer of {config.provider_name} could not be verified; nobody was "
-                                 "signed in. Start again from the login page.", detail=exc.reason)
+        response = _page(request, 400, title=_("Sign-in not verified"), provider=config.provider_name,
+                         message=_("The answer of {provider} could not be verified; nobody was signed in. "
+                                   "Start again from the login page.", provider=config.provider_name),
+                         detail=exc.reason)
     except SignInRefused as exc:
-        response = _page(403, title="No access", provider=config.provider_name,
-                         message=f"{config.provider_name} signed you in, but trackvkf does not let this "
-                                 "account in. Ask an administrator.", detail=exc.reason)
+        response = _page(request, 403, title=_("No access"), provider=config.provider_name,
+                         message=_("{provider} signed you in, but trackvkf does not let this account in. "
+                                   "Ask an administrator.", provider=config.provider_name), detail=exc.reason)
     else:
         next_path = pending.next_path if pending else "/"
-        response = _page(200, title="Signed in", provider=config.provider_name, next_path=next_path,
-                         message=f"Signed in as {result.principal.name} ({result.principal.role}).")
+        response = _page(request, 200, title=_("Signed in"), provider=config.provider_name, next_path=next_path,
+                         message=_("Signed in as {name} ({role}).", name=result.principal.name,
+                                   role=result.principal.role))
         set_session_cookies(response, settings, result.token)
     _clear_pending(response, settings)
     return response

@@ -13,10 +13,11 @@ from typing import Annotated, Any, Literal
 
 from fastapi import Path, Query
 
-from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.ids import MAX_ID
 from app.io import WHEELS
+from app.settings import Settings
 
 __all__ = [
     "RunId",
@@ -58,15 +59,15 @@ def check_km(km_from: float | None, km_to: float | None) -> None:
     """422 unless the km bounds are finite and ordered."""
     for name, value in (("km_from", km_from), ("km_to", km_to)):
         if value is not None and not math.isfinite(value):
-            raise ApiError(422, name, "must be a finite number")
+            raise ApiError(422, name, _("must be a finite number"))
     if km_from is not None and km_to is not None and km_from > km_to:
-        raise ApiError(422, "km_from", f"({km_from}) is greater than km_to ({km_to})")
+        raise ApiError(422, "km_from", _("({km_from}) is greater than km_to ({km_to})", km_from=km_from, km_to=km_to))
 
 
 def check_page_size(limit: int, settings: Settings) -> None:
     """422 for a page larger than ``settings.max_page_size``."""
     if limit > settings.max_page_size:
-        raise ApiError(422, "limit", f"must be <= {settings.max_page_size}")
+        raise ApiError(422, "limit", _("must be <= {max_page_size}", max_page_size=settings.max_page_size))
 
 
 def parse_time(
@@ -97,13 +98,13 @@ def parse_time(
             return dt.datetime.combine(dt.date.fromisoformat(value), t, tzinfo=dt.UTC)
         parsed = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
     except ValueError:
-        raise ApiError(422, name, f"not an ISO 8601 date or datetime: {value!r}") from None
+        raise ApiError(422, name, _("not an ISO 8601 date or datetime: {value}", value=repr(value))) from None
     if parsed.tzinfo is None:
         parsed = parsed.replace(tzinfo=dt.UTC)
     try:
         return parsed.astimezone(dt.UTC)
     except OverflowError:
-        raise ApiError(422, name, f"out of the representable range: {value!r}") from None
+        raise ApiError(422, name, _("out of the representable range: {value}", value=repr(value))) from None
 
 
 def parse_time_range(
@@ -117,7 +118,7 @@ def parse_time_range(
     start = parse_time(since, names[0], day="start" if whole_days else None)
     end = parse_time(until, names[1], day="end" if whole_days else None)
     if start and end and start > end:
-        raise ApiError(422, names[0], f"is after {names[1]}")
+        raise ApiError(422, names[0], _("is after {other}", other=names[1]))
     return start, end
 
 
@@ -136,5 +137,5 @@ def wheel_param(value: str | None) -> str | None:
         return None
     w = value[1:] if value[:1] in ("Z", "z") else value
     if w not in WHEELS:
-        raise ApiError(422, "wheel", f"must be one of {', '.join(WHEELS)} (or Z11 …), got {w!r}")
+        raise ApiError(422, "wheel", _("must be one of {choices} (or Z11 …), got {w}", choices=', '.join(WHEELS), w=repr(w)))
     return w

@@ -23,6 +23,7 @@ from app.api.schemas.reference import (
     SubsidenceList,
     SuperstructureList,
 )
+from app.core.i18n import _
 from app.io.reference import MAINTENANCE_TYPES
 from app.reference import service
 from app.reference.service import Kind
@@ -57,7 +58,7 @@ async def import_reference(
     cap = settings.max_reference_bytes
     data = await file.read(cap + 1)
     if len(data) > cap:
-        raise ApiError(413, "file", f"exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)")
+        raise ApiError(413, "file", _("exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)", cap=cap))
     imported, replaced = await run_in_threadpool(
         lambda: service.import_reference(db, settings, actor, kind, data, fmt=format, filename=file.filename,
                                          mode=mode))  # RunFileError: 422
@@ -126,6 +127,6 @@ def parse_types(value: str | None) -> list[str] | None:
     for part in value.split(","):
         t = part.strip().lower().replace(" ", "_").replace("-", "_")
         if t not in MAINTENANCE_TYPES:
-            raise ApiError(422, "type", f"{part.strip()!r} is not one of {', '.join(MAINTENANCE_TYPES)}")
+            raise ApiError(422, "type", _("{type} is not one of {choices}", type=repr(part.strip()), choices=', '.join(MAINTENANCE_TYPES)))
         out.append(t)
     return out

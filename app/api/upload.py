@@ -38,8 +38,8 @@ from starlette.requests import ClientDisconnect, Request
 
 from app.api.deps import Actor
 from app.api.errors import ApiError
-from app.core.config import Settings
 from app.core.diskspace import require_free
+from app.core.i18n import _
 from app.core.runstore import RunStore
 from app.db.session import Database
 from app.io.formats import CONTENT_TYPE_FORMATS
@@ -47,6 +47,7 @@ from app.operations.heavy import run_heavy
 from app.runs import upload as uploads
 from app.runs.create import UploadOutcome, create_run_from_file, existing_outcome
 from app.runs.upload import Received
+from app.settings import Settings
 
 __all__ = ["UploadOutcome", "receive_and_create_run", "ACCEPTED_CONTENT_TYPES"]
 
@@ -99,7 +100,7 @@ class _Sink:
 
 def _too_large(cap: int) -> ApiError:
     return ApiError(
-        413, "file", f"upload exceeds the size limit of {cap} bytes (TRACKVKF_MAX_UPLOAD_BYTES)"
+        413, "file", _("upload exceeds the size limit of {cap} bytes (TRACKVKF_MAX_UPLOAD_BYTES)", cap=cap)
     )
 
 
@@ -107,8 +108,8 @@ def _unsupported_type(ctype: str) -> ApiError:
     return ApiError(
         415,
         "content_type",
-        f"unsupported content type {ctype[:80]!r}; send a run file as "
-        "application/octet-stream, application/x-hdf5, text/csv or application/vnd.apache.parquet",
+        _("unsupported content type {ctype}; send a run file as application/octet-stream, application/x-hdf5, "
+          "text/csv or application/vnd.apache.parquet", ctype=repr(ctype[:80])),
     )
 
 
@@ -187,17 +188,17 @@ class _MultipartState:
         self.header_value = bytearray()
 
     def on_headers_finished(self) -> None:
-        _, options = parse_options_header(self.headers.get("content-disposition"))
+        _kind, options = parse_options_header(self.headers.get("content-disposition"))
         name = options.get(b"name", b"").decode("utf-8", "replace")
         if name not in _FORM_FIELDS:
             self.error = self.error or ApiError(
                 422, "form",
-                f"unknown form field {name!r} (expected file, metadata, format or channel_map)",
+                _("unknown form field {name} (expected file, metadata, format or channel_map)", name=repr(name)),
             )
         self.name = name
         if name == "file":
             if self.file_seen:
-                self.error = self.error or ApiError(422, "file", "more than one file part")
+                self.error = self.error or ApiError(422, "file", _("more than one file part"))
             self.file_seen = True
             self.is_file = True
             raw = options.get(b"filename")
@@ -216,18 +217,18 @@ class _MultipartState:
             self.field_data += data[start:end]
             if len(self.field_data) > self.max_field_bytes:
                 self.error = ApiError(
-                    413, self.name or "form", f"form field larger than {self.max_field_bytes} bytes"
+                    413, self.name or "form", _("form field larger than {max_field_bytes} bytes", max_field_bytes=self.max_field_bytes)
                 )
 
     def on_part_end(self) -> None:
         if self.error is None and not self.is_file and self.name:
             if self.name in self.fields:
-                self.error = ApiError(422, self.name, "given more than once")
+                self.error = ApiError(422, self.name, _("given more than once"))
                 return
             try:
                 self.fields[self.name] = self.field_data.decode("utf-8")
             except UnicodeDecodeError:
-                self.error = ApiError(422, self.name, "not valid UTF-8 text")
+                self.error = ApiError(422, self.name, _("not valid UTF-8 text"))
 
     def on_end(self) -> None:
         self.ended = True
@@ -236,15 +237,15 @@ class _MultipartState:
 async def _receive_multipart(
     request: Request, path: Path, settings: Settings, content_type: str
 ) -> Received:
-    _, params = parse_options_header(content_type)
+    _kind, params = parse_options_header(content_type)
     boundary = params.get(b"boundary")
     if not boundary:
-        raise ApiError(400, "file", "multipart body without a boundary in Content-Type")
+        raise ApiError(400, "file", _("multipart body without a boundary in Content-Type"))
     state = _MultipartState(settings.max_metadata_bytes)
     try:
         parser = MultipartParser(boundary, state.callbacks())
     except FormParserError as exc:
-        raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+        raise ApiError(400, "file", _("malformed multipart body: {exc}", exc=exc)) from None
     sink = _Sink(path, settings.upload_block_bytes, settings.min_free_bytes)
     received = 0
     try:
@@ -255,7 +256,7 @@ async def _receive_multipart(
             try:
                 parser.write(chunk)
             except FormParserError as exc:
-                raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+                raise ApiError(400, "file", _("malformed multipart body: {exc}", exc=exc)) from None
             if state.error is not None:
                 raise state.error
             for data in state.pending_file_data:
@@ -264,7 +265,7 @@ async def _receive_multipart(
         try:
             parser.finalize()
         except FormParserError as exc:
-            raise ApiError(400, "file", f"malformed multipart body: {exc}") from None
+            raise ApiError(400, "file", _("malformed multipart body: {exc}", exc=exc)) from None
         if state.error is not None:
             raise state.error
         await sink.close()
@@ -272,9 +273,9 @@ async def _receive_multipart(
         sink.abort()
         raise
     if not state.file_seen:
-        raise ApiError(422, "file", "the multipart body has no 'file' part")
+        raise ApiError(422, "file", _("the multipart body has no 'file' part"))
     if not state.ended:
-        raise ApiError(400, "file", "multipart body ended early (truncated upload)")
+        raise ApiError(400, "file", _("multipart body ended early (truncated upload)"))
     return Received(
         path=path,
         sha256=sink.hash.hexdigest(),
@@ -364,7 +365,7 @@ async def _receive_and_create(
                 received = await _receive_raw(request, path, settings)
                 received.filename = _safe_filename(query_filename)
         except ClientDisconnect:
-            raise ApiError(400, "file", "client disconnected during the upload") from None
+            raise ApiError(400, "file", _("client disconnected during the upload")) from None
         upload = uploads.upload_of(received, query_format=query_format, query_metadata=query_metadata,
                                    query_channel_map=query_channel_map)
         existing = await run_in_threadpool(existing_outcome, db, upload.file.sha256, upload.metadata)

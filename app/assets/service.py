@@ -28,12 +28,12 @@ from collections.abc import Callable
 from typing import Any
 
 from app.audit import record
-from app.core.config import Settings
 from app.core.errors import ApiError
 from app.core.security import Actor
 from app.db import assets_crud
 from app.db.models import Asset, utcnow
 from app.db.session import Database
+from app.settings import Settings
 
 __all__ = ["ImportResult", "import_assets", "parse_upload", "asset_dict", "find_assets", "remove_asset",
            "STALE_AFTER"]

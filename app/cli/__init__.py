@@ -3,7 +3,7 @@
 (create, set-password, list) and ``key`` (create, revoke, list).
 
 Every command reads the service settings from ``TRACKVKF_*`` environment
-variables (see :class:`app.core.config.Settings`). The commands live by group:
+variables (see :class:`app.settings.Settings`). The commands live by group:
 :mod:`app.cli.service` (serve, worker, migrate), :mod:`app.cli.processing`
 (simulate, process), :mod:`app.cli.condition` (simulate-fleet, sweep-profiles, apply-places),
 :mod:`app.cli.accounts` (user, key), :mod:`app.cli.demo`, :mod:`app.cli.operations` (backup, restore).

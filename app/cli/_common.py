@@ -2,14 +2,26 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import typer
 
-from app.core.config import get_settings
+if TYPE_CHECKING:
+    from app.settings import Settings
 
 __all__ = [
-    "echo", "refuse_unsafe_production", "database", "database_problem",
+    "service_settings", "echo", "refuse_unsafe_production", "database", "database_problem",
     "require_migrated_database", "cli_audit", "new_password",
 ]
+
+
+def service_settings() -> Settings:
+    """The service's settings (:func:`app.settings.get_settings`), imported when a command runs: the
+    composition imports every package's settings group and the numerics whose constants they name,
+    which ``trackvkf --help`` need not wait for."""
+    from app.settings import get_settings
+
+    return get_settings()
 
 
 def echo(message: str) -> None:
@@ -23,7 +35,7 @@ def refuse_unsafe_production() -> None:
     from app.db.session import Database
     from app.main import check_production_database
 
-    settings = get_settings()
+    settings = service_settings()
     try:
         settings.check_production()
         if settings.is_production:
@@ -77,7 +89,7 @@ def database_problem(url: str) -> str | None:
 
 def require_migrated_database() -> None:
     """Exit with status 2 and a one-line hint unless ``TRACKVKF_DATABASE_URL`` is migrated."""
-    problem = database_problem(get_settings().database_url)
+    problem = database_problem(service_settings().database_url)
     if problem is not None:
         typer.echo(f"error: {problem}", err=True)
         raise typer.Exit(2)
@@ -91,7 +103,7 @@ def database():
     from app.db.session import Database
 
     require_migrated_database()
-    return Database(get_settings().database_url)
+    return Database(service_settings().database_url)
 
 
 def cli_audit(session, action: str, target: str, detail: dict | None = None) -> None:

@@ -39,7 +39,7 @@ def simulate_fleet(
     """
     from app.condition.config import ConditionConfig
     from app.condition.fleet import ingest_fleet
-    from app.core.config import get_settings
+    from app.settings import get_settings
     from app.simulate.fleet import FleetSimulator, random_plan
     from app.simulate.track import generate_line
 
@@ -82,9 +82,9 @@ def sweep_profiles(
 ) -> None:
     """Remove old 25 cm profile rows (segment condition rows stay); the workers do it hourly when
     TRACKVKF_PROFILE_RETENTION_DAYS is set."""
-    from app.core.config import get_settings
     from app.db.models import utcnow
     from app.db.retention import sweep_profiles as sweep
+    from app.settings import get_settings
 
     days = older_than_days if older_than_days is not None else get_settings().profile_retention_days
     if days is None or days < 1:
@@ -108,9 +108,9 @@ def apply_places(
     """Apply the runs of a line already in the condition store to its places, oldest first (runs published
     before the places existed — after upgrading — or a generated fleet history). A run applied already,
     or older than the newest applied one, is left as it is. Sends no alerts."""
-    from app.core.config import get_settings
     from app.places.config import PlacesConfig
     from app.places.followup import apply_stored_runs
+    from app.settings import get_settings
 
     db = database()
     try:

@@ -14,8 +14,7 @@ from typing import Annotated
 
 import typer
 
-from app.cli._common import cli_audit, database, echo, new_password
-from app.core.config import get_settings
+from app.cli._common import cli_audit, database, echo, new_password, service_settings
 
 __all__ = ["demo"]
 
@@ -231,7 +230,7 @@ def demo(
     from app.db import migrate as db_migrate
     from app.simulate.demo import DEMO_HISTORY_RUNS, DEMO_RUNS, write_demo_dataset
 
-    settings = get_settings()
+    settings = service_settings()
     if settings.is_production:
         typer.echo("error: the demo does not run with TRACKVKF_ENV=production", err=True)
         raise typer.Exit(2)

@@ -7,8 +7,7 @@ from typing import Annotated
 
 import typer
 
-from app.cli._common import echo
-from app.core.config import get_settings
+from app.cli._common import echo, service_settings
 
 __all__ = ["backup", "restore"]
 
@@ -26,7 +25,7 @@ def backup(
     from app.operations.backup import backup as take
 
     try:
-        result = take(get_settings(), dest)
+        result = take(service_settings(), dest)
     except BackupError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1) from None
@@ -57,7 +56,7 @@ def restore(
             echo(f"backup {src} verified: {manifest['database']} at {manifest['revision']}, "
                  f"{len(manifest['files'])} run files")
             return
-        result = put_back(get_settings(), src, force=force)
+        result = put_back(service_settings(), src, force=force)
     except (BackupError, OSError) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1) from None

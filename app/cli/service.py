@@ -7,8 +7,12 @@ from typing import Annotated
 
 import typer
 
-from app.cli._common import echo, refuse_unsafe_production, require_migrated_database
-from app.core.config import get_settings
+from app.cli._common import (
+    echo,
+    refuse_unsafe_production,
+    require_migrated_database,
+    service_settings,
+)
 from app.core.logging import configure_logging
 
 __all__ = ["serve", "worker", "migrate", "default_api_workers"]
@@ -70,7 +74,7 @@ def worker(
     workers on PostgreSQL (mode from TRACKVKF_DATABASE_URL)."""
     from worker import modes
 
-    settings = get_settings()
+    settings = service_settings()
     require_migrated_database()
     configure_logging(settings.log_level, settings.log_format)
     code = modes.run(settings, local=local, once=once, exit_when_idle=exit_when_idle, processes=processes)
@@ -84,7 +88,7 @@ def migrate(
     """Apply the database migrations (Alembic) to TRACKVKF_DATABASE_URL."""
     from app.db import migrate as db_migrate
 
-    settings = get_settings()
+    settings = service_settings()
     db_migrate.upgrade(settings.database_url, revision)
     echo(f"database {settings.database_url} at {db_migrate.current_revision(settings.database_url)}")
 

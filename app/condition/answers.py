@@ -21,6 +21,7 @@ from app.condition import readers as reader
 from app.condition.index import STORE_INDEX
 from app.condition.lines import check_line_km, resolve_line
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.jsonable import finite_or_none, iso_time
 from app.db import reference_crud
 from app.db.models import ConditionFlag, ConditionLine, ConditionRun, Job
@@ -126,7 +127,7 @@ def newest_changes(db: Database, line_id: str, track: str | None) -> dict:
     with db.read() as session:
         run = reader.newest_run(session, line.id)
     if run is None:
-        raise ApiError(404, "line_id", f"line {line_id!r} has no runs in the condition store")
+        raise ApiError(404, "line_id", _("line {line} has no runs in the condition store", line=repr(line_id)))
     return _changes(db, run)
 
 

@@ -8,6 +8,7 @@ from typing import Any
 
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams
 from app.analysis.units import KMH_PER_MPS, MIN_SPEED_KMH
+from app.analytics.settings import EDGE_TRIM_M
 
 __all__ = ["ConditionConfig", "DEFAULT_CONDITION_CONFIG", "FLEET_SOURCE_FORMAT"]
 
@@ -35,13 +36,13 @@ class ConditionConfig:
 
     change: ChangeParams = field(default_factory=lambda: DEFAULT_CHANGE_PARAMS)
     min_speed_mps: float = MIN_SPEED_KMH / KMH_PER_MPS
-    edge_trim_m: float = 50.0
+    edge_trim_m: float = EDGE_TRIM_M
     max_shift_m: float = 50.0
     min_shift_confidence: float = 0.2
 
     @classmethod
     def from_settings(cls, settings: Any) -> ConditionConfig:
-        """From :class:`app.core.config.Settings` (``condition_*`` and ``analytics_*`` settings)."""
+        """From :class:`app.settings.Settings` (``condition_*`` and ``analytics_*`` settings)."""
         return cls(
             change=ChangeParams(
                 step_z=settings.condition_step_z,

@@ -6,6 +6,7 @@ import math
 
 from app.condition import readers as reader
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.db.models import ConditionLine
 from app.db.session import Database
 
@@ -17,10 +18,12 @@ def resolve_line(db: Database, line_id: str, track: str | None) -> ConditionLine
     with db.read() as session:
         found = reader.find_lines(session, line_id, track)
     if not found:
-        where = f"line {line_id!r}" + (f" track {track!r}" if track is not None else "")
-        raise ApiError(404, "line_id", f"{where} has no runs in the condition store")
+        raise ApiError(404, "line_id", _("line {line} track {track} has no runs in the condition store",
+                                         line=repr(line_id), track=repr(track)) if track is not None
+                       else _("line {line} has no runs in the condition store", line=repr(line_id)))
     if len(found) > 1:
-        raise ApiError(422, "track", f"line {line_id!r} has tracks {', '.join(repr(x.track) for x in found)}: choose one")
+        raise ApiError(422, "track", _("line {line} has tracks {tracks}: choose one", line=repr(line_id),
+                                              tracks=', '.join(repr(x.track) for x in found)))
     return found[0]
 
 
@@ -32,5 +35,6 @@ def check_line_km(line: ConditionLine, **values: float | None) -> None:
         if value is None:
             continue
         if not math.isfinite(value) or value < line.km_min - 1e-9 or value > line.km_max + 1e-9:
-            raise ApiError(422, name, f"km {value} is outside line {line.line_id!r} track {line.track!r} "
-                                      f"(km {line.km_min:.3f}–{line.km_max:.3f})")
+            raise ApiError(422, name, _("km {value} is outside line {line} track {track} (km {km_min:.3f}–{km_max:.3f})",
+                                        value=value, line=repr(line.line_id), track=repr(line.track),
+                                        km_min=line.km_min, km_max=line.km_max))

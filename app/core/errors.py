@@ -7,6 +7,8 @@ knows best which parameter a request got wrong); the API renders every one as
 
 from __future__ import annotations
 
+from app.core.i18n import N_, Msg, translate
+
 __all__ = ["ApiError", "MAX_MESSAGE_CHARS", "cut_message", "not_found"]
 
 #: Longest message of an error answer, characters (longer ones are cut, ending in "…").
@@ -29,7 +31,8 @@ class ApiError(Exception):
         What is wrong: a channel, a metadata field, a query parameter,
         ``format``, ``file`` ...
     message : str
-        Human-readable explanation; cut to :data:`MAX_MESSAGE_CHARS` characters.
+        Human-readable explanation; cut to :data:`MAX_MESSAGE_CHARS` characters. A
+        :class:`~app.core.i18n.Msg` (``_("...")``) is answered in the request's language.
     headers : dict, optional
         Extra response headers (``WWW-Authenticate``, ``Retry-After``).
     """
@@ -40,10 +43,29 @@ class ApiError(Exception):
         self.status_code = status_code
         self.field = cut_message(str(field), 200)
         self.message = cut_message(str(message))
+        self.source = message if isinstance(message, Msg) else None
         self.headers = headers
         super().__init__(f"{self.field}: {self.message}")
+
+    def message_in(self, lang: str) -> str:
+        """The message in ``lang`` (a message not marked for translation: as it is)."""
+        return self.message if self.source is None else cut_message(translate(self.source, lang))
+
+
+#: the 404 message of each kind of thing (the thing's name translated with it)
+_NOT_FOUND: dict[str, str] = {
+    "run": N_("run {ident} not found"),
+    "job": N_("job {ident} not found"),
+    "place": N_("place {ident} not found"),
+    "geometry": N_("geometry {ident} not found"),
+    "action": N_("maintenance action {ident} not found"),
+    "asset": N_("asset {ident} not found"),
+    "channel_map": N_("channel map {ident} not found"),
+    "webhook": N_("webhook {ident} not found"),
+}
+_NOT_FOUND_ANY = N_("{what} {ident} not found")
 
 
 def not_found(what: str, ident: object) -> ApiError:
     """A 404 error for ``what`` (``"run"``, ``"job"``) with id ``ident``."""
-    return ApiError(404, f"{what}_id", f"{what} {ident} not found")
+    return ApiError(404, f"{what}_id", Msg(_NOT_FOUND.get(what, _NOT_FOUND_ANY), what=what, ident=ident))

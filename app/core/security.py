@@ -227,6 +227,8 @@ class Principal:
         (the ``trackvkf`` command).
     user_id, key_id : int or None
         Row id of the user or the API key.
+    language : str or None
+        The language the user chose (kept with the account); None: the browser's.
     """
 
     name: str
@@ -234,6 +236,7 @@ class Principal:
     kind: Literal["anonymous", "user", "api_key", "oidc_token", "cli"] = "anonymous"
     user_id: int | None = None
     key_id: int | None = None
+    language: str | None = None
 
 
 @dataclass(frozen=True)

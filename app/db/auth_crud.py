@@ -10,9 +10,10 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any
 
-from sqlalchemy import delete, func, select
+from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
+from app.core.i18n import LANGUAGES, is_language
 from app.core.security import (
     ROLES,
     api_key_prefix,
@@ -186,6 +187,19 @@ def update_user(
     user.updated_at = utcnow()
     session.flush()
     return user
+
+
+def set_language(session: Session, user_id: int, language: str | None) -> None:
+    """Keep ``language`` (one of :data:`app.core.i18n.LANGUAGES`, None: the browser's) with a user.
+
+    Raises
+    ------
+    AuthError
+        ``language`` is not one the service speaks.
+    """
+    if language is not None and not is_language(language):
+        raise AuthError("language", f"must be one of {', '.join(LANGUAGES)} or null, got {language!r}")
+    session.execute(update(User).where(User.id == user_id).values(language=language, updated_at=utcnow()))
 
 
 def delete_user(session: Session, username: str) -> bool:

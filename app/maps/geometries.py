@@ -6,7 +6,6 @@ a child process with a time and memory budget (:func:`app.io.isolation.parse_geo
 from __future__ import annotations
 
 from app.audit import record
-from app.core.config import Settings
 from app.core.errors import not_found
 from app.core.security import Actor
 from app.db import recorder_crud
@@ -14,6 +13,7 @@ from app.db.models import LineGeometryRow
 from app.db.session import Database
 from app.io.geometry import LineGeometry
 from app.io.isolation import parse_geojson_upload
+from app.settings import Settings
 
 __all__ = ["import_geometries", "geometries", "geometry", "delete_geometry"]
 

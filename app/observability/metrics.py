@@ -51,11 +51,11 @@ from prometheus_client.core import GaugeMetricFamily, HistogramMetricFamily, Met
 from prometheus_client.exposition import CONTENT_TYPE_LATEST
 from sqlalchemy import case, func, select
 
-from app.core.config import Settings
 from app.db.models import ConditionFlag, Job, JobStatus, PlacesPending, Run, WebhookDelivery, utcnow
 from app.db.session import Database
 from app.observability.multiproc import multiprocess_mode
 from app.operations.liveness import queue_health
+from app.settings import Settings
 
 __all__ = [
     "CONTENT_TYPE_LATEST",

@@ -116,7 +116,8 @@ def sign_in(db: Database, provider: Provider, signed: SignedIn, *, address: str 
                 auth_crud.delete_session(session, previous_session)
             token = auth_crud.create_session(session, user, dt.timedelta(seconds=ttl_s), address,
                                              id_token=signed.id_token)
-            principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id)
+            principal = Principal(name=user.username, role=user.role, kind="user", user_id=user.id,
+                                  language=user.language)
             record(session, Actor(principal, address), "auth.login", target=user.username,
                    detail={**detail, "role": role, "created": created})
     if refusal is not None:

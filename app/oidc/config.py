@@ -83,7 +83,7 @@ class OidcConfig:
 
     @classmethod
     def from_settings(cls, settings: Any) -> OidcConfig | None:
-        """The configuration of ``settings`` (:class:`app.core.config.Settings`); None when no
+        """The configuration of ``settings`` (:class:`app.settings.Settings`); None when no
         provider is configured (``TRACKVKF_OIDC_ISSUER`` unset)."""
         if not getattr(settings, "oidc_issuer", None):
             return None

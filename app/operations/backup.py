@@ -59,12 +59,12 @@ from sqlalchemy.engine import make_url
 from sqlalchemy.pool import NullPool
 
 from app.core.atomic import atomic_path
-from app.core.config import Settings
 from app.core.runstore import RunStore
 from app.db import migrate
 from app.db.models import Base, Job, JobChunk, JobStatus, Run, WorkerHeartbeat
 from app.db.session import Database, make_engine
 from app.operations import restore_checks as checks
+from app.settings import Settings
 
 __all__ = [
     "FORMAT",

@@ -16,12 +16,12 @@ from typing import Any
 
 from sqlalchemy.exc import SQLAlchemyError
 
-from app.core.config import Settings
 from app.core.diskspace import free_bytes
 from app.core.runstore import RunStore
 from app.db import crud
 from app.db.session import Database
 from app.operations.liveness import QueueHealth, queue_health
+from app.settings import Settings
 
 __all__ = ["service_health"]
 

@@ -11,22 +11,23 @@ from typing import Any
 from app.analysis.condition.discontinuities import ASSET_TYPES
 from app.analysis.condition.extent_level import DEFAULT_AROUND_M, DEFAULT_MARGIN_M
 from app.analysis.condition.lifecycle import LifecycleParams
-from app.analysis.condition.run_places import PlaceParams
+from app.analysis.condition.run_places import (
+    DEFAULT_LEVEL_LIMITS,
+    DEFAULT_PLACE_PARAMS,
+    PlaceParams,
+)
+from app.analysis.condition.section_class import DEFAULT_SECTION_LIMITS
 from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
 from app.analysis.condition.tiers import TIER_NAMES, TierLimits, TierTable
+from app.analytics.settings import SECTION_MARGIN_M
 
 __all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "tier_table", "default_places_config"]
-
-#: Defaults of the settings (``docs/places.md``, "Settings"); :class:`app.core.config.Settings` has the same.
-_DEFAULT_LEVELS = {"": [0.25, 0.375, 0.625], "b91_pads": [0.30, 0.45, 0.75]}
-_DEFAULT_CHANGES = [0.10, 0.30, 0.50]
-_DEFAULT_SECTIONS = (0.05, 0.10, 0.17, 0.25)
 
 
 def tier_table(levels: dict[str, list[float]]) -> TierTable:
     """A :class:`TierTable` from ``{class: [alert, intervention, immediate]}`` (``""``: every other class)."""
     rows = {str(k): TierLimits(*[float(v) for v in lim]) for k, lim in levels.items()}
-    default = rows.pop("", TierLimits(*_DEFAULT_LEVELS[""]))
+    default = rows.pop("", DEFAULT_LEVEL_LIMITS.default)
     return TierTable(default, rows)
 
 
@@ -61,18 +62,17 @@ class PlacesConfig:
         (``TRACKVKF_ANALYTICS_SECTION_MARGIN_M``).
     """
 
-    place: PlaceParams = field(default_factory=lambda: PlaceParams(tier_table(_DEFAULT_LEVELS),
-                                                                    TierLimits(*_DEFAULT_CHANGES)))
+    place: PlaceParams = DEFAULT_PLACE_PARAMS
     lifecycle: LifecycleParams = field(default_factory=LifecycleParams)
     curve_min_locations: int = DEFAULT_MIN_LOCATIONS
     curve_runs: int = 20
     section_m: float = 200.0
-    section_limits: tuple[float, ...] = _DEFAULT_SECTIONS
+    section_limits: tuple[float, ...] = tuple(float(v) for v in DEFAULT_SECTION_LIMITS.limits)
     asset_buffer_m: float = 20.0
     muted_asset_types: frozenset[str] = frozenset()
     effect_around_m: float = DEFAULT_AROUND_M
     effect_margin_m: float = DEFAULT_MARGIN_M
-    section_margin_m: float = 50.0
+    section_margin_m: float = SECTION_MARGIN_M
     alerts: bool = True
 
     def asset_settings(self) -> Any:
@@ -103,7 +103,7 @@ class PlacesConfig:
 
     @classmethod
     def from_settings(cls, settings: Any) -> PlacesConfig:
-        """From :class:`app.core.config.Settings` (``places_*``).
+        """From :class:`app.settings.Settings` (``places_*``).
 
         Raises
         ------

@@ -25,6 +25,7 @@ from app.condition.lines import check_line_km, resolve_line
 from app.condition.readers import ExtentReading, extent_readings, line_runs
 from app.condition.writer import days_of
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.db import reference_crud
 from app.db.models import ConditionLine, ConditionRun, MaintenanceAction
 from app.db.session import Database
@@ -119,7 +120,8 @@ def action_effect_detail(db: Database, action_id: int, *, before_days: float, af
     line = resolve_line(db, a.line_id, a.track)
     runs, got = _readings(db, line, a, config)
     if not runs:
-        raise ApiError(409, "action_id", f"no run of line {line.line_id!r} covers action {action_id}")
+        raise ApiError(409, "action_id", _("no run of line {line} covers action {action_id}", line=repr(line.line_id),
+                                                    action_id=action_id))
     effect = _effect(a, runs, got, before_days=before_days, after_days=after_days, regain=regain_fraction)
     day = _action_day(a)
     days = [days_of(r.run_time) for r in runs]

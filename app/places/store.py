@@ -188,7 +188,9 @@ def write_run(session: Session, line: ConditionLine, run_id: int, when: dt.datet
                 r = act_rows.get(e.action_id)
                 what = f"{r.type} of {r.date.isoformat()} (action {e.action_id})" if r is not None \
                     else f"action {e.action_id}"
-                _set_status(session, row, "fixed", f"repaired by {what}: run {run_id} no longer finds it", when)
+                # a repaired place is fixed as of the repair's day, not the day its run was processed
+                repaired = dt.datetime.combine(r.date, dt.time(12, 0), tzinfo=dt.UTC) if r is not None else when
+                _set_status(session, row, "fixed", f"repaired by {what}: run {run_id} no longer finds it", repaired)
         kinds = {e.kind for e in lifecycle_events.get(st.id, [])}
         if was_active and not st.active and "repaired" not in kinds and was_listed:
             event(st.id, "inactive", st.tier, st.tier)
@@ -203,9 +205,13 @@ def write_run(session: Session, line: ConditionLine, run_id: int, when: dt.datet
 
 
 def _set_status(session: Session, row: Place, status: str, comment: str, when: dt.datetime) -> None:
-    """The service's own status change (recorded like an engineer's, by :data:`SYSTEM_USER`)."""
+    """The service's own status change (recorded like an engineer's, by :data:`SYSTEM_USER`).
+
+    The status holds as of ``when`` (the repair's day for a place a repair fixed, the run's time for
+    one a run found again); the history records when the service wrote it.
+    """
     if row.status == status:
         return
     session.add(PlaceStatusChange(place_id=row.id, by=SYSTEM_USER, at=utcnow(), old=row.status, new=status,
                                   comment=comment))
-    row.status, row.status_comment, row.status_by, row.status_at = status, comment, SYSTEM_USER, utcnow()
+    row.status, row.status_comment, row.status_by, row.status_at = status, comment, SYSTEM_USER, when

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from app.audit import record
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.security import Actor
 from app.db import places as q
 from app.db.models import PLACE_STATUSES, ConditionLine, Place, PlaceStatusChange, utcnow
@@ -33,12 +34,13 @@ def set_status(db: Database, place_id: int, status: str, comment: str, actor: Ac
         422 naming ``status`` (unknown) or ``comment`` (empty or too long); 404 naming ``place_id``.
     """
     if status not in PLACE_STATUSES:
-        raise ApiError(422, "status", f"unknown status {status!r}; one of {', '.join(PLACE_STATUSES)}")
+        raise ApiError(422, "status", _("unknown status {status}; one of {choices}", status=repr(status),
+                                                  choices=', '.join(PLACE_STATUSES)))
     text = (comment or "").strip()
     if not text:
-        raise ApiError(422, "comment", "a status change needs a comment (what was decided and why)")
+        raise ApiError(422, "comment", _("a status change needs a comment (what was decided and why)"))
     if len(text) > MAX_COMMENT_CHARS:
-        raise ApiError(422, "comment", f"at most {MAX_COMMENT_CHARS} characters, got {len(text)}")
+        raise ApiError(422, "comment", _("at most {max} characters, got {n}", max=MAX_COMMENT_CHARS, n=len(text)))
     with db.write() as session:
         p = session.get(Place, place_id, with_for_update=True)
         if p is None:

@@ -24,6 +24,7 @@ from app.analysis.condition.tiers import TIER_NAMES
 from app.assets.labels import label_places
 from app.core.csv_export import csv_text
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.jsonable import iso_time
 from app.db import places as q
 from app.db import recorder_crud, reference_crud
@@ -44,7 +45,8 @@ CSV_COLUMNS: tuple[str, ...] = (
     "reading", "speed_kmh", "tier", "confirmed", "evidence", "wheels", "runs_confirming", "first_seen",
     "last_confirmed", "tendency", "rate_per_year", "rate_low", "rate_high", "amplitude_percent_per_year",
     "amplitude_percent_low", "amplitude_percent_high",
-    "next_tier", "projected_date", "days_to_next_tier", "status", "status_comment",
+    "next_tier", "projected_date", "days_to_next_tier", "projected_date_early", "projected_date_late",
+    "days_to_next_tier_early", "days_to_next_tier_late", "no_projection", "status", "status_comment",
     "status_by", "status_at", "actions", "assets", "active", "muted", "muted_reason", "method_version",
     "peak_sd", "change", "change_sd", "severity", "severity_sd",
 )
@@ -66,12 +68,12 @@ class PlaceQuery:
         """422 naming ``tier`` / ``status`` for an unknown name, ``track`` without ``line_id``."""
         for t in self.tiers:
             if t not in TIER_NAMES:
-                raise ApiError(422, "tier", f"unknown tier {t!r}; one of {', '.join(TIER_NAMES)}")
+                raise ApiError(422, "tier", _("unknown tier {tier}; one of {choices}", tier=repr(t), choices=', '.join(TIER_NAMES)))
         for s in self.statuses:
             if s not in PLACE_STATUSES:
-                raise ApiError(422, "status", f"unknown status {s!r}; one of {', '.join(PLACE_STATUSES)}")
+                raise ApiError(422, "status", _("unknown status {status}; one of {choices}", status=repr(s), choices=', '.join(PLACE_STATUSES)))
         if self.track is not None and self.line_id is None:
-            raise ApiError(422, "track", "track needs line_id")
+            raise ApiError(422, "track", _("track needs line_id"))
         return self
 
 
@@ -83,8 +85,9 @@ def _lines(session: Session, qy: PlaceQuery) -> dict[int, ConditionLine]:
             stmt = stmt.where(ConditionLine.track == qy.track)
     lines = {ln.id: ln for ln in session.scalars(stmt)}
     if qy.line_id is not None and not lines:
-        raise ApiError(404, "line_id", f"line {qy.line_id!r}" + (f" track {qy.track!r}" if qy.track else "")
-                       + " has no runs in the condition store")
+        raise ApiError(404, "line_id", _("line {line} track {track} has no runs in the condition store",
+                                         line=repr(qy.line_id), track=repr(qy.track)) if qy.track
+                       else _("line {line} has no runs in the condition store", line=repr(qy.line_id)))
     return lines
 
 

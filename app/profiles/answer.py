@@ -15,7 +15,6 @@ import pandas as pd
 
 from app.analysis.aggregate import aggregate_profile, display_indices
 from app.analytics.stiffness_index import INDEX_COLUMNS
-from app.core.config import Settings
 from app.core.jsonable import jsonable
 from app.db import results_reader
 from app.db.display import display_rows, km_extent
@@ -24,6 +23,7 @@ from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
 from app.profiles.encoding import columns_json, encoded, rows_json
 from app.profiles.query import AGGREGATED_COLUMNS, ProfileQuery
+from app.settings import Settings
 
 __all__ = ["aggregate", "decimate", "profile_body", "Computed", "compute"]
 

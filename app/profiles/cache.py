@@ -16,11 +16,11 @@ import anyio
 import anyio.to_thread
 
 from app.core.bytecache import ByteLRU
-from app.core.config import Settings
 from app.db.display_arrays import DisplayArrays
 from app.db.session import Database
 from app.profiles.answer import Computed, compute
 from app.profiles.query import ProfileQuery
+from app.settings import Settings
 
 __all__ = ["ProfileAnswers"]
 

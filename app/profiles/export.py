@@ -16,13 +16,13 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from app.analytics.stiffness_index import INDEX_COLUMNS, IndexContext
-from app.core.config import Settings
 from app.core.csv_export import escape_cell
 from app.db import results_reader
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
 from app.profiles.answer import aggregate
 from app.profiles.query import level_ratio, results_context, run_index_context
+from app.settings import Settings
 
 __all__ = ["ProfileExport", "profile_export", "export_filename", "csv_stream", "parquet_stream"]
 

@@ -11,14 +11,15 @@ from dataclasses import dataclass
 from datetime import datetime
 
 from app.analytics.stiffness_index import IndexContext, index_context
-from app.core.config import Settings
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.db import crud, results_reader
 from app.db.display_arrays import DisplayArrays
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
 from app.profiles.encoding import etag
 from app.runs.lookup import run_with_results
+from app.settings import Settings
 
 __all__ = ["AGGREGATED_COLUMNS", "ProfileQuery", "indicator_columns", "results_context", "level_ratio",
            "run_index_context", "profile_query"]
@@ -56,7 +57,7 @@ def indicator_columns(value: str | None, max_points: int | None) -> tuple[str, .
         return None
     names = [c.strip() for c in value.split(",") if c.strip()]
     if not names:
-        raise ApiError(422, "columns", "names no column")
+        raise ApiError(422, "columns", _("names no column"))
     if max_points is not None and "sleeper_amp" not in names:
         names.append("sleeper_amp")  # decimation keeps the peaks of the sleeper amplitude
     try:
@@ -75,9 +76,7 @@ def run_index_context(db: Database, settings: Settings, run_id: int, bin_length:
 
 def _swept(run_id: int, swept_at: datetime) -> ApiError:
     """410: the run's 25 cm rows were removed by the retention sweep."""
-    return ApiError(410, "profile", f"the 25 cm rows of run {run_id} were removed by the retention sweep on "
-                                    f"{swept_at.date().isoformat()} (TRACKVKF_PROFILE_RETENTION_DAYS); "
-                                    "its 10 m / 100 m condition rows remain: GET /api/v1/condition/…")
+    return ApiError(410, "profile", _("the 25 cm rows of run {run_id} were removed by the retention sweep on {date} (TRACKVKF_PROFILE_RETENTION_DAYS); its 10 m / 100 m condition rows remain: GET /api/v1/condition/…", run_id=run_id, date=swept_at.date().isoformat()))
 
 
 def results_context(
@@ -104,7 +103,7 @@ def results_context(
             wheels = results_reader.stored_profile_wheels(session, job.id)
     if wheel is not None and wheel not in wheels:
         raise ApiError(
-            404, "wheel", f"run {run_id} has no profile for wheel {wheel!r} (wheels: {', '.join(wheels)})"
+            404, "wheel", _("run {run_id} has no profile for wheel {wheel} (wheels: {wheels})", run_id=run_id, wheel=repr(wheel), wheels=', '.join(wheels))
         )
     return job_id, bin_length, wheels
 
@@ -115,7 +114,7 @@ def level_ratio(level_m: float, bin_length: float) -> int:
     k = round(ratio)
     if k < 1 or abs(ratio - k) > 1e-9 * max(ratio, 1.0):
         raise ApiError(
-            422, "level", f"must be a positive multiple of the bin length {bin_length} m, got {level_m}"
+            422, "level", _("must be a positive multiple of the bin length {bin_length} m, got {level_m}", bin_length=bin_length, level_m=level_m)
         )
     return int(k)
 
@@ -130,11 +129,11 @@ def profile_query(db: Database, settings: Settings, arrays: DisplayArrays | None
     values = indicator_columns(columns, max_points)
     if index and values is not None:
         values = tuple(dict.fromkeys([*values, "speed_mean", "sleeper_amp"]))
-    job_id, bin_length, _ = results_context(db, run_id, wheel, arrays)
+    job_id, bin_length, _arrays = results_context(db, run_id, wheel, arrays)
     ctx = run_index_context(db, settings, run_id, bin_length) if index else None
     k = level_ratio(level, bin_length)
     if max_points is not None and max_points > settings.max_profile_rows:
-        raise ApiError(422, "max_points", f"must be <= {settings.max_profile_rows}")
+        raise ApiError(422, "max_points", _("must be <= {max_profile_rows}", max_profile_rows=settings.max_profile_rows))
     tag = etag(job_id, settings.max_profile_rows, wheel=wheel, km_from=km_from, km_to=km_to, level=level,
                max_points=max_points, columns=values, layout=layout,
                index=ctx.version() if ctx is not None else None)

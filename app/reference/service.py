@@ -8,11 +8,11 @@ import datetime as dt
 from typing import Any, Literal
 
 from app.audit import record
-from app.core.config import Settings
 from app.core.security import Actor
 from app.db import reference_crud
 from app.db.session import Database
 from app.io.isolation import read_reference_upload
+from app.settings import Settings
 
 __all__ = ["Kind", "import_reference", "delete_reference", "reference_window"]
 

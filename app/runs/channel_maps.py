@@ -11,6 +11,7 @@ from sqlalchemy.exc import IntegrityError
 
 from app.audit import record
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.security import Actor
 from app.db import recorder_crud
 from app.db.models import ChannelMapRow
@@ -27,7 +28,7 @@ def _validated(name: str, channels: dict[str, Any]) -> dict:
 
 
 def _taken(vehicle_id: str, name: str) -> ApiError:
-    return ApiError(409, "name", f"vehicle {vehicle_id!r} already has a map {name!r}")
+    return ApiError(409, "name", _("vehicle {vehicle_id} already has a map {name}", vehicle_id=repr(vehicle_id), name=repr(name)))
 
 
 def channel_maps(db: Database, vehicle_id: str | None = None) -> list[ChannelMapRow]:

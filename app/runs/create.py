@@ -19,8 +19,9 @@ from sqlalchemy.exc import IntegrityError
 
 from app.analysis.settings import ProcessingSettings
 from app.audit import record
-from app.core.config import API_PREFIX, Settings
+from app.core.config import API_PREFIX
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.ids import MAX_ID
 from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
@@ -33,6 +34,7 @@ from app.io.channel_map import ChannelMap, parse_channel_map
 from app.io.geometry import LineGeometry
 from app.io.isolation import ingest_upload
 from app.runs.metadata import describe_differences, metadata_differences, run_fields
+from app.settings import Settings
 
 __all__ = ["UploadedFile", "UploadOutcome", "create_run_from_file", "existing_outcome", "existing_run_id",
            "check_same_metadata", "insert_run", "load_channel_map", "channel_map_id"]
@@ -91,9 +93,7 @@ def check_same_metadata(db: Database, run_id: int, given: dict[str, Any] | None)
     if diffs:
         raise ApiError(
             409, "metadata",
-            f"this file was uploaded before as run {run_id} with other metadata "
-            f"({describe_differences(diffs)}); correct the run's metadata with "
-            f"PATCH {API_PREFIX}/runs/{run_id} (re-ingests and reprocesses the run)",
+            _("this file was uploaded before as run {run_id} with other metadata ({differences}); correct the run's metadata with PATCH {prefix}/runs/{run_id} (re-ingests and reprocesses the run)", run_id=run_id, differences=describe_differences(diffs), prefix=API_PREFIX),
         )
 
 
@@ -108,12 +108,11 @@ def load_channel_map(db: Database, map_id: int, vehicle_id: str | None) -> Chann
     with db.read() as session:
         row = recorder_crud.get_channel_map(session, map_id)
         if row is None:
-            raise ApiError(422, "channel_map", f"channel map {map_id} not found")
+            raise ApiError(422, "channel_map", _("channel map {map_id} not found", map_id=map_id))
         if vehicle_id is not None and row.vehicle_id != vehicle_id:
             raise ApiError(
                 422, "channel_map",
-                f"channel map {map_id} belongs to vehicle {row.vehicle_id!r}, the run's "
-                f"vehicle_id is {vehicle_id!r}",
+                _("channel map {map_id} belongs to vehicle {vehicle_id}, the run's vehicle_id is {run_vehicle}", map_id=map_id, vehicle_id=repr(row.vehicle_id), run_vehicle=repr(vehicle_id)),
             )
         return parse_channel_map({"name": row.name, "channels": dict(row.channels)})
 
@@ -123,7 +122,7 @@ def channel_map_id(text: str | None) -> int | None:
         return None
     value = text.strip()
     if not value.isdigit() or not 0 < int(value) <= MAX_ID:
-        raise ApiError(422, "channel_map", f"must be the id of a stored channel map, got {value[:40]!r}")
+        raise ApiError(422, "channel_map", _("must be the id of a stored channel map, got {value}", value=repr(value[:40])))
     return int(value)
 
 

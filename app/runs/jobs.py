@@ -13,6 +13,7 @@ from typing import Any
 from app.analysis.settings import ProcessingSettings
 from app.audit import record
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.runstore import RunStore
 from app.core.security import Actor
 from app.db import crud
@@ -20,7 +21,10 @@ from app.db.models import N_ORDER_COLUMNS, Job, JobStatus
 from app.db.session import Database
 from app.runs.catalog import JobView, job_views
 
-__all__ = ["N_ORDER_COLUMNS", "settings_from_request", "reprocess", "cancel", "job_page", "job_view"]
+__all__ = ["JOB_STATUSES", "N_ORDER_COLUMNS", "settings_from_request", "reprocess", "cancel", "job_page", "job_view"]
+
+#: the states of a job (the pages' words for them: app.web.vocabulary)
+JOB_STATUSES: tuple[str, ...] = tuple(JobStatus.ALL)
 
 _SETTING_FIELDS = tuple(f.name for f in dataclasses.fields(ProcessingSettings))
 
@@ -50,8 +54,7 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
         raise ApiError(
             422,
             "n_wheel_orders",
-            f"the service stores at most {N_ORDER_COLUMNS} wheel orders per bin, "
-            f"got {settings.n_wheel_orders}",
+            _("the service stores at most {N_ORDER_COLUMNS} wheel orders per bin, got {n_wheel_orders}", N_ORDER_COLUMNS=N_ORDER_COLUMNS, n_wheel_orders=settings.n_wheel_orders),
         )
     return settings
 
@@ -74,7 +77,7 @@ def reprocess(db: Database, run_id: int, changes: dict[str, Any], actor: Actor) 
             raise ApiError(
                 409,
                 "job",
-                f"run {run_id} already has job {active.id} {active.status}; cancel it first",
+                _("run {run_id} already has job {id} {status}; cancel it first", run_id=run_id, id=active.id, status=active.status),
             )
         job = crud.create_job(session, run_id, settings.to_dict(), actor.name)
         record(session, actor, "job.create", target=run_id,
@@ -98,7 +101,7 @@ def cancel(db: Database, store: RunStore, job_id: int, actor: Actor) -> JobView:
         job = crud.get_job(session, job_id)
         assert job is not None
         if outcome == "final":
-            raise ApiError(409, "job", f"job {job_id} is already {job.status}")
+            raise ApiError(409, "job", _("job {job_id} is already {status}", job_id=job_id, status=job.status))
         record(session, actor, "job.cancel", target=job_id, detail={"run_id": job.run_id})
         session.refresh(job)
         (view,) = job_views(session, [job])
@@ -118,7 +121,7 @@ def job_page(db: Database, *, run_id: int | None = None, status: str | None = No
         and there is no such run.
     """
     if status is not None and status not in JobStatus.ALL:
-        raise ApiError(422, "status", f"must be one of {', '.join(JobStatus.ALL)}")
+        raise ApiError(422, "status", _("must be one of {choices}", choices=', '.join(JobStatus.ALL)))
     with db.read() as session:
         if run_must_exist and run_id is not None and crud.get_run(session, run_id) is None:
             raise not_found("run", run_id)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from sqlalchemy.orm import Session
 
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.db import crud, results_reader
 from app.db.models import Job, Run
 
@@ -26,5 +27,5 @@ def run_with_results(session: Session, run_id: int) -> tuple[Run, Job]:
     if job is None:
         latest = crud.latest_job(session, run_id)
         state = f"latest job {latest.id} is {latest.status}" if latest else "no job"
-        raise ApiError(409, "profile", f"run {run_id} has no results yet ({state})")
+        raise ApiError(409, "profile", _("run {run_id} has no results yet ({state})", run_id=run_id, state=state))
     return run, job

@@ -19,6 +19,7 @@ from typing import Any
 
 from app.audit import record
 from app.core.errors import ApiError, not_found
+from app.core.i18n import _
 from app.core.jsonable import finite_or_none
 from app.core.runstore import RunStore
 from app.core.security import Actor
@@ -93,8 +94,7 @@ class RevisionOutcome:
 def _check_no_active_job(session, run_id: int) -> None:
     active = crud.active_job(session, run_id)
     if active is not None:
-        raise ApiError(409, "job", f"run {run_id} has job {active.id} {active.status}; "
-                                   "cancel it or wait for it before correcting the metadata")
+        raise ApiError(409, "job", _("run {run_id} has job {id} {status}; cancel it or wait for it before correcting the metadata", run_id=run_id, id=active.id, status=active.status))
 
 
 def revise_run_metadata(db: Database, store: RunStore, run_id: int, given: Mapping[str, Any],
@@ -111,7 +111,7 @@ def revise_run_metadata(db: Database, store: RunStore, run_id: int, given: Mappi
         field for invalid metadata (nothing written then).
     """
     if not given:
-        raise ApiError(422, "metadata", "give at least one metadata field to change")
+        raise ApiError(422, "metadata", _("give at least one metadata field to change"))
     with db.read() as session:
         run = crud.get_run(session, run_id)
         if run is None:

@@ -15,6 +15,7 @@ from typing import Any
 from app.audit import record_now
 from app.core.diskspace import DiskFullError, is_disk_full
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.security import Actor
 from app.db.session import Database
 from app.io import RunFileError, load_metadata_json
@@ -71,7 +72,8 @@ def infer_format(explicit: str | None, filename: str | None, content_type: str |
     if explicit:
         fmt = format_of_alias(explicit)
         if fmt is None:
-            raise ApiError(422, "format", f"unknown format {explicit!r}; supported formats are {', '.join(FORMATS)}")
+            raise ApiError(422, "format", _("unknown format {format}; supported formats are {choices}",
+                                                    format=repr(explicit), choices=', '.join(FORMATS)))
         return fmt
     named = format_of_name(filename)
     if named is not None:
@@ -81,7 +83,7 @@ def infer_format(explicit: str | None, filename: str | None, content_type: str |
 
 def _one_of(name: str, form_value: str | None, query_value: str | None) -> str | None:
     if form_value is not None and query_value is not None:
-        raise ApiError(422, name, "given both as form field and as query parameter")
+        raise ApiError(422, name, _("given both as form field and as query parameter"))
     return form_value if form_value is not None else query_value
 
 
@@ -105,7 +107,7 @@ def upload_of(received: Received, *, query_format: str | None = None, query_meta
         422 naming ``metadata`` (not a JSON object).
     """
     if received.size == 0:
-        raise ApiError(422, "file", "the uploaded file is empty")
+        raise ApiError(422, "file", _("the uploaded file is empty"))
     path = received.path
     named = format_of_name(received.filename)
     if named is not None:
@@ -127,7 +129,7 @@ def rate_key(actor: Actor) -> str:
 def too_many_uploads(retry_after_s: float) -> ApiError:
     """The 429 of an upload over ``TRACKVKF_UPLOAD_RATE_LIMIT`` (``Retry-After`` in whole seconds)."""
     seconds = max(1, int(retry_after_s + 0.999))
-    return ApiError(429, "rate_limit", f"too many uploads; retry in {seconds} s", {"Retry-After": str(seconds)})
+    return ApiError(429, "rate_limit", _("too many uploads; retry in {seconds} s", seconds=seconds), {"Retry-After": str(seconds)})
 
 
 def refusal(exc: BaseException) -> tuple[ApiError, str, ApiError | None]:
@@ -139,11 +141,11 @@ def refusal(exc: BaseException) -> tuple[ApiError, str, ApiError | None]:
     if is_disk_full(exc):
         log.warning("upload refused: %s", exc)
         reason = str(exc) if isinstance(exc, DiskFullError) else "the run store or the database is full"
-        full = ApiError(507, "storage", f"{reason}; the upload was not kept, free space and try again")
+        full = ApiError(507, "storage", _("{reason}; the upload was not kept, free space and try again", reason=reason))
         return full, "rejected", full
     if isinstance(exc, RunFileError):
         return ApiError(422, exc.field, exc.message), "rejected", None
-    return ApiError(500, "server", f"{type(exc).__name__}: {exc}"), "error", None
+    return ApiError(500, "server", _("{type}: {exc}", type=type(exc).__name__, exc=exc)), "error", None
 
 
 def record_refusal(db: Database, actor: Actor, error: ApiError, outcome: str) -> None:

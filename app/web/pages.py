@@ -1,4 +1,10 @@
-"""HTML pages of the dashboard, static files and the local Plotly.js bundle."""
+"""HTML pages of the dashboard, static files and the local Plotly.js bundle.
+
+Each page is rendered in the request's language (:func:`app.api.language.request_language`:
+the user's choice, else the browser's): its templates through the gettext of that language,
+its scripts with the script catalogue of :mod:`app.web.i18n`, the language's code and locale
+in the page's boot data.
+"""
 
 from __future__ import annotations
 
@@ -9,16 +15,22 @@ from typing import Any
 from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
-from fastapi.templating import Jinja2Templates
 
-from app.analysis.condition import OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
+from app.analysis.condition import FINE_SEGMENT_M, OVERVIEW_SEGMENT_M, SEGMENT_LENGTHS_M
 from app.analysis.condition.section_class import SECTION_CLASSES
 from app.analysis.condition.tiers import TIER_NAMES
 from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
 from app.api import API_PREFIX
 from app.api.deps import RunId, public, require_page_login
+from app.api.language import request_language
+from app.core.i18n import LANGUAGE_NAMES, LANGUAGES, N_, jinja_environment, translations
+from app.io.reference import MAINTENANCE_TYPES
 from app.maps.indicator import DEFAULT_MAP_SEGMENT_M
+from app.places.config import PlacesConfig
 from app.places.workflow import PLACE_STATUSES
+from app.places.worklist import CLOSED_STATUSES
+from app.web.i18n import boot_language, build_i18n_router, catalogue_url
+from app.web.vocabulary import labels
 
 __all__ = [
     "FRONTEND_DIR", "PLOTLY_JS", "FAVICON", "build_pages_router", "build_public_router",
@@ -34,13 +46,15 @@ FAVICON = FRONTEND_DIR / "static" / "img" / "favicon.ico"
 
 #: nav bar: (page key, URL, label)
 NAV = (
-    ("runs", "/", "Runs"),
-    ("lines", "/lines", "Line view"),
-    ("condition", "/condition", "Condition"),
-    ("map", "/map", "Map"),
-    ("wheels", "/wheels", "Wheels"),
-    ("correlations", "/correlations", "Correlations"),
+    ("runs", "/", N_("Runs")),
+    ("lines", "/lines", N_("Line view")),
+    ("condition", "/condition", N_("Condition")),
+    ("map", "/map", N_("Map")),
+    ("wheels", "/wheels", N_("Wheels")),
+    ("correlations", "/correlations", N_("Correlations")),
 )
+#: the templates of the pages
+TEMPLATES_DIR = str(FRONTEND_DIR / "templates")
 
 
 def plotly_js_path() -> Path:
@@ -53,7 +67,7 @@ def plotly_js_path() -> Path:
     return path
 
 
-def build_pages_router(templates: Jinja2Templates) -> APIRouter:
+def build_pages_router() -> APIRouter:
     """Router of the HTML pages (not in the OpenAPI schema).
 
     Every page needs a logged-in browser (viewer or higher; else 303 to
@@ -63,51 +77,63 @@ def build_pages_router(templates: Jinja2Templates) -> APIRouter:
     router = APIRouter(include_in_schema=False, dependencies=[Depends(require_page_login("viewer"))])
 
     def page(request: Request, template: str, key: str, title: str, **context: Any) -> HTMLResponse:
-        boot = {"api": API_PREFIX, "page": key, "segment_m": DEFAULT_SEGMENT_M, **context}
-        return templates.TemplateResponse(
-            request,
-            template,
-            {"title": title, "active": key, "nav": NAV, "boot_json": json.dumps(boot),
-             "plotly_js": PLOTLY_JS, **context},
+        """``template`` in the request's language; ``title`` is a message id (%-fields from context)."""
+        language = request_language(request)
+        env = jinja_environment(TEMPLATES_DIR, language.code)
+        title = translations(language.code).gettext(title) % context
+        words = labels(language.code)
+        boot = {"api": API_PREFIX, "page": key, "segment_m": DEFAULT_SEGMENT_M, **boot_language(language),
+                "labels": words, **context}
+        html = env.get_template(template).render(
+            request=request, title=title, active=key, nav=NAV, boot_json=json.dumps(boot),
+            plotly_js=PLOTLY_JS, i18n_js=catalogue_url(language.code), locale=language.tag,
+            label=lambda kind, code: words.get(kind, {}).get(code, code),
+            languages=[(code, LANGUAGE_NAMES[code]) for code in LANGUAGES],
+            chosen_language=getattr(getattr(request.state, "principal", None), "language", None), **context,
         )
+        return HTMLResponse(html)
 
     @router.get("/", response_class=HTMLResponse)
     def runs_page(request: Request) -> HTMLResponse:
-        return page(request, "runs.html", "runs", "Runs")
+        return page(request, "runs.html", "runs", N_("Runs"))
 
     @router.get("/runs/{run_id}", response_class=HTMLResponse)
     def run_page(request: Request, run_id: RunId) -> HTMLResponse:
-        return page(request, "run.html", "runs", f"Run {run_id} · stiffness map", run_id=run_id)
+        return page(request, "run.html", "runs", N_("Run %(run_id)s · stiffness map"), run_id=run_id)
 
     @router.get("/runs/{run_id}/spectrogram", response_class=HTMLResponse)
     def spectrogram_page(request: Request, run_id: RunId) -> HTMLResponse:
-        return page(request, "spectrogram.html", "runs", f"Run {run_id} · spectrogram", run_id=run_id)
+        return page(request, "spectrogram.html", "runs", N_("Run %(run_id)s · spectrogram"), run_id=run_id)
 
     @router.get("/lines", response_class=HTMLResponse)
     def lines_page(request: Request) -> HTMLResponse:
-        return page(request, "lines.html", "lines", "Line view")
+        return page(request, "lines.html", "lines", N_("Line view"))
 
     @router.get("/map", response_class=HTMLResponse)
     def map_page(request: Request) -> HTMLResponse:
         settings = request.app.state.settings
         tiles = {"url": settings.map_tile_url, "attribution": settings.map_tile_attribution}
-        return page(request, "map.html", "map", "Map", tiles=tiles if settings.map_tile_url else None,
+        return page(request, "map.html", "map", N_("Map"), tiles=tiles if settings.map_tile_url else None,
                     map_segment_m=int(DEFAULT_MAP_SEGMENT_M))
 
     @router.get("/condition", response_class=HTMLResponse)
     def condition_page(request: Request) -> HTMLResponse:
-        return page(request, "condition.html", "condition", "Condition",
+        # the page's rules, as the services state them (the page's scripts restate none)
+        places = PlacesConfig.from_settings(request.app.state.settings)
+        return page(request, "condition.html", "condition", N_("Condition"),
                     segment_lengths=[int(s) for s in SEGMENT_LENGTHS_M], overview_segment_m=int(OVERVIEW_SEGMENT_M),
-                    tiers=list(reversed(TIER_NAMES)), statuses=list(PLACE_STATUSES),
-                    section_classes=list(SECTION_CLASSES))
+                    fine_segment_m=int(FINE_SEGMENT_M), tiers=list(reversed(TIER_NAMES)), statuses=list(PLACE_STATUSES),
+                    open_statuses=[s for s in PLACE_STATUSES if s not in CLOSED_STATUSES],
+                    section_classes=list(SECTION_CLASSES), tier_limits=places.levels.to_dict())
 
     @router.get("/wheels", response_class=HTMLResponse)
     def wheels_page(request: Request) -> HTMLResponse:
-        return page(request, "wheels.html", "wheels", "Wheels")
+        return page(request, "wheels.html", "wheels", N_("Wheels"))
 
     @router.get("/correlations", response_class=HTMLResponse)
     def correlations_page(request: Request) -> HTMLResponse:
-        return page(request, "correlations.html", "correlations", "Correlations")
+        return page(request, "correlations.html", "correlations", N_("Correlations"),
+                    maintenance_types=list(MAINTENANCE_TYPES))
 
     @router.get(PLOTLY_JS)
     def plotly_bundle() -> FileResponse:
@@ -135,7 +161,7 @@ def build_public_router() -> APIRouter:
 
 def install_pages(app: FastAPI) -> None:
     """Mount the dashboard on ``app``: pages, ``/favicon.ico``, ``/static`` and the Plotly.js bundle."""
-    templates = Jinja2Templates(directory=str(FRONTEND_DIR / "templates"))
-    app.include_router(build_pages_router(templates))
+    app.include_router(build_pages_router())
     app.include_router(build_public_router())
+    app.include_router(build_i18n_router())
     app.mount("/static", StaticFiles(directory=str(FRONTEND_DIR / "static")), name="static")

@@ -13,7 +13,7 @@ from app.analysis.speed_match import (
     log_speeds_matched,
     speeds_matched,
 )
-from app.core.config import Settings
+from app.settings import Settings
 
 
 def test_matched_within_a_factor_one_plus_tol_either_way():

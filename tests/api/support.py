@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from app.core.config import Settings
+from app.settings import Settings
 
 __all__ = ["make_settings", "store_files", "create_api_key", "auth_headers"]
 

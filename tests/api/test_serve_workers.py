@@ -10,8 +10,8 @@ from typer.testing import CliRunner
 
 from app.cli import app
 from app.cli.service import default_api_workers
-from app.core.config import get_settings
 from app.db import migrate
+from app.settings import get_settings
 
 
 @pytest.fixture

@@ -1,15 +1,18 @@
 """The service settings' defaults are the numerics' own: a service with no setting decides as the
-numerics do by default (Settings sits below the numerics and cannot name their constants, so this
-checks that the two agree)."""
+numerics do by default (each package's settings group takes its defaults from the numerics'
+constants; this checks that the composed settings and the parameter objects built from them agree)."""
 
 from __future__ import annotations
 
 from app.analysis.condition.extent_level import DEFAULT_AROUND_M, DEFAULT_MARGIN_M
 from app.analysis.settings import ProcessingSettings
 from app.analysis.units import MIN_SPEED_KMH
+from app.analytics.reference_curves import CurveParams
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
-from app.core.config import Settings
+from app.oidc.config import OidcConfig
 from app.places.config import PlacesConfig, default_places_config
+from app.places.followup import DEFAULT_FOLLOWUP, FollowupPolicy
+from app.settings import Settings
 
 
 def test_the_settings_defaults_are_the_numerics_defaults():
@@ -18,3 +21,11 @@ def test_the_settings_defaults_are_the_numerics_defaults():
     assert (s.places_effect_around_m, s.places_effect_margin_m) == (DEFAULT_AROUND_M, DEFAULT_MARGIN_M)
     assert ConditionConfig.from_settings(s) == DEFAULT_CONDITION_CONFIG
     assert PlacesConfig.from_settings(s) == default_places_config()
+    assert FollowupPolicy.from_settings(s) == DEFAULT_FOLLOWUP
+    assert CurveParams.from_settings(s) == CurveParams()
+
+
+def test_the_oidc_settings_defaults_are_the_configurations():
+    s = Settings(oidc_issuer="https://idp.example/realms/rail", oidc_client_id="trackvkf", oidc_client_secret="x")
+    assert OidcConfig.from_settings(s) == OidcConfig(issuer="https://idp.example/realms/rail", client_id="trackvkf",
+                                                     client_secret="x")

@@ -185,6 +185,7 @@ def save_screenshot(page, name: str) -> Path:
     """Full-page screenshot to ``SCREENSHOTS/<name>.png`` (read them: the walk's record of each page)."""
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     path = SCREENSHOTS / f"{name}.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
     page.wait_for_timeout(300)  # let Plotly finish its transitions
     page.screenshot(path=str(path), full_page=True)
     return path

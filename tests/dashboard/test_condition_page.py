@@ -170,6 +170,12 @@ def test_the_tamping_closed_its_place_and_its_history_shows_the_maintenance(engi
     shapes = page.evaluate("document.getElementById('place-history').layout.shapes.length")
     assert shapes >= 1  # the action's day marked
     assert "repaired" in page.inner_text("#place-events-body")
+    # a fixed place's status date is the repair's day, not the day its run was processed
+    pid = hit.get_attribute("data-place")
+    place = page.evaluate(f"async () => (await (await fetch('/api/v1/condition/places/{pid}')).json())")
+    repair = next(a for a in place["actions"] if a["relation"] == "repaired")
+    assert place["status"] == "fixed" and place["status_at"][:10] == repair["date"], (place["status_at"], repair)
+    assert f"repaired by tamping on {repair['date']}" in page.inner_text("#place-kv").lower()
     # tier filter: nothing when no tier is checked
     for box in page.locator("#tier-filter input").all():
         box.set_checked(False)

@@ -4,6 +4,7 @@ and a click on a segment opening that run's stiffness map at the segment's km.""
 from __future__ import annotations
 
 import json
+import re
 from urllib.parse import parse_qs, urlsplit
 
 import pytest
@@ -31,9 +32,17 @@ def test_map_shows_indicator_and_click_opens_the_stiffness_map(open_page, dashbo
               colors: el.data[1].marker.color.filter(v => v !== null).length,
               runs: [...new Set(el.data[1].customdata.map(c => c[0]))],
               xtitle: el.layout.xaxis.title.text, ytitle: el.layout.yaxis.title.text,
+              km: (el.data.find(t => t.name === 'km') || {text: []}).text,
+              places: (el.data.find(t => t.name === 'places') || {customdata: []}).customdata.map(c => c[1]),
               csv: !document.querySelector('[data-csv-for="map-plot"]').disabled};
     }""")
-    assert state["types"] == ["scatter", "scatter"] and state["line"] > 10
+    # the line and its indicator first, then the km marks (and the places where there are any)
+    assert state["types"][:2] == ["scatter", "scatter"] and set(state["types"]) == {"scatter"} and state["line"] > 10
+    assert len(state["km"]) >= 2 and all(re.fullmatch(r"km \d+(\.\d)?", t) for t in state["km"]), state["km"]
+    with dashboard.service.client(timeout=60) as client:
+        places = client.get("/api/v1/condition/places", params={"line_id": "SIM", "track": "1", "limit": 500}).json()
+    on_line = sorted(p["id"] for p in places.get("items", []) if 11.8 <= p["peak_km"] <= 13.5)
+    assert sorted(state["places"]) == on_line, (state["places"], on_line)
     assert state["points"] >= 8 and state["colors"] == state["points"], state  # 1.2 km in 100 m segments
     with dashboard.service.client(timeout=60) as client:  # newest start first
         latest = client.get("/api/v1/runs", params={"line_id": "SIM", "track": "1"}).json()["items"][0]["id"]

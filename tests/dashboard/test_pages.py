@@ -53,7 +53,7 @@ def test_page_loads_clean_with_data(open_page, dashboard, name):
         state = {p["id"]: p for p in plots}
         for plot_id in ("subsidence-plot", "maintenance-plot"):
             assert state[plot_id]["state"] == "ready" and state[plot_id]["points"] > 0
-        assert "Wheel 11" in page.inner_text("#fit-table") and "No fit" not in page.inner_text("#fit-table")
+        assert "Z11" in page.inner_text("#fit-table") and "No fit" not in page.inner_text("#fit-table")
         assert page.input_value("#line-track").startswith("SIM\u0001")
         mass = state["mass-plot"]
         assert mass["state"] == "ready" and mass["points"] > 0 and mass["modebarPng"] and mass["csvEnabled"]

@@ -55,6 +55,9 @@ def _check_content(page, name: str, dashboard) -> None:
         assert ops >= 30, f"/docs lists {ops} operations"
         for path in ("/api/v1/runs", "/api/v1/analytics/subsidence-fit", "/api/v1/runs/{run_id}/profile"):
             assert path in body, f"/docs does not show {path}"
+        # a way back to the pages
+        back = page.locator("#back-to-dashboard a")
+        assert back.is_visible() and back.get_attribute("href") == "/" and "dashboard" in back.inner_text()
         return
     banner = page.locator("#banner")
     assert not banner.is_visible(), f"{name}: error banner {banner.inner_text()!r}"
@@ -72,7 +75,9 @@ def _check_content(page, name: str, dashboard) -> None:
         legend = page.locator("#map-legend")
         assert legend.is_visible() and legend.locator(".swatch").count() >= 2  # sections + maintenance
         names = page.evaluate("document.getElementById('stiffness-plot').data.map(t => t.name)")
-        assert "Z11 · axle 1 right" in names
+        # the two wheels of an axle share the two-rail value: one trace per axle, said in its name
+        assert "axle 1: Z11 = Z12 (both rails, one value)" in names, names
+        assert not any(n.startswith("Z11 · ") or n.startswith("Z12 · ") for n in names), names
     elif name == "line-view":
         options = page.locator("#line-track option").all_inner_texts()
         assert len(options) == 2 and page.input_value("#line-track").startswith("SIM\u0001"), options

@@ -7,8 +7,8 @@ from collections.abc import Iterator
 
 import pytest
 
-from app.core.config import Settings
 from app.db.session import Database
+from app.settings import Settings
 
 
 @pytest.fixture

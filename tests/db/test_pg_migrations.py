@@ -45,7 +45,7 @@ def test_postgresql_upgrade_downgrade_with_procrastinate_schema(pg_cluster):
     assert objs["tables"] == 4 and objs["functions"] > 10 and objs["types"] >= 3
     assert objs["service"] == 5
     # the schema works: Procrastinate can defer into it
-    from app.core.config import Settings
+    from app.settings import Settings
     from worker.hosting import make_app
     from worker.tasks import TASK_PLAN
 

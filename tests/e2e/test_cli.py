@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import app
-from app.core.config import get_settings
+from app.settings import get_settings
 
 pytestmark = pytest.mark.timeout(300)
 

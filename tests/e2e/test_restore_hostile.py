@@ -23,9 +23,9 @@ from pathlib import Path
 import pytest
 from sqlalchemy import func, select
 
-from app.core.config import Settings
 from app.db.models import Run
 from app.db.session import Database
+from app.settings import Settings
 from tests.faults.support import hdf5_run
 
 pytestmark = pytest.mark.timeout(600)

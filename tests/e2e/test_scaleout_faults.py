@@ -12,8 +12,8 @@ import httpx
 import pytest
 from sqlalchemy import text
 
-from app.core.config import Settings
 from app.db.session import Database
+from app.settings import Settings
 from tests.api.support import store_files
 from tests.e2e.support import (
     assert_rows_once,

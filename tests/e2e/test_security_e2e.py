@@ -8,9 +8,9 @@ from typer.testing import CliRunner
 
 from app.cli import app
 from app.cli.demo import _demo_credentials
-from app.core.config import get_settings
 from app.db import auth_crud
 from app.db.session import Database
+from app.settings import get_settings
 from tests.api import runfiles
 
 pytestmark = pytest.mark.timeout(300)

@@ -20,7 +20,7 @@ pytestmark = pytest.mark.timeout(300)
 #: a worker that kills itself where the job's files would be removed, right after the publish commit
 _KILLED_AFTER_PUBLISH = """
 import os, signal, sys
-from app.core.config import get_settings
+from app.settings import get_settings
 from worker import runner, steps
 steps.discard_job_files = lambda *a, **k: os.kill(os.getpid(), signal.SIGKILL)
 runner.run_worker(get_settings(), once=True)
@@ -57,7 +57,7 @@ def test_the_start_up_sweep_removes_the_folder_of_a_job_published_by_a_killed_wo
     # the next worker process starts: its background start (the sweep) before any job is claimed
     started = subprocess.run(
         [sys.executable, "-c",
-         "from app.core.config import get_settings\n"
+         "from app.settings import get_settings\n"
          "from app.core.logging import configure_logging\n"
          "from worker.background import Background\n"
          "configure_logging('INFO')\n"

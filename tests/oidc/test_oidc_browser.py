@@ -54,7 +54,8 @@ def test_sign_in_and_out_through_the_provider(page, oidc):
     page.wait_for_url(f"{oidc.base_url}/condition")  # the page asked for, through the callback
     page.wait_for_selector("#logout")
     me = page.request.get("/api/v1/auth/me")
-    assert me.status == 200 and me.json() == {"name": "alice", "role": "engineer", "kind": "user"}
+    assert me.status == 200 and me.json() == {"name": "alice", "role": "engineer", "kind": "user",
+                                              "language": None, "answered_in": "en"}
     _shot(page, "signed-in")
     before = len(oidc.provider.logouts)
     page.click("#logout")

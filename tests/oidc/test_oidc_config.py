@@ -8,10 +8,11 @@ import time
 import pytest
 from pydantic import ValidationError
 
-from app.core.config import ProductionConfigError, Settings
+from app.core.config import ProductionConfigError
 from app.oidc.config import OidcConfig
 from app.oidc.flow import PendingSignIn, seal, unseal
 from app.oidc.tokens import looks_like_jwt
+from app.settings import Settings
 
 CONFIG = OidcConfig(issuer="https://id.example/realms/rail", client_id="trackvkf",
                     role_groups={"track-admins": "admin", "track-engineers": "engineer", "staff": "viewer"},

@@ -71,7 +71,8 @@ def test_sign_in_creates_the_account_with_the_role_of_its_groups(oidc):
         assert 'http-equiv="refresh"' in r.text and "/condition?line=SIM" in r.text
         assert "Signed in as alice (engineer)" in r.text
         me = client.get("/api/v1/auth/me")
-        assert me.status_code == 200 and me.json() == {"name": "alice", "role": "engineer", "kind": "user"}
+        assert me.status_code == 200 and me.json() == {"name": "alice", "role": "engineer", "kind": "user",
+                                                   "language": None, "answered_in": "en"}
         assert client.get("/condition").status_code == 200  # a page of the dashboard
     with oidc.service.client(timeout=15) as admin:
         users = {u["username"]: u for u in admin.get("/api/v1/auth/users").json()["items"]}
@@ -175,7 +176,8 @@ def test_an_access_token_of_the_provider_is_accepted_with_the_role_of_its_groups
     alice = provider_tokens(oidc.provider, "alice")["access_token"]
     r = _me(oidc, alice)
     assert r.status_code == 200, r.text
-    assert r.json() == {"name": "alice", "role": "engineer", "kind": "oidc_token"}
+    assert r.json() == {"name": "alice", "role": "engineer", "kind": "oidc_token", "language": None,
+                        "answered_in": "en"}
     headers = {"Authorization": f"Bearer {alice}"}
     assert httpx.get(f"{oidc.base_url}/api/v1/runs", headers=headers, timeout=15).status_code == 200
     assert httpx.get(f"{oidc.base_url}/api/v1/auth/users", headers=headers, timeout=15).status_code == 403

@@ -97,7 +97,7 @@ def test_apply_places_command_applies_the_stored_runs_once(db, monkeypatch):  # 
 
     from app.cli import app
     from app.condition.fleet import ingest_fleet
-    from app.core.config import get_settings
+    from app.settings import get_settings
 
     sim = FleetSimulator(generate_line(0.0, 2_000.0, seed=3))
     ingest_fleet(db, sim, 6, line_id="C1", start=DAY0, seed=4, reference=False)
@@ -117,10 +117,10 @@ def test_apply_places_command_applies_the_stored_runs_once(db, monkeypatch):  # 
 def test_places_alerts_can_be_switched_off(db):  # noqa: F811
     from dataclasses import replace
 
-    from app.core.config import Settings
     from app.db.models import WebhookDelivery
     from app.db.webhooks import EVENT_PLACES, create_webhook
     from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
+    from app.settings import Settings
 
     assert not PlacesConfig.from_settings(Settings(places_alerts=False)).alerts
     with db.write() as s:

@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from app.core.config import Settings
 from app.db import auth_crud, migrate
 from app.db.session import Database
 from app.main import create_app
+from app.settings import Settings
 from tests.api.support import create_api_key, make_settings
 
 PASSWORD = "correct horse battery"

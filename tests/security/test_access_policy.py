@@ -32,9 +32,10 @@ PUBLIC = {
     ("GET", "/login/oidc"),  # issue 34: corporate sign-in, its start and the provider's callback
     ("GET", "/login/oidc/callback"),
     ("GET", "/favicon.ico"),
+    ("GET", "/i18n/{lang}.js"),  # the pages' words: the login page speaks the browser's language too
 }
-#: State-changing routes any authenticated principal may use (their own session).
-SELF_SERVICE = {("POST", "/api/v1/auth/logout"), ("POST", "/api/v1/auth/password")}
+#: State-changing routes any authenticated principal may use (their own session, their language).
+SELF_SERVICE = {("POST", "/api/v1/auth/logout"), ("POST", "/api/v1/auth/password"), ("PATCH", "/api/v1/auth/me")}
 #: Routes whose required role the issue names explicitly.
 EXPLICIT = {
     ("POST", "/api/v1/runs"): "engineer",
@@ -181,7 +182,8 @@ def test_session_cookie_roles_follow_the_user(secured_shared):
     secured.client.cookies.clear()
     _login(secured.client, "vic")
     assert secured.client.get("/api/v1/runs").status_code == 200
-    assert secured.client.get("/api/v1/auth/me").json() == {"name": "vic", "role": "viewer", "kind": "user"}
+    assert secured.client.get("/api/v1/auth/me").json() == {"name": "vic", "role": "viewer", "kind": "user",
+                                                          "language": None, "answered_in": "en"}
     csrf = secured.client.cookies["trackvkf_csrf"]
     response = secured.client.delete("/api/v1/runs/1", headers={"X-CSRF-Token": csrf})
     assert response.status_code == 403 and response.json()["field"] == "role"

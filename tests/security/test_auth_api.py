@@ -34,7 +34,7 @@ def _audit(settings, action=None):
 def test_login_sets_httponly_strict_session_and_readable_csrf_cookie(secured):
     r = _login(secured.client)
     assert r.status_code == 200, r.text
-    assert r.json() == {"name": "alice", "role": "admin", "kind": "user"}
+    assert r.json() == {"name": "alice", "role": "admin", "kind": "user", "language": None, "answered_in": "en"}
     cookies = {c.split("=", 1)[0]: c for c in r.headers.get_list("set-cookie")}
     session, csrf = cookies["trackvkf_session"], cookies["trackvkf_csrf"]
     assert "HttpOnly" in session and "samesite=strict" in session.lower()
@@ -133,7 +133,7 @@ def test_api_key_lifecycle_shown_once_hashed_last_used_revoked(secured):
         assert row.key_hash == token_digest(key)
     # use it: last use is recorded, both header forms work
     assert secured.client.get("/api/v1/auth/me", headers={"X-API-Key": key}).json() == {
-        "name": "key:ingest bot", "role": "engineer", "kind": "api_key",
+        "name": "key:ingest bot", "role": "engineer", "kind": "api_key", "language": None, "answered_in": "en",
     }
     assert secured.client.get("/api/v1/runs", headers=auth_headers(key)).status_code == 200
     item = next(i for i in secured.client.get("/api/v1/auth/keys", headers=admin).json()["items"] if i["id"] == created["id"])
@@ -263,7 +263,7 @@ def test_login_page_and_docs(secured):
     for hostile in ("//evil.example/x", "https://evil.example", "/\\evil", "javascript:alert(1)"):
         assert 'data-next="/"' in secured.client.get("/login", params={"next": hostile}).text
     hostile = secured.client.get("/login", params={"next": '"><script>'}).text
-    assert "<script>" not in hostile and hostile.count("<script") == 1  # only the page's own login.js
+    assert "<script>" not in hostile and hostile.count("<script") == 2  # only the page's catalogue and login.js
     r = secured.client.get("/docs")
     assert r.status_code == 303 and r.headers["location"] == "/login?next=%2Fdocs"
     assert secured.client.get("/openapi.json").status_code == 401

@@ -105,7 +105,8 @@ def test_production_refuses_printed_demo_credentials(tmp_path):
 def test_auth_disabled_runs_as_the_anonymous_principal(make_client):
     client = make_client(auth_disabled=True, anonymous_role="viewer")
     client.headers.pop("Authorization")
-    assert client.get("/api/v1/auth/me").json() == {"name": "local", "role": "viewer", "kind": "anonymous"}
+    assert client.get("/api/v1/auth/me").json() == {"name": "local", "role": "viewer", "kind": "anonymous",
+                                                     "language": None, "answered_in": "en"}
     assert client.delete("/api/v1/runs/1").status_code == 403
 
 

@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 
 from app.analysis.settings import ProcessingSettings
-from app.core.config import Settings
 from app.core.runstore import RunStore
 from app.pipeline import assemble, plan_chunks, process_chunk, run_pipeline
+from app.settings import Settings
 from worker.chunkstore import ChunkStore
 from worker.health import alive_file, check
 from worker.hosting import libpq_url

@@ -6,11 +6,11 @@ from __future__ import annotations
 import pytest
 
 from app.analysis.settings import ProcessingSettings
-from app.core.config import Settings
 from app.db import queue
 from app.db.models import JobStatus
 from app.db.session import Database
 from app.pipeline import results_meta
+from app.settings import Settings
 from worker import modes
 from worker.steps import (
     WorkerRuntime,

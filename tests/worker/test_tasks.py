@@ -15,8 +15,8 @@ import procrastinate
 import pytest
 from procrastinate import exceptions as pexc
 
-from app.core.config import Settings
 from app.db.session import Database
+from app.settings import Settings
 from worker import hosting, tasks
 from worker.runner import LocalWorker
 from worker.steps import WorkerRuntime

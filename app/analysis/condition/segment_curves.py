@@ -19,6 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE
 from app.analysis.stiffness.reference_curve import BlockSamples, ReferenceCurve, fit_reference_curve
 
 __all__ = ["DEFAULT_MIN_LOCATIONS", "segment_samples", "fit_segment_curves"]
@@ -76,7 +77,7 @@ def segment_samples(seg: np.ndarray, log_amp: np.ndarray, speed_mps: np.ndarray,
 
 
 def fit_segment_curves(seg: np.ndarray, log_amp: np.ndarray, speed_mps: np.ndarray, run: np.ndarray,
-                       wheel: np.ndarray, classes: np.ndarray, *, speed_tolerance: float = 0.1,
+                       wheel: np.ndarray, classes: np.ndarray, *, speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
                        min_support: int = 20, min_locations: int = DEFAULT_MIN_LOCATIONS,
                        ) -> dict[str, ReferenceCurve]:
     """The line's reference curve per class from segment rows (arguments as :func:`segment_samples`).

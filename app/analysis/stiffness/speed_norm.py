@@ -45,6 +45,7 @@ from app.analysis.stiffness.regression import LinearFit, linear_fit
 from app.analysis.units import KMH_PER_MPS, MIN_SPEED_KMH
 
 __all__ = [
+    "METHODS",
     "SpeedFit",
     "fit_speed_exponent",
     "normalise_amplitude",
@@ -57,6 +58,9 @@ __all__ = [
 
 #: Smallest spread of ln(v) (within locations or pooled) for an estimate.
 _MIN_LOG_SPEED_STD = 0.02
+#: How an exponent was fitted (``SpeedFit.method``): within locations passed at several speeds,
+#: pooled over all locations, or not at all.
+METHODS: tuple[str, ...] = ("within", "pooled", "none")
 #: Exponents outside this range are flagged unstable.
 PHYSICAL_EXPONENT_RANGE: tuple[float, float] = (0.0, 3.0)
 #: Confidence intervals wider than this are flagged unstable.

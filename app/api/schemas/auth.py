@@ -13,6 +13,7 @@ __all__ = [
     "LoginIn",
     "LogoutOut",
     "MeOut",
+    "MePatch",
     "UserIn",
     "UserPatch",
     "UserOut",
@@ -27,6 +28,8 @@ __all__ = [
 ]
 
 RoleName = Literal["viewer", "engineer", "admin"]
+#: the languages of the service (app.core.i18n.LANGUAGES)
+LanguageCode = Literal["en", "de", "fr", "it"]
 Username = str
 
 
@@ -47,6 +50,19 @@ class MeOut(BaseModel):
     kind: Literal["anonymous", "user", "api_key", "oidc_token"] = Field(
         description="anonymous (authentication off), user (browser session), api_key, "
                     "oidc_token (an access token of the OpenID provider)")
+    language: LanguageCode | None = Field(
+        None, description="The language the user chose (pages, messages, error texts); null: the browser's")
+    answered_in: LanguageCode = Field(
+        "en", description="The language of this request's answers: the user's, else the browser's Accept-Language")
+
+
+class MePatch(BaseModel):
+    """What users change of their own account."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    language: LanguageCode | None = Field(
+        description="en, de, fr or it; null: follow the browser's Accept-Language")
 
 
 class LogoutOut(BaseModel):

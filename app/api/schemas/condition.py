@@ -75,7 +75,8 @@ class TrendWheel(BaseModel):
     n_history: int
     change: float | None
     change_z: float | None
-    trend_rate_per_year: float | None
+    trend_rate_per_year: float | None = Field(description="trend test's rate of the index, ln units a year (the "
+                                                          "amplitude's change a year: 100 · expm1 of it, %)")
     trend_z: float | None
 
 
@@ -119,7 +120,8 @@ class FlagOut(BaseModel):
     score: float = Field(description="combined score over the wheels, in repeatability units")
     change: float | None = Field(description="change of the index against the baseline (log units)")
     change_pct: float | None = Field(description="the same as a percentage of the amplitude")
-    rate_per_year: float | None = Field(description="trend, log units per year")
+    rate_per_year: float | None = Field(description="trend of the index, ln units a year (the amplitude's "
+                                                            "change a year: 100 · expm1 of it, %)")
     wheels: list[str] = Field(description="wheels that agree")
     is_new: bool = Field(description="not flagged by the same test and direction in the line's previous run")
     created_at: str
@@ -156,7 +158,7 @@ class EffectOut(BaseModel):
     condition_index_after: float | None = Field(description="the same just after")
     recovery: float | None = Field(description="after minus before (negative: lower index, e.g. amplitude)")
     recovery_pct: float | None = Field(description="the recovery as a percentage of the amplitude")
-    slope_after_per_year: float | None = Field(description="index change per year after the action")
+    slope_after_per_year: float | None = Field(description="index change after the action, ln units a year")
     lasted_days_observed: float | None = Field(description="days until the given fraction of the recovery was lost")
     lasted_days_projected: float | None = Field(description="the same projected from the slope after")
 

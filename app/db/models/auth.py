@@ -49,6 +49,8 @@ class User(Base):
     last_login_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
     auth_source: Mapped[str] = mapped_column(String(16), default="local", server_default="local")
     external_subject: Mapped[str | None] = mapped_column(String(512))
+    #: the language of the pages and messages (en, de, fr, it); None: the browser's
+    language: Mapped[str | None] = mapped_column(String(8))
 
 
 class UserSession(Base):

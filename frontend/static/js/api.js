@@ -1,15 +1,47 @@
-/* The one fetch wrapper of the dashboard: every request to the server goes through it.
+/* The one fetch wrapper of the dashboard: every request to the server goes through it, and the
+ * page's language.
  *
  * - JSON in/out, errors as ApiError(status, detail, field) with the API's message
- *   ({"detail": "<field>: <message>", "field": ...});
+ *   ({"detail": "<field>: <message>", "field": ...}, in the page's language); a request that
+ *   does not reach the server is an ApiError too (status 0);
  * - state-changing requests carry X-CSRF-Token from the cookie trackvkf_csrf when present;
- * - a 401 answer navigates to /login?next=<current path>.
+ * - a 401 answer navigates to /login?next=<current path>;
+ * - T._(msgid, {field: value}), T.ngettext(singular, plural, n, {...}) and T.pgettext(context,
+ *   msgid, {...}) translate with the catalogue the page booted with (/i18n/<lang>.js, from the
+ *   same gettext catalogues as the server's texts); "{field}" in a message takes the value.
  */
 (function () {
   "use strict";
   const boot = JSON.parse(document.getElementById("boot").textContent);
   const API = boot.api || "/api/v1";
   const UNSAFE = new Set(["POST", "PUT", "PATCH", "DELETE"]);
+  const CATALOGUE = window.trackvkfI18n || { code: "en", messages: {}, plural: ["one", "other"], plotly: null };
+  const LANG = boot.lang || CATALOGUE.code || "en";
+  const LOCALE = boot.locale || LANG;
+  const plurals = new Intl.PluralRules(LOCALE);
+
+  function fill(text, params) {
+    if (!params) return text;
+    return text.replace(/\{(\w+)\}/g, (all, name) => (name in params ? String(params[name]) : all));
+  }
+  function _(msgid, params) {
+    const t = CATALOGUE.messages[msgid];
+    return fill(typeof t === "string" ? t : msgid, params);
+  }
+  function pgettext(context, msgid, params) {
+    const t = CATALOGUE.messages[context + "\u0004" + msgid];
+    return fill(typeof t === "string" ? t : msgid, params);
+  }
+  function ngettext(singular, plural, n, params) {
+    const forms = CATALOGUE.messages[singular];
+    const all = Object.assign({ n }, params || {});
+    if (Array.isArray(forms)) {
+      let i = CATALOGUE.plural.indexOf(plurals.select(n));
+      if (i < 0 || i >= forms.length) i = forms.length - 1;
+      return fill(forms[i], all);
+    }
+    return fill(n === 1 ? singular : plural, all);
+  }
 
   class ApiError extends Error {
     constructor(status, detail, field) {
@@ -56,7 +88,7 @@
         detail = body.detail.map((d) => `${(d.loc || []).slice(1).join(".")}: ${d.msg}`).join("; ");
       }
       field = body.field || null;
-    } catch (_) { /* not JSON */ }
+    } catch (e) { /* not JSON */ }
     return new ApiError(status, detail, field);
   }
 
@@ -68,8 +100,13 @@
     } else if (body !== undefined) {
       init.body = body;
     }
-    const res = await fetch(url(path, params), init);
-    if (res.status === 401) { toLogin(); throw new ApiError(401, "authentication required"); }
+    let res;
+    try {
+      res = await fetch(url(path, params), init);
+    } catch (e) {  // no answer at all: the server is down or the network is gone
+      throw new ApiError(0, _("network error: the server could not be reached"), "network");
+    }
+    if (res.status === 401) { toLogin(); throw new ApiError(401, _("authentication required")); }
     const text = res.status === 204 ? "" : await res.text();
     if (!res.ok) throw await errorOf(res.status, text);
     return text ? JSON.parse(text) : null;
@@ -85,27 +122,41 @@
       xhr.withCredentials = true;
       xhr.upload.onprogress = (e) => { if (e.lengthComputable && onProgress) onProgress(e.loaded / e.total); };
       xhr.onload = async () => {
-        if (xhr.status === 401) { toLogin(); reject(new ApiError(401, "authentication required")); return; }
+        if (xhr.status === 401) { toLogin(); reject(new ApiError(401, _("authentication required"))); return; }
         if (xhr.status >= 200 && xhr.status < 300) {
           resolve({ status: xhr.status, body: xhr.responseText ? JSON.parse(xhr.responseText) : null });
         } else {
           reject(await errorOf(xhr.status, xhr.responseText));
         }
       };
-      xhr.onerror = () => reject(new ApiError(0, "network error: the server could not be reached"));
+      xhr.onerror = () => reject(new ApiError(0, _("network error: the server could not be reached"), "network"));
       xhr.send(formData);
     });
   }
 
   document.addEventListener("DOMContentLoaded", () => {
     const out = document.getElementById("logout");
-    if (!out) return;
-    out.addEventListener("click", async () => {
-      let answer = null;
-      try { answer = await request("POST", "/auth/logout"); } catch (_) { /* already logged out */ }
-      /* a session begun at the OpenID provider: sign out there too (it comes back to /login) */
-      window.location.assign(answer && answer.end_session_url ? answer.end_session_url : "/login");
-    });
+    if (out) {
+      out.addEventListener("click", async () => {
+        let answer = null;
+        try { answer = await request("POST", "/auth/logout"); } catch (e) { /* already logged out */ }
+        /* a session begun at the OpenID provider: sign out there too (it comes back to /login) */
+        window.location.assign(answer && answer.end_session_url ? answer.end_session_url : "/login");
+      });
+    }
+    // the language kept with the account ("" = the browser's): the page comes back in it
+    const picker = document.getElementById("lang-picker");
+    if (picker) {
+      picker.addEventListener("change", async () => {
+        try {
+          await request("PATCH", "/auth/me", { json: { language: picker.value || null } });
+          window.location.reload();
+        } catch (e) {
+          const b = document.getElementById("banner");
+          if (b) { b.textContent = _("Language not changed: {detail}", { detail: e.detail || e.message }); b.hidden = false; }
+        }
+      });
+    }
   });
 
   /* A profile (GET /runs/{id}/profile) in the compact column layout, returned as the row layout:
@@ -131,6 +182,10 @@
   window.trackvkf = Object.assign(window.trackvkf || {}, {
     boot,
     ApiError,
+    lang: LANG,
+    locale: LOCALE,
+    catalogue: CATALOGUE,
+    _, ngettext, pgettext,
     api: {
       get: (path, params) => request("GET", path, { params }),
       post: (path, json) => request("POST", path, { json }),

@@ -6,8 +6,8 @@
   "use strict";
   const T = window.trackvkf;
   const PLOTS = ["subsidence-plot", "mass-plot", "maintenance-plot"];
-  const HOWTO = `<p>Import reference data with <code>POST /api/v1/reference/subsidence</code>,
-    <code>/maintenance</code> or <code>/superstructure</code> (CSV or Parquet), then reload this page.</p>`;
+  const HOWTO = `<p>${T._("Import reference data with {a}, {b} or {c} (CSV or Parquet), then reload this page.",
+    { a: "<code>POST /api/v1/reference/subsidence</code>", b: "<code>/maintenance</code>", c: "<code>/superstructure</code>" })}</p>`;
   let fit = null;
   // markers per wheel and plot (SVG markers are slow by the ten thousand), asked of the server
   // as max_points; the fits use every sample
@@ -28,20 +28,24 @@
     const table = document.getElementById("fit-table");
     const ws = ((fit && fit.wheels) || []).filter((w) => (w.n_samples || 0) > 0);
     if (!ws.length) {
-      table.innerHTML = `<tbody><tr><td class="muted">No fit: no subsidence data yet.</td></tr></tbody>`;
+      table.innerHTML = `<tbody><tr><td class="muted">${T.esc(T._("No fit: no subsidence data yet."))}</td></tr></tbody>`;
       document.getElementById("fit-csv").disabled = true;
       return;
     }
     const ci = (v) => (v && Number.isFinite(v[0]) && Number.isFinite(v[1]) ? `<br><span class="muted ci">[${T.fmt(v[0], 3)}, ${T.fmt(v[1], 3)}]</span>` : "");
     const row = (label, f) => `<tr><th>${label}</th>${ws.map((w) => `<td class="num">${f(w)}</td>`).join("")}</tr>`;
-    table.innerHTML = `<thead><tr><th>Regressor</th>${ws.map((w) => `<th class="num">Wheel ${T.esc(T.wheelId(w.wheel))}</th>`).join("")}</tr></thead><tbody>` +
-      row("Intercept b (mm)", (w) => T.fmt(w.intercept, 3) + ci(w.intercept_ci)) +
-      row("Slope a (mm)", (w) => T.fmt(w.slope, 3) + ci(w.slope_ci)) +
-      row("RMSE (mm)", (w) => T.fmt(w.rmse, 3)) +
+    table.innerHTML = `<thead><tr><th>${T.esc(T._("Regressor"))}</th>${ws.map((w) => `<th class="num">${T.esc(T.wheelLabel(w.wheel))}</th>`).join("")}</tr></thead><tbody>` +
+      row(T.esc(T._("Intercept b (mm)")), (w) => T.fmt(w.intercept, 3) + ci(w.intercept_ci)) +
+      row(T.esc(T._("Slope a (mm)")), (w) => T.fmt(w.slope, 3) + ci(w.slope_ci)) +
+      row(T.esc(T._("RMSE (mm)")), (w) => T.fmt(w.rmse, 3)) +
       row("R²", (w) => T.fmt(w.r2, 3)) +
-      row("Samples", (w) => String(w.n_samples ?? "–")) + "</tbody>";
+      row(T.esc(T._("Samples")), (w) => w.n_samples === null || w.n_samples === undefined ? "–" : T.fmt(w.n_samples, 0)) + "</tbody>";
+    // one way to write a unit on every page: m/s² (the API may spell it m/s^2)
+    const ampUnit = String(fit.amplitude_unit || "m/s²").replace("^2", "²");
+    const base = fit.log_base && fit.log_base !== "e" ? fit.log_base : "e";
     document.getElementById("fit-note").textContent =
-      `u: subsidence (${fit.subsidence_unit || "mm"}); Z: sleeper-passage amplitude (${fit.amplitude_unit || "m/s^2"}); log base ${fit.log_base || "e"}; 95 % confidence intervals in brackets.`;
+      T._("u: subsidence ({u}); Z: sleeper-passage amplitude ({z}); log base {base}; 95 % confidence intervals in brackets.",
+        { u: fit.subsidence_unit || "mm", z: ampUnit, base });
     document.getElementById("fit-csv").disabled = false;
   }
 
@@ -54,7 +58,7 @@
   async function drawSubsidence() {
     const el = document.getElementById("subsidence-plot");
     const ws = ((fit && fit.wheels) || []).filter((w) => w.points && w.points.amplitude && w.points.amplitude.length);
-    if (!ws.length) { T.emptyState(el, "No subsidence data yet.", HOWTO); return false; }
+    if (!ws.length) { T.emptyState(el, T._("No subsidence data yet."), HOWTO); return false; }
     const lg = logOf(fit.log_base);
     const traces = [];
     for (const w of ws) {
@@ -65,14 +69,14 @@
       if (amps.length && Number.isFinite(w.slope)) {
         const lo = Math.min(...amps), hi = Math.max(...amps);
         const xs = Array.from({ length: 40 }, (_, i) => lo * Math.pow(hi / lo, i / 39));
-        traces.push({ type: "scatter", mode: "lines", name: `${T.wheelLabel(w.wheel)} fit`, legendgroup: w.wheel, showlegend: false,
+        traces.push({ type: "scatter", mode: "lines", name: T._("{wheel} fit", { wheel: T.wheelLabel(w.wheel) }), legendgroup: w.wheel, showlegend: false,
           x: xs, y: xs.map((x) => w.slope * lg(x) + w.intercept), line: { color: T.wheelColor(w.wheel), width: 2.5 },
-          hovertemplate: `${T.wheelLabel(w.wheel)} fit<br>u = ${T.fmt(w.slope, 3)}·log(Z) ${w.intercept < 0 ? "−" : "+"} ${T.fmt(Math.abs(w.intercept), 3)}<extra></extra>` });
+          hovertemplate: `${T.esc(T._("{wheel} fit", { wheel: T.wheelLabel(w.wheel) }))}<br>u = ${T.fmt(w.slope, 3)}·log(Z) ${w.intercept < 0 ? "−" : "+"} ${T.fmt(Math.abs(w.intercept), 3)}<extra></extra>` });
       }
     }
     await T.plot(el, traces, {
-      xaxis: T.axis("Sleeper-passage amplitude Z (m/s², log scale)", { type: "log", tickformat: "~g", dtick: "D2" }),
-      yaxis: T.axis("Subsidence u (mm)"),
+      xaxis: T.axis(T._("Sleeper-passage amplitude Z (m/s², log scale)"), { type: "log", tickformat: "~g", dtick: "D2" }),
+      yaxis: T.axis(T._("Subsidence u (mm)")),
     }, {
       filename: "subsidence-vs-amplitude",
       csv: () => {
@@ -89,7 +93,7 @@
   async function drawMass(res) {
     const el = document.getElementById("mass-plot");
     const ws = ((res && res.wheels) || []).filter((w) => w.points && w.points.acceleration && w.points.acceleration.length);
-    if (!ws.length) { T.emptyState(el, "No force channels or no data yet.", "<p>Runs with vertical force channels Q11…Q42 give the unsprung mass.</p>"); return false; }
+    if (!ws.length) { T.emptyState(el, T._("No force channels or no data yet."), `<p>${T._("Runs with vertical force channels Q11…Q42 give the unsprung mass.")}</p>`); return false; }
     const traces = [], lay = {
       grid: { rows: 2, columns: 2, pattern: "independent", xgap: 0.12, ygap: 0.22 },
       showlegend: false, annotations: [], margin: { l: 70, r: 20, t: 30, b: 60 },
@@ -98,7 +102,8 @@
     const fmax = Math.max(...ws.flatMap((w) => w.points.force_kn.filter(Number.isFinite)));
     ws.forEach((w, i) => {
       const n = i === 0 ? "" : String(i + 1), xa = "x" + n, ya = "y" + n;
-      const name = `${T.wheelLabel(w.wheel)}: ${T.fmt(w.mass_kg, 0)} kg${w.plausible ? "" : " (implausible)"}`;
+      const name = w.plausible ? `${T.wheelLabel(w.wheel)}: ${T.fmt(w.mass_kg, 0)} kg`
+        : T._("{wheel}: {mass} kg (implausible)", { wheel: T.wheelLabel(w.wheel), mass: T.fmt(w.mass_kg, 0) });
       traces.push({ type: "scatter", mode: "markers", name, xaxis: xa, yaxis: ya,
         x: w.points.acceleration, y: w.points.force_kn,
         marker: { color: T.wheelColor(w.wheel), size: 4, opacity: 0.35 },
@@ -106,8 +111,8 @@
       traces.push({ type: "scatter", mode: "lines", showlegend: false, xaxis: xa, yaxis: ya, x: [0, amax], y: [0, w.mass_kg * amax / 1000],
         line: { color: "#1d2733", width: 2, dash: "dash" }, hovertemplate: `F = ${T.fmt(w.mass_kg, 0)} kg × a<extra></extra>` });
       const bottom = i >= ws.length - 2, left = i % 2 === 0;
-      lay["xaxis" + n] = T.axis(bottom ? "Acceleration amplitude (m/s²)" : "", { range: [0, amax * 1.05] });
-      lay["yaxis" + n] = T.axis(left ? "Force amplitude (kN)" : "", { range: [0, fmax * 1.08] });
+      lay["xaxis" + n] = T.axis(bottom ? T._("Acceleration amplitude (m/s²)") : "", { range: [0, amax * 1.05] });
+      lay["yaxis" + n] = T.axis(left ? T._("Force amplitude (kN)") : "", { range: [0, fmax * 1.08] });
       lay.annotations.push({ xref: `${xa} domain`, yref: `${ya} domain`, x: 0.02, y: 0.98, xanchor: "left", yanchor: "top",
         showarrow: false, text: `<b>${T.esc(name)}</b>`, font: { color: T.wheelColor(w.wheel) }, bgcolor: "rgba(255,255,255,0.8)" });
     });
@@ -125,21 +130,22 @@
   async function drawMaintenance(res) {
     const el = document.getElementById("maintenance-plot");
     const groups = (res && res.groups) || [];
-    if (!groups.length) { T.emptyState(el, "No maintenance records yet.", HOWTO); return false; }
+    if (!groups.length) { T.emptyState(el, T._("No maintenance records yet."), HOWTO); return false; }
     const trace = {
-      type: "box", name: "amplitude", x: groups.map((g) => g.n_actions), q1: groups.map((g) => g.q1), median: groups.map((g) => g.median),
+      type: "box", name: T._("amplitude"), x: groups.map((g) => g.n_actions), q1: groups.map((g) => g.q1), median: groups.map((g) => g.median),
       q3: groups.map((g) => g.q3), lowerfence: groups.map((g) => g.whisker_low), upperfence: groups.map((g) => g.whisker_high),
       mean: groups.map((g) => g.mean), marker: { color: "#1f5fa8" }, fillcolor: "rgba(31,95,168,0.25)", line: { color: "#1f5fa8" },
     };
     const reg = res.regression || {};
     await T.plot(el, [trace], {
-      xaxis: T.axis("Maintenance actions per 25 cm bin (count)", { type: "category" }),
-      yaxis: T.axis("Sleeper-passage amplitude (m/s²)", { rangemode: "tozero" }),
+      xaxis: T.axis(T._("Maintenance actions per 25 cm bin (count)"), { type: "category" }),
+      yaxis: T.axis(T._("Sleeper-passage amplitude (m/s²)"), { rangemode: "tozero" }),
       showlegend: false,
       margin: { l: 70, r: 20, t: 44, b: 60 },
       // above the plot area, not over the boxes
       annotations: Number.isFinite(reg.slope) ? [{ xref: "paper", yref: "paper", x: 0, y: 1.02, yanchor: "bottom", showarrow: false, xanchor: "left",
-        text: `slope ${T.fmt(reg.slope, 3)} m/s² per action · r = ${T.fmt(reg.r, 2)} · p = ${Number(reg.p_value).toExponential(1)} · n = ${reg.n}` }] : [],
+        text: T._("slope {slope} m/s² per action · r = {r} · p = {p} · n = {n}",
+          { slope: T.fmt(reg.slope, 3), r: T.fmt(reg.r, 2), p: Number(reg.p_value).toExponential(1), n: reg.n }) }] : [],
     }, {
       filename: "maintenance-vs-amplitude",
       csv: () => ({ columns: ["n_actions", "n_bins", "whisker_low", "q1", "median", "q3", "whisker_high", "mean"],
@@ -158,9 +164,9 @@
     T.banner(null);
     const q = query();
     if (!q.line_id) {
-      for (const id of PLOTS) T.emptyState(id, "No runs yet.", "<p>Upload runs on the Runs page.</p>");
+      for (const id of PLOTS) T.emptyState(id, T._("No runs yet."), `<p>${T._("Upload runs on the Runs page.")}</p>`);
       fit = null; fitTable();
-      showEmpty(`<strong>No lines yet.</strong><p>The correlations compare the processed runs of one line and track with its reference data.</p>${HOWTO}`);
+      showEmpty(`<strong>${T._("No lines yet.")}</strong><p>${T._("The correlations compare the processed runs of one line and track with its reference data.")}</p>${HOWTO}`);
       return;
     }
     T.rememberLine(q);
@@ -173,9 +179,9 @@
       fit = sub;
       fitTable();
       const any = [await drawSubsidence(), await drawMass(mass), await drawMaintenance(maint)];
-      showEmpty(any.some(Boolean) ? null : `<strong>No reference data yet.</strong><p>The analyses run as soon as reference data exist for the processed runs.</p>${HOWTO}`);
+      showEmpty(any.some(Boolean) ? null : `<strong>${T._("No reference data yet.")}</strong><p>${T._("The analyses run as soon as reference data exist for the processed runs.")}</p>${HOWTO}`);
     } catch (e) {
-      T.banner(`Could not load the correlations (HTTP ${e.status}): ${e.detail}`);
+      T.banner(T._("Could not load the correlations (HTTP {status}): {detail}", { status: e.status, detail: e.detail }));
     }
   }
 
@@ -187,7 +193,7 @@
       T.fillLinePicker("line-track", await T.allRuns());
       await show();
     } catch (e) {
-      T.banner(`Could not load the correlations: ${e.detail || e.message}`);
+      T.banner(T._("Could not load the correlations: {detail}", { detail: e.detail || e.message }));
     }
     T.ready();
   })();

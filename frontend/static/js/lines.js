@@ -1,6 +1,7 @@
 /* Line view: heat map runs × km (/analytics/segments: the runs aligned and averaged per
  * segment by the server), overlaid profiles with the line's assets marked, trend of one segment
- * across run dates (/analytics/segment-trend). */
+ * across run dates (/analytics/segment-trend). The stiffness index first (value=index), the raw
+ * amplitude one click away. Runs run down the heat map oldest first, as on the Condition page. */
 (function () {
   "use strict";
   const T = window.trackvkf;
@@ -8,29 +9,42 @@
   const SEG_M = T.boot.segment_m; // the server's default segment of /analytics/segments
 
   const lineKey = T.lineKey;
-  function runLabel(r) { return `${T.date(r.start_time)} · run ${r.run_id}`; }
+  function runLabel(r) { return T._("{date} · run {run}", { date: T.date(r.start_time), run: r.run_id }); }
+  function value() { return document.getElementById("line-value").value; }
+  function isIndex() { return value() === "index"; }
+  /* The quantity's name with its unit, and the same for a hover label. */
+  function quantity() {
+    return isIndex() ? { title: T._("Stiffness index ln(A / A_ref) (ln units)"), short: T._("stiffness index"), unit: T._("ln units"), digits: 3 }
+      : { title: T._("Sleeper-passage amplitude (m/s²)"), short: T._("amplitude"), unit: "m/s²", digits: 3 };
+  }
 
   async function drawHeatmap() {
     const el = document.getElementById("heatmap-plot");
+    const q = quantity();
+    document.getElementById("heatmap-title").textContent = isIndex()
+      ? T._("Stiffness index per {m} m segment: runs × km", { m: T.fmt(SEG_M, 0) })
+      : T._("Sleeper-passage amplitude per {m} m segment: runs × km", { m: T.fmt(SEG_M, 0) });
     if (!seg || !seg.runs.length || !seg.km.length) {
-      T.emptyState(el, "No processed runs on this line and track.", "<p>Upload runs on the Runs page.</p>");
+      T.emptyState(el, T._("No processed runs on this line and track."), `<p>${T._("Upload runs on the Runs page.")}</p>`);
       return;
     }
     const x = seg.km.map((k) => k + seg.segment_m / 2000);
     await T.plot(el, [{
-      type: "heatmap", x, y: seg.runs.map(runLabel), z: seg.matrix, colorscale: "YlOrRd", reversescale: true, hoverongaps: false,
-      colorbar: { title: { text: "Amplitude (m/s²)", side: "right" }, thickness: 14 },
-      hovertemplate: "%{y}<br>km %{x:.3f}<br>%{z:.3f} m/s²<extra></extra>",
+      type: "heatmap", x, y: seg.runs.map(runLabel), z: seg.matrix, colorscale: isIndex() ? "RdBu" : "YlOrRd",
+      reversescale: !isIndex(), zmid: isIndex() ? 0 : undefined, hoverongaps: false,
+      colorbar: { title: { text: q.title, side: "right" }, thickness: 14 },
+      hovertemplate: `%{y}<br>km %{x:.3f}<br>${q.short} %{z:.3f} ${isIndex() ? "" : "m/s²"}<extra></extra>`,
     }], {
-      xaxis: T.axis("Track position, segment centre (km)", { tickformat: ".3f" }),
-      yaxis: T.axis("Run (start date)", { type: "category", autorange: "reversed" }),
+      xaxis: T.axis(T._("Track position, segment centre (km)"), { tickformat: ".3f" }),
+      // oldest run at the top, as the Condition page's heat map
+      yaxis: T.axis(T._("Run (start date)"), { type: "category", autorange: "reversed" }),
       margin: { l: 150, r: 30, t: 20, b: 60 },
     }, {
       filename: "line-heatmap",
       csv: () => {
         const rows = [];
         seg.runs.forEach((r, i) => seg.km.forEach((k, j) => rows.push([r.run_id, r.start_time, k, k + seg.segment_m / 1000, seg.matrix[i][j]])));
-        return { columns: ["run_id", "start_time", "km_from", "km_to", "sleeper_amp_mean_mps2"], rows };
+        return { columns: ["run_id", "start_time", "km_from", "km_to", isIndex() ? "stiffness_index" : "sleeper_amp_mean_mps2"], rows };
       },
     });
     if (el.dataset.clickBound) return;
@@ -45,20 +59,25 @@
 
   async function drawProfiles(doneRuns, wheel) {
     const el = document.getElementById("profiles-plot");
+    const index = isIndex();
+    const col = index ? "stiffness_index_mean" : "sleeper_amp_mean";
     profiles = await Promise.all(doneRuns.map(async (r) => {
-      try { return { run: r, rows: (await T.api.profile(`/runs/${r.id}/profile`, { wheel, level: 10, max_points: 3000, columns: "sleeper_amp" })).rows }; }
-      catch (_) { return { run: r, rows: [] }; }
+      try {
+        const params = { wheel, level: 10, max_points: 3000, columns: "sleeper_amp" };
+        if (index) params.index = true;
+        return { run: r, rows: (await T.api.profile(`/runs/${r.id}/profile`, params)).rows };
+      } catch (e) { return { run: r, rows: [] }; }
     }));
     profiles = profiles.filter((p) => p.rows.length);
-    if (!profiles.length) { T.emptyState(el, "No profiles.", ""); return; }
+    if (!profiles.length) { T.emptyState(el, T._("No profiles."), ""); return; }
     const n = profiles.length;
     const traces = profiles.map((p, i) => {
       const t = n > 1 ? i / (n - 1) : 1;
       const color = `rgb(${Math.round(60 + 170 * t)}, ${Math.round(110 - 60 * t)}, ${Math.round(190 - 150 * t)})`;
       return {
-        type: "scatter", mode: "lines", name: `${T.date(p.run.start_time)} (run ${p.run.id})`, line: { color, width: 1.4 },
-        x: p.rows.map((r) => (r.km_from + r.km_to) / 2), y: p.rows.map((r) => r.sleeper_amp_mean),
-        hovertemplate: `run ${p.run.id} ${T.date(p.run.start_time)}<br>km %{x:.3f}<br>%{y:.3f} m/s²<extra></extra>`,
+        type: "scatter", mode: "lines", name: T._("{date} (run {run})", { date: T.date(p.run.start_time), run: p.run.id }), line: { color, width: 1.4 },
+        x: p.rows.map((r) => (r.km_from + r.km_to) / 2), y: p.rows.map((r) => r[col] ?? null),
+        hovertemplate: `${T.esc(T._("run {run}", { run: p.run.id }))} ${T.date(p.run.start_time)}<br>km %{x:.3f}<br>%{y:.3f} ${index ? "" : "m/s²"}<extra></extra>`,
       };
     });
     // the line's known discontinuities (assets): a dotted line at each, labelled with its type
@@ -67,20 +86,21 @@
     const shapes = assets.map((a) => ({ type: "line", xref: "x", yref: "paper", x0: a.km, x1: a.km, y0: 0, y1: 1,
       line: { color: "rgba(55,71,79,0.7)", width: 1, dash: "dot" } }));
     const annotations = assets.length <= 40 ? assets.map((a) => ({ x: a.km, y: 0.99, xref: "x", yref: "paper", yanchor: "top",
-      showarrow: false, text: `◆ ${T.esc(a.type.replace(/_/g, " "))}`, font: { size: 10, color: "#37474f" }, bgcolor: "rgba(255,255,255,0.75)",
-      hovertext: `${T.esc(a.type.replace(/_/g, " "))}${a.name ? " " + T.esc(a.name) : ""} at km ${a.km.toFixed(3)}` })) : [];
+      showarrow: false, text: `◆ ${T.esc(T.label("asset type", a.type))}`, font: { size: 10, color: "#37474f" }, bgcolor: "rgba(255,255,255,0.75)",
+      hovertext: `${T.esc(T.label("asset type", a.type))}${a.name ? " " + T.esc(a.name) : ""} · km ${T.fmt(a.km, 3)}` })) : [];
     await T.plot(el, traces, {
       shapes, annotations,
-      xaxis: T.axis("Track position (km)", { tickformat: ".3f" }),
-      yaxis: T.axis(`Amplitude ${T.wheelLabel(wheel)}, 10 m mean (m/s²)`, { rangemode: "tozero" }),
+      xaxis: T.axis(T._("Track position (km)"), { tickformat: ".3f" }),
+      yaxis: index ? T.axis(T._("{wheel}: stiffness index (ln units)", { wheel: T.wheelLabel(wheel) }), { zeroline: true })
+        : T.axis(T._("{wheel}: amplitude (m/s²)", { wheel: T.wheelLabel(wheel) }), { rangemode: "tozero" }),
       legend: { orientation: "v", x: 1.01, y: 1, xanchor: "left" },
       margin: { l: 75, r: 20, t: 20, b: 60 },
     }, {
       filename: `line-profiles-${wheel}`,
       csv: () => {
         const rows = [];
-        for (const p of profiles) for (const r of p.rows) rows.push([p.run.id, p.run.start_time, wheel, r.km_from, r.km_to, r.sleeper_amp_mean, r.sleeper_amp_max, (r.speed_mean_mean ?? NaN) * 3.6]);
-        return { columns: ["run_id", "start_time", "wheel", "km_from", "km_to", "sleeper_amp_mean_mps2", "sleeper_amp_max_mps2", "speed_kmh"], rows };
+        for (const p of profiles) for (const r of p.rows) rows.push([p.run.id, p.run.start_time, wheel, r.km_from, r.km_to, r[col], r.sleeper_amp_max, (r.speed_mean_mean ?? NaN) * 3.6]);
+        return { columns: ["run_id", "start_time", "wheel", "km_from", "km_to", index ? "stiffness_index_mean" : "sleeper_amp_mean_mps2", "sleeper_amp_max_mps2", "speed_kmh"], rows };
       },
     });
   }
@@ -90,23 +110,26 @@
     const km = parseFloat(document.getElementById("trend-km").value);
     const wheel = document.getElementById("wheel").value;
     const { line_id, track } = T.lineOf("line-track");
-    if (!seg || !Number.isFinite(km)) { T.emptyState(el, "Choose a segment.", "<p>Click a cell of the heat map or enter a km.</p>"); return; }
-    const res = await T.api.get("/analytics/segment-trend", { line_id, track, km, wheel, segment_m: seg.segment_m });
-    const points = res.points.filter((p) => p.amplitude !== null);
+    const index = isIndex();
+    if (!seg || !Number.isFinite(km)) { T.emptyState(el, T._("Choose a segment."), `<p>${T._("Click a cell of the heat map or enter a km.")}</p>`); return; }
+    const res = await T.api.get("/analytics/segment-trend", { line_id, track, km, wheel, segment_m: seg.segment_m, value: value() });
+    const key = index ? "index" : "amplitude";
+    const points = res.points.filter((p) => p[key] !== null && p[key] !== undefined);
     const k0 = Math.floor(km * 1000 / seg.segment_m) * seg.segment_m / 1000;
-    document.getElementById("trend-title").textContent = `Trend of segment km ${k0.toFixed(3)}–${(k0 + seg.segment_m / 1000).toFixed(3)} across run dates`;
-    if (!points.length) { T.emptyState(el, "No runs cover this segment.", ""); return; }
+    document.getElementById("trend-title").textContent = T._("Trend of segment km {from}–{to} across run dates",
+      { from: T.fmt(k0, 3), to: T.fmt(k0 + seg.segment_m / 1000, 3) });
+    if (!points.length) { T.emptyState(el, T._("No runs cover this segment."), ""); return; }
     await T.plot(el, [{
-      type: "scatter", mode: T.trendMode(points.map((p) => p.start_time)), name: T.wheelLabel(wheel), x: points.map((p) => p.start_time), y: points.map((p) => p.amplitude),
+      type: "scatter", mode: T.trendMode(points.map((p) => p.start_time)), name: T.wheelLabel(wheel), x: points.map((p) => p.start_time), y: points.map((p) => p[key]),
       customdata: points.map((p) => p.run_id), line: { color: T.wheelColor(wheel), width: 2 }, marker: { size: 9 },
-      hovertemplate: "%{x|%Y-%m-%d}<br>%{y:.3f} m/s²<br>run %{customdata}<extra></extra>",
+      hovertemplate: `%{x|${T.DATE_FMT}}<br>%{y:.3f} ${index ? "" : "m/s²"}<br>${T.esc(T._("run {run}", { run: "%{customdata}" }))}<extra></extra>`,
     }], {
-      xaxis: T.dateAxis("Run start (date)", points.map((p) => p.start_time)),
-      yaxis: T.axis("Segment mean (m/s²)", { rangemode: "tozero" }),
+      xaxis: T.dateAxis(T._("Run start (date)"), points.map((p) => p.start_time)),
+      yaxis: index ? T.axis(T._("Stiffness index (ln units)"), { zeroline: true }) : T.axis(T._("Amplitude (m/s²)"), { rangemode: "tozero" }),
       margin: { l: 75, r: 20, t: 20, b: 55 }, showlegend: true,
     }, {
       filename: `segment-trend-km${k0.toFixed(3)}`,
-      csv: () => ({ columns: ["run_id", "start_time", "km_from", "wheel", "amplitude_mps2"], rows: points.map((p) => [p.run_id, p.start_time, k0, wheel, p.amplitude]) }),
+      csv: () => ({ columns: ["run_id", "start_time", "km_from", "wheel", index ? "stiffness_index" : "amplitude_mps2"], rows: points.map((p) => [p.run_id, p.start_time, k0, wheel, p[key]]) }),
     });
   }
 
@@ -119,10 +142,13 @@
     const doneRuns = runs.filter((r) => lineKey(r) === key && r.latest_job && r.latest_job.status === "done")
       .sort((a, b) => String(a.start_time).localeCompare(String(b.start_time)));
     seg = null;
-    try { seg = await T.api.get("/analytics/segments", { line_id, track, wheel, segment_m: SEG_M, align: true }); }
-    catch (e) { T.banner(`Segments not available (HTTP ${e.status}): ${e.detail}`); }
-    document.getElementById("line-info").textContent = `${doneRuns.length} processed run${doneRuns.length === 1 ? "" : "s"}` +
-      " · runs aligned by the analytics service";
+    try { seg = await T.api.get("/analytics/segments", { line_id, track, wheel, segment_m: SEG_M, align: true, value: value() }); }
+    catch (e) { T.banner(T._("Segments not available (HTTP {status}): {detail}", { status: e.status, detail: e.detail })); }
+    document.getElementById("line-info").textContent =
+      T.ngettext("{n} processed run", "{n} processed runs", doneRuns.length) + " · " + T._("runs aligned by the analytics service");
+    document.getElementById("line-quantity").textContent = isIndex()
+      ? T._("Stiffness index ln(A / A_ref(class, v)): the amplitude against the typical track of its superstructure class at the speed it was passed (0 = typical, +0.10 = an amplitude 10.5 % higher). The raw amplitude also moves with speed.")
+      : T._("Raw sleeper-passage amplitude A (m/s²): it moves with speed as well as with the track; the stiffness index takes the speed out.");
     const trendKm = document.getElementById("trend-km");
     if (!trendKm.value && seg && seg.km.length) trendKm.value = seg.km[Math.floor(seg.km.length / 2)].toFixed(3);
     await drawHeatmap();
@@ -130,7 +156,9 @@
     await drawTrend();
   }
 
-  document.getElementById("line-controls").addEventListener("submit", (ev) => { ev.preventDefault(); show(); });
+  const fail = (e) => T.banner(T._("Could not load the line view: {detail}", { detail: e.detail || e.message }));
+  document.getElementById("line-controls").addEventListener("submit", (ev) => { ev.preventDefault(); show().catch(fail); });
+  document.getElementById("line-value").addEventListener("change", () => show().catch(fail));
 
   (async () => {
     try {
@@ -138,13 +166,14 @@
       const keys = T.fillLinePicker("line-track", runs);
       document.getElementById("wheel").innerHTML = T.WHEELS.map((w) => `<option value="${w}">${T.wheelLabel(w)}</option>`).join("");
       document.getElementById("wheel").value = "12";
+      if (T.param("value") === "amplitude") document.getElementById("line-value").value = "amplitude";
       if (!keys.length) {
-        for (const id of ["heatmap-plot", "profiles-plot", "trend-plot"]) T.emptyState(id, "No runs yet.", "<p>Upload runs on the Runs page.</p>");
+        for (const id of ["heatmap-plot", "profiles-plot", "trend-plot"]) T.emptyState(id, T._("No runs yet."), `<p>${T._("Upload runs on the Runs page.")}</p>`);
       } else {
         await show();
       }
     } catch (e) {
-      T.banner(`Could not load the line view: ${e.detail || e.message}`);
+      fail(e);
     }
     T.ready();
   })();

@@ -1,6 +1,12 @@
 /* The login form: posts the credentials as JSON and goes on to the page asked for
- * (a file, not an inline script: the Content-Security-Policy allows scripts only from the server's files). */
+ * (a file, not an inline script: the Content-Security-Policy allows scripts only from the server's files).
+ * Its words come from the catalogue the page loaded (/i18n/<lang>.js). */
 (function () {
+  const messages = (window.trackvkfI18n || {}).messages || {};
+  function _(msgid, params) {
+    const text = typeof messages[msgid] === "string" ? messages[msgid] : msgid;
+    return text.replace(/\{(\w+)\}/g, (all, name) => (params && name in params ? String(params[name]) : all));
+  }
   const form = document.getElementById("login");
   const error = document.getElementById("error");
   form.addEventListener("submit", async function (event) {
@@ -16,16 +22,16 @@
         credentials: "same-origin",
       });
     } catch (e) {
-      error.textContent = "The server cannot be reached.";
+      error.textContent = _("The server cannot be reached.");
       return;
     }
     if (response.ok) {
       window.location.assign(form.dataset.next || "/");
       return;
     }
-    let message = "Login failed (" + response.status + ").";
-    if (response.status === 401) message = "Wrong user name or password.";
-    if (response.status === 429) message = "Too many attempts; wait a minute and try again.";
+    let message = _("Login failed ({status}).", { status: response.status });
+    if (response.status === 401) message = _("Wrong user name or password.");
+    if (response.status === 429) message = _("Too many attempts; wait a minute and try again.");
     error.textContent = message;
   });
 })();

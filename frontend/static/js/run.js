@@ -36,21 +36,25 @@
     const job = r.latest_job || {};
     const s = job.settings || {};
     const [a, b] = runKm(r);
+    // [label, value, data]: data (ids, names of the recording) are shown as they are, not translated
     const items = [
-      ["Vehicle", r.vehicle_id], ["Line / track", `${r.line_id} / ${r.track}`], ["Direction", r.direction],
-      ["Start", T.datetime(r.start_time)], ["km", `${T.fmt(a)} – ${T.fmt(b)}`],
-      ["Speed", `${T.fmt(r.summary.speed_min_kmh || 0, 0)} – ${T.fmt(r.summary.speed_max_kmh || 0, 0)} km/h`],
-      ["Sample rate", `${T.fmt(r.summary.fs / 1000, 1)} kHz`],
-      ["Job", `${job.id ?? "–"} (${job.status ?? "none"})`],
-      ["Bandwidth", `wheel orders ${s.bandwidth_orders ?? "–"} orders · track ${s.track_resolution_m ?? "–"} m resolution · q = ${s.filter_order ?? "–"}`],
-      ["Wheel diameters", Object.entries((r.metadata || {}).wheel_diameters || {}).map(([w, d]) => `${T.wheelLabel(w)} ${d} m`).join(", ")],
-      ["File sha256", (r.sha256 || "").slice(0, 16) + "…"],
+      [T._("Vehicle"), r.vehicle_id, true], [T._("Line / track"), `${r.line_id} / ${r.track}`, true], [T._("Direction"), r.direction, true],
+      [T._("Start"), T.datetime(r.start_time)], ["km", `${T.fmt(a)} – ${T.fmt(b)}`],
+      [T._("Speed"), `${T.fmt(r.summary.speed_min_kmh || 0, 0)} – ${T.fmt(r.summary.speed_max_kmh || 0, 0)} km/h`],
+      [T._("Sample rate"), `${T.fmt(r.summary.fs / 1000, 1)} kHz`],
+      [T._("Job"), `${job.id ?? "–"} (${job.status ? T.jobStatus(job.status) : T._("none")})`],
+      [T._("Bandwidth"), T._("{orders} orders · track resolution {m} m · q = {q}",
+        { orders: s.bandwidth_orders ?? "–", m: s.track_resolution_m ?? "–", q: s.filter_order ?? "–" })],
+      [T._("Wheel diameters"), Object.entries((r.metadata || {}).wheel_diameters || {}).map(([w, d]) => `${T.wheelLabel(w)} ${T.fmt(d, 3)} m`).join(", ")],
+      [T._("File sha256"), (r.sha256 || "").slice(0, 16) + "…", true],
     ];
-    document.getElementById("run-meta").innerHTML = items.map(([k, v]) => `<div><span>${k}</span><b>${T.esc(v)}</b></div>`).join("");
+    document.getElementById("run-meta").innerHTML = items.map(([k, v, raw]) =>
+      `<div><span>${T.esc(k)}</span><b${raw ? ' translate="no"' : ""}>${T.esc(v)}</b></div>`).join("");
     const warn = document.getElementById("run-warnings");
     const list = r.warnings || [];
     warn.hidden = list.length === 0;
-    warn.innerHTML = list.length ? "<b>Ingest warnings</b><ul>" + list.map((w) => `<li>${T.esc(w)}</li>`).join("") + "</ul>" : "";
+    // the warnings were written when the file was read (stored text, in English)
+    warn.innerHTML = list.length ? `<b>${T.esc(T._("Ingest warnings"))}</b><ul translate="no" lang="en">` + list.map((w) => `<li>${T.esc(w)}</li>`).join("") + "</ul>" : "";
   }
 
   /* Shading and marks of the reference data in [a, b] km, and their legend below the plot:
@@ -71,13 +75,13 @@
         const lo = Math.max(s.km_from, a), hi = Math.min(s.km_to, b);
         if (hi > lo && (hi - lo) >= 0.04 * (b - a)) {
           annotations.push({ x: (lo + hi) / 2, y: 1, xref: "x", yref: "paper", yanchor: "bottom",
-            text: T.esc(s.type), showarrow: false, font: { size: 11, color: "#5d6b7a" } });
+            text: T.esc(s.type), showarrow: false, font: { size: 11, color: "#5d6b7a" }, translate: false });
         }
       }
       for (const [type, details] of types) {
-        legend.push(`<span class="swatch-item" title="${T.esc(details)}"><span class="swatch" style="background:${sectionColor(type)}"></span>${T.esc(type)}</span>`);
+        legend.push(`<span class="swatch-item" title="${T.esc(details)}"><span class="swatch" style="background:${sectionColor(type)}"></span><span translate="no">${T.esc(type)}</span></span>`);
       }
-      info.push(items.length ? `${items.length} superstructure section${items.length === 1 ? "" : "s"}` : "no superstructure data");
+      info.push(items.length ? T.ngettext("{n} superstructure section", "{n} superstructure sections", items.length) : T._("no superstructure data"));
     }
     { // maintenance actions: marks at the bottom
       const res = await T.api.optional("/reference/maintenance", q);
@@ -87,10 +91,10 @@
           y0: 0, y1: 0.04, fillcolor: MAINT_COLOR, line: { width: 0 } });
       }
       if (items.length) {
-        const kinds = [...new Set(items.map((m) => m.type))].sort().join(", ");
-        legend.push(`<span class="swatch-item"><span class="swatch mark" style="background:${MAINT_COLOR}"></span>maintenance action (${T.esc(kinds)}), mark at the bottom over its km range</span>`);
+        const kinds = [...new Set(items.map((m) => T.label("maintenance type", m.type)))].sort().join(", ");
+        legend.push(`<span class="swatch-item"><span class="swatch mark" style="background:${MAINT_COLOR}"></span>${T.esc(T._("maintenance action ({types}), mark at the bottom over its km range", { types: kinds }))}</span>`);
       }
-      info.push(`${items.length} maintenance action${items.length === 1 ? "" : "s"}`);
+      info.push(T.ngettext("{n} maintenance action", "{n} maintenance actions", items.length));
     }
     { // known discontinuities (assets): a dotted line at each, labelled with its type
       const res = await T.api.optional("/assets", { line_id: run.line_id, track: run.track });
@@ -103,19 +107,19 @@
           : { type: "line", xref: "x", yref: "paper", x0: x.km, x1: x.km, y0: 0, y1: 1, line: { color: ASSET_COLOR, width: 1, dash: "dot" } });
         if (label) {
           annotations.push({ x: (x.km + x1) / 2, y: 0.97, xref: "x", yref: "paper", yanchor: "top", showarrow: false,
-            text: `◆ ${T.esc(x.type.replace(/_/g, " "))}`, font: { size: 10, color: "#37474f" }, bgcolor: "rgba(255,255,255,0.75)",
-            hovertext: `${T.esc(x.type.replace(/_/g, " "))}${x.name ? " " + T.esc(x.name) : ""} at km ${x.km.toFixed(3)}${x1 > x.km ? "–" + x1.toFixed(3) : ""}` });
+            text: `◆ ${T.esc(T.label("asset type", x.type))}`, font: { size: 10, color: "#37474f" }, bgcolor: "rgba(255,255,255,0.75)",
+            hovertext: `${T.esc(T.label("asset type", x.type))}${x.name ? " " + T.esc(x.name) : ""} · km ${T.fmt(x.km, 3)}${x1 > x.km ? "–" + T.fmt(x1, 3) : ""}` });
         }
       }
       if (items.length) {
-        const kinds = [...new Set(items.map((x) => x.type.replace(/_/g, " ")))].sort().join(", ");
-        legend.push(`<span class="swatch-item"><span class="swatch asset"></span>asset (${T.esc(kinds)}), dotted line at its km</span>`);
+        const kinds = [...new Set(items.map((x) => T.label("asset type", x.type)))].sort().join(", ");
+        legend.push(`<span class="swatch-item"><span class="swatch asset"></span>${T.esc(T._("asset ({types}), dotted line at its km", { types: kinds }))}</span>`);
       }
-      info.push(`${items.length} asset${items.length === 1 ? "" : "s"}`);
+      info.push(T.ngettext("{n} asset", "{n} assets", items.length));
     }
     document.getElementById("sections-info").textContent = info.join(" · ");
     const box = document.getElementById("map-legend");
-    box.innerHTML = legend.length ? `<span class="muted">Shading:</span> ${legend.join("")}` : "";
+    box.innerHTML = legend.length ? `<span class="muted">${T.esc(T._("Shading:"))}</span> ${legend.join("")}` : "";
     box.hidden = !legend.length;
   }
 
@@ -133,44 +137,82 @@
 
   function referenceText(ref) {
     if (!ref) return "";
-    if (!ref.available) return `No stiffness index: ${ref.reason}. Showing the raw amplitude.`;
+    if (!ref.available) return T.esc(T._("No stiffness index: {reason}. Showing the raw amplitude.", { reason: ref.reason }));
+    // the superstructure classes are the reference data's own names (not translated)
     const cls = (ref.classes || []).map((c) => {
       const [lo, hi] = c.speed_range_kmh || [];
-      const range = lo == null ? "no speeds" : `${T.fmt(lo, 0)}–${T.fmt(hi, 0)} km/h`;
-      return `${c.class || "line"} (${range}, ${c.n_runs} run${c.n_runs === 1 ? "" : "s"}, ${c.method})`;
+      const range = lo == null ? T._("no speeds") : `${T.fmt(lo, 0)}–${T.fmt(hi, 0)} km/h`;
+      const name = c.class ? `<span translate="no">${T.esc(c.class)}</span>` : T.esc(T._("line"));
+      return `${name} (${T.esc(range)}, ${T.esc(T.ngettext("{n} run", "{n} runs", c.n_runs))}, ${T.esc(T.label("curve method", c.method))})`;
     }).join("; ");
-    return `Index = ln(A / A_ref): 0 is a typical location of its superstructure class at the same speed, ` +
-      `+0.1 ≈ 10 % more amplitude (stiffer). Reference curves of line ${ref.line_id} track ${ref.track} ` +
-      `from runs ${(ref.run_ids || []).join(", ")} (computed ${T.datetime(ref.computed_at)}, ` +
-      `matched speed ±${T.fmt(100 * ref.speed_tolerance, 0)} %): ${cls}. Gaps: no reference passes at that speed, ` +
-      `or near a change of superstructure.`;
+    const text = T._("Index = ln(A / A_ref): 0 is a typical location of its superstructure class at the same speed, +0.1 = 10.5 % more amplitude. Reference curves of line {line} track {track} from runs {runs} (computed {when}, matched speed ±{tol} %): {classes}. Gaps: no reference passes at that speed, or near a change of superstructure.",
+      { line: "\u0001L", track: "\u0001T", runs: (ref.run_ids || []).join(", "), when: T.datetime(ref.computed_at),
+        tol: T.fmt(100 * ref.speed_tolerance, 0), classes: "\u0001C" });
+    return T.esc(text).replace("\u0001L", `<span translate="no">${T.esc(ref.line_id)}</span>`)
+      .replace("\u0001T", T.esc(ref.track)).replace("\u0001C", cls);
+  }
+
+  /* The value drawn of a row: the stiffness index or the raw amplitude. */
+  function valueOf(r, index) { return index ? (r.stiffness_index ?? null) : r.sleeper_amp; }
+
+  /* Wheels whose drawn values are the same along the whole range: the two wheels of an axle that
+   * share the two-rail value (the sleeper-passage order of both rails). One trace stands for them. */
+  function sameValues(a, b, index) {
+    const ra = data[a].rows, rb = data[b].rows;
+    if (!ra.length || ra.length !== rb.length) return false;
+    for (let i = 0; i < ra.length; i++) {
+      const x = valueOf(ra[i], index), y = valueOf(rb[i], index);
+      if (ra[i].km !== rb[i].km) return false;
+      if (x === null || y === null ? x !== y : Math.abs(x - y) > 1e-9 * Math.max(1, Math.abs(x))) return false;
+    }
+    return true;
+  }
+
+  /* One trace per wheel, or one per axle where its two wheels share the value (said in its name). */
+  function wheelGroups(index) {
+    const groups = [], used = new Set();
+    for (const w of wheels) {
+      if (used.has(w)) continue;
+      const mate = wheels.find((o) => o !== w && !used.has(o) && o.slice(0, -1) === w.slice(0, -1) && sameValues(w, o, index));
+      used.add(w);
+      if (mate) { used.add(mate); groups.push([w, mate]); } else groups.push([w]);
+    }
+    return groups;
+  }
+
+  function groupName(group) {
+    if (group.length === 1) return T.wheelName(group[0]);
+    return T._("axle {axle}: {a} = {b} (both rails, one value)", { axle: group[0].slice(0, -1), a: T.wheelLabel(group[0]), b: T.wheelLabel(group[1]) });
   }
 
   function traces() {
     const tr = [];
     let speedSrc = null;
     const index = showIndex();
-    for (const w of wheels) {
+    const ampWord = T._("amplitude"), refWord = T._("reference"), speedWord = T._("speed"), indexWord = T._("stiffness index");
+    for (const group of wheelGroups(index)) {
+      const w = group[0];
       const rows = data[w].rows;
+      const label = group.map((g) => T.wheelLabel(g)).join(" = ");
       if (!speedSrc && rows.length) speedSrc = rows;
       tr.push(index ? {
-        type: "scatter", mode: "lines", name: T.wheelName(w), line: { color: T.wheelColor(w), width: 1.3 },
-        x: rows.map((r) => r.km), y: rows.map((r) => r.stiffness_index ?? null),
+        type: "scatter", mode: "lines", name: groupName(group), line: { color: T.wheelColor(w), width: 1.3 },
+        x: rows.map((r) => r.km), y: rows.map((r) => valueOf(r, true)),
         customdata: rows.map((r) => [r.stiffness_index_se ?? NaN, r.sleeper_amp, r.reference_amp ?? NaN, (r.speed_mean ?? NaN) * 3.6]),
-        hovertemplate: `${T.wheelLabel(w)}<br>km %{x:.4f}<br>index %{y:.3f} ± %{customdata[0]:.3f}` +
-          `<br>amplitude %{customdata[1]:.3f} m/s² (reference %{customdata[2]:.3f})<br>speed %{customdata[3]:.1f} km/h<extra></extra>`,
+        hovertemplate: `${label}<br>km %{x:.4f}<br>${indexWord} %{y:.3f} ± %{customdata[0]:.3f}` +
+          `<br>${ampWord} %{customdata[1]:.3f} m/s² (${refWord} %{customdata[2]:.3f})<br>${speedWord} %{customdata[3]:.1f} km/h<extra></extra>`,
       } : {
-        type: "scatter", mode: "lines", name: T.wheelName(w), line: { color: T.wheelColor(w), width: 1.3 },
+        type: "scatter", mode: "lines", name: groupName(group), line: { color: T.wheelColor(w), width: 1.3 },
         x: rows.map((r) => r.km), y: rows.map((r) => r.sleeper_amp),
         customdata: rows.map((r) => (r.speed_mean ?? NaN) * 3.6),
-        hovertemplate: `${T.wheelLabel(w)}<br>km %{x:.4f}<br>amplitude %{y:.3f} m/s²<br>speed %{customdata:.1f} km/h<extra></extra>`,
+        hovertemplate: `${label}<br>km %{x:.4f}<br>${ampWord} %{y:.3f} m/s²<br>${speedWord} %{customdata:.1f} km/h<extra></extra>`,
       });
     }
     if (speedSrc) {
       tr.push({
-        type: "scatter", mode: "lines", name: "speed", yaxis: "y2", line: { color: "#7f8c99", width: 1.2, dash: "dot" },
+        type: "scatter", mode: "lines", name: speedWord, yaxis: "y2", line: { color: "#7f8c99", width: 1.2, dash: "dot" },
         x: speedSrc.map((r) => r.km), y: speedSrc.map((r) => (r.speed_mean ?? NaN) * 3.6),
-        hovertemplate: "km %{x:.4f}<br>speed %{y:.1f} km/h<extra></extra>",
+        hovertemplate: `km %{x:.4f}<br>${speedWord} %{y:.1f} km/h<extra></extra>`,
       });
     }
     return tr;
@@ -180,18 +222,18 @@
     const index = showIndex();
     const scale = index ? "linear" : document.getElementById("amp-scale").value;
     document.getElementById("amp-scale").disabled = index;
-    document.getElementById("map-title").textContent = index ? "Stiffness index along the track" : "Sleeper-passage amplitude along the track";
-    document.getElementById("reference-info").textContent = index ? referenceText(reference) : "";
+    document.getElementById("map-title").textContent = index ? T._("Stiffness index along the track") : T._("Sleeper-passage amplitude along the track");
+    document.getElementById("reference-info").innerHTML = index ? referenceText(reference) : "";
     const tr = traces();
     const n = wheels.length ? data[wheels[0]].n_rows : 0;
     document.getElementById("map-info").textContent =
-      `${n} points per wheel in ${T.fmt(a)}–${T.fmt(b)} km (25 cm bins, peaks kept)`;
+      T._("{n} points per wheel in {from}–{to} km (25 cm bins, peaks kept)", { n: n, from: T.fmt(a), to: T.fmt(b) });
     await T.plot(el, tr, {
       uirevision: "map",
-      xaxis: T.axis("Track position (km)", { range: [a, b], tickformat: ".3f" }),
-      yaxis: index ? T.axis("Stiffness index ln(A / A_ref) (–)", { zeroline: true })
-        : T.axis("Sleeper-passage amplitude (m/s²)", { type: scale, rangemode: scale === "log" ? undefined : "tozero" }),
-      yaxis2: T.axis("Speed (km/h)", { overlaying: "y", side: "right", showgrid: false, rangemode: "tozero", dtick: 20 }),
+      xaxis: T.axis(T._("Track position (km)"), { range: [a, b], tickformat: ".3f" }),
+      yaxis: index ? T.axis(T._("Stiffness index ln(A / A_ref) (ln units)"), { zeroline: true })
+        : T.axis(T._("Sleeper-passage amplitude (m/s²)"), { type: scale, rangemode: scale === "log" ? undefined : "tozero" }),
+      yaxis2: T.axis(T._("Speed (km/h)"), { overlaying: "y", side: "right", showgrid: false, rangemode: "tozero", dtick: 20 }),
       margin: { l: 75, r: 75, t: 40, b: 60 },
       hovermode: "x unified",
       shapes, annotations,
@@ -224,7 +266,7 @@
       await loadReference(a, b);
       await draw(a, b);
     } catch (e) {
-      T.banner(`Could not load the profile: ${e.detail || e.message}`);
+      T.banner(T._("Could not load the profile: {detail}", { detail: e.detail || e.message }));
     } finally {
       busy = false;
       if (pending) { const p = pending; pending = null; show(p[0], p[1]); }
@@ -246,7 +288,7 @@
   document.getElementById("map-controls").addEventListener("submit", (ev) => {
     ev.preventDefault();
     const a = parseFloat(document.getElementById("km-from").value), b = parseFloat(document.getElementById("km-to").value);
-    if (!(b > a)) { T.banner("km to must be greater than km from."); return; }
+    if (!(b > a)) { T.banner(T._("km to must be greater than km from.")); return; }
     T.banner(null);
     show(a, b);
   });
@@ -258,7 +300,8 @@
     try {
       run = await T.api.get(`/runs/${runId}`);
       meta(run);
-      document.getElementById("run-subtitle").textContent = `stiffness map · ${run.vehicle_id} on line ${run.line_id} track ${run.track}, ${T.date(run.start_time)}`;
+      document.getElementById("run-subtitle").textContent = T._("stiffness map · {vehicle} on line {line} track {track}, {date}",
+        { vehicle: run.vehicle_id, line: run.line_id, track: run.track, date: T.date(run.start_time) });
       if (run.vehicle_id) document.getElementById("wheels-link").href = `/wheels?vehicle_id=${encodeURIComponent(run.vehicle_id)}&run_id=${runId}`;
       const job = run.latest_job;
       if (!job || job.status !== "done") {
@@ -272,8 +315,8 @@
       await show(ka ? +ka : full[0], kb ? +kb : full[1]);
       el.on("plotly_relayout", onRelayout);
     } catch (e) {
-      if (e.status === 409) T.emptyState(el, "No results yet", `<p>${T.esc(e.detail)}. The map appears when the processing job is done.</p>`);
-      else T.banner(`Could not load run ${runId}: ${e.detail || e.message}`);
+      if (e.status === 409) T.emptyState(el, T._("No results yet"), `<p>${T.esc(e.detail)}. ${T.esc(T._("The map appears when the processing job is done."))}</p>`);
+      else T.banner(T._("Could not load run {run}: {detail}", { run: runId, detail: e.detail || e.message }));
     }
     T.ready();
   })();

@@ -24,10 +24,11 @@
   }
 
   function jobCell(job) {
-    if (!job) return ['<span class="badge queued">no job</span>', ""];
+    if (!job) return [`<span class="badge queued">${T.esc(T._("no job"))}</span>`, ""];
     const pct = Math.round(100 * (job.progress || 0));
-    const badge = `<span class="badge ${T.esc(job.status)}" title="${T.esc(job.error || "")}">${T.esc(job.status)}</span>`;
-    const bar = `<span class="progress" title="${job.chunks_done}/${job.n_chunks ?? "?"} chunks"><span style="width:${pct}%"></span></span> <span class="muted">${pct} %</span>`;
+    const badge = `<span class="badge ${T.esc(job.status)}" data-status="${T.esc(job.status)}" title="${T.esc(job.error || "")}">${T.esc(T.jobStatus(job.status))}</span>`;
+    const chunks = T._("{done}/{total} chunks", { done: job.chunks_done, total: job.n_chunks ?? "?" });
+    const bar = `<span class="progress" title="${T.esc(chunks)}"><span style="width:${pct}%"></span></span> <span class="muted">${T.fmt(pct, 0)} %</span>`;
     return [badge, bar];
   }
 
@@ -37,30 +38,30 @@
     const done = job && job.status === "done";
     const out = [];
     if (done) {
-      out.push(`<a class="btn small" href="/runs/${r.id}">Stiffness map</a>`);
-      out.push(`<a class="btn small" href="/runs/${r.id}/spectrogram">Spectrogram</a>`);
-      if (r.vehicle_id) out.push(`<a class="btn small" href="/wheels?vehicle_id=${encodeURIComponent(r.vehicle_id)}&run_id=${r.id}">Wheels</a>`);
+      out.push(`<a class="btn small" href="/runs/${r.id}">${T._("Stiffness map")}</a>`);
+      out.push(`<a class="btn small" href="/runs/${r.id}/spectrogram">${T._("Spectrogram")}</a>`);
+      if (r.vehicle_id) out.push(`<a class="btn small" href="/wheels?vehicle_id=${encodeURIComponent(r.vehicle_id)}&run_id=${r.id}">${T._("Wheels")}</a>`);
     }
-    if (active) out.push(`<button class="btn small danger" data-act="cancel" data-job="${job.id}">Cancel</button>`);
-    else out.push(`<button class="btn small" data-act="reprocess" data-run="${r.id}">Reprocess</button>`);
+    if (active) out.push(`<button class="btn small danger" data-act="cancel" data-job="${job.id}">${T._("Cancel")}</button>`);
+    else out.push(`<button class="btn small" data-act="reprocess" data-run="${r.id}">${T._("Reprocess")}</button>`);
     return out.join(" ");
   }
 
   function render() {
-    document.getElementById("runs-count").textContent = `${runs.length} run${runs.length === 1 ? "" : "s"}`;
+    document.getElementById("runs-count").textContent = T.ngettext("{n} run", "{n} runs", runs.length);
     if (!runs.length) {
-      body.innerHTML = `<tr><td colspan="12"><div class="empty"><strong>No runs match.</strong>
-        Upload a run file above, or run <code>trackvkf demo</code>.</div></td></tr>`;
+      body.innerHTML = `<tr><td colspan="12"><div class="empty"><strong>${T._("No runs match.")}</strong>
+        ${T._("Upload a run file above, or run {command}.", { command: "<code>trackvkf demo</code>" })}</div></td></tr>`;
       return;
     }
     body.innerHTML = runs.map((r) => {
       const [a, b, len] = kmRange(r);
       const [badge, bar] = jobCell(r.latest_job);
       return `<tr data-run="${r.id}">
-        <td class="num">${r.id}</td><td>${T.datetime(r.start_time)}</td><td>${T.esc(r.vehicle_id)}</td>
-        <td>${T.esc(r.line_id)} / ${T.esc(r.track)}</td><td>${T.esc(r.direction)}</td>
+        <td class="num">${r.id}</td><td>${T.datetime(r.start_time)}</td><td translate="no">${T.esc(r.vehicle_id)}</td>
+        <td translate="no">${T.esc(r.line_id)} / ${T.esc(r.track)}</td><td translate="no">${T.esc(r.direction)}</td>
         <td class="num">${T.fmt(a)}</td><td class="num">${T.fmt(b)}</td><td class="num">${T.fmt(len, 2)}</td>
-        <td class="muted file" title="${T.esc(r.original_filename || "")} · sha256 ${T.esc(r.sha256)}">${T.esc(r.original_filename || "")}</td>
+        <td class="muted file" translate="no" title="${T.esc(r.original_filename || "")} · sha256 ${T.esc(r.sha256)}">${T.esc(r.original_filename || "")}</td>
         <td class="job-status">${badge}</td><td>${bar}</td><td class="actions"><div class="btns">${actions(r)}</div></td></tr>`;
     }).join("");
   }
@@ -75,8 +76,8 @@
       sel.innerHTML = `<option value="">${label}</option>` + values.map((v) => `<option>${T.esc(v)}</option>`).join("");
       sel.value = values.includes(cur) ? cur : "";
     };
-    fill("f-line", lines, "all lines");
-    fill("f-vehicle", vehicles, "all vehicles");
+    fill("f-line", lines, T._("all lines"));
+    fill("f-vehicle", vehicles, T._("all vehicles"));
   }
 
   async function refresh() {
@@ -88,7 +89,7 @@
       const active = runs.some((r) => r.latest_job && ["queued", "running"].includes(r.latest_job.status));
       schedule(active || watchJob ? 1000 : 5000);
     } catch (e) {
-      T.banner(`Could not load the runs: ${e.detail || e.message}`);
+      T.banner(T._("Could not load the runs: {detail}", { detail: e.detail || e.message }));
       schedule(5000);
     }
   }
@@ -109,14 +110,16 @@
     const job = r && r.latest_job;
     if (!job) return;
     const pct = Math.round(100 * (job.progress || 0));
+    const args = { run: r.id, job: job.id, status: T.jobStatus(job.status), pct: T.fmt(pct, 0), error: job.error || "" };
     if (job.status === "done") {
-      setUploadStatus(`Run ${r.id}: processing job ${job.id} done.`, 1);
+      setUploadStatus(T._("Run {run}: processing job {job} done.", args), 1);
       watchJob = null;
     } else if (job.status === "failed" || job.status === "cancelled") {
-      setUploadStatus(`Run ${r.id}: processing job ${job.id} ${job.status}${job.error ? ": " + job.error : ""}`, 1);
+      setUploadStatus(job.error ? T._("Run {run}: processing job {job} {status}: {error}", args)
+        : T._("Run {run}: processing job {job} {status}", args), 1);
       watchJob = null;
     } else {
-      setUploadStatus(`Run ${r.id} uploaded: processing job ${job.id} ${job.status} (${pct} %)…`, 1);
+      setUploadStatus(T._("Run {run} uploaded: processing job {job} {status} ({pct} %)…", args), 1);
     }
   }
 
@@ -124,24 +127,25 @@
     ev.preventDefault();
     T.banner(null);
     const file = document.getElementById("upload-file").files[0];
-    if (!file) { T.banner("Choose a run file to upload."); return; }
+    if (!file) { T.banner(T._("Choose a run file to upload.")); return; }
     const meta = document.getElementById("upload-metadata").value.trim();
     const form = new FormData();
     form.append("file", file, file.name);
     if (meta) form.append("metadata", meta);
     const button = document.getElementById("upload-button");
     button.disabled = true;
-    setUploadStatus(`Uploading ${file.name}…`, 0);
+    setUploadStatus(T._("Uploading {file}…", { file: file.name }), 0);
     try {
-      const { status, body: run } = await T.api.upload("/runs", form, (f) => setUploadStatus(`Uploading ${file.name}: ${Math.round(f * 100)} %`, f));
-      if (status === 200) setUploadStatus(`${file.name} was uploaded before: run ${run.id}.`, 1);
-      else setUploadStatus(`Run ${run.id} uploaded: processing job ${run.latest_job ? run.latest_job.id : "?"} queued…`, 1);
+      const { status, body: run } = await T.api.upload("/runs", form,
+        (f) => setUploadStatus(T._("Uploading {file}: {pct} %", { file: file.name, pct: T.fmt(f * 100, 0) }), f));
+      if (status === 200) setUploadStatus(T._("{file} was uploaded before: run {run}.", { file: file.name, run: run.id }), 1);
+      else setUploadStatus(T._("Run {run} uploaded: processing job {job} queued…", { run: run.id, job: run.latest_job ? run.latest_job.id : "?" }), 1);
       watchJob = { run: run.id };
       await loadFilterOptions();
       await refresh();
     } catch (e) {
-      setUploadStatus("Upload rejected.", 0);
-      T.banner(`Upload rejected (HTTP ${e.status}): ${e.detail}`);
+      setUploadStatus(T._("Upload rejected."), 0);
+      T.banner(T._("Upload rejected (HTTP {status}): {detail}", { status: e.status, detail: e.detail }));
     } finally {
       button.disabled = false;
     }
@@ -154,13 +158,15 @@
     try {
       if (btn.dataset.act === "cancel") {
         await T.api.post(`/jobs/${btn.dataset.job}/cancel`);
-        T.banner(`Cancel requested for job ${btn.dataset.job}.`, "info");
+        T.banner(T._("Cancel requested for job {job}.", { job: btn.dataset.job }), "info");
       } else if (btn.dataset.act === "reprocess") {
         const job = await T.api.post(`/runs/${btn.dataset.run}/jobs`, {});
-        T.banner(`Run ${btn.dataset.run}: reprocessing job ${job.id} queued.`, "info");
+        T.banner(T._("Run {run}: reprocessing job {job} queued.", { run: btn.dataset.run, job: job.id }), "info");
       }
     } catch (e) {
-      T.banner(`${btn.dataset.act} failed (HTTP ${e.status}): ${e.detail}`);
+      const args = { status: e.status, detail: e.detail };
+      T.banner(btn.dataset.act === "cancel" ? T._("Cancel failed (HTTP {status}): {detail}", args)
+        : T._("Reprocessing failed (HTTP {status}): {detail}", args));
     }
     refresh();
   });
@@ -178,11 +184,11 @@
       return [r.id, r.start_time, r.vehicle_id, r.line_id, r.track, r.direction, a, b, len,
         r.original_filename, r.sha256, j.id, j.status, j.progress];
     });
-    T.downloadCSV("trackvkf-runs.csv", cols, rows);
+    T.downloadCSV("trackvkf-runs.csv", cols, rows);  // header labels in the page's language
   });
 
   (async () => {
-    try { await loadFilterOptions(); } catch (e) { T.banner(`Could not load the runs: ${e.detail || e.message}`); }
+    try { await loadFilterOptions(); } catch (e) { T.banner(T._("Could not load the runs: {detail}", { detail: e.detail || e.message })); }
     await refresh();
     document.querySelector('button[data-csv-for="runs-table-csv"]').disabled = false;
     T.ready();

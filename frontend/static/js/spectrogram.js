@@ -1,5 +1,7 @@
 /* Spectrogram of a km window (paper fig. 3): (a) raw ABA with the tracked order frequencies,
- * (b) the sum of the VKF-extracted orders, (c) speed. */
+ * (b) the sum of the VKF-extracted orders, (c) speed. The tracked orders are named for what they
+ * are: the sleeper passage ("sleeper"), its harmonics ("sleeper_2", "sleeper_3") and the wheel
+ * out-of-roundness orders ("1" … "11"), counted from the answer's labels. */
 (function () {
   "use strict";
   const T = window.trackvkf;
@@ -7,22 +9,54 @@
   const el = document.getElementById("spectrogram-plot");
   let spec = null;
 
+  /* The kind of a tracked order by its label: the sleeper passage, a harmonic of it, a wheel order. */
+  function kindOf(label) {
+    if (label === "sleeper") return "sleeper";
+    return /^\d+$/.test(label) ? "wheel" : "harmonic";
+  }
+  function counts() {
+    const c = { sleeper: 0, harmonic: 0, wheel: 0 };
+    for (const o of spec.orders) c[kindOf(o.label)] += 1;
+    return c;
+  }
+  function orderName(o) {
+    const kind = kindOf(o.label);
+    if (kind === "sleeper") return T._("sleeper passage");
+    if (kind === "harmonic") return T._("sleeper passage × {h}", { h: o.label.split("_").pop() });
+    return T._("wheel order {l}", { l: o.label });
+  }
+  function groupName(kind) {
+    const c = counts();
+    if (kind === "sleeper") return T._("sleeper passage");
+    if (kind === "harmonic") return T.ngettext("{n} sleeper-passage harmonic", "{n} sleeper-passage harmonics", c.harmonic);
+    return T.ngettext("{n} wheel order", "{n} wheel orders", c.wheel);
+  }
+  const STYLE = {
+    // the tracked orders lie on the bright bands: dark dashes show on green and yellow alike
+    sleeper: { color: "#ff1744", width: 2.4, dash: "dash" },
+    harmonic: { color: "#ff8a80", width: 1.6, dash: "dot" },
+    wheel: { color: "#000000", width: 1.6, dash: "dash" },
+  };
+
   function orderLines(yaxis, showlegend) {
-    return spec.orders.map((o, i) => ({
-      type: "scatter", mode: "lines", x: spec.km, y: o.freq_hz, xaxis: "x", yaxis,
-      name: o.label === "sleeper" ? "sleeper passage" : "wheel orders 1–" + (spec.orders.length - 1),
-      legendgroup: o.label === "sleeper" ? "sleeper" : "wheel", showlegend: showlegend && (i === 0 || i === 1),
-      // the tracked orders lie on the bright bands: dark dashes show on green and yellow alike
-      line: o.label === "sleeper" ? { color: "#ff1744", width: 2.4, dash: "dash" } : { color: "#000000", width: 1.6, dash: "dash" },
-      hovertemplate: (o.label === "sleeper" ? "sleeper passage" : "wheel order " + o.label) + "<br>km %{x:.4f}<br>%{y:.1f} Hz<extra></extra>",
-    }));
+    const shown = new Set();
+    return spec.orders.map((o) => {
+      const kind = kindOf(o.label);
+      const first = !shown.has(kind);
+      shown.add(kind);
+      return {
+        type: "scatter", mode: "lines", x: spec.km, y: o.freq_hz, xaxis: "x", yaxis,
+        name: groupName(kind), legendgroup: kind, showlegend: showlegend && first, line: STYLE[kind],
+        hovertemplate: `${T.esc(orderName(o))}<br>km %{x:.4f}<br>%{y:.1f} Hz<extra></extra>`,
+      };
+    });
   }
 
   function heat(z, yaxis, showscale) {
     return {
       type: "heatmap", x: spec.km, y: spec.freq_hz, z, xaxis: "x", yaxis, colorscale: "Viridis",
       zmin: zRange()[0], zmax: zRange()[1], showscale,
-      colorbar: { title: { text: "PSD (dB re 1 (m/s²)²/Hz)", side: "right" }, len: 0.62, y: 0.69, thickness: 14 },
+      colorbar: { title: { text: T._("PSD (dB re 1 (m/s²)²/Hz)"), side: "right" }, len: 0.62, y: 0.69, thickness: 14 },
       hovertemplate: "km %{x:.4f}<br>%{y:.1f} Hz<br>%{z:.1f} dB<extra></extra>",
     };
   }
@@ -38,18 +72,22 @@
     const traces = [
       heat(spec.raw_db, "y", true), ...orderLines("y", true),
       heat(spec.components_db, "y2", false),
-      { type: "scatter", mode: "lines", x: spec.km, y: spec.speed_kmh, xaxis: "x", yaxis: "y3", name: "speed",
+      { type: "scatter", mode: "lines", x: spec.km, y: spec.speed_kmh, xaxis: "x", yaxis: "y3", name: T._("speed"),
         line: { color: "#1f3b57", width: 1.6 }, hovertemplate: "km %{x:.4f}<br>%{y:.1f} km/h<extra></extra>" },
     ];
     const ann = (text, y) => ({ text, x: 0, xref: "paper", y, yref: "paper", xanchor: "left", yanchor: "bottom",
       showarrow: false, font: { size: 12, color: "#1d2733" } });
     await T.plot(el, traces, {
       grid: { rows: 3, columns: 1 },
-      xaxis: T.axis("Track position (km)", { anchor: "y3", tickformat: ".3f", range: [spec.km[0], spec.km[spec.km.length - 1]] }),
-      yaxis: T.axis("Frequency (Hz)", { domain: [0.6, 0.96], range: [0, fTop] }),
-      yaxis2: T.axis("Frequency (Hz)", { domain: [0.24, 0.56], range: [0, fTop] }),
-      yaxis3: T.axis("Speed (km/h)", { domain: [0, 0.18] }),
-      annotations: [ann(`a) raw ABA ${spec.channel}`, 0.96), ann(`b) extracted components ${spec.channel} (sleeper passage + ${spec.orders.length - 1} wheel orders)`, 0.56), ann("c) speed", 0.18)],
+      xaxis: T.axis(T._("Track position (km)"), { anchor: "y3", tickformat: ".3f", range: [spec.km[0], spec.km[spec.km.length - 1]] }),
+      yaxis: T.axis(T._("Frequency (Hz)"), { domain: [0.6, 0.96], range: [0, fTop] }),
+      yaxis2: T.axis(T._("Frequency (Hz)"), { domain: [0.24, 0.56], range: [0, fTop] }),
+      yaxis3: T.axis(T._("Speed (km/h)"), { domain: [0, 0.18] }),
+      annotations: [
+        ann(T._("a) raw ABA {channel}", { channel: spec.channel }), 0.96),
+        ann(T._("b) extracted components {channel} (sleeper passage, {harmonics} and {wheel})",
+          { channel: spec.channel, harmonics: groupName("harmonic"), wheel: groupName("wheel") }), 0.56),
+        ann(T._("c) speed"), 0.18)],
       margin: { l: 75, r: 30, t: 50, b: 60 },
       legend: { orientation: "h", x: 0.45, y: 1.0, yanchor: "bottom", bgcolor: "rgba(0,0,0,0)" },
     }, {
@@ -64,9 +102,10 @@
         return { columns: ["km", "time_s", "speed_kmh", "freq_hz", "raw_psd_db", "components_psd_db"], rows };
       },
     });
-    document.getElementById("spec-info").textContent =
-      `${spec.channel}: ${spec.km.length} frames × ${spec.freq_hz.length} frequencies, resolution ${T.fmt(spec.resolution_hz, 2)} Hz, ` +
-      `bandwidth ${spec.settings.bandwidth_orders} orders, q = ${spec.settings.filter_order}, d_w = ${spec.wheel_diameter_m} m`;
+    document.getElementById("spec-info").textContent = T._(
+      "{channel}: {frames} frames × {freqs} frequencies, resolution {res} Hz, bandwidth {bw} orders, q = {q}, d_w = {dw} m",
+      { channel: spec.channel, frames: spec.km.length, freqs: spec.freq_hz.length, res: T.fmt(spec.resolution_hz, 2),
+        bw: spec.settings.bandwidth_orders, q: spec.settings.filter_order, dw: T.fmt(spec.wheel_diameter_m, 3) });
   }
 
   async function compute() {
@@ -79,7 +118,7 @@
       spec = await T.api.get(`/runs/${runId}/spectrogram`, { wheel, km_from: a, km_to: b, revolutions });
       await draw();
     } catch (e) {
-      T.banner(`Spectrogram not available (HTTP ${e.status}): ${e.detail}`);
+      T.banner(T._("Spectrogram not available (HTTP {status}): {detail}", { status: e.status, detail: e.detail }));
     } finally {
       el.style.opacity = 1;
     }
@@ -90,7 +129,8 @@
   (async () => {
     try {
       const run = await T.api.get(`/runs/${runId}`);
-      document.getElementById("run-subtitle").textContent = `spectrogram · ${run.vehicle_id} on line ${run.line_id} track ${run.track}, ${T.date(run.start_time)}`;
+      document.getElementById("run-subtitle").textContent = T._("spectrogram · {vehicle} on line {line} track {track}, {date}",
+        { vehicle: run.vehicle_id, line: run.line_id, track: run.track, date: T.date(run.start_time) });
       const wheels = T.WHEELS.filter((w) => run.summary.channels.includes("Z" + w));
       const sel = document.getElementById("wheel");
       sel.innerHTML = wheels.map((w) => `<option value="${w}">${T.wheelLabel(w)}</option>`).join("");
@@ -104,7 +144,7 @@
       document.getElementById("km-to").value = (T.param("km_to") || (mid + half).toFixed(3));
       await compute();
     } catch (e) {
-      T.banner(`Could not load run ${runId}: ${e.detail || e.message}`);
+      T.banner(T._("Could not load run {run}: {detail}", { run: runId, detail: e.detail || e.message }));
     }
     T.ready();
   })();

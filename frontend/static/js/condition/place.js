@@ -1,0 +1,121 @@
+/* Condition page: one place's history — its observations over the runs against its class's tier
+ * limits (from the boot data), the events, the maintenance over it within its runs' span, the
+ * status history — and its status workflow (engineers change it with a comment; viewers read it). */
+(function () {
+  "use strict";
+  const C = window.trackvkfCondition;
+  const { T, $, state } = C;
+
+  function tierChange(e) {
+    if (e.old_tier && e.new_tier && e.old_tier !== e.new_tier) return `${C.tierBadge(e.old_tier)} → ${C.tierBadge(e.new_tier)}`;
+    return e.new_tier || e.old_tier ? C.tierBadge(e.new_tier || e.old_tier) : "–";
+  }
+
+  async function drawPlace(id) {
+    state.placeId = Number(id);
+    for (const tr of document.querySelectorAll("#places-body tr[data-place]")) tr.classList.toggle("selected", Number(tr.dataset.place) === state.placeId);
+    const mine = ++state.placeSeq;
+    const p = await T.api.get(`/condition/places/${state.placeId}`);
+    if (mine !== state.placeSeq) return p;  // another place (or a newer state of this one) is on its way
+    $("place-title").innerHTML = `${T.esc(T._("Place {id}: km {from}–{to}", { id: p.id, from: T.fmt(p.km_from, 3), to: T.fmt(p.km_to, 3) }))} ${C.tierBadge(p.tier)}`;
+    const link = $("place-map");
+    link.href = C.mapLink(p.last_run_id, p.km_from, p.km_to);
+    link.hidden = false;
+    const when = C.statusDate(p);
+    const kv = [
+      [T._("Action"), T.esc(T.label("tier action", p.tier))],
+      [T._("Peak"), `${C.peakText(p)} <span class="muted">(${T.esc(T._("index {index}", { index: T.fmt(p.peak, 3) }))})</span>`],
+      [T._("Evidence"), T.esc(p.evidence.map((e) => T.label("evidence", e)).join(", ") || "–")],
+      [T._("Wheels"), `<span translate="no">${T.esc(p.wheels.join(", ") || "–")}</span>`],
+      [T._("Trend per year (95 %)"), C.trendText(p)], [T._("Time to limit"), C.limitText(p)],
+      [T._("First seen / last confirmed"), `${T.date(p.first_seen)} / ${T.date(p.last_confirmed)}`],
+      [T._("Runs confirming"), String(p.runs_confirming) + (p.active ? "" : ` <span class="muted">(${T.esc(T._("not seen lately"))})</span>`) + C.confirmText(p)],
+      [T._("Status"), C.statusBadge(p.status) + (when ? ` <span class="muted">${T.esc(when.text)}</span>` : "")],
+      [T._("Assets"), C.assetsText(p)], [T._("Method version"), `<span class="muted" translate="no">${T.esc(p.method_version || "–")}</span>`],
+    ];
+    $("place-kv").innerHTML = kv.map(([k, v]) => `<div><span>${T.esc(k)}</span><b>${v}</b></div>`).join("");
+    await drawPlaceHistory(p);
+    $("place-events-body").innerHTML = p.events.length ? p.events.map((e) => `<tr><td>${T.date(e.time)}</td><td>${T.esc(T.label("place event", e.kind))}</td>
+      <td>${e.run_id ?? "–"}</td><td>${tierChange(e)}</td></tr>`).join("")
+      : `<tr><td colspan="4" class="muted">${T.esc(T._("No events."))}</td></tr>`;
+    $("place-maint-body").innerHTML = p.maintenance.length ? p.maintenance.map((m) => `<tr><td>${T.date(m.date)}</td><td>${T.esc(T.label("maintenance type", m.kind || m.type))}</td>
+      <td>${T.fmt(m.km_from, 3)}–${T.fmt(m.km_to, 3)}</td></tr>`).join("")
+      : `<tr><td colspan="3" class="muted">${T.esc(T._("No maintenance action over this place within its runs' span."))}</td></tr>`;
+    // the comments are the engineers' own words (and the service's, in English): shown as written
+    $("place-status-body").innerHTML = p.status_history.length ? p.status_history.map((h) => `<tr><td>${T.datetime(h.at)}</td><td translate="no">${T.esc(h.by)}</td>
+      <td>${T.esc(T.label("place status", h.old))} → <b>${T.esc(T.label("place status", h.new))}</b></td><td class="wrap" translate="no">${T.esc(h.comment)}</td></tr>`).join("")
+      : `<tr><td colspan="4" class="muted">${T.esc(T._("Status {status} since the place was found; no change yet.", { status: T.label("place status", p.status) }))}</td></tr>`;
+    $("status-form").hidden = !C.canEdit();
+    $("status-readonly").hidden = C.canEdit();
+    // the form starts from the place's status when another place is shown; a redraw of the same place
+    // (a click's answer landing late) leaves what the engineer is choosing alone
+    if (state.formPlace !== p.id) {
+      state.formPlace = p.id;
+      $("status-new").value = p.status;
+      $("status-comment").value = "";
+    }
+    return p;
+  }
+
+  /* The limits of the place's class on its side (soft: below zero), from the boot data. */
+  function limitLines(p) {
+    const limits = C.RULES.tierLimits[p.class] || C.RULES.tierLimits[""] || {};
+    const sign = p.direction === "soft" ? -1 : 1;
+    return Object.entries(limits).map(([tier, v]) => ({ tier, y: sign * Math.abs(v) }));
+  }
+
+  async function drawPlaceHistory(p) {
+    const el = $("place-history");
+    const obs = p.observations;
+    if (!obs.length) { T.emptyState(el, T._("No observation of this place."), ""); return; }
+    const x = obs.map((o) => o.run_time);
+    const traces = [
+      { type: "scatter", mode: "lines+markers", name: T._("stiffness index at the place (ln units)"), x, y: obs.map((o) => o.level),
+        line: { color: "#1d2733", width: 2 }, marker: { size: 9, color: obs.map((o) => T.TIER_COLORS[o.tier] || "#999") },
+        customdata: obs.map((o) => [o.run_id, T.label("tier", o.tier), o.speed_kmh, o.km_from, o.km_to]),
+        hovertemplate: `%{x|${T.DATE_FMT}} ${T.esc(T._("run {run}", { run: "%{customdata[0]}" }))}<br>${T.esc(T._("stiffness index"))} %{y:.3f} (%{customdata[1]})` +
+          "<br>km %{customdata[3]:.3f}–%{customdata[4]:.3f}, %{customdata[2]:.0f} km/h<extra></extra>" },
+    ];
+    const withChange = obs.filter((o) => o.change !== null);
+    if (withChange.length) traces.push({ type: "scatter", mode: "markers", name: T._("change against its baseline"), x: withChange.map((o) => o.run_time),
+      y: withChange.map((o) => o.change), marker: { symbol: "diamond-open", size: 8, color: "#5d6b7a" },
+      hovertemplate: `%{x|${T.DATE_FMT}}: ${T.esc(T._("change"))} %{y:.3f}<extra></extra>` });
+    const shapes = [], annotations = [];
+    for (const { tier, y } of limitLines(p)) {
+      const next = tier === p.next_tier;
+      shapes.push({ type: "line", xref: "paper", x0: 0, x1: 1, yref: "y", y0: y, y1: y,
+        line: { color: T.TIER_COLORS[tier], width: next ? 1.5 : 1, dash: next ? "dot" : "dashdot" } });
+      annotations.push({ xref: "paper", x: 1, y, yanchor: "bottom", xanchor: "right", showarrow: false,
+        text: T.esc(T._("{tier} limit", { tier: T.label("tier", tier) })), font: { size: 11, color: T.TIER_COLORS[tier] } });
+    }
+    for (const m of p.maintenance) {
+      shapes.push({ type: "line", xref: "x", yref: "paper", x0: m.date, x1: m.date, y0: 0, y1: 1, line: { color: "#2e7d32", width: 2, dash: "dash" } });
+      annotations.push({ x: m.date, y: 1, xref: "x", yref: "paper", yanchor: "bottom", showarrow: false, text: T.esc(T.label("maintenance type", m.kind || m.type)), font: { size: 11, color: "#2e7d32" } });
+    }
+    await T.plot(el, traces, {
+      xaxis: T.dateAxis(T._("Run date"), x, {}, 30),
+      yaxis: T.axis(T._("Stiffness index ln(A / A_ref) (ln units)"), { zeroline: true }),
+      shapes, annotations, margin: { l: 80, r: 30, t: 30, b: 55 },
+    }, {
+      filename: `place-${p.id}-history`,
+      csv: () => ({ columns: ["run_id", "run_time", "speed_kmh", "level", "change", "tier", "km_from", "km_to", "method_version"],
+                    rows: obs.map((o) => [o.run_id, o.run_time, o.speed_kmh, o.level, o.change, o.tier, o.km_from, o.km_to, o.method_version]) }),
+    });
+  }
+
+  $("status-form").addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    const comment = $("status-comment").value.trim();
+    if (!comment) { T.banner(T._("A status change needs a comment: what was decided and why.")); $("status-comment").focus(); return; }
+    const status = $("status-new").value;
+    try {
+      await T.api.patch(`/condition/places/${state.placeId}/status`, { status, comment });
+      $("status-comment").value = "";
+      T.banner(T._("Place {id}: status set to {status}.", { id: state.placeId, status: T.label("place status", status) }), "ok");
+      await C.drawPlaces();
+      await drawPlace(state.placeId);
+    } catch (e) { T.banner(T._("Status not changed (HTTP {status}): {detail}", { status: e.status, detail: e.detail })); }
+  });
+
+  C.drawPlace = drawPlace;
+})();
