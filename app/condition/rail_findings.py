@@ -32,6 +32,7 @@ from app.analysis.impacts.findings import FINDING_KINDS, RailFinding, RunImpacts
 from app.condition import readers as reader
 from app.condition.lines import resolve_line
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.jsonable import finite_or_none, iso_time
 from app.db import assets_crud
 from app.db.models import ConditionLine, ConditionRun, Job, SegmentCondition
@@ -58,8 +59,8 @@ def check_types(types: Sequence[str] | None) -> tuple[str, ...]:
     out = tuple(dict.fromkeys(t.strip() for t in (types or ()) if t.strip()))
     unknown = [t for t in out if t not in FINDING_TYPES]
     if unknown:
-        raise ApiError(422, "type", f"unknown finding type(s) {', '.join(repr(t) for t in unknown)}: "
-                                    f"must be one of {', '.join(FINDING_TYPES)}")
+        raise ApiError(422, "type", _("unknown finding type(s) {types}: must be one of {known}",
+                                      types=", ".join(repr(t) for t in unknown), known=", ".join(FINDING_TYPES)))
     return out
 
 
@@ -133,7 +134,7 @@ def line_findings(db: Database, line_id: str, track: str | None, types: Sequence
 
 def finding(db: Database, ident: str) -> dict:
     """One rail finding with its sightings (``GET /condition/rail-findings/{id}``); 404 naming it."""
-    missing = ApiError(404, "finding_id", f"rail finding {ident!r} not found")
+    missing = ApiError(404, "finding_id", _("rail finding {ident} not found", ident=repr(ident)))
     m = _ID.match(ident)
     if m is None:
         raise missing
