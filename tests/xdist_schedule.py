@@ -48,6 +48,10 @@ HEAVY_FIRST: tuple[str, ...] = (
     "tests/condition/test_grinding_pipeline.py",        # ~70 s: 10-run rough history
     "tests/e2e/test_readme.py",                         # ~55 s: the README's commands verbatim
     "tests/e2e/test_refactor_identity.py",              # ~50 s: the processed demo's fingerprint
+    "tests/faults/test_worker_supervision.py",          # ~50 s: supervised worker processes
+    "tests/e2e/test_scaleout_faults.py",                # ~50 s: API killed during upload, per backend
+    "tests/db/test_display_arrays.py",                  # ~40 s: the SQL path per backend
+    "tests/worker/test_tasks.py",                       # ~40 s: fan-out against the local loop
 )
 
 
