@@ -25,8 +25,7 @@ from app.oidc.settings import OidcSettings
 from app.places.settings import PlacesSettings
 from app.profiles.settings import ProfileSettings
 from app.reference.settings import ReferenceSettings
-from app.runs.settings import UploadSettings
-from app.runs.worker_settings import WorkerSettings
+from app.runs.settings import UploadSettings, WorkerSettings
 
 __all__ = ["GROUPS", "Settings", "get_settings"]
 

@@ -20,7 +20,7 @@ from app.db.models import (
     PlaceAction,
 )
 
-__all__ = ["QUANTITY", "EVIDENCE_NAMES", "PLACE_EVENT_KINDS", "PLACE_ACTION_RELATIONS", "place_dict", "action_dict", "evidence_names", "tier_name"]
+__all__ = ["QUANTITY", "EVIDENCE_NAMES", "NO_PROJECTION", "PLACE_EVENT_KINDS", "PLACE_ACTION_RELATIONS", "place_dict", "action_dict", "evidence_names", "tier_name"]
 
 #: What every value of a place is: the speed-conditioned stiffness index.
 QUANTITY = "stiffness index ln(A/A_ref(class, v))"
@@ -62,6 +62,38 @@ def _amplitude_interval(direction: int, low: float | None, high: float | None) -
     return {"amplitude_percent_low": min(a, b), "amplitude_percent_high": max(a, b)}
 
 
+#: Why a place shows no time to limit (``no_projection``): it is at the top tier, its class has no limit
+#: above, its trend has too few runs (fewer than 3), or its trend is stable or shrinking (not significant
+#: towards the limit).
+NO_PROJECTION: tuple[str, ...] = ("top_tier", "no_limit", "too_few_runs", "stable", "shrinking")
+
+
+def _outlook(p: Place, nxt: str | None) -> dict[str, Any]:
+    """The time to the next tier's limit with its 95 % interval (the days at the fast and the slow end of the
+    rate's interval: ``days · rate / rate_high`` and ``days · rate / rate_low``; no late end where the slow
+    end does not grow), and where there is none, why (:data:`NO_PROJECTION`)."""
+    days = finite_or_none(p.days_to_next) if nxt else None
+    out: dict[str, Any] = {"next_tier": nxt, "next_limit": finite_or_none(p.next_limit) if nxt else None,
+                           "projected_date": _date(p.last_confirmed, days), "days_to_next_tier": days,
+                           "days_to_next_tier_early": None, "days_to_next_tier_late": None,
+                           "projected_date_early": None, "projected_date_late": None, "no_projection": None}
+    rate, low, high = (finite_or_none(x) for x in (p.rate_per_year, p.rate_low, p.rate_high))
+    if days is not None:
+        if rate is not None and high is not None and high > 0:
+            out["days_to_next_tier_early"] = days * rate / high
+        if rate is not None and low is not None and low > 0:
+            out["days_to_next_tier_late"] = days * rate / low
+        out["projected_date_early"] = _date(p.last_confirmed, out["days_to_next_tier_early"])
+        out["projected_date_late"] = _date(p.last_confirmed, out["days_to_next_tier_late"])
+    elif nxt is None:
+        out["no_projection"] = "top_tier"
+    elif out["next_limit"] is None:
+        out["no_projection"] = "no_limit"
+    else:
+        out["no_projection"] = {"new": "too_few_runs", "shrinking": "shrinking"}.get(p.tendency or "new", "stable")
+    return out
+
+
 def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (),
                assets: Sequence[dict[str, Any]] = (), muted_reason: str | None = None,
                speed_kmh: float | None = None) -> dict[str, Any]:
@@ -77,7 +109,9 @@ def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (
     lower amplitude). ``rate_per_year`` (and its 95 % interval ``rate_low`` … ``rate_high``) is in ln units a
     year of the severity (``direction · index``; positive: growing); ``amplitude_percent_per_year`` the same as
     the amplitude's change, per cent a year (``100 · expm1(direction · rate)``), ``amplitude_percent_low`` …
-    ``amplitude_percent_high`` its interval."""
+    ``amplitude_percent_high`` its interval. ``days_to_next_tier`` (and ``projected_date``) is the time to the next
+    tier's limit at the fitted rate, ``…_early`` / ``…_late`` at the ends of the rate's 95 % interval;
+    ``no_projection`` says why there is none (:data:`NO_PROJECTION`)."""
     tier = TIER_NAMES[int(p.tier)]
     nxt = TIER_NAMES[int(p.tier) + 1] if int(p.tier) + 1 < len(TIER_NAMES) else None
     level = float(p.level)
@@ -100,9 +134,7 @@ def place_dict(p: Place, line: ConditionLine, actions: Sequence[PlaceAction] = (
         "rate_high": finite_or_none(p.rate_high), "rate_unit": "ln units per year",
         "amplitude_percent_per_year": amplitude_percent_per_year(1 if p.direction > 0 else -1, p.rate_per_year),
         **_amplitude_interval(1 if p.direction > 0 else -1, p.rate_low, p.rate_high),
-        "next_tier": nxt, "next_limit": finite_or_none(p.next_limit) if nxt else None,
-        "projected_date": _date(p.last_confirmed, p.days_to_next) if nxt else None,
-        "days_to_next_tier": finite_or_none(p.days_to_next) if nxt else None,
+        **_outlook(p, nxt),
         "status": p.status, "status_comment": p.status_comment, "status_by": p.status_by,
         "status_at": iso_time(p.status_at),
         "actions": [action_dict(a) for a in actions], "explained_by": p.explained_by,

@@ -45,7 +45,8 @@ CSV_COLUMNS: tuple[str, ...] = (
     "reading", "speed_kmh", "tier", "confirmed", "evidence", "wheels", "runs_confirming", "first_seen",
     "last_confirmed", "tendency", "rate_per_year", "rate_low", "rate_high", "amplitude_percent_per_year",
     "amplitude_percent_low", "amplitude_percent_high",
-    "next_tier", "projected_date", "days_to_next_tier", "status", "status_comment",
+    "next_tier", "projected_date", "days_to_next_tier", "projected_date_early", "projected_date_late",
+    "days_to_next_tier_early", "days_to_next_tier_late", "no_projection", "status", "status_comment",
     "status_by", "status_at", "actions", "assets", "active", "muted", "muted_reason", "method_version",
     "peak_sd", "change", "change_sd", "severity", "severity_sd",
 )

@@ -20,6 +20,7 @@ from app.analysis.condition.lifecycle import (
     PlaceState,
     advance_places,
     place_outlook,
+    segment_trend,
 )
 from app.analysis.condition.maintenance_effect import action_effect
 from app.analysis.condition.places import EVIDENCE_STEP
@@ -301,3 +302,65 @@ def test_the_surroundings_are_the_mean_around_outside_the_widened_extent():
     assert math.isnan(surroundings_level(SEG, x, 12_000.0, 12_100.0, segment_m=10.0, around_m=60.0,
                                          margin_m=50.0))
 
+
+
+# --- a developing place read where it departs from its baseline --------------------------------------
+
+
+def _demo_run(index: list[float], change: list[float], step: list[bool]):
+    """A run's places over the segments km 13.64–13.70 (the numbers of the demo's runs 9 and 10 at its place
+    developing at −1 ln unit a year, class b91 with pads): the trend found the middle, the step test only the
+    taper's edge, whose rolling history had not absorbed the growth."""
+    from app.analysis.condition.places import EVIDENCE_TREND, merge_places
+    from app.analysis.condition.run_places import RunPlaces
+
+    seg = np.arange(1364, 1370)
+    idx, chg = np.array(index), np.array(change)
+    hot = np.array([False, True, True, True, True, False])
+    ev = np.where(hot, EVIDENCE_TREND, 0) | np.where(step, EVIDENCE_STEP, 0)
+    value = np.where(step, chg, -1e-9)  # a trend segment's value: tiny (its change does not reach a limit)
+    table = merge_places(seg, value, hot, segment_m=10.0, evidence=ev, wheels=np.where(hot, 3, 0))
+    peak = 4  # the run's peak: the step segment (the only one with a tier)
+    sd = np.full(seg.size, 0.08)
+    cls = np.full(seg.size, "b91_pads", dtype=object)
+    one = lambda a: np.array([a])  # noqa: E731
+    return RunPlaces(places=table, peak_m=one((seg[peak] + 0.5) * 10.0), level=one(idx[peak]), change=one(chg[peak]),
+                     change_z=one(-4.7), cls=cls[[peak]], level_tier=one(0), change_tier=one(1), tier=one(1),
+                     severity=one(abs(chg[peak]) / 0.10), n_agreeing=one(2), rate_per_year=one(-0.6),
+                     trend_z=one(-9.9), seg=seg, segment_m=10.0, seg_index=idx, seg_change=chg,
+                     seg_change_z=np.zeros(seg.size), seg_class=cls, seg_evidence=ev.astype(np.int64),
+                     level_sd=one(0.058), change_sd=one(0.034), severity_sd=one(0.34), seg_level_sd=sd)
+
+
+def test_a_developing_place_is_read_at_its_worst_segment_against_its_baseline_and_keeps_its_tier():
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS
+
+    # found by a step at km 13.66 (−0.32 against −0.10 before it): listed at the alert tier
+    st = PlaceState(id=4, direction=-1, start_m=13_660.0, end_m=13_680.0, peak_m=13_665.0, cls="b91_pads",
+                    baseline=-0.098, tier=TIER_ALERT, listed=True)
+    for r, lv in enumerate((-0.321, -0.244, -0.329)):
+        st.observations.append(Observation(6 + r, 14.0 * r, 13_660.0, 13_680.0, 13_670.0, 13_665.0, lv, lv + 0.098,
+                                           TIER_ALERT, 2.0, EVIDENCE_STEP, 3))
+    known, events = [st], []
+    runs9_10 = (([-0.03, -0.20, -0.34, -0.24, -0.105, 0.11], [0.0, -0.09, -0.13, -0.13, -0.136, -0.02]),
+                ([-0.03, -0.22, -0.37, -0.369, -0.149, 0.14], [0.0, -0.09, -0.13, -0.23, -0.162, 0.02]))
+    for r, (idx, chg) in enumerate(runs9_10):
+        found = _demo_run(idx, chg, [False, False, False, False, True, False])
+        evs, ids, _ = advance_places(known, found, run_id=9 + r, day=42.0 + 14.0 * r, covered_m=(13_000.0, 14_000.0),
+                                     params=LifecycleParams(), next_id=5, place_params=DEFAULT_PLACE_PARAMS)
+        events += evs
+        assert ids == [4]
+    last = st.observations[-1]
+    # read at its worst segment (km 13.66), not at the step's edge (−0.149, −0.05 from its baseline: watch)
+    assert last.peak_m == 13_665.0 and last.level == pytest.approx(-0.37)
+    assert last.change == pytest.approx(-0.37 + 0.098) and last.tier == TIER_ALERT
+    assert last.severity == pytest.approx(0.272 / 0.10)
+    # no tier-down alert for a place that grows
+    assert st.tier == TIER_ALERT and events == []
+    # its trend over the history of that segment (the demo's ten runs at km 13.66, two weeks apart) grows at
+    # the planted rate and projects the intervention limit of its class
+    hist = np.array([-0.041, -0.049, -0.082, -0.196, -0.253, -0.321, -0.235, -0.329, -0.342, -0.370])
+    days = 14.0 * np.arange(hist.size)
+    out = place_outlook(st, DEFAULT_PLACE_PARAMS.levels, trend=segment_trend(st, days, hist, now_day=days[-1]))
+    assert out.tendency == "growing" and out.trend.low_per_year < 1.0 < out.trend.high_per_year
+    assert out.next_limit == 0.45 and 0 < out.projection.days_early < out.projection.days < out.projection.days_late

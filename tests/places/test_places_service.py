@@ -68,6 +68,26 @@ def test_the_list_is_ranked_and_filtered(places_fleet):
     assert page["total"] == len(items) and [p["id"] for p in page["items"]] == [items[1]["id"]]
 
 
+def test_every_place_gives_its_time_to_limit_with_its_interval_or_says_why_not(places_fleet):
+    from app.places.answers import NO_PROJECTION
+
+    items = _listed(places_fleet.clients["viewer"], include_closed=True)["items"]
+    projected = [p for p in items if p["days_to_next_tier"] is not None]
+    assert projected, [(p["tier"], p["tendency"]) for p in items]
+    for p in projected:  # a growing place: at the fitted rate and at the ends of its 95 % interval
+        assert p["no_projection"] is None and p["tendency"] == "growing" and p["next_tier"] is not None
+        assert p["days_to_next_tier_early"] <= p["days_to_next_tier"], p
+        late = p["days_to_next_tier_late"]
+        assert late is None or late >= p["days_to_next_tier"], p
+        assert p["projected_date_early"] <= p["projected_date"] and (late is None) == (p["projected_date_late"] is None)
+    for p in items:
+        if p["days_to_next_tier"] is None:
+            assert p["no_projection"] in NO_PROJECTION and p["projected_date_early"] is None, p
+            want = {"new": "too_few_runs", "shrinking": "shrinking", "stable": "stable"}.get(p["tendency"])
+            assert p["no_projection"] in ("top_tier", "no_limit", want), p
+            assert (p["no_projection"] == "top_tier") == (p["next_tier"] is None)
+
+
 def test_exports_list_the_same_places(places_fleet):
     c = places_fleet.clients["viewer"]
     items = _listed(c)["items"]
@@ -76,6 +96,12 @@ def test_exports_list_the_same_places(places_fleet):
     rows = list(csv.DictReader(io.StringIO(r.text)))
     assert [int(x["id"]) for x in rows] == [p["id"] for p in items]
     assert rows[0]["tier"] == items[0]["tier"] and float(rows[0]["km_from"]) == items[0]["km_from"]
+    for row, p in zip(rows, items, strict=True):  # the time to limit with its interval, or why there is none
+        assert row["no_projection"] == (p["no_projection"] or "") and row["projected_date_late"] == \
+            (p["projected_date_late"] or "")
+        early = p["days_to_next_tier_early"]
+        assert (row["days_to_next_tier_early"] == "") if early is None else \
+            float(row["days_to_next_tier_early"]) == pytest.approx(early)
     g = c.get(f"{URL}.geojson", params={"line_id": LINE, "limit": 1000})
     assert g.status_code == 200 and g.headers["content-type"].startswith("application/geo+json")
     feats = g.json()["features"]

@@ -10,7 +10,12 @@ after it was marked fixed keeps its id and history). Then:
 * a place keeps the index it had **before it appeared** (its *baseline*: the
   level minus the change of the run that first found it by a step). Its
   change is measured against that baseline from then on, not against a
-  rolling history that slowly absorbs a lasting change; a known place the
+  rolling history that slowly absorbs a lasting change. It is read where it
+  departs most from that baseline on its own ground (the run's extent within
+  its known one), not at the run's peak (where the run's step test fired
+  against each segment's rolling history: at a developing place that is the
+  edge the growth has just reached, while its middle, absorbed by its own
+  history, is found by the trend alone); a known place the
   run's tests did not flag is still **held** (confirmed) while its extent
   stays ``hold_change`` away from its baseline in its direction;
 * a place neither found nor held by a run that covered its extent with an
@@ -395,18 +400,34 @@ def advance_places(
         level, change = float(found.level[i]), float(found.change[i])
         j = int(match.known[i])
         state = known[j] if j >= 0 else None
+        peak_m, cls = float(found.peak_m[i]), found.cls[i]
+        level_sd, change_sd, severity_sd = (float(a[i]) if a.size == len(p) else float("nan")
+                                            for a in (found.level_sd, found.change_sd, found.severity_sd))
+        severity = float(found.severity[i])
         if state is not None and state.baseline is not None:
+            # a known place is read where it departs most from its baseline on its own ground (the run's extent
+            # within the place's known one), as a held place is: the run's own peak is where the run's step
+            # test fired against each segment's rolling history, which a developing place has absorbed (the
+            # demo's place developing at −1 ln unit a year was read at its taper's edge, −0.05 from its
+            # baseline, and fell to watch with a tier-down alert)
+            own_from, own_to = max(float(p.start_m[i]), state.start_m), min(float(p.end_m[i]), state.end_m)
+            k = _worst_segment(state.direction, found, own_from, own_to) if own_from < own_to else None
+            if k is not None:
+                level, peak_m, cls = float(found.seg_index[k]), (float(found.seg[k]) + 0.5) * found.segment_m, \
+                    found.seg_class[k]
+                if found.seg_level_sd.size == found.seg.size:
+                    level_sd = float(found.seg_level_sd[k])
             change = level - state.baseline
+            severity, sev_sd = _severity(place_params, cls, level, change, level_sd, severity)
+            severity_sd = sev_sd if place_params is not None else severity_sd
         # the change grades a place against its baseline, or where the run's step test fired
         graded_change = change if (state is not None and state.baseline is not None) \
             or (p.evidence[i] & EVIDENCE_STEP) else float("nan")
-        level_sd, change_sd, severity_sd = (float(a[i]) if a.size == len(p) else float("nan")
-                                            for a in (found.level_sd, found.change_sd, found.severity_sd))
-        tier = _graded(place_params, found.cls[i], level, graded_change, int(p.direction[i]), int(found.tier[i]),
+        tier = _graded(place_params, cls, level, graded_change, int(p.direction[i]), int(found.tier[i]),
                        level_sd, change_sd)
         obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),
-                          centre_m=float(p.centre_m[i]), peak_m=float(found.peak_m[i]), level=level, change=change,
-                          tier=tier, severity=float(found.severity[i]), evidence=int(p.evidence[i]),
+                          centre_m=float(p.centre_m[i]), peak_m=peak_m, level=level, change=change,
+                          tier=tier, severity=severity, evidence=int(p.evidence[i]),
                           wheels=int(p.wheels[i]), level_sd=level_sd, change_sd=change_sd, severity_sd=severity_sd)
         if state is None:
             state = PlaceState(id=next_id, direction=int(p.direction[i]), start_m=obs.start_m, end_m=obs.end_m,
@@ -424,7 +445,7 @@ def advance_places(
             matched.add(j)
             was_active = state.active
             state.start_m, state.end_m, state.peak_m = obs.start_m, obs.end_m, obs.peak_m
-            state.cls = found.cls[i]
+            state.cls = cls
             if state.baseline is None and np.isfinite(found.change[i]) and (p.evidence[i] & EVIDENCE_STEP):
                 state.baseline = level - float(found.change[i])
             _apply_tier(state, obs.tier, params, events)
@@ -483,32 +504,48 @@ def _observed(state: PlaceState, found: RunPlaces) -> bool:
     return bool(np.isfinite(found.seg_index[a:b]).any())
 
 
-def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: LifecycleParams,
-          place_params: PlaceParams | None) -> Observation | None:
-    """The observation that holds a known place the run did not flag (None: it is back at its baseline)."""
-    if state.baseline is None or found.seg.size == 0:
+def _worst_segment(direction: int, found: RunPlaces, start_m: float, end_m: float) -> int | None:
+    """The run's segment over ``start_m … end_m`` whose index lies furthest in ``direction`` (position into
+    ``found.seg``; None: no index there). Against a place's one baseline that is also the segment departing
+    most from it."""
+    if found.seg.size == 0:
         return None
-    a = np.searchsorted(found.seg, int(np.floor(state.start_m / found.segment_m)), side="left")
-    b = np.searchsorted(found.seg, int(np.ceil(state.end_m / found.segment_m)), side="left")
+    a = int(np.searchsorted(found.seg, int(np.floor(start_m / found.segment_m)), side="left"))
+    b = int(np.searchsorted(found.seg, int(np.ceil(end_m / found.segment_m)), side="left"))
     vals = found.seg_index[a:b]
     if vals.size == 0 or not np.isfinite(vals).any():
         return None
-    dev = state.direction * (np.nan_to_num(vals, nan=-np.inf) - state.baseline)
-    k = int(np.argmax(dev))
-    if not dev[k] >= params.hold_change:
+    return a + int(np.argmax(direction * np.nan_to_num(vals, nan=-direction * np.inf)))
+
+
+def _severity(place_params: PlaceParams | None, cls: str | None, level: float, change: float, level_sd: float,
+              default: float) -> tuple[float, float]:
+    """Severity (the larger of level and change in units of their alert limits) and its 1-σ (the level's share;
+    NaN where the change sets it) of a reading against a place's baseline; ``default`` without limits."""
+    if place_params is None:
+        return default, float("nan")
+    lvl_alert = place_params.levels.limits_for(cls).alert if cls is not None else np.inf
+    chg_alert = place_params.changes.alert
+    by_level, by_change = abs(level) / lvl_alert, abs(change) / chg_alert
+    return float(max(by_level, by_change)), (level_sd / lvl_alert if by_level >= by_change else float("nan"))
+
+
+def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: LifecycleParams,
+          place_params: PlaceParams | None) -> Observation | None:
+    """The observation that holds a known place the run did not flag (None: it is back at its baseline)."""
+    if state.baseline is None:
         return None
-    level = float(vals[k])
+    k = _worst_segment(state.direction, found, state.start_m, state.end_m)
+    if k is None or not state.direction * (float(found.seg_index[k]) - state.baseline) >= params.hold_change:
+        return None
+    level = float(found.seg_index[k])
     change = level - state.baseline
-    cls = found.seg_class[a + k]
-    level_sd = float(found.seg_level_sd[a + k]) if found.seg_level_sd.size == found.seg.size else float("nan")
+    cls = found.seg_class[k]
+    level_sd = float(found.seg_level_sd[k]) if found.seg_level_sd.size == found.seg.size else float("nan")
     tier = _graded(place_params, cls, level, change, state.direction, state.tier, level_sd)
-    lvl_alert = place_params.levels.limits_for(cls).alert if place_params is not None and cls is not None else np.inf
-    chg_alert = place_params.changes.alert if place_params is not None else np.inf
-    severity = max(abs(level) / lvl_alert, abs(change) / chg_alert) if place_params is not None else 0.0
-    peak = (float(found.seg[a + k]) + 0.5) * found.segment_m
+    severity, severity_sd = _severity(place_params, cls, level, change, level_sd, 0.0)
+    peak = (float(found.seg[k]) + 0.5) * found.segment_m
     # held, not found: the place keeps its extent and the centre the run that last found it located
     return Observation(run_id=run_id, day=float(day), start_m=state.start_m, end_m=state.end_m,
-                       centre_m=state.observations[-1].centre_m, peak_m=peak, level=level, change=change, tier=tier, severity=float(severity),
-                       evidence=EVIDENCE_STEP, wheels=0, level_sd=level_sd,
-                       severity_sd=level_sd / lvl_alert if abs(level) / lvl_alert >= abs(change) / chg_alert
-                       else float("nan"))
+                       centre_m=state.observations[-1].centre_m, peak_m=peak, level=level, change=change, tier=tier,
+                       severity=severity, evidence=EVIDENCE_STEP, wheels=0, level_sd=level_sd, severity_sd=severity_sd)

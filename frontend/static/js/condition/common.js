@@ -62,12 +62,28 @@
     const text = T._("{tendency}: amplitude {rate} a year", { tendency: T.label("tendency", p.tendency), rate: r(p.rate_per_year) });
     return `<span title="${T.esc(title)}">${arrow} ${T.esc(text)}</span>${iv}`;
   }
-  /* The time to limit: the projected days until the next tier's limit (the one word of the page). */
+  /* The time to limit: the projected days until the next tier's limit with the days at the ends of the
+   * rate's 95 % interval; where there is none, why (API: no_projection). */
+  const NO_PROJECTION = {
+    top_tier: () => T._("top tier"),
+    no_limit: () => T._("no limit above for its class"),
+    too_few_runs: () => T._("too few runs for a trend (3 needed)"),
+    stable: () => T._("stable: no time to limit"),
+    shrinking: () => T._("shrinking: no time to limit"),
+  };
   function limitText(p) {
     if (!p.next_tier) return `<span class="muted">${T.esc(T._("top tier"))}</span>`;
     const next = T.label("tier", p.next_tier);
-    if (p.days_to_next_tier === null) return `<span class="muted">${T.esc(T._("no significant trend towards {tier}", { tier: next }))}</span>`;
-    return `${T.esc(T._("≈ {days} d to {tier}", { days: T.fmt(p.days_to_next_tier, 0), tier: next }))} <span class="muted">(${T.date(p.projected_date)})</span>`;
+    if (p.days_to_next_tier === null) {
+      const why = NO_PROJECTION[p.no_projection];
+      return `<span class="muted">${T.esc(why ? why() : T._("no significant trend towards {tier}", { tier: next }))}</span>`;
+    }
+    const early = p.days_to_next_tier_early, late = p.days_to_next_tier_late;
+    const iv = early === null || early === undefined ? "" : late === null || late === undefined
+      ? T._("95 %: {early} d or later", { early: T.fmt(early, 0) })
+      : T._("95 %: {early}–{late} d", { early: T.fmt(early, 0), late: T.fmt(late, 0) });
+    return `${T.esc(T._("≈ {days} d to {tier}", { days: T.fmt(p.days_to_next_tier, 0), tier: next }))} ` +
+      `<span class="muted">(${T.date(p.projected_date)}${iv ? `; ${T.esc(iv)}` : ""})</span>`;
   }
   const READING = { stiffer: T._("stiffer"), softer: T._("softer"), "higher amplitude": T._("higher amplitude"),
                     "lower amplitude": T._("lower amplitude") };
