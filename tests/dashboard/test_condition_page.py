@@ -331,3 +331,4 @@ def test_the_planning_report_has_a_sheet_with_its_plot_per_open_place(engineer_p
     # a download ends the navigation the click began: Chromium reports that request as aborted
     log.failed = [f for f in log.failed if not ("/condition/report.pdf" in f and "ERR_ABORTED" in f)]
     log.assert_clean()
+
