@@ -54,7 +54,7 @@ def _text_problem(path: Path) -> str | None:
     """
     with open(path, "rb") as fh:
         head = fh.read(4096)
-    first, newline, _ = head.partition(b"\n")
+    first, newline, _rest = head.partition(b"\n")
     nul = first.find(b"\x00")
     if nul >= 0:
         return f"NUL byte at byte {nul} of the first line (binary data?)"
