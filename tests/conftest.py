@@ -126,11 +126,12 @@ def pg_cluster():
         cluster.destroy()
 
 
-def pytest_configure(config: pytest.Config) -> None:
-    # fastapi.testclient works with httpx; the suggestion to use httpx2 is noise here
-    config.addinivalue_line(
-        "filterwarnings", "ignore:Using `httpx` with `starlette.testclient`"
-    )
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
+    """Units of work and their order for the xdist workers (tests/xdist_schedule.py)."""
+    from tests.xdist_schedule import make_scheduler
+
+    return make_scheduler(config, log)
 
 
 #: the demo data set of the tests (app.simulate.demo): runs of this length (km) and sample rate (Hz)

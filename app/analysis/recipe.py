@@ -62,6 +62,7 @@ that of the two fits (a steady wheel: the same phasor).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
@@ -71,7 +72,7 @@ import numpy as np
 from app.analysis.orders import OrderTrack, railway_multipliers
 from app.analysis.settings import MAX_SLEEPER_HARMONIC, ProcessingSettings
 from app.analysis.units import KMH_PER_MPS
-from app.analysis.vkf import vkf, vkf_overlap
+from app.analysis.vkf import CLOSE_ORDERS_MESSAGE, VKFWarning, vkf, vkf_overlap
 
 if TYPE_CHECKING:
     from app.analysis.vkf import VKFResult
@@ -281,12 +282,23 @@ class OrderRecipe:
         Returns
         -------
         VKFResult
-            Envelopes of the orders (rows as :attr:`labels`).
+            Envelopes of the orders (rows as :attr:`labels`); its ``close_orders`` name the
+            pairs that came closer than their bandwidth.
+
+        Warns
+        -----
+        VKFWarning
+            If the solve is ill-conditioned. Orders closer than their bandwidth are the
+            recipe's design (wide track orders beside narrow wheel orders; those that really
+            collide are dropped, :func:`order_collisions`): that warning of the engine is not
+            passed on (the pairs are in ``close_orders``).
         """
         stationary = self.stationary
-        return vkf(y, fs, self.frequencies(speed), self.bandwidths(speed), self.filter_order,
-                   chunk_duration=np.inf, phase0=self.phase0(start_m),
-                   stationary=stationary if stationary.any() else None)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=CLOSE_ORDERS_MESSAGE, category=VKFWarning)
+            return vkf(y, fs, self.frequencies(speed), self.bandwidths(speed), self.filter_order,
+                       chunk_duration=np.inf, phase0=self.phase0(start_m),
+                       stationary=stationary if stationary.any() else None)
 
     def order_phases(self, psi: np.ndarray) -> np.ndarray:
         """Phases of the orders, ``multipliers ⊗ psi``, rad, shape (s, len(psi))."""

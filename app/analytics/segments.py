@@ -11,7 +11,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from app.analysis.stiffness.alignment import Alignment, align_runs, segment_table
+from app.analysis.stiffness.alignment import DEFAULT_DETREND_M, Alignment, align_runs, segment_table
 from app.analysis.units import KMH_PER_MPS
 from app.analytics import frames as data
 from app.analytics.frames import RunsQuery, Selection
@@ -23,10 +23,7 @@ from app.db import crud
 from app.db.session import Database
 from app.settings import Settings
 
-__all__ = ["DETREND_M", "run_alignment", "segments", "segment_trend"]
-
-#: Length of the moving mean removed from the signatures before they are correlated, m.
-DETREND_M = 50.0
+__all__ = ["run_alignment", "segments", "segment_trend"]
 
 
 def _alignment(sel: Selection, df: pd.DataFrame, run_id: int, ref_id: int, max_shift_m: float,
@@ -85,7 +82,7 @@ def _table(db: Database, settings: Settings, sel: Selection, km_from: float | No
         g = per_bin["sleeper_amp"].mean()
         shift, conf = 0.0, None
         if align and len(g):
-            al = _alignment(sel, df, run.id, ref_id, max_shift_m, DETREND_M)
+            al = _alignment(sel, df, run.id, ref_id, max_shift_m, DEFAULT_DETREND_M)
             if al is not None and np.isfinite(al.shift_m):
                 shift, conf = al.shift_m, al.confidence
         runs.append((g.index.to_numpy(), per_bin[column].mean().to_numpy()))

@@ -14,7 +14,11 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Depends, Query
 
-from app.analysis.stiffness.alignment import DEFAULT_SEGMENT_M
+from app.analysis.stiffness.alignment import (
+    DEFAULT_DETREND_M,
+    DEFAULT_MAX_SHIFT_M,
+    DEFAULT_SEGMENT_M,
+)
 from app.analysis.stiffness.superstructure import OUTLIER_SEGMENT_M
 from app.analytics import correlations, speed
 from app.analytics import segments as segments_service
@@ -181,8 +185,8 @@ def speed_normalised_profile(run_id: RunId, db: DbDep, settings: SettingsDep,
             summary="km shift of a run against a reference run")
 def run_alignment(run_id: RunId, db: DbDep, settings: SettingsDep,
                   reference_run_id: IdQuery = None,
-                  max_shift_m: MaxShiftQ = 50.0,
-                  detrend_m: Annotated[float, Query(gt=0, le=10_000)] = 50.0) -> dict:
+                  max_shift_m: MaxShiftQ = DEFAULT_MAX_SHIFT_M,
+                  detrend_m: Annotated[float, Query(gt=0, le=10_000)] = DEFAULT_DETREND_M) -> dict:
     """Cross-correlate the run's amplitude signature (mean over wheels) with the reference
     run's (default: the earliest run of the same line/track with results)."""
     return segments_service.run_alignment(db, settings, run_id, reference_run_id=reference_run_id,
@@ -192,7 +196,7 @@ def run_alignment(run_id: RunId, db: DbDep, settings: SettingsDep,
 @router.get("/analytics/segments", response_model=SegmentsOut,
             summary="Per-segment mean amplitude per run, mean, spread and change over runs")
 def segments(db: DbDep, settings: SettingsDep, runs: RunsQ, segment_m: SegmentQ = DEFAULT_SEGMENT_M,
-             align: bool = True, max_shift_m: MaxShiftQ = 50.0, value: ValueQ = "amplitude") -> dict:
+             align: bool = True, max_shift_m: MaxShiftQ = DEFAULT_MAX_SHIFT_M, value: ValueQ = "amplitude") -> dict:
     """Runs (by start time) are aligned to the first one (``align``), then averaged per
     segment; ``spread`` is the standard deviation over runs, ``change`` last minus first
     where the two passed at matched speed (``TRACKVKF_ANALYTICS_SPEED_TOLERANCE``; else null)."""
@@ -205,7 +209,7 @@ def segments(db: DbDep, settings: SettingsDep, runs: RunsQ, segment_m: SegmentQ 
 def segment_trend(db: DbDep, settings: SettingsDep, km: Annotated[float, km_query()],
                   line_id: LineQ = None, track: TrackQ = None, run_ids: RunIdsQ = None, wheel: WheelQ = None,
                   segment_m: SegmentQ = DEFAULT_SEGMENT_M, align: bool = True,
-                  max_shift_m: MaxShiftQ = 50.0, value: ValueQ = "amplitude") -> dict:
+                  max_shift_m: MaxShiftQ = DEFAULT_MAX_SHIFT_M, value: ValueQ = "amplitude") -> dict:
     """The mean amplitude (or stiffness index) of the segment holding ``km`` in each run, by start
     time, with the run's mean speed there."""
     runs = RunsQuery(line_id, track, parse_run_ids(run_ids), None, None, wheel_param(wheel))

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams
+from app.analysis.stiffness.alignment import DEFAULT_MAX_SHIFT_M
 from app.analysis.units import KMH_PER_MPS, MIN_SPEED_KMH
 from app.analytics.settings import EDGE_TRIM_M
 
@@ -37,7 +38,7 @@ class ConditionConfig:
     change: ChangeParams = field(default_factory=lambda: DEFAULT_CHANGE_PARAMS)
     min_speed_mps: float = MIN_SPEED_KMH / KMH_PER_MPS
     edge_trim_m: float = EDGE_TRIM_M
-    max_shift_m: float = 50.0
+    max_shift_m: float = DEFAULT_MAX_SHIFT_M
     min_shift_confidence: float = 0.2
 
     @classmethod

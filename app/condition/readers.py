@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +23,7 @@ from app.analysis.condition.extent_level import (
     DEFAULT_MARGIN_M,
     DEFAULT_MIN_SEGMENTS,
     extent_level,
+    like_surroundings,
     surroundings_level,
 )
 from app.core.jsonable import finite_or_none, iso_time
@@ -244,16 +245,20 @@ def flag_dict(f: ConditionFlag, line: ConditionLine) -> dict:
     }
 
 
-def wheel_mean_rows(session: Session, run_ids: Sequence[int], seg_m: int, first: int, last: int) -> np.ndarray:
+def wheel_mean_rows(session: Session, run_ids: Sequence[int], seg_m: int, first: int, last: int, *,
+                    speed: bool = False) -> np.ndarray:
     """(n, 3) float64 ``(run_id, seg, condition index mean over the wheels)`` of segments ``first … last`` of
-    ``seg_m`` m of the runs, ordered by run and segment (read through the primary key)."""
+    ``seg_m`` m of the runs, ordered by run and segment (read through the primary key); ``speed``: a fourth
+    column, the speed over the segment (m/s, mean over the wheels)."""
+    cols = 4 if speed else 3
     if not run_ids:
-        return np.zeros((0, 3))
+        return np.zeros((0, cols))
     sc = SegmentCondition
-    stmt = select(sc.run_id, sc.seg, func.avg(sc.condition_index)).where(
+    extra = (func.avg(sc.speed_mean),) if speed else ()
+    stmt = select(sc.run_id, sc.seg, func.avg(sc.condition_index), *extra).where(
         sc.run_id.in_([int(r) for r in run_ids]), sc.seg_m == int(seg_m), sc.wheel.in_(list(WHEELS)),
         sc.seg >= int(first), sc.seg <= int(last)).group_by(sc.run_id, sc.seg).order_by(sc.run_id, sc.seg)
-    return fetch_numeric(session, stmt, 3)
+    return fetch_numeric(session, stmt, cols)
 
 
 @dataclass(frozen=True)
@@ -271,17 +276,21 @@ class ExtentReading:
         Segments read (int64; the extent and its surroundings).
     index : numpy.ndarray
         Their condition index, mean over the wheels.
+    speed : float
+        The run's speed over the extent (median over its segments, m/s; NaN: not read).
     """
 
     level: float
     around: float
     seg: np.ndarray
     index: np.ndarray
+    speed: float = math.nan
 
 
 def extent_readings(session: Session, run_ids: Sequence[int], start_m: float, end_m: float, *,
                     around_m: float = DEFAULT_AROUND_M, margin_m: float = DEFAULT_MARGIN_M,
-                    seg_m: int = int(FINE_SEGMENT_M)) -> dict[int, ExtentReading]:
+                    seg_m: int = int(FINE_SEGMENT_M), speed_tolerance: float | None = None,
+                    classes: Callable[[np.ndarray], np.ndarray] | None = None) -> dict[int, ExtentReading]:
     """Per run (those with rows there) the condition index over ``[start_m, end_m)`` (m on the aligned km axis)
     against its surroundings, from the store's ``seg_m`` rows (mean over the wheels): the one rule of an
     extent against the track around it (:mod:`app.analysis.condition.extent_level`, ``around_m`` and
@@ -290,6 +299,11 @@ def extent_readings(session: Session, run_ids: Sequence[int], start_m: float, en
     An extent holding fewer segment centres than
     :data:`~app.analysis.condition.extent_level.DEFAULT_MIN_SEGMENTS` needs a value on each of them (one
     shorter than a segment: the segment holding its middle).
+
+    With ``speed_tolerance`` (the matched-speed rule's) the surroundings are only the segments the run passed
+    at the extent's speed, and with ``classes`` (the superstructure class of given segments) only those of the
+    extent's own class, else any class at its speed
+    (:func:`~app.analysis.condition.extent_level.like_surroundings`); each reading then has the run's speed.
     """
     lo, hi = sorted((float(start_m), float(end_m)))
     if hi - lo < seg_m and math.floor(lo / seg_m - 0.5) == math.floor(hi / seg_m - 0.5):
@@ -300,16 +314,31 @@ def extent_readings(session: Session, run_ids: Sequence[int], start_m: float, en
     mid = 0.5 * (lo + hi)
     first = math.floor(min(lo, mid - around_m) / seg_m)
     last = math.floor(max(hi, mid + around_m) / seg_m)
-    values = wheel_mean_rows(session, run_ids, seg_m, first, last)
+    alike = speed_tolerance is not None
+    values = wheel_mean_rows(session, run_ids, seg_m, first, last, speed=alike)
     out: dict[int, ExtentReading] = {}
     if not len(values):
         return out
+    cls_all = classes(np.arange(first, last + 1, dtype=np.int64)) if classes is not None else None
     runs, starts = np.unique(values[:, 0].astype(np.int64), return_index=True)
+    kw = {"segment_m": float(seg_m), "around_m": around_m, "margin_m": margin_m}
     for run_id, a, b in zip(runs.tolist(), starts.tolist(), [*starts[1:].tolist(), len(values)], strict=True):
         seg, x = values[a:b, 1].astype(np.int64), values[a:b, 2]
-        kw = {"segment_m": float(seg_m), "around_m": around_m, "margin_m": margin_m}
-        out[int(run_id)] = ExtentReading(
-            level=extent_level(seg, x, lo, hi, min_inside=min(n_inside, DEFAULT_MIN_SEGMENTS), **kw),
-            around=surroundings_level(seg, x, lo, hi, **kw), seg=seg, index=x)
+        masks, v = [np.ones(seg.size, dtype=bool)], math.nan
+        if alike:
+            centres = (seg + 0.5) * seg_m
+            inside = (centres >= lo) & (centres < hi)
+            sv = values[a:b, 3]
+            v = float(np.nanmedian(sv[inside])) if np.isfinite(sv[inside]).any() else math.nan
+            masks = like_surroundings(inside, cls_all[seg - first] if cls_all is not None else None, sv,
+                                      float(speed_tolerance))
+        level = around = math.nan
+        for keep in masks:
+            xk = np.where(keep, x, np.nan)
+            level = extent_level(seg, xk, lo, hi, min_inside=min(n_inside, DEFAULT_MIN_SEGMENTS), **kw)
+            around = surroundings_level(seg, xk, lo, hi, **kw)
+            if math.isfinite(level):
+                break
+        out[int(run_id)] = ExtentReading(level=level, around=around, seg=seg, index=x, speed=v)
     return out
 

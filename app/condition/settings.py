@@ -7,6 +7,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS
+from app.analysis.stiffness.alignment import DEFAULT_MAX_SHIFT_M
 from app.condition.config import ConditionConfig
 from app.core.config import SettingsGroup
 
@@ -51,5 +52,5 @@ class ConditionSettings(SettingsGroup):
     condition_history_scan_runs: int = Field(default=_CHANGE.history_scan_runs, ge=2, le=2000)
     condition_trend_window_days: float = Field(default=_CHANGE.trend_window_days, gt=0)
     condition_level_block_m: float = Field(default=_CHANGE.level_block_m, gt=0)
-    condition_max_shift_m: float = Field(default=ConditionConfig.max_shift_m, gt=0)
+    condition_max_shift_m: float = Field(default=DEFAULT_MAX_SHIFT_M, gt=0)
     condition_min_shift_confidence: float = Field(default=ConditionConfig.min_shift_confidence, ge=0, le=1)

@@ -144,19 +144,19 @@ def solve_logged(recipe: OrderRecipe, y: np.ndarray, fs: float, speed: np.ndarra
 
     Orders closer than their bandwidth are the recipe's design (wide track
     orders beside narrow wheel orders, :func:`app.analysis.recipe.order_collisions`
-    drops those that really collide): that warning goes to the debug log
-    only. Every other ``VKFWarning`` (an ill-conditioned solve) is logged and
-    appended to ``notes``; nothing is printed raw.
+    drops those that really collide; :meth:`OrderRecipe.solve` does not warn of
+    them): those pairs go to the debug log only. Every ``VKFWarning`` (an
+    ill-conditioned solve) is logged and appended to ``notes``; nothing is printed raw.
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", VKFWarning)
         res = recipe.solve(y, fs, speed, start_m)
+    if res.close_orders:
+        log.debug("VKF: orders %s come closer than their bandwidth (the recipe's design)", sorted(res.close_orders))
     for w in caught:
         text = str(w.message)
         if not issubclass(w.category, VKFWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        elif "come closer than their bandwidth" in text:
-            log.debug("VKF: %s", text)
         else:
             log.warning("VKF: %s", text)
             notes.append(f"VKF: {text}")

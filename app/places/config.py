@@ -11,25 +11,23 @@ from typing import Any
 from app.analysis.condition.discontinuities import ASSET_TYPES
 from app.analysis.condition.extent_level import DEFAULT_AROUND_M, DEFAULT_MARGIN_M
 from app.analysis.condition.lifecycle import LifecycleParams
-from app.analysis.condition.run_places import PlaceParams
+from app.analysis.condition.run_places import (
+    DEFAULT_LEVEL_LIMITS,
+    DEFAULT_PLACE_PARAMS,
+    PlaceParams,
+)
+from app.analysis.condition.section_class import DEFAULT_SECTION_LIMITS
 from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
 from app.analysis.condition.tiers import TIER_NAMES, TierLimits, TierTable
 from app.analytics.settings import SECTION_MARGIN_M
 
-__all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "tier_table", "default_places_config", "DEFAULT_LEVEL_LIMITS",
-           "DEFAULT_CHANGE_LIMITS", "DEFAULT_SECTION_LIMITS"]
-
-#: Defaults of the tier and section limits (``docs/places.md``, "Settings"): the settings' defaults
-#: (:class:`app.places.settings.PlacesSettings`) are these.
-DEFAULT_LEVEL_LIMITS = {"": [0.25, 0.375, 0.625], "b91_pads": [0.30, 0.45, 0.75]}
-DEFAULT_CHANGE_LIMITS = [0.10, 0.30, 0.50]
-DEFAULT_SECTION_LIMITS = (0.05, 0.10, 0.17, 0.25)
+__all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "tier_table", "default_places_config"]
 
 
 def tier_table(levels: dict[str, list[float]]) -> TierTable:
     """A :class:`TierTable` from ``{class: [alert, intervention, immediate]}`` (``""``: every other class)."""
     rows = {str(k): TierLimits(*[float(v) for v in lim]) for k, lim in levels.items()}
-    default = rows.pop("", TierLimits(*DEFAULT_LEVEL_LIMITS[""]))
+    default = rows.pop("", DEFAULT_LEVEL_LIMITS.default)
     return TierTable(default, rows)
 
 
@@ -64,13 +62,12 @@ class PlacesConfig:
         (``TRACKVKF_ANALYTICS_SECTION_MARGIN_M``).
     """
 
-    place: PlaceParams = field(default_factory=lambda: PlaceParams(tier_table(DEFAULT_LEVEL_LIMITS),
-                                                                    TierLimits(*DEFAULT_CHANGE_LIMITS)))
+    place: PlaceParams = DEFAULT_PLACE_PARAMS
     lifecycle: LifecycleParams = field(default_factory=LifecycleParams)
     curve_min_locations: int = DEFAULT_MIN_LOCATIONS
     curve_runs: int = 20
     section_m: float = 200.0
-    section_limits: tuple[float, ...] = DEFAULT_SECTION_LIMITS
+    section_limits: tuple[float, ...] = tuple(float(v) for v in DEFAULT_SECTION_LIMITS.limits)
     asset_buffer_m: float = 20.0
     muted_asset_types: frozenset[str] = frozenset()
     effect_around_m: float = DEFAULT_AROUND_M

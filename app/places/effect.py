@@ -10,6 +10,20 @@ the speed the train passed at (``ln A`` is not speed-conditioned), a sensor's ca
 cancels, and what happened to the extent remains; the median inside keeps the very place the action was
 for from dominating it. The effect itself (before, after, recovery, how long it lasted) is
 :func:`~app.analysis.condition.maintenance_effect.action_effect`.
+
+**One rule, by action type** (issue 33): the surroundings are the track **of the extent's own
+superstructure class passed at its speed** (:func:`~app.analysis.condition.extent_level.like_surroundings`,
+the matched-speed rule :mod:`app.analysis.speed_match`; a ramp or another class moves with speed
+differently), and each run after the action is compared with the runs before it **at its own speed**
+(the place's own baseline at that speed): a speed mix in the windows does not set the figure. A tamping
+(any action on the support) reports its change as the support's (``support_change`` = ``recovery``); a
+grinding or a rail renewal (:data:`~app.analysis.condition.interventions.RAIL_SURFACE_ACTIONS`) reports
+the rail surface's response change across the work (``rail_surface_change``) and the support's change
+since, against the new surface's own baseline (``support_change``, = ``recovery``; ≈ 0 for a grinding)
+apart (:func:`~app.analysis.condition.maintenance_effect.split_effect`). Every answer states its sign
+convention (:data:`SIGN_CONVENTION`), its runs (``n_runs_before`` / ``n_runs_after``), the recovery's
+1 σ interval (``recovery_low`` / ``recovery_high``, :data:`INTERVAL`) and how long the effect held only
+within the runs seen (``followed_days``).
 """
 
 from __future__ import annotations
@@ -20,7 +34,13 @@ import math
 import numpy as np
 
 from app.analysis.condition import FINE_SEGMENT_M
-from app.analysis.condition.maintenance_effect import ActionEffect, action_effect
+from app.analysis.condition.maintenance_effect import (
+    ActionEffect,
+    SplitEffect,
+    action_effect,
+    split_effect,
+)
+from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE
 from app.condition.lines import check_line_km, resolve_line
 from app.condition.readers import ExtentReading, extent_readings, line_runs
 from app.condition.writer import days_of
@@ -30,8 +50,14 @@ from app.db import reference_crud
 from app.db.models import ConditionLine, ConditionRun, MaintenanceAction
 from app.db.session import Database
 from app.places.config import PlacesConfig
+from app.places.index import segment_classes
 
-__all__ = ["MARGIN_KM", "action_effects", "action_effect_detail"]
+__all__ = ["MARGIN_KM", "SIGN_CONVENTION", "INTERVAL", "action_effects", "action_effect_detail"]
+
+#: The sign convention every effect answer states.
+SIGN_CONVENTION = "after - before, ln units of the amplitude (_pct: 100 * expm1); negative = lower amplitude"
+#: What ``recovery_low`` / ``recovery_high`` span.
+INTERVAL = "1 sigma (68 %)"
 
 #: Margin of the before/after profile around an action's extent, km.
 MARGIN_KM = 0.1
@@ -45,7 +71,9 @@ def _readings(db: Database, line: ConditionLine, a: MaintenanceAction,
     with db.read() as session:
         runs = line_runs(session, line.id)
         got = extent_readings(session, [r.run_id for r in runs], a.km_from * 1000.0, a.km_to * 1000.0,
-                              around_m=config.effect_around_m, margin_m=config.effect_margin_m, seg_m=_SEG_M)
+                              around_m=config.effect_around_m, margin_m=config.effect_margin_m, seg_m=_SEG_M,
+                              speed_tolerance=DEFAULT_SPEED_TOLERANCE,
+                              classes=lambda seg: segment_classes(session, line, seg, config.section_margin_m))
     runs = [r for r in runs if r.run_id in got and math.isfinite(got[r.run_id].level)]
     return runs, got
 
@@ -55,21 +83,37 @@ def _action_day(a: MaintenanceAction) -> float:
 
 
 def _effect(a: MaintenanceAction, runs: list[ConditionRun], got: dict[int, ExtentReading], *, before_days: float,
-            after_days: float, regain: float) -> ActionEffect:
+            after_days: float, regain: float) -> tuple[ActionEffect, SplitEffect]:
     days = np.array([days_of(r.run_time) for r in runs])
     values = np.array([got[r.run_id].level for r in runs])
-    return action_effect(days, values, _action_day(a), before_days=before_days, after_days=after_days,
-                         regain_fraction=regain)
+    speeds = np.array([got[r.run_id].speed for r in runs])
+    day = _action_day(a)
+    e = action_effect(days, values, day, before_days=before_days, after_days=after_days, regain_fraction=regain,
+                      speeds=speeds, speed_tolerance=DEFAULT_SPEED_TOLERANCE)
+    return e, split_effect(str(a.type), days, values, speeds, day, e, after_days=after_days,
+                           speed_tolerance=DEFAULT_SPEED_TOLERANCE)
 
 
-def _out(a: MaintenanceAction, line: ConditionLine, e: ActionEffect, n_runs: int) -> dict:
+def _pct(x: float | None) -> float | None:
+    return 100.0 * math.expm1(x) if x is not None else None
+
+
+def _out(a: MaintenanceAction, line: ConditionLine, effect: tuple[ActionEffect, SplitEffect], n_runs: int) -> dict:
+    e, split = effect
     return {
         "action_id": a.id, "line_id": line.line_id, "track": line.track, "type": a.type, "date": a.date.isoformat(),
         "km_from": a.km_from, "km_to": a.km_to, "n_runs": n_runs, "n_runs_before": e.n_before, "n_runs_after": e.n_after,
-        "condition_index_before": e.index_before, "condition_index_after": e.index_after, "recovery": e.recovery,
-        "recovery_pct": 100.0 * math.expm1(e.recovery) if e.recovery is not None else None,
+        "condition_index_before": e.index_before, "condition_index_after": e.index_after,
+        "sign_convention": SIGN_CONVENTION, "interval": INTERVAL,
+        "recovery": split.support_change, "recovery_pct": _pct(split.support_change),
+        "recovery_low": split.support_low, "recovery_high": split.support_high,
+        "support_change": split.support_change, "support_change_pct": _pct(split.support_change),
+        "rail_surface": split.rail_surface, "rail_surface_change": split.rail_surface_change,
+        "rail_surface_change_pct": _pct(split.rail_surface_change),
+        "rail_surface_change_low": e.recovery_low if split.rail_surface else None,
+        "rail_surface_change_high": e.recovery_high if split.rail_surface else None,
         "slope_after_per_year": e.slope_after_per_year, "lasted_days_observed": e.lasted_days_observed,
-        "lasted_days_projected": e.lasted_days_projected,
+        "lasted_days_projected": e.lasted_days_projected, "followed_days": e.followed_days,
     }
 
 

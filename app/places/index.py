@@ -33,7 +33,8 @@ from app.db.models import ConditionLine, ConditionRun
 from app.pipeline.assemble import ENGINE_VERSION
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
-__all__ = ["SEGMENT_M", "RunIndex", "method_version", "mean_over_wheels", "run_index", "run_segment_index"]
+__all__ = ["SEGMENT_M", "RunIndex", "method_version", "mean_over_wheels", "run_index", "run_segment_index",
+           "segment_classes"]
 
 #: The store's segment length the places are found on, m.
 SEGMENT_M = 10
@@ -46,7 +47,9 @@ def method_version(job_settings: dict[str, Any] | None) -> str:
     return f"{ENGINE_VERSION}+{hashlib.sha256(blob.encode()).hexdigest()[:12]}"
 
 
-def _classes(session: Session, line: ConditionLine, seg: np.ndarray, margin_m: float) -> np.ndarray:
+def segment_classes(session: Session, line: ConditionLine, seg: np.ndarray, margin_m: float) -> np.ndarray:
+    """The superstructure class of each :data:`SEGMENT_M` segment ``seg`` of the line (None within ``margin_m``
+    of a change of class or outside the sections), from its imported sections."""
     sections = reference_crud.reference_frame(session, "superstructure", line_id=line.line_id, track=line.track)
     return section_classes((seg + 0.5) * SEGMENT_M, sections["km_from"].to_numpy(dtype=float) * 1000.0,
                            sections["km_to"].to_numpy(dtype=float) * 1000.0,
@@ -146,7 +149,7 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
     if seg.size == 0:
         return None
     all_seg = np.unique(values[:, 2].astype(np.int64))
-    all_cls = _classes(session, line, all_seg, config.section_margin_m)
+    all_cls = segment_classes(session, line, all_seg, config.section_margin_m)
     cls_of = dict(zip(all_seg.tolist(), all_cls.tolist(), strict=True))
     row_cls = np.asarray(all_cls, dtype=object)[np.searchsorted(all_seg, values[:, 2].astype(np.int64))]
     # the curves from the run and its newest history runs (``curve_runs``: enough passes over the ±10 %

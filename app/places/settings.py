@@ -12,16 +12,16 @@ from pydantic import Field, field_validator
 
 from app.analysis.condition.extent_level import DEFAULT_AROUND_M, DEFAULT_MARGIN_M
 from app.analysis.condition.lifecycle import LifecycleParams
-from app.analysis.condition.run_places import PlaceParams
+from app.analysis.condition.run_places import (
+    DEFAULT_CHANGE_LIMITS,
+    DEFAULT_LEVEL_LIMITS,
+    PlaceParams,
+)
+from app.analysis.condition.section_class import DEFAULT_SECTION_LIMITS
 from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
 from app.analysis.condition.tiers import TIER_NAMES
 from app.core.config import SettingsGroup
-from app.places.config import (
-    DEFAULT_CHANGE_LIMITS,
-    DEFAULT_LEVEL_LIMITS,
-    DEFAULT_SECTION_LIMITS,
-    PlacesConfig,
-)
+from app.places.config import PlacesConfig
 from app.places.followup import FollowupPolicy
 
 _PLACE = PlaceParams  # a frozen dataclass: its class attributes are the defaults
@@ -131,8 +131,10 @@ class PlacesSettings(SettingsGroup):
     """
 
     places_level_limits: dict[str, list[float]] = Field(
-        default_factory=lambda: {k: list(v) for k, v in DEFAULT_LEVEL_LIMITS.items()})
-    places_change_limits: list[float] = Field(default_factory=lambda: list(DEFAULT_CHANGE_LIMITS))
+        default_factory=lambda: {k: [v["alert"], v["intervention"], v["immediate"]]
+                                 for k, v in DEFAULT_LEVEL_LIMITS.to_dict().items()})
+    places_change_limits: list[float] = Field(default_factory=lambda: [DEFAULT_CHANGE_LIMITS.alert, DEFAULT_CHANGE_LIMITS.intervention,
+                                                                     DEFAULT_CHANGE_LIMITS.immediate])
     places_step_z: float = Field(default=_PLACE.step_z, gt=0)
     places_trend_z: float = Field(default=_PLACE.trend_z, gt=0)
     places_min_rate_per_year: float = Field(default=_PLACE.min_rate_per_year, gt=0)
@@ -151,7 +153,7 @@ class PlacesSettings(SettingsGroup):
     places_hold_change: float = Field(default=_LIFE.hold_change, gt=0)
     places_explain_days: float = Field(default=_LIFE.explain_days, ge=0)
     places_section_m: float = Field(default=PlacesConfig.section_m, gt=0)
-    places_section_limits: list[float] = Field(default_factory=lambda: list(DEFAULT_SECTION_LIMITS))
+    places_section_limits: list[float] = Field(default_factory=lambda: [float(v) for v in DEFAULT_SECTION_LIMITS.limits])
     places_class_scheme: dict[str, Any] | None = None
     places_asset_buffer_m: float = Field(default=PlacesConfig.asset_buffer_m, ge=0)
     places_muted_asset_types: str = Field(default="", max_length=500)

@@ -130,7 +130,11 @@ def test_maintenance_effect_of_the_planted_tamping(fleet):
     assert item["recovery_pct"] < -10
     assert item["slope_after_per_year"] == pytest.approx(0.3 / 0.87, abs=0.15)
     assert item["lasted_days_observed"] is None  # a month of data after it: not lost yet
-    assert 40 < item["lasted_days_projected"] < 200
+    # projected to be half lost beyond the month the runs saw: not said (issue 34 item 5)
+    assert item["followed_days"] == pytest.approx(29 - 1 / 6, abs=0.01) and item["lasted_days_projected"] is None
+    assert item["recovery_low"] < item["recovery"] < item["recovery_high"]
+    assert item["support_change"] == item["recovery"] and item["rail_surface"] is False
+    assert item["sign_convention"].startswith("after - before") and item["interval"] == "1 sigma (68 %)"
     d = fleet.client.get(f"/api/v1/condition/maintenance-effect/{item['action_id']}").json()
     assert len(d["series"]) == FLEET_RUNS and d["recovery"] == item["recovery"]
     assert d["profile_km"][0] == pytest.approx(12.9) and d["profile_km"][-1] == pytest.approx(13.4)

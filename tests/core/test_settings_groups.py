@@ -96,3 +96,17 @@ def test_the_groups_checks_hold_in_the_composition():
     with pytest.raises(ValidationError, match="env must be"):
         CoreSettings(env="staging")
     assert Settings(env="PRODUCTION").is_production
+
+
+def test_a_dot_env_file_serves_every_group(monkeypatch, tmp_path):
+    """A ``.env`` file in the working directory holds settings of several groups: each group reads its
+    own and ignores the others'; the composition reads them all."""
+    for name in ("TRACKVKF_PLACES_GAP_M", "TRACKVKF_DATABASE_URL"):
+        monkeypatch.delenv(name, raising=False)
+    (tmp_path / ".env").write_text("TRACKVKF_PLACES_GAP_M=12.5\nTRACKVKF_DATABASE_URL=sqlite:///from-env-file.db\n",
+                                   encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    assert PlacesSettings().places_gap_m == 12.5
+    assert CoreSettings().database_url == "sqlite:///from-env-file.db"
+    s = Settings()
+    assert (s.places_gap_m, s.database_url) == (12.5, "sqlite:///from-env-file.db")

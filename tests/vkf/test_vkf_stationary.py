@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.analysis.vkf import vkf
+from app.analysis.vkf import CLOSE_ORDERS_MESSAGE, VKFWarning, vkf
 from app.analysis.vkf._stationary import fit_over_log_frequency
 
 FS = 2000.0
@@ -51,7 +51,8 @@ def _step_and_line(freq_scale: np.ndarray | float = 1.0, line_power: float = 0.0
 @pytest.mark.parametrize("stationary", [None, [False, True]])
 def test_a_stationary_line_does_not_take_the_wide_orders_step(stationary):
     y, f, t, wide, line = _step_and_line()
-    res = vkf(y, FS, f, np.array([10.0, 1.2]), 2, stationary=stationary)
+    with pytest.warns(VKFWarning, match=CLOSE_ORDERS_MESSAGE):  # 58 and 60.2 Hz: closer than the 10 Hz band
+        res = vkf(y, FS, f, np.array([10.0, 1.2]), 2, stationary=stationary)
     env = res.envelope
     after = (t > 10.4) & (t < 12.0)  # 0.4–2 s after the step: the wide filter has settled
     dev = np.max(np.abs(np.abs(env[0, after]) - 3.0)) / 2.0  # share of the step
@@ -72,8 +73,10 @@ def test_a_stationary_line_follows_its_response_over_a_speed_ramp():
     scale = np.linspace(1.0, 1.3, n)
     y, f, t, wide, line = _step_and_line(scale, line_power=2.0)
     bw = np.vstack([10.0 * scale, 1.2 * scale])
-    res = vkf(y, FS, f, bw, 2, stationary=np.array([False, True]))
-    joint = vkf(y, FS, f, bw, 2)
+    with pytest.warns(VKFWarning, match=CLOSE_ORDERS_MESSAGE):
+        res = vkf(y, FS, f, bw, 2, stationary=np.array([False, True]))
+    with pytest.warns(VKFWarning, match=CLOSE_ORDERS_MESSAGE):
+        joint = vkf(y, FS, f, bw, 2)
     inner = (t > 1.0) & (t < 19.0)
     far = inner & (np.abs(t - 10.0) > 2.0)
     err_line = np.abs(res.envelope[1] - line) / np.abs(line)
@@ -92,6 +95,8 @@ def test_stationary_argument_is_checked():
         vkf(y, FS, f, 2.0, stationary=np.array([1, 0]))
     with pytest.raises(ValueError, match="stationary"):
         vkf(y, FS, f, 2.0, stationary=[True, True])
-    plain = vkf(y, FS, f, np.array([10.0, 1.2]))
-    none = vkf(y, FS, f, np.array([10.0, 1.2]), stationary=[False, False])
+    with pytest.warns(VKFWarning, match=CLOSE_ORDERS_MESSAGE):
+        plain = vkf(y, FS, f, np.array([10.0, 1.2]))
+    with pytest.warns(VKFWarning, match=CLOSE_ORDERS_MESSAGE):
+        none = vkf(y, FS, f, np.array([10.0, 1.2]), stationary=[False, False])
     np.testing.assert_array_equal(plain.envelope, none.envelope)

@@ -32,8 +32,10 @@ from __future__ import annotations
 import numpy as np
 
 from app.analysis._checks import check_positive
+from app.analysis.speed_match import speeds_matched
 
-__all__ = ["extent_level", "surroundings_level", "DEFAULT_AROUND_M", "DEFAULT_MARGIN_M", "DEFAULT_MIN_SEGMENTS"]
+__all__ = ["extent_level", "surroundings_level", "like_surroundings", "DEFAULT_AROUND_M", "DEFAULT_MARGIN_M",
+           "DEFAULT_MIN_SEGMENTS"]
 
 #: Half-width of the surroundings from the extent's centre, m (``TRACKVKF_PLACES_EFFECT_AROUND_M``).
 DEFAULT_AROUND_M = 1000.0
@@ -122,3 +124,45 @@ def extent_level(seg: np.ndarray, index: np.ndarray, start_m: float, end_m: floa
         return level
     return level - surroundings_level(seg, index, start_m, end_m, segment_m=segment_m, around_m=around_m,
                                       margin_m=margin_m, min_segments=min_segments)
+
+
+def like_surroundings(inside: np.ndarray, classes: np.ndarray | None, speed: np.ndarray | None,
+                      tolerance: float) -> list[np.ndarray]:
+    """The segments an extent may be read against, most alike first (issue 33, the maintenance effect): those
+    of the extent's own superstructure class passed at its speed, then any classified segment at its speed
+    (where the extent is nearly its whole class section). A ramp or a section of another class moves with the
+    speed differently from the extent, so a speed mix would read as a change.
+
+    Parameters
+    ----------
+    inside : numpy.ndarray
+        (segments,) bool, the extent's segments.
+    classes : numpy.ndarray or None
+        (segments,) class of each segment (None entries: at a change of class); None (or no class): any.
+    speed : numpy.ndarray or None
+        (segments,) speed of the run over each segment (m/s, NaN: none); None: any speed.
+    tolerance : float
+        Of the matched-speed rule (> 0).
+
+    Returns
+    -------
+    list of numpy.ndarray
+        Masks of the segments (bool, the extent's own included) to try in turn.
+    """
+    inside = np.asarray(inside, dtype=bool)
+    matched = np.ones(inside.shape, dtype=bool)
+    if speed is not None:
+        v = np.asarray(speed, dtype=np.float64)
+        own = v[inside & np.isfinite(v)]
+        matched = speeds_matched(v, float(np.median(own)), tolerance) if own.size else np.zeros(inside.shape, bool)
+    cls = list(classes) if classes is not None else []
+    typed = np.array([c is not None for c in cls], dtype=bool)
+    if not typed.any():  # no classes known
+        return [inside | matched]
+    mine = [c for c, k in zip(cls, inside.tolist(), strict=True) if k and c is not None]
+    out = []
+    if mine:
+        top = max(set(mine), key=mine.count)
+        out.append(inside | (np.array([c == top for c in cls], dtype=bool) & matched))
+    out.append(inside | (typed & matched))
+    return out

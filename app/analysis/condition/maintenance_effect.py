@@ -16,6 +16,34 @@ the wheels) and the runs' times. Around the action's day:
   the index does not move back).
 
 A recovery is reported only with runs on both sides (``min_runs`` each).
+
+**Sign convention**: every change is *after − before* in ln units of the amplitude (its per cent:
+``100 · expm1``); negative = the amplitude dropped.
+
+**At matched speed** (``speeds`` given; issue 33): on a line run at more than one speed the extent's
+index depends on the speed it was passed at, and a median over a window mixes the speed groups in the
+proportions the window happens to hold, so the recovery reads the speed mix as well (measured on the
+real-line bench: a tamping of −20 % read −10.6 %). Each run after the action is then compared with the
+runs before it passed at its own speed (the matched-speed rule, :mod:`app.analysis.speed_match`): the
+extent's own baseline at that speed; the recovery is the median of those differences
+(:func:`matched_change`).
+
+**Interval**: ``recovery_low`` / ``recovery_high`` = recovery ∓ 1 σ (≈ 68 %), σ of the median
+difference from the runs' own scatter on either side (1.4826 · MAD about each baseline, the median's
+√(π/2) efficiency): ``σ² = (π/2) · (s_after² / n_after + s_before² / n_before)``.
+
+**How long it lasted** is said only within the data: ``lasted_days_projected`` is dropped where it
+lies beyond the last run after the action (``followed_days``), the effect then still held as far as
+the runs saw.
+
+**By action type** (:func:`split_effect`). A tamping (any action on the support) changes the support:
+its ``support_change`` is the recovery. A grinding or a rail renewal
+(:data:`~app.analysis.condition.interventions.RAIL_SURFACE_ACTIONS`) changes the rails' running surface,
+hence their roughness response in the sleeper order's band: the recovery across it is the **rail
+surface's response** change (``rail_surface_change``), which the amplitude cannot tell from a change of
+the support made the same day, so the support's change is read against the new surface's own baseline
+instead: the runs after the ``after_days`` window against the runs inside it, at matched speed
+(``support_change``; ≈ 0 where the work did not touch the support).
 """
 
 from __future__ import annotations
@@ -25,10 +53,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.analysis._checks import paired_1d
+from app.analysis.condition.interventions import RAIL_SURFACE_ACTIONS
+from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
 from app.analysis.units import DAYS_PER_YEAR
 
-__all__ = ["ActionEffect", "action_effect"]
+__all__ = ["ActionEffect", "SplitEffect", "action_effect", "matched_change", "split_effect"]
 
+#: 1.4826 · MAD estimates σ of normal scatter.
+_MAD_SIGMA = 1.4826
 
 
 @dataclass(frozen=True)
@@ -46,7 +78,11 @@ class ActionEffect:
     lasted_days_observed : float or None
         Days from the action until the rolling median regained ``regain_fraction`` of the recovery.
     lasted_days_projected : float or None
-        The same projected from ``slope_after_per_year``.
+        The same projected from ``slope_after_per_year``; None where it lies beyond ``followed_days``.
+    recovery_sigma : float or None
+        1 σ of ``recovery`` (module docstring, "Interval").
+    followed_days : float or None
+        Days from the action to the last run after it (None: no run after it).
     """
 
     n_before: int
@@ -57,6 +93,18 @@ class ActionEffect:
     slope_after_per_year: float | None
     lasted_days_observed: float | None
     lasted_days_projected: float | None
+    recovery_sigma: float | None = None
+    followed_days: float | None = None
+
+    @property
+    def recovery_low(self) -> float | None:
+        """``recovery − recovery_sigma`` (ln units)."""
+        return None if self.recovery is None or self.recovery_sigma is None else self.recovery - self.recovery_sigma
+
+    @property
+    def recovery_high(self) -> float | None:
+        """``recovery + recovery_sigma`` (ln units)."""
+        return None if self.recovery is None or self.recovery_sigma is None else self.recovery + self.recovery_sigma
 
 
 def action_effect(
@@ -70,6 +118,8 @@ def action_effect(
     regain_fraction: float = 0.5,
     rolling: int = 5,
     min_runs: int = 2,
+    speeds: np.ndarray | None = None,
+    speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
 ) -> ActionEffect:
     """Effect of an action on day ``action_day`` (see the module docstring).
 
@@ -87,12 +137,17 @@ def action_effect(
         Runs of the rolling median for the observed end (>= 1).
     min_runs : int
         Fewest runs a window needs (>= 1).
+    speeds : numpy.ndarray, optional
+        Speed of each run over the extent, m/s: the recovery at matched speed (:func:`matched_change`).
+    speed_tolerance : float
+        Of the matched-speed rule (> 0).
 
     Returns
     -------
     ActionEffect
     """
     t, y = paired_1d(days, values, "days, values")
+    vel = paired_1d(days, speeds, "days, speeds")[1] if speeds is not None else np.ones_like(t)
     for name, v in (("before_days", before_days), ("after_days", after_days), ("follow_days", follow_days)):
         if not v > 0:
             raise ValueError(f"{name}: must be > 0, got {v!r}")
@@ -102,16 +157,20 @@ def action_effect(
         raise ValueError("rolling, min_runs: must be >= 1")
     ok = np.isfinite(t) & np.isfinite(y)
     order = np.argsort(t[ok], kind="stable")
-    t, y = t[ok][order], y[ok][order]
+    t, y, vel = t[ok][order], y[ok][order], vel[ok][order]
+    followed = float(t[-1] - action_day) if t.size and t[-1] > action_day else None
     before = (t >= action_day - before_days) & (t < action_day)
     after = (t > action_day) & (t <= action_day + after_days)
     follow = (t > action_day) & (t <= action_day + follow_days)
     n_b, n_a = int(before.sum()), int(after.sum())
     if n_b < min_runs or n_a < min_runs:
         return ActionEffect(n_b, n_a, _f(np.median(y[before])) if n_b else None,
-                            _f(np.median(y[after])) if n_a else None, None, None, None, None)
+                            _f(np.median(y[after])) if n_a else None, None, None, None, None, None, followed)
     ib, ia = float(np.median(y[before])), float(np.median(y[after]))
-    recovery = ia - ib
+    matched = _matched(y[before], vel[before], y[after], vel[after], speed_tolerance)
+    if matched is None:
+        return ActionEffect(n_b, n_a, ib, ia, None, None, None, None, None, followed)
+    recovery, sigma = matched
     slope = None
     if follow.sum() >= 3 and np.ptp(t[follow]) > 0:
         slope = float(np.polyfit(t[follow], y[follow], 1)[0] * DAYS_PER_YEAR)
@@ -127,8 +186,112 @@ def action_effect(
     projected = None
     if slope is not None and recovery != 0 and np.sign(slope) == -np.sign(recovery):
         projected = float(regain_fraction * abs(recovery) / abs(slope) * DAYS_PER_YEAR)
-    return ActionEffect(n_b, n_a, ib, ia, recovery, slope, observed, projected)
+        if followed is None or projected > followed:  # not beyond the runs seen
+            projected = None
+    return ActionEffect(n_b, n_a, ib, ia, recovery, slope, observed, projected, sigma, followed)
 
 
 def _f(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
+
+
+def _matched(yb: np.ndarray, vb: np.ndarray, ya: np.ndarray, va: np.ndarray,
+             tolerance: float) -> tuple[float, float] | None:
+    """(change, its 1 σ) of the after-values against the before-values at matched speed (None: no pair)."""
+    okb = np.isfinite(yb) & np.isfinite(vb)
+    yb, vb = yb[okb], vb[okb]
+    diffs, resid_b = [], []
+    for y, v in zip(ya.tolist(), va.tolist(), strict=True):
+        if not (np.isfinite(y) and np.isfinite(v)):
+            continue
+        m = speeds_matched(vb, v, tolerance)
+        if m.any():
+            diffs.append(y - float(np.median(yb[m])))
+    if not diffs:
+        return None
+    for v in vb.tolist():  # each before-value about its own baseline at its speed
+        m = speeds_matched(vb, v, tolerance)
+        resid_b.append(yb[m] - np.median(yb[m]))
+    d = np.asarray(diffs)
+    change = float(np.median(d))
+    rb = np.concatenate(resid_b) if resid_b else np.zeros(0)
+    s_a = _MAD_SIGMA * float(np.median(np.abs(d - change)))
+    s_b = _MAD_SIGMA * float(np.median(np.abs(rb))) if rb.size else 0.0
+    sigma = float(np.sqrt(np.pi / 2.0 * (s_a ** 2 / d.size + s_b ** 2 / max(yb.size, 1))))
+    return change, sigma
+
+
+def matched_change(before: np.ndarray, before_speed: np.ndarray, after: np.ndarray, after_speed: np.ndarray, *,
+                   tolerance: float = DEFAULT_SPEED_TOLERANCE) -> float | None:
+    """The change from ``before`` to ``after`` at matched speed: the median over the after-values of each one
+    less the median of the before-values passed at its speed (its baseline at that speed).
+
+    Parameters
+    ----------
+    before, before_speed, after, after_speed : numpy.ndarray
+        Values (ln units) and speeds (m/s) of the runs on either side.
+    tolerance : float
+        Of the matched-speed rule (:func:`~app.analysis.speed_match.speeds_matched`).
+
+    Returns
+    -------
+    float or None
+        ln units; None where no after-value has a before-value at its speed.
+    """
+    yb, vb = paired_1d(before, before_speed, "before, before_speed")
+    ya, va = paired_1d(after, after_speed, "after, after_speed")
+    got = _matched(yb, vb, ya, va, tolerance)
+    return None if got is None else got[0]
+
+
+@dataclass(frozen=True)
+class SplitEffect:
+    """What an action did to the support and to the rail surface's response, apart (ln units; None: not read).
+
+    Attributes
+    ----------
+    support_change : float or None
+        The support's change (a tamping: the recovery; a rail-surface action: the change since the work,
+        against the new surface's own baseline).
+    rail_surface_change : float or None
+        The rail surface's response change across the action (a rail-surface action only; else None).
+    rail_surface : bool
+        The action changes the rails' running surface.
+    support_sigma : float or None
+        1 σ of ``support_change`` (module docstring, "Interval").
+    """
+
+    support_change: float | None
+    rail_surface_change: float | None
+    rail_surface: bool
+    support_sigma: float | None = None
+
+    @property
+    def support_low(self) -> float | None:
+        """``support_change − support_sigma`` (ln units)."""
+        c, s = self.support_change, self.support_sigma
+        return None if c is None or s is None else c - s
+
+    @property
+    def support_high(self) -> float | None:
+        """``support_change + support_sigma`` (ln units)."""
+        c, s = self.support_change, self.support_sigma
+        return None if c is None or s is None else c + s
+
+
+def split_effect(kind: str, days: np.ndarray, values: np.ndarray, speeds: np.ndarray, action_day: float,
+                 effect: ActionEffect, *, after_days: float = 30.0, follow_days: float = 365.0,
+                 speed_tolerance: float = DEFAULT_SPEED_TOLERANCE, min_runs: int = 2) -> SplitEffect:
+    """The effect on the support and on the rail surface's response of an action of type ``kind`` (module
+    docstring, "By action type"), from the runs of :func:`action_effect` (``days``, ``values``, ``speeds``:
+    its arguments) and its ``effect``."""
+    if kind not in RAIL_SURFACE_ACTIONS:
+        return SplitEffect(effect.recovery, None, False, effect.recovery_sigma)
+    t, y = paired_1d(days, values, "days, values")
+    v = paired_1d(days, speeds, "days, speeds")[1]
+    first = (t > action_day) & (t <= action_day + after_days)
+    later = (t > action_day + after_days) & (t <= action_day + follow_days)
+    got = None
+    if first.sum() >= min_runs and later.sum() >= min_runs:
+        got = _matched(y[first], v[first], y[later], v[later], speed_tolerance)
+    return SplitEffect(None if got is None else got[0], effect.recovery, True, None if got is None else got[1])

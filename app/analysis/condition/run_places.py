@@ -92,12 +92,9 @@ __all__ = [
 #: alert limit is about 3.3 standard deviations of the class's healthy 10 m index (slab 0.073, B91 without
 #: pads 0.076, with pads 0.098: soft track has the lower signal-to-noise ratio) and above every healthy
 #: 10 m segment measured (largest: 0.20, 0.24, 0.23); intervention and immediate action at 1.5 and 2.5
-#: times it, the ratios of EN 13848-5's limits for isolated defects. Classes without a row use the default.
-DEFAULT_LEVEL_LIMITS = TierTable(
-    TierLimits(0.25, 0.375, 0.625),
-    {"slab": TierLimits(0.25, 0.375, 0.625), "b91_no_pads": TierLimits(0.25, 0.375, 0.625),
-     "b91_pads": TierLimits(0.30, 0.45, 0.75)},
-)
+#: times it, the ratios of EN 13848-5's limits for isolated defects. Classes without a row (slab, B91
+#: without pads, …) use the default.
+DEFAULT_LEVEL_LIMITS = TierTable(TierLimits(0.25, 0.375, 0.625), {"b91_pads": TierLimits(0.30, 0.45, 0.75)})
 #: Limits of ``|change|`` against the own history (ln units): 0.10 is above the largest significant
 #: step of healthy segments between runs at different speeds (0.05–0.10: the VKF's resolution along
 #: the track changes with speed) and below the changes to find (a 20 % change is 0.22: alert); a sudden

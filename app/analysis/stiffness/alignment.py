@@ -22,10 +22,15 @@ from scipy import ndimage, signal
 from app.analysis._checks import check_positive
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
 
-__all__ = ["Alignment", "signature", "align_runs", "SegmentTable", "segment_table", "DEFAULT_SEGMENT_M"]
+__all__ = ["Alignment", "signature", "align_runs", "SegmentTable", "segment_table", "DEFAULT_SEGMENT_M",
+           "DEFAULT_MAX_SHIFT_M", "DEFAULT_DETREND_M"]
 
 #: Default segment length of the runs-by-segment comparison (the line view's heat map), m.
 DEFAULT_SEGMENT_M = 100.0
+#: Largest shift an alignment searches by default, m (odometry drift between runs stays within it).
+DEFAULT_MAX_SHIFT_M = 50.0
+#: Moving-mean length removed from the alignment signatures by default, m.
+DEFAULT_DETREND_M = 50.0
 
 
 @dataclass(frozen=True)
@@ -61,7 +66,7 @@ class Alignment:
 
 
 def signature(bins: np.ndarray, amplitude: np.ndarray, *, bin_length_m: float = 0.25,
-              detrend_m: float = 50.0) -> tuple[int, np.ndarray]:
+              detrend_m: float = DEFAULT_DETREND_M) -> tuple[int, np.ndarray]:
     """Detrended log amplitude on a contiguous grid.
 
     Parameters
@@ -110,8 +115,8 @@ def align_runs(
     amplitude: np.ndarray,
     *,
     bin_length_m: float = 0.25,
-    max_shift_m: float = 50.0,
-    detrend_m: float = 50.0,
+    max_shift_m: float = DEFAULT_MAX_SHIFT_M,
+    detrend_m: float = DEFAULT_DETREND_M,
     min_overlap_m: float = 100.0,
 ) -> Alignment:
     """Shift that aligns a run's amplitude profile with a reference run's.

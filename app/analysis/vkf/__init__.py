@@ -16,6 +16,13 @@ vkf, vkf_stream, vkf_overlap, VKFResult, VKFWarning. Order tracks of railway dat
 (``OrderTrack``, ``wheel_orders``, ``sleeper_passage``) live in :mod:`app.analysis.orders`.
 """
 
-from app.analysis.vkf.engine import VKFResult, VKFWarning, vkf, vkf_overlap, vkf_stream
+from app.analysis.vkf.engine import (
+    CLOSE_ORDERS_MESSAGE,
+    VKFResult,
+    VKFWarning,
+    vkf,
+    vkf_overlap,
+    vkf_stream,
+)
 
-__all__ = ["vkf", "vkf_stream", "vkf_overlap", "VKFResult", "VKFWarning"]
+__all__ = ["vkf", "vkf_stream", "vkf_overlap", "VKFResult", "VKFWarning", "CLOSE_ORDERS_MESSAGE"]

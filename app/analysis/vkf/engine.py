@@ -64,6 +64,7 @@ __all__ = [
     "vkf_overlap",
     "VKFResult",
     "VKFWarning",
+    "CLOSE_ORDERS_MESSAGE",
 ]
 
 _EPS = np.finfo(np.float64).eps
@@ -77,6 +78,11 @@ _OVERLAP_TOL = 1e-8
 _CONVERGED = 1e-8
 #: grid on which the orders' guard band is evaluated, s
 _GUARD_GRID_S = 1e-3
+
+
+#: the start of the :class:`VKFWarning` issued when orders come closer than their bandwidth (a
+#: ``warnings.filterwarnings`` message pattern: callers for whom that is by design filter it by it)
+CLOSE_ORDERS_MESSAGE = r"orders \[.*\] come closer than their bandwidth"
 
 
 class VKFWarning(UserWarning):

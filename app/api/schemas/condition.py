@@ -154,13 +154,31 @@ class EffectOut(BaseModel):
     n_runs_before: int
     n_runs_after: int
     condition_index_before: float | None = Field(description="median condition index over the extent before, "
-                                                             "relative to the surrounding track of each run (log units)")
+                                                             "relative to the track of its class around it at its "
+                                                             "speed in each run (log units)")
     condition_index_after: float | None = Field(description="the same just after")
-    recovery: float | None = Field(description="after minus before (negative: lower index, e.g. amplitude)")
+    sign_convention: str = Field(description="every change is after minus before, ln units of the amplitude "
+                                             "(_pct: 100 * expm1); negative = lower amplitude")
+    interval: str = Field(description="what the _low / _high fields span: 1 sigma (68 %)")
+    recovery: float | None = Field(description="the support's change: each run after against the runs before at "
+                                               "its speed (a tamping); a grinding or rail renewal: since the work, "
+                                               "against the new surface's own baseline (log units)")
     recovery_pct: float | None = Field(description="the recovery as a percentage of the amplitude")
+    recovery_low: float | None = Field(description="recovery minus its 1 sigma")
+    recovery_high: float | None = Field(description="recovery plus its 1 sigma")
+    support_change: float | None = Field(description="the support's change (= recovery)")
+    support_change_pct: float | None
+    rail_surface: bool = Field(description="the action changes the rails' running surface (grinding, rail renewal)")
+    rail_surface_change: float | None = Field(description="the rail surface's response change across the work, "
+                                                          "at matched speed (rail-surface actions only)")
+    rail_surface_change_pct: float | None
+    rail_surface_change_low: float | None = Field(description="rail_surface_change minus its 1 sigma")
+    rail_surface_change_high: float | None = Field(description="rail_surface_change plus its 1 sigma")
     slope_after_per_year: float | None = Field(description="index change after the action, ln units a year")
     lasted_days_observed: float | None = Field(description="days until the given fraction of the recovery was lost")
-    lasted_days_projected: float | None = Field(description="the same projected from the slope after")
+    lasted_days_projected: float | None = Field(description="the same projected from the slope after; only within "
+                                                            "followed_days (never beyond the runs seen)")
+    followed_days: float | None = Field(description="days from the action to the last run after it")
 
 
 class EffectsOut(BaseModel):

@@ -147,7 +147,7 @@
     document.getElementById("line-info").textContent =
       T.ngettext("{n} processed run", "{n} processed runs", doneRuns.length) + " · " + T._("runs aligned by the analytics service");
     document.getElementById("line-quantity").textContent = isIndex()
-      ? T._("Stiffness index ln(A / A_ref(class, v)): the amplitude against the typical track of its superstructure class at the speed it was passed (0 = typical, +0.10 ≈ 10 % stiffer). The raw amplitude also moves with speed.")
+      ? T._("Stiffness index ln(A / A_ref(class, v)): the amplitude against the typical track of its superstructure class at the speed it was passed (0 = typical, +0.10 = an amplitude 10.5 % higher). The raw amplitude also moves with speed.")
       : T._("Raw sleeper-passage amplitude A (m/s²): it moves with speed as well as with the track; the stiffness index takes the speed out.");
     const trendKm = document.getElementById("trend-km");
     if (!trendKm.value && seg && seg.km.length) trendKm.value = seg.km[Math.floor(seg.km.length / 2)].toFixed(3);

@@ -145,7 +145,7 @@
       const name = c.class ? `<span translate="no">${T.esc(c.class)}</span>` : T.esc(T._("line"));
       return `${name} (${T.esc(range)}, ${T.esc(T.ngettext("{n} run", "{n} runs", c.n_runs))}, ${T.esc(T.label("curve method", c.method))})`;
     }).join("; ");
-    const text = T._("Index = ln(A / A_ref): 0 is a typical location of its superstructure class at the same speed, +0.1 ≈ 10 % more amplitude (stiffer). Reference curves of line {line} track {track} from runs {runs} (computed {when}, matched speed ±{tol} %): {classes}. Gaps: no reference passes at that speed, or near a change of superstructure.",
+    const text = T._("Index = ln(A / A_ref): 0 is a typical location of its superstructure class at the same speed, +0.1 = 10.5 % more amplitude. Reference curves of line {line} track {track} from runs {runs} (computed {when}, matched speed ±{tol} %): {classes}. Gaps: no reference passes at that speed, or near a change of superstructure.",
       { line: "\u0001L", track: "\u0001T", runs: (ref.run_ids || []).join(", "), when: T.datetime(ref.computed_at),
         tol: T.fmt(100 * ref.speed_tolerance, 0), classes: "\u0001C" });
     return T.esc(text).replace("\u0001L", `<span translate="no">${T.esc(ref.line_id)}</span>`)

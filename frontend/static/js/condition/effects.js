@@ -7,15 +7,21 @@
   const C = window.trackvkfCondition;
   const { T, $, state } = C;
 
+  /* the ±1 σ interval of a change (ln units) in per cent of the amplitude */
+  function rangeText(low, high) {
+    if (low === undefined || low === null || high === undefined || high === null) return "";
+    const title = T.esc(T._("±1 σ (68 %)"));
+    return ` <span class="muted" title="${title}">(${C.signed(100 * Math.expm1(low), 1)} … ${C.signed(100 * Math.expm1(high), 1)})</span>`;
+  }
   function changeText(a) {
     if (a.recovery === null || a.recovery === undefined) return "–";
-    const iv = a.recovery_low !== undefined && a.recovery_low !== null && a.recovery_high !== null
-      ? ` <span class="muted">(${C.signed(100 * Math.expm1(a.recovery_low), 1)} … ${C.signed(100 * Math.expm1(a.recovery_high), 1)})</span>` : "";
-    return `${C.signed(a.recovery_pct, 1)} %${iv} <span class="muted">(${C.signed(a.recovery, 3)})</span>`;
+    return `${C.signed(a.recovery_pct, 1)} %${rangeText(a.recovery_low, a.recovery_high)} <span class="muted">(${C.signed(a.recovery, 3)})</span>`;
   }
   function heldText(a) {
     if (a.lasted_days_observed !== null && a.lasted_days_observed !== undefined) return T.fmt(a.lasted_days_observed, 0);
-    const still = T._("the change still held at the last run after the action");
+    const still = a.followed_days === null || a.followed_days === undefined
+      ? T._("the change still held at the last run after the action")
+      : T._("not lost within the {days} days the runs saw after the action", { days: T.fmt(a.followed_days, 0) });
     return `<span class="muted" title="${T.esc(still)}">–</span>`;
   }
 
@@ -23,8 +29,9 @@
   function railText(a) {
     if (!a.rail_surface) return "";
     const title = T._("the rail surface's response across the work; the support's change is read against the new surface's own baseline");
+    if (a.rail_surface_change === null || a.rail_surface_change === undefined) return "";
     const text = T._("rail surface {pct} %", { pct: C.signed(a.rail_surface_change_pct, 1) });
-    return `<br><span class="muted" title="${T.esc(title)}">${T.esc(text)}</span>`;
+    return `<br><span class="muted" title="${T.esc(title)}">${T.esc(text)}</span>${rangeText(a.rail_surface_change_low, a.rail_surface_change_high)}`;
   }
   function slopeTitle(a) {
     if (a.slope_after_per_year === null) return "";
