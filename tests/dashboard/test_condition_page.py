@@ -112,6 +112,13 @@ def test_the_page_is_an_exception_report_with_every_part_filled(engineer_page, h
     for plot_id in ("cond-sections", "place-history", "cond-heatmap", "cond-trend", "cond-effect"):
         p = _plot(page, plot_id)
         assert p["state"] == "ready" and p["traces"] > 0 and p["points"] > 0 and p["csv"] and p["xtitle"], (plot_id, p)
+    # maintenance effects: n before / after, the sign convention, the interval's meaning, the rule by action type
+    effect_note = page.inner_text("#effect-note") + page.inner_text("#effect-rule")
+    assert "after − before" in effect_note and "±1 σ" in effect_note and "own speed" in effect_note, effect_note
+    effect_rows = page.locator("#actions-body tr[data-action]")
+    assert effect_rows.count() >= 1
+    cells = effect_rows.first.locator("td").all_inner_texts()
+    assert " / " in cells[3] and ("–" in cells[4] or ("%" in cells[4] and "…" in cells[4])), cells
     # the one sentence saying which quantity each view shows
     note = page.inner_text("#cond-quantity")
     assert "ln(A / Aref(class, v))" in note.replace("\n", "") and "ln A" in note
