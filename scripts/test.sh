@@ -7,7 +7,9 @@
 # checkout builds each once per session; `pytest --cache-clear` empties it).
 # TRACKVKF_TEST_WORKERS=N runs the tests in N processes (pytest-xdist; 2 for the 2-core CI
 # machine): a module's tests stay together in one of them (--dist loadscope: module fixtures
-# are made once), the data sets are built by whichever asks first and read by the others.
+# are made once), the data sets are built by whichever asks first and read by the others;
+# tests/xdist_schedule.py groups the modules sharing a session service and hands the long
+# modules out first (so both processes end together).
 # Default 2 (the CI machine has 2 cores); 0: everything in this one process.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."

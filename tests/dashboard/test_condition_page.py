@@ -112,6 +112,13 @@ def test_the_page_is_an_exception_report_with_every_part_filled(engineer_page, h
     for plot_id in ("cond-sections", "place-history", "cond-heatmap", "cond-trend", "cond-effect"):
         p = _plot(page, plot_id)
         assert p["state"] == "ready" and p["traces"] > 0 and p["points"] > 0 and p["csv"] and p["xtitle"], (plot_id, p)
+    # maintenance effects: n before / after, the sign convention, the interval's meaning, the rule by action type
+    effect_note = page.inner_text("#effect-note") + page.inner_text("#effect-rule")
+    assert "after − before" in effect_note and "±1 σ" in effect_note and "own speed" in effect_note, effect_note
+    effect_rows = page.locator("#actions-body tr[data-action]")
+    assert effect_rows.count() >= 1
+    cells = effect_rows.first.locator("td").all_inner_texts()
+    assert " / " in cells[3] and ("–" in cells[4] or ("%" in cells[4] and "…" in cells[4])), cells
     # the one sentence saying which quantity each view shows
     note = page.inner_text("#cond-quantity")
     assert "ln(A / Aref(class, v))" in note.replace("\n", "") and "ln A" in note
@@ -450,3 +457,31 @@ def test_the_planning_report_has_a_sheet_with_its_plot_per_open_place(engineer_p
     # a download ends the navigation the click began: Chromium reports that request as aborted
     log.failed = [f for f in log.failed if not ("/condition/report.pdf" in f and "ERR_ABORTED" in f)]
     log.assert_clean()
+
+
+
+def test_the_planning_report_in_german_leaves_no_english(history_service):
+    """A German user's report of the demo line (places, sheets, maintenance): its text read back
+    (pdftotext) holds the catalogue's German, a sheet per open place, the locale's numbers, month
+    ticks and dates, and none of the English of the report's messages or of the codes' words."""
+    import re
+
+    from tests.condition.report_text import english_leftovers, pdf_text
+
+    _report_tools()
+    line_id = history_service.spec.line_id
+    with history_service.client(timeout=300) as client:
+        r = client.get("/api/v1/condition/report.pdf", params={"line_id": line_id, "date": "2026-03-02"},
+                       headers={"Accept-Language": "de-DE,de;q=0.9,en;q=0.5"})
+        assert r.status_code == 200, r.text[:2000]
+        places = client.get("/api/v1/condition/places", params={"line_id": line_id, "limit": 500}).json()["items"]
+    text = pdf_text(r.content)
+    assert f"Zustandsbericht: Strecke {line_id}" in text and "Planungssitzung vom 02.03.2026" in text, text[:1500]
+    for p in places:  # the German decimal comma in the sheet's title
+        assert text.count(f"Stelle {p['id']}: km {p['km_from']:.3f}".replace(".", ",")) == 1, p["id"]
+    for words in ("Verlauf", "Auf der Strecke", "Index (ln-Einheiten)", "Instandhaltung darüber"):
+        assert text.count(words) >= len(places), words
+    assert re.search(r"(Jan|Feb|März|Apr|Mai|Juni|Juli|Aug|Sept|Okt|Nov|Dez)\.? 20\d\d", text), "German month ticks"
+    for name in {a.get("name") or "" for p in places for a in p["assets"]}:  # the register's own names ("thermite weld")
+        text = text.replace(name, "")
+    assert english_leftovers(text, "de") == []

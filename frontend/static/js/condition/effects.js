@@ -18,7 +18,11 @@
     return `${C.signed(a.recovery_pct, 1)} %${rangeText(a.recovery_low, a.recovery_high)} <span class="muted">(${C.signed(a.recovery, 3)})</span>`;
   }
   function heldText(a) {
-    if (a.lasted_days_observed !== null && a.lasted_days_observed !== undefined) return T.fmt(a.lasted_days_observed, 0);
+    if (a.lasted_days_observed !== null && a.lasted_days_observed !== undefined) {
+      if (!a.rail_surface) return T.fmt(a.lasted_days_observed, 0);
+      const of = T._("of the rail surface's change");
+      return `<span title="${T.esc(of)}">${T.fmt(a.lasted_days_observed, 0)}</span>`;
+    }
     const still = a.followed_days === null || a.followed_days === undefined
       ? T._("the change still held at the last run after the action")
       : T._("not lost within the {days} days the runs saw after the action", { days: T.fmt(a.followed_days, 0) });
