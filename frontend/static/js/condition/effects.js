@@ -41,10 +41,12 @@
     if (a.slope_after_per_year === null) return "";
     return T.esc(T._("{rate} ln units a year", { rate: C.signed(a.slope_after_per_year, 2) }));
   }
-  async function drawActions() {
+  async function drawActions(view = C.view()) {
     const body = $("actions-body");
-    const { line_id, track } = C.current();
+    if (!view.live()) return null;  // a draw for a line no longer chosen writes nothing
+    const { line_id, track } = view;
     const res = await T.api.get("/condition/maintenance-effect", { line_id, track });
+    if (!view.live()) return;  // another line was chosen meanwhile
     if (!res.items.length) {
       body.innerHTML = `<tr><td colspan="7" class="muted">${T._("No maintenance actions imported for this line ({call}).", { call: "<code>POST /api/v1/reference/maintenance</code>" })}</td></tr>`;
       T.emptyState("cond-effect", T._("No maintenance action."), "");
@@ -65,12 +67,13 @@
         `<p>${T._("The before/after view needs runs over the action's km range.")}</p>`);
       return;
     }
-    await drawEffect(best.action_id);
+    await drawEffect(best.action_id, view);
   }
 
-  async function drawEffect(actionId) {
+  async function drawEffect(actionId, view = C.view()) {
     const el = $("cond-effect");
     const e = await T.api.get(`/condition/maintenance-effect/${actionId}`);
+    if (!view.live()) return;
     state.effect = e;
     $("effect-title").textContent = T._("Before / after: {type} on {date}, km {from}–{to}",
       { type: T.label("maintenance type", e.type), date: T.date(e.date), from: T.fmt(e.km_from, 3), to: T.fmt(e.km_to, 3) });
