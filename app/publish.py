@@ -130,7 +130,8 @@ def _publish(db: Database, job_id: int, run_id: int, profiles: pd.DataFrame | No
         if profiles is not None:
             results_writer.store_profile_rows(session, run_id, job_id, profiles)
         results_writer.publish_results(session, run_id, job_id, wheels)
-        stored = store_run_condition(session, run_id, job_id, config=condition, profiles=profiles)
+        stored = store_run_condition(session, run_id, job_id, config=condition, profiles=profiles,
+                                     track_impacts=meta.get("track_impacts"))
         deliveries = enqueue_new_flags(session, run_id, stored.line, stored.flags) if stored.stored else []
         summary = stored.summary(len(deliveries))
         line_key = None

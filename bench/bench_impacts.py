@@ -8,6 +8,7 @@ Usage::
     .venv/bin/python bench/bench_impacts.py --case rough-weld   # an unfound weld on rough rail: its own effect
     .venv/bin/python bench/bench_impacts.py --case grinding     # a grinding action read as stiffness?
     .venv/bin/python bench/bench_impacts.py --case speed        # detection's share of the chunk step
+    .venv/bin/python bench/bench_impacts.py --case fe-welds --fe-dir DIR   # welds on FE runs of your own
 
 Everything goes through the real pipeline (:func:`app.pipeline.run_pipeline`, default settings).
 
@@ -34,6 +35,15 @@ uniform track repeats every 7 sleeper bays (4.2 m = 1200 samples at 35 m/s, 10 k
 without the weld. Both go through the pipeline as Z11 alone; reported: 10 m means of ``sleeper_amp``
 with / without the weld around it, against the run-to-run scatter of 10 m means that the roughness
 gives (``a_1 − W`` over the truth).
+
+*FE welds of your own* (``--case fe-welds --fe-dir DIR``, issue 33): the railFE harness's runs in
+``DIR`` (``../shared/physics/harness``; smooth uniform track with welds, rail 1 ``*_r1.npz`` and rail 2
+``*_r2.npz`` of one track with other welds at the same positions; the commands in BENCHMARKS.md), each
+rail as a one-wheel run (Z11) and each pair as the two rails of an axle (Z11, Z12). Reported per run
+and weld: found (within 1 m), depth, the size/level ratio and the mask's half width the pipeline
+derived, and the largest ``|sleeper_amp / level − 1|`` outside the reported masks (level: the median
+of the run's steady stretch 20 m from either weld) — the target is 10 % — and outside the old fixed
+mask (``L/2 + 1.5 × res + 0.5``, 5.5 m for a 1 m weld).
 
 **Simulator** (:func:`app.simulate.run.simulate_run`, random speed 40–200 km/h, 10 kHz, default
 noise and wheels): per seed four runs over the same random line: *smooth* rails, *smooth + welds*
@@ -396,6 +406,56 @@ def speed(work: Path) -> None:
     print(f"| 60 s at 24 kHz, 4 wheels, rough rail | {total - det:.2f} s | {det:.2f} s | +{100 * det / (total - det):.0f} % |")
 
 
+def fe_welds(work: Path, fe_dir: Path) -> list[dict]:
+    """Welds on smooth FE runs of the harness: reported, and the indicator outside the reported masks."""
+    rows = []
+    singles = sorted(fe_dir.glob("weld_*_r[12].npz"))
+    cases: list[tuple[str, dict[str, Path]]] = [(p.stem, {"Z11": p}) for p in singles]
+    for p in sorted(fe_dir.glob("weld_*_r1.npz")):
+        other = p.with_name(p.name.replace("_r1.npz", "_r2.npz"))
+        if other.is_file():
+            cases.append((p.stem.replace("_r1", " two rails"), {"Z11": p, "Z12": other}))
+    for name, files in cases:
+        data = {ch: np.load(f) for ch, f in files.items()}
+        d0 = next(iter(data.values()))
+        fs, v = float(d0["fs"]), float(d0["speed"])
+        path = _write(work / f"{name.replace(' ', '_')}.h5", {ch: d["a_axle"] for ch, d in data.items()}, fs, v)
+        res = run_pipeline(path, ProcessingSettings(), work / f"w-{name.replace(' ', '_')}")
+        impacts = res.meta.get("track_impacts", [])
+        welds = np.unique(np.concatenate([np.asarray(d["welds"])[:, 0] for d in data.values()]))
+        for wheel in files:
+            p = res.profiles[res.profiles["wheel"] == wheel[1:]].sort_values("bin")
+            x = (p["bin"].to_numpy() + 0.5) * 0.25
+            amp = p["sleeper_amp"].to_numpy()
+            far = (x > 10.0) & (x < x.max() - 10.0)
+            for w in welds:
+                far &= np.abs(x - w) > 20.0
+            level = float(np.median(amp[far]))
+            steady = (x > 10.0) & (x < x.max() - 10.0)
+            out_new, out_old = steady.copy(), steady.copy()
+            for i in impacts:
+                out_new &= np.abs(x - i["track_m"]) > i["mask_half_width_m"]
+            for w in welds:
+                out_old &= np.abs(x - w) > 0.5 * 1.2 + 1.5 * 3.0 + 0.5
+            dev = np.abs(amp / level - 1.0)
+            for w in welds:
+                hit = [i for i in impacts if abs(i["track_m"] - w) <= 1.0]
+                rows.append({"case": name, "wheel": wheel, "k_MNm": float(np.asarray(d0["ks"]).reshape(-1)[0]) / 1e6,
+                             "speed": v, "weld_m": float(w), "truth_mm": [1e3 * float(dd) for d in data.values()
+                                                                           for (x0, _, dd) in np.asarray(d["welds"])
+                                                                           if abs(x0 - w) < 0.01],
+                             "found": bool(hit), "depth_mm": hit[0]["depth_mm"] if hit else None,
+                             "ratio": hit[0]["ratio"] if hit else None,
+                             "half_width_m": hit[0]["mask_half_width_m"] if hit else None,
+                             "max_dev_outside_mask": float(np.nanmax(np.where(out_new & (np.abs(x - w) < 20.0), dev,
+                                                                             0.0))),
+                             "max_dev_outside_old_mask": float(np.nanmax(np.where(out_old & (np.abs(x - w) < 20.0),
+                                                                                 dev, 0.0))),
+                             "level": level, "false": len([i for i in impacts if
+                                                           all(abs(i["track_m"] - ww) > 1.0 for ww in welds)])})
+    return rows
+
+
 def _summary(rows: list[dict]) -> None:
     print("\n| case | welds | found | rate | false / km | |pos err| median / max | depth err median [p10, p90] |")
     print("|---|---|---|---|---|---|---|")
@@ -458,7 +518,9 @@ def _summary(rows: list[dict]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--case", choices=("all", "physics", "rough-weld", "sim", "grinding", "speed"), default="all")
+    ap.add_argument("--case", choices=("all", "physics", "rough-weld", "sim", "grinding", "speed", "fe-welds"),
+                    default="all")
+    ap.add_argument("--fe-dir", type=Path, help="the harness's weld runs (--case fe-welds)")
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--length-km", type=float, default=2.0)
     ap.add_argument("--sim-cases", default=",".join(SIM_CASES), help="simulator cases, comma-separated")
@@ -484,6 +546,17 @@ def main() -> None:
                          tuple(args.sim_cases.split(","))))
         if args.case in ("all", "grinding"):
             grinding(work)
+        if args.case == "fe-welds":
+            print("\n| FE run | wheel | k, v | weld (truth mm) | found | depth | size/level | mask half width | "
+                  "max |sleeper_amp/level − 1| outside the mask ±20 m (old 5.5 m mask) | false |")
+            print("|---|---|---|---|---|---|---|---|---|---|")
+            for r in fe_welds(work, args.fe_dir):
+                f = r["found"]
+                print(f"| {r['case']} | {r['wheel']} | {r['k_MNm']:g} MN/m, {r['speed']:g} m/s | {r['weld_m']:g} m "
+                      f"({', '.join(f'{d:.2f}' for d in r['truth_mm'])}) | {'yes' if f else 'no'} | "
+                      + (f"{r['depth_mm']:.3f} mm | {r['ratio']:.1f} | {r['half_width_m']:.1f} m" if f else "– | – | –")
+                      + f" | {100 * r['max_dev_outside_mask']:.1f} % ({100 * r['max_dev_outside_old_mask']:.1f} %) | "
+                      f"{r['false']} |", flush=True)
         if args.case in ("all", "speed"):
             print("\n| run | chunk step less detection | detection | share |")
             print("|---|---|---|---|")

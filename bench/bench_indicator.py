@@ -50,7 +50,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from physics_runs import D_S, cases, polygon, steady_unit  # noqa: E402
 from physics_transitions import (  # noqa: E402
+    _segment_levels,
     blended_run,
+    edge_metrics,
     embedded_run,
     evaluate,
     meets_targets,
@@ -271,6 +273,58 @@ def transitions() -> None:
               f"{r['lockin_less_line']:.3f} ({r['lockin_less_line'] / r['a_bay'] - 1:+.1%}) |")
 
 
+def weak_steps(fe_files: list[Path], sigmas: tuple[float, ...] = (0.0, 0.5, 1.0, 2.0), seeds: tuple[int, ...] = (5, 6, 7),
+               kappa: float = 8.0) -> None:
+    """Small steps where the signal is weak (issue 33): FE step runs of the harness (``--ks 80 52 --edges 200
+    --speed 50 --length 400``: 1.5 → 1.0 m/s²) with band-limited measurement noise of ``sigmas`` m/s² (the
+    simulator's, 2 Hz … 0.4 fs), processed once per noise draw and assembled without and with the
+    edge-preserving smoothing (``edge_preserving_sd`` 0 and ``kappa``)."""
+    import tempfile
+
+    from physics_runs import write_run
+
+    from app.pipeline import assemble
+    from app.pipeline import run_pipeline as run_pl
+    from app.simulate.noise import BandLimitedNoise
+
+    default = float(kappa)
+    print(f"| FE run | noise m/s² | draws | 10–90 % width m, off → edge-preserving {default:g} σ (max) | ringing "
+          "(max) | rise width m (max) | level error 10–190 m / 210–390 m (max) |")
+    print("|---|---|---|---|---|---|---|")
+    for path in fe_files:
+        d = np.load(path)
+        z0, fs, v = d["a_axle"], float(d["fs"]), float(d["speed"])
+        edges = np.asarray(d["edges"], dtype=float)
+        bounds = np.r_[0.0, edges, float(d["x"][-1])]
+        levels = _segment_levels(np.asarray(d["x_bay"]), np.asarray(d["A_bay"]), bounds)
+        for sigma in sigmas:
+            rows: dict[float, list[dict]] = {0.0: [], default: []}
+            for seed in (seeds if sigma > 0 else seeds[:1]):
+                noise = BandLimitedNoise(np.random.default_rng(seed), fs, sigma, (2.0, 0.4 * fs)).next(z0.size) \
+                    if sigma > 0 else 0.0
+                with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    run = write_run(Path(tmp) / "run.h5", z0 + noise, fs, v)
+                    run_pl(run, ProcessingSettings(), Path(tmp) / "c")
+                    for kappa in rows:
+                        res = assemble(run, ProcessingSettings(edge_preserving_sd=kappa),
+                                       sorted((Path(tmp) / "c").glob("chunk-*.npz")))
+                        p = res.profiles[res.profiles["wheel"] == "11"].sort_values("bin")
+                        x, a = (p["bin"].to_numpy() + 0.5) * 0.25, p["sleeper_amp"].to_numpy()
+                        m = edge_metrics(x, a, float(edges[0]), levels[0], levels[1])
+                        m["level"] = max(abs(float(np.mean(a[(x > lo) & (x < hi)])) / lv - 1.0) for (lo, hi), lv in
+                                         zip(((10.0, edges[0] - 10.0), (edges[0] + 10.0, bounds[-1] - 10.0)), levels,
+                                             strict=True))
+                        rows[kappa].append(m)
+
+            def worst(k: str, kappa: float, rows: dict[float, list[dict]] = rows) -> float:
+                return max(r[k] for r in rows[kappa])
+            print(f"| {path.name} ({levels[0]:.2f} → {levels[1]:.2f} m/s²) | {sigma:g} | {len(rows[0.0])} | "
+                  f"{worst('width', 0.0):.1f} → {worst('width', default):.1f} | {worst('ringing', 0.0):.1%} → "
+                  f"{worst('ringing', default):.1%} | {worst('rise', 0.0):.1f} → {worst('rise', default):.1f} | "
+                  f"{worst('level', 0.0):.1%} → {worst('level', default):.1%} |", flush=True)
+
+
 def _binned(env: np.ndarray, idx: np.ndarray, fs: float, v: float) -> tuple[np.ndarray, np.ndarray]:
     """25 cm bin means of |env| at sample indices ``idx`` (constant speed ``v``)."""
     b = np.floor(idx * v / fs / BIN).astype(int)
@@ -389,7 +443,9 @@ def plot_transitions(path: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--resolutions", default="2,3,4,5,6,legacy")
-    ap.add_argument("--only", choices=("transitions", "spliced"), default=None)
+    ap.add_argument("--only", choices=("transitions", "spliced", "weak-steps"), default=None)
+    ap.add_argument("--fe-step", type=Path, nargs="*", default=[],
+                    help="--only weak-steps: FE step runs of the harness (../shared/physics/harness)")
     ap.add_argument("--diagnose", action="store_true",
                     help="only the controlled experiments on the two transition runs (why the joint solve rang)")
     ap.add_argument("--plot", action="store_true",
@@ -403,6 +459,9 @@ def main() -> None:
         return
     if args.diagnose:
         diagnose()
+        return
+    if args.only == "weak-steps":
+        weak_steps(args.fe_step)
         return
     if args.only != "spliced":
         transitions()

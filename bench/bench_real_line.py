@@ -178,7 +178,37 @@ def evaluate(client: Any, spec: HistorySpec, run_ids: list[int], *, last_runs: i
     effects = score_effects(spec, r.json()["items"])
     return {"work_list": work, "flags": {k: v for k, v in fl.items() if k != "false_flags"},
             "false_flags": fl["false_flags"], "ground_flags_after_grinding": on_ground,
-            "runs_after_grinding": len(after), "effects": effects}
+            "runs_after_grinding": len(after), "effects": effects, "rail_findings": score_rail_findings(client, spec)}
+
+
+def score_rail_findings(client: Any, spec: HistorySpec, *, within_m: float = 1.0, edge_m: float = 30.0) -> dict[str, Any]:
+    """The line's rail findings (``/condition/rail-findings``) against the truth, inside ``edge_m`` of the ends:
+    welds found (a finding within ``within_m`` seen in at least half the runs that passed it), false findings
+    (none within ``within_m`` of a weld or joint; per km and of those seen in half the runs), joints typed from
+    the register."""
+    r = client.get("/api/v1/condition/rail-findings", params={"line_id": spec.line_id, "track": spec.track})
+    assert r.status_code == 200, r.text
+    items = r.json()["items"]
+    lo, hi = 1000.0 * spec.km_start + edge_m, 1000.0 * (spec.km_start + spec.length_km) - edge_m
+    feats = [f for f in spec.rail_features() if lo < f.track_m < hi]
+    inside = [i for i in items if lo < 1000.0 * i["km"] < hi]
+    steady = [i for i in inside if 2 * i["runs_seen"] >= i["runs_passed"]]
+
+    def near(i: dict, kinds: tuple[str, ...]) -> bool:
+        return any(f.kind in kinds and abs(1000.0 * i["km"] - f.track_m) <= within_m for f in feats)
+
+    welds = [f for f in feats if f.kind == "weld"]
+    joints = [f for f in feats if f.kind == "joint"]
+    found = sum(1 for f in welds if any(abs(1000.0 * i["km"] - f.track_m) <= within_m for i in steady))
+    joints_typed = sum(1 for f in joints if any(abs(1000.0 * i["km"] - f.track_m) <= 2.0
+                                                and i["type"] == "insulated_joint" for i in inside))
+    km = (hi - lo) / 1000.0
+    false_all = sum(1 for i in inside if not near(i, ("weld", "joint")))
+    false_steady = sum(1 for i in steady if not near(i, ("weld", "joint")))
+    return {"welds": len(welds), "welds_found": found, "joints": len(joints), "joints_typed": joints_typed,
+            "findings": len(inside), "false": false_all, "false_steady": false_steady,
+            "false_per_km": false_all / km if km > 0 else math.nan,
+            "false_steady_per_km": false_steady / km if km > 0 else math.nan}
 
 
 def one(seed: int, workdir: Path, length_km: float, n_runs: int, *, again: bool = False) -> dict[str, Any]:
@@ -247,6 +277,13 @@ def main(argv: list[str] | None = None) -> int:
     for res in results:
         for k, v in res["work_list"]["causes"].items():
             causes[k] = causes.get(k, 0) + v
+    print("\n| seed | welds found (seen in ≥ half the runs, within 1 m) | findings: false per km (all / seen in ≥ half "
+          "the runs) | joints typed from the register |")
+    print("|---|---|---|---|")
+    for res in results:
+        rf = res["rail_findings"]
+        print(f"| {res['seed']} | {rf['welds_found']} / {rf['welds']} ({_fmt(rf['welds_found'] / max(rf['welds'], 1), True)}) "
+              f"| {rf['false_per_km']:.2f} / {rf['false_steady_per_km']:.2f} | {rf['joints_typed']} / {rf['joints']} |")
     print("\nWhat the listed places lie on (all seeds):", causes)
     fc: dict[str, int] = {}
     for res in results:

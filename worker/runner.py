@@ -279,7 +279,8 @@ class LocalWorker:
             with rt.chunks.local_copies(run_id, job_id, [c.index for c in chunks]) as paths:
                 results = assemble(run_path, settings, paths)
             meta = job_meta(settings, len(chunks), worker_id=self.worker_id, run_sha256=record.run.sha256,
-                            warnings=results.meta.get("warnings", ()), compute_s=time.perf_counter() - t0)
+                            warnings=results.meta.get("warnings", ()),
+                            track_impacts=results.meta.get("track_impacts"), compute_s=time.perf_counter() - t0)
             if end_published(rt, record, results.profiles, results.wheels, meta, worker_id=self.worker_id):
                 return JobOutcome(job_id, JobStatus.DONE)
             lease.beat()

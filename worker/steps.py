@@ -317,6 +317,7 @@ def job_meta(
     run_sha256: str,
     mode: str | None = None,
     warnings: Sequence[str] = (),
+    track_impacts: Sequence[dict[str, Any]] | None = None,
     **seconds: float,
 ) -> dict[str, Any]:
     """Provenance stored with a job's results.
@@ -333,6 +334,9 @@ def job_meta(
         ``"procrastinate"`` for the fan-out mode (the local mode says none).
     warnings : sequence of str
         The results' warnings (:func:`app.pipeline.run_warnings`), shown with the job.
+    track_impacts : sequence of dict, optional
+        The run's track impacts with their masks (:func:`app.pipeline.impacts.impacts_meta`), kept as
+        ``track_impacts``: the condition store leaves the masked bins out.
     **seconds : float
         Timings, s (``compute_s``; ``assemble_s``, ``store_s``), rounded to ms.
 
@@ -347,7 +351,10 @@ def job_meta(
     worker["n_chunks"] = n_chunks
     worker.update({name: round(value, 3) for name, value in seconds.items()})
     worker["run_sha256"] = run_sha256
-    return {**results_meta(settings, n_chunks, warnings), "worker": worker}
+    out = {**results_meta(settings, n_chunks, warnings), "worker": worker}
+    if track_impacts is not None:
+        out["track_impacts"] = list(track_impacts)
+    return out
 
 
 def refresh_line_reference(rt: WorkerRuntime, run: Run | None) -> None:

@@ -58,6 +58,7 @@ LEGACY_VALUES: dict[str, Any] = {
     "track_resolution_m": None,
     "sleeper_harmonics": 1,
     "force_mean_window_m": 0.0,
+    "edge_preserving_sd": 0.0,
 }
 
 
@@ -103,6 +104,16 @@ class ProcessingSettings:
     filter_order : int
         Order q of the difference operator of the VKF structural equation,
         1, 2 or 3. Default 2.
+    edge_preserving_sd : float
+        Edge-preserving smoothing of ``sleeper_amp`` by its stated 1-σ
+        (:mod:`app.analysis.denoise`: total variation, a jump costs this many
+        standard deviations; steps stay as sharp, the fluctuation between them
+        flattens). 0: off. Range 0–20. Default 0: at 8 a −35 % step at 50 m/s,
+        1.5 → 1.0 m/s², under 1 m/s² of noise reads 3.3 m wide with 7 % ringing
+        instead of 36 m and 16 % (issue 33, ``bench_indicator.py --only
+        weak-steps``), but a short soft spot loses about ``2 κ σ / n`` of its
+        depth and a uniform run's mean moves by a few 1e-4 (the issue-26 physics
+        tests), so it is a choice per job, not yet the default.
     bin_length_m : float
         Length of a profile bin along the track, m. Default 0.25.
     min_speed_kmh : float
@@ -125,6 +136,9 @@ class ProcessingSettings:
     force_mean_window_m: float = _setting(
         12.0, "Moving mean removed from the force channels (static wheel load), m; 0: off", "0 or 1.2..200")
     filter_order: int = _setting(2, "VKF structural order q", "1, 2 or 3")
+    edge_preserving_sd: float = _setting(
+        0.0, "Edge-preserving smoothing of sleeper_amp: a jump costs this many of its stated standard "
+        "deviations (total variation); 0: off", "0..20")
     bin_length_m: float = _setting(0.25, "Profile bin length, m", "0.05..10")
     min_speed_kmh: float = _setting(MIN_SPEED_KMH, "Slowest speed used for indicators, km/h", "0..200")
     chunk_seconds: float = _setting(60.0, "Core length of a processing chunk, s", "1..3600")
@@ -148,6 +162,8 @@ class ProcessingSettings:
             raise ValueError(f"force_mean_window_m must be 0 (off) or in [1.2, 200] m, got {self.force_mean_window_m!r}")
         if self.filter_order not in (1, 2, 3):
             raise ValueError(f"filter_order must be 1, 2 or 3, got {self.filter_order!r}")
+        if not (math.isfinite(float(self.edge_preserving_sd)) and 0.0 <= float(self.edge_preserving_sd) <= 20.0):
+            raise ValueError(f"edge_preserving_sd must be in [0, 20], got {self.edge_preserving_sd!r}")
         if not 0.05 <= float(self.bin_length_m) <= 10.0:
             raise ValueError(f"bin_length_m must be in [0.05, 10] m, got {self.bin_length_m!r}")
         if not 0.0 <= float(self.min_speed_kmh) <= 200.0:

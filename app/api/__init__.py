@@ -28,6 +28,7 @@ from app.api import (
     jobs,
     places,
     profiles,
+    rail_findings,
     reference,
     runs,
     spectrogram,
@@ -48,7 +49,8 @@ def build_api_router() -> APIRouter:
     protected = APIRouter(dependencies=[Depends(require_role("viewer"))])
     for module in (
         runs, jobs, profiles, impacts, wheels, spectrogram, reference, analytics, condition,
-        condition_effects, condition_sections, condition_report, places, auth, audit, channel_maps, geometry, webhooks, assets,
+        condition_effects, condition_sections, condition_report, places, rail_findings, auth, audit, channel_maps,
+        geometry, webhooks, assets,
     ):
         protected.include_router(module.router)
     api.include_router(protected)

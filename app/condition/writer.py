@@ -6,8 +6,10 @@ that marks the job done (both worker modes), and by the synthetic fleet
 
 1. takes the job's 25 cm rows (the frame the local worker just stored, or the
    rows the fan-out tasks stored), leaves out the run's ends
-   (``edge_trim_m``), bins slower than ``min_speed_mps`` and bins without
-   amplitude;
+   (``edge_trim_m``), bins slower than ``min_speed_mps``, bins without
+   amplitude and every bin a track impact the run found disturbs (a dipped weld or
+   joint: within its mask, :func:`impact_masks` — the rail feature is a finding of
+   its own, never graded as the support);
 2. aligns the run to its line's reference signature (the first run stored for
    the line, :class:`~app.db.models.ConditionLine`;
    :func:`app.analysis.stiffness.alignment.align_runs`); where that alignment is not clear enough and
@@ -37,7 +39,7 @@ their ids (the feed cursor) become visible in increasing order.
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -57,6 +59,7 @@ from app.analysis.condition import (
     segment_stats,
 )
 from app.analysis.condition.interventions import RAIL_SURFACE_ACTIONS, intervention_margin_m
+from app.analysis.impacts.mask import DEFAULT_RATIO, impact_mask, mask_half_width
 from app.analysis.speed_match import speeds_matched
 from app.analysis.stiffness.alignment import align_runs
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
@@ -75,6 +78,7 @@ from app.db.models import (
     SegmentCondition,
     utcnow,
 )
+from app.pipeline.impacts import IMPACT_COLUMN
 
 __all__ = [
     "RunBins",
@@ -109,14 +113,16 @@ _OVERVIEW_PG_TYPES: dict[str, str] = {
 
 @dataclass(frozen=True)
 class RunBins:
-    """One wheel of a run on the 25 cm grid: bin numbers, amplitude (m/s²) and speed (m/s), and the
-    amplitude's stated 1-σ and its shared part (m/s², NaN where not stated)."""
+    """One wheel of a run on the 25 cm grid: bin numbers, amplitude (m/s²) and speed (m/s), the
+    amplitude's stated 1-σ and its shared part (m/s², NaN where not stated) and the bins holding a
+    track impact (the profile's ``track_impact_mm``; None: not read)."""
 
     bins: np.ndarray
     amplitude: np.ndarray
     speed_mps: np.ndarray
     sd: np.ndarray | None = None
     sd_shared: np.ndarray | None = None
+    impact_bins: np.ndarray | None = None
 
 
 def run_time_of(run: Run) -> dt.datetime:
@@ -135,7 +141,7 @@ _SD_COLUMNS = ("sleeper_amp_sd", "sleeper_amp_sd_shared")
 def _job_bins(session: Session, job_id: int, profiles: pd.DataFrame | None) -> dict[str, RunBins]:
     if profiles is None:
         profiles = results_reader.job_profile_frame(session, job_id,
-                                                    columns=["speed_mean", "sleeper_amp", *_SD_COLUMNS])
+                                                    columns=["speed_mean", "sleeper_amp", *_SD_COLUMNS, IMPACT_COLUMN])
     out = {}
     for wheel, g in profiles.groupby(profiles["wheel"].astype(str), sort=True):
         g = g.sort_values("bin")
@@ -145,6 +151,7 @@ def _job_bins(session: Session, job_id: int, profiles: pd.DataFrame | None) -> d
             g["sleeper_amp"].to_numpy(dtype=np.float64, na_value=np.nan),
             g["speed_mean"].to_numpy(dtype=np.float64, na_value=np.nan),
             *sd,
+            g["bin"].to_numpy(dtype=np.int64)[g[IMPACT_COLUMN].notna().to_numpy()] if IMPACT_COLUMN in g else None,
         )
     return out
 
@@ -174,14 +181,37 @@ def uncertainty_settings(settings: Mapping[str, Any] | None) -> tuple[float, int
     return res_m, order
 
 
-def _valid(b: RunBins, bin_length_m: float, cfg: ConditionConfig) -> np.ndarray:
-    """Amplitude with NaN outside the trimmed ends, below the minimum speed or not positive."""
+def _valid(b: RunBins, bin_length_m: float, cfg: ConditionConfig, masked: np.ndarray | None = None) -> np.ndarray:
+    """Amplitude with NaN outside the trimmed ends, below the minimum speed, not positive or ``masked``."""
     amp = b.amplitude.copy()
     if b.bins.size:
         k = cfg.edge_trim_m / bin_length_m
         ends = (b.bins < b.bins.min() + k) | (b.bins > b.bins.max() - k)
         amp[ends | ~(b.speed_mps >= cfg.min_speed_mps) | ~(amp > 0)] = np.nan
+        if masked is not None:
+            amp[masked] = np.nan
     return amp
+
+
+def impact_masks(wheels: Mapping[str, RunBins], bin_length_m: float, track_impacts: Sequence[Mapping[str, Any]] | None,
+                 impact_bins: Mapping[str, np.ndarray] | None, resolution_m: float, filter_order: int
+                 ) -> dict[str, np.ndarray]:
+    """Per wheel, the bins within a track impact's mask (on the job's own km axis, before alignment).
+
+    The masks are the job's (``track_impacts``: position and half width as the pipeline derived them,
+    :func:`app.pipeline.impacts.impact_extents`); a job without them (processed before they were kept, or
+    by the fan-out tasks) has its impacts in the profile's ``track_impact_mm`` bins (``impact_bins``: the
+    bins per wheel), masked with the default size/level ratio
+    (:func:`app.analysis.impacts.mask.mask_half_width`).
+    """
+    if track_impacts is not None:
+        pos = [float(i["track_m"]) for i in track_impacts]
+        half = [float(i["mask_half_width_m"]) for i in track_impacts]
+    else:
+        found = sorted({float(b) for arr in (impact_bins or {}).values() for b in np.asarray(arr).tolist()})
+        pos = [(b + 0.5) * bin_length_m for b in found]
+        half = [mask_half_width(1.0, resolution_m, DEFAULT_RATIO, filter_order)] * len(pos)
+    return {w: impact_mask((b.bins + 0.5) * bin_length_m, pos, half) for w, b in wheels.items()}
 
 
 def _signature(wheels: Mapping[str, RunBins], amps: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -498,6 +528,7 @@ def store_run_condition(
     *,
     config: ConditionConfig = DEFAULT_CONDITION_CONFIG,
     profiles: pd.DataFrame | None = None,
+    track_impacts: Sequence[Mapping[str, Any]] | None = None,
 ) -> RunCondition:
     """Segment rows, change tests and flags of a published job (see the module docstring).
 
@@ -508,6 +539,10 @@ def store_run_condition(
     profiles : pandas.DataFrame, optional
         The job's profile rows when at hand (local worker); read from the
         database otherwise.
+    track_impacts : sequence of dict, optional
+        The job's track impacts with their masks (its ``meta["track_impacts"]`` when at hand: the publish
+        step writes the meta in this transaction); default the job's stored meta's, else the profile's
+        impact bins (:func:`impact_masks`).
 
     Returns
     -------
@@ -522,16 +557,20 @@ def store_run_condition(
     bin_length = results_reader.job_bin_length(session, job_id)
     line = line_of(session, run.line_id, run.track or "", bin_length)
     wheels = _job_bins(session, job_id, profiles)
-    amps = {w: _valid(b, bin_length, config) for w, b in wheels.items()}
     if not wheels:
         return RunCondition(False, "the job has no profile rows")
+    job = session.get(Job, job_id)
+    res_m, order = uncertainty_settings(job.settings if job is not None else None)
+    if track_impacts is None and job is not None and isinstance(job.meta, dict):
+        track_impacts = job.meta.get("track_impacts")
+    masks = impact_masks(wheels, bin_length, track_impacts, {w: b.impact_bins for w, b in wheels.items()
+                                                             if b.impact_bins is not None}, res_m, order)
+    amps = {w: _valid(b, bin_length, config, masks.get(w)) for w, b in wheels.items()}
     sig_bins, sig_amp = _signature(wheels, amps)
     shift, confidence = _align(line, run_id, sig_bins, sig_amp, bin_length, config, session=session,
                                when=run_time_of(run), speed=_run_speed(wheels))
     positions = {w: ((b.bins + 0.5) * bin_length + shift, amps[w], b.speed_mps, b.sd, b.sd_shared)
                  for w, b in wheels.items()}
-    job = session.get(Job, job_id)
-    res_m, order = uncertainty_settings(job.settings if job is not None else None)
     segments = wheel_segments(positions, bin_length_m=bin_length, resolution_m=res_m, filter_order=order)
     when = run_time_of(run)
     history = DbHistory(session, line.id, run_id, when, config.change)
@@ -548,6 +587,7 @@ def store_run_condition(
         "shift_m": round(shift, 3), "shift_confidence": confidence,
         "segments": int(sum(len(st) for w in segments.values() for st in w.values())),
         "history_runs": len(history.step_runs), "flags": len(flags), "new_flag_ids": [f.id for f in flags if f.is_new],
+        "impact_masked_bins": int(sum(int(m.sum()) for m in masks.values())),
         "speed_exponent": exponents,
     }
     return RunCondition(True, None, line, tuple(flags), details)

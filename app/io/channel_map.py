@@ -29,6 +29,7 @@ import pydantic
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from app.analysis.units import KMH_PER_MPS
+from app.core.i18n import _
 from app.io.channels import (
     ACCEL_CHANNELS,
     INPUT_CHANNELS,
@@ -108,8 +109,8 @@ def unit_factor(channel: str, unit: str | None) -> float:
     if key not in table:
         raise RunFileError(
             channel,
-            f"unit {str(unit)[:40]!r} cannot be converted to {want}; accepted: "
-            f"{', '.join(sorted(table))}",
+            _("unit {unit} cannot be converted to {want}; accepted: {accepted}", unit=repr(str(unit)[:40]), want=want,
+              accepted=", ".join(sorted(table))),
         )
     return table[key]
 
@@ -219,7 +220,7 @@ def parse_channel_map(data: Mapping[str, Any] | ChannelMap) -> ChannelMap:
     if isinstance(data, ChannelMap):
         return data
     if not isinstance(data, Mapping):
-        raise RunFileError("channel_map", f"must be a JSON object, got {type(data).__name__}")
+        raise RunFileError("channel_map", _("must be a JSON object, got {kind}", kind=type(data).__name__))
     try:
         return ChannelMap.model_validate(dict(data))
     except pydantic.ValidationError as exc:
@@ -325,8 +326,8 @@ def resolve_channels(
                 other = out[canon].channel
                 raise RunFileError(
                     ch.name,
-                    f"ambiguous channel: found in groups {other.group!r} and {ch.group!r}; "
-                    "give a channel map naming the group",
+                    _("ambiguous channel: found in groups {first} and {second}; give a channel map naming the group",
+                      first=repr(other.group), second=repr(ch.group)),
                 )
             out[canon] = MappedChannel(ch, ch.unit, unit_factor(canon, ch.unit))
     else:
@@ -337,36 +338,40 @@ def resolve_channels(
                 if ch.name == spec.source and (spec.group is None or _in_group(ch, spec.group))
             ]
             if not found:
-                where = f" in group {spec.group!r}" if spec.group is not None else ""
                 raise RunFileError(
                     spec.source,
-                    f"channel of the channel map ({canon}) not found in the file{where}",
+                    _("channel of the channel map ({channel}) not found in the file", channel=canon)
+                    if spec.group is None else
+                    _("channel of the channel map ({channel}) not found in the file in group {group}", channel=canon,
+                      group=repr(spec.group)),
                 )
             if len(found) > 1:
                 groups = ", ".join(repr(ch.group) for ch in found)
                 raise RunFileError(
                     spec.source,
-                    f"ambiguous channel ({canon}): found in groups {groups}; give 'group' in the "
-                    "channel map",
+                    _("ambiguous channel ({channel}): found in groups {groups}; give 'group' in the channel map",
+                      channel=canon, groups=groups),
                 )
             ch = found[0]
             unit = spec.unit if spec.unit is not None else ch.unit
             try:
                 factor = unit_factor(canon, unit)
             except RunFileError as exc:
-                raise RunFileError(spec.source, f"{exc.message} (channel {canon})") from None
+                raise RunFileError(spec.source, _("{problem} (channel {channel})", problem=exc.message, channel=canon)) from None
             out[canon] = MappedChannel(ch, unit or UNITS[canon], factor)
     if not any(c in out for c in ACCEL_CHANNELS):
         used = {id(m.channel) for m in out.values()}
         unmapped = [ch.name for ch in available if id(ch) not in used]
         raise RunFileError(
             "channel_map",
-            f"no ABA channel ({', '.join(ACCEL_CHANNELS)}) is mapped; unmapped channels of the "
-            f"file: {_list(unmapped) or 'none'}"
-            + ("" if channel_map is not None else "; give a channel map"),
+            _("no ABA channel ({channels}) is mapped; unmapped channels of the file: {unmapped}",
+              channels=", ".join(ACCEL_CHANNELS), unmapped=_list(unmapped) or _("none"))
+            if channel_map is not None else
+            _("no ABA channel ({channels}) is mapped; unmapped channels of the file: {unmapped}; give a channel map",
+              channels=", ".join(ACCEL_CHANNELS), unmapped=_list(unmapped) or _("none")),
         )
     if ("lat" in out) != ("lon" in out):
         missing = "lon" if "lat" in out else "lat"
-        raise RunFileError(missing, "GNSS needs both lat and lon channels")
+        raise RunFileError(missing, _("GNSS needs both lat and lon channels"))
     return {c: out[c] for c in (*INPUT_CHANNELS,) if c in out}
 

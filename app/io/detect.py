@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from app.core.i18n import _
 from app.io.errors import RunFileError
 from app.io.formats import FORMATS, HDF5_SIGNATURE, RUN_FORMATS, extensions_of
 
@@ -53,7 +54,7 @@ def _text_problem(path: Path) -> str | None:
     """
     with open(path, "rb") as fh:
         head = fh.read(4096)
-    first, newline, _ = head.partition(b"\n")
+    first, newline, _rest = head.partition(b"\n")
     nul = first.find(b"\x00")
     if nul >= 0:
         return f"NUL byte at byte {nul} of the first line (binary data?)"
@@ -132,31 +133,28 @@ def resolve_format(path: Path, fmt: str | None) -> tuple[str, str | None]:
         return detect_format(path)
     if not isinstance(fmt, str) or fmt.lower() not in FORMATS:
         raise RunFileError(
-            "format", f"unknown format {fmt!r}; expected one of {', '.join(FORMATS)}"
+            "format", _("unknown format {format}; expected one of {choices}", format=repr(fmt), choices=", ".join(FORMATS))
         )
     fmt = fmt.lower()
     size = path.stat().st_size
     if fmt == "hdf5":
         if not _has_hdf5_signature(path, size):
-            raise RunFileError(
-                "format", "declared format 'hdf5' but the file has no HDF5 signature"
-            )
+            raise RunFileError("format", _("declared format {format} but the file has no HDF5 signature", format="'hdf5'"))
         return fmt, None
     if fmt in _RECORDER_MAGIC:
         if _recorder_format(path) != fmt:
-            raise RunFileError(
-                "format", f"declared format {fmt!r} but the file does not start like one"
-            )
+            raise RunFileError("format", _("declared format {format} but the file does not start like one", format=repr(fmt)))
         return fmt, None
     if fmt == "parquet":
         if not _is_parquet(path, size):
-            raise RunFileError("format", "declared format 'parquet' but the file has no PAR1 magic")
+            raise RunFileError("format", _("declared format {format} but the file has no PAR1 magic", format="'parquet'"))
         return fmt, None
     if _is_gzip(path):
         return fmt, "gzip"
     if _has_hdf5_signature(path, size) or _is_parquet(path, size) or _recorder_format(path) is not None:
-        raise RunFileError("format", "declared format 'csv' but the file is HDF5, Parquet, MDF4 or TDMS")
+        raise RunFileError("format", _("declared format {format} but the file is HDF5, Parquet, MDF4 or TDMS", format="'csv'"))
     problem = _text_problem(path)
     if problem is not None:
-        raise RunFileError("format", f"declared format 'csv' but the file is not delimited text: {problem}")
+        raise RunFileError("format", _("declared format {format} but the file is not delimited text: {problem}", format="'csv'",
+                                       problem=problem))
     return fmt, None

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from app.core.i18n import Msg
+
 __all__ = ["RunFileError"]
 
 
@@ -15,7 +17,8 @@ class RunFileError(ValueError):
         field (``"start_time"``, ``"wheel_diameters.11"``, ``"sample_rate_hz"``),
         ``"format"`` (the file type) or ``"file"`` (the file as a whole).
     message : str
-        Human-readable explanation of the problem.
+        Human-readable explanation of the problem: a :class:`~app.core.i18n.Msg`
+        (``_("...")``) is kept as it is, so that the API answers it in the request's language.
 
     Notes
     -----
@@ -24,7 +27,7 @@ class RunFileError(ValueError):
 
     def __init__(self, field: str, message: str) -> None:
         self.field = str(field)
-        self.message = str(message)
+        self.message = message if isinstance(message, Msg) else str(message)
         super().__init__(f"{self.field}: {self.message}")
 
     def __reduce__(self) -> tuple[type[RunFileError], tuple[str, str]]:

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from app.core.i18n import _
 from app.io.errors import RunFileError
 
 __all__ = ["load_json", "json_depth", "MAX_INT_DIGITS"]
@@ -69,13 +70,13 @@ def load_json(text: str | bytes, *, field: str, max_depth: int) -> Any:
         try:
             text = bytes(text).decode("utf-8")
         except UnicodeDecodeError as exc:
-            raise RunFileError(field, f"not UTF-8 text (byte {exc.start})") from None
+            raise RunFileError(field, _("not UTF-8 text (byte {byte})", byte=exc.start)) from None
     depth = json_depth(text)
     if depth > max_depth:
-        raise RunFileError(field, f"nested deeper than {max_depth} levels ({depth})")
+        raise RunFileError(field, _("nested deeper than {n} levels ({depth})", n=max_depth, depth=depth))
     try:
         return json.loads(text, parse_int=_parse_int, parse_constant=float)
     except json.JSONDecodeError as exc:
-        raise RunFileError(field, f"not valid JSON: {exc.msg} at position {exc.pos}") from None
+        raise RunFileError(field, _("not valid JSON: {error} at position {position}", error=exc.msg, position=exc.pos)) from None
     except (ValueError, RecursionError) as exc:  # belt and braces: the depth is checked above
-        raise RunFileError(field, f"not valid JSON: {str(exc)[:120]}") from None
+        raise RunFileError(field, _("not valid JSON: {error}", error=str(exc)[:120])) from None

@@ -10,6 +10,7 @@ from typing import Any, Literal
 import pydantic
 from pydantic import AliasChoices, AwareDatetime, ConfigDict, Field, StrictBool, field_validator
 
+from app.core.i18n import _
 from app.io.channels import ALL_CHANNELS, AXLES, WHEELS
 from app.io.errors import RunFileError
 from app.io.json_input import load_json
@@ -285,9 +286,9 @@ def parse_metadata(data: Mapping[str, Any] | RunMetadata | None) -> RunMetadata:
     if isinstance(data, RunMetadata):
         return data
     if data is None:
-        raise RunFileError("metadata", "metadata is required (vehicle_id, start_time, line_id, …)")
+        raise RunFileError("metadata", _("metadata is required (vehicle_id, start_time, line_id, …)"))
     if not isinstance(data, Mapping):
-        raise RunFileError("metadata", f"metadata must be a JSON object, got {type(data).__name__}")
+        raise RunFileError("metadata", _("metadata must be a JSON object, got {kind}", kind=type(data).__name__))
     _check_json_values(data, "", 1)
     try:
         return RunMetadata.model_validate(dict(data))
@@ -333,17 +334,17 @@ def _check_json_values(value: Any, path: str, depth: int) -> None:
     field = path or "metadata"
     if isinstance(value, float):
         if not math.isfinite(value):
-            raise RunFileError(field, f"must be a finite number, got {value!r} (out of range or not a number)")
+            raise RunFileError(field, _("must be a finite number, got {value} (out of range or not a number)", value=repr(value)))
     elif isinstance(value, str):
         if "\x00" in value:
-            raise RunFileError(field, "must not contain NUL characters (\\u0000)")
+            raise RunFileError(field, _("must not contain NUL characters (\\u0000)"))
     elif isinstance(value, Mapping | list | tuple):
         if depth > MAX_METADATA_DEPTH:
-            raise RunFileError(field, f"nested deeper than {MAX_METADATA_DEPTH} levels")
+            raise RunFileError(field, _("nested deeper than {n} levels", n=MAX_METADATA_DEPTH))
         items = value.items() if isinstance(value, Mapping) else enumerate(value)
         for key, item in items:
             if isinstance(key, str) and "\x00" in key:
-                raise RunFileError(field, "keys must not contain NUL characters (\\u0000)")
+                raise RunFileError(field, _("keys must not contain NUL characters (\\u0000)"))
             _check_json_values(item, f"{path}.{key}" if path else str(key), depth + 1)
 
 
@@ -373,5 +374,5 @@ def load_metadata_json(text: str | bytes, *, field: str = "metadata") -> dict[st
     """
     value = load_json(text, field=field, max_depth=MAX_METADATA_DEPTH)
     if not isinstance(value, dict):
-        raise RunFileError(field, f"must be a JSON object, got {type(value).__name__}")
+        raise RunFileError(field, _("must be a JSON object, got {kind}", kind=type(value).__name__))
     return value

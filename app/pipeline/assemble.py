@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from app.analysis.binning import BinSums
+from app.analysis.denoise import edge_preserving
 from app.analysis.roughness import single_wheel_estimate, two_rail_estimate
 from app.analysis.settings import ProcessingSettings
 from app.analysis.uncertainty import STEP_WIDTH_FACTORS
@@ -24,7 +25,14 @@ from app.io import WHEELS
 from app.io.metadata import DEFAULT_WHEEL_DIAMETER_M
 from app.pipeline.chunk import OOR_WINDOW_M
 from app.pipeline.chunkfile import read_wheel
-from app.pipeline.impacts import IMPACT_COLUMN, flat_result, mask_track_impacts, run_impacts
+from app.pipeline.impacts import (
+    IMPACT_COLUMN,
+    flat_result,
+    impact_extents,
+    impacts_meta,
+    mask_track_impacts,
+    run_impacts,
+)
 
 __all__ = ["ENGINE_VERSION", "ROUGHNESS_COLUMNS", "TRACK_COLUMNS", "RunResults", "assemble", "assemble_wheel",
            "results_meta", "run_warnings", "sleeper_estimate"]
@@ -89,7 +97,9 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
         ``bin``, ``sleeper_amp``, ``sleeper_amp_sd``, ``sleeper_amp_sd_shared``: the two-rail estimate where
         the axle's other wheel was measured
         (:func:`app.analysis.roughness.two_rail_estimate`), else the single wheel's
-        floor-corrected one (:func:`app.analysis.roughness.single_wheel_estimate`).
+        floor-corrected one (:func:`app.analysis.roughness.single_wheel_estimate`); then, with
+        ``settings.edge_preserving_sd``, smoothed by its stated 1-σ with its steps kept
+        (:func:`app.analysis.denoise.edge_preserving`).
     """
     bins = rough["bin"].to_numpy(dtype=np.int64)
     res_m = float(np.nanmedian(rough["res_m"])) if "res_m" in rough and rough["res_m"].notna().any() \
@@ -102,6 +112,8 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
         env = rough["re"].to_numpy() + 1j * rough["im"].to_numpy()
         floor = rough[["floor_lo", "floor_hi"]].to_numpy().T
         amp, sd, shared = single_wheel_estimate(bins, rough["pow"].to_numpy(), floor, env, **kw)
+    if settings.edge_preserving_sd > 0:  # steps kept, the fluctuation of the stated 1-σ between them flattened
+        amp = edge_preserving(bins, amp, sd, float(settings.edge_preserving_sd))
     return pd.DataFrame({"bin": bins, "sleeper_amp": amp, "sleeper_amp_sd": sd, "sleeper_amp_sd_shared": shared})
 
 
@@ -219,10 +231,12 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
     profiles = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
     # isolated impacts: track impacts bridged out of the sleeper indicator, wheel flats onto the wheels
     impacts, flats = run_impacts(chunk_paths, wheels)
-    profiles = mask_track_impacts(profiles, impacts, settings)
+    extents = impact_extents(profiles, impacts, settings)
+    profiles = mask_track_impacts(profiles, impacts, settings, extents)
     for w in wheels:
         w["flat"] = flat_result(flats.get(str(w["wheel"])))
     meta = results_meta(settings, len(chunk_paths), run_warnings(wheels))
+    meta["track_impacts"] = impacts_meta(impacts, extents)
     return RunResults(profiles=profiles, wheels=wheels, meta=meta)
 
 

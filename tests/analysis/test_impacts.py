@@ -21,7 +21,13 @@ from app.analysis.impacts.classify import (
     track_impacts,
     wheel_flats,
 )
-from app.analysis.impacts.mask import bridge, impact_mask, mask_half_width
+from app.analysis.impacts.mask import (
+    bridge,
+    impact_mask,
+    impact_ratio,
+    mask_half_width,
+    response_reach,
+)
 from app.analysis.impacts.surface import band_gain
 from app.analysis.impacts.welds import (
     CONFIRM_THRESHOLD,
@@ -164,9 +170,10 @@ def test_wheel_flat_is_the_chain_one_circumference_apart():
 
 def test_mask_and_bridge():
     x = (np.arange(200) + 0.5) * 0.25
-    mask = impact_mask(x, [25.0], [mask_half_width(1.0, 3.0)])
-    assert mask_half_width(1.0, 3.0) == pytest.approx(5.5)
-    assert mask.sum() == 44 and mask[np.abs(x - 25.0) <= 5.5].all()
+    half = mask_half_width(1.0, 3.0, ratio=1.0)
+    mask = impact_mask(x, [25.0], [half])
+    assert half == pytest.approx(0.5 + response_reach(1.0, 3.0) + 0.5)
+    assert mask.sum() == np.sum(np.abs(x - 25.0) <= half) and mask[np.abs(x - 25.0) <= half].all()
     v = 1.0 + 0.01 * x
     v[mask] = 0.3  # the false dip of a weld
     out = bridge(x, v, mask)
@@ -174,6 +181,54 @@ def test_mask_and_bridge():
     assert np.isnan(bridge(x, np.full(x.size, np.nan), mask)[mask]).all()
     with pytest.raises(ValueError, match="equal length"):
         bridge(x, v[:-1], mask)
+
+
+def _vkf_impulse_tail(res: float, q: int) -> tuple[np.ndarray, np.ndarray]:
+    """|h(x)| / h(0) of the track order's envelope filter, by a direct numerical Fourier integral."""
+    from app.analysis.recipe import STEP_WIDTH_FACTOR
+
+    b = STEP_WIDTH_FACTOR[q] / res
+    k = np.linspace(-40 * b, 40 * b, 40_001)
+    hk = 1.0 / (1.0 + (math.sqrt(2) - 1) * (2 * k / b) ** (2 * q))
+    x = np.arange(0.0, 6.0 * res, 0.02)
+    h = np.array([np.trapezoid(hk * np.cos(2 * np.pi * k * xi), k) for xi in x])
+    return x, np.abs(h) / h[0]
+
+
+@pytest.mark.parametrize(("res", "q"), [(3.0, 2), (2.0, 1), (4.0, 3)])
+def test_the_reach_is_where_the_impulse_response_times_the_ratio_stays_below_the_tolerance(res, q):
+    x, tail = _vkf_impulse_tail(res, q)
+    for ratio in (0.5, 2.0, 10.0):
+        reach = response_reach(ratio, res, q, tolerance=0.05)
+        beyond = x >= reach + 0.02
+        assert np.all(ratio * tail[beyond] <= 0.05 + 1e-3)
+        assert np.any(ratio * tail[x >= reach - 0.1] > 0.05 - 1e-3)  # not wider than needed
+    # a weld 50× the sleeper signal reaches further than one 2×; nothing below the tolerance
+    assert response_reach(50.0, res, q) > response_reach(2.0, res, q) > 0.0 == response_reach(0.04, res, q)
+    assert response_reach(10.0, 2 * res, q) == pytest.approx(2 * response_reach(10.0, res, q), abs=0.02)
+    with pytest.raises(ValueError, match="ratio"):
+        response_reach(-1.0, res, q)
+    with pytest.raises(ValueError, match="filter_order"):
+        response_reach(1.0, res, 5)
+
+
+def test_the_impact_ratio_from_a_profile():
+    x = (np.arange(400) + 0.5) * 0.25
+    level = np.full(x.size, 2.0)
+    # a peak of 3× the level at the impact: at least sqrt(9 - 1) = 2.83 times the level in quadrature
+    bump = level + 4.0 * np.exp(-0.5 * ((x - 50.0) / 1.0) ** 2)
+    assert impact_ratio(x, bump, 50.0, 1.0, 3.0) == pytest.approx(math.sqrt(3.0**2 - 1), rel=1e-2)
+    # a dip to 0.3 of the level: at least 0.7 (in antiphase)
+    dip = level - 1.4 * np.exp(-0.5 * ((x - 50.0) / 1.0) ** 2)
+    assert impact_ratio(x, dip, 50.0, 1.0, 3.0) == pytest.approx(0.7, rel=1e-2)
+    # the level from beside the impact only, other impacts' bins left out
+    other = bump + 30.0 * (np.abs(x - 66.0) < 2.0)
+    assert impact_ratio(x, other, 50.0, 1.0, 3.0, exclude=np.abs(x - 66.0) < 3.0) == pytest.approx(
+        math.sqrt(8), rel=1e-2)
+    assert math.isnan(impact_ratio(x[:40], bump[:40], 5.0, 1.0, 3.0))  # no level beside it
+    half = mask_half_width(1.0, 3.0, impact_ratio(x, bump, 50.0, 1.0, 3.0))
+    assert half == pytest.approx(0.5 + response_reach(impact_ratio(x, bump, 50.0, 1.0, 3.0), 3.0) + 0.5)
+    assert mask_half_width(1.0, 3.0, float("nan")) == mask_half_width(1.0, 3.0, 10.0)
 
 
 def _trace(peaks: dict[float, float], offset_m: float = 0.0, lengths=(0.5, 1.0)) -> WheelTrace:

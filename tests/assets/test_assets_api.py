@@ -161,3 +161,27 @@ def test_a_place_on_many_assets_gets_a_capped_list_and_the_count_of_the_rest(mak
     assert len(p.assets) == MAX_LABELS_PER_PLACE and p.assets_more == n + 1 - MAX_LABELS_PER_PLACE
     assert [a["name"] for a in p.assets[:2]] == ["W0", "W1"] and p.muted and "switch" in p.muted_reason
     assert far.assets == [] and far.assets_more == 0 and not far.muted
+
+
+@pytest.mark.parametrize(("lang", "detail"), [
+    ("de-CH,de;q=0.9", "row 1, column type: 'tunnel' ist keiner von switch, crossing"),
+    ("fr", "row 1, column type: 'tunnel' n'est pas l'un de switch, crossing"),
+    ("it", "row 1, column type: 'tunnel' non è uno tra switch, crossing"),
+    (None, "row 1, column type: 'tunnel' is not one of switch, crossing"),
+])
+def test_a_bad_file_is_answered_in_the_users_language(make_client, lang, detail):
+    """The file's error in the request's language, the row and column named (the field stays the
+    API's): read in the parse child process, as deployed, and sent back to the service."""
+    client = make_client()
+    headers = {"Accept-Language": lang} if lang else {}
+    r = client.post("/api/v1/assets", files={"file": ("bad.csv", "line_id,track,type,km\nL1,1,tunnel,1\n", "text/csv")},
+                    headers=headers)
+    assert r.status_code == 422 and r.json()["field"] == "row 1, column type", r.text
+    assert r.json()["detail"].startswith(detail), r.json()
+    if lang and lang.startswith("de"):
+        r = client.post("/api/v1/assets", headers=headers,
+                        files={"file": ("bad.csv", "line_id,track,type,km,km_to\nL1,1,bridge,12.5,12.4\n", "text/csv")})
+        assert r.json() == {"field": "row 1, column km_to", "detail": "row 1, column km_to: 12.4 liegt unter km 12.5"}
+        r = client.post("/api/v1/assets", headers=headers, files={"file": ("bad.csv", "line_id,track,km\nL1,1,12.1\n",
+                                                                           "text/csv")})
+        assert r.json()["detail"].startswith("column type: fehlt (nötige Kopfzeile: line_id,track,type,km"), r.json()

@@ -9,7 +9,16 @@ import pytest
 from sqlalchemy import func, select
 
 from app.db import crud
-from app.db.models import ConditionFlag, ConditionLine, ConditionRun, SegmentCondition
+from app.db.models import (
+    ConditionFlag,
+    ConditionLine,
+    ConditionRun,
+    Job,
+    JobStatus,
+    Run,
+    SegmentCondition,
+    utcnow,
+)
 from app.simulate.fleet import FleetNoise, FleetPlan, FleetSimulator, PlantedStep
 from app.simulate.track import generate_line
 from tests.condition.support import DAY0, profile_frame_of, publish_history, publish_tracks
@@ -235,3 +244,52 @@ def test_without_stated_sd_a_grinding_record_changes_nothing(db):
     _grinding_history(db, record=True, sd_rel=None)
     ground = [f for f in _step_flags(db) if 1300 <= f.seg < 1320]
     assert len(ground) >= 15
+
+
+def test_a_track_impacts_mask_is_kept_out_of_the_segment_rows(db):
+    """Issue 33: the bins within a track impact's mask (the job's track_impacts) are no part of any 10 m or
+    100 m row; a job without masks (older, or fan-out) masks around its profile's track_impact_mm bins."""
+    from app import publish
+    from app.analysis.impacts.mask import DEFAULT_RATIO, mask_half_width
+    from app.condition.writer import store_run_condition
+
+    _, tracks = _sim().run(0.0, 1)
+    frame = profile_frame_of(tracks)
+    pos = (frame["bin"].to_numpy() + 0.5) * 0.25
+    x0 = float(np.median(pos))
+    near = np.abs(pos - x0) <= 12.0
+    clean = frame["sleeper_amp"].to_numpy().copy()
+    frame.loc[near, "sleeper_amp"] *= 3.0  # what a weld 50× the sleeper signal leaves, bridged or not
+    with db.write() as s:
+        run = Run(sha256="impact-run", file_path="x", source_format="hdf5", size_bytes=1, fs=10_000.0, n_samples=10,
+                  duration_s=1.0, channels=["Z11"], meta={}, line_id="L1", track="1", start_time=DAY0,
+                  created_at=utcnow())
+        s.add(run)
+        s.flush()
+        job = Job(run_id=run.id, status=JobStatus.RUNNING, worker_id="w", settings={"bin_length_m": 0.25},
+                  created_at=utcnow())
+        s.add(job)
+        s.flush()
+        run_id, job_id = run.id, job.id
+    impacts = [{"track_m": x0, "length_m": 1.0, "depth_mm": 0.3, "ratio": 50.0, "mask_half_width_m": 12.5}]
+    assert publish.publish_job(db, job_id, run_id, frame, [], {"track_impacts": impacts}, worker_id="w",
+                               places_followup=None)
+    for seg_m in (10, 100):
+        for r in _rows(db, run_id, seg_m, "11"):
+            lo, hi = r.seg * seg_m, (r.seg + 1) * seg_m
+            inside = (pos >= lo) & (pos < hi) & (frame["wheel"].to_numpy() == "11")
+            kept = inside & ~(np.abs(pos - x0) <= 12.5)
+            assert r.n_valid <= int(kept.sum())
+            if (inside & near).any():  # a row beside the impact: its undisturbed bins only, none of the tripled
+                assert r.n_valid == int(kept.sum()) > 0
+                assert r.amp_mean == pytest.approx(clean[kept].mean(), rel=1e-5)
+    with db.read() as s:
+        assert s.get(Job, job_id).meta["condition"]["impact_masked_bins"] >= 4 * 100
+    # the same rows from the profile's impact bins where the job kept no masks
+    frame2 = frame.copy()
+    frame2["track_impact_mm"] = np.where(np.abs(pos - x0) <= 0.125, 0.3, np.nan)  # the two bins at x0
+    with db.write() as s:
+        s.get(Job, job_id).meta = {}
+        rc = store_run_condition(s, run_id, job_id, profiles=frame2, track_impacts=None)
+        s.rollback()
+    assert rc.details["impact_masked_bins"] >= 4 * int(2 * mask_half_width(1.0, 3.0, DEFAULT_RATIO) / 0.25) - 8

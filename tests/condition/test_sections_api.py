@@ -145,3 +145,32 @@ def test_the_report_without_weasyprints_libraries_is_a_clear_503(sections_client
     r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE})
     assert r.status_code == 503, r.text
     assert r.json()["field"] == "report" and "libpango-1.0-0" in r.json()["detail"]
+
+
+@pytest.mark.parametrize(("accept", "lang", "said"), [
+    ("de-CH,de;q=0.9", "de", ("Zustandsbericht: Strecke SEC, Gleis 1", "Planungssitzung vom 04.03.2025",
+                              "Abschnittsklassen", "ein Jahr zuvor (km)", "Arbeitsliste", "Wirkungen der Instandhaltung")),
+    ("fr", "fr", ("Rapport d'état : ligne SEC, voie 1", "Réunion de planification du 4 mars 2025",
+                  "Classes de sections", "un an avant (km)", "Liste de travail", "Effets de l'entretien")),
+    ("it", "it", ("Rapporto sullo stato: linea SEC, binario 1", "Riunione di pianificazione del 4 mar 2025",
+                  "Classi delle sezioni", "un anno prima (km)", "Lista di lavoro", "Effetti della manutenzione")),
+])
+def test_the_report_speaks_the_users_language(sections_client, accept, lang, said):
+    """The report follows the browser's language (a user's own choice first): its text read back
+    from the PDF (pdftotext) is the catalogue's, its dates and numbers (tables and plot ticks) the
+    locale's, and no English of the report's messages or of the codes' words is left."""
+    from tests.condition.report_text import english_leftovers, pdf_text
+
+    r = sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE, "date": "2025-03-04"},
+                            headers={"Accept-Language": accept})
+    assert r.status_code == 200, r.text
+    text = pdf_text(r.content)
+    for words in said:
+        assert words in text, (words, text[:1500])
+    assert english_leftovers(text, lang) == []
+    # the same PDF in English holds what the check looks for: it can fail
+    english = pdf_text(sections_client.get("/api/v1/condition/report.pdf", params={"line_id": LINE}).content)
+    assert {"Condition report: line", "Section classes", "Work list", "Maintenance effects"} <= set(english_leftovers(english, lang))
+    # numbers in the locale: the decimal comma of French and Italian (also the km ticks: 0,5),
+    # Switzerland's point in German
+    assert ("0,00" in text and "0,5 " in text) == (lang != "de") and ("0.00" in text) == (lang == "de"), text[:1500]

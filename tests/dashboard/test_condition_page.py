@@ -112,6 +112,13 @@ def test_the_page_is_an_exception_report_with_every_part_filled(engineer_page, h
     for plot_id in ("cond-sections", "place-history", "cond-heatmap", "cond-trend", "cond-effect"):
         p = _plot(page, plot_id)
         assert p["state"] == "ready" and p["traces"] > 0 and p["points"] > 0 and p["csv"] and p["xtitle"], (plot_id, p)
+    # maintenance effects: n before / after, the sign convention, the interval's meaning, the rule by action type
+    effect_note = page.inner_text("#effect-note") + page.inner_text("#effect-rule")
+    assert "after − before" in effect_note and "±1 σ" in effect_note and "own speed" in effect_note, effect_note
+    effect_rows = page.locator("#actions-body tr[data-action]")
+    assert effect_rows.count() >= 1
+    cells = effect_rows.first.locator("td").all_inner_texts()
+    assert " / " in cells[3] and ("–" in cells[4] or ("%" in cells[4] and "…" in cells[4])), cells
     # the one sentence saying which quantity each view shows
     note = page.inner_text("#cond-quantity")
     assert "ln(A / Aref(class, v))" in note.replace("\n", "") and "ln A" in note
@@ -224,6 +231,125 @@ def test_a_viewer_reads_the_status_but_cannot_change_it(browser, history_service
         ctx.close()
 
 
+def _hold_first(page, needle: str, line_id: str) -> list:
+    """Hold the page's first request to ``needle`` for ``line_id`` (its answer does not arrive until
+    the test continues it); the other requests go through. Returns the list the held route lands in."""
+    held: list = []
+
+    def handler(route) -> None:
+        url = route.request.url
+        if not held and needle in url and f"line_id={line_id}&" in url + "&":
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route("**/api/v1/**", handler)
+    return held
+
+
+def _wait_held(page, held: list) -> None:
+    deadline = time.monotonic() + 60
+    while not held:
+        assert time.monotonic() < deadline, "the held request was never sent"
+        page.wait_for_timeout(50)
+
+
+class _InFlight:
+    """The page's requests sent and not yet answered (a held draw's continuation included)."""
+
+    def __init__(self, page) -> None:
+        self.open: set = set()
+        page.on("request", lambda r: self.open.add(r))
+        page.on("requestfinished", lambda r: self.open.discard(r))
+        page.on("requestfailed", lambda r: self.open.discard(r))
+
+    def settle(self, page, quiet_ms: int = 600) -> None:
+        """Wait until no request has been open for ``quiet_ms`` (what the page still draws is drawn)."""
+        deadline, quiet = time.monotonic() + 120, 0
+        while quiet < quiet_ms:
+            assert time.monotonic() < deadline, f"requests still open: {[r.url for r in self.open]}"
+            page.wait_for_timeout(100)
+            quiet = 0 if self.open else quiet + 100
+
+
+def _drawn(page, client, line_id: str, track: str) -> dict:
+    """What the page shows against what the API says of the line: its runs on the heat map and the
+    trend, the places listed, the sections' run."""
+    lines = client.get("/api/v1/condition/lines").json()["items"]
+    line = next(x for x in lines if (x["line_id"], x["track"]) == (line_id, track))
+    places = client.get("/api/v1/condition/places", params={"line_id": line_id, "track": track, "include_closed": "true",
+                                                            "limit": 1000}).json()["items"]
+    sections = client.get("/api/v1/condition/sections", params={"line_id": line_id, "track": track}).json()
+    shown = page.evaluate("""() => ({
+        heatmap_runs: document.getElementById('cond-heatmap').data[0].y.length,
+        trend_runs: document.getElementById('cond-trend').data.find(t => t.mode === 'lines+markers').x.length,
+        places: [...document.querySelectorAll('#places-body tr[data-place]')].map(tr => Number(tr.dataset.place)),
+        place_title: document.getElementById('place-title').textContent,
+        sections_sub: document.getElementById('sections-sub').textContent,
+        info: document.getElementById('cond-info').textContent,
+        drawn: document.getElementById('cond-controls').dataset.drawn || null })""")
+    return {"line": line, "places": {p["id"] for p in places}, "sections_day": sections["run_time"][:10], "shown": shown}
+
+
+def _places_of_the_line(d: dict) -> None:
+    """The work list and the place card show places of the line drawn (or say it has none)."""
+    listed, title = d["shown"]["places"], d["shown"]["place_title"]
+    assert set(listed) <= d["places"] and bool(listed) == bool(d["places"]), d
+    if d["places"]:
+        assert title.startswith("Place ") and int(title.split()[1].rstrip(":")) in d["places"], d
+    else:
+        assert not title.startswith("Place "), d
+
+
+def test_a_line_chosen_while_another_draws_gets_its_own_km_and_places(engineer_page, history_service):
+    """Issue 32 finding 8: a line chosen while the first one is still drawing. The first line's draw is
+    held at one of its requests; the second is chosen and shown, then the held answer lands: the page
+    shows the second line in every panel, and nothing failed (no 422 of a km of the other line)."""
+    page, log = engineer_page
+    flight = _InFlight(page)
+    with history_service.client(timeout=60) as client:
+        # SIM-B (one run) first, its heat map held; SIM (the history, its places) chosen meanwhile
+        held = _hold_first(page, "/condition/heatmap", "SIM-B")
+        page.goto("/condition?line_id=SIM-B&track=2")
+        _wait_held(page, held)
+        page.select_option("#cond-line", value="SIM\u00011")
+        page.click("#cond-controls button[type=submit]")
+        # SIM drawn to its last panel (its maintenance actions and their effect)
+        page.wait_for_function("""() => document.querySelector('#actions-body tr[data-action]')
+                                   && document.getElementById('cond-effect').dataset.state === 'ready'""")
+        held[0].continue_()
+        page.wait_for_selector("body[data-ready='1']")
+        flight.settle(page)
+        page.unroute("**/api/v1/**")
+        d = _drawn(page, client, "SIM", "1")
+        n = d["line"]["n_runs"]
+        assert n >= 3 and d["places"], d
+        assert d["shown"]["heatmap_runs"] == n and d["shown"]["trend_runs"] == n, d
+        _places_of_the_line(d)
+        assert d["sections_day"] in d["shown"]["sections_sub"] and d["shown"]["info"].startswith(f"{n} runs"), d
+        assert d["shown"]["drawn"] == "SIM\u00011", d
+        sim_places = d["places"]
+
+        # and back: SIM-B chosen while SIM draws (its trend held): SIM-B's one run, its places, none of SIM's
+        held = _hold_first(page, "/condition/trend", "SIM")
+        page.click("#cond-controls button[type=submit]")
+        _wait_held(page, held)
+        page.select_option("#cond-line", value="SIM-B\u00012")
+        page.click("#cond-controls button[type=submit]")
+        # SIM-B drawn to its last panel (no maintenance action on it)
+        page.wait_for_function("() => !document.querySelector('#actions-body tr[data-action]')")
+        held[0].continue_()
+        flight.settle(page)
+        page.unroute("**/api/v1/**")
+        d = _drawn(page, client, "SIM-B", "2")
+        assert d["line"]["n_runs"] == 1 and not d["places"] & sim_places, d
+        assert d["shown"]["heatmap_runs"] == 1 and d["shown"]["trend_runs"] == 1, d
+        _places_of_the_line(d)
+        assert d["sections_day"] in d["shown"]["sections_sub"] and d["shown"]["drawn"] == "SIM-B\u00012", d
+    assert page.locator("#banner").is_hidden()
+    log.assert_clean()  # no console error, no failed request (no 422)
+
+
 def test_assets_are_marked_on_the_stiffness_map_and_the_map(engineer_page, history_service):
     page, log = engineer_page
     with history_service.client(timeout=60) as client:
@@ -331,3 +457,31 @@ def test_the_planning_report_has_a_sheet_with_its_plot_per_open_place(engineer_p
     # a download ends the navigation the click began: Chromium reports that request as aborted
     log.failed = [f for f in log.failed if not ("/condition/report.pdf" in f and "ERR_ABORTED" in f)]
     log.assert_clean()
+
+
+
+def test_the_planning_report_in_german_leaves_no_english(history_service):
+    """A German user's report of the demo line (places, sheets, maintenance): its text read back
+    (pdftotext) holds the catalogue's German, a sheet per open place, the locale's numbers, month
+    ticks and dates, and none of the English of the report's messages or of the codes' words."""
+    import re
+
+    from tests.condition.report_text import english_leftovers, pdf_text
+
+    _report_tools()
+    line_id = history_service.spec.line_id
+    with history_service.client(timeout=300) as client:
+        r = client.get("/api/v1/condition/report.pdf", params={"line_id": line_id, "date": "2026-03-02"},
+                       headers={"Accept-Language": "de-DE,de;q=0.9,en;q=0.5"})
+        assert r.status_code == 200, r.text[:2000]
+        places = client.get("/api/v1/condition/places", params={"line_id": line_id, "limit": 500}).json()["items"]
+    text = pdf_text(r.content)
+    assert f"Zustandsbericht: Strecke {line_id}" in text and "Planungssitzung vom 02.03.2026" in text, text[:1500]
+    for p in places:  # the German decimal comma in the sheet's title
+        assert text.count(f"Stelle {p['id']}: km {p['km_from']:.3f}".replace(".", ",")) == 1, p["id"]
+    for words in ("Verlauf", "Auf der Strecke", "Index (ln-Einheiten)", "Instandhaltung darüber"):
+        assert text.count(words) >= len(places), words
+    assert re.search(r"(Jan|Feb|März|Apr|Mai|Juni|Juli|Aug|Sept|Okt|Nov|Dez)\.? 20\d\d", text), "German month ticks"
+    for name in {a.get("name") or "" for p in places for a in p["assets"]}:  # the register's own names ("thermite weld")
+        text = text.replace(name, "")
+    assert english_leftovers(text, "de") == []

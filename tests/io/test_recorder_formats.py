@@ -135,6 +135,25 @@ def test_recorder_rejections_name_the_channel(tmp_path: Path, kwargs, cmap, fiel
     assert listing(out_dir) == []
 
 
+@pytest.mark.parametrize(
+    ("cmap", "field", "german"),
+    [
+        (None, "channel_map", "kein Achslagerbeschleunigungs-Kanal (Z11, Z12, Z41, Z42) zugeordnet; nicht zugeordnete "
+                              "Kanäle der Datei: 'AccZ_1R'"),
+        ({"channels": {"Z11": "AccZ_9X"}}, "AccZ_9X", "Kanal der Kanalzuordnung (Z11) nicht in der Datei gefunden"),
+        ({"channels": {"Z11": "Temp"}}, "Temp", "Einheit 'degC' lässt sich nicht in m/s^2 umrechnen; zulässig: "),
+    ],
+)
+def test_recorder_rejections_in_german_name_the_channel(tmp_path: Path, cmap, field, german) -> None:
+    """The message is kept for translation: the API answers it in the user's language (a German
+    user reads German with the channel named; the field stays the API's)."""
+    src = _mdf(tmp_path / "run.mf4")
+    with pytest.raises(RunFileError) as exc:
+        ingest(src, None, _meta(), tmp_path / "run.h5", channel_map=cmap)
+    assert exc.value.field == field
+    assert exc.value.message.in_language("de").startswith(german), exc.value.message.in_language("de")
+
+
 def test_ambiguous_channel_needs_group(tmp_path: Path) -> None:
     t = np.arange(4000) / FS
     mdf = MDF(version="4.10")

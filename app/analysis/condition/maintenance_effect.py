@@ -29,8 +29,11 @@ extent's own baseline at that speed; the recovery is the median of those differe
 (:func:`matched_change`).
 
 **Interval**: ``recovery_low`` / ``recovery_high`` = recovery ∓ 1 σ (≈ 68 %), σ of the median
-difference from the runs' own scatter on either side (1.4826 · MAD about each baseline, the median's
-√(π/2) efficiency): ``σ² = (π/2) · (s_after² / n_after + s_before² / n_before)``.
+difference from the runs' own scatter about their baselines, pooled over both sides (``s`` = 1.4826 ·
+MAD of the before-runs about their matched-speed baseline and of the after-runs' differences about
+their median; a window of two runs states no scatter of its own) and the median's √(π/2) efficiency:
+``σ² = (π/2) · s² · (1 / n_after + 1 / n_before)``, ``n_before`` the before-runs at an after-run's speed
+(median over the after-runs).
 
 **How long it lasted** is said only within the data: ``lasted_days_projected`` is dropped where it
 lies beyond the last run after the action (``followed_days``), the effect then still held as far as
@@ -200,13 +203,14 @@ def _matched(yb: np.ndarray, vb: np.ndarray, ya: np.ndarray, va: np.ndarray,
     """(change, its 1 σ) of the after-values against the before-values at matched speed (None: no pair)."""
     okb = np.isfinite(yb) & np.isfinite(vb)
     yb, vb = yb[okb], vb[okb]
-    diffs, resid_b = [], []
+    diffs, resid_b, n_base = [], [], []
     for y, v in zip(ya.tolist(), va.tolist(), strict=True):
         if not (np.isfinite(y) and np.isfinite(v)):
             continue
         m = speeds_matched(vb, v, tolerance)
         if m.any():
             diffs.append(y - float(np.median(yb[m])))
+            n_base.append(int(m.sum()))
     if not diffs:
         return None
     for v in vb.tolist():  # each before-value about its own baseline at its speed
@@ -215,9 +219,10 @@ def _matched(yb: np.ndarray, vb: np.ndarray, ya: np.ndarray, va: np.ndarray,
     d = np.asarray(diffs)
     change = float(np.median(d))
     rb = np.concatenate(resid_b) if resid_b else np.zeros(0)
-    s_a = _MAD_SIGMA * float(np.median(np.abs(d - change)))
-    s_b = _MAD_SIGMA * float(np.median(np.abs(rb))) if rb.size else 0.0
-    sigma = float(np.sqrt(np.pi / 2.0 * (s_a ** 2 / d.size + s_b ** 2 / max(yb.size, 1))))
+    # one scatter of a run about its baseline, pooled over both sides (a window of 2 runs states none)
+    s = _MAD_SIGMA * float(np.median(np.abs(np.concatenate([d - change, rb]))))
+    # the before-runs an after-run is compared with: those at its speed
+    sigma = float(s * np.sqrt(np.pi / 2.0 * (1.0 / d.size + 1.0 / float(np.median(n_base)))))
     return change, sigma
 
 

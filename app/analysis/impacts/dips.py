@@ -59,6 +59,17 @@ LONG_SCALE_BLOCK_M = 160.0
 TRACE_STEP_M = 0.08
 #: No dips are sought this close to the ends of a valid stretch (the filters are truncated there), m.
 EDGE_M = 6.0
+#: Sato's short-wave rail roughness of "good rail", ``S(Omega) = A / Omega³`` (one-sided, m² per rad/m), A in
+#: m² rad² / m: the value the vehicle–track literature quotes (e.g. Zhai) and the physics runs use.
+SATO_A_GOOD_RAIL = 4.15e-8
+#: The background spectrum is at least this share of good rail's (a rail ten times smoother in amplitude than
+#: good rail; ground rail in the simulator is 0.3×). A record without roughness (the physics' smooth track,
+#: a short stretch of fresh rail) has no background of its own: its spectrum is then the dips' themselves
+#: and the residual of the inversion, the whitened filters weigh the estimate where that spectrum has its
+#: nulls, and depths read low and erratic (physics, smooth 100 MN/m at 30 m/s: a 0.6 m, 0.2 mm weld read
+#: 0.088 mm and was dropped below :data:`MIN_DEPTH_M`; with the floor 0.25, a 1 m, 0.3 mm weld 0.30). On any
+#: rough rail the floor is far below the background and changes nothing.
+BACKGROUND_FLOOR = 0.01
 #: Bins and percentile of the running filter across the background spectrum (0.05 1/m a bin).
 _PSD_FILTER_BINS = 31
 _PSD_PERCENTILE = 20
@@ -172,7 +183,7 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     kept = est.gain(k) > 0.5
     idx = np.flatnonzero(kept)
     if idx.size == 0:
-        return k, p / tilt_k / max(frac, 1e-3)
+        return k, np.maximum(p / tilt_k / max(frac, 1e-3), _roughness_floor(k))
     half = _PSD_FILTER_BINS // 2
     padded = np.concatenate([np.full(half, np.nan), np.where(kept, p, np.nan), np.full(half, np.nan)])
     windows = np.sort(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[idx], axis=1)  # NaN last
@@ -184,8 +195,15 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     rows = np.arange(windows.shape[0])
     filtered = windows[rows, lo_i] * (1.0 - frac_i) + windows[rows, hi_i] * frac_i
     # outside what the estimate kept: the nearest kept value (the weights are ~0 there)
-    out = np.interp(np.arange(p.size), idx, filtered) / tilt_k
-    return k, out / max(frac, 1e-3)  # the invalid (zeroed) cells diluted it
+    out = np.interp(np.arange(p.size), idx, filtered) / tilt_k / max(frac, 1e-3)  # the invalid cells diluted it
+    return k, np.maximum(out, _roughness_floor(k))
+
+
+def _roughness_floor(k: np.ndarray) -> np.ndarray:
+    """:data:`BACKGROUND_FLOOR` × good rail's roughness spectrum at wavenumbers ``k`` (1/m), one-sided per 1/m
+    (``P(k) = 2 pi S(2 pi k) = A / (4 pi² k³)``; below the first bin held at it)."""
+    kk = np.maximum(k, k[1] if k.size > 1 else 1.0)
+    return BACKGROUND_FLOOR * SATO_A_GOOD_RAIL / (4.0 * np.pi**2 * kk**3)
 
 
 def _robust_scale(x: np.ndarray, valid: np.ndarray, block: int) -> np.ndarray:
@@ -232,7 +250,9 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
     # the surface is G (d t + b), G what the estimate kept: numerator weight G / P, denominator G² / P
     inband = (gain > 0.05) & (kappa > 0)
     floor = 1e-9 * float(psd[inband].max()) if inband.any() else 1.0
-    num_w = np.where(inband, gain / np.maximum(psd, floor), 0.0)
+    held = np.maximum(psd, floor)
+    # only where the estimate kept the surface and the spectrum is positive (a zero spectrum: no weight, not inf)
+    num_w = np.divide(gain, held, out=np.zeros_like(held), where=inband & (held > 0))
     den_w = num_w * gain
     r = np.fft.rfft(np.where(valid, h, 0.0), nfft)
     blocks = sorted({max(int(SCALE_BLOCK_M / step), 256), max(int(scale_block_m / step), 256)})
@@ -253,8 +273,7 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
         scale = _robust_scale(depth, valid, blocks[0])
         for block in blocks[1:]:
             scale = np.fmax(scale, _robust_scale(depth, valid, block))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            score = np.where(valid & (scale > 0), depth / scale, -np.inf)
+        score = np.divide(depth, scale, out=np.full(n, -np.inf), where=valid & (scale > 0))
         if per_length is not None:
             per_length.append((score, depth))
         better = score > best

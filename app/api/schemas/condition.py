@@ -175,7 +175,9 @@ class EffectOut(BaseModel):
     rail_surface_change_low: float | None = Field(description="rail_surface_change minus its 1 sigma")
     rail_surface_change_high: float | None = Field(description="rail_surface_change plus its 1 sigma")
     slope_after_per_year: float | None = Field(description="index change after the action, ln units a year")
-    lasted_days_observed: float | None = Field(description="days until the given fraction of the recovery was lost")
+    lasted_days_observed: float | None = Field(description="days until the given fraction of the change across the "
+                                                           "work was lost (a rail-surface action: of the rail "
+                                                           "surface's change)")
     lasted_days_projected: float | None = Field(description="the same projected from the slope after; only within "
                                                             "followed_days (never beyond the runs seen)")
     followed_days: float | None = Field(description="days from the action to the last run after it")

@@ -21,7 +21,7 @@ from typing import Any
 import jinja2
 import numpy as np
 from babel import Locale
-from babel.dates import format_date
+from babel.dates import format_date, format_datetime, format_skeleton
 from babel.numbers import format_decimal
 from markupsafe import Markup
 
@@ -104,6 +104,18 @@ class Speech:
             value = value.date()
         return format_date(value, format="medium", locale=self.locale)
 
+    def tick(self, value: float) -> str:
+        """A plot's tick value in the locale (up to 2 decimals, none from 100 on)."""
+        return format_decimal(value, format="#,##0.##" if abs(value) < 100 else "#,##0", locale=self.locale)
+
+    def month(self, value: dt.date) -> str:
+        """A plot's month tick in the locale (``Mar 2025``, ``März 2025``, ``mars 2025``)."""
+        return format_skeleton("yMMM", value, locale=self.locale)
+
+    def moment(self, value: dt.datetime) -> str:
+        """A time (UTC) in the locale's short form, followed by ``UTC``."""
+        return format_datetime(value, format="short", tzinfo=dt.UTC, locale=self.locale) + " UTC"
+
     def _(self, message: str, **params: Any) -> str:
         """``message`` in the report's language with its ``{name}`` fields filled (the name is
         gettext's, so that the catalogues' extraction finds the message)."""
@@ -148,16 +160,19 @@ def _sheet(data: ReportData, place: dict[str, Any], spans: list[tuple[float, flo
                             [o.get("level_sd") for o in obs], limits=limits,
                             markers=[(dt.date.fromisoformat(m["date"]), speech.label("maintenance type", m["kind"]))
                                      for m in maint],
-                            y_label=speech._("index (ln units)"), label=speech._("Place {id}", id=place["id"]))
+                            y_label=speech._("index (ln units)"), label=speech._("Place {id}", id=place["id"]),
+                            number=speech.tick, month=speech.month)
     strip = svg.line_strip(data.km_range, spans, highlight=(place["km_from"], place["km_to"]),
-                           label=speech._("Place {id} on line {line}", id=place["id"], line=data.line_id))
+                           label=speech._("Place {id} on line {line}", id=place["id"], line=data.line_id),
+                           number=speech.tick)
     mini = None
     if data.geometry is not None:
         g = data.geometry
         gx, gy = g.to_local(g.lon, g.lat)
         lon, lat = g.lonlat_at_km(np.linspace(place["km_from"], place["km_to"], 5))
         mx, my = g.to_local(lon, lat)
-        mini = svg.mini_map(gx, gy, mx, my, label=speech._("Place {id} on the map", id=place["id"]))
+        mini = svg.mini_map(gx, gy, mx, my, label=speech._("Place {id} on the map", id=place["id"]),
+                            number=speech.tick)
     return {"place": place, "history": history, "plot": Markup(plot), "strip": Markup(strip),
             "map": Markup(mini) if mini else None}
 
@@ -167,12 +182,12 @@ def render_html(data: ReportData, *, speech: Speech | None = None) -> str:
     speech = speech or ENGLISH
     spans = _section_spans(data)
     strip = svg.line_strip(data.km_range, spans,
-                           label=speech._("Section classes of line {line}", line=data.line_id))
+                           label=speech._("Section classes of line {line}", line=data.line_id), number=speech.tick)
     css = (_STATIC / "css" / "report.css").read_text(encoding="utf-8")
     return _environment(speech).get_template("report.html").render(
         d=data, lang=speech.lang, css=Markup(css), sections=data.sections, scheme=data.sections["scheme"],
         sections_strip=Markup(strip), sheets=[_sheet(data, p, spans, speech) for p in data.places],
-        generated=dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"), tier_colours=_TIER_COLOURS,
+        generated=speech.moment(dt.datetime.now(dt.UTC)), tier_colours=_TIER_COLOURS,
     )
 
 

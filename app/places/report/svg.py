@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from html import escape
 
 import numpy as np
@@ -41,11 +41,22 @@ def _fmt(v: float) -> str:
     return f"{v:.2f}".rstrip("0").rstrip(".") if abs(v) < 100 else f"{v:.0f}"
 
 
+def _iso_month(d: dt.date) -> str:
+    return d.strftime("%Y-%m")
+
+
+#: a tick's number as text (the report passes its locale's; default: plain, up to 2 decimals)
+Number = Callable[[float], str]
+#: a month tick (the first of the month) as text
+Month = Callable[[dt.date], str]
+
+
 def history_plot(times: Sequence[dt.datetime], values: Sequence[float], sds: Sequence[float | None], *,
                  limits: Sequence[tuple[float, str, str]] = (), markers: Sequence[tuple[dt.date, str]] = (),
-                 y_label: str, width: int = 520, height: int = 220, label: str = "history") -> str:
+                 y_label: str, width: int = 520, height: int = 220, label: str = "history",
+                 number: Number = _fmt, month: Month = _iso_month) -> str:
     """Values over time with ±1σ bars, horizontal limits ``(value, label, colour)`` and vertical
-    markers ``(date, label)`` (maintenance)."""
+    markers ``(date, label)`` (maintenance); ticks written by ``number`` and ``month``."""
     left, right, top, bottom = 52, 12, 12, 34
     pw, ph = width - left - right, height - top - bottom
     t = np.array([x.timestamp() for x in times], dtype=float)
@@ -73,8 +84,8 @@ def history_plot(times: Sequence[dt.datetime], values: Sequence[float], sds: Seq
     for yv in _ticks(lo_v, hi_v):
         y = y_of(yv)
         body.append(f'<line x1="{left}" y1="{y:.1f}" x2="{left + pw}" y2="{y:.1f}" stroke="{_GRID}"/>'
-                    f'<text x="{left - 4}" y="{y + 3:.1f}" text-anchor="end" {_FONT}>{_fmt(yv)}</text>')
-    months = _month_ticks(t0, t1)
+                    f'<text x="{left - 4}" y="{y + 3:.1f}" text-anchor="end" {_FONT}>{escape(number(yv))}</text>')
+    months = _month_ticks(t0, t1, month)
     for tt, text in months:
         x = x_of(tt)
         body.append(f'<line x1="{x:.1f}" y1="{top + ph}" x2="{x:.1f}" y2="{top + ph + 4}" stroke="{_AXIS}"/>'
@@ -104,7 +115,7 @@ def history_plot(times: Sequence[dt.datetime], values: Sequence[float], sds: Seq
     return _svg(width, height, body, label)
 
 
-def _month_ticks(t0: float, t1: float) -> list[tuple[float, str]]:
+def _month_ticks(t0: float, t1: float, month: Month) -> list[tuple[float, str]]:
     a = dt.datetime.fromtimestamp(t0, dt.UTC)
     b = dt.datetime.fromtimestamp(t1, dt.UTC)
     months = (b.year - a.year) * 12 + b.month - a.month + 1
@@ -118,14 +129,14 @@ def _month_ticks(t0: float, t1: float) -> list[tuple[float, str]]:
         if tick.timestamp() > t1:
             return out
         if (m - 1) % step == 0:
-            out.append((tick.timestamp(), tick.strftime("%Y-%m")))
+            out.append((tick.timestamp(), month(tick.date())))
 
 
 def line_strip(km_range: tuple[float, float], spans: Sequence[tuple[float, float, str]], *,
                highlight: tuple[float, float] | None = None, width: int = 520, height: int = 46,
-               label: str = "along the line") -> str:
+               label: str = "along the line", number: Number = _fmt) -> str:
     """The line from ``km_range[0]`` to ``[1]`` with coloured ``spans`` ``(km_from, km_to, colour)``
-    and a highlighted extent (a place), km ticks below."""
+    and a highlighted extent (a place), km ticks below (written by ``number``)."""
     left, right, top = 10, 10, 6
     pw, bar = width - left - right, 16
     a, b = km_range
@@ -145,14 +156,14 @@ def line_strip(km_range: tuple[float, float], spans: Sequence[tuple[float, float
     for km in _ticks(a, b, 8):
         x = x_of(km)
         body.append(f'<line x1="{x:.1f}" y1="{top + bar}" x2="{x:.1f}" y2="{top + bar + 4}" stroke="{_AXIS}"/>'
-                    f'<text x="{x:.1f}" y="{top + bar + 15}" text-anchor="middle" {_FONT}>{_fmt(km)}</text>')
+                    f'<text x="{x:.1f}" y="{top + bar + 15}" text-anchor="middle" {_FONT}>{escape(number(km))}</text>')
     return _svg(width, height, body, label)
 
 
 def mini_map(x: np.ndarray, y: np.ndarray, mark_x: np.ndarray, mark_y: np.ndarray, *, width: int = 240,
-             height: int = 180, label: str = "map") -> str:
+             height: int = 180, label: str = "map", number: Number = _fmt) -> str:
     """The line's geometry (local metric coordinates, m) with a marked stretch, north up, to scale,
-    with a scale bar."""
+    with a scale bar (its length written by ``number``)."""
     pad = 12
     x0, x1, y0, y1 = float(np.min(x)), float(np.max(x)), float(np.min(y)), float(np.max(y))
     span = max(x1 - x0, y1 - y0, 1.0)
@@ -172,6 +183,6 @@ def mini_map(x: np.ndarray, y: np.ndarray, mark_x: np.ndarray, mark_y: np.ndarra
     bar_m = 10 ** math.floor(math.log10(span / 3))
     body.append(f'<line x1="{pad}" y1="{height - 8}" x2="{pad + bar_m * k:.1f}" y2="{height - 8}" stroke="{_AXIS}" '
                 f'stroke-width="2"/><text x="{pad + bar_m * k + 4:.1f}" y="{height - 5}" {_FONT}>'
-                f'{_fmt(bar_m / 1000) + " km" if bar_m >= 1000 else _fmt(bar_m) + " m"}</text>'
+                f'{escape(number(bar_m / 1000)) + " km" if bar_m >= 1000 else escape(number(bar_m)) + " m"}</text>'
                 f'<text x="{width - pad}" y="{pad + 8}" text-anchor="end" {_FONT}>N ↑</text>')
     return _svg(width, height, body, label)

@@ -24,11 +24,28 @@
     // answers can arrive out of order (a filter clicked twice, a place opened while another loads):
     // only the newest request of each view is drawn
     placesSeq: 0, placeSeq: 0,
+    // the line shown (a view, begin()) and the generation of the newest draw of a line
+    view: null, generation: 0,
   };
 
+  /* The line chosen in the picker (not necessarily the one shown: see view()). */
   function current() {
     const [line_id, track] = ($("cond-line").value || "\u0001").split("\u0001");
     return { line_id, track };
+  }
+  /* A new draw of the chosen line: from now on every draw started for an earlier one is stale and
+   * never writes the page (a line chosen while another still draws gets its own km and places).
+   * A view is {line_id, track, key, live()}; every panel reads its line from the view it was started
+   * for and checks live() after each await, before it writes. */
+  function begin() {
+    const { line_id, track } = current();
+    const generation = ++state.generation;
+    state.view = { line_id, track, key: `${line_id}\u0001${track}`, live: () => generation === state.generation };
+    return state.view;
+  }
+  /* The view of the line shown: what a panel's own controls (a filter, a wheel, a click) draw for. */
+  function view() {
+    return state.view || { line_id: "", track: "", key: "", live: () => false };
   }
   function qs(params) {
     const u = new URLSearchParams();
@@ -122,7 +139,7 @@
   const fail = (what) => (e) => T.banner(`${what}: ${e.detail || e.message}`);
 
   window.trackvkfCondition = {
-    T, $, RULES, state, current, qs, signed, tierBadge, statusBadge, canEdit, mapLink,
+    T, $, RULES, state, current, begin, view, qs, signed, tierBadge, statusBadge, canEdit, mapLink,
     ampRate, trendText, limitText, peakText, confirmText, assetsText, statusDate, fail,
   };
 })();

@@ -18,7 +18,11 @@
     return `${C.signed(a.recovery_pct, 1)} %${rangeText(a.recovery_low, a.recovery_high)} <span class="muted">(${C.signed(a.recovery, 3)})</span>`;
   }
   function heldText(a) {
-    if (a.lasted_days_observed !== null && a.lasted_days_observed !== undefined) return T.fmt(a.lasted_days_observed, 0);
+    if (a.lasted_days_observed !== null && a.lasted_days_observed !== undefined) {
+      if (!a.rail_surface) return T.fmt(a.lasted_days_observed, 0);
+      const of = T._("of the rail surface's change");
+      return `<span title="${T.esc(of)}">${T.fmt(a.lasted_days_observed, 0)}</span>`;
+    }
     const still = a.followed_days === null || a.followed_days === undefined
       ? T._("the change still held at the last run after the action")
       : T._("not lost within the {days} days the runs saw after the action", { days: T.fmt(a.followed_days, 0) });
@@ -37,10 +41,12 @@
     if (a.slope_after_per_year === null) return "";
     return T.esc(T._("{rate} ln units a year", { rate: C.signed(a.slope_after_per_year, 2) }));
   }
-  async function drawActions() {
+  async function drawActions(view = C.view()) {
     const body = $("actions-body");
-    const { line_id, track } = C.current();
+    if (!view.live()) return null;  // a draw for a line no longer chosen writes nothing
+    const { line_id, track } = view;
     const res = await T.api.get("/condition/maintenance-effect", { line_id, track });
+    if (!view.live()) return;  // another line was chosen meanwhile
     if (!res.items.length) {
       body.innerHTML = `<tr><td colspan="7" class="muted">${T._("No maintenance actions imported for this line ({call}).", { call: "<code>POST /api/v1/reference/maintenance</code>" })}</td></tr>`;
       T.emptyState("cond-effect", T._("No maintenance action."), "");
@@ -61,12 +67,13 @@
         `<p>${T._("The before/after view needs runs over the action's km range.")}</p>`);
       return;
     }
-    await drawEffect(best.action_id);
+    await drawEffect(best.action_id, view);
   }
 
-  async function drawEffect(actionId) {
+  async function drawEffect(actionId, view = C.view()) {
     const el = $("cond-effect");
     const e = await T.api.get(`/condition/maintenance-effect/${actionId}`);
+    if (!view.live()) return;
     state.effect = e;
     $("effect-title").textContent = T._("Before / after: {type} on {date}, km {from}–{to}",
       { type: T.label("maintenance type", e.type), date: T.date(e.date), from: T.fmt(e.km_from, 3), to: T.fmt(e.km_to, 3) });

@@ -19,11 +19,13 @@
     return { runs: seg.runs, km: seg.km, segment_m: seg.segment_m, matrix: seg.matrix, flagged, value: "index" };
   }
 
-  async function drawHeatmap() {
+  async function drawHeatmap(view = C.view()) {
     const el = $("cond-heatmap");
-    const { line_id, track } = C.current();
+    if (!view.live()) return null;  // a draw for a line no longer chosen writes nothing
+    const { line_id, track } = view;
     const index = showIndex();
     const heat = await load(line_id, track, $("cond-wheel").value);
+    if (!view.live()) return;  // another line was chosen meanwhile
     state.heat = heat;
     $("cond-heatmap-title").textContent = index
       ? T._("Stiffness index per {m} m × run", { m: T.fmt(heat.segment_m, 0) })

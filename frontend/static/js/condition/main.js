@@ -7,30 +7,54 @@
   const C = window.trackvkfCondition;
   const { T, $, state } = C;
 
+  /* Draws every panel for the line chosen. A line chosen (and shown) while this one still draws
+   * makes this draw stale (C.begin): it stops at its next await and writes nothing more, so every
+   * panel shows the line it was started for. When all panels are drawn, #cond-controls carries
+   * data-drawn = the line's key. */
   async function show() {
     T.banner(null);
-    const { line_id } = C.current();
-    const line = state.lines.find((l) => `${l.line_id}\u0001${l.track}` === $("cond-line").value);
+    const before = state.view;
+    const view = C.begin();
+    delete $("cond-controls").dataset.drawn;
+    if (before && before.key !== view.key) {
+      // the segment and the place belong to the line shown before
+      $("cond-trend-km").value = "";
+      state.placeId = null;
+    }
+    const line = state.lines.find((l) => `${l.line_id}\u0001${l.track}` === view.key);
     $("cond-info").textContent = line ? T.ngettext("{n} run", "{n} runs", line.n_runs) +
       `, ${T.date(line.first_run)} – ${T.date(line.last_run)}, km ${T.fmt(line.km_min, 2)}–${T.fmt(line.km_max, 2)}` : "";
-    if (!line_id) return;
-    await C.drawSections();
-    const res = await C.drawPlaces();
+    if (!view.line_id || !line) return;
+    try {
+      await drawPanels(view, line);
+    } catch (e) {
+      if (view.live()) throw e;  // a stale draw's failure is no news about the line shown
+    }
+  }
+
+  async function drawPanels(view, line) {
+    await C.drawSections(view);
+    if (!view.live()) return;
+    const res = await C.drawPlaces(view);
+    if (!view.live() || !res) return;
     const top = res.items[0];
-    if (top && !(state.placeList.items.some((p) => p.id === state.placeId))) state.placeId = top.id;
-    if (state.placeId) await C.drawPlace(state.placeId);
-    else T.emptyState("place-history", T._("No place on this line."), `<p>${T._("Places appear once two runs find the same exceedance (at once at the intervention tier).")}</p>`);
-    await C.drawHeatmap();
+    if (top && !(res.items.some((p) => p.id === state.placeId))) state.placeId = top.id;
+    if (state.placeId) await C.drawPlace(state.placeId, view);
+    else C.clearPlace(T._("No place on this line."), `<p>${T._("Places appear once two runs find the same exceedance (at once at the intervention tier).")}</p>`);
+    if (!view.live()) return;
+    await C.drawHeatmap(view);
+    if (!view.live()) return;
     if (!$("cond-trend-km").value) {
       $("cond-trend-km").value = top ? top.peak_km.toFixed(3) : ((line.km_min + line.km_max) / 2).toFixed(3);
       $("cond-trend-seg").value = String(top ? C.RULES.fineSegmentM : C.RULES.overviewSegmentM);
     }
-    await C.drawTrend();
-    await C.drawActions();
+    await C.drawTrend(view);
+    if (!view.live()) return;
+    await C.drawActions(view);
+    if (view.live()) $("cond-controls").dataset.drawn = view.key;
   }
 
   $("cond-controls").addEventListener("submit", (ev) => { ev.preventDefault(); show().catch(C.fail(T._("Could not load the condition"))); });
-  $("cond-line").addEventListener("change", () => { $("cond-trend-km").value = ""; state.placeId = null; });
 
   (async () => {
     try {

@@ -5,18 +5,22 @@
   "use strict";
   const C = window.trackvkfCondition;
   const { T, $, state } = C;
+  const EMPTY = { title: $("place-title").innerHTML, events: $("place-events-body").innerHTML,
+                  maint: $("place-maint-body").innerHTML, status: $("place-status-body").innerHTML };
 
   function tierChange(e) {
     if (e.old_tier && e.new_tier && e.old_tier !== e.new_tier) return `${C.tierBadge(e.old_tier)} → ${C.tierBadge(e.new_tier)}`;
     return e.new_tier || e.old_tier ? C.tierBadge(e.new_tier || e.old_tier) : "–";
   }
 
-  async function drawPlace(id) {
+  async function drawPlace(id, view = C.view()) {
+    if (!view.live()) return null;
     state.placeId = Number(id);
     for (const tr of document.querySelectorAll("#places-body tr[data-place]")) tr.classList.toggle("selected", Number(tr.dataset.place) === state.placeId);
     const mine = ++state.placeSeq;
     const p = await T.api.get(`/condition/places/${state.placeId}`);
-    if (mine !== state.placeSeq) return p;  // another place (or a newer state of this one) is on its way
+    // another place (or a newer state of this one) is on its way, or another line was chosen meanwhile
+    if (mine !== state.placeSeq || !view.live()) return null;
     $("place-title").innerHTML = `${T.esc(T._("Place {id}: km {from}–{to}", { id: p.id, from: T.fmt(p.km_from, 3), to: T.fmt(p.km_to, 3) }))} ${C.tierBadge(p.tier)}`;
     const link = $("place-map");
     link.href = C.mapLink(p.last_run_id, p.km_from, p.km_to);
@@ -35,6 +39,7 @@
     ];
     $("place-kv").innerHTML = kv.map(([k, v]) => `<div><span>${T.esc(k)}</span><b>${v}</b></div>`).join("");
     await drawPlaceHistory(p);
+    if (!view.live()) return null;
     $("place-events-body").innerHTML = p.events.length ? p.events.map((e) => `<tr><td>${T.date(e.time)}</td><td>${T.esc(T.label("place event", e.kind))}</td>
       <td>${e.run_id ?? "–"}</td><td>${tierChange(e)}</td></tr>`).join("")
       : `<tr><td colspan="4" class="muted">${T.esc(T._("No events."))}</td></tr>`;
@@ -117,5 +122,21 @@
     } catch (e) { T.banner(T._("Status not changed (HTTP {status}): {detail}", { status: e.status, detail: e.detail })); }
   });
 
+  /* No place on the line shown: the card says so and keeps nothing of another line's place. */
+  function clearPlace(why, hint) {
+    state.placeId = null;
+    $("place-title").innerHTML = EMPTY.title;
+    $("place-map").hidden = true;
+    $("place-kv").innerHTML = "";
+    $("place-events-body").innerHTML = EMPTY.events;
+    $("place-maint-body").innerHTML = EMPTY.maint;
+    $("place-status-body").innerHTML = EMPTY.status;
+    $("status-form").hidden = true;
+    $("status-readonly").hidden = true;
+    state.formPlace = null;
+    T.emptyState("place-history", why, hint);
+  }
+
   C.drawPlace = drawPlace;
+  C.clearPlace = clearPlace;
 })();

@@ -13,9 +13,10 @@
     return p.actions.map((a) => `${T.esc(T.label("maintenance type", a.kind))} ${T.date(a.date)}`).join(", ");
   }
 
-  async function drawPlaces() {
+  async function drawPlaces(view = C.view()) {
     const body = $("places-body");
-    const { line_id, track } = C.current();
+    if (!view.live()) return null;  // a draw for a line no longer chosen writes nothing
+    const { line_id, track } = view;
     const params = { line_id, track, tier: checked("tier"), status: checked("status"),
                      include_closed: $("include-inactive").checked ? "true" : undefined };
     const q = C.qs(params);
@@ -30,7 +31,8 @@
     }
     const mine = ++state.placesSeq;
     const res = await T.api.get(`/condition/places?${q}&limit=200`);
-    if (mine !== state.placesSeq) return res;  // a newer filter is on its way
+    // a newer filter is on its way, or another line was chosen meanwhile (its own draw writes the list)
+    if (mine !== state.placesSeq || !view.live()) return null;
     state.placeList = res;
     $("places-info").textContent = T.ngettext("{n} place", "{n} places", res.total) +
       (res.total > res.items.length ? ", " + T._("first {n}", { n: res.items.length }) : "");
@@ -58,6 +60,7 @@
     if (!btn) return;
     const row = btn.closest("tr");
     C.drawPlace(row.dataset.place).then((p) => {
+      if (!p) return null;  // another place or line was chosen meanwhile
       $("cond-trend-km").value = p.peak_km.toFixed(3);
       $("cond-trend-seg").value = String(C.RULES.fineSegmentM);
       $("place-card").scrollIntoView({ behavior: "smooth", block: "start" });

@@ -16,11 +16,13 @@
     return T._("class from the rms of the index over a section: {limits}", { limits: parts.join(" ") });
   }
 
-  async function drawSections() {
+  async function drawSections(view = C.view()) {
     const el = $("cond-sections");
-    const { line_id, track } = C.current();
+    if (!view.live()) return null;  // a draw for a line no longer chosen writes nothing
+    const { line_id, track } = view;
     $("report-pdf").href = `${T.boot.api}/condition/report.pdf?${new URLSearchParams({ line_id, track })}`;
     const s = await T.api.get("/condition/sections", { line_id, track });
+    if (!view.live()) return null;  // another line was chosen meanwhile
     $("sections-sub").textContent = T._("(per {m} m, run of {date})", { m: T.fmt(s.section_m, 0), date: T.date(s.run_time) });
     $("sections-info").textContent = limitsText(s.classes, s.limits);
     /* the railway's class scheme: one trace per class of it (and one of the sections without a class) */
@@ -47,6 +49,7 @@
       csv: () => ({ columns: ["km_from", "km_to", "class", "scheme_class", "level", "spread", "rms", "fill"],
                     rows: s.sections.map((x) => [x.km_from, x.km_to, x.class, x.scheme_class, x.level, x.spread, x.rms, x.fill]) }),
     });
+    if (!view.live()) return null;
     const old = s.length_by_scheme_class_year_ago;
     $("class-lengths-scheme").textContent = s.scheme.name;
     $("class-lengths-body").innerHTML = groups.map((g) => {

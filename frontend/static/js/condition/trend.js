@@ -17,15 +17,17 @@
     return out;
   }
 
-  async function drawTrend() {
+  async function drawTrend(view = C.view()) {
     const el = $("cond-trend");
     const km = parseFloat($("cond-trend-km").value);
-    const { line_id, track } = C.current();
+    if (!view.live()) return null;  // a draw for a line no longer chosen writes nothing
+    const { line_id, track } = view;
     if (!Number.isFinite(km)) { T.emptyState(el, T._("Choose a segment."), `<p>${T._("Click a cell of the heat map or a work list row.")}</p>`); return; }
     const segment_m = $("cond-trend-seg").value;
     const index = C.showIndex();
     const t = await T.api.get("/condition/trend", { line_id, track, km, segment_m });
     const byWheel = index ? await indexByWheel(line_id, track, km, t.segment_m) : null;
+    if (!view.live()) return;  // another line was chosen meanwhile
     state.trend = t;
     $("cond-trend-title").textContent = T._("Trend of segment km {from}–{to} ({m} m)",
       { from: T.fmt(t.segment_km[0], 3), to: T.fmt(t.segment_km[1], 3), m: t.segment_m });

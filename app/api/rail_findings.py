@@ -1,0 +1,46 @@
+"""Rail findings of a line (dipped welds and joints followed over its runs; issue 33): the routes
+(:mod:`app.condition.rail_findings`).
+
+``GET /condition/rail-findings`` (``.csv``) — a line's findings, ascending km, with their type, dip depth,
+runs seen out of runs passed and the depth's trend; ``GET /condition/rail-findings/{id}`` — one finding
+with its sightings. Rail findings are never places: the store keeps them out of every graded row.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Path, Query
+from fastapi.responses import Response
+
+from app.api.condition import LineIdQ, TrackQ
+from app.api.deps import DbDep
+from app.condition import rail_findings
+
+__all__ = ["router"]
+
+router = APIRouter(prefix="/condition", tags=["condition"])
+
+TypeQ = Annotated[list[str] | None, Query(description="Finding type(s): " + ", ".join(rail_findings.FINDING_TYPES))]
+FindingId = Annotated[str, Path(min_length=1, max_length=40, description="Rail finding id ({first run}-{dm})")]
+
+
+@router.get("/rail-findings", summary="Rail findings of a line: welds and joints followed over its runs")
+def findings(db: DbDep, line_id: LineIdQ, track: TrackQ = None, type: TypeQ = None) -> dict:  # noqa: A002
+    """Each finding: its type (the register's where an asset lies on it, else weld or joint by the dip's
+    length), km, the newest dip depth (mm), runs seen out of runs passed, first and last seen, and the
+    depth's trend (mm a year)."""
+    return rail_findings.line_findings(db, line_id, track, type)
+
+
+@router.get("/rail-findings.csv", summary="Rail findings of a line as CSV", response_class=Response,
+            responses={200: {"content": {"text/csv": {}}}})
+def findings_csv(db: DbDep, line_id: LineIdQ, track: TrackQ = None, type: TypeQ = None) -> Response:  # noqa: A002
+    return Response(rail_findings.findings_csv(db, line_id, track, type), media_type="text/csv",
+                    headers={"Content-Disposition": 'attachment; filename="rail-findings.csv"'})
+
+
+@router.get("/rail-findings/{finding_id}", summary="A rail finding with its sightings")
+def finding(db: DbDep, finding_id: FindingId) -> dict:
+    """The finding and every run that saw it (position, depth, dip length), and the runs that passed it."""
+    return rail_findings.finding(db, finding_id)

@@ -1,0 +1,63 @@
+"""Rail findings followed over a line's runs (app.analysis.impacts.findings): identity from the first
+sighting, one sighting per run, runs seen out of runs passed, kind from the register or the dip, depth trend."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from app.analysis.impacts.findings import RunImpacts, finding_kind, follow_findings, run_offset
+
+
+def _run(run_id: int, day: float, impacts, covered=(0.0, 1000.0)) -> RunImpacts:
+    return RunImpacts(run_id, day, covered, impacts)
+
+
+def test_findings_keep_their_identity_and_count_the_runs_that_saw_them():
+    runs = [
+        _run(1, 0.0, [(100.0, 0.30, 1.0), (400.0, 0.55, 0.4)]),
+        _run(2, 14.0, [(100.4, 0.32, 1.0), (700.0, 0.25, 0.9)]),             # 400 missed, a new one at 700
+        _run(3, 28.0, [(99.7, 0.34, 1.0), (100.9, 0.2, 1.0), (400.3, 0.6, 0.4), (700.2, 0.26, 1.0)]),
+        _run(4, 42.0, [(100.2, 0.36, 1.1)], covered=(0.0, 500.0)),            # did not pass 700
+    ]
+    found = follow_findings(runs, assets=[{"type": "insulated_joint", "track_m": 401.0, "name": "IJ 7"}])
+    assert [(f.first_run_id, f.anchor_m) for f in found] == [(1, 100.0), (3, 100.9), (1, 400.0), (2, 700.0)]
+    weld, second, joint, late = found
+    assert weld.runs_seen == 4 and weld.runs_passed == 4 and weld.kind == "weld"
+    assert [s.run_id for s in weld.sightings] == [1, 2, 3, 4]
+    assert second.runs_seen == 1  # one sighting per run: the second impact of run 3 near 100 m is another finding
+    assert joint.runs_seen == 2 and joint.runs_passed == 4 and joint.kind == "insulated_joint"
+    assert joint.asset["name"] == "IJ 7"
+    assert late.runs_seen == 2 and late.runs_passed == 2 and late.kind == "weld"
+    tr = weld.depth_trend()
+    assert tr.rate_per_year == pytest.approx(0.02 / 14.0 * 365.25, rel=1e-6) and tr.significant
+    assert weld.depth_mm == pytest.approx(0.36) and weld.track_m == pytest.approx(100.1)
+    # a later run adds to a finding, never changes one that exists
+    more = follow_findings([*runs, _run(5, 56.0, [(100.1, 0.37, 1.0)])])
+    assert [(f.first_run_id, f.anchor_m) for f in more] == [(f.first_run_id, f.anchor_m) for f in found]
+    assert follow_findings(list(reversed(runs)))[0].sightings == weld.sightings  # time order, whatever the input
+
+
+def test_the_kind_of_a_finding():
+    assert finding_kind(0.4) == "joint" and finding_kind(1.0) == "weld" and finding_kind(math.nan) == "weld"
+    assert finding_kind(1.0, "insulated_joint") == "insulated_joint" and finding_kind(0.3, "weld") == "weld"
+    assert finding_kind(0.3, "unknown-thing") == "joint"
+    with pytest.raises(ValueError, match="match_m"):
+        follow_findings([], match_m=0.0)
+
+
+def test_a_run_off_by_metres_is_registered_on_the_known_findings():
+    """A run whose alignment failed (its km 2.9 m off) finds the same welds: registered on the findings known, its
+    sightings join them instead of starting new ones; a run whose impacts agree on no offset is taken as it is."""
+    welds = [103.9, 194.6, 284.3, 377.7, 471.5, 575.9, 668.7]
+    first = _run(1, 0.0, [(x, 0.3, 1.0) for x in welds])
+    off = _run(2, 15.0, [(x + 2.9, 0.3, 1.0) for x in welds[:-1]] + [(830.0, 0.25, 1.0)])
+    found = follow_findings([first, off])
+    assert [f.runs_seen for f in found] == [2, 2, 2, 2, 2, 2, 1, 1]
+    assert found[0].sightings[1].track_m == pytest.approx(103.9) and found[-1].anchor_m == pytest.approx(827.1)
+    assert found[-1].runs_passed == 1 and found[-2].runs_passed == 2  # the covered stretch moved along
+    assert run_offset(np.array(welds[:4]) - 2.9, np.array(welds)) == pytest.approx(2.9)
+    assert run_offset(np.array([150.0, 333.0, 520.0]), np.array(welds)) == 0.0  # no offset most agree on
+    assert len(follow_findings([first, off], register_m=0.0)) == 14  # not registered: each of its 7 a new one
