@@ -64,21 +64,29 @@ def test_sweep_removes_what_no_live_process_owns(tmp_path):
         if owner.poll() is None:
             owner.kill()
             owner.wait()
+        owner.stdout.close()
 
 
-def _slow_body(path: Path, started: threading.Event, pause_s: float) -> object:
+def _slow_body(path: Path, started: threading.Event, pause_s: float,
+               hold: threading.Event | None = None) -> object:
+    """The file in quarter-MiB pieces, ``pause_s`` apart; with ``hold``, the rest waits
+    after the first piece until ``hold`` is set (an upload that outlives whatever the
+    test does meanwhile, however slow the machine)."""
     data = path.read_bytes()
     for i in range(0, len(data), MIB // 4):
         yield data[i : i + MIB // 4]
         started.set()
+        if hold is not None:
+            assert hold.wait(120), "the test never released the upload"
         time.sleep(pause_s)
 
 
-def _post_slowly(base_url: str, key: str, path: Path, started: threading.Event, pause_s: float, out: dict) -> None:
+def _post_slowly(base_url: str, key: str, path: Path, started: threading.Event, pause_s: float,
+                 out: dict, hold: threading.Event | None = None) -> None:
     try:
         r = httpx.post(
             f"{base_url}/api/v1/runs", params={"filename": path.name},
-            content=_slow_body(path, started, pause_s),
+            content=_slow_body(path, started, pause_s, hold),
             headers={"Authorization": f"Bearer {key}", "content-type": "application/x-hdf5"},
             timeout=120,
         )
@@ -106,13 +114,15 @@ def test_partial_upload_of_a_killed_api_is_swept_at_restart_but_not_another_apis
             base_url=f"http://127.0.0.1:{_free_port()}", env=svc.env, backend=svc.backend,
             workdir=svc.workdir, database_url=svc.database_url, run_store=svc.run_store, api_key=svc.api_key,
         )
+        release = threading.Event()  # lets the live upload go on once the restart is checked
         other.start_api()
         try:
             # an upload in progress on the other API process, slow enough to outlive the restart
             slow = hdf5_run(tmp_path, n=120_000)
             started, result = threading.Event(), {}
             live = threading.Thread(
-                target=_post_slowly, args=(other.base_url, svc.api_key, slow, started, 1.0, result)
+                target=_post_slowly,
+                args=(other.base_url, svc.api_key, slow, started, 0.2, result, release),
             )
             live.start()
             assert started.wait(30)
@@ -132,9 +142,11 @@ def test_partial_upload_of_a_killed_api_is_swept_at_restart_but_not_another_apis
             svc.start_api()
             remaining = _upload_files(svc.run_store)
             assert len(remaining) == 1 and remaining[0] in leftovers, (remaining, result)  # the live one
+            release.set()
             live.join(120)
             assert result.get("status") == 201, result  # and it finished
             assert _upload_files(svc.run_store) == []
         finally:
+            release.set()
             other.stop()
     assert os.path.isdir(svc.run_store)

@@ -93,7 +93,9 @@ def test_children_dying_young_are_restarted_with_a_growing_back_off(tmp_path):
     finally:
         sup.send_signal(signal.SIGTERM)
         code = sup.wait(timeout=30)
-    pauses = [float(m) for m in re.findall(r"exited with status 3 .*; starting a new one in ([0-9.]+) s", sup.stderr.read())]
+        log = sup.stderr.read()
+        sup.stderr.close()
+    pauses = [float(m) for m in re.findall(r"exited with status 3 .*; starting a new one in ([0-9.]+) s", log)]
     assert pauses[:5] == [0.2, 0.4, 0.8, 1.0, 1.0], pauses  # doubling up to max_backoff_s
     assert code == 3  # the status of the children's last run
 
@@ -104,7 +106,10 @@ def test_health_counts_the_processes_that_run(tmp_path):
     touch = (
         "import os, signal, sys, tempfile, time; signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))\n"
         "p = os.path.join(tempfile.gettempdir(), f'trackvkf-worker-{os.getpid()}.alive')\n"
-        "time.sleep(float(os.environ.get('START_DELAY', '0')))\n"
+        # a replacement (started after the test wrote 'killed') waits longer before its first
+        # touch, so that the 1/2 in between lasts long enough to be seen on a loaded machine
+        "replaced = os.path.exists(os.path.join(tempfile.gettempdir(), 'killed'))\n"
+        "time.sleep(10.0 if replaced else float(os.environ.get('START_DELAY', '0')))\n"
         "while True:\n    open(p, 'a').close(); os.utime(p); time.sleep(0.2)\n"
     )
     env = _env(tmp_path) | {"TRACKVKF_WORKER_STALE_AFTER_S": "30", "START_DELAY": "2"}
@@ -119,6 +124,7 @@ def test_health_counts_the_processes_that_run(tmp_path):
     try:
         _wait(lambda: health() == (0, "2/2 worker processes alive"), 60)
         victim = _status(tmp_path, sup.pid)["pids"][0]
+        (tmp_path / "killed").touch()
         os.kill(victim, signal.SIGKILL)
         _wait(lambda: health() == (1, "1/2 worker processes alive"), 10)  # its fresh file no longer counts
         _wait(lambda: health() == (0, "2/2 worker processes alive"), 60)  # replaced

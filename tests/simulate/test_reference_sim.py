@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -26,7 +27,7 @@ def test_subsidence_follows_log_amplitude_per_rail(line, tmp_path):
         s = sub[sub.rail == rail]
         z = line.amplitude_at_vref(s.km.to_numpy() * 1000, rail)
         np.testing.assert_allclose(s.subsidence_mm, 0.30 * np.log(z) - 1.65, atol=1e-6)
-    assert json.loads(open(ref.files["truth"]).read())["subsidence_slope_mm"] == 0.30
+    assert json.loads(Path(ref.files["truth"]).read_text())["subsidence_slope_mm"] == 0.30
 
 
 def test_maintenance_counts_match_expectation(line, tmp_path):
