@@ -1,7 +1,7 @@
 """Reference data: import (CSV/Parquet, validated, one transaction; engineer, audited) and
 queries (:mod:`app.reference.service`).
 
-``POST /reference/{kind}`` (multipart ``file``; ``mode=append|replace``), ``DELETE
+``POST /reference/{kind}`` (multipart ``file``; ``mode=append|replace``, ``confirm``), ``DELETE
 /reference/{kind}?line_id=``; ``GET /reference/{subsidence,maintenance,superstructure}``.
 """
 
@@ -39,7 +39,8 @@ KmToQ = Annotated[float | None, km_query("Upper km bound")]
 
 
 @router.post("/{kind}", response_model=ImportOut, status_code=201,
-             summary="Import reference data (CSV or Parquet)")
+             summary="Import reference data (CSV or Parquet)",
+             responses={409: {"description": "mode=replace over a line with runs without confirm=true"}})
 async def import_reference(
     kind: Kind,
     actor: EngineerActor,
@@ -49,11 +50,15 @@ async def import_reference(
     format: Annotated[Literal["csv", "parquet"] | None, Query(description="default: from the file name")] = None,
     mode: Annotated[Literal["append", "replace"], Query(
         description="replace: first delete the stored rows of the lines/tracks in the file")] = "append",
+    confirm: Annotated[bool, Query(
+        description="with mode=replace over a line and track that has runs: replace all the same "
+        "(without it: 409 naming the line and how many runs it has)")] = False,
 ) -> ImportOut:
     """Validate the whole file, then insert all rows in one transaction.
 
     Any bad value answers 422 naming the row (1 = first data row) and the
-    column; nothing is imported then.
+    column; nothing is imported then. ``mode=replace`` over a line and track
+    that has runs answers 409 (``confirm``) unless ``confirm=true``.
     """
     cap = settings.max_reference_bytes
     data = await file.read(cap + 1)
@@ -61,7 +66,7 @@ async def import_reference(
         raise ApiError(413, "file", _("exceeds the size limit of {cap} bytes (TRACKVKF_MAX_REFERENCE_BYTES)", cap=cap))
     imported, replaced = await run_in_threadpool(
         lambda: service.import_reference(db, settings, actor, kind, data, fmt=format, filename=file.filename,
-                                         mode=mode))  # RunFileError: 422
+                                         mode=mode, confirm=confirm))  # RunFileError: 422; 409
     return ImportOut(kind=kind, imported=imported, replaced=replaced)
 
 

@@ -123,9 +123,11 @@ def _upload_runs(client, base: str, files: list[Path]) -> list[dict]:
 
 
 def _import_reference(client, base: str, files: dict[str, Path]) -> None:
-    """Import the reference files, replacing what the demo imported before."""
+    """Import the reference files, replacing what the demo imported before (confirmed: on a restart
+    the demo's line has its runs, and the rows are the same)."""
     for kind, path in files.items():
-        _, body = _post_file(client, f"{base}/api/v1/reference/{kind}", path, "text/csv", {"mode": "replace"})
+        _, body = _post_file(client, f"{base}/api/v1/reference/{kind}", path, "text/csv",
+                             {"mode": "replace", "confirm": "true"})
         echo(f"  {kind}: {body['imported']} rows")
 
 

@@ -42,20 +42,27 @@ def simulate(
     confounders: Annotated[bool, typer.Option(
         help="Rough rails (Sato, good rail) with a dipped weld every 100–200 m, and a 40 mm wheel flat "
         "on wheel 11 (docs/run-format.md)")] = False,
+    line_id: Annotated[str, typer.Option(help="Line id of the run (and of the --reference files)")] = "SIM",
+    track: Annotated[str, typer.Option(help="Track of the run (and of the --reference files)")] = "1",
+    vehicle_id: Annotated[str, typer.Option(help="Vehicle id of the run")] = "SIM-1",
+    start_time: Annotated[str, typer.Option(
+        help="Start of the run: ISO date and time with its UTC offset, or an ISO date (08:00 UTC)")]
+        = "2024-05-01T08:00:00+02:00",
 ) -> None:
     """Write a synthetic run in the canonical format with its ground truth beside it."""
     from app.simulate.run import simulate_run
 
-    out.parent.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
     if amplitude_model not in ("resonance", "power_law"):
         typer.echo(f"error: --amplitude-model must be resonance or power_law, got {amplitude_model!r}", err=True)
         raise typer.Exit(2)
-    surface: dict[str, Any] = {}
+    meta = _run_metadata(line_id=line_id, track=track, vehicle_id=vehicle_id, start_time=start_time)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    options: dict[str, Any] = dict(meta)  # the run's metadata and its surfaces
     if confounders:
         from app.simulate.wheels import WheelFlat
 
-        surface = {"rail_surface": True, "wheel_flats": {"11": WheelFlat()}}
+        options.update(rail_surface=True, wheel_flats={"11": WheelFlat()})
     if recorder is not None:
         from app.simulate.recorder import GnssSimulation, simulate_recorder_run
 
@@ -63,12 +70,12 @@ def simulate(
             raise typer.BadParameter("mdf4 or tdms", param_hint="--recorder")
         rec = simulate_recorder_run(out, recorder, gnss=GnssSimulation() if gnss else None, seed=seed,
                                     length_km=length_km, fs=fs, with_forces=forces,
-                                    amplitude_model=amplitude_model, **surface)
+                                    amplitude_model=amplitude_model, **options)
         echo(f"wrote {out} in {time.perf_counter() - t0:.1f} s; channel map {rec.channel_map_path}, "
              f"metadata {rec.metadata_path}" + (f", geometry {rec.geometry_path}" if gnss else ""))
         return
     truth = simulate_run(out, length_km=length_km, fs=fs, seed=seed, with_forces=forces,
-                         amplitude_model=amplitude_model, **surface)
+                         amplitude_model=amplitude_model, **options)
     echo(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
     truth_path = getattr(truth, "path", None)
     if truth_path:
@@ -76,10 +83,35 @@ def simulate(
     if reference:
         from app.simulate.reference import simulate_reference
 
-        meta_line = "SIM"  # simulate_run's default line_id and track
-        ref = simulate_reference(truth.line, out.with_name(f"{out.stem}-reference"), line_id=meta_line,
-                                 track="1", seed=seed)
+        ref = simulate_reference(truth.line, out.with_name(f"{out.stem}-reference"), line_id=meta["line_id"],
+                                 track=meta["track"], seed=seed)
         echo("reference data: " + ", ".join(ref.files[k] for k in ("subsidence", "maintenance", "superstructure")))
+
+
+def _run_metadata(**given: str) -> dict[str, Any]:
+    """The metadata options of ``simulate`` checked as an upload's metadata are (the ingest's rules:
+    non-empty ids within their lengths, an aware start time in the accepted range); a bad one
+    exits naming its option. ``start_time`` may be a date: 08:00 UTC that day."""
+    import datetime as dt
+
+    from pydantic import ValidationError
+
+    from app.io.metadata import RunMetadata
+
+    value: Any = given["start_time"]
+    try:
+        value = (dt.datetime.combine(dt.date.fromisoformat(value), dt.time(8, 0), tzinfo=dt.UTC)
+                 if len(value.strip()) == 10 else dt.datetime.fromisoformat(value.strip()))
+    except ValueError:
+        raise typer.BadParameter(f"not an ISO date or date and time: {value!r}", param_hint="--start-time") from None
+    if value.tzinfo is None:
+        raise typer.BadParameter(f"needs its UTC offset (e.g. {value.isoformat()}+01:00)", param_hint="--start-time")
+    try:
+        checked = RunMetadata(**{**given, "start_time": value}, direction="up")
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        raise typer.BadParameter(str(err["msg"]), param_hint="--" + str(err["loc"][0]).replace("_", "-")) from None
+    return {k: getattr(checked, k) for k in given}
 
 
 def _file_sha256(path: Path) -> str:

@@ -11,12 +11,19 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import and_, delete, insert, select, tuple_
+from sqlalchemy import and_, delete, func, insert, select, tuple_
 from sqlalchemy.orm import Session
 
-from app.db.models import MaintenanceAction, SubsidenceMeasurement, SuperstructureSection, utcnow
+from app.db.models import (
+    MaintenanceAction,
+    Run,
+    SubsidenceMeasurement,
+    SuperstructureSection,
+    utcnow,
+)
 
-__all__ = ["MODELS", "insert_reference", "delete_reference", "reference_frame", "reference_records"]
+__all__ = ["MODELS", "insert_reference", "delete_reference", "reference_frame", "reference_records",
+           "runs_per_line"]
 
 MODELS = {
     "subsidence": SubsidenceMeasurement,
@@ -49,6 +56,17 @@ def insert_reference(session: Session, kind: str, rows: Sequence[dict[str, Any]]
     if batch:
         session.execute(insert(model), batch)
     return len(rows)
+
+
+def runs_per_line(session: Session, pairs: Sequence[tuple[str, str]]) -> dict[tuple[str, str], int]:
+    """How many runs each (line_id, track) of ``pairs`` has; pairs without runs are left out."""
+    out: dict[tuple[str, str], int] = {}
+    pairs = sorted(set(pairs))
+    for i in range(0, len(pairs), 500):
+        stmt = (select(Run.line_id, Run.track, func.count()).where(tuple_(Run.line_id, Run.track).in_(pairs[i:i + 500]))
+                .group_by(Run.line_id, Run.track))
+        out.update({(line, track): int(n) for line, track, n in session.execute(stmt)})
+    return out
 
 
 def delete_reference(session: Session, kind: str, line_id: str, track: str | None = None) -> int:

@@ -25,8 +25,8 @@ SUP_CSV = (
 )
 
 
-def _post(client, kind, text, name="f.csv", **params):
-    return client.post(f"/api/v1/reference/{kind}", params=params,
+def _post(client, kind, text, name="f.csv", headers=None, **params):
+    return client.post(f"/api/v1/reference/{kind}", params=params, headers=headers,
                        files={"file": (name, io.BytesIO(text if isinstance(text, bytes) else text.encode()))})
 
 
@@ -104,3 +104,43 @@ def test_unreadable_and_oversized_files(make_client):
     r = _post(client, "subsidence", "line_id,track,km,subsidence_mm,date\n")
     assert r.status_code == 422 and "no data rows" in r.json()["detail"]
     assert client.post("/api/v1/reference/gauge", files={"file": ("a.csv", b"x")}).status_code == 422
+
+
+def _sections(client, line_id):
+    r = client.get("/api/v1/reference/superstructure", params={"line_id": line_id})
+    assert r.status_code == 200, r.text
+    return [(s["km_from"], s["type"]) for s in r.json()["items"]]
+
+
+def test_replace_over_a_line_with_runs_asks_for_confirm(client, short_sim_run):
+    """mode=replace over a line and track that has runs: 409 naming ``confirm``, the line and its runs,
+    nothing changed (also not the file's other line); confirm=true replaces; append needs no confirm."""
+    path, _truth = short_sim_run  # a run of line SIM track 1
+    sim_sup = SUP_CSV.replace("4010,", "SIM,")
+    assert _post(client, "superstructure", sim_sup).status_code == 201
+    with open(path, "rb") as fh:
+        r = client.post("/api/v1/runs", files={"file": (path.name, fh, "application/x-hdf5")})
+    assert r.status_code == 201, r.text
+    before = _sections(client, "SIM")
+    new = "line_id,track,km_from,km_to,type,details\nSIM,1,11.0,13.0,timber,\nOTHER,1,1.0,2.0,slab,\n"
+    r = _post(client, "superstructure", new, mode="replace")
+    assert r.status_code == 409, r.text
+    body = r.json()
+    assert body["field"] == "confirm"
+    assert "line SIM track 1 has 1 run(s)" in body["detail"] and "confirm=true" in body["detail"], body
+    assert _sections(client, "SIM") == before and _sections(client, "OTHER") == []
+    # translated, the field unchanged
+    r = _post(client, "superstructure", new, mode="replace", headers={"Accept-Language": "de"})
+    assert r.status_code == 409 and r.json()["field"] == "confirm"
+    assert "confirm=true" in r.json()["detail"] and "has 1 run(s)" not in r.json()["detail"], r.text
+    # a track without runs: no question
+    track_2 = "line_id,track,km_from,km_to,type,details\nSIM,2,11.0,13.0,timber,\n"
+    assert _post(client, "superstructure", track_2, mode="replace").status_code == 201
+    # append over the line with runs: no question either
+    r = _post(client, "subsidence", SUB_CSV.replace("4010,", "SIM,"))
+    assert r.status_code == 201, r.text
+    r = _post(client, "superstructure", new, mode="replace", confirm="true")
+    assert r.status_code == 201, r.text
+    assert r.json() == {"kind": "superstructure", "imported": 2, "replaced": 2}
+    assert _sections(client, "SIM") == [(11.0, "timber"), (11.0, "timber")]  # track 1's and track 2's
+    assert _sections(client, "OTHER") == [(1.0, "slab")]

@@ -23,6 +23,48 @@ def test_simulate_writes_run_and_truth(tmp_path):
     assert out.is_file() and (tmp_path / "sim.truth.h5").is_file()
 
 
+def test_simulate_on_a_line_of_its_own(tmp_path):
+    """--line-id, --track, --vehicle-id, --start-time reach the run's metadata and the reference files."""
+    import datetime as dt
+
+    from app.io.runfile import open_run
+
+    out = tmp_path / "docs.h5"
+    result = runner.invoke(app, ["simulate", str(out), "--length-km", "0.3", "--fs", "5000", "--seed", "4",
+                                 "--no-forces", "--reference", "--line-id", " DOCS ", "--track", "2",
+                                 "--vehicle-id", "DOCS-1", "--start-time", "2026-01-15"])
+    assert result.exit_code == 0, result.output
+    with open_run(out) as run:
+        meta = run.metadata
+    assert (meta.line_id, meta.track, meta.vehicle_id) == ("DOCS", "2", "DOCS-1")
+    assert meta.start_time == dt.datetime(2026, 1, 15, 8, 0, tzinfo=dt.UTC)
+    for kind in ("subsidence", "maintenance", "superstructure"):
+        ref = pd.read_csv(tmp_path / "docs-reference" / f"{kind}.csv", dtype=str)
+        assert set(zip(ref["line_id"], ref["track"], strict=True)) == {("DOCS", "2")}, kind
+    result = runner.invoke(app, ["simulate", str(tmp_path / "t.h5"), "--length-km", "0.3", "--fs", "5000",
+                                 "--no-forces", "--start-time", "2026-01-15T09:30:00+01:00"])
+    assert result.exit_code == 0, result.output
+    with open_run(tmp_path / "t.h5") as run:
+        assert run.metadata.start_time == dt.datetime(2026, 1, 15, 8, 30, tzinfo=dt.UTC)
+        assert (run.metadata.line_id, run.metadata.vehicle_id) == ("SIM", "SIM-1")  # the defaults
+
+
+@pytest.mark.parametrize(("args", "option", "says"), [
+    (["--line-id", "  "], "--line-id", "at least 1 character"),
+    (["--track", "x" * 101], "--track", "at most 100 characters"),
+    (["--vehicle-id", ""], "--vehicle-id", "at least 1 character"),
+    (["--start-time", "2026-13-01"], "--start-time", "not an ISO date"),
+    (["--start-time", "2026-01-15T08:00:00"], "--start-time", "UTC offset"),
+    (["--start-time", "1899-12-31"], "--start-time", "start time must lie between"),
+])
+def test_simulate_refuses_bad_metadata_options(tmp_path, args, option, says):
+    out = tmp_path / "bad.h5"
+    result = runner.invoke(app, ["simulate", str(out), "--length-km", "0.3", *args])
+    assert result.exit_code == 2, result.output
+    assert option in result.output and says in result.output, result.output
+    assert not out.exists()
+
+
 def test_simulate_with_confounders_and_process_finds_them(tmp_path):
     """--confounders: rough rails with welds and a flat on wheel 11; process reports the flat."""
     from app.simulate.truth import load_truth
