@@ -97,10 +97,11 @@ def readme_script(blocks: list[list[str]], logs: Path, state: tuple[Path, list[s
     ]
     if state is not None:
         directory, paths = state
-        reads = "; ".join(
+        reads = " ".join(  # at once; each one's exit status checked
             f"command curl --fail-with-body -sS -H \"Authorization: Bearer ${STATE_KEY}\" "
-            f"'http://127.0.0.1:8000{path}' >\"{directory}/$1/{i}.json\"" for i, path in enumerate(paths))
-        out.append(f"__demo_state() {{ mkdir -p \"{directory}/$1\"; {reads}; }}")
+            f"'http://127.0.0.1:8000{path}' >\"{directory}/$1/{i}.json\" & pids+=($!);" for i, path in enumerate(paths))
+        out.append(f"__demo_state() {{ local pids=() pid; mkdir -p \"{directory}/$1\"; {reads} "
+                   "for pid in \"${pids[@]}\"; do wait \"$pid\"; done; }")
     n = 0
     read_before = state is None
     for block in blocks:
