@@ -34,8 +34,8 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.api.language import request_language
-from app.core.errors import MAX_MESSAGE_CHARS, ApiError, cut_message, not_found
-from app.core.i18n import N_, Msg, _
+from app.core.errors import MAX_MESSAGE_CHARS, ApiError, cut_message, not_found, pydantic_message
+from app.core.i18n import _
 from app.io import RunFileError
 
 __all__ = [
@@ -96,55 +96,6 @@ def validation_error(errors: Sequence[dict[str, Any]]) -> ApiError:
     return ApiError(422, field, message)
 
 
-#: pydantic's validation errors, by type, in words of ours (other languages; English keeps
-#: pydantic's own): the message id and the context values it names
-_PYDANTIC_MESSAGES: dict[str, str] = {
-    "greater_than": N_("must be greater than {gt}"),
-    "greater_than_equal": N_("must be greater than or equal to {ge}"),
-    "less_than": N_("must be less than {lt}"),
-    "less_than_equal": N_("must be less than or equal to {le}"),
-    "int_parsing": N_("must be a whole number"),
-    "int_type": N_("must be a whole number"),
-    "int_from_float": N_("must be a whole number"),
-    "float_parsing": N_("must be a number"),
-    "float_type": N_("must be a number"),
-    "finite_number": N_("must be a finite number"),
-    "bool_parsing": N_("must be true or false"),
-    "bool_type": N_("must be true or false"),
-    "string_type": N_("must be text"),
-    "string_too_long": N_("must have at most {max_length} characters"),
-    "string_too_short": N_("must have at least {min_length} characters"),
-    "string_pattern_mismatch": N_("does not have the expected form"),
-    "literal_error": N_("must be one of {expected}"),
-    "enum": N_("must be one of {expected}"),
-    "extra_forbidden": N_("is not a field of this request"),
-    "too_long": N_("has too many items"),
-    "too_short": N_("has too few items"),
-    "date_parsing": N_("must be a date (YYYY-MM-DD)"),
-    "date_from_datetime_parsing": N_("must be a date (YYYY-MM-DD)"),
-    "datetime_parsing": N_("must be a date and time (ISO 8601)"),
-    "datetime_from_date_parsing": N_("must be a date and time (ISO 8601)"),
-    "url_parsing": N_("must be a URL"),
-    "url_scheme": N_("must be a URL"),
-    "dict_type": N_("must be an object"),
-    "list_type": N_("must be a list"),
-}
-
-
-def _pydantic_message(err: dict[str, Any]) -> str:
-    """pydantic's message of ``err``, translatable where its type is one of ours."""
-    english = str(err.get("msg", "invalid value")).removeprefix("Value error, ")
-    msgid = _PYDANTIC_MESSAGES.get(str(err.get("type", "")))
-    if msgid is None:
-        return english
-    ctx = {k: str(v) for k, v in (err.get("ctx") or {}).items()}
-    try:
-        msgid.format(**ctx)
-    except (KeyError, IndexError, ValueError):
-        return english
-    return Msg.worded(english, msgid, **ctx)
-
-
 def _described(err: dict[str, Any]) -> tuple[str, str]:
     """(field, message) of one pydantic validation error."""
     loc = [str(p) for p in err.get("loc", ())]
@@ -157,7 +108,7 @@ def _described(err: dict[str, Any]) -> tuple[str, str]:
         reason = (err.get("ctx") or {}).get("error")
         return place, _("not valid JSON: {reason}", reason=reason) if reason else _("not valid JSON")
     field = ".".join(rest) or place
-    message = _pydantic_message(err)
+    message = pydantic_message(err)
     if kind == "missing":
         message = _("required")
     elif "input" in err:

@@ -19,6 +19,7 @@ from app.api.deps import (
     parse_time_range,
     require_role,
 )
+from app.api.language import request_language
 from app.api.schemas.from_rows import run_detail, run_out
 from app.api.schemas.runs import (
     RunDetail,
@@ -129,17 +130,18 @@ async def upload_run(
     if not outcome.created:
         response.status_code = status.HTTP_200_OK
     response.headers["Location"] = f"{API_PREFIX}/runs/{outcome.run_id}"
-    return await run_in_threadpool(_detail, db, outcome.run_id)
+    return await run_in_threadpool(_detail, db, outcome.run_id, request_language(request).code)
 
 
-def _detail(db: Database, run_id: int) -> RunDetail:
-    return run_detail(catalog.run_view(db, run_id))
+def _detail(db: Database, run_id: int, lang: str) -> RunDetail:
+    return run_detail(catalog.run_view(db, run_id), lang)
 
 
 @router.get("", response_model=RunList, summary="List runs")
 def list_runs(
     db: DbDep,
     settings: SettingsDep,
+    request: Request,
     line_id: Annotated[str | None, Query(max_length=200, description="Line id")] = None,
     vehicle_id: Annotated[str | None, Query(max_length=200, description="Vehicle id")] = None,
     track: Annotated[str | None, Query(max_length=100, description="Track id")] = None,
@@ -157,13 +159,14 @@ def list_runs(
     start_from, start_to = parse_time_range(date_from, date_to, ("date_from", "date_to"), whole_days=True)
     views, total = catalog.run_page(db, line_id=line_id, vehicle_id=vehicle_id, track=track,
                                     start_from=start_from, start_to=start_to, limit=limit, offset=offset)
-    return RunList(items=[run_out(v) for v in views], total=total, limit=limit, offset=offset)
+    lang = request_language(request).code
+    return RunList(items=[run_out(v, lang) for v in views], total=total, limit=limit, offset=offset)
 
 
 @router.get("/{run_id}", response_model=RunDetail, summary="Run detail")
-def get_run(run_id: RunId, db: DbDep) -> RunDetail:
-    """Metadata, sha256, file summary and latest job of a run."""
-    return _detail(db, run_id)
+def get_run(run_id: RunId, db: DbDep, request: Request) -> RunDetail:
+    """Metadata, sha256, file summary and latest job of a run (its ingest warnings in the reader's language)."""
+    return _detail(db, run_id, request_language(request).code)
 
 
 @router.patch(
@@ -177,7 +180,7 @@ def get_run(run_id: RunId, db: DbDep) -> RunDetail:
     },
 )
 async def patch_run_metadata(
-    run_id: RunId, body: RunMetadataPatch, db: DbDep, store: StoreDep, actor: EngineerActor,
+    run_id: RunId, body: RunMetadataPatch, db: DbDep, store: StoreDep, actor: EngineerActor, request: Request,
 ) -> RunMetadataOut:
     """Change metadata fields of a run (e.g. the line, km or start time of a re-uploaded file).
 
@@ -189,7 +192,7 @@ async def patch_run_metadata(
     outcome = await run_in_threadpool(
         revise_run_metadata, db, store, run_id, body.metadata, actor
     )
-    detail = await run_in_threadpool(_detail, db, run_id)
+    detail = await run_in_threadpool(_detail, db, run_id, request_language(request).code)
     return RunMetadataOut(
         **detail.model_dump(),
         changed=[RunMetadataChange(field=k, old=old, new=new) for k, (old, new) in outcome.changed.items()],

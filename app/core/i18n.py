@@ -32,7 +32,7 @@ from typing import Any
 __all__ = [
     "LANGUAGES", "DEFAULT_LANGUAGE", "LANGUAGE_NAMES", "LOCALE_DIR", "DOMAIN", "Language", "Msg", "_", "N_",
     "ngettext", "translate", "translations", "parse_accept_language", "negotiate", "catalogue_path",
-    "catalogue_digest", "is_language", "jinja_environment",
+    "catalogue_digest", "is_language", "jinja_environment", "stored_message", "restored_message",
 ]
 
 #: the languages the service speaks; English is the source language of every message
@@ -127,6 +127,49 @@ def ngettext(singular: str, plural: str, n: int, **params: Any) -> Msg:
 def translate(message: str, lang: str) -> str:
     """``message`` in ``lang``: a :class:`Msg` translated, any other text as it is."""
     return message.in_language(lang) if isinstance(message, Msg) else message
+
+
+def stored_message(message: str) -> dict[str, Any]:
+    """A message in a form JSON keeps (a database column): a :class:`Msg` with its id and parameters
+    (``{"id", "params"}``, and ``plural``/``n``/``english`` where it has them), so that it can be read
+    later in any language (:func:`restored_message`); other text as ``{"text": ...}``.
+    Parameters that are not JSON numbers or text are kept as their text."""
+    if not isinstance(message, Msg):
+        return {"text": str(message)}
+    params: dict[str, Any] = {}
+    for key, value in message.params.items():
+        if key == "n" and message.plural is not None:
+            continue
+        if isinstance(value, Msg):
+            params[key] = {"message": stored_message(value)}
+        elif isinstance(value, bool) or not isinstance(value, int | float | str):
+            params[key] = str(value)
+        else:
+            params[key] = value if not isinstance(value, str) else str(value)
+    out: dict[str, Any] = {"id": message.msgid, "params": params}
+    if message.plural is not None:
+        out.update(plural=message.plural, n=message.n)
+    if message.english is not None:
+        out["english"] = message.english
+    return out
+
+
+def restored_message(data: Any) -> str:
+    """The message :func:`stored_message` kept (a :class:`Msg` again); anything else as its text."""
+    if not isinstance(data, dict):
+        return str(data)
+    if "id" not in data:
+        return str(data.get("text", ""))
+    raw = data.get("params") if isinstance(data.get("params"), dict) else {}
+    params = {k: restored_message(v["message"]) if isinstance(v, dict) and "message" in v else v for k, v in raw.items()}
+    try:
+        if "english" in data:
+            return Msg.worded(str(data["english"]), str(data["id"]), **params)
+        if data.get("plural") is not None:
+            return Msg(str(data["id"]), str(data["plural"]), int(data.get("n") or 0), **params)
+        return Msg(str(data["id"]), **params)
+    except (KeyError, IndexError, ValueError, TypeError):  # a message id changed since: its words as stored
+        return str(data.get("english") or data["id"])
 
 
 def catalogue_path(lang: str) -> Path:

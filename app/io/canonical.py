@@ -33,6 +33,7 @@ import numpy as np
 
 from app.core.atomic import atomic_path
 from app.core.diskspace import require_free
+from app.core.i18n import _
 from app.io._guarded_file import GuardedFile
 from app.io.channels import ALL_CHANNELS, UNITS, storage_dtype
 from app.io.errors import RunFileError
@@ -165,18 +166,18 @@ def check_hdf5_tree(f: h5py.File) -> dict[str, h5py.Dataset]:
     for name in f:
         link = f.get(name, getlink=True)
         if isinstance(link, h5py.ExternalLink):
-            raise RunFileError(name, f"external link to {link.filename}:{link.path} is not allowed")
+            raise RunFileError(name, _("external link to {filename}:{path} is not allowed", filename=link.filename, path=link.path))
         if isinstance(link, h5py.SoftLink):
             _check_soft_link(f, name, link.path)
         elif not isinstance(link, h5py.HardLink):
-            raise RunFileError(name, "unsupported link type")
+            raise RunFileError(name, _("unsupported link type"))
         obj = f.get(name)
         if not isinstance(obj, h5py.Dataset):
-            raise RunFileError(name, "must be a 1-D dataset at the file root (found a group)")
+            raise RunFileError(name, _("must be a 1-D dataset at the file root (found a group)"))
         if obj.is_virtual:
-            raise RunFileError(name, "virtual datasets are not allowed")
+            raise RunFileError(name, _("virtual datasets are not allowed"))
         if obj.external:
-            raise RunFileError(name, "datasets with external storage are not allowed")
+            raise RunFileError(name, _("datasets with external storage are not allowed"))
         out[name] = obj
     return out
 
@@ -188,21 +189,21 @@ def _check_soft_link(f: h5py.File, name: str, target: str) -> None:
     parts = [p for p in target.split("/") if p and p != "."]
     if not parts or ".." in parts:
         raise RunFileError(
-            name, f"soft link to {target!r} does not point to a dataset in this file"
+            name, _("soft link to {target!r} does not point to a dataset in this file", target=target)
         )
     for i, part in enumerate(parts):
         link = group.get(part, getlink=True)
         if not isinstance(link, h5py.HardLink):
             raise RunFileError(
-                name, f"soft link to {target!r} does not resolve to a dataset inside this file"
+                name, _("soft link to {target!r} does not resolve to a dataset inside this file", target=target)
             )
         obj = group.get(part)
         if i < len(parts) - 1:
             if not isinstance(obj, h5py.Group):
-                raise RunFileError(name, f"soft link to {target!r} does not point to a dataset")
+                raise RunFileError(name, _("soft link to {target!r} does not point to a dataset", target=target))
             group = obj
         elif not isinstance(obj, h5py.Dataset):
-            raise RunFileError(name, f"soft link to {target!r} does not point to a dataset")
+            raise RunFileError(name, _("soft link to {target!r} does not point to a dataset", target=target))
 
 
 #: channels stored compressed under ``compression="auto"``: smooth signals that
@@ -314,7 +315,7 @@ class CanonicalWriter:
         for name in ("km_start", "km_increasing"):
             if getattr(self.metadata, name) is None:
                 raise RunFileError(
-                    name, "required field is missing (the km of the run's first sample)"
+                    name, _("required field is missing (the km of the run's first sample)")
                 )
         for name in self.h5:
             if self.h5[name].shape[0] != n_samples:
@@ -387,28 +388,28 @@ def write_run_hdf5(
     try:
         fs = float(fs)
     except (TypeError, ValueError):
-        raise RunFileError("sample_rate_hz", f"sample rate must be a number, got {fs!r}") from None
+        raise RunFileError("sample_rate_hz", _("sample rate must be a number, got {fs!r}", fs=fs)) from None
     if not (np.isfinite(fs) and fs > 0):
-        raise RunFileError("sample_rate_hz", f"sample rate must be > 0 Hz, got {fs!r}")
+        raise RunFileError("sample_rate_hz", _("sample rate must be > 0 Hz, got {fs!r}", fs=fs))
     arrays: dict[str, np.ndarray] = {}
     for name, values in channels.items():
         if name not in ALL_CHANNELS:
-            raise RunFileError(name, f"unknown channel; channels are {', '.join(ALL_CHANNELS)}")
+            raise RunFileError(name, _("unknown channel; channels are {items}", items=', '.join(ALL_CHANNELS)))
         arr = np.asarray(values)
         if arr.ndim != 1:
-            raise RunFileError(name, f"must be 1-D, got shape {arr.shape}")
+            raise RunFileError(name, _("must be 1-D, got shape {shape}", shape=arr.shape))
         if arr.dtype.kind not in "iuf":
-            raise RunFileError(name, f"must be numeric, got dtype {arr.dtype}")
+            raise RunFileError(name, _("must be numeric, got dtype {dtype}", dtype=arr.dtype))
         arrays[name] = arr
     if not arrays:
-        raise RunFileError("file", "no channels given")
+        raise RunFileError("file", _("no channels given"))
     n = {len(a) for a in arrays.values()}
     if len(n) != 1:
         lengths = ", ".join(f"{k}={len(a)}" for k, a in arrays.items())
-        raise RunFileError(next(iter(arrays)), f"channels of unequal length ({lengths})")
+        raise RunFileError(next(iter(arrays)), _("channels of unequal length ({lengths})", lengths=lengths))
     n_samples = n.pop()
     order = [c for c in ALL_CHANNELS if c in arrays]
-    with canonical_output(Path(path)) as (h5, _):
+    with canonical_output(Path(path)) as (h5, _tmp):
         writer = CanonicalWriter(
             h5,
             fs=fs,

@@ -29,6 +29,7 @@ import pydantic
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from app.analysis.units import KMH_PER_MPS
+from app.core.errors import pydantic_message
 from app.core.i18n import _
 from app.io.channels import (
     ACCEL_CHANNELS,
@@ -118,7 +119,7 @@ def unit_factor(channel: str, unit: str | None) -> float:
 def _without_nul(value: str | None) -> str | None:
     """Text a database can store: NUL characters are refused (PostgreSQL text cannot hold them)."""
     if value is not None and "\x00" in value:
-        raise ValueError("must not contain NUL characters (\\u0000)")
+        raise ValueError(_("must not contain NUL characters (\\u0000)"))
     return value
 
 
@@ -184,10 +185,10 @@ class ChannelMap(pydantic.BaseModel):
             canon = canonical_name(key)
             if canon not in INPUT_CHANNELS:
                 raise ValueError(
-                    f"unknown trackvkf channel {key!r}; channels are {', '.join(INPUT_CHANNELS)}"
+                    _("unknown trackvkf channel {key!r}; channels are {channels}", key=key, channels=", ".join(INPUT_CHANNELS))
                 )
             if canon in out:
-                raise ValueError(f"channel {canon} given twice")
+                raise ValueError(_("channel {channel} given twice", channel=canon))
             unit_factor(canon, spec.unit)
             out[canon] = spec
         return out
@@ -195,17 +196,18 @@ class ChannelMap(pydantic.BaseModel):
     @model_validator(mode="after")
     def _check(self) -> ChannelMap:
         if not any(c in self.channels for c in ACCEL_CHANNELS):
-            raise ValueError(f"maps no ABA channel; map at least one of {', '.join(ACCEL_CHANNELS)}")
+            raise ValueError(_("maps no ABA channel; map at least one of {channels}", channels=", ".join(ACCEL_CHANNELS)))
         seen: dict[tuple[str, str | None], str] = {}
         for canon, spec in self.channels.items():
             key = (spec.source, spec.group)
             if key in seen:
                 raise ValueError(
-                    f"recorder channel {spec.source!r} is mapped to both {seen[key]} and {canon}"
+                    _("recorder channel {source!r} is mapped to both {first} and {second}", source=spec.source, first=seen[key],
+                      second=canon)
                 )
             seen[key] = canon
         if ("lat" in self.channels) != ("lon" in self.channels):
-            raise ValueError("map both lat and lon, or neither")
+            raise ValueError(_("map both lat and lon, or neither"))
         return self
 
 
@@ -226,11 +228,11 @@ def parse_channel_map(data: Mapping[str, Any] | ChannelMap) -> ChannelMap:
     except pydantic.ValidationError as exc:
         err = exc.errors()[0]
         loc = ".".join(str(p) for p in err.get("loc", ()))
-        msg = str(err.get("msg", "invalid value")).removeprefix("Value error, ")
+        msg = pydantic_message(err)
         if err.get("type") == "missing":
-            msg = "required field is missing"
+            msg = _("required field is missing")
         elif err.get("type") == "extra_forbidden":
-            msg = "unknown field"
+            msg = _("unknown field")
         raise RunFileError(f"channel_map.{loc}" if loc else "channel_map", msg) from None
 
 

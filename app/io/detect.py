@@ -113,8 +113,9 @@ def detect_format(path: Path) -> tuple[str, str | None]:
         return "csv", None
     raise RunFileError(
         "format",
-        f"unknown format of {path.name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic), "
-        f"not MDF4 or TDMS (no identification) and not delimited text (CSV{f': {problem}' if problem else ''})",
+        _("unknown format of {name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic), not MDF4 or TDMS (no identification) and not delimited text (CSV: {problem})", name=path.name, problem=problem)
+        if problem else
+        _("unknown format of {name!r}: not HDF5 (no signature), not Parquet (no PAR1 magic), not MDF4 or TDMS (no identification) and not delimited text (CSV)", name=path.name),
     )
 
 

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from app.analysis.map_matching import Polyline
+from app.core.i18n import _
 from app.io.errors import RunFileError
 from app.io.json_input import load_json
 
@@ -155,28 +156,26 @@ def _crs_of(doc: Mapping[str, Any]) -> str:
     elif isinstance(crs, str):
         name = crs
     if not isinstance(name, str) or not name.strip():
-        raise RunFileError("crs", 'must be {"type": "name", "properties": {"name": "EPSG:…"}}')
+        raise RunFileError("crs", _('must be {"type": "name", "properties": {"name": "EPSG:…"}}'))
     if len(name) > MAX_CRS_CHARS or "\x00" in name:
-        raise RunFileError("crs", f"must be a CRS name of at most {MAX_CRS_CHARS} characters without NUL")
+        raise RunFileError("crs", _("must be a CRS name of at most {n} characters without NUL", n=MAX_CRS_CHARS))
     from pyproj import CRS, Transformer
     from pyproj.exceptions import CRSError, ProjError
 
     try:
         parsed = CRS.from_user_input(name.strip())
     except CRSError:
-        raise RunFileError("crs", f"unknown CRS {name[:80]!r}") from None
+        raise RunFileError("crs", _("unknown CRS {name!r}", name=name[:80])) from None
     ellipsoid = parsed.ellipsoid
     axis = ellipsoid.semi_major_metre if ellipsoid is not None else None
     if not (parsed.is_geographic or parsed.is_projected) or parsed.is_compound or len(parsed.axis_info) != 2:
-        raise RunFileError("crs", f"{name[:80]!r} is not a two-dimensional geographic or projected CRS "
-                           "(geocentric, vertical, compound and 3-D CRS are not accepted)")
+        raise RunFileError("crs", _("{name!r} is not a two-dimensional geographic or projected CRS (geocentric, vertical, compound and 3-D CRS are not accepted)", name=name[:80]))
     if axis is None or not _EARTH_SEMI_MAJOR_M[0] <= axis <= _EARTH_SEMI_MAJOR_M[1]:
-        raise RunFileError("crs", f"{name[:80]!r} is not a CRS of the Earth (ellipsoid "
-                           f"{getattr(ellipsoid, 'name', None)!r})")
+        raise RunFileError("crs", _("{name!r} is not a CRS of the Earth (ellipsoid {ellipsoid!r})", name=name[:80], ellipsoid=getattr(ellipsoid, 'name', None)))
     try:
         Transformer.from_crs(parsed, _WGS84, always_xy=True)
     except (CRSError, ProjError) as exc:
-        raise RunFileError("crs", f"{name[:80]!r} cannot be transformed to WGS84: {str(exc)[:200]}") from None
+        raise RunFileError("crs", _("{name!r} cannot be transformed to WGS84: {error}", name=name[:80], error=str(exc)[:200])) from None
     return parsed.to_string()
 
 
@@ -189,10 +188,10 @@ def _to_wgs84(crs: str, x: np.ndarray, y: np.ndarray, where: str) -> tuple[np.nd
     try:
         lon, lat = Transformer.from_crs(crs, _WGS84, always_xy=True).transform(x, y)
     except (CRSError, ProjError) as exc:
-        raise RunFileError(where, f"coordinates cannot be transformed from {crs} to WGS84: {str(exc)[:200]}") from None
+        raise RunFileError(where, _("coordinates cannot be transformed from {crs} to WGS84: {error}", crs=crs, error=str(exc)[:200])) from None
     lon, lat = np.asarray(lon, dtype=np.float64), np.asarray(lat, dtype=np.float64)
     if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
-        raise RunFileError(where, f"coordinates cannot be transformed from {crs} to WGS84")
+        raise RunFileError(where, _("coordinates cannot be transformed from {crs} to WGS84", crs=crs))
     return lon, lat
 
 
@@ -201,9 +200,9 @@ def _text(props: Mapping[str, Any], key: str, where: str) -> str:
     if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
         value = str(value)
     if not isinstance(value, str) or not value.strip() or len(value) > 128:
-        raise RunFileError(where, f"properties.{key} is missing (a non-empty text of ≤ 128 characters)")
+        raise RunFileError(where, _("properties.{key} is missing (a non-empty text of ≤ 128 characters)", key=key))
     if "\x00" in value:
-        raise RunFileError(where, f"properties.{key} must not contain NUL characters (\\u0000)")
+        raise RunFileError(where, _("properties.{key} must not contain NUL characters (\\u0000)", key=key))
     return value.strip()
 
 
@@ -217,64 +216,63 @@ def _number(value: Any) -> float:
 def _feature(feat: Any, i: int, crs: str) -> LineGeometry:
     where = f"features[{i}]"
     if not isinstance(feat, Mapping) or feat.get("type") != "Feature":
-        raise RunFileError(where, "must be a GeoJSON Feature")
+        raise RunFileError(where, _("must be a GeoJSON Feature"))
     props = feat.get("properties")
     if not isinstance(props, Mapping):
-        raise RunFileError(where, "has no properties (line_id, track, km)")
+        raise RunFileError(where, _("has no properties (line_id, track, km)"))
     line_id = _text(props, "line_id", where)
     track = _text(props, "track", where)
-    label = f"line {line_id} track {track}"
+    label = _("line {line} track {track}", line=line_id, track=track)
     geom = feat.get("geometry")
     if not isinstance(geom, Mapping) or geom.get("type") != "LineString":
-        raise RunFileError(where, f"({label}) geometry must be a LineString")
+        raise RunFileError(where, _("({label}) geometry must be a LineString", label=label))
     coords = geom.get("coordinates")
     if not isinstance(coords, list) or len(coords) < 2:
-        raise RunFileError(where, f"({label}) a LineString needs at least two positions")
+        raise RunFileError(where, _("({label}) a LineString needs at least two positions", label=label))
     try:
         xy = np.array([[_number(p[0]), _number(p[1])] for p in coords], dtype=np.float64)
     except (TypeError, ValueError, IndexError, KeyError, OverflowError):
-        raise RunFileError(where, f"({label}) coordinates must be [x, y] number pairs") from None
+        raise RunFileError(where, _("({label}) coordinates must be [x, y] number pairs", label=label)) from None
     if not np.isfinite(xy).all():
-        raise RunFileError(where, f"({label}) coordinates must be finite")
+        raise RunFileError(where, _("({label}) coordinates must be finite", label=label))
     km_raw = props.get("km")
     if km_raw is None:
         raise RunFileError(
             where,
-            f"({label}) has no km stations: give properties.km, the line km at every vertex",
+            _("({label}) has no km stations: give properties.km, the line km at every vertex", label=label),
         )
     try:
         km = np.array([_number(k) for k in km_raw], dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
-        raise RunFileError(where, f"({label}) properties.km must be a list of numbers (km)") from None
+        raise RunFileError(where, _("({label}) properties.km must be a list of numbers (km)", label=label)) from None
     if km.size != xy.shape[0]:
         raise RunFileError(
-            where, f"({label}) properties.km has {km.size} stations for {xy.shape[0]} vertices"
+            where, _("({label}) properties.km has {stations} stations for {vertices} vertices", label=label, stations=km.size, vertices=xy.shape[0])
         )
     dk = np.diff(km)
     if not np.isfinite(km).all() or not ((dk > 0).all() or (dk < 0).all()):
-        raise RunFileError(where, f"({label}) km stations must be strictly increasing or decreasing")
+        raise RunFileError(where, _("({label}) km stations must be strictly increasing or decreasing", label=label))
     import shapely
 
     line = shapely.LineString(xy)
     if not line.is_valid or line.length <= 0:
-        raise RunFileError(where, f"({label}) invalid LineString: {shapely.is_valid_reason(line)}")
+        raise RunFileError(where, _("({label}) invalid LineString: {reason}", label=label, reason=shapely.is_valid_reason(line)))
     if (np.hypot(*np.diff(xy, axis=0).T) <= 0).any():
-        raise RunFileError(where, f"({label}) has two consecutive equal vertices")
+        raise RunFileError(where, _("({label}) has two consecutive equal vertices", label=label))
     lon, lat = _to_wgs84(crs, xy[:, 0], xy[:, 1], where)
     if (np.abs(lat) > 90).any() or (np.abs(lon) > 180).any():
-        raise RunFileError(where, f"({label}) coordinates are not longitude/latitude in {crs}")
+        raise RunFileError(where, _("({label}) coordinates are not longitude/latitude in {crs}", label=label, crs=crs))
     out = LineGeometry(line_id, track, lon, lat, km, crs)
     try:
         pl = out.polyline()
     except ValueError as exc:
-        raise RunFileError(where, f"({label}) {exc}") from None
+        raise RunFileError(where, _("({label}) {error}", label=label, error=exc)) from None
     length = float(shapely.LineString(np.column_stack((pl.x, pl.y))).length)
     span = abs(float(km[-1] - km[0])) * 1000.0
     if abs(span - length) > KM_LENGTH_TOLERANCE * length:
         raise RunFileError(
             where,
-            f"({label}) the km stations span {span:.0f} m but the geometry is {length:.0f} m long "
-            f"(more than {100 * KM_LENGTH_TOLERANCE:g} % apart: km in metres, or a wrong CRS?)",
+            _("({label}) the km stations span {span:.0f} m but the geometry is {length:.0f} m long (more than {tolerance:g} % apart: km in metres, or a wrong CRS?)", label=label, span=span, length=length, tolerance=100 * KM_LENGTH_TOLERANCE),
         )
     return out
 
@@ -305,17 +303,17 @@ def parse_geojson(data: bytes | str | Mapping[str, Any]) -> list[LineGeometry]:
     else:
         doc = data
     if not isinstance(doc, Mapping):
-        raise RunFileError("file", "GeoJSON must be an object")
+        raise RunFileError("file", _("GeoJSON must be an object"))
     if doc.get("type") == "Feature":
         features = [doc]
     elif doc.get("type") == "FeatureCollection" and isinstance(doc.get("features"), list):
         features = doc["features"]
     else:
-        raise RunFileError("file", "GeoJSON must be a FeatureCollection or a Feature")
+        raise RunFileError("file", _("GeoJSON must be a FeatureCollection or a Feature"))
     if not features:
-        raise RunFileError("file", "no features")
+        raise RunFileError("file", _("no features"))
     if len(features) > MAX_FEATURES:
-        raise RunFileError("file", f"{len(features)} features exceed the limit of {MAX_FEATURES}")
+        raise RunFileError("file", _("{n_features} features exceed the limit of {limit}", n_features=len(features), limit=MAX_FEATURES))
     n_vertices = sum(
         len(f["geometry"]["coordinates"])
         for f in features
@@ -323,7 +321,7 @@ def parse_geojson(data: bytes | str | Mapping[str, Any]) -> list[LineGeometry]:
         and isinstance(f["geometry"].get("coordinates"), list)
     )
     if n_vertices > MAX_VERTICES:
-        raise RunFileError("file", f"{n_vertices} vertices exceed the limit of {MAX_VERTICES}")
+        raise RunFileError("file", _("{n_vertices} vertices exceed the limit of {limit}", n_vertices=n_vertices, limit=MAX_VERTICES))
     crs = _crs_of(doc)
     out: list[LineGeometry] = []
     seen: dict[tuple[str, str], int] = {}
@@ -333,7 +331,7 @@ def parse_geojson(data: bytes | str | Mapping[str, Any]) -> list[LineGeometry]:
         if key in seen:
             raise RunFileError(
                 f"features[{i}]",
-                f"line {key[0]} track {key[1]} is also features[{seen[key]}]",
+                _("line {line} track {track} is also features[{index}]", line=key[0], track=key[1], index=seen[key]),
             )
         seen[key] = i
         out.append(geom)

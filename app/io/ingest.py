@@ -13,8 +13,9 @@ from typing import Any
 
 import numpy as np
 import pydantic
-from pydantic import ConfigDict
+from pydantic import ConfigDict, SkipValidation
 
+from app.core.i18n import _
 from app.io.canonical import CanonicalWriter, Compression, canonical_output
 from app.io.channel_map import ChannelMap, parse_channel_map
 from app.io.channels import (
@@ -100,7 +101,8 @@ class RunSummary(pydantic.BaseModel):
     speed_max: float
     source_format: str = ""
     nan_filled: dict[str, int] = {}
-    warnings: list[str] = []
+    #: kept as given (a marked message stays one: the run's page shows it in the reader's language)
+    warnings: SkipValidation[list[str]] = []
     report: dict[str, Any] = {}
 
 
@@ -167,12 +169,12 @@ def ingest(
     if not isinstance(limits, IngestLimits):
         raise TypeError(f"limits must be an IngestLimits, got {type(limits).__name__}")
     if not src.is_file():
-        raise RunFileError("file", f"{src.name!r} does not exist or is not a regular file")
+        raise RunFileError("file", _("{name!r} does not exist or is not a regular file", name=src.name))
     if src.stat().st_size == 0:
-        raise RunFileError("file", "file is empty")
+        raise RunFileError("file", _("file is empty"))
     if metadata is not None and not isinstance(metadata, Mapping):
         raise RunFileError(
-            "metadata", f"metadata must be a JSON object, got {type(metadata).__name__}"
+            "metadata", _("metadata must be a JSON object, got {kind}", kind=type(metadata).__name__)
         )
     cmap = parse_channel_map(channel_map) if channel_map is not None else None
     fmt_name, comp = resolve_format(src, fmt)
@@ -189,23 +191,20 @@ def _merge_metadata(
     merged: dict[str, Any] = {**info.file_metadata, **(given or {})}
     if "start_time" in info.file_metadata and "start_time" not in (given or {}):
         if isinstance(source, RecorderSource):
-            warnings.append(
-                f"start_time: taken from the recorder file header ({info.file_metadata['start_time']})"
-            )
+            warnings.append(_("start_time: taken from the recorder file header ({value})",
+                              value=info.file_metadata["start_time"]))
     axles = merged.get("axle_positions")
     missing = [a for a in DEFAULT_AXLE_POSITIONS_M if not isinstance(axles, Mapping) or a not in axles]
     if missing:
-        layout = ", ".join(f"axle {a} at {DEFAULT_AXLE_POSITIONS_M[a]:g} m" for a in missing)
-        warnings.append(
-            f"axle_positions: not given; the default layout was used ({layout} from the "
-            "position reference)"
-        )
+        layout = ", ".join(f"{a} = {DEFAULT_AXLE_POSITIONS_M[a]:g} m" for a in missing)
+        warnings.append(_("axle_positions: not given; the default layout was used (axles {layout} from the "
+                          "position reference)", layout=layout))
     calibration: dict[str, Any] = dict(info.calibration)
     for part in (info.file_metadata.get("calibration"), (given or {}).get("calibration")):
         if part is not None:
             if not isinstance(part, Mapping):
                 raise RunFileError(
-                    "calibration", "calibration must map channel names to {gain, offset}"
+                    "calibration", _("calibration must map channel names to {gain, offset}")
                 )
             calibration.update(part)
     merged["calibration"] = calibration
@@ -285,15 +284,15 @@ def _plan(
     n_known = info.n_samples
     if n_known is not None:
         if n_known == 0:
-            raise RunFileError("file", "no samples")
+            raise RunFileError("file", _("no samples"))
         if n_known > limits.max_samples:
             raise RunFileError(
-                "file", f"{n_known} samples exceed the limit of {limits.max_samples}"
+                "file", _("{n_known} samples exceed the limit of {max_samples}", n_known=n_known, max_samples=limits.max_samples)
             )
     blocks: Iterator[dict[str, np.ndarray]] = source.blocks(limits.block_samples)
     first = next(blocks, None)
     if first is None or len(next(iter(first.values()))) == 0:
-        raise RunFileError("file", "no samples")
+        raise RunFileError("file", _("no samples"))
     fs, from_time = resolve_sample_rate(meta, source, first)
     check_sample_rate(fs, limits)
     if n_known is not None:
@@ -328,7 +327,7 @@ class _BlockWriter:
         for block in self.plan.blocks:
             m = len(next(iter(block.values())))
             if offset + m > limits.max_samples:
-                raise RunFileError("file", f"more than {limits.max_samples} samples (limit)")
+                raise RunFileError("file", _("more than {max_samples} samples (limit)", max_samples=limits.max_samples))
             if TIME_COLUMN in block:
                 self.checks.time(offset, block[TIME_COLUMN])
             if self.fixes is not None:
@@ -338,7 +337,7 @@ class _BlockWriter:
             check_io()
             offset += m
         if n_known is not None and offset != n_known:
-            raise RunFileError("file", f"read {offset} samples but the file declares {n_known}")
+            raise RunFileError("file", _("read {n_read} samples but the file declares {n_known}", n_read=offset, n_known=n_known))
         check_duration(offset, self.plan.fs, limits)
         for c, filler in self.fillers.items():
             if filler.n_nan > limits.max_nan_fraction * offset:
@@ -352,7 +351,7 @@ class _BlockWriter:
             x = x.copy()
         if np.isinf(x).any():
             i = int(np.flatnonzero(np.isinf(x))[0])
-            raise RunFileError(c, f"infinite value at sample {offset + i}")
+            raise RunFileError(c, _("infinite value at sample {sample}", sample=offset + i))
         self.checks.magnitude(c, offset, x)
         filler = self.fillers[c]
         filler.process(offset, x)
@@ -382,11 +381,10 @@ def _finish(
         finish_line_km(writer, checks.first_pos, checks.direction)
         report["km_source"] = "line_km"
     elif checks.first_pos is not None and abs(checks.first_pos) > _ZERO_TOLERANCE_M:
-        warnings.append(
-            f"position: the relative position channel starts at {checks.first_pos:.6g} m, "
+        warnings.append(_(
+            "position: the relative position channel starts at {first:.6g} m, "
             "not 0 m; it was taken as distance travelled (its first sample subtracted). "
-            "If it is the line chainage, upload with position_kind line_km"
-        )
+            "If it is the line chainage, upload with position_kind line_km", first=checks.first_pos))
     stats = derive_kinematics(writer, plan.stored, n, plan.fs, limits)
     if blocks.fixes is not None:
         meta = plan.meta

@@ -43,6 +43,7 @@ from multiprocessing import popen_forkserver, spawn
 from multiprocessing.context import ForkServerProcess
 from typing import Any
 
+from app.core.i18n import _
 from app.io.errors import RunFileError
 
 __all__ = [
@@ -138,7 +139,7 @@ def _resolve(fn: Callable[..., Any] | str) -> Callable[..., Any]:
         return fn
     import importlib
 
-    module, _, name = fn.partition(":")
+    module, _sep, name = fn.partition(":")
     return getattr(importlib.import_module(module), name)
 
 
@@ -291,9 +292,7 @@ def run_bounded(
             left = deadline - time.monotonic()
             if left <= 0:
                 raise ParseBudgetExceeded(
-                    "file", f"reading {what} took longer than its budget of {budget.seconds:.0f} s "
-                    "(TRACKVKF_PARSE_SECONDS, TRACKVKF_PARSE_MIN_BYTES_PER_S): refused as a file the "
-                    "parser cannot finish"
+                    "file", _("reading {what} took longer than its budget of {seconds:.0f} s (TRACKVKF_PARSE_SECONDS, TRACKVKF_PARSE_MIN_BYTES_PER_S): refused as a file the parser cannot finish", what=what, seconds=budget.seconds)
                 )
             if not parent.poll(min(left, _POLL_S)):
                 if not proc.is_alive() and not parent.poll(0):
@@ -330,20 +329,19 @@ def _result(msg: tuple, budget: ParseBudget, what: str) -> Any:
         raise DiskFullError(msg[1], msg[2])
     if kind == "memory":
         raise RunFileError(
-            "file", f"reading {what} needs more than {budget.memory_bytes / 2**20:.0f} MiB of memory "
-            "(TRACKVKF_PARSE_MEMORY_BYTES)"
+            "file", _("reading {what} needs more than {mib:.0f} MiB of memory (TRACKVKF_PARSE_MEMORY_BYTES)", what=what, mib=budget.memory_bytes / 2**20)
         )
     log.error("the parser failed on %s: %s\n%s", what, msg[1], msg[2] if len(msg) > 2 else "")
-    raise RunFileError("file", f"{what} cannot be read: {msg[1]}")
+    raise RunFileError("file", _("{what} cannot be read: {error}", what=what, error=msg[1]))
 
 
 def _crashed(proc: Any, what: str) -> RunFileError:
     code = proc.exitcode
     if code is not None and code < 0 and -code in (signal.SIGXCPU, signal.SIGKILL):
-        return ParseBudgetExceeded("file", f"reading {what} used more CPU time than its budget")
+        return ParseBudgetExceeded("file", _("reading {what} used more CPU time than its budget", what=what))
     name = signal.Signals(-code).name if code is not None and code < 0 else f"exit code {code}"
     log.error("the parser crashed on %s (%s)", what, name)
-    return RunFileError("file", f"{what} crashed the parser ({name}): refused as corrupt")
+    return RunFileError("file", _("{what} crashed the parser ({name}): refused as corrupt", what=what, name=name))
 
 
 
@@ -370,19 +368,19 @@ def ingest_bounded(src: Any, fmt: str | None, metadata: Any, dest: Any, *, budge
         callbacks["geometry"] = geometry
         geometry = Callback("geometry")
     return run_bounded(f"{_CHILD}:ingest_file", (src, fmt, metadata, dest), {**kwargs, "geometry": geometry},
-                       budget=budget, what=f"the {fmt or 'run'} file", callbacks=callbacks)
+                       budget=budget, what=_("the {format} file", format=fmt) if fmt else _("the run file"), callbacks=callbacks)
 
 
 def parse_geojson_bounded(data: bytes, *, budget: ParseBudget) -> Any:
     """:func:`app.io.geometry.parse_geojson` in a child process within ``budget``."""
-    return run_bounded(f"{_CHILD}:parse_geojson_file", (data,), budget=budget, what="the GeoJSON file")
+    return run_bounded(f"{_CHILD}:parse_geojson_file", (data,), budget=budget, what=_("the GeoJSON file"))
 
 
 def read_reference_bounded(data: bytes, kind: str, fmt: str | None, filename: str | None, *,
                            budget: ParseBudget) -> Any:
     """:func:`app.io.reference.read_reference` in a child process within ``budget``."""
     return run_bounded(f"{_CHILD}:read_reference_file", (data, kind, fmt, filename), budget=budget,
-                       what=f"the {kind} file")
+                       what=_("the {kind} file", kind=kind))
 
 
 def ingest_upload(settings: Any, src: Any, fmt: str | None, metadata: Any, dest: Any, **kwargs: Any) -> Any:

@@ -21,6 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from app.core.i18n import _
 from app.io.canonical import CanonicalWriter
 from app.io.errors import RunFileError
 from app.io.limits import IngestLimits
@@ -141,7 +142,7 @@ def position_table(read_speed: Reader, n: int, fs: float) -> np.ndarray:
     p = 0.0
     for b in range(nb - 1):
         a = b * POSITION_BLOCK
-        _, p = integrate_block(read_speed(a, a + POSITION_BLOCK + 1), fs, p, POSITION_BLOCK)
+        _v, p = integrate_block(read_speed(a, a + POSITION_BLOCK + 1), fs, p, POSITION_BLOCK)
         table[b + 1] = p
     return table
 
@@ -176,7 +177,7 @@ def position_from_speed(
     while b * POSITION_BLOCK < stop:
         a = b * POSITION_BLOCK
         length = min(POSITION_BLOCK, n - a)
-        pos, _ = integrate_block(read_speed(a, min(a + length + 1, n)), fs, float(table[b]), length)
+        pos, _v = integrate_block(read_speed(a, min(a + length + 1, n)), fs, float(table[b]), length)
         lo, hi = max(start, a), min(stop, a + length)
         out[lo - start : hi - start] = pos[lo - a : hi - a]
         b += 1
@@ -241,7 +242,6 @@ def derive_kinematics(
             if rel > limits.speed_position_tolerance:
                 raise RunFileError(
                     "speed",
-                    f"integrated speed gives {integrated:.1f} m but position covers {distance:.1f} m "
-                    f"({100 * rel:.0f} % apart); check the units (m/s, m) and calibration",
+                    _("integrated speed gives {integrated:.1f} m but position covers {distance:.1f} m ({percent:.0f} % apart); check the units (m/s, m) and calibration", integrated=integrated, distance=distance, percent=100 * rel),
                 )
     return {"distance": float(distance), "vmin": vmin, "vmax": vmax}

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from app.core.i18n import _
+
 __all__ = ["IngestLimits", "DEFAULT_LIMITS"]
 
 
@@ -138,8 +140,7 @@ class IngestLimits:
         if decoded > allowed:
             raise RunFileError(
                 "file",
-                f"{what} decode to {decoded} bytes, more than {allowed} bytes allowed for a "
-                f"{file_bytes}-byte file (decompression bomb limit)",
+                _("{what} decode to {decoded} bytes, more than {allowed} bytes allowed for a {file_bytes}-byte file (decompression bomb limit)", what=what, decoded=decoded, allowed=allowed, file_bytes=file_bytes),
             )
 
     def __post_init__(self) -> None:

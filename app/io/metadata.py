@@ -10,6 +10,7 @@ from typing import Any, Literal
 import pydantic
 from pydantic import AliasChoices, AwareDatetime, ConfigDict, Field, StrictBool, field_validator
 
+from app.core.errors import pydantic_message
 from app.core.i18n import _
 from app.io.channels import ALL_CHANNELS, AXLES, WHEELS
 from app.io.errors import RunFileError
@@ -49,7 +50,7 @@ POSITION_KINDS: tuple[str, ...] = ("relative", "line_km", "gnss")
 
 def _finite(value: float, what: str) -> float:
     if not math.isfinite(value):
-        raise ValueError(f"{what} must be finite, got {value!r}")
+        raise ValueError(_("{what} must be finite, got {value!r}", what=what, value=value))
     return value
 
 
@@ -74,7 +75,7 @@ class Calibration(pydantic.BaseModel):
     def _gain(cls, v: float) -> float:
         _finite(v, "gain")
         if v == 0.0:
-            raise ValueError("gain must be non-zero")
+            raise ValueError(_("gain must be non-zero"))
         return v
 
     @field_validator("offset")
@@ -93,7 +94,7 @@ def _to_str(v: Any) -> Any:
     if isinstance(v, bool):
         return v
     if isinstance(v, float) and not math.isfinite(v):
-        raise ValueError(f"must be text or a finite number, got {v!r}")
+        raise ValueError(_("must be text or a finite number, got {value!r}", value=v))
     if isinstance(v, int | float):
         return str(v)
     return v
@@ -188,7 +189,8 @@ class RunMetadata(pydantic.BaseModel):
             utc = None
         if utc is None or not first <= utc < last:
             raise ValueError(
-                f"start time must lie between {first:%Y-%m-%d} and {last:%Y-%m-%d} (UTC), got {v.isoformat()}"
+                _("start time must lie between {first} and {last} (UTC), got {value}", first=first.strftime("%Y-%m-%d"),
+                  last=last.strftime("%Y-%m-%d"), value=v.isoformat())
             )
         return v
 
@@ -199,7 +201,7 @@ class RunMetadata(pydantic.BaseModel):
             return v
         _finite(v, "km_start")
         if abs(v) > 100_000:
-            raise ValueError(f"km_start must be within ±100000 km, got {v}")
+            raise ValueError(_("km_start must be within ±100000 km, got {value}", value=v))
         return v
 
     @field_validator("wheel_diameters")
@@ -208,9 +210,9 @@ class RunMetadata(pydantic.BaseModel):
         out = dict.fromkeys(WHEELS, DEFAULT_WHEEL_DIAMETER_M)
         for key, d in v.items():
             if key not in WHEELS:
-                raise ValueError(f"unknown wheel {key!r}; wheels are {', '.join(WHEELS)}")
+                raise ValueError(_("unknown wheel {key!r}; wheels are {wheels}", key=key, wheels=", ".join(WHEELS)))
             if not (math.isfinite(d) and 0.3 < d < 1.5):
-                raise ValueError(f"diameter of wheel {key} must be in (0.3, 1.5) m, got {d}")
+                raise ValueError(_("diameter of wheel {key} must be in (0.3, 1.5) m, got {value}", key=key, value=d))
             out[key] = float(d)
         return out
 
@@ -218,7 +220,7 @@ class RunMetadata(pydantic.BaseModel):
     @classmethod
     def _spacing(cls, v: float) -> float:
         if not (math.isfinite(v) and 0.3 <= v <= 1.0):
-            raise ValueError(f"sleeper_spacing must be in [0.3, 1.0] m, got {v}")
+            raise ValueError(_("sleeper_spacing must be in [0.3, 1.0] m, got {value}", value=v))
         return v
 
     @field_validator("axle_positions")
@@ -227,9 +229,9 @@ class RunMetadata(pydantic.BaseModel):
         out = dict(DEFAULT_AXLE_POSITIONS_M)
         for key, x in v.items():
             if key not in AXLES:
-                raise ValueError(f"unknown axle {key!r}; axles are {', '.join(AXLES)}")
+                raise ValueError(_("unknown axle {key!r}; axles are {axles}", key=key, axles=", ".join(AXLES)))
             if not (math.isfinite(x) and abs(x) <= 100.0):
-                raise ValueError(f"position of axle {key} must be within ±100 m, got {x}")
+                raise ValueError(_("position of axle {key} must be within ±100 m, got {value}", key=key, value=x))
             out[key] = float(x)
         return out
 
@@ -239,7 +241,7 @@ class RunMetadata(pydantic.BaseModel):
         for key in v:
             if key not in ALL_CHANNELS:
                 raise ValueError(
-                    f"calibration for unknown channel {key!r}; channels are {', '.join(ALL_CHANNELS)}"
+                    _("calibration for unknown channel {key!r}; channels are {channels}", key=key, channels=", ".join(ALL_CHANNELS))
                 )
         return v
 
@@ -247,7 +249,7 @@ class RunMetadata(pydantic.BaseModel):
     @classmethod
     def _fs(cls, v: float | None) -> float | None:
         if v is not None and not (math.isfinite(v) and v > 0):
-            raise ValueError(f"sample rate must be a finite number > 0 Hz, got {v}")
+            raise ValueError(_("sample rate must be a finite number > 0 Hz, got {value}", value=v))
         return v
 
     def gain_offset(self, channel: str) -> tuple[float, float]:
@@ -295,17 +297,15 @@ def parse_metadata(data: Mapping[str, Any] | RunMetadata | None) -> RunMetadata:
     except pydantic.ValidationError as exc:
         err = exc.errors()[0]
         field = _field_of(tuple(err.get("loc", ())))
-        msg = str(err.get("msg", "invalid value"))
-        if msg.startswith("Value error, "):
-            msg = msg[len("Value error, ") :]
+        msg = pydantic_message(err)
         if err.get("type") == "timezone_aware":
-            msg = "start time must include a time zone (ISO 8601, e.g. 2024-05-01T08:00:00+02:00)"
+            msg = _("start time must include a time zone (ISO 8601, e.g. 2024-05-01T08:00:00+02:00)")
         elif err.get("type") == "missing":
-            msg = "required field is missing"
+            msg = _("required field is missing")
         elif err.get("type") == "extra_forbidden":
-            msg = "unknown metadata field"
+            msg = _("unknown metadata field")
         elif err.get("type") == "bool_type":
-            msg = "must be true or false (a JSON boolean)"
+            msg = _("must be true or false (a JSON boolean)")
         given = err.get("input")
         shown = _shown(given)
         if (
@@ -314,7 +314,7 @@ def parse_metadata(data: Mapping[str, Any] | RunMetadata | None) -> RunMetadata:
             and len(shown) < 80
             and "got" not in msg
         ):
-            msg = f"{msg} (got {shown})"
+            msg = _("{message} (got {value})", message=msg, value=shown)
         raise RunFileError(field, msg) from None
 
 

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from app.core.i18n import _
 from app.io.channels import (
     ACCEL_CHANNELS,
     ALL_CHANNELS,
@@ -31,10 +32,10 @@ def check_channels(channels: list[str]) -> list[str]:
     """The stored channels in canonical order: an acceleration and speed or position are required."""
     if not any(c in channels for c in ACCEL_CHANNELS):
         raise RunFileError(
-            "Z11", f"missing channel: at least one of {', '.join(ACCEL_CHANNELS)} is required"
+            "Z11", _("missing channel: at least one of {items} is required", items=', '.join(ACCEL_CHANNELS))
         )
     if "speed" not in channels and "position" not in channels:
-        raise RunFileError("speed", "missing channel: speed or position is required")
+        raise RunFileError("speed", _("missing channel: speed or position is required"))
     return [c for c in ALL_CHANNELS if c in channels]
 
 
@@ -49,7 +50,7 @@ def resolve_sample_rate(
     hint = source.info.fs_hint
     if fs is not None and hint is not None and not math.isclose(fs, hint, rel_tol=1e-9):
         raise RunFileError(
-            "sample_rate_hz", f"metadata gives {fs:g} Hz but the file attribute says {hint:g} Hz"
+            "sample_rate_hz", _("metadata gives {fs:g} Hz but the file attribute says {hint:g} Hz", fs=fs, hint=hint)
         )
     fs = fs if fs is not None else hint
     time_fs = _fs_from_time(first.get(TIME_COLUMN))
@@ -57,13 +58,13 @@ def resolve_sample_rate(
         if time_fs is None:
             raise RunFileError(
                 "sample_rate_hz",
-                "sample rate missing: give sample_rate_hz in the metadata (or a time column)",
+                _("sample rate missing: give sample_rate_hz in the metadata (or a time column)"),
             )
         return time_fs, True
     if time_fs is not None and abs(time_fs - fs) > 1e-3 * fs:
         raise RunFileError(
             "sample_rate_hz",
-            f"sample rate {fs:g} Hz disagrees with the time column ({time_fs:.6g} Hz)",
+            _("sample rate {fs:g} Hz disagrees with the time column ({time_fs:.6g} Hz)", fs=fs, time_fs=time_fs),
         )
     return float(fs), False
 
@@ -73,7 +74,7 @@ def _fs_from_time(t: np.ndarray | None) -> float | None:
         return None
     idx = np.flatnonzero(np.isfinite(t))
     if idx.size < 2 or t[idx[-1]] <= t[idx[0]]:
-        raise RunFileError("time", "time column must increase (cannot derive the sample rate)")
+        raise RunFileError("time", _("time column must increase (cannot derive the sample rate)"))
     fs = float((idx[-1] - idx[0]) / (t[idx[-1]] - t[idx[0]]))
     rounded = round(fs)
     return float(rounded) if abs(fs - rounded) <= 1e-6 * fs else fs
@@ -84,8 +85,7 @@ def check_sample_rate(fs: float, limits: IngestLimits) -> None:
     if not (limits.min_sample_rate_hz <= fs <= limits.max_sample_rate_hz):
         raise RunFileError(
             "sample_rate_hz",
-            f"invalid sample rate {fs:g} Hz; accepted {limits.min_sample_rate_hz:g} … "
-            f"{limits.max_sample_rate_hz:g} Hz",
+            _("invalid sample rate {fs:g} Hz; accepted {min_sample_rate_hz:g} … {max_sample_rate_hz:g} Hz", fs=fs, min_sample_rate_hz=limits.min_sample_rate_hz, max_sample_rate_hz=limits.max_sample_rate_hz),
         )
 
 
@@ -94,8 +94,7 @@ def check_duration(n: int, fs: float, limits: IngestLimits) -> None:
     if n < limits.min_duration_s * fs:
         raise RunFileError(
             "file",
-            f"the run lasts {n / fs:.3g} s ({n} samples at {fs:g} Hz); at least "
-            f"{limits.min_duration_s:g} s are needed to process it",
+            _("the run lasts {seconds:.3g} s ({n} samples at {fs:g} Hz); at least {min_duration_s:g} s are needed to process it", seconds=n / fs, n=n, fs=fs, min_duration_s=limits.min_duration_s),
         )
 
 
@@ -103,8 +102,7 @@ def too_many_nan(channel: str, count: int, n: int, limits: IngestLimits) -> None
     """Refuse a channel with more NaN than ``max_nan_fraction`` of its samples."""
     raise RunFileError(
         channel,
-        f"too many NaN: {count} of {n} samples ({100.0 * count / n:.3g} %) exceed the limit of "
-        f"{100.0 * limits.max_nan_fraction:.3g} %",
+        _("too many NaN: {count} of {n} samples ({percent:.3g} %) exceed the limit of {limit:.3g} %", count=count, n=n, percent=100.0 * count / n, limit=100.0 * limits.max_nan_fraction),
     )
 
 
@@ -149,8 +147,7 @@ class SampleChecks:
                 i = int(big[0])
                 raise RunFileError(
                     name,
-                    f"value {raw[i]:.6g} at sample {offset + i} does not fit the float32 storage of the "
-                    f"channel (|x| <= {_FLOAT32_MAX:.3g})",
+                    _("value {raw:.6g} at sample {sample} does not fit the float32 storage of the channel (|x| <= {limit:.3g})", raw=raw[i], sample=offset + i, limit=_FLOAT32_MAX),
                 )
         bound = self._bound(name)
         if bound is None:
@@ -166,11 +163,10 @@ class SampleChecks:
         if (gain, off) != (1.0, 0.0) and abs(raw[i]) <= bound:
             raise RunFileError(
                 f"calibration.{name}",
-                f"gain {gain:.6g} and offset {off:.6g} make sample {offset + i} ({raw[i]:.6g}) "
-                f"{value:.6g} {unit}, beyond ±{bound:g} {unit}; check the calibration",
+                _("gain {gain:.6g} and offset {off:.6g} make sample {sample} ({raw:.6g}) {value:.6g} {unit}, beyond ±{bound:g} {unit}; check the calibration", gain=gain, off=off, sample=offset + i, raw=raw[i], value=value, unit=unit, bound=bound),
             )
         raise RunFileError(
-            name, f"value {value:.6g} {unit} at sample {offset + i} is beyond ±{bound:g} {unit}"
+            name, _("value {value:.6g} {unit} at sample {sample} is beyond ±{bound:g} {unit}", value=value, unit=unit, sample=offset + i, bound=bound)
         )
 
     def position(self, offset: int, raw: np.ndarray) -> None:
@@ -191,16 +187,17 @@ class SampleChecks:
         if bad.size:
             i = int(bad[0])
             if self.direction == 1 and self.meta.position_kind != "line_km":
-                rule = (
+                rule = _(
                     "position must be non-decreasing along the run (the km direction is given "
                     "by metadata km_increasing; an absolute line km is position_kind line_km)"
                 )
             else:
-                rule = "a line km channel must change in one direction along the run"
+                rule = _("a line km channel must change in one direction along the run")
             raise RunFileError(
                 "position",
-                f"non-monotonic position: {'decreases' if d > 0 else 'increases'} from "
-                f"{prev[i]:.6g} m to {v[i]:.6g} m at sample {offset + int(idx[i])}; {rule}",
+                (_("non-monotonic position: decreases from {prev:.6g} m to {v:.6g} m at sample {sample}; {rule}", prev=prev[i], v=v[i], sample=offset + int(idx[i]), rule=rule)
+                 if d > 0 else
+                 _("non-monotonic position: increases from {prev:.6g} m to {v:.6g} m at sample {sample}; {rule}", prev=prev[i], v=v[i], sample=offset + int(idx[i]), rule=rule)),
             )
         self.last_pos = float(v[-1])
 
@@ -213,13 +210,12 @@ class SampleChecks:
             i = int(hi[0])
             raise RunFileError(
                 "speed",
-                f"speed {v[i]:.6g} m/s at sample {offset + i} exceeds {self.limits.max_speed_mps:g} m/s; "
-                "speed must be given in m/s (not km/h)",
+                _("speed {v:.6g} m/s at sample {sample} exceeds {max_speed_mps:g} m/s; speed must be given in m/s (not km/h)", v=v[i], sample=offset + i, max_speed_mps=self.limits.max_speed_mps),
             )
         if lo.size:
             i = int(lo[0])
             raise RunFileError(
-                "speed", f"negative speed {v[i]:.6g} m/s at sample {offset + i}; speed must be >= 0"
+                "speed", _("negative speed {v:.6g} m/s at sample {sample}; speed must be >= 0", v=v[i], sample=offset + i)
             )
 
     def time(self, offset: int, t: np.ndarray) -> None:
@@ -234,9 +230,8 @@ class SampleChecks:
         bad = np.flatnonzero(err > 0.5 / self.fs)
         if bad.size:
             i = int(idx[bad[0]])
-            what = "derived from the time column" if self.from_time else "given"
+            what = _("derived from the time column") if self.from_time else _("as given")
             raise RunFileError(
                 "time",
-                f"time {t[i]:.9g} s at sample {offset + i} is off the uniform grid of the "
-                f"sample rate {self.fs:g} Hz ({what}); one sample rate per file is required",
+                _("time {t:.9g} s at sample {sample} is off the uniform grid of the sample rate {fs:g} Hz ({what}); one sample rate per file is required", t=t[i], sample=offset + i, fs=self.fs, what=what),
             )

@@ -28,6 +28,7 @@ import numpy as np
 
 from app.analysis.gnss_fusion import FusionSettings, fuse_odometry_gnss
 from app.analysis.map_matching import match_points
+from app.core.i18n import _
 from app.io.canonical import CanonicalWriter
 from app.io.errors import RunFileError
 from app.io.geometry import LineGeometry
@@ -88,28 +89,28 @@ def resolve_position_kind(meta: RunMetadata, channels: list[str], warnings: list
             if getattr(meta, name) is None:
                 raise RunFileError(
                     name,
-                    "required field is missing (relative positions need the line km of the first "
-                    "sample and the km direction; or give position_kind line_km or GNSS channels)",
+                    _("required field is missing (relative positions need the line km of the first sample and the km direction; or give position_kind line_km or GNSS channels)"),
                 )
         if gnss:
-            warnings.append(
+            warnings.append(_(
                 "lat/lon: GNSS channels not used (position_kind relative with km_start); "
                 "give position_kind gnss to place the run by GNSS"
-            )
+            ))
         return kind
     for name in ("km_start", "km_increasing"):
         if getattr(meta, name) is not None:
             raise RunFileError(
                 name,
-                f"not given with position_kind {kind}: the km comes from the "
-                + ("position channel" if kind == "line_km" else "GNSS fixes"),
+                _("not given with position_kind {kind}: the km comes from the position channel", kind=kind)
+                if kind == "line_km" else
+                _("not given with position_kind {kind}: the km comes from the GNSS fixes", kind=kind),
             )
     if kind == "line_km" and "position" not in channels:
         raise RunFileError(
-            "position", "position_kind line_km needs a position channel holding the line chainage (m)"
+            "position", _("position_kind line_km needs a position channel holding the line chainage (m)")
         )
     if kind == "gnss" and not gnss:
-        raise RunFileError("lat", "position_kind gnss needs lat and lon channels")
+        raise RunFileError("lat", _("position_kind gnss needs lat and lon channels"))
     return kind
 
 
@@ -143,8 +144,9 @@ class GnssFixes:
             if bad.size:
                 raise RunFileError(
                     name,
-                    f"{v[bad[0]]:.6g} at sample {offset + int(k[bad[0]])} is not a WGS84 "
-                    f"{'latitude' if name == 'lat' else 'longitude'} in degrees",
+                    (_("{v:.6g} at sample {sample} is not a WGS84 latitude in degrees", v=v[bad[0]], sample=offset + int(k[bad[0]]))
+                     if name == "lat" else
+                     _("{v:.6g} at sample {sample} is not a WGS84 longitude in degrees", v=v[bad[0]], sample=offset + int(k[bad[0]]))),
                 )
         self._idx.append(offset + k)
         self._lat.append(la)
@@ -171,7 +173,7 @@ def finish_line_km(writer: CanonicalWriter, first_m: float | None, direction: in
     """
     if first_m is None or direction == 0:
         raise RunFileError(
-            "position", "the line km channel never changes: the km direction cannot be told"
+            "position", _("the line km channel never changes: the km direction cannot be told")
         )
     meta = writer.metadata
     gain, offset = meta.gain_offset("position")
@@ -239,16 +241,15 @@ def apply_gnss(
         :data:`CORRIDOR_M` from the line, or odometry and GNSS that disagree.
     """
     meta = writer.metadata
-    label = f"line {meta.line_id} track {meta.track}"
+    label = _("line {line} track {track}", line=meta.line_id, track=meta.track)
     if geometry is None:
         raise RunFileError(
             "lat",
-            f"GNSS positions need the line geometry of {label}, and none is stored; import it "
-            "(POST /api/v1/geometry) or give km_start with position_kind relative",
+            _("GNSS positions need the line geometry of {label}, and none is stored; import it (POST /api/v1/geometry) or give km_start with position_kind relative", label=label),
         )
     idx, lat, lon = fixes.arrays()
     if idx.size == 0:
-        raise RunFileError("lat", "no GNSS fix in the run (lat/lon are NaN everywhere)")
+        raise RunFileError("lat", _("no GNSS fix in the run (lat/lon are NaN everywhere)"))
     odo = np.empty(idx.size)
     block = limits.block_samples
     for a in range(0, n, block):
@@ -262,9 +263,7 @@ def apply_gnss(
     if n_far > MAX_OUTSIDE_FRACTION * idx.size:
         raise RunFileError(
             "lat",
-            f"{n_far} of {idx.size} GNSS fixes lie more than {CORRIDOR_M:g} m from the geometry of "
-            f"{label} (median distance {float(np.median(np.abs(match.offset_m))):.0f} m): "
-            "wrong line, track or geometry?",
+            _("{n_far} of {n} GNSS fixes lie more than {corridor:g} m from the geometry of {label} (median distance {median:.0f} m): wrong line, track or geometry?", n_far=n_far, n=idx.size, corridor=CORRIDOR_M, label=label, median=float(np.median(np.abs(match.offset_m)))),
         )
     keep = ~far
     odo0 = float(_read_position(writer, 0, 1)[0])
@@ -278,7 +277,7 @@ def apply_gnss(
             settings=settings,
         )
     except ValueError as exc:
-        raise RunFileError("lat", f"GNSS cannot place the run on {label}: {exc}") from None
+        raise RunFileError("lat", _("GNSS cannot place the run on {label}: {error}", label=label, error=exc)) from None
     direction = fusion.direction
     c0 = float(fusion.chainage(np.array([odo0]))[0])
     ds = writer.h5["position"]
@@ -301,14 +300,11 @@ def apply_gnss(
     )
     if fusion.outages:
         longest = max(b - a for a, b in fusion.outages)
-        warnings.append(
-            f"lat/lon: {len(fusion.outages)} GNSS outage(s) bridged by the odometry "
-            f"(longest {longest:.1f} s)"
-        )
+        warnings.append(_("lat/lon: {n} GNSS outage(s) bridged by the odometry (longest {longest:.1f} s)",
+                          n=len(fusion.outages), longest=longest))
     if n_far:
-        warnings.append(
-            f"lat/lon: {n_far} GNSS fixes more than {CORRIDOR_M:g} m from the line were not used"
-        )
+        warnings.append(_("lat/lon: {n_far} GNSS fixes more than {corridor:g} m from the line were not used",
+                          n_far=n_far, corridor=CORRIDOR_M))
     return {
         "km_source": "gnss",
         "geometry": {"line_id": geometry.line_id, "track": geometry.track},

@@ -26,6 +26,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from app.core.i18n import _
 from app.io.errors import RunFileError
 
 __all__ = ["REFERENCE_KINDS", "MAINTENANCE_TYPES", "read_reference"]
@@ -54,7 +55,7 @@ def _load(data: bytes, fmt: str) -> pd.DataFrame:
             return pd.read_csv(io.BytesIO(data), dtype=str, keep_default_na=False, skipinitialspace=True)
         return pd.read_parquet(io.BytesIO(data))
     except Exception as exc:  # noqa: BLE001 - any parser error is the file's fault
-        raise RunFileError("file", f"cannot read the file as {fmt}: {exc}") from None
+        raise RunFileError("file", _("cannot read the file as {fmt}: {error}", fmt=fmt, error=exc)) from None
 
 
 def _text(df: pd.DataFrame, col: str, required: bool = True) -> np.ndarray:
@@ -65,11 +66,11 @@ def _text(df: pd.DataFrame, col: str, required: bool = True) -> np.ndarray:
         if isinstance(v, float) and v.is_integer() and col in ("line_id", "track"):
             s = str(int(v))
         if required and not s:
-            raise _fail(i + 1, col, "is empty")
+            raise _fail(i + 1, col, _("is empty"))
         if len(s) > _MAX_TEXT.get(col, 128):
-            raise _fail(i + 1, col, f"is longer than {_MAX_TEXT.get(col, 128)} characters")
+            raise _fail(i + 1, col, _("is longer than {n} characters", n=_MAX_TEXT.get(col, 128)))
         if "\x00" in s:
-            raise _fail(i + 1, col, "must not contain NUL characters (\\u0000)")
+            raise _fail(i + 1, col, _("must not contain NUL characters (\\u0000)"))
         out[i] = s or None
     return out
 
@@ -83,8 +84,9 @@ def _number(df: pd.DataFrame, col: str, bound: float | None = _KM_BOUND) -> np.n
         bad |= np.abs(np.nan_to_num(vals)) > bound
     if bad.any():
         i = int(np.argmax(bad))
-        what = "is not a finite number" if not np.isfinite(vals[i]) else f"is outside ±{bound:g}"
-        raise _fail(i + 1, col, f"{raw.iloc[i]!r} {what}")
+        shown = raw.iloc[i]
+        raise _fail(i + 1, col, _("{value!r} is not a finite number", value=shown) if not np.isfinite(vals[i])
+                    else _("{value!r} is outside ±{bound:g}", value=shown, bound=bound))
     return vals
 
 
@@ -98,7 +100,7 @@ def _dates(df: pd.DataFrame, col: str) -> list:
             if pd.isna(ts) or not 1800 <= ts.year <= 2200:
                 raise ValueError("out of range")
         except (ValueError, TypeError):
-            raise _fail(i + 1, col, f"{v!r} is not an ISO date (yyyy-mm-dd)") from None
+            raise _fail(i + 1, col, _("{value!r} is not an ISO date (yyyy-mm-dd)", value=v)) from None
         out.append(ts.date())
     return out
 
@@ -108,7 +110,7 @@ def _maintenance_type(values: np.ndarray) -> np.ndarray:
     for i, v in enumerate(values):
         t = str(v).strip().lower().replace(" ", "_").replace("-", "_")
         if t not in MAINTENANCE_TYPES:
-            raise _fail(i + 1, "type", f"{v!r} is not one of {', '.join(MAINTENANCE_TYPES)}")
+            raise _fail(i + 1, "type", _("{value!r} is not one of {choices}", value=v, choices=", ".join(MAINTENANCE_TYPES)))
         out[i] = t
     return out
 
@@ -120,7 +122,7 @@ def _rail(df: pd.DataFrame) -> list[int | None]:
     for i, v in enumerate(df["rail"].to_numpy(dtype=object)):
         key = "" if v is None else str(v).strip().lower()
         if key not in names:
-            raise _fail(i + 1, "rail", f"{v!r} is not 1 (right), 2 (left) or empty (both rails)")
+            raise _fail(i + 1, "rail", _("{value!r} is not 1 (right), 2 (left) or empty (both rails)", value=v))
         out.append(names[key])
     return out
 
@@ -153,7 +155,7 @@ def read_reference(
         ``field`` names the row and column (or ``file``, ``format``).
     """
     if kind not in REFERENCE_KINDS:
-        raise RunFileError("kind", f"must be one of {', '.join(REFERENCE_KINDS)}, got {kind!r}")
+        raise RunFileError("kind", _("must be one of {items}, got {kind!r}", items=', '.join(REFERENCE_KINDS), kind=kind))
     if fmt is None:
         name = (filename or "").lower()
         if name.endswith((".parquet", ".pq")) or data[:4] == b"PAR1":
@@ -161,16 +163,16 @@ def read_reference(
         else:
             fmt = "csv"
     if fmt not in ("csv", "parquet"):
-        raise RunFileError("format", f"must be csv or parquet, got {fmt!r}")
+        raise RunFileError("format", _("must be csv or parquet, got {fmt!r}", fmt=fmt))
     if not data:
-        raise RunFileError("file", "is empty")
+        raise RunFileError("file", _("is empty"))
     df = _load(data, fmt)
     df = df.rename(columns={c: _ALIASES.get(str(c).strip().lower(), str(c).strip().lower()) for c in df.columns})
     missing = [c for c in _REQUIRED[kind] if c not in df.columns]
     if missing:
-        raise _fail(None, missing[0], f"is missing (columns needed: {', '.join(_REQUIRED[kind])})")
+        raise _fail(None, missing[0], _("is missing (columns needed: {columns})", columns=", ".join(_REQUIRED[kind])))
     if len(df) == 0:
-        raise RunFileError("file", "has no data rows")
+        raise RunFileError("file", _("has no data rows"))
     cols: dict[str, Any] = {"line_id": _text(df, "line_id"), "track": _text(df, "track")}
     if kind == "subsidence":
         cols["km"] = _number(df, "km")
@@ -182,7 +184,7 @@ def read_reference(
         rev = cols["km_to"] < cols["km_from"]
         if rev.any():
             i = int(np.argmax(rev))
-            raise _fail(i + 1, "km_to", f"{cols['km_to'][i]:g} is below km_from {cols['km_from'][i]:g}")
+            raise _fail(i + 1, "km_to", _("{km_to:g} is below km_from {km_from:g}", km_to=cols["km_to"][i], km_from=cols["km_from"][i]))
         if kind == "maintenance":
             cols["type"] = _maintenance_type(_text(df, "type"))
         else:

@@ -9,6 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from app.core.i18n import _
 from app.io._closing import Closing
 from app.io.canonical import FORMAT_VERSION, check_hdf5_tree
 from app.io.channels import ALL_CHANNELS, AXLES
@@ -44,7 +45,7 @@ class RunFile(Closing):
         try:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:
-            raise RunFileError("format", f"cannot open {self.path.name} as HDF5: {exc}") from None
+            raise RunFileError("format", _("cannot open {name} as HDF5: {error}", name=self.path.name, error=exc)) from None
         self._set_up_or_close(self._init)
         self._pos_table: np.ndarray | None = None
         self._pos_origin: float | None = None
@@ -53,13 +54,13 @@ class RunFile(Closing):
         attrs = self._h5.attrs
         version = attrs.get("trackvkf_format_version")
         if version is None:
-            raise RunFileError("format", "not a trackvkf run file (no trackvkf_format_version)")
+            raise RunFileError("format", _("not a trackvkf run file (no trackvkf_format_version)"))
         if int(version) != FORMAT_VERSION:
-            raise RunFileError("format", f"unsupported format version {int(version)}")
+            raise RunFileError("format", _("unsupported format version {version}", version=int(version)))
         members = check_hdf5_tree(self._h5)
         for name in members:
             if name not in ALL_CHANNELS:
-                raise RunFileError(name, "unknown channel in run file")
+                raise RunFileError(name, _("unknown channel in run file"))
         self.channels: tuple[str, ...] = tuple(c for c in ALL_CHANNELS if c in members)
         self._ds = members
         self.fs = float(attrs["sample_rate_hz"])
@@ -68,10 +69,10 @@ class RunFile(Closing):
             raw_meta = raw_meta.decode("utf-8")
         self.metadata: RunMetadata = parse_metadata(json.loads(raw_meta))
         if self.metadata.km_start is None or self.metadata.km_increasing is None:
-            raise RunFileError("format", "run file metadata lacks km_start/km_increasing")
+            raise RunFileError("format", _("run file metadata lacks km_start/km_increasing"))
         lengths = {members[c].shape[0] for c in self.channels}
         if len(lengths) > 1:
-            raise RunFileError("file", "channels of unequal length in run file")
+            raise RunFileError("file", _("channels of unequal length in run file"))
         self.n_samples = int(attrs.get("n_samples", lengths.pop() if lengths else 0))
         self._cal = {
             c: (
@@ -172,7 +173,7 @@ class RunFile(Closing):
         if self.has("speed"):
             return self.read("speed", start, stop)
         if not self.has("position"):
-            raise RunFileError("speed", "run has neither speed nor position")
+            raise RunFileError("speed", _("run has neither speed nor position"))
         return speed_from_position(
             lambda a, b: self.read("position", a, b), self.n_samples, self.fs, start, stop
         )
@@ -189,7 +190,7 @@ class RunFile(Closing):
                 self._pos_origin = float(self.read("position", 0, 1)[0]) if self.n_samples else 0.0
             return self.read("position", start, stop) - self._pos_origin
         if not self.has("speed"):
-            raise RunFileError("position", "run has neither speed nor position")
+            raise RunFileError("position", _("run has neither speed nor position"))
 
         def rd(a: int, b: int) -> np.ndarray:
             return self.read("speed", a, b)

@@ -21,7 +21,7 @@ from app.analysis.settings import ProcessingSettings
 from app.audit import record
 from app.core.config import API_PREFIX
 from app.core.errors import ApiError
-from app.core.i18n import _
+from app.core.i18n import _, stored_message
 from app.core.ids import MAX_ID
 from app.core.jsonable import jsonable
 from app.core.runstore import RunStore
@@ -67,7 +67,9 @@ def _run_row(summary: RunSummary, file: UploadedFile, fmt: str | None, principal
         original_filename=file.filename,
         size_bytes=file.size,
         **run_fields(summary),
-        ingest_report=jsonable({"warnings": list(summary.warnings), "report": dict(summary.report)}),
+        ingest_report=jsonable({"warnings": list(summary.warnings),
+                                "warning_messages": [stored_message(w) for w in summary.warnings],
+                                "report": dict(summary.report)}),
         created_by=principal_name,
         created_at=utcnow(),
     )

@@ -17,6 +17,8 @@ from app.core.i18n import (
     negotiate,
     ngettext,
     parse_accept_language,
+    restored_message,
+    stored_message,
     translate,
     translations,
 )
@@ -73,6 +75,28 @@ def test_an_api_error_keeps_its_message_to_translate():
     assert ApiError(422, "x", "as it is").message_in("it") == "as it is"
     nested = Msg("{message} (got {value})", message=_("must be a number"), value="'a'")
     assert nested.in_language("de") == "muss eine Zahl sein (erhalten: 'a')"
+
+
+def test_a_stored_message_is_read_later_in_any_language():
+    """A message kept in a JSON column (a run's ingest warnings) comes back as a message: its
+    parameters, a nested message, a plural, another library's English wording; plain text as it was."""
+    import json
+
+    kept = _("reading {what} needs more than {mib:.0f} MiB of memory (TRACKVKF_PARSE_MEMORY_BYTES)",
+             what=_("the {format} file", format="csv"), mib=512.4)
+    back = restored_message(json.loads(json.dumps(stored_message(kept))))
+    assert isinstance(back, Msg) and back == kept
+    assert back.in_language("de") == ("die csv-Datei braucht zum Lesen mehr als 512 MiB Speicher "
+                                      "(TRACKVKF_PARSE_MEMORY_BYTES)")
+    runs = restored_message(json.loads(json.dumps(stored_message(ngettext("{n} run", "{n} runs", 3)))))
+    assert runs == "3 runs" and runs.in_language("fr") == "3 parcours"
+    worded = Msg.worded("Input should be a valid number", "must be a number")
+    again = restored_message(stored_message(worded))
+    assert again == "Input should be a valid number" and again.in_language("it") == worded.in_language("it")
+    assert restored_message(stored_message("as it is")) == "as it is"
+    assert restored_message("an old text") == "an old text"
+    # a message whose fields changed since it was stored: its words as stored, not an error
+    assert restored_message({"id": "run {ident} not found", "params": {}}) == "run {ident} not found"
 
 
 def test_every_message_is_in_every_catalogue():

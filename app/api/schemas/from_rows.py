@@ -8,6 +8,7 @@ from app.analysis.units import KMH_PER_MPS
 from app.api.schemas.jobs import JobOut
 from app.api.schemas.runs import RunDetail, RunOut, RunSummaryOut
 from app.core.config import API_PREFIX
+from app.core.i18n import DEFAULT_LANGUAGE, restored_message, translate
 from app.runs.catalog import JobView, RunView
 
 __all__ = ["job_out", "run_out", "run_detail"]
@@ -61,7 +62,15 @@ def _links(run_id: int) -> dict[str, str]:
     }
 
 
-def run_out(view: RunView) -> RunOut:
+def _warnings(report: dict, lang: str) -> list[str]:
+    """The ingest warnings of a run in ``lang`` (kept as messages since they were; older runs: as stored)."""
+    kept = report.get("warning_messages")
+    if isinstance(kept, list) and len(kept) == len(report.get("warnings") or []):
+        return [translate(restored_message(m), lang) for m in kept]
+    return [str(w) for w in report.get("warnings") or []]
+
+
+def run_out(view: RunView, lang: str = DEFAULT_LANGUAGE) -> RunOut:
     """Response model of a run in a list."""
     run = view.run
     return RunOut(
@@ -90,14 +99,14 @@ def run_out(view: RunView) -> RunOut:
         ),
         latest_job=job_out(view.latest) if view.latest is not None else None,
         links=_links(run.id),
-        warnings=list((run.ingest_report or {}).get("warnings", [])),
+        warnings=_warnings(run.ingest_report or {}, lang),
     )
 
 
-def run_detail(view: RunView) -> RunDetail:
+def run_detail(view: RunView, lang: str = DEFAULT_LANGUAGE) -> RunDetail:
     """Response model of one run with its metadata."""
     run = view.run
-    base = run_out(view)
+    base = run_out(view, lang)
     return RunDetail(
         **base.model_dump(),
         metadata=dict(run.meta or {}),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from app.core.i18n import _
 from app.io.channel_map import ChannelMap
 from app.io.errors import RunFileError
 from app.io.formats import RECORDER_FORMATS
@@ -54,8 +55,7 @@ def open_source(
     if channel_map is not None:
         raise RunFileError(
             "channel_map",
-            f"channel maps apply to recorder files ({', '.join(RECORDER_FORMATS)}), not {fmt}; "
-            "name the columns/datasets of a run file as trackvkf's channels",
+            _("channel maps apply to recorder files ({items}), not {fmt}; name the columns/datasets of a run file as trackvkf's channels", items=', '.join(RECORDER_FORMATS), fmt=fmt),
         )
     if fmt == "hdf5":
         return Hdf5Source(path, limits)

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from app.core.i18n import _
 from app.io._closing import Closing
 from app.io.channels import INPUT_CHANNELS, TIME_COLUMN, canonical_name
 from app.io.errors import RunFileError
@@ -78,10 +79,10 @@ def map_channel_names(names: Iterable[str]) -> dict[str, str]:
         if canon is None:
             raise RunFileError(
                 str(name),
-                f"unknown channel; accepted are {', '.join(INPUT_CHANNELS)} and {TIME_COLUMN}",
+                _("unknown channel; accepted are {items} and {time}", items=', '.join(INPUT_CHANNELS), time=TIME_COLUMN),
             )
         if canon in seen:
-            raise RunFileError(str(name), f"duplicate channel (also given as {seen[canon]!r})")
+            raise RunFileError(str(name), _("duplicate channel (also given as {seen!r})", seen=seen[canon]))
         seen[canon] = str(name)
         out[str(name)] = canon
     return out

@@ -19,6 +19,7 @@ from typing import IO
 import numpy as np
 import pandas as pd
 
+from app.core.i18n import _
 from app.io.channels import TIME_COLUMN
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
@@ -55,8 +56,7 @@ class BoundedGzipReader(io.RawIOBase):
         if self.count > self._limit:
             raise RunFileError(
                 "file",
-                f"the gzip file decompresses to more than {self._limit} bytes "
-                "(decompression bomb limit, TRACKVKF ingest max_expansion_ratio)",
+                _("the gzip file decompresses to more than {limit} bytes (decompression bomb limit, TRACKVKF ingest max_expansion_ratio)", limit=self._limit),
             )
         return n
 
@@ -80,7 +80,7 @@ def _scan_gzip(path: Path, limits: IngestLimits) -> None:
             while raw.readinto(buffer):
                 pass
     except (OSError, EOFError, gzip.BadGzipFile) as exc:
-        raise RunFileError("file", f"cannot read gzip file: {exc}") from None
+        raise RunFileError("file", _("cannot read gzip file: {error}", error=exc)) from None
 
 
 def _first_line(path: Path, compression: str | None, limits: IngestLimits) -> str:
@@ -88,14 +88,13 @@ def _first_line(path: Path, compression: str | None, limits: IngestLimits) -> st
         with _open(path, compression, limits) as fh:
             raw = fh.readline(limits.max_header_bytes + 1)
     except (OSError, EOFError, gzip.BadGzipFile) as exc:
-        raise RunFileError("file", f"cannot read CSV file: {exc}") from None
+        raise RunFileError("file", _("cannot read CSV file: {error}", error=exc)) from None
     if len(raw) > limits.max_header_bytes or (
         len(raw) == limits.max_header_bytes and not raw.endswith(b"\n")
     ):
         raise RunFileError(
             "file",
-            f"the header row is longer than {limits.max_header_bytes} bytes "
-            f"(at most {limits.max_columns} columns are accepted)",
+            _("the header row is longer than {max_header_bytes} bytes (at most {max_columns} columns are accepted)", max_header_bytes=limits.max_header_bytes, max_columns=limits.max_columns),
         )
     return raw.decode("utf-8", errors="replace").lstrip("\ufeff")
 
@@ -127,12 +126,12 @@ class CsvSource(Source):
             _scan_gzip(path, limits)
         header = _first_line(path, compression, limits)
         if not header.strip():
-            raise RunFileError("file", "CSV file has no header row")
+            raise RunFileError("file", _("CSV file has no header row"))
         self._sep = next((s for s in (",", ";", "\t") if s in header), ",")
         n_columns = header.count(self._sep) + 1
         if n_columns > limits.max_columns:
             raise RunFileError(
-                "file", f"{n_columns} columns exceed the limit of {limits.max_columns}"
+                "file", _("{n_columns} columns exceed the limit of {max_columns}", n_columns=n_columns, max_columns=limits.max_columns)
             )
         columns = [c.strip().strip('"').strip("'") for c in header.rstrip("\r\n").split(self._sep)]
         self._names = map_channel_names(columns)
@@ -147,7 +146,7 @@ class CsvSource(Source):
         try:
             handle = _open(self._path, self._compression, self._limits)
         except (OSError, gzip.BadGzipFile) as exc:
-            raise RunFileError("file", f"cannot read CSV file: {exc}") from None
+            raise RunFileError("file", _("cannot read CSV file: {error}", error=exc)) from None
         row = 0
         try:
             for text, first_line in text_pieces(handle, self._limits):
@@ -159,7 +158,7 @@ class CsvSource(Source):
         except RunFileError:
             raise
         except (OSError, EOFError, gzip.BadGzipFile) as exc:
-            raise RunFileError("file", f"cannot read CSV file: {_cut(str(exc))}") from None
+            raise RunFileError("file", _("cannot read CSV file: {error}", error=_cut(str(exc)))) from None
         finally:
             handle.close()
 
@@ -180,7 +179,7 @@ class CsvSource(Source):
             message = _LINE_IN_MESSAGE.sub(
                 lambda m: f"line {int(m.group(1)) + first_line - 1}", str(exc)
             )
-            raise RunFileError("file", f"cannot parse CSV: {_cut(message)}") from None
+            raise RunFileError("file", _("cannot parse CSV: {error}", error=_cut(message))) from None
 
 
 _NEWLINE = b"\n"
@@ -235,8 +234,7 @@ def text_pieces(handle: IO[bytes], limits: IngestLimits) -> Iterator[tuple[bytes
             i = int(long[0])
             raise RunFileError(
                 "file",
-                f"line {line + i} (from byte {pos + int(starts[i])}) is longer than "
-                f"{limits.max_line_bytes} bytes; a run has at most 64 numeric columns",
+                _("line {line} (from byte {byte}) is longer than {max_line_bytes} bytes; a run has at most 64 numeric columns", line=line + i, byte=pos + int(starts[i]), max_line_bytes=limits.max_line_bytes),
             )
         cut = len(buf) if eof else (int(ends[-1]) + 1 if ends.size else 0)
         piece, pending = buf[:cut], buf[cut:]
@@ -262,7 +260,7 @@ def _check_text(buf: bytes, pos: int, line: int, eof: bool) -> None:
     if nul >= 0:
         where = line + buf.count(_NEWLINE, 0, nul)
         raise RunFileError(
-            "file", f"NUL byte at byte {pos + nul} (line {where}): a CSV file must be UTF-8 text"
+            "file", _("NUL byte at byte {byte} (line {where}): a CSV file must be UTF-8 text", byte=pos + nul, where=where)
         )
     try:
         buf.decode("utf-8")
@@ -272,14 +270,13 @@ def _check_text(buf: bytes, pos: int, line: int, eof: bool) -> None:
         where = line + buf.count(_NEWLINE, 0, exc.start)
         raise RunFileError(
             "file",
-            f"not UTF-8 text: byte 0x{buf[exc.start]:02x} at byte {pos + exc.start} (line {where}); "
-            "save the file as UTF-8",
+            _("not UTF-8 text: byte 0x{code:02x} at byte {byte} (line {where}); save the file as UTF-8", code=buf[exc.start], byte=pos + exc.start, where=where),
         ) from None
 
 
 def _numeric(col: pd.Series, name: str, row0: int) -> np.ndarray:
     if pd.api.types.is_bool_dtype(col.dtype):
-        raise RunFileError(name, "wrong dtype bool: channels must be numeric")
+        raise RunFileError(name, _("wrong dtype bool: channels must be numeric"))
     if pd.api.types.is_numeric_dtype(col.dtype):
         return col.to_numpy(dtype=np.float64, na_value=np.nan)
     values = pd.to_numeric(col, errors="coerce")
@@ -287,6 +284,6 @@ def _numeric(col: pd.Series, name: str, row0: int) -> np.ndarray:
     if bad.any():
         i = int(np.flatnonzero(bad.to_numpy())[0])
         raise RunFileError(
-            name, f"wrong dtype: non-numeric value {_cut(repr(col.iloc[i]), 60)} in data row {row0 + i + 1}"
+            name, _("wrong dtype: non-numeric value {value} in data row {row}", value=_cut(repr(col.iloc[i]), 60), row=row0 + i + 1)
         )
     return values.to_numpy(dtype=np.float64, na_value=np.nan)

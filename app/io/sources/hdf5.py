@@ -10,6 +10,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from app.core.i18n import _
 from app.io.canonical import check_hdf5_tree
 from app.io.channels import TIME_COLUMN, UNIT_SYNONYMS, UNITS
 from app.io.errors import RunFileError
@@ -39,8 +40,7 @@ def _check_filters(name: str, ds: h5py.Dataset) -> None:
         if filter_id not in ALLOWED_FILTERS:
             raise RunFileError(
                 name,
-                f"HDF5 filter {filter_id} is not allowed (allowed: "
-                f"{', '.join(ALLOWED_FILTERS.values())})",
+                _("HDF5 filter {filter_id} is not allowed (allowed: {items})", filter_id=filter_id, items=', '.join(ALLOWED_FILTERS.values())),
             )
 
 
@@ -55,15 +55,13 @@ def _check_extents(name: str, ds: h5py.Dataset, file_bytes: int) -> None:
         offset = dsid.get_offset()
         size = int(dsid.get_storage_size())
         if offset is not None and int(offset) + size > file_bytes:
-            raise RunFileError(name, f"its data (byte {int(offset)}, {size} bytes) reach beyond the "
-                               f"end of the {file_bytes}-byte file")
+            raise RunFileError(name, _("its data (byte {offset}, {size} bytes) reach beyond the end of the {file_bytes}-byte file", offset=int(offset), size=size, file_bytes=file_bytes))
         return
 
     def visit(info: Any) -> None:
         end = int(info.byte_offset) + int(info.size)
         if end > file_bytes:
-            raise RunFileError(name, f"a chunk at byte {int(info.byte_offset)} ({int(info.size)} bytes) "
-                               f"reaches beyond the end of the {file_bytes}-byte file")
+            raise RunFileError(name, _("a chunk at byte {byte_offset} ({size} bytes) reaches beyond the end of the {file_bytes}-byte file", byte_offset=int(info.byte_offset), size=int(info.size), file_bytes=file_bytes))
 
     dsid.chunk_iter(visit)
 
@@ -80,9 +78,9 @@ def _attr_float(value: Any, field: str) -> float:
     try:
         out = float(np.asarray(value).reshape(()))
     except (TypeError, ValueError):
-        raise RunFileError(field, f"attribute must be a number, got {value!r}") from None
+        raise RunFileError(field, _("attribute must be a number, got {value!r}", value=value)) from None
     if not math.isfinite(out):
-        raise RunFileError(field, f"attribute must be finite, got {out}")
+        raise RunFileError(field, _("attribute must be finite, got {out}", out=out))
     return out
 
 
@@ -113,7 +111,7 @@ class Hdf5Source(Source):
         try:
             self._h5 = h5py.File(path, "r")
         except _H5_ERRORS as exc:
-            raise RunFileError("file", f"cannot open HDF5 file: {str(exc)[:300]}") from None
+            raise RunFileError("file", _("cannot open HDF5 file: {error}", error=str(exc)[:300])) from None
         self._set_up_or_close(self._checked_setup)
 
     def _checked_setup(self) -> None:
@@ -123,15 +121,14 @@ class Hdf5Source(Source):
         except RunFileError:
             raise
         except _H5_ERRORS as exc:
-            raise RunFileError("file", f"corrupt HDF5 structure: {type(exc).__name__}: {str(exc)[:300]}") from None
+            raise RunFileError("file", _("corrupt HDF5 structure: {kind}: {error}", kind=type(exc).__name__, error=str(exc)[:300])) from None
 
     def _setup(self) -> None:
         n_members = len(self._h5)
         if n_members > self._limits.max_columns:
             raise RunFileError(
                 "file",
-                f"{n_members} root members exceed the limit of {self._limits.max_columns} "
-                "(one dataset per channel)",
+                _("{n_members} root members exceed the limit of {max_columns} (one dataset per channel)", n_members=n_members, max_columns=self._limits.max_columns),
             )
         members = check_hdf5_tree(self._h5)
         # what the file holds besides the datasets' data bounds its variable-length attributes
@@ -142,9 +139,9 @@ class Hdf5Source(Source):
         for orig, canon in names.items():
             ds = members[orig]
             if ds.ndim != 1:
-                raise RunFileError(orig, f"must be a 1-D dataset, got shape {ds.shape}")
+                raise RunFileError(orig, _("must be a 1-D dataset, got shape {shape}", shape=ds.shape))
             if ds.dtype.kind not in "iuf":
-                raise RunFileError(orig, f"wrong dtype {ds.dtype}: channels must be numeric")
+                raise RunFileError(orig, _("wrong dtype {dtype}: channels must be numeric", dtype=ds.dtype))
             _check_filters(orig, ds)
             _check_extents(orig, ds, self._file_bytes)
             units = self._attr(ds, "units", f"{orig}.units")
@@ -152,7 +149,7 @@ class Hdf5Source(Source):
                 text = _attr_text(units).strip()
                 want = UNITS[canon]
                 if text.lower() not in {u.lower() for u in UNIT_SYNONYMS[want]}:
-                    raise RunFileError(orig, f"units {text!r} not accepted; expected {want}")
+                    raise RunFileError(orig, _("units {text!r} not accepted; expected {want}", text=text, want=want))
             if canon != TIME_COLUMN and ("gain" in ds.attrs or "offset" in ds.attrs):
                 gain = _attr_float(self._attr(ds, "gain", f"{orig}.gain", 1.0), f"{orig}.gain")
                 offset = _attr_float(self._attr(ds, "offset", f"{orig}.offset", 0.0), f"{orig}.offset")
@@ -164,14 +161,13 @@ class Hdf5Source(Source):
             ref = max(lengths, key=lambda c: list(lengths.values()).count(lengths[c]))
             bad = next(c for c in lengths if lengths[c] != lengths[ref])
             listing = ", ".join(f"{c}={n}" for c, n in lengths.items())
-            raise RunFileError(bad, f"channels of unequal length ({listing})")
+            raise RunFileError(bad, _("channels of unequal length ({listing})", listing=listing))
         decoded = sum(int(d.shape[0]) * d.dtype.itemsize for d in self._ds.values())
         allowed = self._limits.max_decoded_bytes(self._file_bytes)
         if decoded > allowed:
             raise RunFileError(
                 "file",
-                f"the datasets decode to {decoded} bytes, more than {allowed} bytes allowed for a "
-                f"{self._file_bytes}-byte file (compression bomb or unallocated storage)",
+                _("the datasets decode to {decoded} bytes, more than {allowed} bytes allowed for a {file_bytes}-byte file (compression bomb or unallocated storage)", decoded=decoded, allowed=allowed, file_bytes=self._file_bytes),
             )
         attrs = self._h5.attrs
         file_meta: dict[str, Any] = {}
@@ -211,17 +207,15 @@ class Hdf5Source(Source):
             if self._outside_bytes > self._limits.max_attribute_read_bytes:
                 raise RunFileError(
                     field,
-                    f"variable-length attribute in a file with {self._outside_bytes} bytes outside its "
-                    f"datasets (attributes or unused space); at most {self._limits.max_attribute_read_bytes} "
-                    "bytes are read (repack the file, e.g. with h5repack)",
+                    _("variable-length attribute in a file with {outside_bytes} bytes outside its datasets (attributes or unused space); at most {max_attribute_read_bytes} bytes are read (repack the file, e.g. with h5repack)", outside_bytes=self._outside_bytes, max_attribute_read_bytes=self._limits.max_attribute_read_bytes),
                 )
         elif int(aid.get_storage_size()) > limit:
             raise RunFileError(
-                field, f"attribute of {int(aid.get_storage_size())} bytes exceeds {limit} bytes"
+                field, _("attribute of {size} bytes exceeds {limit} bytes", size=int(aid.get_storage_size()), limit=limit)
             )
         value = obj.attrs[name]
         if isinstance(value, str | bytes) and len(value) > limit:
-            raise RunFileError(field, f"attribute of {len(value)} characters exceeds {limit} bytes")
+            raise RunFileError(field, _("attribute of {n} characters exceeds {limit} bytes", n=len(value), limit=limit))
         return value
 
     def blocks(self, size: int) -> Iterator[dict[str, np.ndarray]]:
@@ -233,7 +227,7 @@ class Hdf5Source(Source):
                 try:
                     block[canon] = np.asarray(ds[a:b], dtype=np.float64)
                 except _H5_ERRORS as exc:
-                    raise RunFileError(canon, f"cannot read samples {a}:{b}: {str(exc)[:300]}") from None
+                    raise RunFileError(canon, _("cannot read samples {a}:{b}: {error}", a=a, b=b, error=str(exc)[:300])) from None
             yield block
 
     def close(self) -> None:

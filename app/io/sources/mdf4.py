@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.core.i18n import _
 from app.io.channel_map import RecorderChannel
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
@@ -67,15 +68,14 @@ class Mdf4Reader(RecorderReader):
         try:
             self._mdf = MDF(path, process_bus_logging=False)
         except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad files
-            raise RunFileError("file", f"cannot open MDF file: {str(exc)[:300]}") from None
+            raise RunFileError("file", _("cannot open MDF file: {error}", error=str(exc)[:300])) from None
         self._set_up_or_close(lambda: self._setup(layout))
 
     def _setup(self, layout: Mdf4Layout) -> None:
         mdf = self._mdf
         if len(mdf.groups) != len(layout.groups):
             raise RunFileError(
-                "file", f"asammdf reads {len(mdf.groups)} channel groups, the file's blocks hold "
-                f"{len(layout.groups)}"
+                "file", _("asammdf reads {n_groups} channel groups, the file's blocks hold {n_blocks}", n_groups=len(mdf.groups), n_blocks=len(layout.groups))
             )
         channels: list[RecorderChannel] = []
         self._cycles: dict[int, int] = {}
@@ -84,8 +84,7 @@ class Mdf4Reader(RecorderReader):
             cycles = int(getattr(group.channel_group, "cycles_nr", 0))
             if cycles != layout.groups[gi][0]:
                 raise RunFileError(
-                    "file", f"asammdf reads {cycles} records in channel group {gi}, its CG block "
-                    f"declares {layout.groups[gi][0]}"
+                    "file", _("asammdf reads {cycles} records in channel group {gi}, its CG block declares {declared}", cycles=cycles, gi=gi, declared=layout.groups[gi][0])
                 )
             self._cycles[gi] = cycles
             label = _group_label(group, gi)
@@ -104,21 +103,20 @@ class Mdf4Reader(RecorderReader):
         """Refuse, before asammdf reads it, a channel that is not numeric fixed-length data."""
         info = self._layout.get(ch.key)
         if info is None:
-            raise RunFileError(ch.name, "asammdf lists a channel the file's CN blocks do not hold")
+            raise RunFileError(ch.name, _("asammdf lists a channel the file's CN blocks do not hold"))
         if (
             info.channel_type not in _READABLE_TYPES
             or info.data_type not in _NUMERIC_DATA_TYPES
             or info.composed
         ):
             raise RunFileError(
-                ch.name, f"is not a numeric fixed-length channel (cn_type {info.channel_type}, "
-                f"cn_data_type {info.data_type}{', composed' if info.composed else ''}); channels "
-                "must be numeric"
+                ch.name, _("is not a numeric fixed-length channel (cn_type {channel_type}, cn_data_type {data_type}, composed); channels must be numeric", channel_type=info.channel_type, data_type=info.data_type)
+                if info.composed else
+                _("is not a numeric fixed-length channel (cn_type {channel_type}, cn_data_type {data_type}); channels must be numeric", channel_type=info.channel_type, data_type=info.data_type)
             )
         if info.conversion_type not in _NUMERIC_CONVERSIONS:
             raise RunFileError(
-                ch.name, f"has a conversion of cc_type {info.conversion_type} (formula or text); only "
-                "identity, linear, rational and value-table conversions are applied"
+                ch.name, _("has a conversion of cc_type {conversion_type} (formula or text); only identity, linear, rational and value-table conversions are applied", conversion_type=info.conversion_type)
             )
 
     def length(self, ch: RecorderChannel) -> int:
@@ -138,11 +136,11 @@ class Mdf4Reader(RecorderReader):
                 group=gi, index=ci, record_offset=a, record_count=b - a, ignore_invalidation_bits=False
             )
         except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad data
-            raise RunFileError(ch.name, f"cannot read records {a}:{b}: {str(exc)[:200]}") from None
+            raise RunFileError(ch.name, _("cannot read records {a}:{b}: {error}", a=a, b=b, error=str(exc)[:200])) from None
         samples = np.asarray(sig.samples)
         if samples.ndim != 1 or samples.dtype.kind not in "iufb":
             raise RunFileError(
-                ch.name, f"wrong dtype {samples.dtype} (shape {samples.shape}): channels must be numeric"
+                ch.name, _("wrong dtype {dtype} (shape {shape}): channels must be numeric", dtype=samples.dtype, shape=samples.shape)
             )
         out = samples.astype(np.float64)
         invalid = getattr(sig, "invalidation_bits", None)
@@ -157,7 +155,7 @@ class Mdf4Reader(RecorderReader):
             t = self._mdf.get_master(ch.key[0], record_offset=a, record_count=b - a)
         except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad data
             raise RunFileError(
-                ch.name, f"cannot read the time stamps of records {a}:{b}: {str(exc)[:200]}"
+                ch.name, _("cannot read the time stamps of records {a}:{b}: {error}", a=a, b=b, error=str(exc)[:200])
             ) from None
         return np.asarray(t, dtype=np.float64)
 

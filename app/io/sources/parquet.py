@@ -9,6 +9,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from app.core.i18n import _
 from app.io.channels import TIME_COLUMN
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
@@ -24,18 +25,18 @@ _READ_BUFFER_BYTES = 1 << 20
 def _check_footer(path: Path, file_bytes: int, limits: IngestLimits) -> None:
     """Check the footer length stored in the last 8 bytes before the footer is parsed."""
     if file_bytes < 12:
-        raise RunFileError("file", "not a Parquet file: too short")
+        raise RunFileError("file", _("not a Parquet file: too short"))
     with open(path, "rb") as fh:
         fh.seek(file_bytes - 8)
         tail = fh.read(8)
     if tail[4:] != _MAGIC:
-        raise RunFileError("file", "not a Parquet file: no PAR1 magic at the end (truncated?)")
+        raise RunFileError("file", _("not a Parquet file: no PAR1 magic at the end (truncated?)"))
     footer = int.from_bytes(tail[:4], "little")
     if footer > file_bytes - 12:
-        raise RunFileError("file", f"Parquet footer of {footer} bytes does not fit the file (truncated?)")
+        raise RunFileError("file", _("Parquet footer of {footer} bytes does not fit the file (truncated?)", footer=footer))
     if footer > limits.max_parquet_footer_bytes:
         raise RunFileError(
-            "file", f"Parquet footer of {footer} bytes exceeds {limits.max_parquet_footer_bytes} bytes"
+            "file", _("Parquet footer of {footer} bytes exceeds {max_parquet_footer_bytes} bytes", footer=footer, max_parquet_footer_bytes=limits.max_parquet_footer_bytes)
         )
 
 
@@ -64,14 +65,14 @@ class ParquetSource(Source):
             # read page by page through a small buffer: memory does not grow with the row groups
             self._pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=_READ_BUFFER_BYTES)
         except (pa.ArrowException, OSError) as exc:
-            raise RunFileError("file", f"cannot open Parquet file: {exc}") from None
+            raise RunFileError("file", _("cannot open Parquet file: {error}", error=exc)) from None
         self._set_up_or_close(lambda: self._setup(file_bytes, limits))
 
     def _setup(self, file_bytes: int, limits: IngestLimits) -> None:
         meta = self._pf.metadata
         if meta.num_columns > limits.max_columns:
             raise RunFileError(
-                "file", f"{meta.num_columns} columns exceed the limit of {limits.max_columns}"
+                "file", _("{num_columns} columns exceed the limit of {max_columns}", num_columns=meta.num_columns, max_columns=limits.max_columns)
             )
         allowed = limits.max_decoded_bytes(file_bytes)
         decoded = int(meta.num_rows) * 8 * meta.num_columns
@@ -83,8 +84,7 @@ class ParquetSource(Source):
         if max(decoded, uncompressed) > allowed:
             raise RunFileError(
                 "file",
-                f"the Parquet data decode to {max(decoded, uncompressed)} bytes, more than "
-                f"{allowed} bytes allowed for a {file_bytes}-byte file (decompression bomb limit)",
+                _("the Parquet data decode to {decoded} bytes, more than {allowed} bytes allowed for a {file_bytes}-byte file (decompression bomb limit)", decoded=max(decoded, uncompressed), allowed=allowed, file_bytes=file_bytes),
             )
         schema = self._pf.schema_arrow
         names = [n for n in schema.names if n != _PANDAS_INDEX]
@@ -92,7 +92,7 @@ class ParquetSource(Source):
         for orig in self._names:
             typ = schema.field(orig).type
             if not (pa.types.is_integer(typ) or pa.types.is_floating(typ)):
-                raise RunFileError(orig, f"wrong dtype {typ}: channels must be numeric")
+                raise RunFileError(orig, _("wrong dtype {typ}: channels must be numeric", typ=typ))
         canon = list(self._names.values())
         self.info = SourceInfo(
             channels=[c for c in canon if c != TIME_COLUMN],
@@ -112,7 +112,7 @@ class ParquetSource(Source):
                     )
                 yield block
         except (pa.ArrowException, OSError) as exc:
-            raise RunFileError("file", f"cannot read Parquet file: {exc}") from None
+            raise RunFileError("file", _("cannot read Parquet file: {error}", error=exc)) from None
 
     def close(self) -> None:
         self._pf.close()

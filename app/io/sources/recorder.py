@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from app.core.i18n import _
 from app.io._closing import Closing
 from app.io.channel_map import ChannelMap, MappedChannel, RecorderChannel, resolve_channels
 from app.io.channels import ACCEL_CHANNELS, FORCE_CHANNELS, GNSS_CHANNELS, TIME_COLUMN
@@ -114,8 +115,7 @@ class _Resampled:
             i = int(bad[0]) if bad.size else int(np.flatnonzero(~np.isfinite(t))[0])
             raise RunFileError(
                 self._ref.name,
-                f"time stamps of group {self._ref.group!r} are not increasing at record "
-                f"{a + i - (1 if prev.size else 0) + 1}; it cannot be resampled onto the ABA time base",
+                _("time stamps of group {group!r} are not increasing at record {record}; it cannot be resampled onto the ABA time base", group=self._ref.group, record=a + i - (1 if prev.size else 0) + 1),
             )
         if self._gap is None and t.size > 1:
             self._gap = max(3.0 * float(np.median(np.diff(t))), GNSS_MIN_GAP_S)
@@ -174,7 +174,7 @@ class RecorderSource(Source):
         reader = self._reader
         mapped = resolve_channels(reader.channels, channel_map)
         if len(mapped) > limits.max_columns:  # pragma: no cover - at most 17 channels exist
-            raise RunFileError("file", f"{len(mapped)} channels exceed {limits.max_columns}")
+            raise RunFileError("file", _("{n_mapped} channels exceed {max_columns}", n_mapped=len(mapped), max_columns=limits.max_columns))
         self.mapped = mapped
         ref_canon = next(c for c in ACCEL_CHANNELS if c in mapped)
         ref = mapped[ref_canon].channel
@@ -189,10 +189,7 @@ class RecorderSource(Source):
             elif canon in ACCEL_CHANNELS or canon in FORCE_CHANNELS:
                 raise RunFileError(
                     m.channel.name,
-                    f"({canon}) is sampled on another time base "
-                    f"({reader.describe_base(m.channel)}) than {ref.name!r} "
-                    f"({ref_canon}: {reader.describe_base(ref)}); acceleration and force "
-                    "channels are not resampled: record them on one time base",
+                    _("({canon}) is sampled on another time base ({base}) than {name!r} ({ref_canon}: {ref_base}); acceleration and force channels are not resampled: record them on one time base", canon=canon, base=reader.describe_base(m.channel), name=ref.name, ref_canon=ref_canon, ref_base=reader.describe_base(ref)),
                 )
             else:
                 slow.setdefault((reader.time_base(m.channel), canon in GNSS_CHANNELS), {})[canon] = m
@@ -214,7 +211,7 @@ class RecorderSource(Source):
         reader, ref, n = self._reader, self._ref, self._n
         t0 = float(reader.times(ref, 0, 1)[0])
         t1 = float(reader.times(ref, n - 1, n)[0])
-        for (_, gnss), chans in slow.items():
+        for (_base, gnss), chans in slow.items():
             if gnss:
                 continue
             for canon, m in chans.items():
@@ -222,7 +219,7 @@ class RecorderSource(Source):
                 if k < 2:
                     raise RunFileError(
                         m.channel.name,
-                        f"({canon}) has {k} sample(s); it cannot be resampled onto the ABA time base",
+                        _("({canon}) has {k} sample(s); it cannot be resampled onto the ABA time base", canon=canon, k=k),
                     )
                 c0 = float(reader.times(m.channel, 0, 1)[0])
                 c1 = float(reader.times(m.channel, k - 1, k)[0])
@@ -230,9 +227,7 @@ class RecorderSource(Source):
                 if c0 > t0 + tol or c1 < t1 - tol:
                     raise RunFileError(
                         m.channel.name,
-                        f"({canon}) is recorded from {c0:.3f} s to {c1:.3f} s but the ABA channels "
-                        f"from {t0:.3f} s to {t1:.3f} s; it cannot be resampled onto the ABA time "
-                        f"base (no extrapolation beyond {tol:.3g} s)",
+                        _("({canon}) is recorded from {c0:.3f} s to {c1:.3f} s but the ABA channels from {t0:.3f} s to {t1:.3f} s; it cannot be resampled onto the ABA time base (no extrapolation beyond {tol:.3g} s)", canon=canon, c0=c0, c1=c1, t0=t0, t1=t1, tol=tol),
                     )
 
     def channel_sources(self) -> dict[str, dict[str, Any]]:
@@ -241,7 +236,7 @@ class RecorderSource(Source):
 
     def blocks(self, size: int) -> Iterator[dict[str, np.ndarray]]:
         resamplers = [
-            _Resampled(self._reader, chans, gnss) for (_, gnss), chans in self._slow.items()
+            _Resampled(self._reader, chans, gnss) for (_base, gnss), chans in self._slow.items()
         ]
         reader = self._reader
         for a in range(0, self._n, size):
@@ -252,7 +247,7 @@ class RecorderSource(Source):
                 v = np.asarray(reader.read(m.channel, a, b), dtype=np.float64)
                 if v.shape != t.shape:
                     raise RunFileError(
-                        m.channel.name, f"({canon}) read {v.shape} samples for records {a}:{b}"
+                        m.channel.name, _("({canon}) read {shape} samples for records {a}:{b}", canon=canon, shape=v.shape, a=a, b=b)
                     )
                 block[canon] = v * m.factor if m.factor != 1.0 else v
             for r in resamplers:

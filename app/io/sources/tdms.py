@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from app.core.i18n import _
 from app.io.channel_map import RecorderChannel
 from app.io.errors import RunFileError
 from app.io.limits import DEFAULT_LIMITS, IngestLimits
@@ -74,7 +75,7 @@ class TdmsReader(RecorderReader):
         try:
             self._tdms = TdmsFile.open(path)
         except Exception as exc:  # noqa: BLE001 - npTDMS raises many types on bad files
-            raise RunFileError("file", f"cannot open TDMS file: {str(exc)[:300]}") from None
+            raise RunFileError("file", _("cannot open TDMS file: {error}", error=str(exc)[:300])) from None
         self._set_up_or_close(lambda: self._setup(file_bytes, limits, layout))
 
     def _setup(self, file_bytes: int, limits: IngestLimits, layout: TdmsLayout) -> None:
@@ -83,8 +84,7 @@ class TdmsReader(RecorderReader):
         if n_objects > limits.max_recorder_channels:
             raise RunFileError(
                 "file",
-                f"{n_objects} groups and channels exceed the limit of "
-                f"{limits.max_recorder_channels} in a TDMS file",
+                _("{n_objects} groups and channels exceed the limit of {max_recorder_channels} in a TDMS file", n_objects=n_objects, max_recorder_channels=limits.max_recorder_channels),
             )
         decoded = 0
         starts: list[float] = []
@@ -98,8 +98,7 @@ class TdmsReader(RecorderReader):
             for ch in group.channels():
                 if len(ch) != layout.values.get(ch.path, 0):
                     raise RunFileError(
-                        "file", f"npTDMS reads {len(ch)} values of {ch.path}, the file's segments "
-                        f"declare {layout.values.get(ch.path, 0)}"
+                        "file", _("npTDMS reads {n_ch} values of {path}, the file's segments declare {declared}", n_ch=len(ch), path=ch.path, declared=layout.values.get(ch.path, 0))
                     )
                 decoded += len(ch) * max(int(getattr(ch.dtype, "itemsize", 8) or 8), 1)
                 if ch.name.strip().lower() in TIME_CHANNEL_NAMES and time_ch is None:
@@ -126,7 +125,7 @@ class TdmsReader(RecorderReader):
                 self._chan[key] = ch
                 unit = str(props.get("unit_string", "") or "").strip()
                 channels.append(RecorderChannel(ch.name, group.name, gi, unit, key))
-        limits.check_decoded(decoded, file_bytes, "the TDMS data")
+        limits.check_decoded(decoded, file_bytes, _("the TDMS data"))
         self._zero = min(starts) if starts else 0.0
         self.channels = channels
         self.start_time = (
@@ -153,10 +152,10 @@ class TdmsReader(RecorderReader):
         try:
             data = self._chan[ch.key].read_data(offset=a, length=b - a, scaled=True)
         except Exception as exc:  # noqa: BLE001 - npTDMS raises many types on bad data
-            raise RunFileError(ch.name, f"cannot read samples {a}:{b}: {str(exc)[:200]}") from None
+            raise RunFileError(ch.name, _("cannot read samples {a}:{b}: {error}", a=a, b=b, error=str(exc)[:200])) from None
         data = np.asarray(data)
         if data.ndim != 1 or data.dtype.kind not in "iufb":
-            raise RunFileError(ch.name, f"wrong dtype {data.dtype}: channels must be numeric")
+            raise RunFileError(ch.name, _("wrong dtype {dtype}: channels must be numeric", dtype=data.dtype))
         return data.astype(np.float64)
 
     def times(self, ch: RecorderChannel, a: int, b: int) -> np.ndarray:
@@ -169,19 +168,18 @@ class TdmsReader(RecorderReader):
         if time_ch is None:
             raise RunFileError(
                 ch.name,
-                f"no time base: the channel has no wf_increment and group {ch.group!r} no time channel",
+                _("no time base: the channel has no wf_increment and group {group!r} no time channel", group=ch.group),
             )
         if len(time_ch) != self.length(ch):
             raise RunFileError(
                 ch.name,
-                f"{self.length(ch)} samples but the time channel {time_ch.name!r} of its group "
-                f"has {len(time_ch)}",
+                _("{length} samples but the time channel {name!r} of its group has {n_time}", length=self.length(ch), name=time_ch.name, n_time=len(time_ch)),
             )
         raw = np.asarray(time_ch.read_data(offset=a, length=b - a))
         if raw.dtype.kind == "M":
             return raw.astype("datetime64[ns]").astype(np.int64) / 1e9 - self._zero
         if raw.dtype.kind not in "iuf":
-            raise RunFileError(time_ch.name, f"wrong dtype {raw.dtype} of a time channel")
+            raise RunFileError(time_ch.name, _("wrong dtype {dtype} of a time channel", dtype=raw.dtype))
         return raw.astype(np.float64)
 
     def close(self) -> None:

@@ -38,6 +38,7 @@ import struct
 from dataclasses import dataclass, field
 from typing import BinaryIO
 
+from app.core.i18n import _
 from app.io.errors import RunFileError
 from app.io.limits import IngestLimits
 
@@ -58,7 +59,7 @@ _PATH = re.compile(r"/(?:'(?:[^']|'')*'(?:/'(?:[^']|'')*')?)?", re.DOTALL)
 
 
 def _fail(where: str, message: str) -> RunFileError:
-    return RunFileError("file", f"TDMS {where}: {message}")
+    return RunFileError("file", _("TDMS {where}: {message}", where=where, message=message))
 
 
 @dataclass
@@ -92,8 +93,7 @@ class _Meta:
 
     def take(self, n: int, what: str) -> bytes:
         if n > len(self.data) - self.pos:
-            raise _fail(self.where, f"{what} at metadata byte {self.pos} reaches beyond raw_data_offset "
-                        f"({len(self.data)} bytes of metadata)")
+            raise _fail(self.where, _("{what} at metadata byte {pos} reaches beyond raw_data_offset ({n_data} bytes of metadata)", what=what, pos=self.pos, n_data=len(self.data)))
         out = self.data[self.pos:self.pos + n]
         self.pos += n
         return out
@@ -105,22 +105,21 @@ class _Meta:
         return struct.unpack(self.endian + "Q", self.take(8, what))[0]
 
     def string(self, what: str) -> str:
-        n = self.u32(f"the length of {what}")
+        n = self.u32(_("the length of {what}", what=what))
         raw = self.take(n, what)
         try:
             return raw.decode("utf-8")
         except UnicodeDecodeError as exc:
-            raise _fail(self.where, f"{what} at metadata byte {self.pos - n} is not UTF-8 "
-                        f"(byte {exc.start})") from None
+            raise _fail(self.where, _("{what} at metadata byte {value} is not UTF-8 (byte {start})", what=what, value=self.pos - n, start=exc.start)) from None
 
     def property_value(self, name: str) -> None:
-        kind = self.u32(f"the type of property {name!r}")
+        kind = self.u32(_("the type of property {name!r}", name=name))
         if kind == _STRING:
-            self.string(f"property {name!r}")
+            self.string(_("property {name!r}", name=name))
         elif kind in _DATA_SIZES:
-            self.take(_DATA_SIZES[kind], f"property {name!r}")
+            self.take(_DATA_SIZES[kind], _("property {name!r}", name=name))
         else:
-            raise _fail(self.where, f"property {name!r} has an unknown data type 0x{kind:x}")
+            raise _fail(self.where, _("property {name!r} has an unknown data type 0x{kind:x}", name=name, kind=kind))
 
 
 def check_tdms(fh: BinaryIO, size: int, limits: IngestLimits) -> TdmsLayout:
@@ -153,109 +152,104 @@ def check_tdms(fh: BinaryIO, size: int, limits: IngestLimits) -> TdmsLayout:
     n_objects = 0
     pos = 0
     while pos < size:
-        where = f"segment at byte {pos}"
+        where = _("segment at byte {pos}", pos=pos)
         if size - pos < _LEAD_IN:
-            raise _fail(where, f"{size - pos} bytes left, too few for a lead-in ({_LEAD_IN} bytes)")
+            raise _fail(where, _("{value} bytes left, too few for a lead-in ({LEAD_IN} bytes)", value=size - pos, LEAD_IN=_LEAD_IN))
         fh.seek(pos)
         lead = fh.read(_LEAD_IN)
         if lead[:4] != b"TDSm":
-            raise _fail(where, f"tag {lead[:4]!r} is not 'TDSm'")
+            raise _fail(where, _("tag {lead!r} is not 'TDSm'", lead=lead[:4]))
         toc = struct.unpack_from("<I", lead, 4)[0]
         if toc & ~_TOC_KNOWN:
-            raise _fail(where, f"table of contents 0x{toc:08x} has unknown bits")
+            raise _fail(where, _("table of contents 0x{toc:08x} has unknown bits", toc=toc))
         if toc & _TOC_DAQMX:
-            raise _fail(where, "DAQmx raw data (kTocDAQmxRawData) is not accepted: export the file "
-                        "as standard TDMS")
+            raise _fail(where, _("DAQmx raw data (kTocDAQmxRawData) is not accepted: export the file as standard TDMS"))
         endian = ">" if toc & _TOC_BIG_ENDIAN else "<"
         version, next_offset, raw_offset = struct.unpack_from(endian + "IQQ", lead, 8)
         if version not in (4712, 4713):
-            raise _fail(where, f"version {version} (4712 or 4713)")
+            raise _fail(where, _("version {version} (4712 or 4713)", version=version))
         if next_offset == 0xFFFFFFFFFFFFFFFF:
-            raise _fail(where, "next_segment_offset 0xFFFFFFFFFFFFFFFF: the writer did not close "
-                        "the segment (an interrupted recording)")
+            raise _fail(where, _("next_segment_offset 0xFFFFFFFFFFFFFFFF: the writer did not close the segment (an interrupted recording)"))
         left = size - pos - _LEAD_IN
         if next_offset > left:
-            raise _fail(where, f"next_segment_offset {next_offset} reaches beyond the end of the file "
-                        f"({left} bytes left)")
+            raise _fail(where, _("next_segment_offset {next_offset} reaches beyond the end of the file ({left} bytes left)", next_offset=next_offset, left=left))
         if raw_offset > next_offset:
-            raise _fail(where, f"raw_data_offset {raw_offset} lies beyond next_segment_offset {next_offset}")
+            raise _fail(where, _("raw_data_offset {raw_offset} lies beyond next_segment_offset {next_offset}", raw_offset=raw_offset, next_offset=next_offset))
         if raw_offset > limits.max_recorder_text_bytes:
-            raise _fail(where, f"{raw_offset} bytes of metadata (at most {limits.max_recorder_text_bytes})")
+            raise _fail(where, _("{raw_offset} bytes of metadata (at most {max_recorder_text_bytes})", raw_offset=raw_offset, max_recorder_text_bytes=limits.max_recorder_text_bytes))
         if toc & _TOC_META:
             meta = _Meta(fh.read(raw_offset), endian, where)
             n_objects += _read_metadata(meta, bool(toc & _TOC_NEW_LIST) or not layout.segments,
                                         seen, current, has_data, limits.max_recorder_blocks - n_objects)
             if meta.pos != raw_offset:
-                raise _fail(where, f"the metadata end at byte {meta.pos} of raw_data_offset {raw_offset}")
+                raise _fail(where, _("the metadata end at byte {pos} of raw_data_offset {raw_offset}", pos=meta.pos, raw_offset=raw_offset))
         elif raw_offset:
-            raise _fail(where, f"raw_data_offset {raw_offset} without metadata (kTocMetaData not set)")
+            raise _fail(where, _("raw_data_offset {raw_offset} without metadata (kTocMetaData not set)", raw_offset=raw_offset))
         elif not layout.segments:
-            raise _fail(where, "the first segment has no metadata")
+            raise _fail(where, _("the first segment has no metadata"))
         data_bytes = next_offset - raw_offset
         if toc & _TOC_RAW:
             _count_chunks(where, data_bytes, bool(toc & _TOC_INTERLEAVED), current, has_data, seen, layout)
         elif data_bytes:
-            raise _fail(where, f"{data_bytes} bytes of raw data but kTocRawData is not set")
+            raise _fail(where, _("{data_bytes} bytes of raw data but kTocRawData is not set", data_bytes=data_bytes))
         layout.segments += 1
         pos += _LEAD_IN + next_offset
     if not layout.segments:
-        raise _fail("file", "no segments")
+        raise _fail(_("file"), _("no segments"))
     return layout
 
 
 def _read_metadata(meta: _Meta, new_list: bool, seen: dict[str, _Index | None], current: list[str],
                    has_data: dict[str, bool], budget: int) -> int:
-    count = meta.u32("the object count")
+    count = meta.u32(_("the object count"))
     if count > budget:
-        raise _fail(meta.where, f"{count} metadata objects exceed the limit of the file's objects")
+        raise _fail(meta.where, _("{count} metadata objects exceed the limit of the file's objects", count=count))
     if new_list:
         current.clear()
         has_data.clear()
     for k in range(count):
-        path = meta.string(f"the path of object {k}")
+        path = meta.string(_("the path of object {k}", k=k))
         if not _PATH.fullmatch(path):
-            raise _fail(meta.where, f"object path {path[:80]!r} is not /'group'/'channel'")
-        index = meta.u32(f"the raw data index of {path!r}")
+            raise _fail(meta.where, _("object path {path!r} is not /'group'/'channel'", path=path[:80]))
+        index = meta.u32(_("the raw data index of {path!r}", path=path))
         if index in _DAQMX_MARKERS:
-            raise _fail(meta.where, f"object {path!r} holds DAQmx raw data (index 0x{index:08x}); "
-                        "export the file as standard TDMS")
+            raise _fail(meta.where, _("object {path!r} holds DAQmx raw data (index 0x{index:08x}); export the file as standard TDMS", path=path, index=index))
         if index == _NO_DATA:
             has_data[path] = False
             seen.setdefault(path, None)
         elif index == _AS_BEFORE:
             if seen.get(path) is None:
-                raise _fail(meta.where, f"object {path!r} reuses a raw data index it never had")
+                raise _fail(meta.where, _("object {path!r} reuses a raw data index it never had", path=path))
             has_data[path] = True
         elif index in (20, 28):
             if path.count("/'") != 2:
-                raise _fail(meta.where, f"object {path!r} is not a channel but has raw data")
-            kind = meta.u32(f"the data type of {path!r}")
-            dims = meta.u32(f"the dimension of {path!r}")
-            n = meta.u64(f"the value count of {path!r}")
+                raise _fail(meta.where, _("object {path!r} is not a channel but has raw data", path=path))
+            kind = meta.u32(_("the data type of {path!r}", path=path))
+            dims = meta.u32(_("the dimension of {path!r}", path=path))
+            n = meta.u64(_("the value count of {path!r}", path=path))
             if dims != 1:
-                raise _fail(meta.where, f"object {path!r} has array dimension {dims} (1)")
+                raise _fail(meta.where, _("object {path!r} has array dimension {dims} (1)", path=path, dims=dims))
             if kind == _STRING:
                 if index != 28:
-                    raise _fail(meta.where, f"string object {path!r} has a raw data index of {index} bytes (28)")
-                total = meta.u64(f"the total size of {path!r}")
+                    raise _fail(meta.where, _("string object {path!r} has a raw data index of {index} bytes (28)", path=path, index=index))
+                total = meta.u64(_("the total size of {path!r}", path=path))
             elif kind in _DATA_SIZES:
                 if index != 20:
-                    raise _fail(meta.where, f"object {path!r} has a raw data index of {index} bytes (20)")
+                    raise _fail(meta.where, _("object {path!r} has a raw data index of {index} bytes (20)", path=path, index=index))
                 total = n * _DATA_SIZES[kind]
             else:
-                raise _fail(meta.where, f"object {path!r} has raw data of unknown type 0x{kind:x}")
+                raise _fail(meta.where, _("object {path!r} has raw data of unknown type 0x{kind:x}", path=path, kind=kind))
             seen[path] = _Index(kind, n, total)
             has_data[path] = True
         else:
-            raise _fail(meta.where, f"object {path!r} has a raw data index of {index} bytes (20, 28, "
-                        "0 or 0xFFFFFFFF)")
+            raise _fail(meta.where, _("object {path!r} has a raw data index of {index} bytes (20, 28, 0 or 0xFFFFFFFF)", path=path, index=index))
         if path not in current:
             current.append(path)
-        n_props = meta.u32(f"the property count of {path!r}")
+        n_props = meta.u32(_("the property count of {path!r}", path=path))
         if n_props > (len(meta.data) - meta.pos) // 9:
-            raise _fail(meta.where, f"object {path!r} declares {n_props} properties, more than its metadata hold")
+            raise _fail(meta.where, _("object {path!r} declares {n_props} properties, more than its metadata hold", path=path, n_props=n_props))
         for j in range(n_props):
-            name = meta.string(f"the name of property {j} of {path!r}")
+            name = meta.string(_("the name of property {j} of {path!r}", j=j, path=path))
             meta.property_value(name)
     return count
 
@@ -267,14 +261,13 @@ def _count_chunks(where: str, data_bytes: int, interleaved: bool, current: list[
     if interleaved:
         counts = {ix.n_values for _, ix in objects if ix is not None}
         if len(counts) > 1 or any(ix is not None and ix.data_type == _STRING for _, ix in objects):
-            raise _fail(where, "interleaved data need fixed-size types and equal value counts")
+            raise _fail(where, _("interleaved data need fixed-size types and equal value counts"))
     if chunk == 0:
         if data_bytes:
-            raise _fail(where, f"{data_bytes} bytes of raw data but its objects declare none")
+            raise _fail(where, _("{data_bytes} bytes of raw data but its objects declare none", data_bytes=data_bytes))
         return
     if data_bytes % chunk:
-        raise _fail(where, f"{data_bytes} bytes of raw data are not a whole number of chunks of {chunk} "
-                    "bytes (the objects' value counts × sizes)")
+        raise _fail(where, _("{data_bytes} bytes of raw data are not a whole number of chunks of {chunk} bytes (the objects' value counts × sizes)", data_bytes=data_bytes, chunk=chunk))
     chunks = data_bytes // chunk
     for path, ix in objects:
         if ix is not None:

@@ -53,8 +53,8 @@
     const warn = document.getElementById("run-warnings");
     const list = r.warnings || [];
     warn.hidden = list.length === 0;
-    // the warnings were written when the file was read (stored text, in English)
-    warn.innerHTML = list.length ? `<b>${T.esc(T._("Ingest warnings"))}</b><ul translate="no" lang="en">` + list.map((w) => `<li>${T.esc(w)}</li>`).join("") + "</ul>" : "";
+    // the warnings were written when the file was read; the API answers them in the reader's language
+    warn.innerHTML = list.length ? `<b>${T.esc(T._("Ingest warnings"))}</b><ul>` + list.map((w) => `<li>${T.esc(w)}</li>`).join("") + "</ul>" : "";
   }
 
   /* Shading and marks of the reference data in [a, b] km, and their legend below the plot:
