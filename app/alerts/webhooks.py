@@ -31,7 +31,7 @@ def _checked_url(value: str, settings: Settings) -> str:
         url = q.check_url(value)
         resolve(url, AddressPolicy.from_settings(settings))
     except UrlError as exc:
-        raise ApiError(422, "url", str(exc)) from None
+        raise ApiError(422, "url", exc.args[0] if exc.args and isinstance(exc.args[0], str) else str(exc)) from None
     return url
 
 

@@ -29,7 +29,36 @@ from typing import Any
 
 from app.analysis.units import MIN_SPEED_KMH
 
-__all__ = ["ProcessingSettings", "LEGACY_VALUES", "MAX_SLEEPER_HARMONIC", "MAX_WHEEL_ORDERS", "setting_help"]
+__all__ = ["ProcessingSettings", "SettingError", "LEGACY_VALUES", "MAX_SLEEPER_HARMONIC", "MAX_WHEEL_ORDERS",
+           "setting_help"]
+
+
+def N_(message: str) -> str:
+    """Mark ``message`` for the service's catalogues (what ``app.core.i18n.N_`` does; the analysis
+    imports nothing of the service): the service answers a :class:`SettingError` in the reader's language."""
+    return message
+
+
+class SettingError(ValueError):
+    """A processing setting out of its range.
+
+    Parameters
+    ----------
+    setting : str
+        The setting at fault (``"settings"`` for the request as a whole).
+    message : str
+        The English text with ``str.format`` fields, marked with :func:`N_` (its message id).
+    **params
+        The values of the fields.
+
+    Notes
+    -----
+    ``str(error)`` is the message with its values (``"bin_length_m must be in [0.05, 10] m, got 20"``).
+    """
+
+    def __init__(self, setting: str, message: str, **params: Any) -> None:
+        self.setting, self.message, self.params = setting, message, params
+        super().__init__(message.format(**params))
 
 #: highest sleeper-passage harmonic that can be extracted (2·f_s and 3·f_s)
 MAX_SLEEPER_HARMONIC = 3
@@ -145,31 +174,32 @@ class ProcessingSettings:
 
     def __post_init__(self) -> None:
         if not 1 <= int(self.n_wheel_orders) <= MAX_WHEEL_ORDERS or int(self.n_wheel_orders) != self.n_wheel_orders:
-            raise ValueError(f"n_wheel_orders must be an integer in 1..{MAX_WHEEL_ORDERS}, got {self.n_wheel_orders!r}")
+            raise SettingError("n_wheel_orders", N_("n_wheel_orders must be an integer in 1..{limit}, got {value!r}"),
+                               limit=MAX_WHEEL_ORDERS, value=self.n_wheel_orders)
         if not 0.01 <= float(self.bandwidth_orders) <= 1.0:
-            raise ValueError(f"bandwidth_orders must be in [0.01, 1], got {self.bandwidth_orders!r}")
+            raise SettingError("bandwidth_orders", N_("bandwidth_orders must be in [0.01, 1], got {value!r}"),
+                               value=self.bandwidth_orders)
         if self.track_resolution_m is not None and not 0.5 <= float(self.track_resolution_m) <= 100.0:
-            raise ValueError(
-                f"track_resolution_m must be in [0.5, 100] m (or null: as bandwidth_orders), "
-                f"got {self.track_resolution_m!r}"
-            )
+            raise SettingError("track_resolution_m", N_("track_resolution_m must be in [0.5, 100] m (or null: as "
+                                                        "bandwidth_orders), got {value!r}"), value=self.track_resolution_m)
         if self.sleeper_harmonics not in range(1, MAX_SLEEPER_HARMONIC + 1):
-            raise ValueError(
-                f"sleeper_harmonics must be 1, 2 or {MAX_SLEEPER_HARMONIC}, got {self.sleeper_harmonics!r}"
-            )
+            raise SettingError("sleeper_harmonics", N_("sleeper_harmonics must be 1, 2 or {limit}, got {value!r}"),
+                               limit=MAX_SLEEPER_HARMONIC, value=self.sleeper_harmonics)
         w = float(self.force_mean_window_m)
         if not (math.isfinite(w) and (w == 0.0 or 1.2 <= w <= 200.0)):
-            raise ValueError(f"force_mean_window_m must be 0 (off) or in [1.2, 200] m, got {self.force_mean_window_m!r}")
+            raise SettingError("force_mean_window_m", N_("force_mean_window_m must be 0 (off) or in [1.2, 200] m, got {value!r}"),
+                               value=self.force_mean_window_m)
         if self.filter_order not in (1, 2, 3):
-            raise ValueError(f"filter_order must be 1, 2 or 3, got {self.filter_order!r}")
+            raise SettingError("filter_order", N_("filter_order must be 1, 2 or 3, got {value!r}"), value=self.filter_order)
         if not (math.isfinite(float(self.edge_preserving_sd)) and 0.0 <= float(self.edge_preserving_sd) <= 20.0):
-            raise ValueError(f"edge_preserving_sd must be in [0, 20], got {self.edge_preserving_sd!r}")
+            raise SettingError("edge_preserving_sd", N_("edge_preserving_sd must be in [0, 20], got {value!r}"),
+                               value=self.edge_preserving_sd)
         if not 0.05 <= float(self.bin_length_m) <= 10.0:
-            raise ValueError(f"bin_length_m must be in [0.05, 10] m, got {self.bin_length_m!r}")
+            raise SettingError("bin_length_m", N_("bin_length_m must be in [0.05, 10] m, got {value!r}"), value=self.bin_length_m)
         if not 0.0 <= float(self.min_speed_kmh) <= 200.0:
-            raise ValueError(f"min_speed_kmh must be in [0, 200] km/h, got {self.min_speed_kmh!r}")
+            raise SettingError("min_speed_kmh", N_("min_speed_kmh must be in [0, 200] km/h, got {value!r}"), value=self.min_speed_kmh)
         if not 1.0 <= float(self.chunk_seconds) <= 3600.0:
-            raise ValueError(f"chunk_seconds must be in [1, 3600] s, got {self.chunk_seconds!r}")
+            raise SettingError("chunk_seconds", N_("chunk_seconds must be in [1, 3600] s, got {value!r}"), value=self.chunk_seconds)
 
     def to_dict(self) -> dict[str, Any]:
         """Return the settings as a JSON-serialisable dict (every key, so it reads back the same)."""
@@ -188,7 +218,7 @@ class ProcessingSettings:
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = set(data) - known
         if unknown:
-            raise ValueError(f"unknown processing setting(s): {', '.join(sorted(unknown))}")
+            raise SettingError("settings", N_("unknown processing setting(s): {names}"), names=", ".join(sorted(unknown)))
         return cls(**data)
 
     @classmethod

@@ -174,7 +174,7 @@ async def _operational_error_handler(request: Request, exc: Exception) -> JSONRe
     log.warning("%s %s: the database's write lock stayed busy past the deadline (503)", request.method,
                 request.url.path)
     return await _api_error_handler(request, ApiError(
-        503, "database", f"busy with another write; nothing was changed, retry in {LOCK_RETRY_AFTER_S} s",
+        503, "database", _("busy with another write; nothing was changed, retry in {seconds} s", seconds=LOCK_RETRY_AFTER_S),
         {"Retry-After": str(LOCK_RETRY_AFTER_S)}))
 
 

@@ -29,6 +29,7 @@ from typing import Any
 
 from app.audit import record
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.core.security import Actor
 from app.db import assets_crud
 from app.db.models import Asset, utcnow
@@ -70,11 +71,11 @@ class ImportResult(dict):
 
 def _check_caps(settings: Settings, rows: list[dict[str, Any]], lines: dict) -> None:
     if len(rows) > settings.assets_import_max_rows:
-        raise ApiError(413, "file", f"holds {len(rows)} assets, more than one import may write "
-                                    f"({settings.assets_import_max_rows}, TRACKVKF_ASSETS_IMPORT_MAX_ROWS)")
+        raise ApiError(413, "file", _("holds {n} assets, more than one import may write ({limit}, "
+                                      "TRACKVKF_ASSETS_IMPORT_MAX_ROWS)", n=len(rows), limit=settings.assets_import_max_rows))
     if len(lines) > settings.assets_import_max_lines:
-        raise ApiError(413, "file", f"holds assets of {len(lines)} lines and tracks, more than one import may "
-                                    f"replace ({settings.assets_import_max_lines}, TRACKVKF_ASSETS_IMPORT_MAX_LINES)")
+        raise ApiError(413, "file", _("holds assets of {n} lines and tracks, more than one import may replace ({limit}, "
+                                      "TRACKVKF_ASSETS_IMPORT_MAX_LINES)", n=len(lines), limit=settings.assets_import_max_lines))
 
 
 def import_assets(db: Database, settings: Settings, actor: Actor, data: bytes, filename: str | None, *,

@@ -34,6 +34,8 @@ from typing import Literal
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
 
+from app.core.i18n import _
+
 __all__ = [
     "Principal",
     "Actor",
@@ -95,11 +97,11 @@ def check_password_strength(password: str) -> None:
         Naming ``password``.
     """
     if not isinstance(password, str):
-        raise ValueError("password must be a string")
+        raise ValueError(_("password must be a string"))
     if len(password) < MIN_PASSWORD_LENGTH:
-        raise ValueError(f"password must have at least {MIN_PASSWORD_LENGTH} characters")
+        raise ValueError(_("password must have at least {n} characters", n=MIN_PASSWORD_LENGTH))
     if len(password) > 1024:
-        raise ValueError("password must have at most 1024 characters")
+        raise ValueError(_("password must have at most 1024 characters"))
 
 
 def hash_password(password: str) -> str:
@@ -203,7 +205,7 @@ def device_cookie_id(secret_key: str, cookie: str | None, username: str) -> str 
     """The device id of a valid device cookie of ``username``, else None (constant-time compare)."""
     if not cookie or len(cookie) > 200:
         return None
-    device_id, _, mac = cookie.partition(".")
+    device_id, _sep, mac = cookie.partition(".")
     if not device_id or not mac:
         return None
     if not hmac.compare_digest(_device_mac(secret_key, device_id, username), mac):

@@ -37,6 +37,8 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from urllib.parse import SplitResult, parse_qsl, urlencode, urlsplit, urlunsplit
 
+from app.core.i18n import N_, _
+
 __all__ = [
     "MAX_URL_CHARS",
     "UrlError",
@@ -108,22 +110,30 @@ def _embedded_ipv4(ip: ipaddress.IPv6Address) -> list[ipaddress.IPv4Address]:
     return out
 
 
+#: why an address is not public: the words of each kind (``"a loopback address"``)
+_NOT_PUBLIC: dict[str, str] = {
+    "loopback": N_("a loopback address"), "unspecified": N_("an unspecified address"),
+    "link_local": N_("a link-local address"), "multicast": N_("a multicast address"),
+    "private": N_("a private address"), "reserved": N_("a reserved address"),
+}
+
+
 def _why_not_public(ip: IPAddress) -> str | None:
-    """Why ``ip`` is not a public unicast address (None: it is)."""
+    """Why ``ip`` is not a public unicast address, in words (``"a private address"``; None: it is)."""
     for name in ("loopback", "unspecified", "link_local", "multicast", "private", "reserved"):
         if getattr(ip, f"is_{name}"):
-            return name.replace("_", "-")
+            return _(_NOT_PUBLIC[name])
     if isinstance(ip, ipaddress.IPv6Address) and ip.is_site_local:
-        return "site-local"
+        return _("a site-local address")
     if any(ip in net for net in _DENIED if net.version == ip.version):
-        return "reserved"
+        return _(_NOT_PUBLIC["reserved"])
     if not ip.is_global:
-        return "not global"
+        return _("a non-global address")
     if isinstance(ip, ipaddress.IPv6Address):
         for inner in _embedded_ipv4(ip):
             why = _why_not_public(inner)
             if why is not None:
-                return f"embeds {inner} ({why})"
+                return _("an address embedding {inner} ({why})", inner=inner, why=why)
     return None
 
 
@@ -155,14 +165,13 @@ class AddressPolicy:
         try:
             ip = ipaddress.ip_address(address.split("%", 1)[0] if isinstance(address, str) else address)
         except ValueError:
-            raise RefusedAddress(f"{address!r} is not an IP address") from None
+            raise RefusedAddress(_("{address!r} is not an IP address", address=address)) from None
         if any(ip in net for net in self.allowed_networks if net.version == ip.version):
             return ip
         why = _why_not_public(ip)
         if why is not None:
             raise RefusedAddress(
-                f"resolves to {ip}, a {why} address: webhooks may only reach public addresses "
-                "(on-premises receivers: TRACKVKF_WEBHOOK_ALLOWED_NETWORKS)")
+                _("resolves to {ip}, {why}: webhooks may only reach public addresses (on-premises receivers: TRACKVKF_WEBHOOK_ALLOWED_NETWORKS)", ip=ip, why=why))
         return ip
 
 
@@ -171,11 +180,11 @@ def _check_host(host: str) -> None:
     if host.startswith("["):
         inner = host[1:-1] if host.endswith("]") else ""
         if "%" in inner:
-            raise UrlError("an IPv6 zone (%…) is not accepted")
+            raise UrlError(_("an IPv6 zone (%…) is not accepted"))
         try:
             ipaddress.IPv6Address(inner)
         except ValueError:
-            raise UrlError(f"host {host!r} is not an IPv6 address") from None
+            raise UrlError(_("host {host!r} is not an IPv6 address", host=host)) from None
         return
     try:
         ipaddress.IPv4Address(host)
@@ -184,12 +193,12 @@ def _check_host(host: str) -> None:
         pass
     name = host[:-1] if host.endswith(".") else host
     if not name or len(name) > 253:
-        raise UrlError("the host name is empty or longer than 253 characters")
+        raise UrlError(_("the host name is empty or longer than 253 characters"))
     labels = name.split(".")
     if not all(_LABEL.match(label) for label in labels):
-        raise UrlError(f"host {host!r} is not a valid host name (letters, digits, hyphens; IDN in punycode)")
+        raise UrlError(_("host {host!r} is not a valid host name (letters, digits, hyphens; IDN in punycode)", host=host))
     if _NUMERIC_LABEL.match(labels[-1]):
-        raise UrlError(f"host {host!r} is a numeric address in a non-canonical form: write it as a.b.c.d")
+        raise UrlError(_("host {host!r} is a numeric address in a non-canonical form: write it as a.b.c.d", host=host))
 
 
 def _netloc_host(parts: SplitResult) -> str:
@@ -210,40 +219,38 @@ def check_url(url: str) -> str:
         Saying what is wrong (scheme, host, port, credentials, characters, length).
     """
     if not isinstance(url, str):
-        raise UrlError("must be a string")
+        raise UrlError(_("must be a string"))
     value = url.strip()
     if len(value) > MAX_URL_CHARS:
-        raise UrlError(f"at most {MAX_URL_CHARS} characters")
+        raise UrlError(_("at most {n} characters", n=MAX_URL_CHARS))
     if not value:
-        raise UrlError("is empty")
+        raise UrlError(_("is empty"))
     bad = next((c for c in value if ord(c) <= 0x20 or ord(c) >= 0x7F or c in '\\"<>^`{|}'), None)
     if bad is not None:
-        raise UrlError(f"contains {bad!r} (spaces, control characters, non-ASCII and {{|}}\\^\"<>` are not "
-                       "accepted: percent-encode them)")
+        raise UrlError(_('contains {bad!r} (spaces, control characters, non-ASCII and {{|}}\\^"<>` are not accepted: percent-encode them)', bad=bad))
     try:
         parts = urlsplit(value)
         parts.port  # noqa: B018 - raises for a port out of range
     except ValueError as exc:
-        raise UrlError(f"is not a valid URL ({exc})") from None
+        raise UrlError(_("is not a valid URL ({error})", error=exc)) from None
     if parts.scheme.lower() not in ("http", "https"):
-        raise UrlError(f"must be an http:// or https:// URL, got {value[:80]!r}")
+        raise UrlError(_("must be an http:// or https:// URL, got {value!r}", value=value[:80]))
     if not value.lower().startswith(f"{parts.scheme.lower()}://"):
-        raise UrlError("must start with http:// or https://")
+        raise UrlError(_("must start with http:// or https://"))
     if "@" in parts.netloc:
-        raise UrlError("credentials in the URL (user:password@) are not accepted: they would be shown in the "
-                       "webhook list and the audit log; the receiver checks the request's signature instead")
+        raise UrlError(_("credentials in the URL (user:password@) are not accepted: they would be shown in the webhook list and the audit log; the receiver checks the request's signature instead"))
     if parts.fragment or "#" in value:
-        raise UrlError("a fragment (#…) is not accepted")
+        raise UrlError(_("a fragment (#…) is not accepted"))
     host = _netloc_host(parts)
     if not host or not parts.hostname:
-        raise UrlError("has no host")
+        raise UrlError(_("has no host"))
     _check_host(host)
     port_text = parts.netloc[len(host):]
     if port_text:
         if not re.fullmatch(r":[0-9]{1,5}", port_text):
-            raise UrlError(f"port {port_text[1:]!r} is not a number in 1–65535")
+            raise UrlError(_("port {port_text!r} is not a number in 1–65535", port_text=port_text[1:]))
         if not 1 <= int(port_text[1:]) <= 65535:
-            raise UrlError(f"port {port_text[1:]} is not in 1–65535")
+            raise UrlError(_("port {port_text} is not in 1–65535", port_text=port_text[1:]))
     return value
 
 
@@ -275,9 +282,9 @@ def resolve(url: str, policy: AddressPolicy, resolver: Resolver | None = None) -
     try:
         addresses = list((resolver or _default_resolver)(host, port))
     except (OSError, UnicodeError) as exc:
-        raise RefusedAddress(f"host {host!r} does not resolve ({type(exc).__name__})") from None
+        raise RefusedAddress(_("host {host!r} does not resolve ({kind})", host=host, kind=type(exc).__name__)) from None
     if not addresses:
-        raise RefusedAddress(f"host {host!r} does not resolve")
+        raise RefusedAddress(_("host {host!r} does not resolve", host=host))
     out: list[IPAddress] = []
     for address in addresses:
         ip = policy.check(address)

@@ -13,7 +13,7 @@ from typing import Any
 from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
-from app.core.i18n import LANGUAGES, is_language
+from app.core.i18n import LANGUAGES, _, is_language
 from app.core.security import (
     ROLES,
     api_key_prefix,
@@ -64,14 +64,14 @@ class AuthError(ValueError):
 
 def _check_role(role: str) -> str:
     if role not in ROLES:
-        raise AuthError("role", f"must be one of {', '.join(ROLES)}, got {role!r}")
+        raise AuthError("role", _("must be one of {items}, got {role!r}", items=', '.join(ROLES), role=role))
     return role
 
 
 def _check_username(username: str) -> str:
     if not (1 <= len(username) <= 64) or not set(username) <= _USERNAME_CHARS:
         raise AuthError(
-            "username", "1 to 64 characters of letters, digits and . _ - @"
+            "username", _("1 to 64 characters of letters, digits and . _ - @")
         )
     return username
 
@@ -80,7 +80,7 @@ def _hash(password: str) -> str:
     try:
         return hash_password(password)
     except ValueError as exc:
-        raise AuthError("password", str(exc)) from None
+        raise AuthError("password", exc.args[0] if exc.args and isinstance(exc.args[0], str) else str(exc)) from None
 
 
 # --- users -----------------------------------------------------------------------
@@ -103,7 +103,7 @@ def create_user(
     _check_username(username)
     _check_role(role)
     if get_user(session, username) is not None:
-        raise AuthError("username", f"user {username!r} exists")
+        raise AuthError("username", _("user {username!r} exists", username=username))
     user = User(
         username=username,
         password_hash=_hash(password),
@@ -131,7 +131,7 @@ def create_external_user(
     _check_username(username)
     _check_role(role)
     if get_user(session, username) is not None:
-        raise AuthError("username", f"user {username!r} exists")
+        raise AuthError("username", _("user {username!r} exists", username=username))
     user = User(
         username=username, password_hash="", role=role, active=True, demo_credentials=False,
         created_by=created_by, created_at=utcnow(), auth_source="oidc",
@@ -177,7 +177,7 @@ def update_user(
         user.role = _check_role(role)
     if password is not None:
         if user.auth_source != "local":
-            raise AuthError("password", f"{username} signs in at the OpenID provider and has no password here")
+            raise AuthError("password", _("{username} signs in at the OpenID provider and has no password here", username=username))
         user.password_hash = _hash(password)
         user.demo_credentials = False
     if active is not None:
@@ -198,7 +198,7 @@ def set_language(session: Session, user_id: int, language: str | None) -> None:
         ``language`` is not one the service speaks.
     """
     if language is not None and not is_language(language):
-        raise AuthError("language", f"must be one of {', '.join(LANGUAGES)} or null, got {language!r}")
+        raise AuthError("language", _("must be one of {items} or null, got {language!r}", items=', '.join(LANGUAGES), language=language))
     session.execute(update(User).where(User.id == user_id).values(language=language, updated_at=utcnow()))
 
 
@@ -301,7 +301,7 @@ def create_api_key(
     """
     name = (name or "").strip()
     if not (1 <= len(name) <= 64) or not name.isprintable():
-        raise AuthError("name", "1 to 64 printable characters")
+        raise AuthError("name", _("1 to 64 printable characters"))
     _check_role(role)
     generated = new_api_key()
     row = ApiKey(

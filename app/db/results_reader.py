@@ -23,6 +23,7 @@ import pandas as pd
 from sqlalchemy import ColumnElement, Select, and_, select
 from sqlalchemy.orm import Session
 
+from app.core.i18n import _
 from app.db.models import PROFILE_VALUE_COLUMNS, Job, JobStatus, ProfileBin, Run, WheelOOR
 from app.db.numeric import fetch_numeric
 
@@ -135,10 +136,8 @@ def profile_columns(values: Sequence[str] | None = None) -> tuple[str, ...]:
         return PROFILE_COLUMNS
     unknown = [c for c in values if c not in PROFILE_VALUE_COLUMNS]
     if unknown:
-        raise ValueError(
-            f"columns: unknown column(s) {', '.join(map(repr, unknown))} "
-            f"(known: {', '.join(PROFILE_VALUE_COLUMNS)})"
-        )
+        raise ValueError(_("unknown column(s) {names} (known: {known})", names=", ".join(map(repr, unknown)),
+                           known=", ".join(PROFILE_VALUE_COLUMNS)))
     return ("wheel", "bin", "km", *dict.fromkeys(values))
 
 

@@ -63,7 +63,7 @@ def indicator_columns(value: str | None, max_points: int | None) -> tuple[str, .
     try:
         return results_reader.profile_columns(names)[3:]
     except ValueError as exc:
-        raise ApiError(422, "columns", str(exc).removeprefix("columns: ")) from None
+        raise ApiError(422, "columns", exc.args[0] if exc.args and isinstance(exc.args[0], str) else str(exc)) from None
 
 
 def run_index_context(db: Database, settings: Settings, run_id: int, bin_length: float) -> IndexContext:

@@ -10,10 +10,10 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from app.analysis.settings import ProcessingSettings
+from app.analysis.settings import ProcessingSettings, SettingError
 from app.audit import record
 from app.core.errors import ApiError, not_found
-from app.core.i18n import _
+from app.core.i18n import Msg, _
 from app.core.runstore import RunStore
 from app.core.security import Actor
 from app.db import crud
@@ -49,7 +49,8 @@ def settings_from_request(base: dict | None, changes: dict) -> ProcessingSetting
     except (ValueError, TypeError) as exc:
         text = str(exc)
         field = next((f for f in _SETTING_FIELDS if text.startswith(f)), "settings")
-        raise ApiError(422, field, text) from None
+        message = Msg(exc.message, **exc.params) if isinstance(exc, SettingError) else text
+        raise ApiError(422, field, message) from None
     if settings.n_wheel_orders > N_ORDER_COLUMNS:
         raise ApiError(
             422,

@@ -99,6 +99,44 @@ def test_a_stored_message_is_read_later_in_any_language():
     assert restored_message({"id": "run {ident} not found", "params": {}}) == "run {ident} not found"
 
 
+def test_account_and_webhook_rejections_are_marked():
+    """Beyond the run files: a password too short, an unknown role, a webhook URL with credentials or
+    aimed at a private address answer in the reader's language (the API's 422 takes the message)."""
+    from app.core.security import check_password_strength
+    from app.core.url_policy import AddressPolicy, UrlError, check_url, resolve
+    from app.db.auth_crud import AuthError, _check_role
+
+    with pytest.raises(ValueError) as exc:
+        check_password_strength("short")
+    assert isinstance(exc.value.args[0], Msg) and exc.value.args[0].in_language("de").startswith(
+        "das Passwort muss mindestens ")
+    with pytest.raises(AuthError) as err:
+        _check_role("boss")
+    assert err.value.field == "role" and err.value.message.in_language("fr").startswith("doit être l'un de ")
+    with pytest.raises(UrlError) as url:
+        check_url("https://user:secret@example.org/hook")
+    assert url.value.args[0].in_language("it").startswith("le credenziali nell'URL (user:password@) non sono")
+    with pytest.raises(UrlError) as url:
+        resolve("https://hooks.example.org/hook", AddressPolicy(), lambda host, port: ["10.1.2.3"])
+    assert str(url.value).startswith("resolves to 10.1.2.3, a private address: ")
+    assert url.value.args[0].in_language("de").startswith("wird zu 10.1.2.3 aufgelöst, eine private Adresse: ")
+
+
+def test_a_processing_setting_out_of_range_reads_in_the_users_language():
+    """The 422 of a reprocessing request's settings names the setting and says its range in German,
+    French or Italian (the analysis raises a SettingError with the message to translate)."""
+    from app.runs.jobs import settings_from_request
+
+    with pytest.raises(ApiError) as exc:
+        settings_from_request(None, {"bin_length_m": 20})
+    assert exc.value.field == "bin_length_m" and exc.value.message == "bin_length_m must be in [0.05, 10] m, got 20"
+    assert exc.value.message_in("de") == "bin_length_m muss in [0.05, 10] m liegen, erhalten: 20"
+    with pytest.raises(ApiError) as exc:
+        settings_from_request({"filter_order": 2}, {"colour": "red"})
+    assert exc.value.field == "settings"
+    assert exc.value.message_in("it") == "impostazione/i di elaborazione sconosciuta/e: colour"
+
+
 def test_every_message_is_in_every_catalogue():
     """The test of the catalogues: a message of the code (Python, templates, the pages' scripts,
     the words of the codes) missing from a language, left fuzzy or untranslated, a translation

@@ -27,6 +27,7 @@ from markupsafe import Markup
 
 from app.analysis.condition.tiers import TIER_ACTIONS
 from app.core.errors import ApiError
+from app.core.i18n import _
 from app.places.report import svg
 from app.places.report.data import ReportData
 
@@ -202,8 +203,9 @@ def render_pdf(data: ReportData, *, speech: Speech | None = None) -> bytes:
     try:  # imported here: Pango is loaded only when a report is made
         from weasyprint import HTML
     except (ImportError, OSError) as exc:
-        raise ApiError(503, "report", "the PDF report needs WeasyPrint and its system libraries (Pango: Debian "
-                       f"packages {' '.join(SYSTEM_PACKAGES)}), which cannot be loaded: {exc}") from exc
+        raise ApiError(503, "report", _("the PDF report needs WeasyPrint and its system libraries (Pango: Debian "
+                                        "packages {packages}), which cannot be loaded: {error}",
+                                        packages=" ".join(SYSTEM_PACKAGES), error=exc)) from exc
     html = render_html(data, speech=speech)
 
     def no_fetch(url: str, *args: Any, **kwargs: Any) -> dict:
