@@ -109,14 +109,27 @@ def key_create(
 
 
 @key_app.command("revoke")
-def key_revoke(key_id: Annotated[int, typer.Argument(help="Key id (see `trackvkf key list`)")]) -> None:
-    """Revoke an API key."""
+def key_revoke(
+    key_id: Annotated[int | None, typer.Argument(help="Key id (see `trackvkf key list`)")] = None,
+    name: Annotated[str | None, typer.Option(help="Instead of an id: every active key of this name")] = None,
+) -> None:
+    """Revoke an API key (by id, or every active key of a name)."""
     from app.accounts import admin
     from app.core.security import Actor
 
+    if (key_id is None) == (name is None):
+        raise typer.BadParameter("give a key id or --name, not both", param_hint="KEY_ID / --name")
     with _database() as db:
-        admin.revoke_key(db, Actor.command_line(), key_id)
-    echo(f"API key {key_id} revoked")
+        if key_id is not None:
+            ids = [key_id]
+        else:
+            ids = sorted(k.id for k in admin.list_keys(db) if k.name == name and k.revoked_at is None)
+            if not ids:
+                typer.echo(f"error: --name: no active API key named {name!r} (see `trackvkf key list`)", err=True)
+                raise typer.Exit(2)
+        for ident in ids:
+            admin.revoke_key(db, Actor.command_line(), ident)
+            echo(f"API key {ident} revoked")
 
 
 @key_app.command("list")

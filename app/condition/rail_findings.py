@@ -17,9 +17,7 @@ it, an unknown ``type`` 422 listing the types.
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
-import io
 import math
 import re
 from collections.abc import Sequence
@@ -31,6 +29,7 @@ from sqlalchemy.orm import Session
 from app.analysis.impacts.findings import FINDING_KINDS, RailFinding, RunImpacts, follow_findings
 from app.condition import readers as reader
 from app.condition.lines import resolve_line
+from app.core.csv_export import csv_text
 from app.core.errors import ApiError
 from app.core.i18n import _
 from app.core.jsonable import finite_or_none, iso_time
@@ -156,12 +155,11 @@ def finding(db: Database, ident: str) -> dict:
 
 
 def findings_csv(db: Database, line_id: str, track: str | None, types: Sequence[str] | None = None) -> str:
-    """The rail findings as CSV (:data:`CSV_COLUMNS`, one row per finding)."""
-    out = io.StringIO()
-    w = csv.writer(out, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
+    """The rail findings as CSV (:data:`CSV_COLUMNS`, one row per finding), written by
+    :mod:`app.core.csv_export` (an asset name a spreadsheet would run as a formula is defused)."""
+    rows = []
     for item in line_findings(db, line_id, track, types)["items"]:
         asset = item["asset"] or {}
         row = {**item, "asset_type": asset.get("type"), "asset_name": asset.get("name")}
-        w.writerow(["" if row.get(c) is None else row[c] for c in CSV_COLUMNS])
-    return out.getvalue()
+        rows.append([row.get(c) for c in CSV_COLUMNS])
+    return csv_text(CSV_COLUMNS, rows)

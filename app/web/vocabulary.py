@@ -18,6 +18,7 @@ from app.analysis.condition.discontinuities import ASSET_TYPES
 from app.analysis.condition.identity import TENDENCIES
 from app.analysis.condition.section_class import SECTION_CLASSES
 from app.analysis.condition.tiers import TIER_ACTIONS, TIER_NAMES
+from app.analysis.impacts.findings import FINDING_KINDS
 from app.analysis.stiffness.speed_norm import METHODS
 from app.core.i18n import translations
 from app.io.reference import MAINTENANCE_TYPES
@@ -57,6 +58,7 @@ KINDS: dict[str, Any] = {
     "tendency": lambda: _words(TENDENCIES),
     "maintenance type": lambda: _words(MAINTENANCE_TYPES),
     "asset type": lambda: _words(ASSET_TYPES),
+    "rail finding": lambda: _words(FINDING_KINDS),
     "job status": lambda: _words(JOB_STATUSES),
     "section class": lambda: {c: SECTION_CLASS_MEANINGS[c] for c in (*SECTION_CLASSES, "")},
     "direction": lambda: {"soft": "soft", "hard": "hard"},

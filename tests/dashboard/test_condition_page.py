@@ -485,3 +485,162 @@ def test_the_planning_report_in_german_leaves_no_english(history_service):
     for name in {a.get("name") or "" for p in places for a in p["assets"]}:  # the register's own names ("thermite weld")
         text = text.replace(name, "")
     assert english_leftovers(text, "de") == []
+
+
+# --- rail findings (issue 33 item 2) -----------------------------------------------------------------
+# The history of line SIM has smooth rails (no weld, no joint: no finding); the demo's run of line SIM-B has
+# rough rails with dipped welds and joints (its track impacts: 14 findings, each seen in its one run).
+RAILS_LINE, RAILS_TRACK = "SIM-B", "2"
+
+
+def _rail_rows(page) -> list[dict]:
+    return page.evaluate("""() => [...document.querySelectorAll('#rails-body tr[data-finding]')].map(tr => ({
+        id: tr.dataset.finding, cells: [...tr.querySelectorAll('td')].map(td => td.innerText.trim()) }))""")
+
+
+def _rail_findings(client, line_id: str, track: str) -> list[dict]:
+    r = client.get("/api/v1/condition/rail-findings", params={"line_id": line_id, "track": track})
+    assert r.status_code == 200, r.text
+    return r.json()["items"]
+
+
+def _heatmap_marks(page) -> list[float]:
+    return sorted(page.evaluate("(document.getElementById('cond-heatmap').layout.shapes || []).map(s => s.x0)"))
+
+
+def test_the_rail_findings_are_listed_apart_from_the_places(engineer_page, history_service):
+    """Issue 33 item 2: the welds and joints the line's runs found, in a table of their own — km, type, dip
+    depth in mm, runs seen / passed, the depth's trend, the asset register's label where a finding lies on a
+    register asset — with its CSV, each marked on the heat map; the card says they are rail features, not
+    support defects; none of them is a row of the work list."""
+    page, log = engineer_page
+    with history_service.client(timeout=120) as client:
+        found = _rail_findings(client, RAILS_LINE, RAILS_TRACK)
+        assert len(found) >= 3, found
+        # an insulated joint of the register on the third finding (the import replaces SIM-B's assets only)
+        on = found[2]
+        csv = f"line_id,track,type,km,km_to,name\n{RAILS_LINE},{RAILS_TRACK},insulated_joint,{on['km']:.4f},,IJ B7\n"
+        r = client.post("/api/v1/assets", files={"file": ("assets-b.csv", csv.encode(), "text/csv")})
+        assert r.status_code == 201, r.text
+        found = _rail_findings(client, RAILS_LINE, RAILS_TRACK)
+    labelled = [f for f in found if f["asset"]]
+    assert [f["id"] for f in labelled] == [on["id"]] and labelled[0]["asset"]["name"] == "IJ B7", found
+    page.goto(f"/condition?line_id={RAILS_LINE}&track={RAILS_TRACK}")
+    page.wait_for_selector("body[data-ready='1']")
+    rows = _rail_rows(page)
+    assert [r["id"] for r in rows] == [f["id"] for f in found]
+    for row, f in zip(rows, found, strict=True):
+        km, kind, depth, seen, trend, when, asset = row["cells"]
+        assert km == f"{f['km']:.3f}" and kind == f["type"].replace("_", " "), (row, f)
+        assert depth.startswith(f"{f['depth_mm']:.2f} mm"), (row, f)
+        assert seen == f"{f['runs_seen']} / {f['runs_passed']}", (row, f)
+        if f["depth_trend_mm_per_year"] is None:
+            assert trend == "–", (row, f)
+        else:
+            assert "mm a year" in trend and ("not significant" in trend) != f["depth_trend_significant"], (row, f)
+        assert when.startswith(f["first_seen"][:10]) and when.endswith(f["last_seen"][:10]), (row, f)
+        if f["asset"]:  # the asset register's label where a finding lies on a register asset
+            assert asset.startswith("insulated joint IJ B7 km "), (row, f)
+            assert kind == "insulated joint", row
+        else:
+            assert asset == "–", (row, f)
+    card = page.inner_text("#rails-card")
+    assert "rail features, not support defects" in card and "never ranked with the places" in card
+    assert page.inner_text("#rails-info").startswith(f"{len(found)} rail findings")
+    # the CSV link: the same findings
+    got = page.request.get(page.get_attribute("#rails-csv", "href"))
+    assert got.status == 200 and got.text().startswith("id,line_id,track,type,km")
+    assert [line.split(",")[0] for line in got.text().strip().split("\n")[1:]] == [f["id"] for f in found]
+    # marked on the heat map: a dotted line at each finding's km
+    assert _heatmap_marks(page) == sorted(f["km"] for f in found)
+    # never ranked with the places: the work list holds places only
+    assert page.locator("#places-body tr[data-finding]").count() == 0
+    # a line without findings says so (the history of line SIM: smooth rails)
+    page.select_option("#cond-line", value="SIM\u00011")
+    page.click("#cond-controls button[type=submit]")
+    page.wait_for_function("() => document.getElementById('cond-controls').dataset.drawn === 'SIM\u00011'")
+    assert not _rail_rows(page) and "No rail finding on this line" in page.inner_text("#rails-body")
+    assert _heatmap_marks(page) == []
+    assert page.locator("#banner").is_hidden()
+    log.assert_clean()
+
+
+def test_a_line_chosen_while_the_rail_findings_load_shows_its_own(engineer_page, history_service):
+    """The rail findings of a line chosen while another line's still load: the first line's answer,
+    landing late, never writes the table or the heat map's marks (the page's generation, C.begin)."""
+    page, log = engineer_page
+    flight = _InFlight(page)
+    with history_service.client(timeout=60) as client:
+        rails = _rail_findings(client, RAILS_LINE, RAILS_TRACK)
+        assert rails and not _rail_findings(client, "SIM", "1")
+    # SIM-B's findings held; SIM chosen and drawn meanwhile; then SIM-B's answer lands
+    held = _hold_first(page, "/condition/rail-findings", RAILS_LINE)
+    page.goto(f"/condition?line_id={RAILS_LINE}&track={RAILS_TRACK}")
+    _wait_held(page, held)
+    page.select_option("#cond-line", value="SIM\u00011")
+    page.click("#cond-controls button[type=submit]")
+    page.wait_for_function("() => document.getElementById('cond-controls').dataset.drawn === 'SIM\u00011'")
+    held[0].continue_()
+    page.wait_for_selector("body[data-ready='1']")
+    flight.settle(page)
+    page.unroute("**/api/v1/**")
+    assert not _rail_rows(page) and "No rail finding on this line" in page.inner_text("#rails-body")
+    assert page.get_attribute("#rails-body", "data-line") == "SIM\u00011" and _heatmap_marks(page) == []
+    # and back: SIM's findings held while SIM-B is chosen
+    held = _hold_first(page, "/condition/rail-findings", "SIM")
+    page.click("#cond-controls button[type=submit]")
+    _wait_held(page, held)
+    page.select_option("#cond-line", value=f"{RAILS_LINE}\u0001{RAILS_TRACK}")
+    page.click("#cond-controls button[type=submit]")
+    page.wait_for_function(f"() => document.getElementById('cond-controls').dataset.drawn === '{RAILS_LINE}\\u0001{RAILS_TRACK}'")
+    held[0].continue_()
+    flight.settle(page)
+    page.unroute("**/api/v1/**")
+    assert [r["id"] for r in _rail_rows(page)] == [f["id"] for f in rails]
+    assert page.get_attribute("#rails-body", "data-line") == f"{RAILS_LINE}\u0001{RAILS_TRACK}"
+    assert _heatmap_marks(page) == sorted(f["km"] for f in rails)
+    assert page.locator("#banner").is_hidden()
+    log.assert_clean()
+
+
+def test_the_planning_report_lists_the_rail_findings_after_the_places(history_service):
+    """Issue 34 item 3 (rail findings in the work list): the report's text read back (pdftotext) holds a
+    section of the line's rail findings after the work list and before the places' sheets — each finding's
+    km, type, dip depth, runs seen / passed, in ascending km — in English and in German (its words, the
+    decimal comma, no English left)."""
+    import re
+
+    from tests.condition.report_text import english_leftovers, pdf_text
+
+    _report_tools()
+    with history_service.client(timeout=300) as client:
+        found = _rail_findings(client, RAILS_LINE, RAILS_TRACK)
+        places = client.get("/api/v1/condition/places", params={"line_id": RAILS_LINE, "limit": 500}).json()["items"]
+        answers = {lang: client.get("/api/v1/condition/report.pdf", params={"line_id": RAILS_LINE, "date": "2026-03-02"},
+                                    headers={"Accept-Language": accept})
+                   for lang, accept in (("en", "en"), ("de", "de-DE,de;q=0.9"))}
+    assert found
+    words = {"en": ("Rail findings ({n}): welds and joints the runs found", "Work list", "Place", "Maintenance effects",
+                    {"weld": "weld", "joint": "joint", "insulated_joint": "insulated joint"}),
+             "de": ("Schienenbefunde ({n}): Schweissungen und Stösse, die die Messfahrten fanden", "Arbeitsliste", "Stelle",
+                    "Wirkungen der Instandhaltung", {"weld": "Schweissung", "joint": "Schienenstoss",
+                                                     "insulated_joint": "Isolierstoss"})}
+    for lang, r in answers.items():
+        assert r.status_code == 200, r.text[:2000]
+        head, work, place, effects, kinds = words[lang]
+        text = pdf_text(r.content)
+        start = text.index(head.format(n=len(found)))
+        end = min([text.index(f"{place} {p['id']}: km") for p in places] + [text.index(effects)])
+        assert text.index(work) < start < end
+        section = text[start:end]
+        at = 0
+        for f in found:  # each finding's row, in the order of the answer (ascending km)
+            def num(v: float, d: int, lang: str = lang) -> str:
+                return f"{v:.{d}f}".replace(".", ",") if lang == "de" else f"{v:.{d}f}"
+            row = re.compile(rf"{re.escape(num(f['km'], 3))} {re.escape(kinds[f['type']])} {re.escape(num(f['depth_mm'], 2))} "
+                             rf"{f['runs_seen']} ?/ ?{f['runs_passed']} ")
+            hit = row.search(section, at)
+            assert hit, (lang, f, section[at:at + 400])
+            at = hit.end()
+        if lang == "de":
+            assert english_leftovers(text.replace("IJ B7", ""), "de") == []

@@ -177,6 +177,33 @@ def test_unmigrated_database_asks_for_migrate(tmp_path, monkeypatch):
     assert "is not migrated: run `trackvkf migrate` first" in result.output
 
 
+def test_key_revoke_by_name(tmp_path, monkeypatch):
+    """``key revoke --name N`` revokes every active key named N and only those; neither id nor name,
+    both, or a name without an active key: exit 2, nothing revoked."""
+    from app.db import migrate
+
+    url = f"sqlite:///{tmp_path / 'keys.db'}"
+    migrate.upgrade(url)
+    monkeypatch.setenv("TRACKVKF_DATABASE_URL", url)
+    get_settings.cache_clear()
+    try:
+        for name in ("recorder 3", "recorder 3", "loader"):
+            assert runner.invoke(app, ["key", "create", name]).exit_code == 0
+        for args in (["key", "revoke"], ["key", "revoke", "3", "--name", "loader"],
+                     ["key", "revoke", "--name", "nobody"]):
+            result = runner.invoke(app, args)
+            assert result.exit_code == 2, (args, result.output)
+        result = runner.invoke(app, ["key", "revoke", "--name", "recorder 3"])
+        assert result.exit_code == 0, result.output
+        assert "API key 1 revoked" in result.output and "API key 2 revoked" in result.output
+        states = {line.split("\t")[0]: line.split("\t")[-1]
+                  for line in runner.invoke(app, ["key", "list"]).output.splitlines() if "\t" in line}
+        assert states["1"].startswith("revoked") and states["2"].startswith("revoked") and states["3"] == "active"
+        assert runner.invoke(app, ["key", "revoke", "--name", "recorder 3"]).exit_code == 2  # none active now
+    finally:
+        get_settings.cache_clear()
+
+
 def test_engine_warnings_are_one_line_each_and_kept_in_meta():
     """Warnings inside the block reach the writer once per distinct message, without a source
     line, and are counted."""

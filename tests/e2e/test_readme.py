@@ -97,10 +97,11 @@ def readme_script(blocks: list[list[str]], logs: Path, state: tuple[Path, list[s
     ]
     if state is not None:
         directory, paths = state
-        reads = "; ".join(
+        reads = " ".join(  # at once; each one's exit status checked
             f"command curl --fail-with-body -sS -H \"Authorization: Bearer ${STATE_KEY}\" "
-            f"'http://127.0.0.1:8000{path}' >\"{directory}/$1/{i}.json\"" for i, path in enumerate(paths))
-        out.append(f"__demo_state() {{ mkdir -p \"{directory}/$1\"; {reads}; }}")
+            f"'http://127.0.0.1:8000{path}' >\"{directory}/$1/{i}.json\" & pids+=($!);" for i, path in enumerate(paths))
+        out.append(f"__demo_state() {{ local pids=() pid; mkdir -p \"{directory}/$1\"; {reads} "
+                   "for pid in \"${pids[@]}\"; do wait \"$pid\"; done; }")
     n = 0
     read_before = state is None
     for block in blocks:
@@ -212,11 +213,11 @@ def test_readme_commands_run_verbatim(tmp_path, processed_demo):
     # what the README promised happened: the run, its reference data, the analyses, the CLI output
     assert '"slope"' in done.stdout and '"mass_kg"' in done.stdout and '"shift_confidence":1.0' in done.stdout
     assert (project / "var" / "cli-out" / "profiles.parquet").is_file()
-    # the docs' run is on its own line, and the demo is as it was
-    docs_run = json.loads((project / "var" / "docs-run.json").read_text())
-    assert docs_run["line_id"] == "DOCS" and docs_run["id"] not in processed_demo.run_ids, docs_run
+    # the demo is as it was, and the docs' run is on its own line
     before, after = _demo_state(tmp_path / "state" / "before", paths), _demo_state(tmp_path / "state" / "after", paths)
     demo_runs = [r["id"] for path in paths[:2] for r in before[path]["items"]]
     assert sorted(demo_runs) == sorted(processed_demo.run_ids), demo_runs
     for path in paths:
         assert after[path] == before[path], f"the docs changed the demo: GET {path}"
+    docs_run = json.loads((project / "var" / "docs-run.json").read_text())
+    assert docs_run["line_id"] == "DOCS" and docs_run["id"] not in processed_demo.run_ids, docs_run

@@ -3,7 +3,8 @@
 :func:`line_report` reads what the Condition page shows (:mod:`~app.places.report.data`) and
 renders it (:mod:`~app.places.report.render`): the section classes in the railway's class scheme
 and their change over the year, the work list (tier, extent, size ± 1σ, trend, time to limit,
-status, assets), one sheet per open place (its history plot, where it is on the line and on the
+status, assets), the rail findings (welds and joints: km, type, dip depth, runs seen, the depth's
+trend; never ranked with the places), one sheet per open place (its history plot, where it is on the line and on the
 map, the maintenance over it) and the maintenance effects, in the user's language. Served by
 ``GET /condition/report.pdf`` and the Condition page's "Report (PDF)" button.
 """

@@ -1,6 +1,8 @@
 """What the planning report shows, read through the services that answer the Condition page:
 the section classes in the railway's scheme (:func:`app.places.sections.line_sections`), the
-work list (:func:`app.places.worklist.list_places`), each open place's history with the
+work list (:func:`app.places.worklist.list_places`), the line's rail findings — welds and joints
+the runs found, listed apart from the places, never ranked with them
+(:func:`app.condition.rail_findings.line_findings`) —, each open place's history with the
 maintenance over it (:func:`app.places.worklist.place_history`), the maintenance effects
 (:func:`app.places.effect.action_effects`) and the line's geometry (the map).
 """
@@ -8,10 +10,11 @@ maintenance over it (:func:`app.places.worklist.place_history`), the maintenance
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from app.condition.lines import resolve_line
+from app.condition.rail_findings import line_findings
 from app.db import recorder_crud
 from app.db.session import Database
 from app.io.geometry import LineGeometry
@@ -42,6 +45,9 @@ class ReportData:
     effects: list[dict[str, Any]]
     geometry: LineGeometry | None
     km_range: tuple[float, float]
+    #: the line's rail findings (``GET /condition/rail-findings``'s items: km, type, dip depth in mm,
+    #: runs seen of runs passed, the depth's trend in mm a year), ascending km
+    rail_findings: list[dict[str, Any]] = field(default_factory=list)
 
 
 def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date: dt.date,
@@ -54,6 +60,7 @@ def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date
     listed = list_places(db, PlaceQuery(line_id=line.line_id, track=line.track, limit=MAX_PLACES), config)
     places = listed["items"]
     histories = {p["id"]: place_history(db, p["id"], config) for p in places}
+    rails = line_findings(db, line.line_id, line.track)["items"]
     effects = action_effects(db, line.line_id, line.track, types=None, since=None, km_from=None, km_to=None,
                              before_days=EFFECT_BEFORE_DAYS, after_days=EFFECT_AFTER_DAYS,
                              regain_fraction=EFFECT_REGAIN, config=config)["items"]
@@ -65,4 +72,4 @@ def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date
     km_range = (min(a for a, _ in kms), max(b for _, b in kms)) if kms else (0.0, 1.0)
     return ReportData(line_id=line.line_id, track=line.track, date=date, sections=sections, places=places,
                       total_places=int(listed["total"]), histories=histories, effects=effects, geometry=geometry,
-                      km_range=km_range)
+                      km_range=km_range, rail_findings=rails)

@@ -1,8 +1,10 @@
 """The report as HTML (Jinja2, ``frontend/templates/report.html``) and as PDF (WeasyPrint).
 
 One title page (the line, the date, the section classes in the railway's scheme and their change
-over the year), the work list, one sheet per open place (its facts, its history plot, where it is
-on the line and on the map, the maintenance over it) and the maintenance effects. The plots are
+over the year), the work list, the rail findings (welds and joints the runs found: km, type, dip
+depth, runs seen of runs passed, the depth's trend; listed apart, never ranked with the places), one
+sheet per open place (its facts, its history plot, where it is on the line and on the map, the
+maintenance over it) and the maintenance effects. The plots are
 SVG drawn here (:mod:`app.places.report.svg`); WeasyPrint needs Pango (Debian: ``libpango-1.0-0``,
 ``libpangoft2-1.0-0``) and reads nothing from the network (every resource is inline or a
 local file).
@@ -70,8 +72,9 @@ class Speech:
         The catalogue's ngettext: ``(singular, plural, n)`` → the text in ``lang``.
     label : callable
         ``(kind, code)`` → the words of a code (a tier, status, tendency, direction, maintenance
-        or asset type) in ``lang``; the kinds are the pages' (``tier``, ``tier action``,
-        ``place status``, ``tendency``, ``direction``, ``maintenance type``, ``asset type``).
+        or asset type, rail finding) in ``lang``; the kinds are the pages' (``tier``, ``tier action``,
+        ``place status``, ``tendency``, ``direction``, ``maintenance type``, ``asset type``,
+        ``rail finding``).
     """
 
     lang: str = "en"

@@ -1,7 +1,7 @@
 /* Condition page: the line's runs × segments heat map — the stiffness index per segment (by
  * /analytics/segments, value=index) first, the stored condition index ln A (/condition/heatmap)
- * one click away — with the store's flagged changes marked on both. Runs run down the map oldest
- * first, as on the Line view. A click on a cell shows its segment's trend. */
+ * one click away — with the store's flagged changes and the line's rail findings (a dotted line
+ * each) marked on both. Runs run down the map oldest first, as on the Line view. A click on a cell shows its segment's trend. */
 (function () {
   "use strict";
   const C = window.trackvkfCondition;
@@ -36,6 +36,10 @@
     const when = new Map(heat.runs.map((r) => [r.run_id, r.start_time]));
     const marks = heat.flagged.filter(([run]) => when.has(run));
     const name = index ? T._("stiffness index") : "ln A";
+    // the line's rail findings (welds, joints; condition/rails.js drew them for this view): a dotted line each
+    const rails = state.rails && state.rails.key === view.key ? state.rails.items : [];
+    const shapes = rails.map((f) => ({ type: "line", xref: "x", yref: "paper", x0: f.km, x1: f.km, y0: 0, y1: 1,
+                                       line: { color: "rgba(29,39,51,0.55)", width: 1, dash: "dot" } }));
     await T.plot(el, [
       { type: "heatmap", x, y, z: heat.matrix, colorscale: index ? "RdBu" : "YlOrRd", reversescale: !index, zmid: index ? 0 : undefined,
         hoverongaps: false, name,
@@ -48,7 +52,7 @@
       xaxis: T.axis(T._("Track position, segment centre (km)"), { tickformat: ".1f" }),
       // oldest run at the top, as the Line view's heat map
       yaxis: T.axis(T._("Run (date)"), { type: "date", autorange: "reversed" }),
-      margin: { l: 90, r: 30, t: 20, b: 60 }, showlegend: false,
+      margin: { l: 90, r: 30, t: 20, b: 60 }, showlegend: false, shapes,
     }, {
       filename: `condition-heatmap-${line_id}`,
       csv: () => {

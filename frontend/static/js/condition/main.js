@@ -1,7 +1,8 @@
 /* Condition page: an exception report of a line — the section classes, the places (the work
- * list) and a place's history, the runs × segments heat map and a segment's trend, the maintenance
- * actions and their effect, the webhooks (admins). This file chooses the line and draws the
- * panels (each in a file of its own under condition/) in the order of the page. */
+ * list) and a place's history, the rail findings (welds, joints: never ranked with the places),
+ * the runs × segments heat map and a segment's trend, the maintenance actions and their effect,
+ * the webhooks (admins). This file chooses the line and draws the panels (each in a file of its
+ * own under condition/) in the order of the page. */
 (function () {
   "use strict";
   const C = window.trackvkfCondition;
@@ -41,6 +42,8 @@
     if (top && !(res.items.some((p) => p.id === state.placeId))) state.placeId = top.id;
     if (state.placeId) await C.drawPlace(state.placeId, view);
     else C.clearPlace(T._("No place on this line."), `<p>${T._("Places appear once two runs find the same exceedance (at once at the intervention tier).")}</p>`);
+    if (!view.live()) return;
+    await C.drawRails(view);
     if (!view.live()) return;
     await C.drawHeatmap(view);
     if (!view.live()) return;
