@@ -77,7 +77,7 @@ class _Sink:
         self._fh = open(path, "wb", buffering=0)  # noqa: SIM115 - closed in close()
 
     def _write(self, data: bytes) -> None:
-        require_free(self.path.parent, len(data), self.reserve, "the upload")
+        require_free(self.path.parent, len(data), self.reserve, _("the upload"))
         self.hash.update(data)
         self._fh.write(data)
 

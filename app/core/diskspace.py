@@ -17,6 +17,8 @@ import os
 import sqlite3
 from pathlib import Path
 
+from app.core.i18n import _
+
 __all__ = ["DiskFullError", "free_bytes", "require_free", "is_disk_full", "describe_bytes"]
 
 #: errno values meaning "no room": the file system is full or the user's quota is used up
@@ -88,9 +90,9 @@ def require_free(path: Path | str, needed: int, reserve: int, what: str = "the d
     if needed + reserve > free:
         raise DiskFullError(
             path,
-            f"not enough free space for {what}: {describe_bytes(needed)} needed, "
-            f"{describe_bytes(free)} free, {describe_bytes(reserve)} kept in reserve "
-            "(TRACKVKF_MIN_FREE_BYTES)",
+            _("not enough free space for {what}: {needed} needed, {free} free, {reserve} kept in reserve "
+              "(TRACKVKF_MIN_FREE_BYTES)", what=what, needed=describe_bytes(needed), free=describe_bytes(free),
+              reserve=describe_bytes(reserve)),
         )
     return free
 

@@ -19,6 +19,7 @@ import os
 from pathlib import Path
 
 from app.core.diskspace import DiskFullError, describe_bytes, free_bytes, is_disk_full
+from app.core.i18n import _
 
 __all__ = ["GuardedFile"]
 
@@ -122,9 +123,9 @@ class GuardedFile(io.RawIOBase):
         if free < self._reserve + self._check_every:
             raise DiskFullError(
                 self.path,
-                f"the file system ran short of space while writing: {describe_bytes(free)} free, the next "
-                f"{describe_bytes(self._check_every)} would leave less than the reserve of "
-                f"{describe_bytes(self._reserve)} (TRACKVKF_MIN_FREE_BYTES)",
+                _("the file system ran short of space while writing: {free} free, the next {step} would leave "
+                  "less than the reserve of {reserve} (TRACKVKF_MIN_FREE_BYTES)", free=describe_bytes(free),
+                  step=describe_bytes(self._check_every), reserve=describe_bytes(self._reserve)),
             )
 
     def _fail(self, exc: OSError) -> None:
@@ -139,6 +140,6 @@ class GuardedFile(io.RawIOBase):
             raise exc
         if is_disk_full(exc):
             raise DiskFullError(
-                self.path, f"the file system is full ({exc.strerror or 'no space left on device'})"
+                self.path, _("the file system is full ({reason})", reason=exc.strerror or "no space left on device")
             ) from exc
         raise OSError(exc.errno, f"cannot write {self.path.name}: {exc.strerror}") from exc

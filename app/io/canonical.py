@@ -121,7 +121,7 @@ def canonical_output(
     """
     with atomic_output(dest) as tmp:
         if expected_bytes > 0 or reserve_bytes > 0:
-            require_free(tmp.parent, max(int(expected_bytes), 0), reserve_bytes, "the canonical run file")
+            require_free(tmp.parent, max(int(expected_bytes), 0), reserve_bytes, _("the canonical run file"))
         guard = GuardedFile(tmp, reserve_bytes)
         try:
             h5 = h5py.File(guard, "w")

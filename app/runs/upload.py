@@ -140,7 +140,7 @@ def refusal(exc: BaseException) -> tuple[ApiError, str, ApiError | None]:
         return exc, "rejected", None
     if is_disk_full(exc):
         log.warning("upload refused: %s", exc)
-        reason = str(exc) if isinstance(exc, DiskFullError) else "the run store or the database is full"
+        reason = exc.message if isinstance(exc, DiskFullError) else _("the run store or the database is full")
         full = ApiError(507, "storage", _("{reason}; the upload was not kept, free space and try again", reason=reason))
         return full, "rejected", full
     if isinstance(exc, RunFileError):

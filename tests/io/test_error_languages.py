@@ -308,3 +308,21 @@ def test_the_ingest_warnings_are_answered_in_the_readers_language(service, tmp_p
     listed = client.get("/api/v1/runs", headers=auth | {"Accept-Language": "fr"}).json()["items"]
     french = next(item for item in listed if item["id"] == run_id)["warnings"]
     assert any(w.startswith("axle_positions : non indiqué ; la disposition par défaut") for w in french), french
+
+
+def test_a_full_disk_reads_in_the_users_language(tmp_path: Path) -> None:
+    """The 507 of an upload the disk cannot hold says what did not fit in the reader's language
+    (no errno, no server path)."""
+    from app.core.diskspace import DiskFullError, require_free
+    from app.core.i18n import _
+    from app.runs.upload import refusal
+
+    with pytest.raises(DiskFullError) as exc:
+        require_free(tmp_path, 10**18, 0, _("the upload"))
+    error, outcome, answer = refusal(exc.value)
+    assert outcome == "rejected" and answer is error and error.status_code == 507 and error.field == "storage"
+    assert error.message.startswith("not enough free space for the upload: "), error.message
+    assert str(tmp_path) not in error.message and "Errno" not in error.message
+    german = error.message_in("de")
+    assert german.startswith("nicht genug freier Speicher für den Upload: "), german
+    assert german.endswith("; das Hochgeladene wurde nicht behalten, schaffen Sie Platz und versuchen Sie es erneut")
