@@ -12,11 +12,11 @@ import math
 from typing import Any
 
 from app.analysis.recipe import order_overlap, wheel_recipe
-from app.analysis.settings import ProcessingSettings
+from app.analysis.settings import ProcessingSettings, SettingError
 from app.analysis.spectrogram import window_spectrograms
 from app.analysis.units import KMH_PER_MPS
 from app.core.errors import ApiError, not_found
-from app.core.i18n import _
+from app.core.i18n import Msg, _
 from app.core.jsonable import finite_list
 from app.core.runstore import RunStore
 from app.db import crud, results_reader
@@ -120,7 +120,7 @@ def spectrogram_answer(db: Database, store: RunStore, run_id: int, *, wheel: str
         except ValueError as exc:
             text = str(exc)
             field = text.split(":", 1)[0] if text.startswith("speed") else "window"
-            raise ApiError(422, field, text) from None
+            raise ApiError(422, field, Msg(exc.message, **exc.params) if isinstance(exc, SettingError) else text) from None
         km_frames = run.km(start, stop, axle=axle)[spec.frame_index]
         fs = run.fs
     return {

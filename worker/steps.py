@@ -44,7 +44,6 @@ from app import publish
 from app.analysis.settings import ProcessingSettings
 from app.analytics.reference_curves import CurveParams, refresh_reference
 from app.condition.config import ConditionConfig
-from app.core.diskspace import is_disk_full
 from app.core.runstore import RunStore
 from app.db import crud, queue
 from app.db.models import ChunkStatus, Job, JobStatus, Run
@@ -53,6 +52,7 @@ from app.io import WHEELS
 from app.pipeline import ChunkSpec, plan_chunks, results_meta
 from app.places.config import PlacesConfig
 from app.places.followup import FollowupPolicy
+from app.runs import jobs
 from app.settings import Settings
 from worker.chunkstore import ChunkStore
 
@@ -234,10 +234,10 @@ def fail_job(db: Database, job_id: int, exc: BaseException, *, worker_id: str | 
         False if the job is no longer ``worker_id``'s (None: any owner) or not running.
     """
     log.error("job %s failed:\n%s", job_id, "".join(traceback.format_exception(exc)))
-    error = f"{type(exc).__name__}: {exc}"
-    if is_disk_full(exc):
-        error = f"disk full: the results could not be written ({error}); free space and reprocess"
-    return queue.finish_job(db, job_id, JobStatus.FAILED, error[:_MAX_ERROR_CHARS], worker_id=worker_id)
+    message = jobs.failure_message(exc)
+    error = str(message)
+    return queue.finish_job(db, job_id, JobStatus.FAILED, error[:_MAX_ERROR_CHARS], worker_id=worker_id,
+                            message=message if len(error) <= _MAX_ERROR_CHARS else None)
 
 
 def remove_files_if_deleted(rt: WorkerRuntime, run_id: int) -> bool:
@@ -411,7 +411,7 @@ def end_failed(rt: WorkerRuntime, job_id: int, run_id: int | None, exc: BaseExce
 
 def end_cancelled(rt: WorkerRuntime, job_id: int, run_id: int, *, worker_id: str) -> bool:
     """Mark a job this worker runs cancelled (by request) and remove the run's finished job files."""
-    cancelled = queue.finish_job(rt.db, job_id, JobStatus.CANCELLED, "cancelled by request", worker_id=worker_id)
+    cancelled = queue.finish_job(rt.db, job_id, JobStatus.CANCELLED, queue.CANCELLED_BY_REQUEST, worker_id=worker_id)
     discard_job_files(rt, run_id)
     return cancelled
 

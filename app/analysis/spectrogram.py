@@ -24,7 +24,7 @@ from scipy.signal import ShortTimeFFT, resample_poly
 from scipy.signal.windows import hann
 
 from app.analysis.recipe import order_overlap, order_recipe, travel_phase
-from app.analysis.settings import ProcessingSettings
+from app.analysis.settings import N_, ProcessingSettings, SettingError
 from app.analysis.units import KMH_PER_MPS
 
 __all__ = [
@@ -307,10 +307,9 @@ def window_spectrograms(
     v = v_all[lo:hi]
     v_mean = float(v.mean())
     if v_mean < settings.min_speed_kmh / KMH_PER_MPS:
-        raise ValueError(
-            f"speed: the mean speed in the window ({v_mean * KMH_PER_MPS:.1f} km/h) is below "
-            f"min_speed_kmh = {settings.min_speed_kmh:g} km/h"
-        )
+        raise SettingError("min_speed_kmh", N_("speed: the mean speed in the window ({mean:.1f} km/h) is below "
+                                                "min_speed_kmh = {limit:g} km/h"),
+                           mean=v_mean * KMH_PER_MPS, limit=settings.min_speed_kmh)
     recipe = order_recipe(wheel_diameter, sleeper_spacing, settings)
     mult = recipe.multipliers
     f_top = min(_BAND_MARGIN * float(mult.max()) * float(v.max()), 0.5 * fs)

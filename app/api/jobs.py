@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Depends, Query, status
+from fastapi import APIRouter, Body, Depends, Query, Request, status
 
 from app.api.deps import (
     DbDep,
@@ -17,6 +17,7 @@ from app.api.deps import (
     check_page_size,
     require_role,
 )
+from app.api.language import request_language
 from app.api.schemas.from_rows import job_out
 from app.api.schemas.jobs import JobList, JobOut, ProcessingSettingsIn
 from app.core.ids import MAX_ID
@@ -27,8 +28,8 @@ __all__ = ["router"]
 
 router = APIRouter(tags=["jobs"])
 
-def _job_list(views: list, total: int, limit: int, offset: int) -> JobList:
-    return JobList(items=[job_out(v) for v in views], total=total, limit=limit, offset=offset)
+def _job_list(views: list, total: int, limit: int, offset: int, lang: str) -> JobList:
+    return JobList(items=[job_out(v, lang) for v in views], total=total, limit=limit, offset=offset)
 
 
 @router.get("/runs/{run_id}/jobs", response_model=JobList, summary="Jobs of a run")
@@ -36,13 +37,14 @@ def run_jobs(
     run_id: RunId,
     db: DbDep,
     settings: SettingsDep,
+    request: Request,
     limit: Annotated[int, Query(ge=1)] = 50,
     offset: PageOffset = 0,
 ) -> JobList:
     """The processing jobs of a run, newest first."""
     check_page_size(limit, settings)
     views, total = jobs.job_page(db, run_id=run_id, limit=limit, offset=offset, run_must_exist=True)
-    return _job_list(views, total, limit, offset)
+    return _job_list(views, total, limit, offset, request_language(request).code)
 
 
 @router.post(
@@ -72,6 +74,7 @@ def reprocess(
 def list_jobs(
     db: DbDep,
     settings: SettingsDep,
+    request: Request,
     status_: Annotated[
         str | None,
         Query(alias="status", description="queued, running, done, failed or cancelled", max_length=16),
@@ -83,13 +86,13 @@ def list_jobs(
     """All jobs, newest first, optionally by status and run."""
     check_page_size(limit, settings)
     views, total = jobs.job_page(db, run_id=run_id, status=status_, limit=limit, offset=offset)
-    return _job_list(views, total, limit, offset)
+    return _job_list(views, total, limit, offset, request_language(request).code)
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut, summary="Job detail")
-def get_job(job_id: JobId, db: DbDep) -> JobOut:
+def get_job(job_id: JobId, db: DbDep, request: Request) -> JobOut:
     """Status, progress, error, timings, settings and provenance of a job."""
-    return job_out(jobs.job_view(db, job_id))
+    return job_out(jobs.job_view(db, job_id), request_language(request).code)
 
 
 @router.post(

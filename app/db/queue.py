@@ -25,6 +25,7 @@ from typing import Any
 from sqlalchemy import and_, case, func, literal, or_, select, update
 from sqlalchemy.orm import Session
 
+from app.core.i18n import N_, Msg, stored_message
 from app.core.jsonable import jsonable
 from app.db import results_writer
 from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
@@ -255,12 +256,19 @@ def mark_chunk(
         return progress
 
 
+#: the error text of a job cancelled on request (the API answers it in the reader's language)
+CANCELLED_BY_REQUEST = N_("cancelled by request")
+
+
 def finish_job(
-    db: Database, job_id: int, status: str, error: str | None = None, *, worker_id: str | None
+    db: Database, job_id: int, status: str, error: str | None = None, *, worker_id: str | None,
+    message: str | None = None,
 ) -> bool:
     """Mark a job this worker runs as failed or cancelled (with its error text).
 
-    ``worker_id``: owner of the job; None: any owner (fan-out mode).
+    ``worker_id``: owner of the job; None: any owner (fan-out mode). ``message``: the error marked for
+    translation (:class:`~app.core.i18n.Msg`), kept in the job's ``meta`` (``error_message``) so that
+    the API answers it in the reader's language (``error`` stays the text, cut to the column).
     """
     if status not in (JobStatus.FAILED, JobStatus.CANCELLED):
         raise ValueError(f"status must be failed or cancelled, got {status!r}")
@@ -272,6 +280,10 @@ def finish_job(
         )
         if result.rowcount != 1:
             return False
+        if isinstance(message, Msg):
+            meta = dict(session.execute(select(Job.meta).where(Job.id == job_id)).scalar_one() or {})
+            meta["error_message"] = stored_message(message)
+            session.execute(update(Job).where(Job.id == job_id).values(meta=meta))
         results_writer.discard_profile_rows(session, job_id)  # rows of wheels stored before it ended
         return True
 
@@ -355,7 +367,7 @@ def finalize_cancel_requests(db: Database) -> dict[int, int]:
             )
             .values(
                 status=JobStatus.CANCELLED,
-                error="cancelled by request",
+                error=CANCELLED_BY_REQUEST,
                 finished_at=utcnow(),
                 heartbeat_at=None,
             )

@@ -12,16 +12,20 @@ from typing import Any
 
 from app.analysis.settings import ProcessingSettings, SettingError
 from app.audit import record
+from app.core.diskspace import is_disk_full
 from app.core.errors import ApiError, not_found
-from app.core.i18n import Msg, _
+from app.core.i18n import Msg, _, restored_message, translate
 from app.core.runstore import RunStore
 from app.core.security import Actor
 from app.db import crud
 from app.db.models import N_ORDER_COLUMNS, Job, JobStatus
+from app.db.queue import CANCELLED_BY_REQUEST
 from app.db.session import Database
+from app.io import RunFileError
 from app.runs.catalog import JobView, job_views
 
-__all__ = ["JOB_STATUSES", "N_ORDER_COLUMNS", "settings_from_request", "reprocess", "cancel", "job_page", "job_view"]
+__all__ = ["JOB_STATUSES", "N_ORDER_COLUMNS", "settings_from_request", "reprocess", "cancel", "job_page", "job_view",
+           "failure_message", "job_error"]
 
 #: the states of a job (the pages' words for them: app.web.vocabulary)
 JOB_STATUSES: tuple[str, ...] = tuple(JobStatus.ALL)
@@ -137,3 +141,31 @@ def job_view(db: Database, job_id: int) -> JobView:
         if job is None:
             raise not_found("job", job_id)
         return job_views(session, [job])[0]
+
+
+def failure_message(exc: BaseException) -> str:
+    """The error text of a failed job: ``<exception type>: <its text>``; a :class:`~app.core.i18n.Msg`
+    (the reader's language) where the exception's message is marked (a run file's error names its field)."""
+    text = exc.message if isinstance(exc, RunFileError) else exc.args[0] if exc.args else None
+    problem: str
+    if isinstance(exc, RunFileError) and isinstance(text, Msg):
+        problem = _("{field}: {problem}", field=exc.field, problem=text)
+    elif isinstance(text, Msg) and len(exc.args) == 1:
+        problem = text
+    else:
+        problem = str(exc)
+    error = _("{kind}: {problem}", kind=type(exc).__name__, problem=problem)
+    if is_disk_full(exc):
+        return _("disk full: the results could not be written ({error}); free space and reprocess", error=error)
+    return error
+
+
+def job_error(error: str | None, meta: dict | None, lang: str) -> str | None:
+    """A failed or cancelled job's error text in ``lang``: kept as a message (``meta["error_message"]``,
+    :func:`failure_message`) since it was, the cancel's words, else as stored."""
+    kept = (meta or {}).get("error_message")
+    if error is not None and isinstance(kept, dict):
+        return translate(restored_message(kept), lang)
+    if error == CANCELLED_BY_REQUEST:
+        return Msg(CANCELLED_BY_REQUEST).in_language(lang)
+    return error

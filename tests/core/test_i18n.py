@@ -137,6 +137,23 @@ def test_a_processing_setting_out_of_range_reads_in_the_users_language():
     assert exc.value.message_in("it") == "impostazione/i di elaborazione sconosciuta/e: colour"
 
 
+def test_a_spectrogram_window_too_slow_reads_in_the_users_language():
+    """The spectrogram's 422 for a window slower than min_speed_kmh: the analysis keeps the message
+    to translate (its English unchanged)."""
+    import numpy as np
+
+    from app.analysis.settings import ProcessingSettings, SettingError
+    from app.analysis.spectrogram import window_spectrograms
+
+    n = 4096
+    with pytest.raises(SettingError) as exc:
+        window_spectrograms(np.zeros(n), 2000.0, np.full(n, 1.0), core=(0, n), wheel_diameter=0.92,
+                            sleeper_spacing=0.6, settings=ProcessingSettings())
+    assert str(exc.value).startswith("speed: the mean speed in the window (3.6 km/h) is below min_speed_kmh = ")
+    german = Msg(exc.value.message, **exc.value.params).in_language("de")
+    assert german.startswith("speed: die mittlere Geschwindigkeit im Fenster (3.6 km/h) liegt unter min_speed_kmh = ")
+
+
 def test_every_message_is_in_every_catalogue():
     """The test of the catalogues: a message of the code (Python, templates, the pages' scripts,
     the words of the codes) missing from a language, left fuzzy or untranslated, a translation

@@ -60,6 +60,22 @@ def test_fail_job_stores_the_error_text(claimed):
     assert load_job(rt.db, job_id).not_running() == "job failed"
 
 
+def test_a_failed_jobs_error_reads_in_the_users_language(claimed):
+    """A job failed on a run file's error keeps it as a message: the API answers it in the reader's
+    language (the job, the run's jobs), the exception's type and the field as they are."""
+    from app.core.i18n import _
+    from app.io import RunFileError
+
+    client, rt, record = claimed
+    job_id, run_id = record.job.id, record.run.id
+    assert fail_job(rt.db, job_id, RunFileError("speed", _("run has neither speed nor position")), worker_id="w")
+    assert client.get(f"/api/v1/jobs/{job_id}").json()["error"] == "RunFileError: speed: run has neither speed nor position"
+    german = client.get(f"/api/v1/jobs/{job_id}", headers={"Accept-Language": "de"}).json()["error"]
+    assert german == "RunFileError: speed: die Messfahrt hat weder speed noch position"
+    listed = client.get(f"/api/v1/runs/{run_id}/jobs", headers={"Accept-Language": "fr"}).json()["items"]
+    assert next(j for j in listed if j["id"] == job_id)["error"] == "RunFileError : speed : le parcours n'a ni speed ni position"
+
+
 def test_files_of_a_deleted_run_are_removed(claimed):
     client, rt, record = claimed
     run_id = record.run.id

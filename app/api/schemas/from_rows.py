@@ -10,6 +10,7 @@ from app.api.schemas.runs import RunDetail, RunOut, RunSummaryOut
 from app.core.config import API_PREFIX
 from app.core.i18n import DEFAULT_LANGUAGE, restored_message, translate
 from app.runs.catalog import JobView, RunView
+from app.runs.jobs import job_error
 
 __all__ = ["job_out", "run_out", "run_detail"]
 
@@ -22,15 +23,15 @@ def _settings_shown(stored: dict | None) -> dict:
         return dict(stored or {})
 
 
-def job_out(view: JobView) -> JobOut:
-    """Response model of a job."""
+def job_out(view: JobView, lang: str = DEFAULT_LANGUAGE) -> JobOut:
+    """Response model of a job (its error in ``lang`` where it was kept as a message)."""
     job = view.job
     return JobOut(
         id=job.id,
         run_id=job.run_id,
         status=job.status,
         progress=float(job.progress or 0.0),
-        error=job.error,
+        error=job_error(job.error, job.meta, lang),
         settings=_settings_shown(job.settings),
         meta=job.meta,
         warnings=[str(w) for w in (job.meta or {}).get("warnings") or []],
@@ -97,7 +98,7 @@ def run_out(view: RunView, lang: str = DEFAULT_LANGUAGE) -> RunOut:
             speed_max_kmh=_kmh(run.speed_max),
             channels=list(run.channels or []),
         ),
-        latest_job=job_out(view.latest) if view.latest is not None else None,
+        latest_job=job_out(view.latest, lang) if view.latest is not None else None,
         links=_links(run.id),
         warnings=_warnings(run.ingest_report or {}, lang),
     )
