@@ -517,14 +517,15 @@ def test_the_rail_findings_are_listed_apart_from_the_places(engineer_page, histo
     with history_service.client(timeout=120) as client:
         found = _rail_findings(client, RAILS_LINE, RAILS_TRACK)
         assert len(found) >= 3, found
-        # an insulated joint of the register on the third finding (the import replaces SIM-B's assets only)
+        # an insulated joint of the register on the third finding (the import replaces SIM-B's assets only),
+        # its name one that a spreadsheet would run as a formula
         on = found[2]
-        csv = f"line_id,track,type,km,km_to,name\n{RAILS_LINE},{RAILS_TRACK},insulated_joint,{on['km']:.4f},,IJ B7\n"
+        csv = f"line_id,track,type,km,km_to,name\n{RAILS_LINE},{RAILS_TRACK},insulated_joint,{on['km']:.4f},,=IJ B7\n"
         r = client.post("/api/v1/assets", files={"file": ("assets-b.csv", csv.encode(), "text/csv")})
         assert r.status_code == 201, r.text
         found = _rail_findings(client, RAILS_LINE, RAILS_TRACK)
     labelled = [f for f in found if f["asset"]]
-    assert [f["id"] for f in labelled] == [on["id"]] and labelled[0]["asset"]["name"] == "IJ B7", found
+    assert [f["id"] for f in labelled] == [on["id"]] and labelled[0]["asset"]["name"] == "=IJ B7", found
     page.goto(f"/condition?line_id={RAILS_LINE}&track={RAILS_TRACK}")
     page.wait_for_selector("body[data-ready='1']")
     rows = _rail_rows(page)
@@ -540,17 +541,19 @@ def test_the_rail_findings_are_listed_apart_from_the_places(engineer_page, histo
             assert "mm a year" in trend and ("not significant" in trend) != f["depth_trend_significant"], (row, f)
         assert when.startswith(f["first_seen"][:10]) and when.endswith(f["last_seen"][:10]), (row, f)
         if f["asset"]:  # the asset register's label where a finding lies on a register asset
-            assert asset.startswith("insulated joint IJ B7 km "), (row, f)
+            assert asset.startswith("insulated joint =IJ B7 km "), (row, f)
             assert kind == "insulated joint", row
         else:
             assert asset == "–", (row, f)
     card = page.inner_text("#rails-card")
     assert "rail features, not support defects" in card and "never ranked with the places" in card
     assert page.inner_text("#rails-info").startswith(f"{len(found)} rail findings")
-    # the CSV link: the same findings
+    # the CSV link: the same findings; the register's name written as text, not as a formula
     got = page.request.get(page.get_attribute("#rails-csv", "href"))
     assert got.status == 200 and got.text().startswith("id,line_id,track,type,km")
-    assert [line.split(",")[0] for line in got.text().strip().split("\n")[1:]] == [f["id"] for f in found]
+    lines = got.text().strip().split("\n")
+    assert [line.split(",")[0] for line in lines[1:]] == [f["id"] for f in found]
+    assert [line.split(",")[-1] for line in lines[1:] if line.startswith(on["id"] + ",")] == ["'=IJ B7"], lines
     # marked on the heat map: a dotted line at each finding's km
     assert _heatmap_marks(page) == sorted(f["km"] for f in found)
     # never ranked with the places: the work list holds places only
