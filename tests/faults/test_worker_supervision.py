@@ -106,10 +106,12 @@ def test_health_counts_the_processes_that_run(tmp_path):
     touch = (
         "import os, signal, sys, tempfile, time; signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))\n"
         "p = os.path.join(tempfile.gettempdir(), f'trackvkf-worker-{os.getpid()}.alive')\n"
-        # a replacement (started after the test wrote 'killed') waits longer before its first
-        # touch, so that the 1/2 in between lasts long enough to be seen on a loaded machine
-        "replaced = os.path.exists(os.path.join(tempfile.gettempdir(), 'killed'))\n"
-        "time.sleep(10.0 if replaced else float(os.environ.get('START_DELAY', '0')))\n"
+        # a replacement (started after the test wrote 'killed') touches only once the test has
+        # seen the 1/2 and written 'go' (however long a health check takes on a loaded machine)
+        "d = tempfile.gettempdir()\n"
+        "replaced = os.path.exists(os.path.join(d, 'killed'))\n"
+        "time.sleep(float(os.environ.get('START_DELAY', '0')))\n"
+        "while replaced and not os.path.exists(os.path.join(d, 'go')):\n    time.sleep(0.1)\n"
         "while True:\n    open(p, 'a').close(); os.utime(p); time.sleep(0.2)\n"
     )
     env = _env(tmp_path) | {"TRACKVKF_WORKER_STALE_AFTER_S": "30", "START_DELAY": "2"}
@@ -126,7 +128,8 @@ def test_health_counts_the_processes_that_run(tmp_path):
         victim = _status(tmp_path, sup.pid)["pids"][0]
         (tmp_path / "killed").touch()
         os.kill(victim, signal.SIGKILL)
-        _wait(lambda: health() == (1, "1/2 worker processes alive"), 10)  # its fresh file no longer counts
+        _wait(lambda: health() == (1, "1/2 worker processes alive"), 60)  # its fresh file no longer counts
+        (tmp_path / "go").touch()
         _wait(lambda: health() == (0, "2/2 worker processes alive"), 60)  # replaced
         assert victim not in _status(tmp_path, sup.pid)["pids"]
     finally:
