@@ -11,6 +11,7 @@ from pydantic import BaseModel, Field
 from starlette.concurrency import run_in_threadpool
 
 from app.api.condition import LineIdQ, TrackQ
+from app.api.csv_header import CsvLanguage
 from app.api.deps import DbDep, SettingsDep
 from app.api.errors import ApiError
 from app.api.language import request_language
@@ -98,12 +99,14 @@ async def sections_csv_export(
     request: Request,
     db: DbDep,
     settings: SettingsDep,
+    lang: CsvLanguage,
     line_id: LineIdQ,
     track: TrackQ = None,
     section_m: SectionQ = None,
 ) -> Response:
-    """The sections of ``GET /condition/sections``, one CSV row each."""
+    """The sections of ``GET /condition/sections``, one CSV row each; ``header=labels``: the header in
+    the user's language."""
     out = await run_in_threadpool(_checked_sections, db, settings, line_id, track, section_m,
                                   request_language(request).code)
-    return Response(sections_csv(out), media_type="text/csv",
+    return Response(sections_csv(out, lang), media_type="text/csv",
                     headers={"Content-Disposition": f'attachment; filename="sections-{out["line_id"]}-{out["track"]}.csv"'})

@@ -16,6 +16,7 @@ from fastapi import APIRouter, Depends, Path, Query
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field
 
+from app.api.csv_header import CsvLanguage
 from app.api.deps import DbDep, EngineerActor, SettingsDep
 from app.api.schemas.text import Text
 from app.core.ids import MAX_ID
@@ -64,10 +65,11 @@ def places(db: DbDep, settings: SettingsDep, q: PlaceQ) -> dict:
 
 @router.get("/places.csv", summary="Work list as CSV (the filters of /condition/places)",
             response_class=Response, responses={200: {"content": {"text/csv": {}}}})
-def places_csv(db: DbDep, settings: SettingsDep, q: PlaceQ) -> Response:
+def places_csv(db: DbDep, settings: SettingsDep, q: PlaceQ, lang: CsvLanguage) -> Response:
     """One row per place of the page; ``X-Total-Count``: the places the filters match, ``X-Omitted-Count``:
-    how many of them the page (``offset``, ``limit``) leaves out."""
-    text, total, omitted = worklist.places_csv(db, q, PlacesConfig.from_settings(settings))
+    how many of them the page (``offset``, ``limit``) leaves out; ``header=labels``: the header in the
+    user's language."""
+    text, total, omitted = worklist.places_csv(db, q, PlacesConfig.from_settings(settings), lang)
     return Response(text, media_type="text/csv",
                     headers={"Content-Disposition": 'attachment; filename="places.csv"',
                              "X-Total-Count": str(total), "X-Omitted-Count": str(omitted)})

@@ -14,6 +14,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
+from app.api.csv_header import CsvLanguage
 from app.api.deps import DbDep, RunId, SettingsDep, check_km, km_query
 from app.api.params import WHEEL_PATTERN
 from app.api.schemas.profiles import ProfileOut
@@ -170,9 +171,10 @@ def _attachment(export: ProfileExport, ext: str) -> dict[str, str]:
     response_class=StreamingResponse,
     responses={200: {"content": {"text/csv": {}}}, 409: {"description": "No results yet"}},
 )
-def export_csv(export: ExportQuery, db: DbDep) -> StreamingResponse:
-    """All profile rows of a run (or one wheel) as CSV, in pages, never whole in memory."""
-    return StreamingResponse(csv_stream(export, db), media_type="text/csv", headers=_attachment(export, "csv"))
+def export_csv(export: ExportQuery, db: DbDep, lang: CsvLanguage) -> StreamingResponse:
+    """All profile rows of a run (or one wheel) as CSV, in pages, never whole in memory; ``header=labels``:
+    the header in the user's language."""
+    return StreamingResponse(csv_stream(export, db, lang), media_type="text/csv", headers=_attachment(export, "csv"))
 
 
 @router.get(

@@ -14,6 +14,7 @@ from fastapi import APIRouter, Path, Query
 from fastapi.responses import Response
 
 from app.api.condition import LineIdQ, TrackQ
+from app.api.csv_header import CsvLanguage
 from app.api.deps import DbDep
 from app.condition import rail_findings
 
@@ -35,8 +36,10 @@ def findings(db: DbDep, line_id: LineIdQ, track: TrackQ = None, type: TypeQ = No
 
 @router.get("/rail-findings.csv", summary="Rail findings of a line as CSV", response_class=Response,
             responses={200: {"content": {"text/csv": {}}}})
-def findings_csv(db: DbDep, line_id: LineIdQ, track: TrackQ = None, type: TypeQ = None) -> Response:  # noqa: A002
-    return Response(rail_findings.findings_csv(db, line_id, track, type), media_type="text/csv",
+def findings_csv(db: DbDep, lang: CsvLanguage, line_id: LineIdQ, track: TrackQ = None,
+                 type: TypeQ = None) -> Response:  # noqa: A002
+    """One row per finding; ``header=labels``: the header in the user's language."""
+    return Response(rail_findings.findings_csv(db, line_id, track, type, lang), media_type="text/csv",
                     headers={"Content-Disposition": 'attachment; filename="rail-findings.csv"'})
 
 

@@ -154,12 +154,14 @@ def finding(db: Database, ident: str) -> dict:
     return out
 
 
-def findings_csv(db: Database, line_id: str, track: str | None, types: Sequence[str] | None = None) -> str:
+def findings_csv(db: Database, line_id: str, track: str | None, types: Sequence[str] | None = None,
+                 lang: str | None = None) -> str:
     """The rail findings as CSV (:data:`CSV_COLUMNS`, one row per finding), written by
-    :mod:`app.core.csv_export` (an asset name a spreadsheet would run as a formula is defused)."""
+    :mod:`app.core.csv_export` (an asset name a spreadsheet would run as a formula is defused); the
+    header is the field names, or given ``lang`` the columns' labels and units in it."""
     rows = []
     for item in line_findings(db, line_id, track, types)["items"]:
         asset = item["asset"] or {}
         row = {**item, "asset_type": asset.get("type"), "asset_name": asset.get("name")}
         rows.append([row.get(c) for c in CSV_COLUMNS])
-    return csv_text(CSV_COLUMNS, rows)
+    return csv_text(CSV_COLUMNS, rows, lang)

@@ -8,7 +8,9 @@ spreadsheets show it as text, and a reader of the CSV sees the original after th
 written as they are, so a negative value stays a number.
 
 Every export builds its rows and writes them through :func:`csv_text` or :func:`csv_lines`; a
-columnar export (pyarrow) passes its text columns through :func:`escape_cell` first.
+columnar export (pyarrow) passes its text columns through :func:`escape_cell` first. The header is
+the API's field names, or, given a language (an export asked with ``header=labels``), each column's
+label and unit in that language (:mod:`app.core.csv_labels`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ import io
 import re
 from collections.abc import Iterable, Iterator, Sequence
 from typing import Any
+
+from app.core.csv_labels import header_labels
 
 __all__ = ["FORMULA_STARTS", "escape_cell", "csv_text", "csv_lines"]
 
@@ -47,16 +51,19 @@ def escape_cell(value: Any) -> Any:
     return value
 
 
-def csv_lines(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Iterator[str]:
+def csv_lines(header: Sequence[str], rows: Iterable[Sequence[Any]], lang: str | None = None) -> Iterator[str]:
     """The CSV text line by line (``\\n`` line ends): the header, then every row, each cell through
     :func:`escape_cell` (also the header's).
 
     Parameters
     ----------
     header : Sequence[str]
-        Column names.
+        Column names (the API's field names).
     rows : Iterable[Sequence[Any]]
         Rows of the same length as ``header``.
+    lang : str, optional
+        Write the header as the columns' labels with their units in this language
+        (:func:`app.core.csv_labels.header_labels`); default: the column names.
 
     Yields
     ------
@@ -67,7 +74,8 @@ def csv_lines(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Iterator[
     # "\r\n" as the writer's line end makes it quote every cell holding a CR or a LF (with "\n" alone
     # a lone CR went out unquoted and split the row); each line is then ended by "\n"
     writer = csv.writer(buffer, lineterminator="\r\n")
-    for block in ([header], rows):
+    first = header if lang is None else header_labels(header, lang)
+    for block in ([first], rows):
         for cells in block:
             if len(cells) != len(header):
                 raise ValueError(f"a CSV row has {len(cells)} cells, the header {len(header)}")
@@ -77,6 +85,6 @@ def csv_lines(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Iterator[
             buffer.truncate()
 
 
-def csv_text(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
+def csv_text(header: Sequence[str], rows: Iterable[Sequence[Any]], lang: str | None = None) -> str:
     """The whole CSV as one text (see :func:`csv_lines`)."""
-    return "".join(csv_lines(header, rows))
+    return "".join(csv_lines(header, rows, lang))

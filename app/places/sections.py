@@ -32,7 +32,7 @@ from app.places.class_scheme import class_scheme
 from app.places.config import PlacesConfig
 from app.places.index import SEGMENT_M, run_segment_index
 
-__all__ = ["SEGMENT_M", "line_sections", "section_limits", "sections_csv"]
+__all__ = ["SEGMENT_M", "CSV_COLUMNS", "line_sections", "section_limits", "sections_csv"]
 
 _YEAR = dt.timedelta(days=365)
 
@@ -116,14 +116,18 @@ def line_sections(db: Database, settings: Any, line_id: str, track: str | None, 
     }
 
 
-def sections_csv(answer: dict[str, Any]) -> str:
+#: The columns of the sections CSV (one row per section).
+CSV_COLUMNS: tuple[str, ...] = ("line_id", "track", "km_from", "km_to", "class", "scheme_class", "scheme_class_name",
+                                "level", "spread", "rms", "fill")
+
+
+def sections_csv(answer: dict[str, Any], lang: str | None = None) -> str:
     """The sections of a :func:`line_sections` answer as CSV: one row per section with the
-    internal class and the class of the railway's scheme (its code and name)."""
+    internal class and the class of the railway's scheme (its code and name); the header is
+    :data:`CSV_COLUMNS`, or given ``lang`` their labels and units in it."""
     names = {k["code"]: k["name"] for k in answer["scheme"]["classes"]}
-    header = ["line_id", "track", "km_from", "km_to", "class", "scheme_class", "scheme_class_name",
-              "level", "spread", "rms", "fill"]
     rows = [[answer["line_id"], answer["track"], f"{x['km_from']:.3f}", f"{x['km_to']:.3f}", x["class"],
              x["scheme_class"], names.get(x["scheme_class"], ""),
              *("" if x[k] is None else f"{x[k]:.4f}" for k in ("level", "spread", "rms")), f"{x['fill']:.2f}"]
             for x in answer["sections"]]
-    return csv_text(header, rows)
+    return csv_text(CSV_COLUMNS, rows, lang)

@@ -165,9 +165,11 @@ def list_places(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLA
             "places_updated_at": max(updated) if updated else None, "lines": current}
 
 
-def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> tuple[str, int, int]:
+def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG,
+               lang: str | None = None) -> tuple[str, int, int]:
     """The work list as CSV (one row per place; lists joined by ``+``, actions as ``kind date``), written
-    by :mod:`app.core.csv_export` (text cells a spreadsheet would run are defused).
+    by :mod:`app.core.csv_export` (text cells a spreadsheet would run are defused); the header is the
+    field names, or given ``lang`` the columns' labels and units in it.
 
     Returns
     -------
@@ -185,7 +187,7 @@ def places_csv(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLAC
         row["assets"] = "+".join(f"{a['type']} {a['km']:.3f}" for a in item["assets"])
         rows.append([row.get(c) for c in CSV_COLUMNS])
     total = int(answer["total"])
-    return csv_text(CSV_COLUMNS, rows), total, max(0, total - len(rows))
+    return csv_text(CSV_COLUMNS, rows, lang), total, max(0, total - len(rows))
 
 
 def places_geojson(db: Database, qy: PlaceQuery, config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> dict:

@@ -16,7 +16,7 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from app.analytics.stiffness_index import INDEX_COLUMNS, IndexContext
-from app.core.csv_export import escape_cell
+from app.core.csv_export import csv_lines, escape_cell
 from app.db import results_reader
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
@@ -98,11 +98,15 @@ def export_filename(run_id: int, wheel: str | None, level: float, ext: str) -> s
     return "_".join(parts) + f".{ext}"
 
 
-def csv_stream(export: ProfileExport, db: Database) -> Iterator[bytes]:
+def csv_stream(export: ProfileExport, db: Database, lang: str | None = None) -> Iterator[bytes]:
     """The export as CSV, page by page (the header once; only the header without rows); numbers written by
-    pyarrow, text cells through :func:`app.core.csv_export.escape_cell`."""
+    pyarrow, text cells through :func:`app.core.csv_export.escape_cell`; the header is the column names, or
+    given ``lang`` their labels and units in it (written by :func:`app.core.csv_export.csv_lines`)."""
     header = True
     for df in export.frames(db):
+        if header and lang is not None:
+            yield next(csv_lines(list(df.columns), [], lang)).encode()
+            header = False
         buffer = io.BytesIO()
         text = [c for c in df.columns if df[c].dtype == object]
         if text:  # the one rule of every CSV export: a text cell a spreadsheet would run is defused
@@ -116,7 +120,7 @@ def csv_stream(export: ProfileExport, db: Database) -> Iterator[bytes]:
         header = False
     if header:  # no rows: still send the header line
         cols = ["wheel", "bin", "km", *PROFILE_VALUE_COLUMNS, *(INDEX_COLUMNS if export.index else ())]
-        yield (",".join(cols) + "\n").encode()
+        yield (",".join(cols) + "\n").encode() if lang is None else next(csv_lines(cols, [], lang)).encode()
 
 
 def parquet_stream(export: ProfileExport, db: Database) -> Iterator[bytes]:

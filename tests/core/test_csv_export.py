@@ -26,3 +26,12 @@ def test_rows_are_written_whole_and_checked():
     assert list(csv.DictReader(io.StringIO(text, newline=""))) == [{"a": "x,y", "b": 'say "hi"\nthen'}]
     with pytest.raises(ValueError, match="2 cells"):
         list(csv_lines(["a"], [["x", "y"]]))
+
+
+def test_the_header_in_a_language_is_the_columns_labels_the_cells_unchanged():
+    rows = [["SIM", 1.25, "=x"]]
+    de = list(csv.reader(io.StringIO(csv_text(["line_id", "km_from", "asset_name"], rows, "de"), newline="")))
+    assert de == [["Strecke", "km von [km]", "Anlagenname"], ["SIM", "1.25", "'=x"]]
+    assert csv_text(["line_id", "km_from", "asset_name"], rows).startswith("line_id,km_from,asset_name\n")
+    with pytest.raises(KeyError, match="no_such_column"):
+        csv_text(["no_such_column"], [], "de")

@@ -548,9 +548,10 @@ def test_the_rail_findings_are_listed_apart_from_the_places(engineer_page, histo
     card = page.inner_text("#rails-card")
     assert "rail features, not support defects" in card and "never ranked with the places" in card
     assert page.inner_text("#rails-info").startswith(f"{len(found)} rail findings")
-    # the CSV link: the same findings; the register's name written as text, not as a formula
+    # the CSV link: the same findings, the header in the page's words with units; the register's name
+    # written as text, not as a formula
     got = page.request.get(page.get_attribute("#rails-csv", "href"))
-    assert got.status == 200 and got.text().startswith("id,line_id,track,type,km")
+    assert got.status == 200 and got.text().startswith("id,line,track,type,position [km],dip depth [mm]"), got.text()[:200]
     lines = got.text().strip().split("\n")
     assert [line.split(",")[0] for line in lines[1:]] == [f["id"] for f in found]
     assert [line.split(",")[-1] for line in lines[1:] if line.startswith(on["id"] + ",")] == ["'=IJ B7"], lines

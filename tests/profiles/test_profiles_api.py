@@ -227,3 +227,30 @@ def test_profile_row_cap_sets_truncated(processed):
     client.app.state.settings = client.settings.model_copy(update={"max_profile_rows": 100})
     body = client.get(f"/api/v1/runs/{run_id}/profile", params={"wheel": "11"}).json()
     assert body["n_rows"] == 100 and body["truncated"] is True
+
+
+@pytest.mark.parametrize("params", [{"wheel": "11", "km_to": 12.52}, {"wheel": "11", "level": 100},
+                                    {"wheel": "11", "km_from": 99.0}])
+def test_csv_export_header_in_the_users_language(processed, params):
+    """``header=labels``: each column's label and unit in the request's language (a segment's statistics
+    named), the rows unchanged; the field names by default; another ``header`` → 422 naming it."""
+    import csv
+
+    from app.core.csv_labels import column_label
+
+    client, run_id, _df = processed
+    plain = client.get(f"/api/v1/runs/{run_id}/profile.csv", params=params)
+    labels = client.get(f"/api/v1/runs/{run_id}/profile.csv", params={**params, "header": "labels"},
+                        headers={"Accept-Language": "de"})
+    assert plain.status_code == labels.status_code == 200, labels.text
+    fields, *rows = plain.text.split("\n")
+    words, *same = labels.text.split("\n")
+    (names,) = list(csv.reader([fields]))
+    (got,) = list(csv.reader([words]))
+    assert same == rows and names[0] == "wheel"
+    assert got == [column_label(c, "de") for c in names]
+    assert got[0] == "Rad" and got != names
+    if "level" in params:
+        assert "Schwellenfachamplitude, Mittelwert [m/s²]" in got
+    bad = client.get(f"/api/v1/runs/{run_id}/profile.csv", params={**params, "header": "names"})
+    assert bad.status_code == 422 and "header" in bad.text

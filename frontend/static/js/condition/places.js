@@ -20,7 +20,7 @@
     const params = { line_id, track, tier: checked("tier"), status: checked("status"),
                      include_closed: $("include-inactive").checked ? "true" : undefined };
     const q = C.qs(params);
-    $("places-csv").href = `${T.boot.api}/condition/places.csv?${q}&limit=1000`;
+    $("places-csv").href = `${T.boot.api}/condition/places.csv?${q}&limit=1000&header=labels`;
     $("places-geojson").href = `${T.boot.api}/condition/places.geojson?${q}&limit=1000`;
     if (!params.tier.length || !params.status.length) {
       state.placesSeq++;

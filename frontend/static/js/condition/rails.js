@@ -44,7 +44,7 @@
     if (!view.live()) return null;  // a draw for a line no longer chosen writes nothing
     const { line_id, track } = view;
     const q = C.qs({ line_id, track });
-    $("rails-csv").href = `${T.boot.api}/condition/rail-findings.csv?${q}`;
+    $("rails-csv").href = `${T.boot.api}/condition/rail-findings.csv?${q}&header=labels`;
     const res = await T.api.get(`/condition/rail-findings?${q}`);
     if (!view.live()) return null;  // another line was chosen meanwhile
     state.rails = { key: view.key, items: res.items };
