@@ -173,8 +173,11 @@ def test_the_tamping_closed_its_place_and_its_history_shows_the_maintenance(engi
             hit = rows.nth(i)
     assert hit is not None, "no fixed place under the tamping"
     assert "tamping" in hit.inner_text()  # linked action
+    pid = hit.get_attribute("data-place")
     hit.locator("button[data-act='history']").click()
-    page.wait_for_function("() => document.getElementById('place-maint-body').textContent.includes('tamping')")
+    # the card shows the page's first place until the click's draw is done: wait for the clicked one's
+    page.wait_for_selector(f"#place-card[data-place='{pid}']")
+    assert "tamping" in page.inner_text("#place-maint-body")
     shapes = page.evaluate("document.getElementById('place-history').layout.shapes.length")
     assert shapes >= 1  # the action's day marked
     assert "repaired" in page.inner_text("#place-events-body")

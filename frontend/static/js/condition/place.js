@@ -59,6 +59,8 @@
       $("status-new").value = p.status;
       $("status-comment").value = "";
     }
+    // the card's parts are all this place's now (a test, or a screen reader's user, waits for this)
+    $("place-card").dataset.place = String(p.id);
     return p;
   }
 
@@ -125,6 +127,7 @@
   /* No place on the line shown: the card says so and keeps nothing of another line's place. */
   function clearPlace(why, hint) {
     state.placeId = null;
+    delete $("place-card").dataset.place;
     $("place-title").innerHTML = EMPTY.title;
     $("place-map").hidden = true;
     $("place-kv").innerHTML = "";
