@@ -127,12 +127,14 @@ def sleeper_step(profile: pd.DataFrame, resolution_m: float, bin_length_m: float
 
 
 def _with_steps(profiles: pd.DataFrame, resolutions: dict[str, float], bin_length_m: float) -> pd.DataFrame:
-    """``profiles`` (wheels in bin order) with :data:`STEP_COLUMN` written for every wheel in ``resolutions``."""
+    """``profiles`` with :data:`STEP_COLUMN` written for every wheel in ``resolutions`` (each in bin order)."""
     out = profiles.copy()
     out[STEP_COLUMN] = np.nan
     col = out.columns.get_loc(STEP_COLUMN)
+    bins = out["bin"].to_numpy(dtype=np.int64)
     for wheel, rows in out.groupby(out["wheel"].astype(str), sort=False).indices.items():
         if wheel in resolutions:
+            rows = rows[np.argsort(bins[rows], kind="stable")]
             out.iloc[rows, col] = sleeper_step(out.iloc[rows], resolutions[wheel], bin_length_m)
     return out
 

@@ -45,3 +45,21 @@ def test_nan_where_the_amplitude_or_its_sd_is_nan_and_the_resolution_in_bins():
     assert np.ptp(got[100:120]) == 0.0 and got[100] == pytest.approx(short["sleeper_amp"][100:120].mean())
     with pytest.raises(ValueError, match="increasing"):
         sleeper_step(rows.iloc[::-1], 3.0, 0.25)
+
+
+def test_every_wheel_of_a_run_in_bin_order_whatever_the_rows_order():
+    """The run's rows (two wheels, shuffled) get each wheel's step estimate at the wheel's own resolution."""
+    from app.pipeline.assemble import _with_steps
+
+    rng = np.random.default_rng(6)
+    frames = []
+    for wheel, level in (("11", 1.5), ("41", 0.9)):
+        amp = np.where(np.arange(300) < 150, level, 0.7 * level) + 0.02 * rng.standard_normal(300)
+        frames.append(_rows(np.arange(1000, 1300), amp).assign(wheel=wheel))
+    run = pd.concat(frames, ignore_index=True)
+    shuffled = run.iloc[rng.permutation(len(run))]
+    got = _with_steps(shuffled, {"11": 3.0, "41": 6.0}, 0.25).sort_index()
+    for wheel, res_m in (("11", 3.0), ("41", 6.0)):
+        p = run[run.wheel == wheel]
+        np.testing.assert_array_equal(got.loc[p.index, "sleeper_step"], sleeper_step(p, res_m, 0.25))
+    assert _with_steps(run, {"11": 3.0}, 0.25).loc[run.wheel == "41", "sleeper_step"].isna().all()
