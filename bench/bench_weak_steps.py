@@ -3,12 +3,20 @@ profile as stored (``sleeper_amp``) against its piecewise-constant estimate (app
 
     .venv/bin/python bench/bench_weak_steps.py RUN.npz [RUN.npz ...] [--sigmas 0,1] [--seeds 5,6,7]
     .venv/bin/python bench/bench_weak_steps.py --transitions     # the issue-26 transition cases, noise-free
+    .venv/bin/python bench/bench_weak_steps.py --blended         # the FE uniform runs' 80 ↔ 40 MN/m at 50 m/s
+    .venv/bin/python bench/bench_weak_steps.py --cost 30         # CPU of the stored step estimate, 30 min run
 
 RUN.npz: a step run of the railFE harness (../shared/physics/harness), e.g.
 ``run_railfe.py --ks 80 52 --edges 200 --speed 50 --length 400`` (1.51 → 0.99 m/s²). Noise: the
 simulator's band-limited measurement noise (2 Hz … 0.4 fs) of ``sigma`` m/s², one draw per seed.
 Measures (bench/physics_transitions.py): 10–90 % width in its settling form, rise width, 50 % point,
-ringing, and the level error 10 m from the ends and the edge.
+ringing, and the level error 10 m from the ends and the edge. The step estimate is the stored column
+``sleeper_step`` of the pipeline's profile (app.pipeline.assemble.sleeper_step).
+
+``--cost MINUTES``: a simulated run (default line, random rail surface, 3 km, 10 kHz) through the real
+pipeline; each wheel's stored ``sleeper_amp`` / ``sleeper_amp_sd`` tiled to the bins of a MINUTES long run at
+the run's mean speed, and the CPU seconds of ``sleeper_step`` on it (one process, BLAS on one thread, the
+compiled kernel loaded first; the median of ``--repeat`` calls per wheel).
 """
 
 from __future__ import annotations
@@ -34,30 +42,93 @@ from app.simulate.noise import BandLimitedNoise  # noqa: E402
 
 
 def _profile(z: np.ndarray, fs: float, v: float, settings: ProcessingSettings) -> tuple[np.ndarray, ...]:
-    """(bin centres m, ``sleeper_amp``, ``sleeper_amp_sd``) of wheel 11 from the real pipeline."""
+    """(bin centres m, ``sleeper_amp``, ``sleeper_amp_sd``, ``sleeper_step``) of wheel 11 from the real
+    pipeline."""
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = run_pipeline(write_run(Path(tmp) / "run.h5", z, fs, v), settings, Path(tmp) / "c")
     p = res.profiles[res.profiles["wheel"] == "11"].sort_values("bin")
     return ((p["bin"].to_numpy() + 0.5) * settings.bin_length_m, p["sleeper_amp"].to_numpy(),
-            p["sleeper_amp_sd"].to_numpy())
+            p["sleeper_amp_sd"].to_numpy(), p["sleeper_step"].to_numpy())
 
 
-def transitions(settings: ProcessingSettings, res_bins: float) -> None:
-    """The issue-26 transition cases (noise-free): ``sleeper_amp`` → the step estimate, per edge."""
+def _stored_is_step_levels(a: np.ndarray, sd: np.ndarray, step: np.ndarray, res_bins: float) -> None:
+    """The stored column is the step estimate of the stored amplitude (else the bench stops)."""
+    if not np.array_equal(step, step_levels(a, sd, res_bins), equal_nan=True):
+        raise SystemExit("sleeper_step is not step_levels(sleeper_amp, sleeper_amp_sd) of the stored profile")
+
+
+def transitions(settings: ProcessingSettings, res_bins: float, blended: bool = False) -> None:
+    """The issue-26 transition cases (noise-free): ``sleeper_amp`` → the stored step estimate, per edge;
+    ``blended``: the 80 ↔ 40 MN/m run at 50 m/s of the uniform FE runs under 1 m/s² of noise, seeds 5–7."""
     print("| case | edge m | 10–90 % width m | 50 % point m | ringing | level error per segment |")
     print("|---|---|---|---|---|---|")
-    for run in (physics_run("trans2_v30.npz"), physics_run("trans2_v42.npz"),
-                blended_run(35, 40, 160, [37.2, 24.6, 60.0]), blended_run(50, 20, 80, [37.2, 24.6, 60.0])):
-        x, a, sd = _profile(run.z, run.fs, run.speed, settings)
-        ev = [evaluate(x, q, run) for q in (a, step_levels(a, sd, res_bins))]
+    if blended:
+        base = blended_run(50, 80, 40, [37.2, 24.6, 60.0])
+        cases = []
+        for seed in (5, 6, 7):
+            noise = BandLimitedNoise(np.random.default_rng(seed), base.fs, 1.0, (2.0, 0.4 * base.fs)).next(base.z.size)
+            cases.append((f"{base.name}, 1 m/s², seed {seed}", base, base.z + noise))
+    else:
+        cases = [(r.name, r, r.z) for r in (physics_run("trans2_v30.npz"), physics_run("trans2_v42.npz"),
+                                            blended_run(35, 40, 160, [37.2, 24.6, 60.0]),
+                                            blended_run(50, 20, 80, [37.2, 24.6, 60.0]))]
+    for name, run, z in cases:
+        x, a, sd, step = _profile(z, run.fs, run.speed, settings)
+        _stored_is_step_levels(a, sd, step, res_bins)
+        ev = [evaluate(x, q, run) for q in (a, step)]
         for i, (e0, e1) in enumerate(zip(ev[0]["edges"], ev[1]["edges"], strict=True)):
             m0, m1 = e0["product"], e1["product"]
             lv = " / ".join(f"{p:+.1%} → {q:+.1%}" for p, q in zip(ev[0]["levels"], ev[1]["levels"], strict=True)
                             if np.isfinite(p))
-            print(f"| {run.name if i == 0 else ''} | {e0['edge']:.1f} | {m0['width']:.1f} → {m1['width']:.1f} | "
+            print(f"| {name if i == 0 else ''} | {e0['edge']:.1f} | {m0['width']:.1f} → {m1['width']:.1f} | "
                   f"{m0['offset']:+.1f} → {m1['offset']:+.1f} | {m0['ringing']:.1%} → {m1['ringing']:.1%} | "
                   f"{lv if i == 0 else ''} |", flush=True)
+
+
+def cost(minutes: float, repeat: int) -> None:
+    """CPU seconds of the stored step estimate per wheel of a ``minutes`` long run (see the module's doc)."""
+    import os
+    import time
+
+    import pandas as pd
+
+    from app.pipeline.assemble import sleeper_step
+    from app.simulate.run import simulate_run
+
+    settings = ProcessingSettings()
+    with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        truth = simulate_run(Path(tmp) / "run.h5", length_km=3.0, fs=10_000.0, seed=3, rail_surface=True,
+                             with_forces=False)
+        res = run_pipeline(truth.run_path, settings, Path(tmp) / "c")
+    mean_speed = truth.distance_m / truth.duration_s
+    n_bins = int(round(minutes * 60.0 * mean_speed / settings.bin_length_m))
+    print(f"run: {truth.distance_m / 1000:.2f} km in {truth.duration_s:.0f} s (mean {mean_speed:.1f} m/s); "
+          f"{minutes:g} min = {n_bins} bins of {settings.bin_length_m} m per wheel; "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+    sleeper_step(pd.DataFrame({"bin": np.arange(40), "sleeper_amp": np.ones(40), "sleeper_amp_sd": np.ones(40)}),
+                 3.0, 0.25)  # the compiled kernel loaded (once per process)
+    print(f"| wheel | valid bins | levels | CPU s per call (median of {repeat}) | µs per bin |")
+    print("|---|--:|--:|--:|--:|")
+    total = 0.0
+    for wheel, p in res.profiles.groupby("wheel"):
+        p = p.sort_values("bin")
+        reps = -(-n_bins // len(p))
+        tiled = pd.DataFrame({"bin": np.arange(reps * len(p))[:n_bins],
+                              "sleeper_amp": np.tile(p["sleeper_amp"].to_numpy(), reps)[:n_bins],
+                              "sleeper_amp_sd": np.tile(p["sleeper_amp_sd"].to_numpy(), reps)[:n_bins]})
+        times = []
+        for _ in range(repeat):
+            c0 = time.process_time()
+            out = sleeper_step(tiled, 3.0, settings.bin_length_m)
+            times.append(time.process_time() - c0)
+        t = float(np.median(times))
+        total += t
+        ok = np.isfinite(out)
+        print(f"| {wheel} | {int(ok.sum())} | {np.unique(out[ok]).size} | {t:.3f} | {1e6 * t / n_bins:.2f} |",
+              flush=True)
+    print(f"all wheels: {total:.3f} CPU s; per wheel and minute of run: {total / res.profiles['wheel'].nunique() / minutes:.4f} s")
 
 
 def main() -> None:
@@ -66,12 +137,19 @@ def main() -> None:
     ap.add_argument("--sigmas", default="0,1")
     ap.add_argument("--seeds", default="5,6,7")
     ap.add_argument("--transitions", action="store_true", help="the issue-26 transition cases instead")
+    ap.add_argument("--blended", action="store_true",
+                    help="the 80 <-> 40 MN/m run at 50 m/s of the uniform FE runs under 1 m/s² of noise")
+    ap.add_argument("--cost", type=float, metavar="MINUTES", help="CPU of the step estimate on a run this long")
+    ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
+    if args.cost:
+        cost(args.cost, args.repeat)
+        return
     settings = ProcessingSettings()
     res_bins = 3.0 / settings.bin_length_m if settings.track_resolution_m is None \
         else float(settings.track_resolution_m) / settings.bin_length_m
-    if args.transitions:
-        transitions(settings, res_bins)
+    if args.transitions or args.blended:
+        transitions(settings, res_bins, blended=args.blended)
         return
     print("| FE run | noise m/s² | seed | stated 1-σ / step | 10–90 % width m: sleeper_amp → step estimate "
           "(physics') | rise m | 50 % point m | ringing (physics') | level error max |")
@@ -87,8 +165,8 @@ def main() -> None:
             for seed in ((5,) if sigma == 0 else tuple(int(s) for s in args.seeds.split(","))):
                 noise = BandLimitedNoise(np.random.default_rng(seed), fs, sigma, (2.0, 0.4 * fs)).next(z0.size) \
                     if sigma > 0 else 0.0
-                x, a, sd = _profile(z0 + noise, fs, v, settings)
-                u = step_levels(a, sd, res_bins)
+                x, a, sd, u = _profile(z0 + noise, fs, v, settings)
+                _stored_is_step_levels(a, sd, u, res_bins)
                 m0, m = (edge_metrics(x, q, float(edges[0]), lv[0], lv[1]) for q in (a, u))
                 lvl = []
                 for q in (a, u):

@@ -267,7 +267,8 @@ def process(
     1-σ of ``sleeper_amp``, ``sleeper_amp_sd_shared`` the part of it shared along ≈ 20 m), its
     harmonics (``sleeper_2_amp``, ``sleeper_3_amp``) and energy indicator
     (``sleeper_rms``), the wheel orders, the force amplitude and the depth of a track impact
-    (``track_impact_mm``: a dipped weld or joint, bridged out of the sleeper columns);
+    (``track_impact_mm``: a dipped weld or joint, bridged out of the sleeper columns) and the step
+    estimate of ``sleeper_amp`` (``sleeper_step``: its levels between change points);
     ``wheels.json`` the wheel OOR and any wheel flat (``flat``); ``meta.json`` the settings and
     the warnings (docs/indicator.md). The processing settings are options (``--n-wheel-orders``
     …, each with its valid values and default).

@@ -122,6 +122,7 @@ COLUMN_LABELS: dict[str, tuple[str, str | None]] = {
     "sleeper_amp_sd": (N_("sleeper-passage amplitude, standard deviation"), _MS2),
     "sleeper_amp_sd_shared": (N_("sleeper-passage amplitude, standard deviation shared along the track"), _MS2),
     "track_impact_mm": (N_("track impact depth"), _MM),
+    "sleeper_step": (N_("sleeper-passage amplitude, step estimate"), _MS2),
     "stiffness_index": (N_("stiffness index"), _LN),
     "stiffness_index_se": (N_("stiffness index, standard error"), _LN),
     "reference_amp": (N_("reference amplitude"), _MS2),

@@ -36,6 +36,7 @@ __all__ = [
     "result_jobs",
     "bin_length_of",
     "job_bin_length",
+    "job_stored_steps",
     "stored_profile_wheels",
     "profile_columns",
     "profile_frame",
@@ -105,6 +106,16 @@ def bin_length_of(job: Job | None) -> float:
 def job_bin_length(session: Session, job_id: int) -> float:
     """Bin length of job ``job_id``'s profile, m (:func:`bin_length_of`)."""
     return bin_length_of(session.get(Job, job_id))
+
+
+def job_stored_steps(session: Session, job_id: int) -> bool:
+    """Whether job ``job_id`` stored the step estimate ``sleeper_step`` with its profile rows.
+
+    Its results' meta names ``step_estimate`` (:func:`app.pipeline.results_meta`); a job processed
+    before the step estimate was stored (migration 0025) has NULL there.
+    """
+    meta = session.scalar(select(Job.meta).where(Job.id == job_id))
+    return isinstance(meta, dict) and "step_estimate" in meta
 
 
 def stored_profile_wheels(session: Session, job_id: int) -> list[str]:

@@ -19,6 +19,7 @@ from app.analysis.binning import BinSums
 from app.analysis.denoise import edge_preserving
 from app.analysis.roughness import single_wheel_estimate, two_rail_estimate
 from app.analysis.settings import ProcessingSettings
+from app.analysis.steps import DEFAULT_STEP_PENALTY, step_levels
 from app.analysis.uncertainty import STEP_WIDTH_FACTORS
 from app.analysis.wheel_oor import apply_diameter_correction, refine_diameter, summarize_oor
 from app.io import WHEELS
@@ -34,8 +35,8 @@ from app.pipeline.impacts import (
     run_impacts,
 )
 
-__all__ = ["ENGINE_VERSION", "ROUGHNESS_COLUMNS", "TRACK_COLUMNS", "RunResults", "assemble", "assemble_wheel",
-           "results_meta", "run_warnings", "sleeper_estimate"]
+__all__ = ["ENGINE_VERSION", "ROUGHNESS_COLUMNS", "STEP_COLUMN", "TRACK_COLUMNS", "RunResults", "assemble",
+           "assemble_wheel", "results_meta", "run_warnings", "sleeper_estimate", "sleeper_step"]
 
 #: bump when the stored numbers would change for the same input and settings
 #: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q;
@@ -49,6 +50,9 @@ TRACK_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp
 #: f_s as before (``sleeper_amp`` is now the best estimate: floor-corrected, or common to the two rails
 #: of an axle), the 1-σ of ``sleeper_amp`` and the part of it shared along the floor window, m/s²
 ROUGHNESS_COLUMNS: tuple[str, ...] = ("sleeper_amp_raw", "sleeper_amp_sd", "sleeper_amp_sd_shared")
+#: the step estimate of ``sleeper_amp`` (issue 33 item 7, :func:`sleeper_step`): its levels between change
+#: points, m/s²; a reading beside ``sleeper_amp`` (docs/indicator.md, *Small steps where the signal is weak*)
+STEP_COLUMN = "sleeper_step"
 
 
 @dataclass
@@ -67,7 +71,7 @@ def _wheel_order_numbers(settings: ProcessingSettings) -> np.ndarray:
 def _profile_columns(settings: ProcessingSettings) -> list[str]:
     orders = [f"order_amp_{lvl:02d}" for lvl in _wheel_order_numbers(settings)]
     return ["wheel", "bin", "km", "n_samples", "speed_mean", *TRACK_COLUMNS, *orders,
-            "residual_rms", "sleeper_force_amp", *ROUGHNESS_COLUMNS, IMPACT_COLUMN]
+            "residual_rms", "sleeper_force_amp", *ROUGHNESS_COLUMNS, IMPACT_COLUMN, STEP_COLUMN]
 
 
 def _track_resolution(settings: ProcessingSettings, wheel_diameter: float) -> float:
@@ -76,6 +80,63 @@ def _track_resolution(settings: ProcessingSettings, wheel_diameter: float) -> fl
         return float(settings.track_resolution_m)
     per_speed = float(settings.bandwidth_orders) / (np.pi * float(wheel_diameter))
     return STEP_WIDTH_FACTORS[int(settings.filter_order)] / per_speed
+
+
+def _wheel_resolution(rough: pd.DataFrame | None, settings: ProcessingSettings, wheel_diameter: float) -> float:
+    """The track orders' resolution a wheel was solved with, m: the recipe's (``res_m`` of its ``rough``
+    sums), else the settings' (:func:`_track_resolution`)."""
+    if rough is not None and "res_m" in rough and rough["res_m"].notna().any():
+        return float(np.nanmedian(rough["res_m"]))
+    return _track_resolution(settings, wheel_diameter)
+
+
+def sleeper_step(profile: pd.DataFrame, resolution_m: float, bin_length_m: float,
+                 penalty: float = DEFAULT_STEP_PENALTY) -> np.ndarray:
+    """``sleeper_step`` of one wheel: the step estimate of its stored ``sleeper_amp``.
+
+    Parameters
+    ----------
+    profile : pandas.DataFrame
+        The wheel's profile rows in bin order: ``bin``, ``sleeper_amp`` and ``sleeper_amp_sd`` (m/s²).
+    resolution_m : float
+        The track orders' resolution the wheel was solved with, m (10–90 % step width; 3 m by default).
+    bin_length_m : float
+        m.
+    penalty : float
+        Cost of one change point (:data:`app.analysis.steps.DEFAULT_STEP_PENALTY`).
+
+    Returns
+    -------
+    numpy.ndarray
+        One value per row, m/s²: the levels between change points of ``sleeper_amp``
+        (:func:`app.analysis.steps.step_levels` with ``resolution_m / bin_length_m`` bins, at least 1);
+        NaN where ``sleeper_amp`` or its 1-σ is NaN. Bins missing from the rows (no samples) break the
+        profile into stretches segmented apart, as a NaN does.
+    """
+    bins = profile["bin"].to_numpy(dtype=np.int64)
+    amp = profile["sleeper_amp"].to_numpy(dtype=np.float64, na_value=np.nan)
+    sd = profile["sleeper_amp_sd"].to_numpy(dtype=np.float64, na_value=np.nan)
+    if bins.size == 0:
+        return np.zeros(0)
+    if np.any(np.diff(bins) <= 0):
+        raise ValueError("profile: bins must be increasing")
+    gaps = np.flatnonzero(np.diff(bins) > 1) + 1  # a NaN between stretches that do not touch
+    res_bins = max(1.0, float(resolution_m) / float(bin_length_m))
+    out = step_levels(np.insert(amp, gaps, np.nan), np.insert(sd, gaps, np.nan), res_bins, penalty)
+    return np.delete(out, gaps + np.arange(gaps.size))
+
+
+def _with_steps(profiles: pd.DataFrame, resolutions: dict[str, float], bin_length_m: float) -> pd.DataFrame:
+    """``profiles`` with :data:`STEP_COLUMN` written for every wheel in ``resolutions`` (each in bin order)."""
+    out = profiles.copy()
+    out[STEP_COLUMN] = np.nan
+    col = out.columns.get_loc(STEP_COLUMN)
+    bins = out["bin"].to_numpy(dtype=np.int64)
+    for wheel, rows in out.groupby(out["wheel"].astype(str), sort=False).indices.items():
+        if wheel in resolutions:
+            rows = rows[np.argsort(bins[rows], kind="stable")]
+            out.iloc[rows, col] = sleeper_step(out.iloc[rows], resolutions[wheel], bin_length_m)
+    return out
 
 
 def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_diameter: float) -> pd.DataFrame:
@@ -102,8 +163,7 @@ def sleeper_estimate(rough: pd.DataFrame, settings: ProcessingSettings, wheel_di
         (:func:`app.analysis.denoise.edge_preserving`).
     """
     bins = rough["bin"].to_numpy(dtype=np.int64)
-    res_m = float(np.nanmedian(rough["res_m"])) if "res_m" in rough and rough["res_m"].notna().any() \
-        else _track_resolution(settings, wheel_diameter)
+    res_m = _wheel_resolution(rough, settings, wheel_diameter)
     kw = {"bin_length": settings.bin_length_m, "resolution_m": res_m, "filter_order": int(settings.filter_order)}
     if "cross_re" in rough:
         amp, sd, shared = two_rail_estimate(bins, rough["cross_re"].to_numpy(), rough["pow"].to_numpy(),
@@ -133,10 +193,23 @@ def assemble_wheel(
     Returns
     -------
     (pandas.DataFrame, dict) or None
-        Profile rows of the wheel sorted by bin (columns of ``RunResults.profiles``)
-        and its entry of ``RunResults.wheels``; None if the chunks hold no data
-        of the wheel. Deterministic: the same files give the same result.
+        Profile rows of the wheel sorted by bin (columns of ``RunResults.profiles``, ``sleeper_step`` the
+        step estimate of its ``sleeper_amp``: :func:`sleeper_step`) and its entry of
+        ``RunResults.wheels``; None if the chunks hold no data of the wheel. Deterministic: the same
+        files give the same result.
     """
+    done = _assemble_wheel(settings, chunk_paths, wheel)
+    if done is None:
+        return None
+    prof, result, res_m = done
+    return _with_steps(prof, {wheel: res_m}, settings.bin_length_m), result
+
+
+def _assemble_wheel(
+    settings: ProcessingSettings, chunk_paths: Sequence[Path], wheel: str
+) -> tuple[pd.DataFrame, dict[str, Any], float] | None:
+    """:func:`assemble_wheel` without the step estimate (``sleeper_step`` NaN), and the wheel's track
+    resolution, m (:func:`_wheel_resolution`)."""
     g: dict[str, list[BinSums]] = {}
     d_w = DEFAULT_WHEEL_DIAMETER_M
     notes: dict[str, None] = {}
@@ -154,8 +227,8 @@ def assemble_wheel(
     prof = prof.merge(resid[["bin", "residual_rms"]], on="bin", how="left")
     prof = prof[prof["n_samples"] > 0]
     prof = prof.rename(columns={"sleeper_amp": "sleeper_amp_raw"})
-    if g.get("rough"):
-        rough = BinSums.merge_all(g["rough"]).finalize(settings.bin_length_m)
+    rough = BinSums.merge_all(g["rough"]).finalize(settings.bin_length_m) if g.get("rough") else None
+    if rough is not None:
         prof = prof.merge(sleeper_estimate(rough, settings, d_w), on="bin", how="left")
     elif "sleeper_amp_raw" in prof:  # chunk files before issue 26: the single-wheel amplitude, no 1-σ
         prof["sleeper_amp"] = prof["sleeper_amp_raw"]
@@ -165,13 +238,14 @@ def assemble_wheel(
             prof[col] = np.nan
     prof = prof.rename(columns={"speed": "speed_mean"})
     prof[IMPACT_COLUMN] = np.nan  # written across the wheels by assemble (track impacts)
+    prof[STEP_COLUMN] = np.nan  # from the stored sleeper_amp: after the track impacts are bridged
     prof.insert(0, "wheel", wheel)
     prof = prof[_profile_columns(settings)].sort_values("bin").reset_index(drop=True)
     prof["bin"] = prof["bin"].astype(np.int64)
     prof["n_samples"] = prof["n_samples"].astype(np.int64)
     result = _wheel_result(wheel, g.get("oor", []), d_w, settings)
     result["warnings"] = list(notes)
-    return prof, result
+    return prof, result, _wheel_resolution(rough, settings, d_w)
 
 
 def run_warnings(wheels: Sequence[dict[str, Any]]) -> list[str]:
@@ -198,10 +272,11 @@ def results_meta(settings: ProcessingSettings, n_chunks: int, warnings: Sequence
     """Provenance stored with a job's results (engine version, settings) and its warnings.
 
     ``warnings`` (:func:`run_warnings`) are what the results cannot be trusted
-    for; the API shows them with the job.
+    for; the API shows them with the job. ``step_estimate``: the profile rows hold ``sleeper_step``
+    (:func:`sleeper_step`) with this change-point penalty (jobs without it stored none).
     """
     return {"engine": ENGINE_VERSION, "settings": settings.to_dict(), "oor_window_m": OOR_WINDOW_M,
-            "n_chunks": n_chunks, "warnings": list(warnings)}
+            "n_chunks": n_chunks, "warnings": list(warnings), "step_estimate": {"penalty": DEFAULT_STEP_PENALTY}}
 
 
 def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence[Path]) -> RunResults:
@@ -220,19 +295,22 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
     -------
     RunResults
     """
-    frames, wheels = [], []
+    frames, wheels, resolutions = [], [], {}
     for wheel in WHEELS:
         # one wheel at a time: only its partial sums are in memory
-        done = assemble_wheel(settings, chunk_paths, wheel)
+        done = _assemble_wheel(settings, chunk_paths, wheel)
         if done is not None:
             frames.append(done[0])
             wheels.append(done[1])
+            resolutions[wheel] = done[2]
     cols = _profile_columns(settings)
     profiles = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
     # isolated impacts: track impacts bridged out of the sleeper indicator, wheel flats onto the wheels
     impacts, flats = run_impacts(chunk_paths, wheels)
     extents = impact_extents(profiles, impacts, settings)
     profiles = mask_track_impacts(profiles, impacts, settings, extents)
+    # the step estimate of sleeper_amp as stored (bridged around the track impacts)
+    profiles = _with_steps(profiles, resolutions, settings.bin_length_m)
     for w in wheels:
         w["flat"] = flat_result(flats.get(str(w["wheel"])))
     meta = results_meta(settings, len(chunk_paths), run_warnings(wheels))

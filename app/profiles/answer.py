@@ -112,6 +112,7 @@ def profile_body(
         "truncated": truncated,
         "columns": [str(c) for c in df.columns],
         "reference": ctx.describe() if ctx is not None else None,
+        "step_estimate_stored": q.steps_stored,
     })
     return columns_json(head, df) if q.layout == "columns" else rows_json(head, df)
 

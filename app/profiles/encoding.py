@@ -20,8 +20,9 @@ __all__ = ["ENCODING_VERSION", "CACHE_CONTROL", "rows_json", "columns_json", "de
 
 #: profile answers are immutable per published job: browsers keep them and revalidate (ETag)
 CACHE_CONTROL = "private, no-cache"
-#: bumped when the encoding of a profile answer changes (part of its ETag)
-ENCODING_VERSION = 1
+#: bumped when the encoding of a profile answer changes (part of its ETag; 2: the answers of a job hold
+#: ``sleeper_step`` and ``step_estimate_stored``, which a browser's copy of an earlier answer lacks)
+ENCODING_VERSION = 2
 #: km columns keep 6 decimals (1 mm); other columns 5 significant digits of their largest value
 _KM_COLUMNS = frozenset({"km", "km_from", "km_to"})
 _KM_DECIMALS = 6

@@ -17,6 +17,7 @@ from app.db import crud, results_reader
 from app.db.display_arrays import DisplayArrays
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
+from app.pipeline.assemble import STEP_COLUMN
 from app.profiles.encoding import etag
 from app.runs.lookup import run_with_results
 from app.settings import Settings
@@ -33,7 +34,8 @@ class ProfileQuery:
     """A checked profile query of one published job (what :func:`app.profiles.answer.profile_body` answers).
 
     ``k``: the level in bins (1: the stored bins); ``values``: the indicator columns (None: all);
-    ``etag``: the answer's entity tag (the job and the normalised query).
+    ``etag``: the answer's entity tag (the job and the normalised query); ``steps_stored``: whether the
+    job stored the step estimate ``sleeper_step`` (None: not asked for).
     """
 
     run_id: int
@@ -49,6 +51,7 @@ class ProfileQuery:
     layout: str
     index: IndexContext | None = None
     etag: str = ""
+    steps_stored: bool | None = None
 
 
 def indicator_columns(value: str | None, max_points: int | None) -> tuple[str, ...] | None:
@@ -130,6 +133,10 @@ def profile_query(db: Database, settings: Settings, arrays: DisplayArrays | None
     if index and values is not None:
         values = tuple(dict.fromkeys([*values, "speed_mean", "sleeper_amp"]))
     job_id, bin_length, _arrays = results_context(db, run_id, wheel, arrays)
+    steps_stored = None
+    if values is None or STEP_COLUMN in values:  # an older job's rows hold no step estimate: the answer says so
+        with db.read() as session:
+            steps_stored = results_reader.job_stored_steps(session, job_id)
     ctx = run_index_context(db, settings, run_id, bin_length) if index else None
     k = level_ratio(level, bin_length)
     if max_points is not None and max_points > settings.max_profile_rows:
@@ -138,4 +145,4 @@ def profile_query(db: Database, settings: Settings, arrays: DisplayArrays | None
                max_points=max_points, columns=values, layout=layout,
                index=ctx.version() if ctx is not None else None)
     return ProfileQuery(run_id, job_id, bin_length, k, wheel, km_from, km_to, level, max_points, values, layout,
-                        ctx, tag)
+                        ctx, tag, steps_stored)

@@ -64,3 +64,16 @@ def test_bad_arguments(kw: dict, field: str) -> None:
     args = {"values": np.ones(4), "sd": np.ones(4), "resolution_bins": 12.0} | kw
     with pytest.raises(ValueError, match=field):
         step_levels(**args)
+
+
+def test_change_points_on_a_quarter_resolution_grid() -> None:
+    """A step between bins 200 and 201 (not on the grid of 3 bins) is placed on the nearest grid point, each
+    side's level its bins' mean; with a resolution of 3 bins every bin is a candidate."""
+    rng = np.random.default_rng(2)
+    y = np.where(np.arange(400) < 201, 1.5, 1.0) + 0.01 * rng.standard_normal(400)
+    u = step_levels(y, np.full(400, 0.01), RES_BINS)
+    (jump,) = np.flatnonzero(np.diff(u)) + 1
+    assert jump % 3 == 0 and abs(jump - 201) <= 1
+    assert u[0] == pytest.approx(y[:jump].mean(), rel=1e-12) and u[-1] == pytest.approx(y[jump:].mean(), rel=1e-12)
+    fine = step_levels(y, np.full(400, 0.01), 3.0)
+    assert np.flatnonzero(np.diff(fine))[0] + 1 == 201

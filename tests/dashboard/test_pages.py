@@ -126,6 +126,21 @@ def test_stiffness_map_zoom_refetches_decimated_range(open_page, dashboard):
     rows = list(csv.DictReader(io.StringIO(text)))
     assert rows and set(rows[0]) >= {"wheel", "km", "sleeper_amp_mps2", "speed_kmh", "stiffness_index"}
     assert {r["wheel"] for r in rows} == {"11", "12", "41", "42"}
+    # the step estimate (sleeper_step, stored with the profile) one more click away: a named trace per wheel
+    page.select_option("#map-value", "steps")
+    page.wait_for_function("() => document.getElementById('stiffness-plot').data.some((t) => t.meta === 'step-estimate')")
+    steps = page.evaluate("document.getElementById('stiffness-plot').data.filter((t) => t.meta === 'step-estimate')"
+                          ".map((t) => ({name: t.name, y: t.y, shape: t.line.shape}))")
+    assert steps and all(t["name"].endswith(": step estimate") and t["shape"] == "hv" for t in steps)
+    for t in steps:
+        finite = [y for y in t["y"] if y is not None]
+        assert len(finite) >= 0.9 * len(t["y"]) > 300  # the zoomed 100 m: every bin with its level
+        assert 1 <= len(set(finite)) < len(finite) / 12  # levels, not the amplitude's own fluctuation
+    assert "step estimate" in page.inner_text("#map-title") and "change points" in page.inner_text("#reference-info")
+    with page.expect_download() as dl:
+        page.click("button[data-csv-for='stiffness-plot']")
+    rows = list(csv.DictReader(io.StringIO(dl.value.path().read_text())))
+    assert sum(1 for r in rows if r["sleeper_step_mps2"]) >= 0.9 * len(rows)
     log.assert_clean()
 
 

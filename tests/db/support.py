@@ -62,6 +62,7 @@ def profile_table(
             "sleeper_amp_sd_shared": rng.uniform(0.0, 0.05, n_bins),
             # a track impact every 100 bins (NULL elsewhere)
             "track_impact_mm": np.where(bins % 100 == 37, rng.uniform(0.1, 0.5, n_bins), np.nan),
+            "sleeper_step": np.where(bins % 400 < 200, 1.2, 0.9),
         }))
     return pd.concat(frames, ignore_index=True)
 

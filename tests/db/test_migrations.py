@@ -35,7 +35,7 @@ def test_upgrade_downgrade_upgrade(tmp_path):
     migrate.upgrade(url)
     assert _tables(url) == TABLES
     head = migrate.current_revision(url)
-    assert head == "0024_user_language"  # one chain: the newest migration is the head
+    assert head == "0025_sleeper_step"  # one chain: the newest migration is the head
 
     migrate.downgrade(url, "base")
     assert _tables(url) == set()
@@ -119,5 +119,30 @@ def test_display_levels_of_rows_stored_before_they_existed(tmp_path):
         migrate.upgrade(url)
         with engine.connect() as conn:
             assert conn.execute(sa.text("SELECT max(display_level) FROM profile_bins")).scalar() >= 5
+    finally:
+        engine.dispose()
+
+
+def test_profile_rows_stored_before_the_step_estimate_keep_null(tmp_path):
+    """0025 adds profile_bins.sleeper_step: rows of older jobs read NULL (no step estimate stored); down and
+    up again keeps the rows."""
+    import sqlalchemy as sa
+
+    url = f"sqlite:///{tmp_path / 'm.sqlite'}"
+    migrate.upgrade(url, "0024_user_language")
+    engine = sa.create_engine(url)
+    try:
+        with engine.begin() as conn:
+            conn.execute(sa.text("INSERT INTO profile_bins (run_id, job_id, wheel, bin, km, n_samples, sleeper_amp) "
+                                 "VALUES (1, 1, '11', :b, :km, 10, 1.5)"), [{"b": b, "km": b / 4000} for b in range(5)])
+        migrate.upgrade(url)
+        with engine.connect() as conn:
+            got = conn.execute(sa.text("SELECT sleeper_amp, sleeper_step FROM profile_bins ORDER BY bin")).all()
+        assert got == [(1.5, None)] * 5
+        migrate.downgrade(url, "0024_user_language")
+        with engine.connect() as conn:
+            cols = {c["name"] for c in sa.inspect(conn).get_columns("profile_bins")}
+            assert "sleeper_step" not in cols
+            assert conn.execute(sa.text("SELECT count(*) FROM profile_bins")).scalar() == 5
     finally:
         engine.dispose()

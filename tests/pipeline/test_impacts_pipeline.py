@@ -69,6 +69,29 @@ def test_the_weld_is_found_reported_and_kept_out_of_the_indicator(weld_and_flat)
     assert before < 0.8 < 0.9 < after  # a false soft spot without the mask, none with it
 
 
+def test_the_step_estimate_is_that_of_the_stored_amplitude(weld_and_flat):
+    """``sleeper_step`` (issue 33 item 7): per wheel, the step estimate of ``sleeper_amp`` as stored — bridged
+    around the weld — with its 1-σ and the run's 3 m resolution in bins; NaN exactly where ``sleeper_amp``
+    is. The wheel assembled alone (the fan-out mode's rows, not bridged) holds that of its own amplitude."""
+    from app.analysis.steps import step_levels
+
+    _, res, paths = weld_and_flat
+    assert res.meta["step_estimate"] == {"penalty": 16.0}
+    for wheel, p in res.profiles.groupby("wheel"):
+        p = p.sort_values("bin")
+        assert np.all(np.diff(p["bin"].to_numpy()) == 1)
+        amp, sd, step = (p[c].to_numpy(dtype=float) for c in ("sleeper_amp", "sleeper_amp_sd", "sleeper_step"))
+        np.testing.assert_array_equal(step, step_levels(amp, sd, 12.0), err_msg=wheel)
+        assert np.array_equal(np.isnan(step), np.isnan(amp)) and np.isfinite(step).sum() > 1000
+        # a few levels, not the profile: the amplitude's fluctuation between them is flattened
+        assert 1 < np.unique(step[np.isfinite(step)]).size < np.isfinite(step).sum() / 12
+    raw = assemble_wheel(ProcessingSettings(), paths, "12")[0]
+    np.testing.assert_array_equal(raw["sleeper_step"], step_levels(raw["sleeper_amp"].to_numpy(),
+                                                                   raw["sleeper_amp_sd"].to_numpy(), 12.0))
+    stored = res.profiles[res.profiles["wheel"] == "12"]["sleeper_step"].to_numpy()
+    assert not np.array_equal(raw["sleeper_step"].to_numpy(), stored)  # the weld's bins differ
+
+
 def test_the_flat_is_found_on_its_wheel_only(weld_and_flat):
     truth, res, _ = weld_and_flat
     flats = {w["wheel"]: w["flat"] for w in res.wheels}

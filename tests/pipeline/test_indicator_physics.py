@@ -198,17 +198,19 @@ def test_a_small_step_under_noise_meets_the_targets_as_steps(tmp_path):
     """Issue 33 item 7, from the uniform runs: 80 ↔ 40 MN/m at 50 m/s (1.51 ↔ 0.98 m/s², the levels of the FE
     step 80 → 52 MN/m) cross-faded over 3 m, with 1 m/s² of the simulator's band-limited noise. The stored
     profile reads every edge wider than 6 m or ringing by more than 10 % (the noise in the 3 m band is
-    11–13 % of the step per bin); the piecewise-constant step estimate meets the issue-26 targets."""
+    11–13 % of the step per bin); the stored step estimate (``sleeper_step``: the piecewise-constant levels
+    of the stored amplitude at the run's 3 m resolution) meets the issue-26 targets."""
     from app.analysis.steps import step_levels
     from app.simulate.noise import BandLimitedNoise
 
     run = blended_run(50, 80, 40, [37.2, 24.6, 60.0])
     z = run.z + BandLimitedNoise(np.random.default_rng(5), run.fs, 1.0, (2.0, 0.4 * run.fs)).next(run.z.size)
     x, p, _ = _profile(tmp_path, "weak", z, run.fs, run.speed)
-    a, sd = p["sleeper_amp"].to_numpy(), p["sleeper_amp_sd"].to_numpy()
+    a, sd, step = p["sleeper_amp"].to_numpy(), p["sleeper_amp_sd"].to_numpy(), p["sleeper_step"].to_numpy()
+    np.testing.assert_array_equal(step, step_levels(a, sd, 3.0 / 0.25))
     stored = evaluate(x, a, run)
     assert all(e["product"]["width"] > 6.0 or e["product"]["ringing"] > 0.10 for e in stored["edges"]), stored
-    steps = evaluate(x, step_levels(a, sd, 3.0 / 0.25), run)
+    steps = evaluate(x, step, run)
     for e in steps["edges"]:
         m = e["product"]
         assert m["width"] <= 6.0 and m["ringing"] <= 0.10 and abs(m["offset"]) <= 2.0, steps

@@ -164,6 +164,54 @@ def test_roughness_columns_stored_returned_and_exported(processed):
     assert agg["sleeper_amp_sd_mean"].mean() > 2 * want["sleeper_amp_sd"].mean() / np.sqrt(40)
 
 
+def test_the_step_estimate_is_answered_and_an_older_job_says_it_has_none(client, processed, tmp_path):
+    """``sleeper_step`` per bin in the answer, its segments and the CSV (label and unit in the reader's
+    language); a job processed before the step estimate was stored (``processed``: its meta names none)
+    answers null there and ``step_estimate_stored: false``, a new one ``true``; not asked for: null."""
+    from app.core.csv_labels import column_label
+
+    client, old_run, _ = processed
+    body = client.get(f"/api/v1/runs/{old_run}/profile", params={"wheel": "11", "km_to": 12.51}).json()
+    assert body["step_estimate_stored"] is False
+    assert all(r["sleeper_step"] is None for r in body["rows"]) and len(body["rows"]) == 40
+    asked = client.get(f"/api/v1/runs/{old_run}/profile",
+                       params={"wheel": "11", "max_points": 400, "columns": "sleeper_step"}).json()
+    assert asked["step_estimate_stored"] is False and "sleeper_step" in asked["columns"]
+    unasked = client.get(f"/api/v1/runs/{old_run}/profile", params={"wheel": "11", "columns": "sleeper_amp"}).json()
+    assert unasked["step_estimate_stored"] is None
+    old_csv = pd.read_csv(io.StringIO(client.get(f"/api/v1/runs/{old_run}/profile.csv",
+                                                 params={"wheel": "11"}).text))
+    assert old_csv["sleeper_step"].isna().all()
+
+    path = runfiles.write_hdf5(tmp_path / "new.h5", runfiles.channels(10_000, seed=9))
+    with open(path, "rb") as fh:
+        run = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()
+    df, wheels = _synthetic()
+    df["sleeper_step"] = np.where(df["bin"] < BIN0 + 1000, 1.25, 0.8)
+    db = Database(client.settings.database_url)
+    try:
+        job_id = queue.claim_next_job(db, "test", 30)
+        assert publish.publish_job(db, job_id, run["id"], df, wheels, {"step_estimate": {"penalty": 16.0}},
+                                   worker_id="test")
+    finally:
+        db.dispose()
+    body = client.get(f"/api/v1/runs/{run['id']}/profile", params={"wheel": "41"}).json()
+    assert body["step_estimate_stored"] is True
+    np.testing.assert_allclose(pd.DataFrame(body["rows"])["sleeper_step"], df[df.wheel == "41"]["sleeper_step"])
+    seg = pd.DataFrame(client.get(f"/api/v1/runs/{run['id']}/profile",
+                                  params={"wheel": "41", "level": 100, "columns": "sleeper_step"}).json()["rows"])
+    np.testing.assert_allclose(seg["sleeper_step_mean"], [1.25, 1.25, 1.025, 0.8, 0.8])
+    for lang in ("en", "de", "fr", "it"):
+        r = client.get(f"/api/v1/runs/{run['id']}/profile.csv", params={"wheel": "41", "header": "labels"},
+                       headers={"Accept-Language": lang})
+        header = r.text.split("\n", 1)[0]
+        label = column_label("sleeper_step", lang)
+        assert label in header and label.endswith("[m/s²]"), (lang, header)
+    assert len({column_label("sleeper_step", lang) for lang in ("en", "de", "fr", "it")}) == 4
+    got = pd.read_csv(io.StringIO(client.get(f"/api/v1/runs/{run['id']}/profile.csv").text), dtype={"wheel": str})
+    np.testing.assert_allclose(got["sleeper_step"], df.sort_values(["wheel", "bin"])["sleeper_step"])
+
+
 def test_wheels(processed):
     client, run_id, _ = processed
     r = client.get(f"/api/v1/runs/{run_id}/wheels")

@@ -20,7 +20,9 @@ class ProfileOut(BaseModel):
     ≈ 20 m the roughness floor is estimated over), ``order_amp_01..11`` (m/s²), ``residual_rms`` (m/s²),
     ``sleeper_force_amp`` (kN), ``track_impact_mm`` (estimated depth of an
     isolated track impact — a dipped weld or joint — in that bin, mm; null
-    elsewhere). At a coarser level every row is one segment with
+    elsewhere), ``sleeper_step`` (m/s², the step estimate of ``sleeper_amp``: its levels between
+    change points, docs/indicator.md; null where ``sleeper_amp`` is, and for a job that did not store
+    it: ``step_estimate_stored`` false). At a coarser level every row is one segment with
     ``km_from, km_to, n_bins`` and ``<column>_mean``, ``<column>_max``,
     ``<column>_p95`` for every indicator column; ``sleeper_amp_sd_mean`` is the 1-σ of
     the segment's mean (the bins' errors correlate along the track, their shared part over
@@ -48,6 +50,12 @@ class ProfileOut(BaseModel):
         description="With index=true: the reference curves the stiffness index used (line, track, "
         "run_ids, computed_at, speed_tolerance, classes with their speed ranges), or "
         "{available: false, reason}",
+    )
+    step_estimate_stored: bool | None = Field(
+        None,
+        description="Whether the job stored the step estimate sleeper_step: false for a job processed "
+        "before it was stored with the profiles (its sleeper_step is null everywhere; processing the run "
+        "again stores it); null when sleeper_step was not asked for",
     )
     rows: list[dict[str, Any]] = Field(
         default_factory=list, description="The rows as objects (layout=rows, the default)"

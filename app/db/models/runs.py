@@ -73,6 +73,7 @@ PROFILE_VALUE_COLUMNS: tuple[str, ...] = (
     "sleeper_amp_sd",
     "sleeper_amp_sd_shared",
     "track_impact_mm",
+    "sleeper_step",
 )
 
 
@@ -262,6 +263,9 @@ class ProfileBin(Base):
     #: estimated depth (mm) of an isolated track impact (dipped weld or joint) in this bin, NULL elsewhere;
     #: the sleeper-passage columns are bridged around it (app.pipeline.impacts); NULL in jobs before issue 26
     track_impact_mm: Mapped[float | None] = mapped_column(Float)
+    #: the step estimate of sleeper_amp: its levels between change points, m/s² (issue 33 item 7,
+    #: app.pipeline.assemble.sleeper_step); NULL where sleeper_amp is, and in jobs before migration 0025
+    sleeper_step: Mapped[float | None] = mapped_column(Float)
 
 
 class WheelOOR(Base):

@@ -98,7 +98,7 @@
     amplitude_mps2: T._("Amplitude (m/s²)"), acceleration_mps2: T._("Acceleration amplitude (m/s²)"), accel_amp_mps2: T._("Acceleration amplitude (m/s²)"),
     force_kn: T._("Force amplitude (kN)"), fitted_mass_kg: T._("Fitted mass (kg)"), speed_kmh: T._("Speed (km/h)"),
     speed_mps: T._("Speed (m/s)"), residual_rms_mps2: T._("Residual RMS (m/s²)"), order_amp_01_mps2: T._("Wheel order 1 amplitude (m/s²)"),
-    track_impact_mm: T._("Track impact depth (mm)"),
+    track_impact_mm: T._("Track impact depth (mm)"), sleeper_step_mps2: T._("Step estimate of the sleeper-passage amplitude (m/s²)"),
     relative_mean: T._("Relative to the surroundings (ln units)"), change_z: T._("Change score (z)"), flagged: T._("Flagged (1 = yes)"),
     class: T._("Class"), level: T._("Level (ln units)"), spread: T._("Spread (ln units)"), rms: T._("RMS (ln units)"), fill: T._("Data share (0–1)"),
     change: T._("Change (ln units)"), tier: T._("Tier"), method_version: T._("Method version"),

@@ -1,5 +1,6 @@
 /* Stiffness map of one run: the stiffness index ln(A / A_ref(class, v)) along km for the four
- * wheels (raw sleeper-passage amplitude one click away), decimated on the server per zoom level,
+ * wheels (raw sleeper-passage amplitude one click away, and with it the step estimate: its levels
+ * between change points, one named trace per wheel), decimated on the server per zoom level,
  * speed on a second axis, the reference curves it used stated under the plot, superstructure
  * sections and maintenance actions shaded when the reference data exist, known discontinuities
  * (assets: switches, bridges, joints, ...) marked with their type. */
@@ -21,7 +22,7 @@
   }
   let run = null, wheels = [], full = null, current = null, data = {}, shapes = [], annotations = [];
   let busy = false, pending = null, seq = 0;
-  const COLUMNS = "sleeper_amp,speed_mean,sleeper_force_amp"; // what the map draws and exports
+  const COLUMNS = "sleeper_amp,speed_mean,sleeper_force_amp,sleeper_step"; // what the map draws and exports
   let reference = null; // the reference curves the index used (from the profile answer)
 
   function maxPoints() { return Math.max(600, Math.min(4000, Math.round(2 * (el.clientWidth || 1200)))); }
@@ -134,6 +135,11 @@
   }
 
   function showIndex() { return document.getElementById("map-value").value === "index"; }
+  /* The amplitude with its step estimate (the levels between change points: a step's position and the
+   * levels either side where the amplitude's own fluctuation hides them; docs/indicator.md). */
+  function showSteps() { return document.getElementById("map-value").value === "steps"; }
+  /* Whether the job stored the step estimate (false: processed before it was stored). */
+  function stepsStored() { return wheels.length > 0 && data[wheels[0]].step_estimate_stored !== false; }
 
   function referenceText(ref) {
     if (!ref) return "";
@@ -157,23 +163,26 @@
 
   /* Wheels whose drawn values are the same along the whole range: the two wheels of an axle that
    * share the two-rail value (the sleeper-passage order of both rails). One trace stands for them. */
-  function sameValues(a, b, index) {
+  function sameValues(a, b, index, steps) {
     const ra = data[a].rows, rb = data[b].rows;
     if (!ra.length || ra.length !== rb.length) return false;
     for (let i = 0; i < ra.length; i++) {
-      const x = valueOf(ra[i], index), y = valueOf(rb[i], index);
       if (ra[i].km !== rb[i].km) return false;
-      if (x === null || y === null ? x !== y : Math.abs(x - y) > 1e-9 * Math.max(1, Math.abs(x))) return false;
+      // with the step estimate drawn, the two wheels share a trace only if they share that too
+      for (const [x, y] of steps ? [[valueOf(ra[i], index), valueOf(rb[i], index)], [ra[i].sleeper_step ?? null, rb[i].sleeper_step ?? null]]
+        : [[valueOf(ra[i], index), valueOf(rb[i], index)]]) {
+        if (x === null || y === null ? x !== y : Math.abs(x - y) > 1e-9 * Math.max(1, Math.abs(x))) return false;
+      }
     }
     return true;
   }
 
   /* One trace per wheel, or one per axle where its two wheels share the value (said in its name). */
-  function wheelGroups(index) {
+  function wheelGroups(index, steps) {
     const groups = [], used = new Set();
     for (const w of wheels) {
       if (used.has(w)) continue;
-      const mate = wheels.find((o) => o !== w && !used.has(o) && o.slice(0, -1) === w.slice(0, -1) && sameValues(w, o, index));
+      const mate = wheels.find((o) => o !== w && !used.has(o) && o.slice(0, -1) === w.slice(0, -1) && sameValues(w, o, index, steps));
       used.add(w);
       if (mate) { used.add(mate); groups.push([w, mate]); } else groups.push([w]);
     }
@@ -188,9 +197,10 @@
   function traces() {
     const tr = [];
     let speedSrc = null;
-    const index = showIndex();
+    const index = showIndex(), steps = showSteps() && stepsStored();
     const ampWord = T._("amplitude"), refWord = T._("reference"), speedWord = T._("speed"), indexWord = T._("stiffness index");
-    for (const group of wheelGroups(index)) {
+    const stepWord = T._("step estimate");
+    for (const group of wheelGroups(index, steps)) {
       const w = group[0];
       const rows = data[w].rows;
       const label = group.map((g) => T.wheelLabel(g)).join(" = ");
@@ -203,10 +213,19 @@
           `<br>${ampWord} %{customdata[1]:.3f} m/s² (${refWord} %{customdata[2]:.3f})<br>${speedWord} %{customdata[3]:.1f} km/h<extra></extra>`,
       } : {
         type: "scatter", mode: "lines", name: groupName(group), line: { color: T.wheelColor(w), width: 1.3 },
+        opacity: steps ? 0.45 : 1,
         x: rows.map((r) => r.km), y: rows.map((r) => r.sleeper_amp),
         customdata: rows.map((r) => (r.speed_mean ?? NaN) * 3.6),
         hovertemplate: `${label}<br>km %{x:.4f}<br>${ampWord} %{y:.3f} m/s²<br>${speedWord} %{customdata:.1f} km/h<extra></extra>`,
       });
+      if (steps) {
+        tr.push({
+          type: "scatter", mode: "lines", name: T._("{wheel}: step estimate", { wheel: groupName(group) }),
+          meta: "step-estimate", line: { color: T.wheelColor(w), width: 2.4, shape: "hv" },
+          x: rows.map((r) => r.km), y: rows.map((r) => r.sleeper_step ?? null),
+          hovertemplate: `${label}<br>km %{x:.4f}<br>${stepWord} %{y:.3f} m/s²<extra></extra>`,
+        });
+      }
     }
     if (speedSrc) {
       tr.push({
@@ -222,8 +241,13 @@
     const index = showIndex();
     const scale = index ? "linear" : document.getElementById("amp-scale").value;
     document.getElementById("amp-scale").disabled = index;
-    document.getElementById("map-title").textContent = index ? T._("Stiffness index along the track") : T._("Sleeper-passage amplitude along the track");
-    document.getElementById("reference-info").innerHTML = index ? referenceText(reference) : "";
+    document.getElementById("map-title").textContent = index ? T._("Stiffness index along the track")
+      : showSteps() ? T._("Sleeper-passage amplitude and its step estimate along the track") : T._("Sleeper-passage amplitude along the track");
+    document.getElementById("reference-info").innerHTML = index ? referenceText(reference)
+      : showSteps() ? T.esc(stepsStored()
+        ? T._("Step estimate: the amplitude's levels between change points, a step kept where it stands out by about four of its standard deviations. Read it for where a step lies and the levels either side; a short record with a steady ripple reads as stairs.")
+        : T._("This job stored no step estimate: it was processed before the step estimate was stored with the profiles. Process the run again to see it."))
+      : "";
     const tr = traces();
     const n = wheels.length ? data[wheels[0]].n_rows : 0;
     document.getElementById("map-info").textContent =
@@ -243,10 +267,10 @@
         const rows = [];
         for (const w of wheels) for (const r of data[w].rows) {
           rows.push([w, r.km, r.sleeper_amp, (r.speed_mean ?? NaN) * 3.6, r.sleeper_force_amp,
-            r.stiffness_index ?? NaN, r.stiffness_index_se ?? NaN, r.reference_amp ?? NaN]);
+            r.stiffness_index ?? NaN, r.stiffness_index_se ?? NaN, r.reference_amp ?? NaN, r.sleeper_step ?? NaN]);
         }
         return { columns: ["wheel", "km", "sleeper_amp_mps2", "speed_kmh", "sleeper_force_amp_kn",
-          "stiffness_index", "stiffness_index_se", "reference_amp_mps2"], rows };
+          "stiffness_index", "stiffness_index_se", "reference_amp_mps2", "sleeper_step_mps2"], rows };
       },
     });
   }
