@@ -1,7 +1,10 @@
 """Real faults on both modes (SQLite + local worker, PostgreSQL + Procrastinate):
-two workers competing for one run, the database restarted while chunks run, the
-same chunk delivered twice, the API killed during an upload. Each ends with the
-run's profile identical to a clean run's and every row stored once."""
+two workers competing for one run (both modes), the database restarted while chunks
+run and the same chunk delivered twice (PostgreSQL: a database server, Procrastinate's
+task delivery), the API killed during an upload (SQLite: the API dies while it
+receives the body, before it writes to any database; the run uploaded again is
+processed as in the competing workers' test). Each ends with the run's profile
+identical to a clean run's and every row stored once."""
 
 from __future__ import annotations
 
@@ -60,9 +63,9 @@ def test_two_workers_compete_for_the_same_run(service, short_sim_run, clean_refe
             assert f"job {job_id} chunk" in text_, service.log_text()
 
 
+#: the embedded SQLite database is a file: no server to restart
+@pytest.mark.parametrize("service", ["postgresql"], indirect=True)
 def test_database_restart_while_chunks_run(service, short_sim_run, clean_reference):
-    if service.backend != "postgresql":
-        pytest.skip("the embedded SQLite database is a file: no server to restart")
     path, _ = short_sim_run
     with service.client(timeout=120) as client:
         run_id, job_id = upload_with_job(client, path)
@@ -87,11 +90,11 @@ def _procrastinate_pending(database_url: str) -> int:
         db.dispose()
 
 
+#: task delivery is Procrastinate's (the local worker owns whole jobs)
+@pytest.mark.parametrize("service", ["postgresql"], indirect=True)
 def test_same_chunk_delivered_twice_on_hosts_sharing_only_an_object_store(
     service, short_sim_run, clean_reference
 ):
-    if service.backend != "postgresql":
-        pytest.skip("task delivery is Procrastinate's (the local worker owns whole jobs)")
     from worker.hosting import make_app
     from worker.tasks import TASK_ASSEMBLE, TASK_CHUNK, TASK_PUBLISH, TASK_STORE_WHEEL
 
@@ -142,6 +145,10 @@ def test_same_chunk_delivered_twice_on_hosts_sharing_only_an_object_store(
         assert not (shared / str(run_id)).exists()
 
 
+#: the API receives the body into the run store before it writes to the database: the kill and the sweep
+#: are the same in both modes, and the processing of the run uploaded again on PostgreSQL is
+#: test_two_workers_compete_for_the_same_run's
+@pytest.mark.parametrize("service", ["sqlite"], indirect=True)
 def test_api_killed_during_upload_leaves_nothing(service, short_sim_run, clean_reference):
     path, _ = short_sim_run
     data = path.read_bytes()

@@ -104,6 +104,8 @@ def test_upload_process_and_query_against_truth(service, sim_run):
     assert store_files(service.run_store) == []
 
 
+#: the file is refused while it is parsed, before the API writes to any database: the same in both modes
+@pytest.mark.parametrize("service", ["sqlite"], indirect=True)
 def test_bad_upload_over_http_leaves_nothing(service, tmp_path):
     bad = tmp_path / "bad.csv"
     bad.write_text("Z11,speed\n1,2\n3,4\n")
