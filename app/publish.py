@@ -77,8 +77,9 @@ def publish_job(
     Parameters
     ----------
     profiles : pandas.DataFrame or None
-        The job's profile rows, or None when they were stored wheel by wheel
-        already (:func:`store_wheel_rows`, fan-out mode).
+        The job's profile rows (they replace any of its rows stored wheel by wheel: the fan-out's
+        rows with its track impacts bridged), or None when the rows stored wheel by wheel
+        (:func:`store_wheel_rows`, fan-out mode) are the results as they stand.
     wheels : sequence of dict
         The wheels' out-of-roundness results (``RunResults.wheels``).
     meta : dict

@@ -15,8 +15,12 @@ worker (:func:`app.pipeline.plan_chunks`, :func:`~app.pipeline.process_chunk`,
                        rows (one transaction, keyed by the job: not yet visible),
                        then its OOR result file; the task that sees every wheel
                        stored defers publish_job
-        publish_job:   the publish step (app.publish.publish_job), one transaction:
-                       the run's wheel rows replaced, the older jobs' profile rows
+        publish_job:   the run's track impacts from the chunk files, bridged in
+                       the stored rows (app.pipeline.finish_assembly, as the local
+                       worker ends: the same rows and meta), then the publish step
+                       (app.publish.publish_job), one transaction: the bridged
+                       rows replace the job's (if there was an impact), the
+                       run's wheel rows replaced, the older jobs' profile rows
                        deleted, the condition rows and alerts written, the job
                        marked 'done' (readers show a run's latest done job: they
                        switch from the old to the new results at this commit),
@@ -64,6 +68,8 @@ from __future__ import annotations
 import json
 import logging
 import time
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import procrastinate
@@ -75,8 +81,17 @@ from app import publish
 from app.core.jsonable import jsonable
 from app.db import queue
 from app.db.models import ChunkStatus
-from app.pipeline import ChunkSpec, PipelineCancelled, assemble_wheel, process_chunk, run_warnings
+from app.db.results_reader import job_profile_frame
+from app.pipeline import (
+    ChunkSpec,
+    PipelineCancelled,
+    RunResults,
+    finish_assembly,
+    process_chunk,
+    wheel_assembly,
+)
 from worker.steps import (
+    JobRecord,
     WorkerRuntime,
     discard_job_files,
     end_failed,
@@ -341,18 +356,19 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
         t0 = time.perf_counter()
         try:
             with rt.chunks.local_copies(run_id, job_id, indices) as paths:
-                done = assemble_wheel(record.settings, paths, wheel)
+                done = wheel_assembly(record.settings, paths, wheel)  # None: no data of the wheel
         except Exception as exc:
             if _is_transient(exc):
                 raise
             end_failed(rt, job_id, run_id, exc, worker_id=None)
             return "failed"
-        profiles, result = done if done is not None else (None, None)  # None: no data of the wheel
         t1 = time.perf_counter()
-        if profiles is not None and not publish.store_wheel_rows(rt.db, job_id, run_id, profiles):
+        if done is not None and not publish.store_wheel_rows(rt.db, job_id, run_id, done.profiles):
             return "job not running"
         t2 = time.perf_counter()
-        record_ = {"result": result, "rows": 0 if profiles is None else len(profiles),
+        record_ = {"result": None if done is None else done.result,
+                   "resolution_m": None if done is None else done.resolution_m,
+                   "rows": 0 if done is None else len(done.profiles),
                    "assemble_s": round(t1 - t0, 3),
                    "store_s": round(t2 - t1, 3)}
         rt.chunks.write_bytes(run_id, job_id, name, json.dumps(jsonable(record_)).encode())
@@ -367,8 +383,12 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
 def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
     """Publish a job whose wheels are all stored: wheel rows, old rows dropped, job done.
 
-    One transaction (:func:`app.publish.publish_job`), guarded by the
-    job's state: a second publish of a done job changes nothing.
+    First the run's results as the local worker ends them (:func:`_finish`: the track impacts
+    found in the chunk files and bridged in the stored rows, the step estimate, the wheel flats,
+    ``meta["track_impacts"]``); then one transaction (:func:`app.publish.publish_job`) that also
+    replaces the job's rows with the bridged ones where there is a track impact, guarded by the
+    job's state: a second publish of a done job changes nothing, and a publish that did not commit
+    is computed again from the same stored rows and chunk files.
     """
     rt = runtime_of(context)
     record = load_job(rt.db, job_id)
@@ -381,18 +401,56 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
         if not rt.chunks.exists_named(run_id, job_id, name):
             return f"wheel {wheel} not stored yet"
         stored_wheels.append(json.loads(rt.chunks.read_bytes(run_id, job_id, name)))
-    n_chunks = len(queue.job_chunk_specs(rt.db, job_id))
-    meta = job_meta(
-        record.settings, n_chunks, worker_id=record.job.worker_id, run_sha256=record.run.sha256, mode=_MODE,
-        warnings=run_warnings([r["result"] for r in stored_wheels if r["result"] is not None]),
-        assemble_s=sum(r["assemble_s"] for r in stored_wheels), store_s=sum(r["store_s"] for r in stored_wheels),
-    )
+    indices = sorted(queue.job_chunk_specs(rt.db, job_id))
     t0 = time.perf_counter()
-    wheels = [r["result"] for r in stored_wheels if r["result"] is not None]
-    stored = end_published(rt, record, None, wheels, meta, worker_id=None)
-    log.info("job %s %s in %.2f s (%d rows)", job_id, "published" if stored else "not published (not running)",
-             time.perf_counter() - t0, sum(r["rows"] for r in stored_wheels))
+    try:
+        with rt.chunks.local_copies(run_id, job_id, indices) as paths:
+            results, bridged = _finish(rt, record, paths, stored_wheels)
+    except Exception as exc:
+        if _is_transient(exc):
+            raise
+        end_failed(rt, job_id, run_id, exc, worker_id=None)
+        return "failed"
+    t1 = time.perf_counter()
+    meta = job_meta(
+        record.settings, len(indices), worker_id=record.job.worker_id, run_sha256=record.run.sha256, mode=_MODE,
+        warnings=results.meta["warnings"], track_impacts=results.meta["track_impacts"],
+        assemble_s=sum(r["assemble_s"] for r in stored_wheels) + (t1 - t0),
+        store_s=sum(r["store_s"] for r in stored_wheels),
+    )
+    stored = end_published(rt, record, results.profiles if bridged else None, results.wheels, meta, worker_id=None)
+    log.info("job %s %s in %.2f s (%d rows%s)", job_id, "published" if stored else "not published (not running)",
+             time.perf_counter() - t1, sum(r["rows"] for r in stored_wheels), ", rewritten bridged" if bridged else "")
     return "published" if stored else "not running any more"
+
+
+def _finish(rt: WorkerRuntime, record: JobRecord, chunk_paths: Sequence[Path],
+            stored_wheels: Sequence[dict[str, Any]]) -> tuple[RunResults, bool]:
+    """The job's results from its stored wheels (:func:`app.pipeline.finish_assembly`, as the local
+    worker ends), and whether its rows must be written again (track impacts bridged in them).
+
+    The wheels' rows are read back as :func:`store_wheel` stored them. Without a track impact they are
+    already the results (each wheel's step estimate is that of its own ``sleeper_amp``), and stay; with
+    one, the publish transaction replaces them with the bridged rows. A wheel file written before the
+    wheels' resolutions were kept in it: the wheel's resolution is assembled again from the chunk files.
+    """
+    settings = record.settings
+    wheels, resolutions = [], {}
+    for r in stored_wheels:
+        if r["result"] is None:
+            continue
+        wheel = str(r["result"]["wheel"])
+        wheels.append(r["result"])
+        res_m = r.get("resolution_m")
+        if res_m is None:
+            again = wheel_assembly(settings, chunk_paths, wheel)
+            res_m = None if again is None else again.resolution_m
+        if res_m is not None:
+            resolutions[wheel] = float(res_m)
+    with rt.db.read() as session:
+        profiles = job_profile_frame(session, record.job.id)
+    results = finish_assembly(settings, chunk_paths, profiles, wheels, resolutions)
+    return results, bool(results.meta["track_impacts"])
 
 
 class _CancelWatch:

@@ -15,6 +15,9 @@ them (the local job loop and the Procrastinate tasks of :mod:`worker`, the
 * :func:`assemble` (:mod:`app.pipeline.assemble`) adds the chunk sums and
   turns them into the 25 cm profile rows and the wheel out-of-roundness
   results. It is deterministic and idempotent; it reads no raw signal.
+  The fan-out assembles the wheels apart (:func:`wheel_assembly`) and ends
+  as :func:`assemble` does, with :func:`finish_assembly` (the run's track
+  impacts bridged, the step estimate, the wheel flats, the provenance).
 
 :func:`run_pipeline` (:mod:`app.pipeline.workdir`) runs all three in one
 process over a work directory.
@@ -28,10 +31,13 @@ from app.pipeline.assemble import (
     ENGINE_VERSION,
     TRACK_COLUMNS,
     RunResults,
+    WheelAssembly,
     assemble,
     assemble_wheel,
+    finish_assembly,
     results_meta,
     run_warnings,
+    wheel_assembly,
 )
 from app.pipeline.chunk import PipelineCancelled, process_chunk
 from app.pipeline.plan import ChunkSpec, plan_chunks
@@ -45,6 +51,9 @@ __all__ = [
     "process_chunk",
     "assemble",
     "assemble_wheel",
+    "WheelAssembly",
+    "wheel_assembly",
+    "finish_assembly",
     "results_meta",
     "run_warnings",
     "TRACK_COLUMNS",

@@ -35,8 +35,9 @@ from app.pipeline.impacts import (
     run_impacts,
 )
 
-__all__ = ["ENGINE_VERSION", "ROUGHNESS_COLUMNS", "STEP_COLUMN", "TRACK_COLUMNS", "RunResults", "assemble",
-           "assemble_wheel", "results_meta", "run_warnings", "sleeper_estimate", "sleeper_step"]
+__all__ = ["ENGINE_VERSION", "ROUGHNESS_COLUMNS", "STEP_COLUMN", "TRACK_COLUMNS", "RunResults", "WheelAssembly",
+           "assemble", "assemble_wheel", "finish_assembly", "results_meta", "run_warnings", "sleeper_estimate",
+           "sleeper_step", "wheel_assembly"]
 
 #: bump when the stored numbers would change for the same input and settings
 #: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q;
@@ -62,6 +63,18 @@ class RunResults:
     profiles: pd.DataFrame
     wheels: list[dict[str, Any]]
     meta: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class WheelAssembly:
+    """One wheel assembled alone (:func:`wheel_assembly`), before the run's track impacts are bridged."""
+
+    #: its profile rows in bin order (``sleeper_step`` the step estimate of its own ``sleeper_amp``)
+    profiles: pd.DataFrame
+    #: its entry of ``RunResults.wheels`` (no ``flat`` yet)
+    result: dict[str, Any]
+    #: the track orders' resolution it was solved with, m (what its step estimate takes)
+    resolution_m: float
 
 
 def _wheel_order_numbers(settings: ProcessingSettings) -> np.ndarray:
@@ -196,13 +209,25 @@ def assemble_wheel(
         Profile rows of the wheel sorted by bin (columns of ``RunResults.profiles``, ``sleeper_step`` the
         step estimate of its ``sleeper_amp``: :func:`sleeper_step`) and its entry of
         ``RunResults.wheels``; None if the chunks hold no data of the wheel. Deterministic: the same
-        files give the same result.
+        files give the same result. The run's track impacts are not bridged (:func:`finish_assembly`).
+    """
+    done = wheel_assembly(settings, chunk_paths, wheel)
+    return None if done is None else (done.profiles, done.result)
+
+
+def wheel_assembly(settings: ProcessingSettings, chunk_paths: Sequence[Path], wheel: str) -> WheelAssembly | None:
+    """:func:`assemble_wheel` with the wheel's track resolution, m (what :func:`finish_assembly` takes).
+
+    Returns
+    -------
+    WheelAssembly or None
+        None if the chunks hold no data of the wheel.
     """
     done = _assemble_wheel(settings, chunk_paths, wheel)
     if done is None:
         return None
     prof, result, res_m = done
-    return _with_steps(prof, {wheel: res_m}, settings.bin_length_m), result
+    return WheelAssembly(_with_steps(prof, {wheel: res_m}, settings.bin_length_m), result, res_m)
 
 
 def _assemble_wheel(
@@ -305,17 +330,49 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
             resolutions[wheel] = done[2]
     cols = _profile_columns(settings)
     profiles = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
+    return finish_assembly(settings, chunk_paths, profiles, wheels, resolutions)
+
+
+def finish_assembly(settings: ProcessingSettings, chunk_paths: Sequence[Path], profiles: pd.DataFrame,
+                    wheels: Sequence[dict[str, Any]], resolutions: dict[str, float]) -> RunResults:
+    """The run's results once every wheel is assembled: track impacts bridged, steps, flats, provenance.
+
+    Both worker modes end the assembly here: the local one with the wheels it assembled in turn
+    (:func:`assemble`), the fan-out one with the rows its wheels stored (``worker.tasks.publish_job``).
+    The isolated impacts are found in the chunk files (:func:`app.pipeline.impacts.run_impacts`), the
+    profile's track columns bridged around the track impacts
+    (:func:`app.pipeline.impacts.mask_track_impacts`, ``track_impact_mm`` written), the step estimate
+    taken of ``sleeper_amp`` as bridged (:func:`sleeper_step`) and the wheel flats put on their wheels.
+
+    Parameters
+    ----------
+    settings : ProcessingSettings
+    chunk_paths : sequence of Path
+        The run's chunk files (any order).
+    profiles : pandas.DataFrame
+        Every wheel's profile rows as assembled alone (columns of ``RunResults.profiles``; ``sleeper_step``
+        and ``track_impact_mm`` are written anew).
+    wheels : sequence of dict
+        The wheels' results (``RunResults.wheels``) in the order of :data:`app.io.WHEELS`; not changed.
+    resolutions : dict
+        Per wheel, the track orders' resolution it was solved with, m (:attr:`WheelAssembly.resolution_m`).
+
+    Returns
+    -------
+    RunResults
+        The profiles, the wheel results each with its ``flat`` (:func:`app.pipeline.impacts.flat_result`)
+        and :func:`results_meta` with ``track_impacts`` (:func:`app.pipeline.impacts.impacts_meta`).
+    """
     # isolated impacts: track impacts bridged out of the sleeper indicator, wheel flats onto the wheels
     impacts, flats = run_impacts(chunk_paths, wheels)
     extents = impact_extents(profiles, impacts, settings)
     profiles = mask_track_impacts(profiles, impacts, settings, extents)
     # the step estimate of sleeper_amp as stored (bridged around the track impacts)
     profiles = _with_steps(profiles, resolutions, settings.bin_length_m)
-    for w in wheels:
-        w["flat"] = flat_result(flats.get(str(w["wheel"])))
-    meta = results_meta(settings, len(chunk_paths), run_warnings(wheels))
+    results = [{**w, "flat": flat_result(flats.get(str(w["wheel"])))} for w in wheels]
+    meta = results_meta(settings, len(chunk_paths), run_warnings(results))
     meta["track_impacts"] = impacts_meta(impacts, extents)
-    return RunResults(profiles=profiles, wheels=wheels, meta=meta)
+    return RunResults(profiles=profiles, wheels=results, meta=meta)
 
 
 def _wheel_result(wheel: str, parts: list[BinSums], d_w: float, settings: ProcessingSettings) -> dict[str, Any]:

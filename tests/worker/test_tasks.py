@@ -17,6 +17,11 @@ from procrastinate import exceptions as pexc
 
 from app.db.session import Database
 from app.settings import Settings
+from app.simulate.run import simulate_run
+from app.simulate.speed import SpeedProfile
+from app.simulate.surface import RailSurface, TrackImpact
+from app.simulate.track import TrackSection, generate_line
+from app.simulate.wheels import WheelFlat
 from worker import hosting, tasks
 from worker.runner import LocalWorker
 from worker.steps import WorkerRuntime
@@ -24,6 +29,8 @@ from worker.steps import WorkerRuntime
 pytestmark = pytest.mark.timeout(300)
 
 SETTINGS = {"chunk_seconds": 4.0}
+#: track position of the weld of :func:`weld_run`, m
+WELD_M = 12_080.0
 BY_NAME = {
     tasks.TASK_PLAN: tasks.plan_job,
     tasks.TASK_CHUNK: tasks.run_chunk,
@@ -85,14 +92,16 @@ def uploaded(client, short_sim_run):
     return client, run["id"]
 
 
-def test_fan_out_stores_what_the_local_loop_stores(uploaded):
-    client, run_id = uploaded
-    local_job = client.post(f"/api/v1/runs/{run_id}/jobs", json=SETTINGS).json()["id"]
+def _local_then_fan_out(client, run_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The run processed by the local job loop, then by the fan-out tasks; what each stored:
+    ``{"job": <job body>, "profile": <profile rows>, "wheels": <wheel results>}``, local first."""
     db = Database(client.settings.database_url)
     rt = WorkerRuntime(client.settings, db)
+    stored = []
     try:
+        local_job = client.post(f"/api/v1/runs/{run_id}/jobs", json=SETTINGS).json()["id"]
         assert LocalWorker(client.settings, db=db).run(exit_when_idle=True) == 1
-        local = _profile(client, run_id)
+        stored.append(_stored(client, run_id, local_job))
         job_id = client.post(f"/api/v1/runs/{run_id}/jobs", json=SETTINGS).json()["id"]
         app = _App()
         assert tasks.dispatch_jobs(_context(app, rt), timestamp=0) == 1
@@ -105,13 +114,69 @@ def test_fan_out_stores_what_the_local_loop_stores(uploaded):
     assert names[0] == tasks.TASK_PLAN and n_chunks > 2
     assert names.count(tasks.TASK_STORE_WHEEL) == 4 and names[-1] == tasks.TASK_PUBLISH
     assert ran[-1][1] == "published"
-    body = client.get(f"/api/v1/jobs/{job_id}").json()
-    assert body["status"] == "done" and body["n_chunks"] == n_chunks
-    assert body["meta"]["worker"]["mode"] == "procrastinate"
-    assert body["meta"]["worker"]["worker_id"].startswith("procrastinate:")
-    assert client.get(f"/api/v1/jobs/{local_job}").json()["meta"]["worker"].keys() == {
-        "worker_id", "n_chunks", "compute_s", "run_sha256"}
-    pd.testing.assert_frame_equal(_profile(client, run_id), local)
+    fan_out = _stored(client, run_id, job_id)
+    assert fan_out["job"]["status"] == "done" and fan_out["job"]["n_chunks"] == n_chunks
+    assert fan_out["job"]["meta"]["worker"]["mode"] == "procrastinate"
+    assert fan_out["job"]["meta"]["worker"]["worker_id"].startswith("procrastinate:")
+    assert stored[0]["job"]["meta"]["worker"].keys() == {"worker_id", "n_chunks", "compute_s", "run_sha256"}
+    return stored[0], fan_out
+
+
+def _stored(client, run_id: int, job_id: int) -> dict[str, Any]:
+    wheels = client.get(f"/api/v1/runs/{run_id}/wheels")
+    assert wheels.status_code == 200, wheels.text
+    return {"job": client.get(f"/api/v1/jobs/{job_id}").json(), "profile": _profile(client, run_id),
+            "wheels": wheels.json()}
+
+
+def _same_results(local: dict[str, Any], fan_out: dict[str, Any]) -> None:
+    """The two modes stored the same rows, wheel results and results meta."""
+    pd.testing.assert_frame_equal(fan_out["profile"], local["profile"])
+    wheels = [[{k: v for k, v in w.items() if k != "job_id"} for w in s["wheels"]["items"]] for s in (local, fan_out)]
+    assert wheels[1] == wheels[0]
+    meta = [_results_meta(s["job"]["meta"]) for s in (local, fan_out)]
+    assert meta[1] == meta[0]
+
+
+def _results_meta(meta: dict[str, Any]) -> dict[str, Any]:
+    """A job's meta less the worker's own and what the places did (the second job of a run keeps the
+    places its first found)."""
+    out = {k: v for k, v in meta.items() if k != "worker"}
+    out["condition"] = {k: v for k, v in meta["condition"].items() if k != "places"}
+    return out
+
+
+def test_fan_out_stores_what_the_local_loop_stores(uploaded):
+    client, run_id = uploaded
+    local, fan_out = _local_then_fan_out(client, run_id)
+    _same_results(local, fan_out)
+
+
+@pytest.fixture(scope="module")
+def weld_run(tmp_path_factory):
+    """A 0.5 km simulated run over a 0.3 mm, 1 m dipped weld on both rails at 12 080 m, with a
+    40 mm, 0.2 mm flat on wheel 11 (the run of tests/pipeline/test_impacts_pipeline.py)."""
+    surface = RailSurface(1, None, (TrackImpact(WELD_M, 1.0, 0.3e-3, 1), TrackImpact(WELD_M, 1.0, 0.3e-3, 2)))
+    line = generate_line(11_900.0, 12_700.0, 5, sections=[TrackSection(11_900.0, 12_700.0, "b91_no_pads")],
+                         anomalies=[], surface=surface)
+    speed = SpeedProfile.from_segments(30.0, [(4.0, 30.0), (6.0, 42.0), (10.0, 42.0)])
+    path = tmp_path_factory.mktemp("weld") / "weld-run.h5"
+    simulate_run(path, length_km=0.5, fs=10_000.0, seed=2, line=line, speed_profile=speed,
+                 wheel_flats={"11": WheelFlat(0.04, 0.2e-3, angle_rad=2.0)}, with_forces=False)
+    return path
+
+
+def test_fan_out_bridges_track_impacts_as_the_local_loop_does(client, weld_run):
+    """On a run over a weld: the same bridged rows, ``meta["track_impacts"]`` and wheel flat in both modes."""
+    with open(weld_run, "rb") as fh:
+        run = client.post("/api/v1/runs", files={"file": (weld_run.name, fh)}).json()
+    client.post(f"/api/v1/jobs/{run['latest_job']['id']}/cancel")
+    local, fan_out = _local_then_fan_out(client, run["id"])
+    impacts = local["job"]["meta"]["track_impacts"]
+    assert [round(i["track_m"]) for i in impacts] == [round(WELD_M)]  # the weld, found and masked
+    assert local["profile"]["track_impact_mm"].notna().sum() == 4  # at its bin, on every wheel
+    assert any(w.get("flat") for w in local["wheels"]["items"])
+    _same_results(local, fan_out)
 
 
 def test_each_task_alone(uploaded):
