@@ -16,7 +16,8 @@ ringing, and the level error 10 m from the ends and the edge. The step estimate 
 ``--cost MINUTES``: a simulated run (default line, random rail surface, 3 km, 10 kHz) through the real
 pipeline; each wheel's stored ``sleeper_amp`` / ``sleeper_amp_sd`` tiled to the bins of a MINUTES long run at
 the run's mean speed, and the CPU seconds of ``sleeper_step`` on it (one process, BLAS on one thread, the
-compiled kernel loaded first; the median of ``--repeat`` calls per wheel).
+compiled kernel loaded first; the median of ``--repeat`` calls per wheel). ``--cost MINUTES --full``: the
+run simulated MINUTES long (10 kHz) and processed whole, the pipeline's CPU beside the step estimate's.
 """
 
 from __future__ import annotations
@@ -86,8 +87,9 @@ def transitions(settings: ProcessingSettings, res_bins: float, blended: bool = F
                   f"{lv if i == 0 else ''} |", flush=True)
 
 
-def cost(minutes: float, repeat: int) -> None:
-    """CPU seconds of the stored step estimate per wheel of a ``minutes`` long run (see the module's doc)."""
+def cost(minutes: float, repeat: int, full: bool = False) -> None:
+    """CPU seconds of the stored step estimate per wheel of a ``minutes`` long run (see the module's doc);
+    ``full``: the run simulated ``minutes`` long and processed whole (no tiling), with the pipeline's CPU."""
     import os
     import time
 
@@ -99,9 +101,13 @@ def cost(minutes: float, repeat: int) -> None:
     settings = ProcessingSettings()
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        truth = simulate_run(Path(tmp) / "run.h5", length_km=3.0, fs=10_000.0, seed=3, rail_surface=True,
-                             with_forces=False)
+        extent = {"duration_s": 60.0 * minutes} if full else {"length_km": 3.0}
+        truth = simulate_run(Path(tmp) / "run.h5", fs=10_000.0, seed=3, rail_surface=True, with_forces=False,
+                             **extent)
+        c0 = time.process_time()
         res = run_pipeline(truth.run_path, settings, Path(tmp) / "c")
+        if full:
+            print(f"pipeline (chunks and assembly, one process): {time.process_time() - c0:.1f} CPU s")
     mean_speed = truth.distance_m / truth.duration_s
     n_bins = int(round(minutes * 60.0 * mean_speed / settings.bin_length_m))
     print(f"run: {truth.distance_m / 1000:.2f} km in {truth.duration_s:.0f} s (mean {mean_speed:.1f} m/s); "
@@ -115,9 +121,9 @@ def cost(minutes: float, repeat: int) -> None:
     for wheel, p in res.profiles.groupby("wheel"):
         p = p.sort_values("bin")
         reps = -(-n_bins // len(p))
-        tiled = pd.DataFrame({"bin": np.arange(reps * len(p))[:n_bins],
-                              "sleeper_amp": np.tile(p["sleeper_amp"].to_numpy(), reps)[:n_bins],
-                              "sleeper_amp_sd": np.tile(p["sleeper_amp_sd"].to_numpy(), reps)[:n_bins]})
+        tiled = p if full else pd.DataFrame({"bin": np.arange(reps * len(p))[:n_bins],
+                                             "sleeper_amp": np.tile(p["sleeper_amp"].to_numpy(), reps)[:n_bins],
+                                             "sleeper_amp_sd": np.tile(p["sleeper_amp_sd"].to_numpy(), reps)[:n_bins]})
         times = []
         for _ in range(repeat):
             c0 = time.process_time()
@@ -126,8 +132,10 @@ def cost(minutes: float, repeat: int) -> None:
         t = float(np.median(times))
         total += t
         ok = np.isfinite(out)
-        print(f"| {wheel} | {int(ok.sum())} | {np.unique(out[ok]).size} | {t:.3f} | {1e6 * t / n_bins:.2f} |",
+        print(f"| {wheel} | {int(ok.sum())} | {np.unique(out[ok]).size} | {t:.3f} | {1e6 * t / len(tiled):.2f} |",
               flush=True)
+        if full:
+            np.testing.assert_array_equal(out, p["sleeper_step"].to_numpy())  # what the pipeline stored
     print(f"all wheels: {total:.3f} CPU s; per wheel and minute of run: {total / res.profiles['wheel'].nunique() / minutes:.4f} s")
 
 
@@ -141,9 +149,10 @@ def main() -> None:
                     help="the 80 <-> 40 MN/m run at 50 m/s of the uniform FE runs under 1 m/s² of noise")
     ap.add_argument("--cost", type=float, metavar="MINUTES", help="CPU of the step estimate on a run this long")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--full", action="store_true", help="with --cost: simulate and process the whole run")
     args = ap.parse_args()
     if args.cost:
-        cost(args.cost, args.repeat)
+        cost(args.cost, args.repeat, args.full)
         return
     settings = ProcessingSettings()
     res_bins = 3.0 / settings.bin_length_m if settings.track_resolution_m is None \

@@ -37,8 +37,8 @@ __all__ = ["DEFAULT_STEP_PENALTY", "GRID_PER_RESOLUTION", "step_levels"]
 #: by about four of its own standard deviations over the segments either side).
 DEFAULT_STEP_PENALTY = 16.0
 #: Change points lie on a grid of the resolution over this many (a resolution of 12 bins: every 3rd bin,
-#: 0.75 m at 3 m): the position of a step to a quarter of the resolution it is seen with, at 1/9 of the
-#: cost of every bin (the work grows with the candidates times the ends, both a third).
+#: 0.75 m at 3 m): the position of a step to a quarter of the resolution it is seen with, at a seventh of
+#: the CPU of every bin (the work grows with the candidates times the ends, both a third; BENCHMARKS.md).
 GRID_PER_RESOLUTION = 4
 
 
