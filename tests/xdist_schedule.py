@@ -38,18 +38,18 @@ GROUPS: dict[str, str] = {
 #: units of work handed out first, longest first (rough seconds of set-up + tests on the 2-core CI
 #: machine, from the suite's ``--durations`` list; the order matters, not the figures)
 HEAVY_FIRST: tuple[str, ...] = (
-    "dashboard",                                        # ~400 s: pages, walk, languages, map, wheels, CSP
+    "dashboard",                                        # ~390 s: pages, walk, languages, map, wheels, CSP
     "tests/dashboard/test_condition_page.py",           # ~200 s: 10-run history through the service
     "analytics-sim-set",                                # ~130 s: the sim_set build and its two API modules
     "tests/condition/test_places_pipeline.py",          # ~130 s: 10-run planted history
-    "tests/e2e/test_backup_restore.py",                 # ~140 s: two backends, six runs each
     "tests/e2e/test_worker_faults.py",                  # ~100 s: SIGKILL mid-job per backend
+    "tests/e2e/test_backup_restore.py",                 # ~90 s: two backends, three runs each
     "tests/analytics/test_index_across_speed_profiles.py",  # ~90 s: two data sets
     "tests/condition/test_grinding_pipeline.py",        # ~70 s: 10-run rough history
     "tests/e2e/test_readme.py",                         # ~55 s: the README's commands verbatim
     "tests/e2e/test_refactor_identity.py",              # ~50 s: the processed demo's fingerprint
     "tests/faults/test_worker_supervision.py",          # ~50 s: supervised worker processes
-    "tests/e2e/test_scaleout_faults.py",                # ~50 s: API killed during upload, per backend
+    "tests/e2e/test_scaleout_faults.py",                # ~50 s: competing workers per backend, three faults on one
     "tests/db/test_display_arrays.py",                  # ~40 s: the SQL path per backend
     "tests/worker/test_tasks.py",                       # ~40 s: fan-out against the local loop
 )

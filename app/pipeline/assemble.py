@@ -307,7 +307,8 @@ def assemble(run_path: Path, settings: ProcessingSettings, chunk_paths: Sequence
     profiles = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
     # isolated impacts: track impacts bridged out of the sleeper indicator, wheel flats onto the wheels
     impacts, flats = run_impacts(chunk_paths, wheels)
-    extents = impact_extents(profiles, impacts, settings)
+    # the widest of the wheels' track resolutions (with track_resolution_m None it follows the wheel's diameter)
+    extents = impact_extents(profiles, impacts, settings, max(resolutions.values(), default=None))
     profiles = mask_track_impacts(profiles, impacts, settings, extents)
     # the step estimate of sleeper_amp as stored (bridged around the track impacts)
     profiles = _with_steps(profiles, resolutions, settings.bin_length_m)

@@ -325,13 +325,20 @@ def run_impacts(
 
 
 def impact_extents(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding],
-                   settings: ProcessingSettings) -> list[tuple[float, float]]:
+                   settings: ProcessingSettings, resolution_m: float | None = None) -> list[tuple[float, float]]:
     """Per track impact its size relative to the local sleeper-passage level and its mask's half width.
 
     The ratio (:func:`app.analysis.impacts.mask.impact_ratio`) is the largest over the wheels' own
     amplitude (``sleeper_amp_raw``, else ``sleeper_amp``) before bridging, the other impacts' cores left
     out of the level; the half width (:func:`app.analysis.impacts.mask.mask_half_width`) follows from it,
     the dip's length and the track orders' resolution and filter order.
+
+    Parameters
+    ----------
+    resolution_m : float, optional
+        The track orders' resolution the wheels were solved with, m (the widest of the wheels'); default
+        ``settings.track_resolution_m``. Needed when that is None (the track orders on the wheel orders'
+        band, whose resolution depends on the wheel diameter).
 
     Returns
     -------
@@ -340,7 +347,11 @@ def impact_extents(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding]
     """
     if not impacts:
         return []
-    res = float(settings.track_resolution_m)
+    if resolution_m is None:
+        if settings.track_resolution_m is None:
+            raise ValueError("resolution_m: needed when settings.track_resolution_m is None")
+        resolution_m = settings.track_resolution_m
+    res = float(resolution_m)
     q = int(settings.filter_order)
     col = "sleeper_amp_raw" if "sleeper_amp_raw" in profiles.columns else "sleeper_amp"
     ratios = np.full(len(impacts), np.nan)

@@ -1,7 +1,7 @@
 """Issue 24 defect 7: no backup and restore (a plain copy of the SQLite file without its WAL was
 corrupt 1 time in 5). Over the real service in both modes (SQLite + local worker, PostgreSQL +
 Procrastinate worker, pg_dump/pg_restore): backups are taken with ``trackvkf backup`` while a
-worker processes five runs; one taken mid-way is restored with ``trackvkf restore`` into a fresh
+worker processes three runs; one taken mid-way is restored with ``trackvkf restore`` into a fresh
 database and run store, where every run, job, profile and condition row of the snapshot is found,
 every run file matches its checksum, and a worker on the restored service finishes the jobs that
 were waiting with the same profiles as the original service. A corrupted backup is refused
@@ -29,7 +29,7 @@ from tests.faults.support import hdf5_run
 
 pytestmark = pytest.mark.timeout(900)
 
-N_RUNS = 5
+N_RUNS = 3  # a backup before, one mid-way (0 < done < N_RUNS) and one after the worker wrote; the restored worker finishes the rest
 
 
 def _cli(args: list[str], database_url: str, run_store: Path, cwd: Path) -> subprocess.CompletedProcess:

@@ -69,6 +69,18 @@ def test_the_weld_is_found_reported_and_kept_out_of_the_indicator(weld_and_flat)
     assert before < 0.8 < 0.9 < after  # a false soft spot without the mask, none with it
 
 
+def test_a_weld_with_the_track_orders_on_the_wheel_orders_band(weld_and_flat, tmp_path):
+    """``track_resolution_m = None`` (the track orders share the wheel orders' 0.1-order band, ≈ 21 m at
+    0.92 m wheels): the weld's mask follows that resolution (wider than at 3 m), the job does not fail."""
+    truth, res3, _ = weld_and_flat
+    res = run_pipeline(truth.run_path, ProcessingSettings(track_resolution_m=None), tmp_path / "w")
+    hit = res.profiles[res.profiles["track_impact_mm"].notna()]
+    assert sorted(hit["wheel"]) == ["11", "12", "41", "42"]
+    wide = [i["mask_half_width_m"] for i in res.meta["track_impacts"]]
+    narrow = [i["mask_half_width_m"] for i in res3.meta["track_impacts"]]
+    assert wide and narrow and min(wide) > max(narrow)
+
+
 def test_the_step_estimate_is_that_of_the_stored_amplitude(weld_and_flat):
     """``sleeper_step`` (issue 33 item 7): per wheel, the step estimate of ``sleeper_amp`` as stored — bridged
     around the weld — with its 1-σ and the run's 3 m resolution in bins; NaN exactly where ``sleeper_amp``
