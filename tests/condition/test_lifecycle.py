@@ -364,3 +364,131 @@ def test_a_developing_place_is_read_at_its_worst_segment_against_its_baseline_an
     out = place_outlook(st, DEFAULT_PLACE_PARAMS.levels, trend=segment_trend(st, days, hist, now_day=days[-1]))
     assert out.tendency == "growing" and out.trend.low_per_year < 1.0 < out.trend.high_per_year
     assert out.next_limit == 0.45 and 0 < out.projection.days_early < out.projection.days < out.projection.days_late
+
+
+# --- a known place held, based and graded on its reading's stated 1-σ (issue 33) ----------------------
+
+
+def _quiet_run(index: list[float], sd: list[float], *, first: int = 1300):
+    """A run that found no place over segments ``first …`` (class b91) with the given index and stated 1-σ."""
+    from app.analysis.condition.places import merge_places
+    from app.analysis.condition.run_places import RunPlaces
+
+    seg = np.arange(first, first + len(index))
+    idx = np.array(index, dtype=np.float64)
+    cls = np.full(seg.size, "b91", dtype=object)
+    table = merge_places(seg, idx, np.zeros(seg.size, bool), segment_m=10.0)
+    e, ei = np.zeros(0), np.zeros(0, np.int64)
+    return RunPlaces(places=table, peak_m=e, level=e, change=e, change_z=e, cls=np.zeros(0, object), level_tier=ei,
+                     change_tier=ei, tier=ei, severity=e, n_agreeing=ei, rate_per_year=e, trend_z=e, seg=seg,
+                     segment_m=10.0, seg_index=idx, seg_change=np.full(seg.size, np.nan),
+                     seg_change_z=np.full(seg.size, np.nan), seg_class=cls, seg_evidence=np.zeros(seg.size, np.int64),
+                     level_sd=e, change_sd=e, severity_sd=e, seg_level_sd=np.array(sd, dtype=np.float64))
+
+
+def _listed(place_id: int, baseline: float, level: float, tier: int, *, direction: int = -1) -> PlaceState:
+    st = PlaceState(id=place_id, direction=direction, start_m=13_010.0, end_m=13_020.0, peak_m=13_015.0, cls="b91",
+                    baseline=baseline, tier=tier, listed=True)
+    st.observations.append(Observation(1, 0.0, 13_010.0, 13_020.0, 13_015.0, 13_015.0, level, level - baseline, tier,
+                                       abs(level - baseline) / 0.10, EVIDENCE_STEP, 3, 0.05, 0.05, 0.5))
+    return st
+
+
+def test_a_place_is_not_held_by_a_reading_within_its_stated_one_sigma_of_its_baseline():
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS
+
+    # one run's −0.93 on rough rail, listed at once; the runs after it read −0.09 ± 0.39 there (−0.13 from its baseline): no departure
+    st = _listed(7, 0.04, -0.89, TIER_IMMEDIATE)
+    known = [st]
+    for r in range(2):
+        advance_places(known, _quiet_run([0.02, -0.09, 0.05], [0.39, 0.39, 0.39]), run_id=2 + r, day=15.0 * (r + 1),
+                       covered_m=(12_000.0, 14_000.0), params=LifecycleParams(), next_id=8,
+                       place_params=DEFAULT_PLACE_PARAMS)
+    assert len(st.observations) == 1 and st.misses == 2 and not st.active
+    # the same reading with a stated 1-σ of 0.02 departs beyond it: held, graded on the change's lower bound
+    st2 = _listed(8, 0.04, -0.89, TIER_ALERT)
+    advance_places([st2], _quiet_run([0.02, -0.09, 0.05], [0.02, 0.02, 0.02]), run_id=2, day=15.0,
+                   covered_m=(12_000.0, 14_000.0), params=LifecycleParams(), next_id=9,
+                   place_params=DEFAULT_PLACE_PARAMS)
+    assert st2.active and st2.misses == 0 and st2.observations[-1].change == pytest.approx(-0.13)
+    assert st2.observations[-1].change_sd == pytest.approx(0.02) and st2.observations[-1].tier == TIER_ALERT
+
+
+def test_a_hard_place_receding_towards_the_typical_track_is_not_a_soft_place_of_its_change():
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS
+
+    # a soft-going place whose baseline was +0.45 (a hard anomaly of class b91, alert 0.25), read at −0.06 ± 0.09:
+    # its change of −0.51 is the hard place receding, not a soft place at the immediate tier; nor does it hold it
+    st = _listed(5, 0.45, -0.40, TIER_IMMEDIATE)
+    advance_places([st], _quiet_run([-0.03, -0.06, 0.01], [0.09, 0.09, 0.09]), run_id=2, day=15.0,
+                   covered_m=(12_000.0, 14_000.0), params=LifecycleParams(), next_id=6,
+                   place_params=DEFAULT_PLACE_PARAMS)
+    assert len(st.observations) == 1 and st.misses == 1
+    # read at −0.40 ± 0.09 it is a soft anomaly of its own (−0.31 on its lower bound): held
+    st2 = _listed(6, 0.45, -0.40, TIER_IMMEDIATE)
+    advance_places([st2], _quiet_run([-0.03, -0.40, 0.01], [0.09, 0.09, 0.09]), run_id=2, day=15.0,
+                   covered_m=(12_000.0, 14_000.0), params=LifecycleParams(), next_id=7,
+                   place_params=DEFAULT_PLACE_PARAMS)
+    assert len(st2.observations) == 2 and st2.observations[-1].level == pytest.approx(-0.40)
+
+
+def test_a_place_takes_its_baseline_from_a_step_on_its_own_ground_only():
+    from app.analysis.condition.places import EVIDENCE_ANOMALY, merge_places
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS, RunPlaces
+
+    # a lasting hard anomaly (+0.57) at km 13.000–13.010, first found without a step (no baseline); a run finds a
+    # step +0.28 at the segment beside it (km 12.990, −0.22): the run's place is matched to it, but that step is
+    # not the place's own ground before it changed
+    st = PlaceState(id=1, direction=1, start_m=13_000.0, end_m=13_010.0, peak_m=13_005.0, cls="b91", tier=TIER_ALERT,
+                    listed=True)
+    st.observations.append(Observation(1, 0.0, 13_000.0, 13_010.0, 13_005.0, 13_005.0, 0.57, float("nan"),
+                                       TIER_ALERT, 2.3, EVIDENCE_ANOMALY, 3, 0.2))
+    seg = np.arange(1298, 1301)
+    idx, chg = np.array([-0.22, 0.05, 0.02]), np.array([0.28, 0.0, 0.0])
+    hot = np.array([True, False, False])
+    ev = np.where(hot, EVIDENCE_STEP, 0).astype(np.int64)
+    table = merge_places(seg, chg, hot, segment_m=10.0, evidence=ev, wheels=np.where(hot, 3, 0))
+    cls = np.full(seg.size, "b91", dtype=object)
+    one = lambda a: np.array([a])  # noqa: E731
+    found = RunPlaces(places=table, peak_m=one(12_985.0), level=one(-0.22), change=one(0.28), change_z=one(5.0),
+                      cls=cls[[0]], level_tier=one(0), change_tier=one(1), tier=one(1), severity=one(2.8),
+                      n_agreeing=one(2), rate_per_year=one(np.nan), trend_z=one(np.nan), seg=seg, segment_m=10.0,
+                      seg_index=idx, seg_change=chg, seg_change_z=np.zeros(seg.size), seg_class=cls,
+                      seg_evidence=ev, level_sd=one(0.37), change_sd=one(0.05), severity_sd=one(0.5),
+                      seg_level_sd=np.full(seg.size, 0.2))
+    _, ids, _ = advance_places([st], found, run_id=2, day=15.0, covered_m=(12_000.0, 14_000.0),
+                               params=LifecycleParams(), next_id=2, place_params=DEFAULT_PLACE_PARAMS)
+    assert ids == [1] and st.baseline is None
+
+
+def test_pieces_of_one_change_are_one_place_read_over_their_merged_extent():
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS
+
+    # a 30 m soft spot at km 13.130–13.160 known as two places, 10 m apart (each held on its own 10 m reading)
+    a = PlaceState(id=19, direction=-1, start_m=13_130.0, end_m=13_140.0, peak_m=13_135.0, cls="b91", baseline=0.0,
+                   tier=TIER_INTERVENTION, listed=True)
+    b = PlaceState(id=20, direction=-1, start_m=13_150.0, end_m=13_160.0, peak_m=13_155.0, cls="b91", baseline=0.0,
+                   tier=TIER_ALERT, listed=True)
+    for st in (a, b):
+        st.observations.append(Observation(1, 0.0, st.start_m, st.end_m, st.peak_m, st.peak_m, -0.45, -0.45, st.tier,
+                                           4.5, EVIDENCE_STEP, 3, 0.1, 0.1, 1.0))
+    a.observations[0] = Observation(1, -15.0, *[getattr(a.observations[0], f) for f in
+                                                ("start_m", "end_m", "centre_m", "peak_m", "level", "change", "tier",
+                                                 "severity", "evidence", "wheels", "level_sd", "change_sd",
+                                                 "severity_sd")])
+    known = [a, b]
+    all_events = []
+    for r in range(2):
+        # the soft spot over segments 1313–1315 (−0.45, −0.30, −0.50), typical track beside it
+        evs, _, _ = advance_places(known, _quiet_run([0.0, 0.02, -0.45, -0.30, -0.50, 0.01], [0.1] * 6, first=1311),
+                                   run_id=2 + r, day=15.0 * (r + 1), covered_m=(12_000.0, 14_000.0),
+                                   params=LifecycleParams(), next_id=21, place_params=DEFAULT_PLACE_PARAMS)
+        all_events.append(evs)
+        listed = [k for k in known if k.active and k.listed]
+        # one place, the older one, over both pieces, at the higher tier
+        assert [(k.id, k.start_m, k.end_m, k.tier) for k in listed] == [(19, 13_130.0, 13_160.0, TIER_INTERVENTION)]
+    # from the next run on read over the merged extent: at its worst segment (km 13.155)
+    assert a.observations[-1].level == pytest.approx(-0.50) and a.observations[-1].peak_m == 13_155.0
+    # the piece (held on its own by the first run, before the merge) neither comes back as a place of its own nor
+    # raises an alert after it
+    assert not b.active and all_events[1] == [] and len(b.observations) == 2
