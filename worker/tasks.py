@@ -68,9 +68,9 @@ from __future__ import annotations
 import json
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import procrastinate
 import psycopg
@@ -334,6 +334,30 @@ def assemble_job(context: procrastinate.JobContext, job_id: int) -> str:
     return f"{len(wheels)} wheel(s) deferred"
 
 
+T = TypeVar("T")
+
+
+class _JobFailed(Exception):
+    """The job was ended as failed by :func:`_on_chunks` (its task returns ``"failed"``)."""
+
+
+def _on_chunks(rt: Any, job_id: int, run_id: int, work: Callable[[list[Path]], T]) -> tuple[list[int], T]:
+    """``work`` on local copies of the job's chunk files (indices in order, and its result).
+
+    A transient error (database, connection) is raised for the task's retry; any other ends the job
+    as failed (:func:`end_failed`) and raises :class:`_JobFailed`.
+    """
+    indices = sorted(queue.job_chunk_specs(rt.db, job_id))
+    try:
+        with rt.chunks.local_copies(run_id, job_id, indices) as paths:
+            return indices, work(paths)
+    except Exception as exc:
+        if _is_transient(exc):
+            raise
+        end_failed(rt, job_id, run_id, exc, worker_id=None)
+        raise _JobFailed from exc
+
+
 @blueprint.task(name=TASK_STORE_WHEEL, retry=_RETRY, pass_context=True)
 def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> str:
     """Assemble one wheel from the chunk files and store its rows (not yet published).
@@ -352,17 +376,12 @@ def store_wheel(context: procrastinate.JobContext, job_id: int, wheel: str) -> s
         return f"run {run_id} has no wheel {wheel!r}"
     name = _WHEEL_FILE.format(wheel=wheel)
     if not rt.chunks.exists_named(run_id, job_id, name):
-        indices = sorted(queue.job_chunk_specs(rt.db, job_id))
         t0 = time.perf_counter()
         try:
-            with rt.chunks.local_copies(run_id, job_id, indices) as paths:
-                done = wheel_assembly(record.settings, paths, wheel)  # None: no data of the wheel
-        except Exception as exc:
-            if _is_transient(exc):
-                raise
-            end_failed(rt, job_id, run_id, exc, worker_id=None)
+            _, done = _on_chunks(rt, job_id, run_id, lambda paths: wheel_assembly(record.settings, paths, wheel))
+        except _JobFailed:
             return "failed"
-        t1 = time.perf_counter()
+        t1 = time.perf_counter()  # done None: no data of the wheel
         if done is not None and not publish.store_wheel_rows(rt.db, job_id, run_id, done.profiles):
             return "job not running"
         t2 = time.perf_counter()
@@ -401,15 +420,11 @@ def publish_job(context: procrastinate.JobContext, job_id: int) -> str:
         if not rt.chunks.exists_named(run_id, job_id, name):
             return f"wheel {wheel} not stored yet"
         stored_wheels.append(json.loads(rt.chunks.read_bytes(run_id, job_id, name)))
-    indices = sorted(queue.job_chunk_specs(rt.db, job_id))
     t0 = time.perf_counter()
     try:
-        with rt.chunks.local_copies(run_id, job_id, indices) as paths:
-            results, bridged = _finish(rt, record, paths, stored_wheels)
-    except Exception as exc:
-        if _is_transient(exc):
-            raise
-        end_failed(rt, job_id, run_id, exc, worker_id=None)
+        indices, (results, bridged) = _on_chunks(rt, job_id, run_id,
+                                                 lambda paths: _finish(rt, record, paths, stored_wheels))
+    except _JobFailed:
         return "failed"
     t1 = time.perf_counter()
     meta = job_meta(
