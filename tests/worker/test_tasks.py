@@ -82,10 +82,24 @@ def _profile(client, run_id: int) -> pd.DataFrame:
     return pd.read_parquet(io.BytesIO(r.content)).sort_values(["wheel", "bin"], ignore_index=True)
 
 
+#: length of the run the fan-out is compared on, km: ~18 s at 10 kHz, five chunks of ``chunk_seconds``
+#: (a plan, several chunks, an assembly, four wheels and a publish: every task of the fan-out; twice the
+#: length made twice the chunks of the same kind, each processed twice, at ~4 s of compute a chunk)
+RUN_KM = 0.4
+
+
+@pytest.fixture(scope="module")
+def small_sim_run(datasets) -> tuple:
+    """A simulated run of :data:`RUN_KM` (the session's simulation with forces, shorter; cached)."""
+    from tests.conftest import _sim_run
+
+    return datasets.get("sim-run", {"length_km": RUN_KM}, _sim_run(RUN_KM))
+
+
 @pytest.fixture
-def uploaded(client, short_sim_run):
+def uploaded(client, small_sim_run):
     """The short simulation uploaded, its default job cancelled: (client, run_id)."""
-    path, _ = short_sim_run
+    path, _ = small_sim_run
     with open(path, "rb") as fh:
         run = client.post("/api/v1/runs", files={"file": (path.name, fh)}).json()
     client.post(f"/api/v1/jobs/{run['latest_job']['id']}/cancel")
