@@ -1,10 +1,17 @@
 """The FastAPI application: ``create_app()``.
 
 Run it with ``trackvkf serve`` or ``uvicorn --factory app.main:create_app``.
+
+The routes are the same for every app: they read their settings, database and limiters from
+the app that answers (``request.app.state``). FastAPI analyses a route's parameters and
+dependencies (signatures, pydantic validators) when it is included, about a second for the
+whole API; :func:`app_routes` does it once per process and every app built afterwards (the
+tests build hundreds) takes the analysed routes as they are.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -12,14 +19,21 @@ from contextlib import asynccontextmanager
 import anyio
 from fastapi import FastAPI
 from starlette.middleware.gzip import DEFAULT_EXCLUDED_CONTENT_TYPES, GZipMiddleware
+from starlette.routing import BaseRoute
 
 from app.api import API_PREFIX, build_api_router
 from app.api.errors import install_error_handlers
 from app.api.headers import SecurityHeadersMiddleware
 from app.api.health import software_version
-from app.api.login_page import install_protected_docs
+from app.api.login_page import (
+    SWAGGER_ASSETS,
+    docs_router,
+    install_protected_docs,
+    swagger_ui_assets,
+)
 from app.api.login_page import router as login_page_router
 from app.api.metrics import install_metrics
+from app.api.metrics import router as metrics_router
 from app.api.oidc import router as oidc_router
 from app.core.bytecache import ByteLRU
 from app.core.config import ProductionConfigError
@@ -33,12 +47,35 @@ from app.places.class_scheme import class_scheme
 from app.settings import Settings, get_settings
 from app.web import install_pages
 
-__all__ = ["create_app", "check_production_database"]
+__all__ = ["create_app", "app_routes", "check_production_database"]
 
 #: answers not worth compressing again (already compressed formats)
 _NOT_GZIPPED = (*DEFAULT_EXCLUDED_CONTENT_TYPES, "application/vnd.apache.parquet", "application/x-hdf5")
 
 log = logging.getLogger(__name__)
+
+
+@functools.cache
+def app_routes() -> tuple[BaseRoute, ...]:
+    """Every route of the application, in the order they are matched, analysed once per process.
+
+    The REST API (``/api/v1``), the login page, the OpenID sign-in, ``/openapi.json`` and
+    ``/docs`` with the Swagger UI's assets, the dashboard's pages and static files, ``/metrics``.
+    They are included into an app built like the ones of :func:`create_app` (the same router
+    defaults), whose route list is then shared: a route holds no state of an app (it reads
+    ``request.app.state``), and FastAPI's analysis of it (parameters, dependencies, response
+    models) is done here once instead of for every app. One consequence: an app's
+    ``dependency_overrides`` do not reach these routes (the service sets none).
+    """
+    template = FastAPI(docs_url=None, redoc_url=None, openapi_url=None)
+    template.include_router(build_api_router())
+    template.include_router(login_page_router)
+    template.include_router(oidc_router)
+    template.include_router(docs_router)
+    template.mount(SWAGGER_ASSETS, swagger_ui_assets(), name="swagger-ui")
+    install_pages(template)  # dashboard: HTML pages at /, /runs/{id}, ..., /static, Plotly.js
+    template.include_router(metrics_router)
+    return tuple(template.router.routes)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -110,12 +147,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_heavy_limiter(app, settings.upload_ingest_concurrency)  # conversions of uploads at once
     app.add_middleware(GZipMiddleware, minimum_size=1024, compresslevel=5, exclude_content_types=_NOT_GZIPPED)
     app.add_middleware(SecurityHeadersMiddleware)  # CSP, framing, sniffing, referrer: every answer
-    app.include_router(build_api_router())
-    app.include_router(login_page_router)
-    app.include_router(oidc_router)
+    app.router.routes.extend(app_routes())  # the API, pages, docs, /metrics: analysed once per process
     install_protected_docs(app, {f"{API_PREFIX}/health", f"{API_PREFIX}/auth/login"})
-    install_pages(app)  # dashboard: HTML pages at /, /runs/{id}, ..., /static, Plotly.js
-    install_metrics(app)  # GET /metrics (admin), every request counted (outermost middleware)
+    install_metrics(app)  # every request counted (outermost middleware)
 
     return app
 

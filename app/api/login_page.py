@@ -26,8 +26,8 @@ from app.api.language import request_language
 from app.core.i18n import N_, catalogue_digest, jinja_environment, translations
 
 __all__ = [
-    "router", "safe_next", "install_protected_docs", "swagger_ui_dir", "TEMPLATES_DIR",
-    "SWAGGER_ASSETS", "MIN_SWAGGER_UI_MAJOR",
+    "router", "safe_next", "install_protected_docs", "docs_router", "swagger_ui_assets", "swagger_ui_dir",
+    "TEMPLATES_DIR", "SWAGGER_ASSETS", "MIN_SWAGGER_UI_MAJOR",
 ]
 
 #: URL prefix of the locally served Swagger UI assets (public static files)
@@ -124,10 +124,11 @@ def _with_way_back(html: str, lang: str) -> str:
 
 
 def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
-    """Serve ``/openapi.json`` (viewer) and ``/docs`` (logged-in page) with access control.
+    """Give ``app`` the schema that ``/openapi.json`` and ``/docs`` (:data:`docs_router`) serve.
 
     Build the app with ``docs_url=None, redoc_url=None, openapi_url=None``.
-    ``public_paths`` are the schema paths that need no authentication.
+    ``public_paths`` are the schema paths that need no authentication; the others name the
+    API-key schemes.
     """
     original = app.openapi
 
@@ -138,24 +139,36 @@ def install_protected_docs(app: FastAPI, public_paths: set[str]) -> None:
 
     app.openapi = openapi  # type: ignore[method-assign]
 
-    @app.get("/openapi.json", include_in_schema=False, dependencies=[Depends(require_role("viewer"))])
-    def openapi_json() -> JSONResponse:
-        return JSONResponse(app.openapi())
 
-    # Swagger UI's assets from the installed swagger-ui-bundle package, not a CDN:
-    # the docs page must work on a closed network like every other page
-    app.mount(SWAGGER_ASSETS, StaticFiles(directory=swagger_ui_dir()), name="swagger-ui")
+#: ``/openapi.json`` (viewer) and ``/docs`` (logged-in page): the schema of the app that
+#: answers (:func:`install_protected_docs`); the Swagger UI's assets are :func:`swagger_ui_assets`
+docs_router = APIRouter(include_in_schema=False)
 
-    @app.get("/docs", include_in_schema=False, dependencies=[Depends(require_page_login("viewer"))])
-    def docs(request: Request) -> HTMLResponse:
-        page = get_swagger_ui_html(
-            openapi_url="/openapi.json",
-            title=f"{app.title} API",
-            swagger_js_url=f"{SWAGGER_ASSETS}/swagger-ui-bundle.js",
-            swagger_css_url=f"{SWAGGER_ASSETS}/swagger-ui.css",
-            swagger_favicon_url=f"{SWAGGER_ASSETS}/favicon-32x32.png",
-        )
-        html = _with_way_back(page.body.decode("utf-8"), request_language(request).code)
-        # the page's one inline script (SwaggerUIBundle setup) is allowed by its hash
-        csp = content_security_policy(inline_script_hashes(html))
-        return HTMLResponse(html, headers={**_PAGE_HEADERS, "Content-Security-Policy": csp})
+
+@docs_router.get("/openapi.json", dependencies=[Depends(require_role("viewer"))])
+def openapi_json(request: Request) -> JSONResponse:
+    """The OpenAPI schema of the app (viewer or higher)."""
+    return JSONResponse(request.app.openapi())
+
+
+@docs_router.get("/docs", dependencies=[Depends(require_page_login("viewer"))])
+def docs(request: Request) -> HTMLResponse:
+    """Swagger UI on the schema (a logged-in browser), with a way back to the dashboard."""
+    page = get_swagger_ui_html(
+        openapi_url="/openapi.json",
+        title=f"{request.app.title} API",
+        swagger_js_url=f"{SWAGGER_ASSETS}/swagger-ui-bundle.js",
+        swagger_css_url=f"{SWAGGER_ASSETS}/swagger-ui.css",
+        swagger_favicon_url=f"{SWAGGER_ASSETS}/favicon-32x32.png",
+    )
+    html = _with_way_back(page.body.decode("utf-8"), request_language(request).code)
+    # the page's one inline script (SwaggerUIBundle setup) is allowed by its hash
+    csp = content_security_policy(inline_script_hashes(html))
+    return HTMLResponse(html, headers={**_PAGE_HEADERS, "Content-Security-Policy": csp})
+
+
+def swagger_ui_assets() -> StaticFiles:
+    """Swagger UI's assets from the installed swagger-ui-bundle package (public static files at
+    :data:`SWAGGER_ASSETS`), not a CDN: the docs page must work on a closed network like every
+    other page."""
+    return StaticFiles(directory=swagger_ui_dir())

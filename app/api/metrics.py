@@ -37,7 +37,7 @@ async def metrics(request: Request) -> Response:
 
 
 def install_metrics(app: FastAPI) -> None:
-    """Count every request (:class:`~app.observability.metrics.MetricsMiddleware`) and serve ``/metrics``."""
+    """Count every request of ``app`` (:class:`~app.observability.metrics.MetricsMiddleware`) and give
+    it the collector that ``/metrics`` (:data:`router`, among the app's routes) reads."""
     app.state.metrics_collector = DatabaseCollector(app.state.db, app.state.settings)
     app.add_middleware(MetricsMiddleware)
-    app.include_router(router)

@@ -201,3 +201,35 @@ def test_speed_exponent_outside_the_physical_range_is_flagged():
     fit = fit_speed_exponent(normal, v, loc, reference_speed_mps=27.8, min_speed_mps=5.0)
     assert fit.plausible and "outside the physical range" not in fit.warning
     assert fit.unstable_reasons == ("pooled_confounded",) and "pooled" in fit.warning
+
+
+def test_group_median_is_each_groups_median_of_its_finite_values():
+    """The reference curves' group median (one integer sort key) against numpy's median group by group:
+    ties, NaN and inf values left out, groups without any value NaN, a single-value group."""
+    from app.analysis.stiffness.reference_curve.smoother import group_median
+
+    rng = np.random.default_rng(5)
+    groups = rng.integers(0, 40, 3000)
+    values = np.round(rng.normal(size=3000), 1)  # many ties
+    values[rng.random(3000) < 0.1] = np.nan
+    values[groups == 7] = np.inf
+    groups[0], values[0] = 45, 2.5  # a group of one
+    got = group_median(values, groups, 50)
+    for g in range(50):
+        v = values[(groups == g) & np.isfinite(values)]
+        assert (np.isnan(got[g]) if v.size == 0 else got[g] == np.median(v)), g
+    assert np.all(np.isnan(group_median(np.full(4, np.nan), np.arange(4), 4)))
+
+
+def test_curve_components_join_speed_ranges_a_location_links():
+    """Speed ranges of a curve separated by a gap are one component where a location has passes in both,
+    separate otherwise; NaN nodes and samples beside them are in none."""
+    from app.analysis.stiffness.reference_curve.curves import _components
+
+    nodes = np.arange(10.0)
+    g = np.array([0, 0, 0, np.nan, 0, 0, np.nan, np.nan, 0, 0])  # ranges [0-2], [4-5], [8-9]
+    u = np.array([0.5, 1.0, 4.5, 8.5, 9.0, 6.5])
+    loc = np.array([0, 1, 1, 2, 3, 4])  # location 1 links the first two ranges; the third stands alone
+    node_comp, sample_comp = _components(g, u, loc, nodes)
+    assert node_comp.tolist() == [0, 0, 0, -1, 0, 0, -1, -1, 4, 4]
+    assert sample_comp.tolist() == [0, 0, 0, 4, 4, -1]

@@ -330,14 +330,19 @@ def _components(g: np.ndarray, u: np.ndarray, loc: np.ndarray, nodes: np.ndarray
         return c
 
     ok = sample_comp >= 0
-    pairs = np.unique(np.stack([loc[ok], sample_comp[ok]], axis=1), axis=0)
+    # the distinct (location, component) pairs in lexicographic order, by one integer key
+    n_comp = int(node_comp.max()) + 1 if node_comp.size else 0
+    key = np.unique(loc[ok].astype(np.int64) * max(n_comp, 1) + sample_comp[ok])
+    pairs = np.stack([key // max(n_comp, 1), key % max(n_comp, 1)], axis=1)
     for k in np.flatnonzero(pairs[1:, 0] == pairs[:-1, 0]):
         a, b = root(int(pairs[k, 1])), root(int(pairs[k + 1, 1]))
         if a != b:
             parent[max(a, b)] = min(a, b)
-    node_comp = np.array([root(int(c)) if c >= 0 else -1 for c in node_comp], dtype=np.int64)
-    sample_comp = np.array([root(int(c)) if c >= 0 else -1 for c in sample_comp], dtype=np.int64)
-    return node_comp, sample_comp
+    # each component's root, looked up per node and sample (-1 stays -1)
+    roots = np.full(n_comp + 1, -1, dtype=np.int64)
+    for c in parent:
+        roots[c] = root(c)
+    return roots[node_comp], roots[sample_comp]
 
 
 def _level(g: np.ndarray, y: np.ndarray, u: np.ndarray, loc: np.ndarray, n_loc: int,
