@@ -51,7 +51,7 @@ class Settings(*reversed(GROUPS)):  # reversed: the fields in the order of GROUP
         ------
         ProductionConfigError
             Naming the setting: the default or a short ``secret_key``, an ``http://`` OIDC
-            issuer, or ``auth_disabled``.
+            issuer, ``auth_disabled``, or a password hash cost below OWASP's minimum.
         """
         if not self.is_production:
             return
@@ -67,6 +67,12 @@ class Settings(*reversed(GROUPS)):  # reversed: the fields in the order of GROUP
         if self.auth_disabled:
             raise ProductionConfigError(
                 "TRACKVKF_AUTH_DISABLED: authentication cannot be disabled in production mode"
+            )
+        if not self.password_cost.meets_owasp_minimum():
+            raise ProductionConfigError(
+                "TRACKVKF_PASSWORD_HASH_TIME_COST, TRACKVKF_PASSWORD_HASH_MEMORY_KIB: production mode needs "
+                "at least OWASP's minimum Argon2id cost (e.g. 19456 KiB with 2 passes; docs/security.md), "
+                f"got {self.password_hash_memory_kib} KiB with {self.password_hash_time_cost} pass(es)"
             )
 
 

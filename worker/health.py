@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from app.settings import get_settings
+from app.runs.settings import WorkerSettings
 
 __all__ = ["alive_file", "status_file", "WorkerCount", "count", "check"]
 
@@ -124,8 +124,13 @@ def check(max_age_s: float) -> bool:
 
 
 def main() -> int:
-    """Print the count; exit status 0 when all expected worker processes are alive."""
-    result = count(get_settings().worker_stale_after_s)
+    """Print the count; exit status 0 when all expected worker processes are alive.
+
+    Reads the workers' settings group alone (:class:`~app.runs.settings.WorkerSettings`, the same
+    ``TRACKVKF_WORKER_*`` variables as the service's settings): the container health check runs this
+    every few seconds and need not import the numerics whose constants the other groups name.
+    """
+    result = count(WorkerSettings().worker_stale_after_s)
     print(result)
     return 0 if result.ok else 1
 

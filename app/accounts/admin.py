@@ -11,7 +11,7 @@ from app.accounts.sessions import auth_errors_as_422
 from app.audit import record
 from app.core.errors import ApiError
 from app.core.i18n import _
-from app.core.security import Actor
+from app.core.security import Actor, PasswordCost
 from app.db import auth_crud
 from app.db.models import ApiKey, User, utcnow
 from app.db.session import Database
@@ -29,8 +29,10 @@ def list_users(db: Database) -> list[User]:
         return auth_crud.list_users(session)
 
 
-def create_user(db: Database, actor: Actor, username: str, password: str, role: str) -> User:
-    """Create a browser user with a role (its password stored as an Argon2id hash).
+def create_user(db: Database, actor: Actor, username: str, password: str, role: str, *,
+                password_cost: PasswordCost) -> User:
+    """Create a browser user with a role (its password stored as an Argon2id hash at
+    ``password_cost``, the service's ``Settings.password_cost``).
 
     Raises
     ------
@@ -41,14 +43,16 @@ def create_user(db: Database, actor: Actor, username: str, password: str, role: 
         if auth_crud.get_user(session, username) is not None:
             raise ApiError(409, "username", _("user {username} exists", username=repr(username)))
         with auth_errors_as_422():
-            user = auth_crud.create_user(session, username, password, role, created_by=actor.name)
+            user = auth_crud.create_user(session, username, password, role, created_by=actor.name,
+                                         password_cost=password_cost)
         record(session, actor, "user.create", target=user.username, detail={"role": user.role})
         return user
 
 
-def update_user(db: Database, actor: Actor, username: str, *, password: str | None = None,
-                role: str | None = None, active: bool | None = None) -> User:
-    """Change a user's password, role or active flag; the user's sessions end.
+def update_user(db: Database, actor: Actor, username: str, *, password_cost: PasswordCost,
+                password: str | None = None, role: str | None = None, active: bool | None = None) -> User:
+    """Change a user's password (hashed at ``password_cost``), role or active flag; the user's
+    sessions end.
 
     Raises
     ------
@@ -60,7 +64,8 @@ def update_user(db: Database, actor: Actor, username: str, *, password: str | No
         raise ApiError(409, "username", _("an admin cannot deactivate or demote itself"))
     with db.write() as session:
         with auth_errors_as_422():
-            user = auth_crud.update_user(session, username, password=password, role=role, active=active)
+            user = auth_crud.update_user(session, username, password=password, role=role, active=active,
+                                         password_cost=password_cost)
         if user is None:
             raise ApiError(404, "username", _("user {username} not found", username=repr(username)))
         changed: dict[str, Any] = {k: v for k, v in (("role", role), ("active", active)) if v is not None}

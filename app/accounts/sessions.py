@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 from app.audit import record
 from app.core.errors import ApiError
 from app.core.i18n import _
-from app.core.security import Actor, Principal, hash_password, verify_password
+from app.core.security import Actor, PasswordCost, Principal, hash_password, verify_password
 from app.db import auth_crud
 from app.db.models import User, utcnow
 from app.db.session import Database
@@ -83,10 +83,10 @@ def session_principal(db: Database, token: str) -> Principal | None:
         return Principal(name=user.username, role=user.role, kind="user", user_id=user.id, language=user.language)
 
 
-@functools.lru_cache(maxsize=1)
-def _dummy_hash() -> str:
-    """A hash to verify against for unknown users (same time as for known ones)."""
-    return hash_password("not-a-password-of-anyone")
+@functools.lru_cache(maxsize=4)
+def _dummy_hash(cost: PasswordCost) -> str:
+    """A hash at ``cost`` to verify against for unknown users (same time as for known ones)."""
+    return hash_password("not-a-password-of-anyone", cost)
 
 
 @dataclass(frozen=True)
@@ -133,7 +133,7 @@ def login(db: Database, settings: Settings, username: str, password: str, addres
         log.warning("login of %r from %s refused: %d failed logins of the name within %g s",
                     username[:64], address, failures, settings.login_name_failure_window_s)
         raise too_many_attempts(settings.login_rate_window_s)
-    ok = verify_password(account.password_hash if account else _dummy_hash(), password)
+    ok = verify_password(account.password_hash if account else _dummy_hash(settings.password_cost), password)
     started: StartedSession | None = None
     with db.write() as session:
         user = auth_crud.get_user(session, username) if ok and account and account.active else None
@@ -168,8 +168,9 @@ def logout(db: Database, actor: Actor, token: str | None) -> str | None:
     return id_token
 
 
-def change_password(db: Database, actor: Actor, current: str, new: str) -> None:
-    """Change the acting user's own password; all its sessions end (audited ``auth.password``).
+def change_password(db: Database, settings: Settings, actor: Actor, current: str, new: str) -> None:
+    """Change the acting user's own password (the new one hashed at ``settings.password_cost``); all
+    its sessions end (audited ``auth.password``).
 
     Raises
     ------
@@ -190,7 +191,7 @@ def change_password(db: Database, actor: Actor, current: str, new: str) -> None:
         if user is None or user.password_hash != account.password_hash:
             raise ApiError(409, "current_password", _("the password was changed meanwhile; try again"))
         with auth_errors_as_422(field="new_password"):
-            auth_crud.update_user(session, actor.name, password=new)
+            auth_crud.update_user(session, actor.name, password=new, password_cost=settings.password_cost)
         record(session, actor, "auth.password", target=actor.name)
 
 

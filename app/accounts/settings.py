@@ -1,18 +1,19 @@
 """The sign-in settings group (``TRACKVKF_AUTH_DISABLED``, ``TRACKVKF_ANONYMOUS_*``, ``TRACKVKF_SESSION_TTL_S``,
-``TRACKVKF_LOGIN_*``): who a request runs as, sessions and the login limits (:mod:`app.accounts`)."""
+``TRACKVKF_LOGIN_*``, ``TRACKVKF_PASSWORD_HASH_*``): who a request runs as, sessions, the login limits and
+the cost of password hashes (:mod:`app.accounts`)."""
 
 from __future__ import annotations
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from app.core.config import SettingsGroup
-from app.core.security import ROLES
+from app.core.security import DEFAULT_PASSWORD_COST, ROLES, PasswordCost
 
 __all__ = ["AccountSettings"]
 
 
 class AccountSettings(SettingsGroup):
-    """Sign-in: the anonymous principal, browser sessions and the login limits.
+    """Sign-in: the anonymous principal, browser sessions, the login limits and password hashing.
 
     Attributes
     ----------
@@ -43,6 +44,13 @@ class AccountSettings(SettingsGroup):
         the name's logins are refused, except from browsers that logged in as
         that user before (device cookie). Brute force gets at most this many
         guesses per window; the user keeps logging in from their browser.
+    password_hash_time_cost, password_hash_memory_kib, password_hash_parallelism : int, int, int
+        Argon2id cost of a new password hash: passes over the memory, memory in KiB (at least 8
+        per lane) and lanes. Default 3 passes over 64 MiB with 4 lanes (argon2-cffi's defaults,
+        RFC 9106): 0.4-0.8 s per hash measured on a busy shared 2-core machine. A stored hash keeps the cost it was
+        made with (a changed cost applies to passwords set afterwards). Production mode refuses a
+        cost below OWASP's minimum: at least 46 MiB with 1 pass, 19 MiB with 2, 12 MiB with 3,
+        9 MiB with 4 or 7 MiB with 5 (docs/security.md). Lower costs are for tests only.
     """
 
     anonymous_principal: str = "local"
@@ -55,6 +63,9 @@ class AccountSettings(SettingsGroup):
     login_address_rate_limit: int = Field(default=30, ge=1)
     login_name_failure_limit: int = Field(default=50, ge=1)
     login_name_failure_window_s: float = Field(default=3600.0, gt=0)
+    password_hash_time_cost: int = Field(default=DEFAULT_PASSWORD_COST.time_cost, ge=1)
+    password_hash_memory_kib: int = Field(default=DEFAULT_PASSWORD_COST.memory_kib, ge=8)
+    password_hash_parallelism: int = Field(default=DEFAULT_PASSWORD_COST.parallelism, ge=1, le=64)
 
     @field_validator("anonymous_role")
     @classmethod
@@ -62,3 +73,17 @@ class AccountSettings(SettingsGroup):
         if value not in ROLES:
             raise ValueError(f"anonymous_role must be viewer, engineer or admin, got {value!r}")
         return value
+
+    @model_validator(mode="after")
+    def _check_password_cost(self) -> AccountSettings:
+        try:
+            PasswordCost(self.password_hash_time_cost, self.password_hash_memory_kib, self.password_hash_parallelism)
+        except ValueError as exc:
+            raise ValueError(f"password_hash_memory_kib, password_hash_parallelism: {exc}") from None
+        return self
+
+    @property
+    def password_cost(self) -> PasswordCost:
+        """The Argon2id cost of new password hashes (``TRACKVKF_PASSWORD_HASH_*``)."""
+        return PasswordCost(self.password_hash_time_cost, self.password_hash_memory_kib,
+                            self.password_hash_parallelism)

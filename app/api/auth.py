@@ -220,9 +220,9 @@ def update_me(body: MePatch, request: Request, db: DbDep, actor: ViewerActor) ->
     summary="Change one's own password (users)",
     responses={401: {"description": "Wrong current password"}},
 )
-def change_password(body: PasswordChangeIn, db: DbDep, actor: ViewerActor) -> Response:
+def change_password(body: PasswordChangeIn, db: DbDep, actor: ViewerActor, settings: SettingsDep) -> Response:
     """Change the logged-in user's password; all the user's sessions end (log in again)."""
-    sessions.change_password(db, actor, body.current_password, body.new_password)
+    sessions.change_password(db, settings, actor, body.current_password, body.new_password)
     response = Response(status_code=status.HTTP_204_NO_CONTENT)
     _clear_cookies(response)
     return response
@@ -239,18 +239,19 @@ def list_users(db: DbDep, principal: AdminDep) -> UserList:
     "/users", response_model=UserOut, status_code=status.HTTP_201_CREATED,
     summary="Create a user (admin)", responses={409: {"description": "The user exists"}},
 )
-def create_user(body: UserIn, db: DbDep, actor: AdminActor) -> UserOut:
+def create_user(body: UserIn, db: DbDep, actor: AdminActor, settings: SettingsDep) -> UserOut:
     """Create a browser user with a role; the password is stored as an Argon2id hash."""
-    return UserOut.model_validate(admin.create_user(db, actor, body.username, body.password, body.role))
+    return UserOut.model_validate(admin.create_user(db, actor, body.username, body.password, body.role,
+                                                    password_cost=settings.password_cost))
 
 
 @router.patch("/users/{username}", response_model=UserOut, summary="Change a user (admin)")
 def update_user(
-    username: UsernamePath, db: DbDep, actor: AdminActor, body: Annotated[UserPatch, Body()],
+    username: UsernamePath, db: DbDep, actor: AdminActor, body: Annotated[UserPatch, Body()], settings: SettingsDep,
 ) -> UserOut:
     """Change password, role or active flag; the user's sessions end."""
     return UserOut.model_validate(admin.update_user(db, actor, username, password=body.password, role=body.role,
-                                                    active=body.active))
+                                                    active=body.active, password_cost=settings.password_cost))
 
 
 @router.delete("/users/{username}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete a user (admin)")

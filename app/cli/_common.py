@@ -7,10 +7,11 @@ from typing import TYPE_CHECKING
 import typer
 
 if TYPE_CHECKING:
+    from app.core.config import CoreSettings
     from app.settings import Settings
 
 __all__ = [
-    "service_settings", "echo", "refuse_unsafe_production", "database", "database_problem",
+    "service_settings", "core_settings", "echo", "refuse_unsafe_production", "database", "database_problem",
     "require_migrated_database", "cli_audit", "new_password",
 ]
 
@@ -24,21 +25,36 @@ def service_settings() -> Settings:
     return get_settings()
 
 
+def core_settings() -> CoreSettings:
+    """The core settings group alone (:class:`~app.core.config.CoreSettings`: the database, the run
+    store; the same ``TRACKVKF_*`` variables as :func:`service_settings`), for the commands that need
+    nothing else (``backup``, ``restore``): they start without importing the numerics."""
+    from app.core.config import CoreSettings
+
+    return CoreSettings()
+
+
 def echo(message: str) -> None:
     """Print a line to stdout."""
     typer.echo(message, err=False)
 
 
 def refuse_unsafe_production() -> None:
-    """Exit with a message when production mode is configured unsafely."""
+    """Exit with a message when production mode is configured unsafely.
+
+    The database check (:func:`app.main.check_production_database`) is imported in production mode
+    only: ``trackvkf serve`` runs it in the process that supervises the API processes, which
+    serves nothing and need not load the application in development mode.
+    """
     from app.core.config import ProductionConfigError
-    from app.db.session import Database
-    from app.main import check_production_database
 
     settings = service_settings()
     try:
         settings.check_production()
         if settings.is_production:
+            from app.db.session import Database
+            from app.main import check_production_database
+
             db = Database(settings.database_url)
             try:
                 check_production_database(db)

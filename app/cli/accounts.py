@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from app.cli._common import database, echo, new_password
+from app.cli._common import database, echo, new_password, service_settings
 
 __all__ = ["user_app", "key_app"]
 
@@ -56,7 +56,8 @@ def user_create(
 
     password = _password(password, generate, "password")
     with _database() as db:
-        admin.create_user(db, Actor.command_line(), username, password, role)
+        admin.create_user(db, Actor.command_line(), username, password, role,
+                          password_cost=service_settings().password_cost)
     echo(f"user {username} ({role}) created")
     if generate:
         echo(f"password: {password}")
@@ -74,7 +75,8 @@ def user_set_password(
 
     password = _password(password, generate, "new password")
     with _database() as db:
-        admin.update_user(db, Actor.command_line(), username, password=password)
+        admin.update_user(db, Actor.command_line(), username, password=password,
+                          password_cost=service_settings().password_cost)
     echo(f"password of {username} changed")
     if generate:
         echo(f"password: {password}")

@@ -36,7 +36,8 @@ def _demo_credentials(settings) -> tuple[str | None, str, int]:
             if auth_crud.count_users(session) == 0:
                 password = new_password()
                 auth_crud.create_user(
-                    session, "admin", password, "admin", created_by="demo", demo_credentials=True
+                    session, "admin", password, "admin", created_by="demo", demo_credentials=True,
+                    password_cost=settings.password_cost,
                 )
                 cli_audit(session, "user.create", "admin", {"role": "admin", "by": "demo"})
             row, key = auth_crud.create_api_key(

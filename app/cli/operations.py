@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from app.cli._common import echo, service_settings
+from app.cli._common import core_settings, echo
 
 __all__ = ["backup", "restore"]
 
@@ -25,7 +25,7 @@ def backup(
     from app.operations.backup import backup as take
 
     try:
-        result = take(service_settings(), dest)
+        result = take(core_settings(), dest)
     except BackupError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1) from None
@@ -56,7 +56,7 @@ def restore(
             echo(f"backup {src} verified: {manifest['database']} at {manifest['revision']}, "
                  f"{len(manifest['files'])} run files")
             return
-        result = put_back(service_settings(), src, force=force)
+        result = put_back(core_settings(), src, force=force)
     except (BackupError, OSError) as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1) from None

@@ -4,8 +4,10 @@ Nothing here touches the database or the web framework; :mod:`app.db.auth_crud`
 stores what these functions produce and :mod:`app.api.deps` checks requests
 with them.
 
-* Passwords are hashed with Argon2id (``argon2-cffi``, its default
-  parameters); only the hash is stored.
+* Passwords are hashed with Argon2id (``argon2-cffi``); only the hash is stored. The cost of a
+  new hash is a :class:`PasswordCost` (the operator's ``TRACKVKF_PASSWORD_HASH_*`` settings;
+  default :data:`DEFAULT_PASSWORD_COST`, the library's defaults); a hash carries its own
+  parameters, so a password is verified at the cost it was hashed with.
 * Session tokens and API keys are 256-bit random strings (:mod:`secrets`).
   They are stored as their SHA-256 digest: a leaked database does not reveal
   a usable token, and the high entropy of the token makes a salt or a slow
@@ -24,6 +26,7 @@ with them.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import hmac
 import os
@@ -41,6 +44,9 @@ __all__ = [
     "Actor",
     "ROLES",
     "Role",
+    "PasswordCost",
+    "DEFAULT_PASSWORD_COST",
+    "OWASP_ARGON2ID_MINIMUMS",
     "role_rank",
     "role_allows",
     "hash_password",
@@ -66,7 +72,57 @@ ROLES: tuple[str, ...] = ("viewer", "engineer", "admin")
 MIN_PASSWORD_LENGTH = 10
 API_KEY_PREFIX = "tvk"
 
-_hasher = PasswordHasher()
+
+
+@dataclass(frozen=True)
+class PasswordCost:
+    """The Argon2id parameters of new password hashes.
+
+    Attributes
+    ----------
+    time_cost : int
+        Passes over the memory (>= 1).
+    memory_kib : int
+        Memory of one hash, KiB (>= 8 per lane).
+    parallelism : int
+        Lanes (threads) of one hash (>= 1).
+
+    Raises
+    ------
+    ValueError
+        For parameters Argon2 does not accept.
+    """
+
+    time_cost: int = 3
+    memory_kib: int = 65536
+    parallelism: int = 4
+
+    def __post_init__(self) -> None:
+        if self.time_cost < 1 or self.parallelism < 1:
+            raise ValueError(f"Argon2 needs time_cost >= 1 and parallelism >= 1, got {self}")
+        if self.memory_kib < 8 * self.parallelism:
+            raise ValueError(f"Argon2 needs at least 8 KiB of memory per lane, got {self}")
+
+    def meets_owasp_minimum(self) -> bool:
+        """Whether the cost is at least one of OWASP's minimum Argon2id configurations
+        (:data:`OWASP_ARGON2ID_MINIMUMS`: as much memory and as many passes or more)."""
+        return any(self.memory_kib >= m and self.time_cost >= t for m, t in OWASP_ARGON2ID_MINIMUMS)
+
+
+#: argon2-cffi's defaults (RFC 9106's second recommended option): 3 passes over 64 MiB, 4 lanes;
+#: 0.4-0.8 s per hash measured on a busy shared 2-core machine
+DEFAULT_PASSWORD_COST = PasswordCost()
+#: OWASP Password Storage Cheat Sheet: the minimum Argon2id configurations, (memory KiB, passes),
+#: each with 1 lane; they trade memory for passes at about the same defence
+OWASP_ARGON2ID_MINIMUMS: tuple[tuple[int, int], ...] = ((47104, 1), (19456, 2), (12288, 3), (9216, 4), (7168, 5))
+
+#: verifies a hash of any parameters (read from the hash)
+_verifier = PasswordHasher()
+
+
+@functools.lru_cache(maxsize=8)
+def _hasher(cost: PasswordCost) -> PasswordHasher:
+    return PasswordHasher(time_cost=cost.time_cost, memory_cost=cost.memory_kib, parallelism=cost.parallelism)
 
 
 def role_rank(role: str) -> int:
@@ -104,26 +160,27 @@ def check_password_strength(password: str) -> None:
         raise ValueError(_("password must have at most 1024 characters"))
 
 
-def hash_password(password: str) -> str:
-    """Argon2id hash of ``password`` (encoded string with salt and parameters)."""
+def hash_password(password: str, cost: PasswordCost = DEFAULT_PASSWORD_COST) -> str:
+    """Argon2id hash of ``password`` at ``cost`` (encoded string with salt and parameters)."""
     check_password_strength(password)
-    return _hasher.hash(password)
+    return _hasher(cost).hash(password)
 
 
 def verify_password(password_hash: str, password: str) -> bool:
-    """Whether ``password`` matches ``password_hash`` (constant-time in the library)."""
+    """Whether ``password`` matches ``password_hash`` (constant-time in the library), at the cost
+    the hash was made with."""
     if not password_hash or not isinstance(password, str) or len(password) > 1024:
         return False
     try:
-        return _hasher.verify(password_hash, password)
+        return _verifier.verify(password_hash, password)
     except (VerifyMismatchError, VerificationError, InvalidHashError):
         return False
 
 
-def password_needs_rehash(password_hash: str) -> bool:
-    """Whether the hash was made with older parameters than the current ones."""
+def password_needs_rehash(password_hash: str, cost: PasswordCost = DEFAULT_PASSWORD_COST) -> bool:
+    """Whether the hash was made with other parameters than ``cost``."""
     try:
-        return _hasher.check_needs_rehash(password_hash)
+        return _hasher(cost).check_needs_rehash(password_hash)
     except InvalidHashError:
         return True
 

@@ -15,7 +15,9 @@ from sqlalchemy.orm import Session
 
 from app.core.i18n import LANGUAGES, _, is_language
 from app.core.security import (
+    DEFAULT_PASSWORD_COST,
     ROLES,
+    PasswordCost,
     api_key_prefix,
     hash_password,
     new_api_key,
@@ -76,9 +78,9 @@ def _check_username(username: str) -> str:
     return username
 
 
-def _hash(password: str) -> str:
+def _hash(password: str, cost: PasswordCost) -> str:
     try:
-        return hash_password(password)
+        return hash_password(password, cost)
     except ValueError as exc:
         raise AuthError("password", exc.args[0] if exc.args and isinstance(exc.args[0], str) else str(exc)) from None
 
@@ -92,8 +94,10 @@ def create_user(
     *,
     created_by: str | None = None,
     demo_credentials: bool = False,
+    password_cost: PasswordCost = DEFAULT_PASSWORD_COST,
 ) -> User:
-    """Insert a user with an Argon2id hash of ``password``.
+    """Insert a user with an Argon2id hash of ``password`` at ``password_cost`` (the service's:
+    ``Settings.password_cost``).
 
     Raises
     ------
@@ -106,7 +110,7 @@ def create_user(
         raise AuthError("username", _("user {username!r} exists", username=username))
     user = User(
         username=username,
-        password_hash=_hash(password),
+        password_hash=_hash(password, password_cost),
         role=role,
         active=True,
         demo_credentials=demo_credentials,
@@ -164,8 +168,10 @@ def update_user(
     password: str | None = None,
     role: str | None = None,
     active: bool | None = None,
+    password_cost: PasswordCost = DEFAULT_PASSWORD_COST,
 ) -> User | None:
-    """Change a user's password, role or active flag; None if there is no such user.
+    """Change a user's password (hashed at ``password_cost``), role or active flag; None if there
+    is no such user.
 
     A new password clears ``demo_credentials``. Changing the password, the
     role or deactivating the user ends the user's sessions.
@@ -178,7 +184,7 @@ def update_user(
     if password is not None:
         if user.auth_source != "local":
             raise AuthError("password", _("{username} signs in at the OpenID provider and has no password here", username=username))
-        user.password_hash = _hash(password)
+        user.password_hash = _hash(password, password_cost)
         user.demo_credentials = False
     if active is not None:
         user.active = bool(active)

@@ -59,12 +59,12 @@ from sqlalchemy.engine import make_url
 from sqlalchemy.pool import NullPool
 
 from app.core.atomic import atomic_path
+from app.core.config import CoreSettings
 from app.core.runstore import RunStore
 from app.db import migrate
 from app.db.models import Base, Job, JobChunk, JobStatus, Run, WorkerHeartbeat
 from app.db.session import Database, make_engine
 from app.operations import restore_checks as checks
-from app.settings import Settings
 
 __all__ = [
     "FORMAT",
@@ -207,13 +207,14 @@ def _run_files(conn) -> list[tuple[int, str]]:
 
 
 # --- backup ------------------------------------------------------------------------------------
-def backup(settings: Settings, dest: Path | str, *, attempts: int = 3) -> BackupResult:
+def backup(settings: CoreSettings, dest: Path | str, *, attempts: int = 3) -> BackupResult:
     """Back up the database and the run store of ``settings`` into the new directory ``dest``.
 
     Parameters
     ----------
-    settings : Settings
-        The service's settings (database URL, run store).
+    settings : CoreSettings
+        The service's core settings (database URL, run store; the service's :class:`~app.settings.Settings`
+        are core settings too).
     dest : Path
         A directory that does not exist yet (or is empty).
     attempts : int
@@ -274,7 +275,7 @@ def _copy_run_files(store: RunStore, runs: list[tuple[int, str]], work: Path,
     return files
 
 
-def _live_file_is(settings: Settings):
+def _live_file_is(settings: CoreSettings):
     def check(run_id: int, rel: str) -> bool:
         db = Database(settings.database_url)
         try:
@@ -286,7 +287,7 @@ def _live_file_is(settings: Settings):
     return check
 
 
-def _backup_sqlite(settings: Settings, store: RunStore, work: Path) -> dict[str, Any]:
+def _backup_sqlite(settings: CoreSettings, store: RunStore, work: Path) -> dict[str, Any]:
     src_path = _sqlite_path(settings.database_url)
     if not src_path.is_file():
         raise BackupError(f"database: {src_path} does not exist")
@@ -333,7 +334,7 @@ def _check_sqlite(path: Path) -> None:
         raise BackupError(f"{path.name}: integrity_check failed: {'; '.join(result[:5])}")
 
 
-def _backup_postgresql(settings: Settings, store: RunStore, work: Path) -> dict[str, Any]:
+def _backup_postgresql(settings: CoreSettings, store: RunStore, work: Path) -> dict[str, Any]:
     pg_dump = find_pg_tool("pg_dump")
     uri, env = _libpq(settings.database_url)
     engine = make_engine(settings.database_url)
@@ -423,7 +424,7 @@ def verify_backup(src: Path | str) -> dict[str, Any]:
     return manifest
 
 
-def _holds_data(settings: Settings, kind: str) -> list[str]:
+def _holds_data(settings: CoreSettings, kind: str) -> list[str]:
     """What the target already holds (empty: nothing to overwrite)."""
     held = []
     store = RunStore(settings.run_store)
@@ -456,7 +457,7 @@ class _Aside:
     swapped: bool = False
 
 
-def restore(settings: Settings, src: Path | str, *, force: bool = False) -> RestoreResult:
+def restore(settings: CoreSettings, src: Path | str, *, force: bool = False) -> RestoreResult:
     """Restore the backup ``src`` into the database and run store of ``settings`` (service stopped).
 
     Everything is verified before the target is touched (:func:`verify_backup`); the target's old
@@ -466,7 +467,7 @@ def restore(settings: Settings, src: Path | str, *, force: bool = False) -> Rest
 
     Parameters
     ----------
-    settings : Settings
+    settings : CoreSettings
         Where to restore: ``database_url`` (of the backup's kind) and ``run_store``.
     src : Path
         A directory written by :func:`backup`.
@@ -521,7 +522,7 @@ def restore(settings: Settings, src: Path | str, *, force: bool = False) -> Rest
                          aside.run_store, time.perf_counter() - t0, aside.database)
 
 
-def _sqlite_aside(settings: Settings, aside: _Aside) -> None:
+def _sqlite_aside(settings: CoreSettings, aside: _Aside) -> None:
     """Rename the target's SQLite database (with its WAL) aside; nothing when there is none."""
     target = _sqlite_path(settings.database_url)
     with contextlib.suppress(FileNotFoundError):
@@ -537,7 +538,7 @@ def _sqlite_aside(settings: Settings, aside: _Aside) -> None:
             aside.wal.append((Path(f"{target}{suffix}"), Path(f"{kept}{suffix}")))
 
 
-def _postgresql_aside(settings: Settings, store_root: Path, aside: _Aside) -> None:
+def _postgresql_aside(settings: CoreSettings, store_root: Path, aside: _Aside) -> None:
     """``pg_dump`` of the target database beside the run store, when it holds a trackvkf schema."""
     engine = make_engine(settings.database_url)
     try:
@@ -568,7 +569,7 @@ def _swap_run_store(store_root: Path, staging: Path, aside: _Aside) -> None:
     aside.swapped = True
 
 
-def _upgrade_and_check(settings: Settings, manifest: dict[str, Any]) -> str | None:
+def _upgrade_and_check(settings: CoreSettings, manifest: dict[str, Any]) -> str | None:
     """Upgrade the restored database to the head when the backup is older; check its revision and
     (at the backup's revision) its row counts against the manifest."""
     _, head = _known_revisions()
@@ -586,7 +587,7 @@ def _upgrade_and_check(settings: Settings, manifest: dict[str, Any]) -> str | No
     return revision_now
 
 
-def _put_back(settings: Settings, kind: str, store_root: Path, aside: _Aside) -> None:
+def _put_back(settings: CoreSettings, kind: str, store_root: Path, aside: _Aside) -> None:
     """Undo a restore that failed after it touched the target: the old database and run store back."""
     if aside.swapped:
         failed = store_root.with_name(f".{store_root.name}.failed-restore-{aside.stamp}")
@@ -613,7 +614,7 @@ def _put_back(settings: Settings, kind: str, store_root: Path, aside: _Aside) ->
     aside.database = None
 
 
-def _restore_sqlite(settings: Settings, snapshot: Path) -> None:
+def _restore_sqlite(settings: CoreSettings, snapshot: Path) -> None:
     target = _sqlite_path(settings.database_url)
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = target.with_name(f".{target.name}.restore-{uuid.uuid4().hex[:8]}")
@@ -629,7 +630,7 @@ def _restore_sqlite(settings: Settings, snapshot: Path) -> None:
     _check_sqlite(target)
 
 
-def _restore_postgresql(settings: Settings, dump: Path) -> None:
+def _restore_postgresql(settings: CoreSettings, dump: Path) -> None:
     uri, env = _libpq(settings.database_url)
     proc = subprocess.run(
         [find_pg_tool("pg_restore"), "--clean", "--if-exists", "--no-owner", "--no-privileges",
@@ -648,7 +649,7 @@ def _database(url: str) -> Iterator[Database]:
         db.dispose()
 
 
-def _after_restore(settings: Settings) -> list[int]:
+def _after_restore(settings: CoreSettings) -> list[int]:
     """Requeue the jobs that were running; forget the heartbeats of the workers of the backed-up
     service; move the id sequences ahead."""
     with _database(settings.database_url) as db, db.write() as s:

@@ -5,15 +5,23 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from app.core.security import PasswordCost
 from app.settings import Settings
 
-__all__ = ["make_settings", "store_files", "create_api_key", "auth_headers"]
+__all__ = ["make_settings", "store_files", "create_api_key", "auth_headers", "TEST_PASSWORD_COST"]
+
+#: Argon2's smallest cost (1 pass over 8 KiB, 1 lane): the password hashes of tests that do not
+#: test the hashing (production mode refuses it)
+TEST_PASSWORD_COST = PasswordCost(time_cost=1, memory_kib=8, parallelism=1)
 
 
 def make_settings(tmp_path: Path, **overrides: Any) -> Settings:
     """Settings on ``tmp_path``: SQLite file ``db.sqlite``, run store ``runs/``.
 
-    Heartbeat and stale timeout are short so that fault tests run fast.
+    Heartbeat and stale timeout are short so that fault tests run fast. Passwords are hashed at
+    :data:`TEST_PASSWORD_COST` (valid Argon2id hashes, 0.1 ms instead of 0.4-0.8 s): the tests
+    of the hashing itself use the default cost (``password_hash_*`` overrides, or
+    ``app.core.security.DEFAULT_PASSWORD_COST``).
     """
     values: dict[str, Any] = {
         "database_url": f"sqlite:///{tmp_path / 'db.sqlite'}",
@@ -22,6 +30,9 @@ def make_settings(tmp_path: Path, **overrides: Any) -> Settings:
         "worker_heartbeat_s": 0.5,
         "worker_stale_after_s": 3.0,
         "log_level": "WARNING",
+        "password_hash_time_cost": TEST_PASSWORD_COST.time_cost,
+        "password_hash_memory_kib": TEST_PASSWORD_COST.memory_kib,
+        "password_hash_parallelism": TEST_PASSWORD_COST.parallelism,
     }
     values.update(overrides)
     return Settings(_env_file=None, **values)

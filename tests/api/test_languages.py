@@ -25,7 +25,7 @@ def service(tmp_path_factory):
     key = create_api_key(settings.database_url, "viewer")
     db = Database(settings.database_url)
     with db.write() as session:
-        auth_crud.create_user(session, "hanna", PASSWORD, "engineer")
+        auth_crud.create_user(session, "hanna", PASSWORD, "engineer", password_cost=settings.password_cost)
     db.dispose()
     with TestClient(create_app(settings), follow_redirects=False) as client:
         yield client, key

@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 
 from app.db import crud, results_reader, results_writer
-from app.db.display import display_rows, km_extent
+from app.db.display import display_level_of, display_rows, km_extent
 from app.db.display_arrays import DisplayArrays
-from app.db.models import JobStatus
+from app.db.models import COARSE_DISPLAY_LEVEL, JobStatus
 from app.db.session import Database
 from tests.db.support import add_run, profile_table
 
@@ -69,28 +69,44 @@ def _windows(km: np.ndarray) -> list[tuple[float | None, float | None]]:
 
 
 def test_answers_are_the_rows_of_the_sql_path(stored):
+    """Every (point count, window) pair once, the wheel and the column set taken in turn: they only
+    choose the rows' filter and the columns read, while the window and the point count choose the
+    level, the index path and the edge buckets. Every level of the pyramid, all rows (0) to the
+    coarsest, is compared for each wheel and for each column set; every fixed window (the ends,
+    one bin, empty ranges, beyond the profile) with every point count."""
     db, job_id, profiles = stored
     arrays = DisplayArrays(64 * 1024 * 1024, background=False)
     km = profiles["km"].to_numpy()[:N_BINS]
     column_sets = [MAP_COLUMNS, results_reader.profile_columns(["sleeper_amp"])[1:],
                    results_reader.profile_columns(None)]
+    turns = [(wheel, c) for wheel in ("11", "12") for c in range(len(column_sets))]
+    with db.read() as s:
+        extents = {wheel: km_extent(s, job_id, wheel) for wheel in ("11", "12")}
+    levels: dict[str | int, set[int]] = {key: set() for key in ("11", "12", *range(len(column_sets)))}
     compared = 0
-    for wheel in ("11", "12"):
-        for columns in column_sets:
-            for max_points in (4, 37, 400, 2400, 20_000):
-                for km_from, km_to in _windows(km):
-                    got = arrays.display_rows(db, job_id, wheel, max_points, 0.25, km_from=km_from, km_to=km_to,
-                                              columns=columns)
-                    assert got is not None
-                    with db.read() as s:
-                        want = display_rows(s, job_id, wheel, max_points, 0.25, km_from=km_from, km_to=km_to,
-                                            columns=columns)
-                        extent = km_extent(s, job_id, wheel)
-                    pd.testing.assert_frame_equal(got[0], want, check_exact=True)
-                    assert got[1] == extent
-                    compared += 1
-    assert compared == 2 * 3 * 5 * 50
-    # levels 0 (all rows of the range) up to the top of the pyramid were among them
+    for max_points in (4, 37, 400, 2400, 20_000):
+        for km_from, km_to in _windows(km):
+            wheel, c = turns[compared % len(turns)]
+            columns = column_sets[c]
+            got = arrays.display_rows(db, job_id, wheel, max_points, 0.25, km_from=km_from, km_to=km_to,
+                                      columns=columns)
+            assert got is not None
+            with db.read() as s:
+                want = display_rows(s, job_id, wheel, max_points, 0.25, km_from=km_from, km_to=km_to,
+                                    columns=columns)
+                extent = km_extent(s, job_id, wheel)
+            pd.testing.assert_frame_equal(got[0], want, check_exact=True)
+            assert got[1] == extent
+            level = display_level_of(extent, km_from, km_to, max_points, 0.25)
+            levels[wheel].add(level)
+            levels[c].add(level)
+            compared += 1
+    assert compared == 5 * 50
+    # levels 0 (all rows of the range, by primary key), 1 (primary key), 2 and more (the coarse
+    # index) up to the top of the pyramid, for each wheel and each column set
+    top = display_level_of(extents["11"], None, None, 4, 0.25)
+    assert top > COARSE_DISPLAY_LEVEL
+    assert all(seen == set(range(top + 1)) for seen in levels.values()), levels
     assert 0 < arrays.size <= arrays.max_bytes
 
 

@@ -12,6 +12,7 @@ import httpx
 import pytest
 
 from tests.e2e.support import wait_for
+from tests.faults.support import hdf5_run
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -22,9 +23,10 @@ def _health(client: httpx.Client) -> dict:
     return r.json()
 
 
-def test_killing_the_only_worker_turns_health_degraded_while_jobs_wait(service, short_sim_run):
+def test_killing_the_only_worker_turns_health_degraded_while_jobs_wait(service, tmp_path):
     mode = "local" if service.backend == "sqlite" else "procrastinate"
-    path, _ = short_sim_run
+    # a small valid run (4 s of samples): the job only has to wait, and be done by the new worker
+    path = hdf5_run(tmp_path, n=40_000)
     with service.client(timeout=120) as client:
         body = _health(client)
         assert body["status"] == "ok" and body["workers"]["alive"] == 0 and body["queue"]["depth"] == 0

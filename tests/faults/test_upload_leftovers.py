@@ -117,12 +117,13 @@ def test_partial_upload_of_a_killed_api_is_swept_at_restart_but_not_another_apis
         release = threading.Event()  # lets the live upload go on once the restart is checked
         other.start_api()
         try:
-            # an upload in progress on the other API process, slow enough to outlive the restart
+            # an upload in progress on the other API process, held after its first piece until the restart
+            # is checked (then the rest goes at once)
             slow = hdf5_run(tmp_path, n=120_000)
             started, result = threading.Event(), {}
             live = threading.Thread(
                 target=_post_slowly,
-                args=(other.base_url, svc.api_key, slow, started, 0.2, result, release),
+                args=(other.base_url, svc.api_key, slow, started, 0.0, result, release),
             )
             live.start()
             assert started.wait(30)

@@ -13,6 +13,7 @@ import pytest
 
 from app.db import auth_crud
 from app.db.session import Database
+from tests.api.support import TEST_PASSWORD_COST
 from tests.oidc.conftest import (
     API_AUDIENCE,
     CLIENT_ID,
@@ -107,7 +108,8 @@ def test_a_local_user_name_is_not_taken_over(oidc):
     db = Database(oidc.service.database_url)
     try:
         with db.write() as session:
-            auth_crud.create_user(session, "erin", "a local password of erin", "viewer")
+            auth_crud.create_user(session, "erin", "a local password of erin", "viewer",
+                                  password_cost=TEST_PASSWORD_COST)
     finally:
         db.dispose()
     client, r = http_sign_in(oidc, "erin")

@@ -35,9 +35,8 @@ def _secured(tmp_path: Path, **overrides):
     keys = {role: create_api_key(settings.database_url, role) for role in ("viewer", "engineer", "admin")}
     db = Database(settings.database_url)
     with db.write() as session:
-        auth_crud.create_user(session, "alice", PASSWORD, "admin")
-        auth_crud.create_user(session, "erin", PASSWORD, "engineer")
-        auth_crud.create_user(session, "vic", PASSWORD, "viewer")
+        for name, role in (("alice", "admin"), ("erin", "engineer"), ("vic", "viewer")):
+            auth_crud.create_user(session, name, PASSWORD, role, password_cost=settings.password_cost)
     db.dispose()
     with TestClient(create_app(settings), follow_redirects=False) as client:
         yield Keys(settings=settings, client=client, keys=keys)

@@ -21,6 +21,21 @@ def _login(client, username="alice", password=PASSWORD):
     return client.post("/api/v1/auth/login", json={"username": username, "password": password})
 
 
+def _stored_hash(keys, username: str) -> str:
+    db = Database(keys.settings.database_url)
+    try:
+        with db.read() as s:
+            return auth_crud.get_user(s, username).password_hash
+    finally:
+        db.dispose()
+
+
+def _parameters(settings) -> str:
+    """The start of an Argon2id hash made at the settings' cost."""
+    cost = settings.password_cost
+    return f"$argon2id$v=19$m={cost.memory_kib},t={cost.time_cost},p={cost.parallelism}$"
+
+
 def _audit(settings, action=None):
     db = Database(settings.database_url)
     try:
@@ -81,7 +96,7 @@ def test_expired_session_is_refused(tmp_path):
     migrate.upgrade(settings.database_url)
     db = Database(settings.database_url)
     with db.write() as s:
-        auth_crud.create_user(s, "alice", PASSWORD, "admin")
+        auth_crud.create_user(s, "alice", PASSWORD, "admin", password_cost=settings.password_cost)
     db.dispose()
     with TestClient(create_app(settings)) as client:
         assert _login(client).status_code == 200
@@ -178,6 +193,7 @@ def test_user_administration_and_password_change(secured):
         headers=admin,
     )
     assert r.status_code == 201 and "password" not in r.text and "hash" not in r.text
+    assert _stored_hash(secured, "otto").startswith(_parameters(secured.settings))  # the app's cost
     assert secured.client.post(
         "/api/v1/auth/users", json={"username": "otto", "password": "long enough pw", "role": "viewer"},
         headers=admin,
@@ -194,6 +210,7 @@ def test_user_administration_and_password_change(secured):
         headers={"X-CSRF-Token": csrf},
     )
     assert r.status_code == 204
+    assert _stored_hash(secured, "otto").startswith(_parameters(secured.settings))
     assert secured.client.get("/api/v1/auth/me").status_code == 401  # sessions ended
     assert _login(secured.client, "otto", "another long pw").status_code == 200
     # role change takes effect, deletion removes the user

@@ -16,20 +16,58 @@ from app.db import auth_crud, migrate
 from app.db.session import Database
 from app.io import RunFileError, ingest
 from app.io.limits import IngestLimits
+from app.settings import Settings
 from tests.api import runfiles
 from tests.api.support import make_settings
 
 STRONG_KEY = "k" * 48
+#: OWASP's minimum Argon2id cost that takes least time (19 MiB, 2 passes): what production accepts
+OWASP_COST = {"password_hash_time_cost": 2, "password_hash_memory_kib": 19456, "password_hash_parallelism": 1}
 
 
 def test_password_hash_is_argon2id_salted_and_verifies():
+    """At the default (real) cost: argon2-cffi's defaults, 3 passes over 64 MiB with 4 lanes."""
     h1, h2 = security.hash_password("correct horse"), security.hash_password("correct horse")
-    assert h1.startswith("$argon2id$") and h1 != h2
+    assert h1.startswith("$argon2id$v=19$m=65536,t=3,p=4$") and h1 != h2
     assert security.verify_password(h1, "correct horse")
     assert not security.verify_password(h1, "correct horsE")
     assert not security.verify_password("not a hash", "correct horse")
     with pytest.raises(ValueError, match="at least"):
         security.hash_password("short")
+
+
+def test_the_password_cost_setting_makes_the_hashes(monkeypatch):
+    monkeypatch.setenv("TRACKVKF_PASSWORD_HASH_TIME_COST", "2")
+    monkeypatch.setenv("TRACKVKF_PASSWORD_HASH_MEMORY_KIB", "19456")
+    monkeypatch.setenv("TRACKVKF_PASSWORD_HASH_PARALLELISM", "1")
+    cost = Settings(_env_file=None).password_cost
+    assert cost == security.PasswordCost(time_cost=2, memory_kib=19456, parallelism=1)
+    h = security.hash_password("correct horse", cost)
+    assert h.startswith("$argon2id$v=19$m=19456,t=2,p=1$")
+    assert security.verify_password(h, "correct horse") and not security.verify_password(h, "correct horsE")
+    # a hash of another cost is verified with its own parameters, and asks to be made again
+    assert security.password_needs_rehash(h) and not security.password_needs_rehash(h, cost)
+    with pytest.raises(ValueError, match="8 KiB of memory per lane"):
+        Settings(_env_file=None, password_hash_memory_kib=16, password_hash_parallelism=4)
+
+
+def test_production_refuses_a_password_cost_below_owasps_minimum(tmp_path):
+    from app.main import create_app
+
+    with pytest.raises(ProductionConfigError, match="TRACKVKF_PASSWORD_HASH_TIME_COST"):
+        create_app(make_settings(tmp_path, env="production", secret_key=STRONG_KEY))  # the tests' cost
+    for memory_kib, passes in security.OWASP_ARGON2ID_MINIMUMS:
+        at = make_settings(tmp_path, env="production", secret_key=STRONG_KEY, password_hash_memory_kib=memory_kib,
+                           password_hash_time_cost=passes, password_hash_parallelism=1)
+        at.check_production()
+        for below in ({"password_hash_memory_kib": memory_kib - 1}, {"password_hash_time_cost": passes - 1}):
+            if below.get("password_hash_time_cost") == 0:
+                continue  # one pass is Argon2's least: 46 MiB with 1 pass has no fewer passes
+            settings = at.model_copy(update=below)
+            with pytest.raises(ProductionConfigError, match="OWASP"):
+                settings.check_production()
+    make_settings(tmp_path, env="production", secret_key=STRONG_KEY,
+                  password_hash_memory_kib=65536, password_hash_time_cost=3, password_hash_parallelism=4).check_production()
 
 
 def test_api_key_format_and_digest():
@@ -88,15 +126,16 @@ def test_production_refuses_default_secret_and_disabled_auth(tmp_path):
 def test_production_refuses_printed_demo_credentials(tmp_path):
     from app.main import create_app
 
-    settings = make_settings(tmp_path, env="production", secret_key=STRONG_KEY)
+    settings = make_settings(tmp_path, env="production", secret_key=STRONG_KEY, **OWASP_COST)
     migrate.upgrade(settings.database_url)
     db = Database(settings.database_url)
     with db.write() as s:
-        auth_crud.create_user(s, "admin", "printed-password", "admin", demo_credentials=True)
+        auth_crud.create_user(s, "admin", "printed-password", "admin", demo_credentials=True,
+                              password_cost=settings.password_cost)
     with pytest.raises(ProductionConfigError, match="default credentials.*'admin'"):
         create_app(settings)
     with db.write() as s:
-        auth_crud.update_user(s, "admin", password="a new secret password")
+        auth_crud.update_user(s, "admin", password="a new secret password", password_cost=settings.password_cost)
     db.dispose()
     app = create_app(settings)
     app.state.db.dispose()

@@ -37,10 +37,11 @@ def _login(client: TestClient, username: str = "alice", password: str = PASSWORD
 @pytest.fixture
 def service(tmp_path: Path):
     """Factory of apps on one migrated SQLite database holding the admin ``alice``."""
-    migrate.upgrade(make_settings(tmp_path).database_url)
-    db = Database(make_settings(tmp_path).database_url)
+    settings = make_settings(tmp_path)
+    migrate.upgrade(settings.database_url)
+    db = Database(settings.database_url)
     with db.write() as session:
-        auth_crud.create_user(session, "alice", PASSWORD, "admin")
+        auth_crud.create_user(session, "alice", PASSWORD, "admin", password_cost=settings.password_cost)
     db.dispose()
     with contextlib.ExitStack() as running:
 
@@ -110,6 +111,26 @@ def test_unknown_user_and_password_change_verify_outside_the_write_transaction(s
     )
     assert r.status_code == 204, r.text
     assert seen == ["free", "free"]
+
+
+def test_an_unknown_user_name_is_verified_at_the_cost_of_the_known_ones(service, monkeypatch):
+    """A login of a name that does not exist verifies the password against a hash of the configured
+    cost: it takes as long as a wrong password of a real user (the time does not tell which names
+    exist)."""
+    client = service()
+    verified: list[str] = []
+    original = accounts_sessions.verify_password
+
+    def record_hash(password_hash: str, password: str) -> bool:
+        verified.append(password_hash)
+        return original(password_hash, password)
+
+    monkeypatch.setattr(accounts_sessions, "verify_password", record_hash)
+    assert _login(client, password="wrong password!").status_code == 401
+    assert _login(client, username="nobody").status_code == 401
+    cost = client.app_settings.password_cost
+    parameters = f"$argon2id$v=19$m={cost.memory_kib},t={cost.time_cost},p={cost.parallelism}$"
+    assert len(verified) == 2 and all(h.startswith(parameters) for h in verified), verified
 
 
 # --- item 4: no lockout lever ---------------------------------------------------------------
