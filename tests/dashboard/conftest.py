@@ -81,7 +81,8 @@ def dashboard(tmp_path_factory, processed_demo) -> Iterator[Dashboard]:
 
     work = tmp_path_factory.mktemp("dashboard")
     upload = work / "upload-run.h5"
-    simulate_run(upload, length_km=0.6, fs=RUN_FS, seed=21, line_seed=LINE_SEED,
+    # short (0.3 km, ~14 s): what the upload test watches is the upload's progress and its job finishing
+    simulate_run(upload, length_km=0.3, fs=RUN_FS, seed=21, line_seed=LINE_SEED,
                  start_time="2025-01-15T09:30:00+01:00", with_forces=False)
     bad = work / "broken-run.csv"
     bad.write_text("time,Z11,speed\n0.0,1.0,20\n0.0001,oops,20\n")
