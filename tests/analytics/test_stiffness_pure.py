@@ -233,3 +233,26 @@ def test_curve_components_join_speed_ranges_a_location_links():
     node_comp, sample_comp = _components(g, u, loc, nodes)
     assert node_comp.tolist() == [0, 0, 0, -1, 0, 0, -1, -1, 4, 4]
     assert sample_comp.tolist() == [0, 0, 0, 4, 4, -1]
+
+
+def test_a_prepared_local_fit_gives_the_local_fit_of_every_value_set():
+    """The backfitting's smoother prepared once on the speeds (LocalFit) answers each residual set exactly as
+    local_fit does, also where values are missing (NaN speeds and values left out), and recovers a curve."""
+    from app.analysis.stiffness.reference_curve.smoother import LocalFit, local_fit
+
+    rng = np.random.default_rng(3)
+    u = np.log(rng.uniform(20.0, 45.0, 4000))
+    u[:5] = np.nan
+    nodes = np.arange(2.9, 3.9, 0.05)
+    prepared = LocalFit(u, nodes, 0.1, 20)
+    for k in range(3):
+        r = 0.8 * (u - 3.4) ** 2 - 0.3 * u + rng.normal(0.0, 0.05, u.size)
+        if k == 2:
+            r[rng.random(u.size) < 0.2] = np.nan
+        got, support = prepared.fit(r)
+        want, want_support = local_fit(u, r, nodes, 0.1, 20)
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(support, want_support)
+    truth = 0.8 * (nodes - 3.4) ** 2 - 0.3 * nodes
+    ok = np.isfinite(got)
+    assert ok.sum() >= 10 and np.median(np.abs(got[ok] - truth[ok])) < 0.01  # the ends: one-sided windows

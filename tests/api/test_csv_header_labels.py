@@ -31,16 +31,15 @@ def client(tmp_path_factory):
     from fastapi.testclient import TestClient
 
     from app.condition.fleet import ingest_fleet
-    from app.db import migrate
     from app.db.session import Database
     from app.main import create_app
     from app.simulate.fleet import FleetPlan, FleetSimulator, PlantedStep
     from app.simulate.track import generate_line
-    from tests.api.support import auth_headers, create_api_key, make_settings
+    from tests.api.support import auth_headers, create_api_key, make_settings, migrate_database
 
     tmp = tmp_path_factory.mktemp("csv-labels")
     settings = make_settings(tmp)
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     sim = FleetSimulator(generate_line(0.0, 2_000.0, seed=5),
                          FleetPlan(steps=(PlantedStep(1_000.0, 1_200.0, day=0.0, factor=1.6),)))
     db = Database(settings.database_url)

@@ -10,10 +10,10 @@ import re
 import pytest
 from fastapi.testclient import TestClient
 
-from app.db import auth_crud, migrate
+from app.db import auth_crud
 from app.db.session import Database
 from app.main import create_app
-from tests.api.support import auth_headers, create_api_key, make_settings
+from tests.api.support import auth_headers, create_api_key, make_settings, migrate_database
 
 PASSWORD = "languages test password"
 
@@ -21,7 +21,7 @@ PASSWORD = "languages test password"
 @pytest.fixture(scope="module")
 def service(tmp_path_factory):
     settings = make_settings(tmp_path_factory.mktemp("languages"), login_rate_limit=100_000)
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     key = create_api_key(settings.database_url, "viewer")
     db = Database(settings.database_url)
     with db.write() as session:

@@ -283,3 +283,27 @@ def test_store_index_sd_is_segment_sd_over_the_mean_amplitude():
     assert np.all(np.isnan(store_index_sd(pos, amp, None, None, st.seg, segment_m=10.0, bin_length_m=0.25)))
     nan_sd = np.full(bins.size, np.nan)
     assert np.all(np.isnan(store_index_sd(pos, amp, nan_sd, nan_sd, st.seg, segment_m=10.0, bin_length_m=0.25)))
+
+
+def test_the_rolling_history_gives_each_earlier_run_on_the_asked_segments():
+    """RollingHistory.matrix: a run over the same segments as asked (taken whole) and runs over other
+    segments (matched segment by segment, NaN where they have none), oldest first."""
+    from app.analysis.condition import RollingHistory
+    from app.analysis.condition.segments import SegmentStats
+
+    def stats(seg, base):
+        seg = np.asarray(seg, dtype=np.int64)
+        f = base + np.arange(seg.size, dtype=np.float64)
+        return SegmentStats(seg, np.full(seg.size, 40), np.exp(f), np.exp(f), 30.0 + f, f, 0.01 * f)
+
+    h = RollingHistory()
+    h.append(0.0, {10.0: {"11": stats([3, 4, 5, 6], 1.0)}})
+    h.append(1.0, {10.0: {"11": stats([4, 5, 6, 7], 10.0)}})
+    h.append(2.0, {10.0: {"11": stats([3, 4, 5, 6], 20.0)}})
+    m = h.matrix(10.0, "11", np.array([3, 4, 5, 6]), trend=False)
+    nan = np.nan
+    np.testing.assert_array_equal(m.index, [[1, nan, 20], [2, 10, 21], [3, 11, 22], [4, 12, 23]])
+    np.testing.assert_array_equal(m.speed, 30.0 + m.index)
+    np.testing.assert_allclose(m.index_sd, 0.01 * m.index)
+    np.testing.assert_array_equal(m.days, [0.0, 1.0, 2.0])
+    assert h.matrix(10.0, "12", np.array([3, 4]), trend=False).index.shape == (2, 0)

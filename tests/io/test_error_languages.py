@@ -263,12 +263,11 @@ def test_the_scan_finds_an_unmarked_message(tmp_path: Path) -> None:
 def service(tmp_path_factory):
     from fastapi.testclient import TestClient
 
-    from app.db import migrate
     from app.main import create_app
-    from tests.api.support import auth_headers, create_api_key, make_settings
+    from tests.api.support import auth_headers, create_api_key, make_settings, migrate_database
 
     settings = make_settings(tmp_path_factory.mktemp("error_languages"))
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     key = create_api_key(settings.database_url, "engineer")
     with TestClient(create_app(settings), follow_redirects=False) as client:
         yield client, auth_headers(key)

@@ -8,11 +8,11 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from app.db import auth_crud, migrate
+from app.db import auth_crud
 from app.db.session import Database
 from app.main import create_app
 from app.settings import Settings
-from tests.api.support import create_api_key, make_settings
+from tests.api.support import create_api_key, make_settings, migrate_database
 
 PASSWORD = "correct horse battery"
 
@@ -31,7 +31,7 @@ class Keys:
 
 def _secured(tmp_path: Path, **overrides):
     settings = make_settings(tmp_path, **overrides)
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     keys = {role: create_api_key(settings.database_url, role) for role in ("viewer", "engineer", "admin")}
     db = Database(settings.database_url)
     with db.write() as session:

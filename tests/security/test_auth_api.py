@@ -13,7 +13,7 @@ from app.db import auth_crud
 from app.db.models import ApiKey, AuditEntry
 from app.db.session import Database
 from tests.api import runfiles
-from tests.api.support import auth_headers, make_settings
+from tests.api.support import auth_headers, make_settings, migrate_database
 from tests.security.conftest import PASSWORD
 
 
@@ -89,11 +89,10 @@ def test_logout_ends_the_session(secured):
 def test_expired_session_is_refused(tmp_path):
     from fastapi.testclient import TestClient
 
-    from app.db import migrate
     from app.main import create_app
 
     settings = make_settings(tmp_path, session_ttl_s=0.001)
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     db = Database(settings.database_url)
     with db.write() as s:
         auth_crud.create_user(s, "alice", PASSWORD, "admin", password_cost=settings.password_cost)

@@ -12,13 +12,13 @@ import pytest
 from app.core import security
 from app.core.config import DEFAULT_SECRET_KEY, ProductionConfigError
 from app.core.ratelimit import RateLimiter
-from app.db import auth_crud, migrate
+from app.db import auth_crud
 from app.db.session import Database
 from app.io import RunFileError, ingest
 from app.io.limits import IngestLimits
 from app.settings import Settings
 from tests.api import runfiles
-from tests.api.support import make_settings
+from tests.api.support import make_settings, migrate_database
 
 STRONG_KEY = "k" * 48
 #: OWASP's minimum Argon2id cost that takes least time (19 MiB, 2 passes): what production accepts
@@ -127,7 +127,7 @@ def test_production_refuses_printed_demo_credentials(tmp_path):
     from app.main import create_app
 
     settings = make_settings(tmp_path, env="production", secret_key=STRONG_KEY, **OWASP_COST)
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     db = Database(settings.database_url)
     with db.write() as s:
         auth_crud.create_user(s, "admin", "printed-password", "admin", demo_credentials=True,

@@ -14,9 +14,8 @@ import uvicorn
 from fastapi import Depends
 
 from app.api.deps import require_role
-from app.db import migrate
 from app.main import create_app
-from tests.api.support import create_api_key, make_settings
+from tests.api.support import create_api_key, make_settings, migrate_database
 
 FEATURE = {
     "type": "Feature",
@@ -170,7 +169,7 @@ def _http(sock: socket.socket, path: str, key: str) -> tuple[int, dict[str, str]
 
 def test_a_500_answers_in_the_error_shape_and_keeps_the_connection(tmp_path: Path) -> None:
     settings = make_settings(tmp_path)
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     key = create_api_key(settings.database_url, "viewer")
     app = create_app(settings)
 

@@ -20,11 +20,11 @@ from fastapi.testclient import TestClient
 
 import app.accounts.sessions as accounts_sessions
 from app.core.security import device_cookie_id, new_device_cookie
-from app.db import auth_crud, migrate
+from app.db import auth_crud
 from app.db.models import AuditEntry
 from app.db.session import Database
 from app.main import create_app
-from tests.api.support import make_settings
+from tests.api.support import make_settings, migrate_database
 from tests.security.conftest import PASSWORD
 
 LOGIN = "/api/v1/auth/login"
@@ -38,7 +38,7 @@ def _login(client: TestClient, username: str = "alice", password: str = PASSWORD
 def service(tmp_path: Path):
     """Factory of apps on one migrated SQLite database holding the admin ``alice``."""
     settings = make_settings(tmp_path)
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     db = Database(settings.database_url)
     with db.write() as session:
         auth_crud.create_user(session, "alice", PASSWORD, "admin", password_cost=settings.password_cost)

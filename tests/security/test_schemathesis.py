@@ -16,9 +16,8 @@ from hypothesis import HealthCheck, Phase, given, settings
 from schemathesis.checks import not_a_server_error
 from schemathesis.specs.openapi.checks import response_schema_conformance
 
-from app.db import migrate
 from app.main import create_app
-from tests.api.support import auth_headers, create_api_key, make_settings
+from tests.api.support import auth_headers, create_api_key, make_settings, migrate_database
 
 MAX_EXAMPLES = 12
 CHECKS = [not_a_server_error, response_schema_conformance]
@@ -31,7 +30,7 @@ def fuzz_target(tmp_path_factory):
     app_settings = make_settings(
         tmp, upload_rate_limit=100_000, login_rate_limit=100_000, max_upload_bytes=1 << 20
     )
-    migrate.upgrade(app_settings.database_url)
+    migrate_database(app_settings.database_url)
     key = create_api_key(app_settings.database_url, "admin", "schemathesis")
     app = create_app(app_settings)
     schema = schemathesis.openapi.from_asgi("/openapi.json", app, headers=auth_headers(key))

@@ -274,6 +274,9 @@ class RollingHistory:
         speed = np.full_like(index, np.nan)
         sd = np.full_like(index, np.nan)
         for k, (_, s, idx, v, isd) in enumerate(cols):
+            if s.size == seg.size and np.array_equal(s, seg):  # the usual case: a run over the same segments
+                index[:, k], speed[:, k], sd[:, k] = idx, v, isd
+                continue
             j = np.searchsorted(s, seg)
             hit = (j < s.size) & (s[np.minimum(j, s.size - 1)] == seg)
             index[hit, k] = idx[j[hit]]

@@ -20,7 +20,12 @@ from scipy import stats
 from app.analysis._checks import check_positive
 from app.analysis.robust import mad_sd
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, log_speed_tolerance
-from app.analysis.stiffness.reference_curve.smoother import group_median, interp_nan, local_fit
+from app.analysis.stiffness.reference_curve.smoother import (
+    LocalFit,
+    group_median,
+    interp_nan,
+    local_fit,
+)
 
 __all__ = ["BLOCK_M", "GROUP_BLOCKS", "BlockSamples", "ReferenceCurve", "block_samples", "fit_reference_curve"]
 
@@ -295,9 +300,10 @@ def _backfit(y: np.ndarray, u: np.ndarray, loc: np.ndarray, n_loc: int, nodes: n
     if g_nodes is not None:
         m = group_median(y - interp_nan(u, nodes, g_nodes), loc, n_loc)
     support = np.zeros(nodes.size, dtype=np.int64)
+    smoother = LocalFit(u[use], nodes, h, min_support)  # the same speeds every iteration
     for _ in range(max_iter):
         r = y - np.nan_to_num(m[loc])
-        g_new, support = local_fit(u[use], r[use], nodes, h, min_support)
+        g_new, support = smoother.fit(r[use])
         g = interp_nan(u, nodes, g_new)
         m_new = group_median(np.where(use, y - g, np.nan), loc, n_loc)
         m_new = np.where(np.isfinite(m_new), m_new, 0.0)
