@@ -2,7 +2,9 @@
 the demo's data as ``trackvkf demo`` uploads it (``write_demo_dataset(history=True)``): a history of
 10 runs of line SIM through the real pipeline — speed ramps, cruise speeds ±10 %, a place developing
 softer, one developing harder that a tamping repairs (its maintenance record inside the runs' span),
-a new −20 % change at a weld — the reference data, the assets and the lines' geometry.
+a new −20 % change at a weld — the reference data, the assets and the lines' geometry (imported and
+processed once through the API and the local worker: a cached data set, tests/demo_db.py), and the
+demo's run of line SIM-B uploaded through this service and processed by its worker.
 
 The page reads like an exception report: section classes, places with tier, extent, peak, trend,
 time to limit, status, first seen, actions and assets, filters, a place's history, the status
@@ -27,15 +29,22 @@ LENGTH_KM = 2.0
 
 
 @pytest.fixture(scope="module")
-def history_service(tmp_path_factory) -> Iterator[object]:
+def history_service(tmp_path_factory, datasets) -> Iterator[object]:
+    """The service on a copy of the demo's history processed once (tests/demo_db.py: the reference data,
+    geometry and assets imported, the 10 runs of line SIM uploaded one after the other through the API
+    and processed by the local worker, a cached data set), then the demo's run of line SIM-B uploaded
+    through this service and processed by its worker, as ``trackvkf demo`` uploads it: after the history."""
     from app.db import auth_crud
     from app.db.session import Database
-    from app.simulate.demo import write_demo_dataset
+    from tests.demo_db import processed_history
 
+    history = processed_history(datasets, LENGTH_KM)
+    assert history.rest, "the demo has runs of other lines than the history's"
     work = tmp_path_factory.mktemp("condition-page")
-    data = write_demo_dataset(work / "files", length_km=LENGTH_KM, history=True)
+    url, store = history.copy_to(work / "service")
     # the page's webhook form registers a receiver on loopback: allow-listed (SSRF policy, issue 24)
-    with running_service(work / "service", env_overrides={"TRACKVKF_WEBHOOK_ALLOWED_NETWORKS": "127.0.0.1/32"}) as svc:
+    with running_service(work / "service", url, run_store=store,
+                         env_overrides={"TRACKVKF_WEBHOOK_ALLOWED_NETWORKS": "127.0.0.1/32"}) as svc:
         db = Database(svc.database_url)
         with db.write() as s:
             for role, (name, pw) in USERS.items():
@@ -43,21 +52,7 @@ def history_service(tmp_path_factory) -> Iterator[object]:
         db.dispose()
         svc.start_worker()
         with svc.client(timeout=300) as client:
-            # reference data and assets first: a run's places are found when it is published
-            for kind, path in data.reference.items():
-                r = client.post(f"/api/v1/reference/{kind}", params={"mode": "replace"},
-                                files={"file": (path.name, path.read_bytes(), "text/csv")})
-                assert r.status_code == 201, r.text
-            for path in data.geometry:
-                r = client.post("/api/v1/geometry", files={"file": (path.name, path.read_bytes(), "application/geo+json")})
-                assert r.status_code in (200, 201), r.text
-            r = client.post("/api/v1/assets", files={"file": (data.assets.name, data.assets.read_bytes(), "text/csv")})
-            assert r.status_code == 201, r.text
-            # one run after the other, each with its places applied before the next is uploaded: the
-            # places are a history applied in time order, and a run published after a later one is
-            # not applied (app/places/update.py), so a batch upload would make the places depend on
-            # which job finished first
-            for path in data.runs:
+            for path in history.rest:
                 with open(path, "rb") as fh:
                     r = client.post("/api/v1/runs", files={"file": (path.name, fh, "application/x-hdf5")})
                 assert r.status_code == 201, r.text
@@ -65,11 +60,11 @@ def history_service(tmp_path_factory) -> Iterator[object]:
                 assert job["status"] == "done", f"{job['error']}\n{svc.log_text()}"
                 # the places follow the publish commit (issue 24)
                 deadline = time.monotonic() + 300
-                while client.get("/api/v1/condition/places", params={"line_id": data.reference_line[0]}).json()[
+                while client.get("/api/v1/condition/places", params={"line_id": r.json()["line_id"]}).json()[
                         "places_pending"]:
                     assert time.monotonic() < deadline, svc.log_text()
                     time.sleep(0.5)
-        svc.spec = data.history
+        svc.spec = history.data.history
         yield svc
 
 

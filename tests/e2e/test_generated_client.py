@@ -34,7 +34,7 @@ def _generator() -> list[str]:
 
 
 def test_generated_client_round_trip(tmp_path: Path) -> None:
-    rec = simulate_recorder_run(tmp_path / "run.mf4", "mdf4", gnss=None, length_km=0.6, fs=5000.0,
+    rec = simulate_recorder_run(tmp_path / "run.mf4", "mdf4", gnss=None, length_km=0.3, fs=5000.0,
                                 seed=8, with_forces=False, vehicle_id="DS-1")
     with running_service(tmp_path / "svc") as svc:
         spec = httpx.get(f"{svc.base_url}/openapi.json", headers=svc.headers, timeout=30).json()
