@@ -14,8 +14,26 @@
 docs/security.md ("Corporate sign-in") says how to register trackvkf at a provider.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 from app.oidc.config import OidcConfig
-from app.oidc.provider import ProviderUnavailable
-from app.oidc.tokens import TokenRejected
 
 __all__ = ["OidcConfig", "ProviderUnavailable", "TokenRejected"]
+
+
+def __getattr__(name: str) -> Any:
+    """``ProviderUnavailable`` and ``TokenRejected``, imported when first named: their modules load
+    httpx, Authlib and joserfc, which the processes that sign nobody in (the worker, the command
+    line, the health check) need not import with the settings (``app.oidc.settings`` imports
+    :mod:`app.oidc.config`)."""
+    if name == "ProviderUnavailable":
+        from app.oidc.provider import ProviderUnavailable
+
+        return ProviderUnavailable
+    if name == "TokenRejected":
+        from app.oidc.tokens import TokenRejected
+
+        return TokenRejected
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

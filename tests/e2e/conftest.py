@@ -188,8 +188,66 @@ def running_service(
         svc.stop()
 
 
+class MigratedDatabases:
+    """Fresh databases at the migrations' head, copied from one migrated in the session.
+
+    The ``service`` fixture's tests start on an empty database at the head; copying one that the
+    migrations made once (SQLite: the online backup API; PostgreSQL: ``CREATE DATABASE ...
+    TEMPLATE``) gives that database without running every migration again for each test
+    (``running_service`` still runs ``migrate.upgrade``, which finds nothing to do).
+    """
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self._sqlite: Path | None = None
+        self._pg_template: dict[int, str] = {}
+        self._n = 0
+
+    def sqlite(self, dest: Path) -> str:
+        """A migrated SQLite database at ``dest``; returns its URL."""
+        import sqlite3
+
+        if self._sqlite is None:
+            template = self.root / "template.sqlite"
+            migrate.upgrade(f"sqlite:///{template}")
+            self._sqlite = template
+        src, dst = sqlite3.connect(self._sqlite), sqlite3.connect(dest)
+        try:
+            src.backup(dst)
+        finally:
+            src.close()
+            dst.close()
+        return f"sqlite:///{dest}"
+
+    def postgresql(self, cluster: PgCluster) -> str:
+        """A new migrated database in ``cluster``; returns its SQLAlchemy URL."""
+        from sqlalchemy import create_engine, text
+        from sqlalchemy.engine import make_url
+
+        template = self._pg_template.get(id(cluster))
+        if template is None:
+            url = cluster.create_database()
+            migrate.upgrade(url)
+            template = self._pg_template[id(cluster)] = make_url(url).database
+        self._n += 1
+        name = f"e2e_{os.getpid()}_{self._n}"
+        engine = create_engine(cluster.url, isolation_level="AUTOCOMMIT")
+        try:
+            with engine.connect() as conn:
+                conn.execute(text(f'CREATE DATABASE "{name}" TEMPLATE "{template}"'))
+        finally:
+            engine.dispose()
+        return cluster.url.rsplit("/", 1)[0] + "/" + name
+
+
+@pytest.fixture(scope="session")
+def migrated_databases(tmp_path_factory) -> MigratedDatabases:
+    """Fresh migrated databases for the ``service`` fixture (:class:`MigratedDatabases`)."""
+    return MigratedDatabases(tmp_path_factory.mktemp("migrated"))
+
+
 @pytest.fixture(params=["sqlite", "postgresql"])
-def service(request, tmp_path) -> Iterator[Service]:
+def service(request, tmp_path, migrated_databases) -> Iterator[Service]:
     """The real service on a fresh database; the API is started, workers on demand.
 
     ``sqlite``: embedded mode (local worker). ``postgresql``: production mode
@@ -198,13 +256,14 @@ def service(request, tmp_path) -> Iterator[Service]:
     """
     backend = request.param
     pg = None
-    db_url = None
     if backend == "postgresql":
         cluster = request.getfixturevalue("pg_cluster")
         if isinstance(cluster, str):
             pytest.skip(cluster)
         pg = cluster
-        db_url = cluster.create_database()
+        db_url = migrated_databases.postgresql(cluster)
+    else:
+        db_url = migrated_databases.sqlite(tmp_path / "service.sqlite")
     with running_service(tmp_path, db_url, backend=backend, pg=pg) as svc:
         yield svc
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Iterator
 
 import httpx
 import pytest
@@ -18,6 +19,7 @@ from sqlalchemy import text
 from app.db.session import Database
 from app.settings import Settings
 from tests.api.support import store_files
+from tests.e2e.conftest import Service, running_service
 from tests.e2e.support import (
     assert_rows_once,
     assert_same_as_clean,
@@ -90,22 +92,31 @@ def _procrastinate_pending(database_url: str) -> int:
         db.dispose()
 
 
+@pytest.fixture
+def object_store_service(pg_cluster, tmp_path, migrated_databases) -> Iterator[Service]:
+    """The service on PostgreSQL with a shared fsspec store (``tmp_path / "shared-store"``, file:// here,
+    s3:// in production) from its start."""
+    if isinstance(pg_cluster, str):
+        pytest.skip(pg_cluster)
+    with running_service(tmp_path, migrated_databases.postgresql(pg_cluster), backend="postgresql", pg=pg_cluster,
+                         env_overrides={"TRACKVKF_SHARED_STORE": f"file://{tmp_path / 'shared-store'}"}) as svc:
+        yield svc
+
+
 #: task delivery is Procrastinate's (the local worker owns whole jobs)
-@pytest.mark.parametrize("service", ["postgresql"], indirect=True)
 def test_same_chunk_delivered_twice_on_hosts_sharing_only_an_object_store(
-    service, short_sim_run, clean_reference
+    object_store_service, short_sim_run, clean_reference
 ):
     from worker.hosting import make_app
     from worker.tasks import TASK_ASSEMBLE, TASK_CHUNK, TASK_PUBLISH, TASK_STORE_WHEEL
 
+    service = object_store_service
     path, _ = short_sim_run
     # two "hosts" without a common file system: the API's run store, the workers' own
     # run store, and a shared fsspec store (file:// here, s3:// in production)
     shared = service.workdir / "shared-store"
     worker_store = service.workdir / "worker-host-runs"
-    service.env["TRACKVKF_SHARED_STORE"] = f"file://{shared}"
-    service.kill_api()
-    service.start_api()
+    assert service.env["TRACKVKF_SHARED_STORE"] == f"file://{shared}"
     app = make_app(Settings(database_url=service.database_url, run_store=worker_store,
                             shared_store=f"file://{shared}"))
     with service.client(timeout=120) as client, app.open():
