@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from app.settings import Settings
-from tests.api.support import auth_headers, create_api_key, make_settings
+from tests.api.support import auth_headers, create_api_key, make_settings, migrate_database
 
 
 @pytest.fixture(scope="session")
@@ -38,11 +38,10 @@ def clock():
 
 @pytest.fixture
 def service_settings(tmp_path: Path) -> Settings:
-    """Settings on a fresh, migrated SQLite database in ``tmp_path``."""
-    from app.db import migrate
-
+    """Settings on a fresh, migrated SQLite database in ``tmp_path`` (a copy of one migrated once per
+    process: :func:`tests.api.support.migrate_database`)."""
     settings = make_settings(tmp_path)
-    migrate.upgrade(settings.database_url)
+    migrate_database(settings.database_url)
     return settings
 
 
@@ -55,14 +54,13 @@ def make_client(tmp_path: Path) -> Iterator[Callable[..., Any]]:
     authentication: ``client.api_key``; ``role=`` picks another role)."""
     from fastapi.testclient import TestClient
 
-    from app.db import migrate
     from app.main import create_app
 
     clients: list[TestClient] = []
 
     def factory(role: str = "admin", **overrides: Any) -> TestClient:
         settings = make_settings(tmp_path, **overrides)
-        migrate.upgrade(settings.database_url)
+        migrate_database(settings.database_url)
         key = create_api_key(settings.database_url, role)
         client = TestClient(create_app(settings), headers=auth_headers(key))
         client.__enter__()

@@ -21,6 +21,7 @@ from urllib.parse import urlsplit
 
 import pytest
 
+from tests.api.support import TEST_PASSWORD_COST
 from tests.e2e.conftest import Service, running_service
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -93,7 +94,7 @@ def dashboard(tmp_path_factory, processed_demo) -> Iterator[Dashboard]:
 
         db = Database(svc.database_url)
         with db.write() as session:
-            auth_crud.create_user(session, USER, PASSWORD, "engineer")
+            auth_crud.create_user(session, USER, PASSWORD, "engineer", password_cost=TEST_PASSWORD_COST)
         db.dispose()
         with svc.client(timeout=120) as client:
             r = client.delete(f"/api/v1/webhooks/{processed_demo.webhook_id}")

@@ -18,6 +18,7 @@ from collections.abc import Iterator
 
 import pytest
 
+from tests.api.support import TEST_PASSWORD_COST
 from tests.dashboard.conftest import SCREENSHOTS, PageLog, save_screenshot
 from tests.e2e.conftest import running_service
 
@@ -48,7 +49,7 @@ def history_service(tmp_path_factory, datasets) -> Iterator[object]:
         db = Database(svc.database_url)
         with db.write() as s:
             for role, (name, pw) in USERS.items():
-                auth_crud.create_user(s, name, pw, role)
+                auth_crud.create_user(s, name, pw, role, password_cost=TEST_PASSWORD_COST)
         db.dispose()
         svc.start_worker()
         with svc.client(timeout=300) as client:
