@@ -5,14 +5,15 @@
 # The 20 slowest set-ups and tests are listed at the end (--durations=20). Processed data sets
 # are built once and kept in .pytest_cache/d/trackvkf-datasets (tests/datasets.py; a clean
 # checkout builds each once per session; `pytest --cache-clear` empties it).
-# TRACKVKF_TEST_WORKERS=N runs the tests in N processes (pytest-xdist; 2 for the 2-core CI
-# machine): a module's tests stay together in one of them (--dist loadscope: module fixtures
-# are made once), the data sets are built by whichever asks first and read by the others;
+# TRACKVKF_TEST_WORKERS=N runs the tests in N processes (pytest-xdist): a module's tests stay
+# together in one of them (--dist loadscope: module fixtures are made once), the data sets are built by whichever asks first and read by the others;
 # tests/xdist_schedule.py groups the modules sharing a session service and hands the long
-# modules out first (so both processes end together).
-# Default 2 (the CI machine has 2 cores); 0: everything in this one process.
+# modules out first (so the processes end together).
+# Default 3 on the 2-core CI machine: with 2 processes the cores were busy 73 % of the time (the
+# tests wait on services, workers, browsers and their polls), a third fills that; 0: everything in
+# this one process.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh --dev
-workers="${TRACKVKF_TEST_WORKERS:-2}"
+workers="${TRACKVKF_TEST_WORKERS:-3}"
 exec .venv/bin/python -m pytest -q --durations=20 -n "$workers" --dist loadscope "$@"
