@@ -1,4 +1,4 @@
-"""How ``./scripts/test.sh`` shares the tests among its pytest-xdist workers (``-n 3 --dist loadscope``).
+"""How ``./scripts/test.sh`` shares the tests among its pytest-xdist workers (``-n 4 --dist loadscope``).
 
 pytest-xdist's ``loadscope`` keeps a module's tests in one worker (its module fixtures are made once) and
 hands the modules out by their number of tests, largest first. Two things that costs on this suite:
