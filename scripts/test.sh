@@ -9,9 +9,9 @@
 # together in one of them (--dist loadscope: module fixtures are made once), the data sets are built by whichever asks first and read by the others;
 # tests/xdist_schedule.py groups the modules sharing a session service and hands the long
 # modules out first (so the processes end together).
-# Default 4 on the 2-core CI machine: the tests wait on services, workers, browsers and their polls,
-# so the cores were busy 73 % of the time with 2 processes; clean clone: 26:17 with 2, 24:37 with 3,
-# 22:31 with 4 (the same CPU time). 0: everything in this one process.
+# Default 4 on the 2-core CI machine: a test process often waits (on services, workers, browsers
+# and their polls) and another fills the cores meanwhile; clean clone: 26:17 with 2, 24:37 with 3,
+# 22:31 with 4. 0: everything in this one process.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh --dev
