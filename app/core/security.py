@@ -73,7 +73,6 @@ MIN_PASSWORD_LENGTH = 10
 API_KEY_PREFIX = "tvk"
 
 
-
 @dataclass(frozen=True)
 class PasswordCost:
     """The Argon2id parameters of new password hashes.

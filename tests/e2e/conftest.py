@@ -25,7 +25,7 @@ import httpx
 import pytest
 
 from app.db import migrate
-from tests.api.support import create_api_key
+from tests.api.support import create_api_key, migrate_database
 from tests.pg_cluster import PgCluster
 
 
@@ -189,35 +189,17 @@ def running_service(
 
 
 class MigratedDatabases:
-    """Fresh databases at the migrations' head, copied from one migrated in the session.
+    """Fresh PostgreSQL databases at the migrations' head, copied from one migrated in the session.
 
-    The ``service`` fixture's tests start on an empty database at the head; copying one that the
-    migrations made once (SQLite: the online backup API; PostgreSQL: ``CREATE DATABASE ...
-    TEMPLATE``) gives that database without running every migration again for each test
-    (``running_service`` still runs ``migrate.upgrade``, which finds nothing to do).
+    The ``service`` fixture's tests start on an empty database at the head; ``CREATE DATABASE ...
+    TEMPLATE`` of one that the migrations made once gives that database without running every
+    migration again for each test (``running_service`` still runs ``migrate.upgrade``, which finds
+    nothing to do). A SQLite file is made the same way by :func:`tests.api.support.migrate_database`.
     """
 
-    def __init__(self, root: Path) -> None:
-        self.root = root
-        self._sqlite: Path | None = None
+    def __init__(self) -> None:
         self._pg_template: dict[int, str] = {}
         self._n = 0
-
-    def sqlite(self, dest: Path) -> str:
-        """A migrated SQLite database at ``dest``; returns its URL."""
-        import sqlite3
-
-        if self._sqlite is None:
-            template = self.root / "template.sqlite"
-            migrate.upgrade(f"sqlite:///{template}")
-            self._sqlite = template
-        src, dst = sqlite3.connect(self._sqlite), sqlite3.connect(dest)
-        try:
-            src.backup(dst)
-        finally:
-            src.close()
-            dst.close()
-        return f"sqlite:///{dest}"
 
     def postgresql(self, cluster: PgCluster) -> str:
         """A new migrated database in ``cluster``; returns its SQLAlchemy URL."""
@@ -241,9 +223,9 @@ class MigratedDatabases:
 
 
 @pytest.fixture(scope="session")
-def migrated_databases(tmp_path_factory) -> MigratedDatabases:
-    """Fresh migrated databases for the ``service`` fixture (:class:`MigratedDatabases`)."""
-    return MigratedDatabases(tmp_path_factory.mktemp("migrated"))
+def migrated_databases() -> MigratedDatabases:
+    """Fresh migrated PostgreSQL databases for the ``service`` fixture (:class:`MigratedDatabases`)."""
+    return MigratedDatabases()
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])
@@ -263,7 +245,8 @@ def service(request, tmp_path, migrated_databases) -> Iterator[Service]:
         pg = cluster
         db_url = migrated_databases.postgresql(cluster)
     else:
-        db_url = migrated_databases.sqlite(tmp_path / "service.sqlite")
+        db_url = f"sqlite:///{tmp_path / 'service.sqlite'}"
+        migrate_database(db_url)
     with running_service(tmp_path, db_url, backend=backend, pg=pg) as svc:
         yield svc
 
