@@ -283,6 +283,19 @@ def _bank(h: np.ndarray, valid: np.ndarray, step: float, est: SurfaceEstimate,
     return best, best_l, best_d
 
 
+def _covered(start: np.ndarray, stop: np.ndarray, n: int) -> np.ndarray:
+    """Cells of ``[0, n)`` inside any of the intervals ``[start_i, stop_i)`` (clipped to the array).
+
+    One pass over the cells whatever the number of intervals (a valid mask broken in many places
+    has hundreds of thousands of ends).
+    """
+    lo = np.clip(start, 0, n)
+    hi = np.clip(stop, 0, n)
+    keep = lo < hi
+    edges = np.bincount(lo[keep], minlength=n + 1) - np.bincount(hi[keep], minlength=n + 1)
+    return np.cumsum(edges[:n]) > 0
+
+
 def _without_side_lobes(peaks: np.ndarray, score: np.ndarray, step: float) -> np.ndarray:
     """Peaks less those within :data:`SIDE_LOBE_M` of one scoring :data:`SIDE_LOBE_RATIO` times more.
 
@@ -372,14 +385,12 @@ def scan_dips(
             # the weld trace: its own bank, background and spread (see WELD_LENGTHS_M, _background_psd)
             each: list[tuple[np.ndarray, np.ndarray]] = []
             _bank(hc, vc, q * step, est, WELD_LENGTHS_M, LONG_SCALE_BLOCK_M, each, tilt=True)
-            for sc, _ in each:
-                for e in ends:  # in coarse cells
-                    sc[max(0, (e - edge) // q) : (e + edge) // q + 1] = -np.inf
+            for sc, _ in each:  # in coarse cells
+                sc[_covered((ends - edge) // q, (ends + edge) // q + 1, sc.size)] = -np.inf
             trace = _trace(each, WELD_LENGTHS_M, est.s0, q * step)
             best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
                                     for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
-        for e in ends:
-            best[max(0, e - edge) : e + edge] = -np.inf
+        best[_covered(ends - edge, ends + edge, n)] = -np.inf
         peaks, _ = find_peaks(np.where(np.isfinite(best), best, -1e300), height=threshold,
                               distance=max(1, int(separation_m / step)))
         peaks = peaks[best_d[peaks] >= MIN_DEPTH_M]
