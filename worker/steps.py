@@ -50,8 +50,7 @@ from app.db.models import ChunkStatus, Job, JobStatus, Run
 from app.db.session import Database
 from app.io import WHEELS
 from app.pipeline import ChunkSpec, plan_chunks, results_meta
-from app.places.config import PlacesConfig
-from app.places.followup import FollowupPolicy
+from app.places.config import FollowupPolicy, PlacesConfig
 from app.runs import jobs
 from app.settings import Settings
 from worker.chunkstore import ChunkStore

@@ -22,13 +22,12 @@ import math
 from typing import Any
 
 from app.analysis.condition.discontinuities import ASSET_TYPES
+from app.assets.limits import MAX_ASSETS
 from app.core.i18n import _
 from app.io.errors import RunFileError
 
 __all__ = ["MAX_ASSETS", "ASSET_TYPES", "read_assets"]
 
-#: Largest number of assets in one file (a national register of one line is far below).
-MAX_ASSETS = 200_000
 _KM_BOUND = 100_000.0
 _MAX_TEXT = {"line_id": 128, "track": 64, "type": 64, "name": 200}
 _REQUIRED = ("line_id", "track", "type", "km")

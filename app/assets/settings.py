@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from app.assets.reader import MAX_ASSETS
+from app.assets.limits import MAX_ASSETS
 from app.core.config import SettingsGroup
 
 __all__ = ["AssetSettings"]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from app.analysis.condition import DEFAULT_CHANGE_PARAMS
+from app.analysis.condition.change import DEFAULT_CHANGE_PARAMS
 from app.analysis.stiffness.alignment import DEFAULT_MAX_SHIFT_M
 from app.condition.config import ConditionConfig
 from app.core.config import SettingsGroup

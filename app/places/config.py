@@ -21,7 +21,7 @@ from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
 from app.analysis.condition.tiers import TIER_NAMES, TierLimits, TierTable
 from app.analytics.settings import SECTION_MARGIN_M
 
-__all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "tier_table", "default_places_config"]
+__all__ = ["PlacesConfig", "DEFAULT_PLACES_CONFIG", "FollowupPolicy", "tier_table", "default_places_config"]
 
 
 def tier_table(levels: dict[str, list[float]]) -> TierTable:
@@ -144,3 +144,47 @@ DEFAULT_PLACES_CONFIG = PlacesConfig()
 def default_places_config() -> PlacesConfig:
     """The defaults (what a service with no ``TRACKVKF_PLACES_*`` setting uses)."""
     return DEFAULT_PLACES_CONFIG
+
+
+@dataclass(frozen=True)
+class FollowupPolicy:
+    """How the places follow-up retries (from the service settings: :meth:`from_settings`).
+
+    Attributes
+    ----------
+    max_attempts : int
+        Failed attempts after which a run's places update is given up (kept, reported).
+    retry_base_s, retry_max_s : float
+        Back-off after the n-th failure: ``retry_base_s * 2**(n-1)``, at most ``retry_max_s``, s.
+    interval_s : float
+        Pause of the worker's ``places-followup`` loop after a round with nothing to do, s.
+    grace_s : float
+        The loop leaves a run marked less than this long ago to the worker that published it (which runs
+        its follow-up at once), s: no two workers compute the same run's places meanwhile.
+    """
+
+    max_attempts: int = 10
+    retry_base_s: float = 5.0
+    retry_max_s: float = 3600.0
+    interval_s: float = 10.0
+    grace_s: float = 30.0
+
+    def __post_init__(self) -> None:
+        if self.max_attempts < 1:
+            raise ValueError(f"max_attempts must be >= 1, got {self.max_attempts}")
+        for name in ("retry_base_s", "retry_max_s", "interval_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not self.grace_s >= 0:
+            raise ValueError(f"grace_s must be >= 0, got {self.grace_s}")
+
+    @classmethod
+    def from_settings(cls, settings: Any) -> FollowupPolicy:
+        """The policy of the service settings (``TRACKVKF_PLACES_MAX_ATTEMPTS`` …)."""
+        return cls(max_attempts=settings.places_max_attempts, retry_base_s=settings.places_retry_base_s,
+                   retry_max_s=settings.places_retry_max_s, interval_s=settings.places_followup_interval_s,
+                   grace_s=settings.places_followup_grace_s)
+
+    def backoff_s(self, attempts: int) -> float:
+        """Wait after the ``attempts``-th failure, s."""
+        return float(min(self.retry_max_s, self.retry_base_s * 2.0 ** max(attempts - 1, 0)))

@@ -48,7 +48,7 @@ from app.core.jsonable import iso_time
 from app.db import places as q
 from app.db.models import ConditionLine, ConditionRun, Job, PlaceRun, PlacesPending, utcnow
 from app.db.session import Database
-from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
+from app.places.config import DEFAULT_PLACES_CONFIG, FollowupPolicy, PlacesConfig
 from app.places.index import method_version
 from app.places.update import (
     PlacesUpdate,
@@ -71,50 +71,6 @@ PENDING_SUMMARY: dict[str, Any] = {"pending": True}
 _MAX_ERROR_CHARS = 2000
 #: reads done again when the run's inputs changed meanwhile, before the read is done under the write lock
 _MAX_REREADS = 2
-
-
-@dataclass(frozen=True)
-class FollowupPolicy:
-    """How the places follow-up retries (from the service settings: :meth:`from_settings`).
-
-    Attributes
-    ----------
-    max_attempts : int
-        Failed attempts after which a run's places update is given up (kept, reported).
-    retry_base_s, retry_max_s : float
-        Back-off after the n-th failure: ``retry_base_s * 2**(n-1)``, at most ``retry_max_s``, s.
-    interval_s : float
-        Pause of the worker's ``places-followup`` loop after a round with nothing to do, s.
-    grace_s : float
-        The loop leaves a run marked less than this long ago to the worker that published it (which runs
-        its follow-up at once), s: no two workers compute the same run's places meanwhile.
-    """
-
-    max_attempts: int = 10
-    retry_base_s: float = 5.0
-    retry_max_s: float = 3600.0
-    interval_s: float = 10.0
-    grace_s: float = 30.0
-
-    def __post_init__(self) -> None:
-        if self.max_attempts < 1:
-            raise ValueError(f"max_attempts must be >= 1, got {self.max_attempts}")
-        for name in ("retry_base_s", "retry_max_s", "interval_s"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        if not self.grace_s >= 0:
-            raise ValueError(f"grace_s must be >= 0, got {self.grace_s}")
-
-    @classmethod
-    def from_settings(cls, settings: Any) -> FollowupPolicy:
-        """The policy of the service settings (``TRACKVKF_PLACES_MAX_ATTEMPTS`` …)."""
-        return cls(max_attempts=settings.places_max_attempts, retry_base_s=settings.places_retry_base_s,
-                   retry_max_s=settings.places_retry_max_s, interval_s=settings.places_followup_interval_s,
-                   grace_s=settings.places_followup_grace_s)
-
-    def backoff_s(self, attempts: int) -> float:
-        """Wait after the ``attempts``-th failure, s."""
-        return float(min(self.retry_max_s, self.retry_base_s * 2.0 ** max(attempts - 1, 0)))
 
 
 DEFAULT_FOLLOWUP = FollowupPolicy()

@@ -21,8 +21,7 @@ from app.analysis.condition.section_class import DEFAULT_SECTION_LIMITS
 from app.analysis.condition.segment_curves import DEFAULT_MIN_LOCATIONS
 from app.analysis.condition.tiers import TIER_NAMES
 from app.core.config import SettingsGroup
-from app.places.config import PlacesConfig
-from app.places.followup import FollowupPolicy
+from app.places.config import FollowupPolicy, PlacesConfig
 
 _PLACE = PlaceParams  # a frozen dataclass: its class attributes are the defaults
 _LIFE = LifecycleParams

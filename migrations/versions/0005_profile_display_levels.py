@@ -35,12 +35,14 @@ _UPDATE_BATCH = 20_000
 
 def _rank_existing_rows() -> None:
     """Set ``display_level`` of the rows already stored, one (job, wheel) at a time."""
+    conn = op.get_bind()
+    profiles = conn.execute(sa.text("SELECT DISTINCT job_id, wheel FROM profile_bins")).all()
+    if not profiles:  # a new database: nothing to rank (and the numerics stay unimported)
+        return
     # the ranking is derived data (a cache of the amplitudes' order), not schema:
     # it comes from the same function the service uses when it stores new rows
     from app.analysis.aggregate import display_levels
 
-    conn = op.get_bind()
-    profiles = conn.execute(sa.text("SELECT DISTINCT job_id, wheel FROM profile_bins")).all()
     update = sa.text(
         "UPDATE profile_bins SET display_level = :level WHERE job_id = :job_id AND wheel = :wheel AND bin = :bin"
     )

@@ -29,3 +29,16 @@ def test_the_oidc_settings_defaults_are_the_configurations():
     s = Settings(oidc_issuer="https://idp.example/realms/rail", oidc_client_id="trackvkf", oidc_client_secret="x")
     assert OidcConfig.from_settings(s) == OidcConfig(issuer="https://idp.example/realms/rail", client_id="trackvkf",
                                                      client_secret="x")
+
+
+def test_the_settings_load_without_the_numerics():
+    """Every CLI command starts with the settings: they name the numerics' constants from light
+    modules (lazy package ``__init__``, scipy imported where it is used), so that ``trackvkf migrate``,
+    ``user``, ``key`` … do not pay the ~3 s CPU of importing scipy, pandas and numba."""
+    import subprocess
+    import sys
+
+    code = ("import sys, app.settings; "
+            "print(' '.join(m for m in ('scipy', 'pandas', 'numba', 'sqlalchemy') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60)
+    assert out.stdout.split() == [], f"app.settings imports {out.stdout.strip()}"

@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from app.analysis.units import DAYS_PER_YEAR
 
@@ -105,6 +104,8 @@ def linear_trend(days: np.ndarray, values: np.ndarray, *, now_day: float | None 
     resid = y - y.mean() - slope * tc
     s2 = float(np.sum(resid * resid)) / (n - 2)
     se = math.sqrt(s2 / sxx)
+    from scipy import stats  # here: the settings name this module's constants (light import)
+
     q = float(stats.t.ppf(0.5 + confidence / 2, n - 2))
     lo, hi = slope - q * se, slope + q * se
     level = float(y.mean() + slope * (now - t.mean()))

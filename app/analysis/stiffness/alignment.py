@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage, signal
 
 from app.analysis._checks import check_positive
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
@@ -97,6 +96,8 @@ def signature(bins: np.ndarray, amplitude: np.ndarray, *, bin_length_m: float = 
     grid[bins[ok] - b0] = np.log(amp[ok])
     valid = np.isfinite(grid)
     w = max(int(round(detrend_m / bin_length_m)), 1)
+    from scipy import ndimage  # here: the settings name this module's constants (light import)
+
     num = ndimage.uniform_filter1d(np.where(valid, grid, 0.0), w, mode="constant")
     den = ndimage.uniform_filter1d(valid.astype(float), w, mode="constant")
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -105,6 +106,8 @@ def signature(bins: np.ndarray, amplitude: np.ndarray, *, bin_length_m: float = 
 
 
 def _xcorr(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    from scipy import signal
+
     return signal.correlate(b, a, mode="full", method="fft")
 
 

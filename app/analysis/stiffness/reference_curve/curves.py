@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from app.analysis._checks import check_positive
 from app.analysis.robust import mad_sd
@@ -471,6 +470,8 @@ def fit_reference_curve(
         finite = np.isfinite(rep).sum(axis=0) >= max(3, n_boot // 2)
         se = np.full(nodes.size, np.nan)
         se[finite] = np.nanstd(rep[:, finite], axis=0, ddof=1)
+        from scipy import stats  # here: the settings name this module's constants (a light import)
+
         with np.errstate(invalid="ignore"):
             alpha = (1 - confidence) / 2
             z = stats.norm.ppf(1 - alpha)
