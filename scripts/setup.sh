@@ -91,9 +91,7 @@ if [[ "$up_to_date" != true ]]; then
   if [[ "$have_kind" == dev ]]; then want_kind=dev; fi
   if [[ "$want_kind" == dev ]]; then target='.[dev]'; else target='.'; fi
   echo "setup: installing trackvkf ($want_kind: pip install -e '$target') into .venv ..."
-  # --no-compile: pip would byte-compile every module of every package (scipy, pandas, ...: 40 of its
-  # 90 s CPU on a fresh .venv); Python compiles the few hundred the service imports on first use
-  if ! .venv/bin/python -m pip install --disable-pip-version-check --no-compile -e "$target" \
+  if ! .venv/bin/python -m pip install --disable-pip-version-check -e "$target" \
     >.venv/pip-install.log 2>&1; then
     tail -n 40 .venv/pip-install.log >&2
     echo "error: pip install failed (full log: .venv/pip-install.log)" >&2
