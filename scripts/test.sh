@@ -16,4 +16,7 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh --dev
 workers="${TRACKVKF_TEST_WORKERS:-4}"
+# the test processes keep their byte code (pytest's rewritten test modules, the helpers): each of
+# them and of the services they start would otherwise compile the same modules again
+unset PYTHONDONTWRITEBYTECODE
 exec .venv/bin/python -m pytest -q --durations=20 -n "$workers" --dist loadscope "$@"
