@@ -14,9 +14,9 @@
 # 22:31 with 4. 0: everything in this one process.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+# the test processes keep their byte code (pytest's rewritten test modules, the helpers, the packages):
+# each of them and of the services they start would otherwise compile the same modules again
+unset PYTHONDONTWRITEBYTECODE
 bash scripts/setup.sh --dev
 workers="${TRACKVKF_TEST_WORKERS:-4}"
-# the test processes keep their byte code (pytest's rewritten test modules, the helpers): each of
-# them and of the services they start would otherwise compile the same modules again
-unset PYTHONDONTWRITEBYTECODE
 exec .venv/bin/python -m pytest -q --durations=20 -n "$workers" --dist loadscope "$@"
