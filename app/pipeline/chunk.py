@@ -330,7 +330,8 @@ def process_chunk(
                                              recipe_floor_gain(recipe))
                 # isolated impacts: dips of the surface under the wheel (app.pipeline.impacts)
                 members.update(chunk_dip_member(wheel, y[iz], travelled, v_abs, track_m, recipe,
-                                                wheel_orders_at(env, out_idx, travelled, recipe, lo), chunk, lo))
+                                                wheel_orders_at(env, out_idx, travelled, recipe, lo), chunk, lo,
+                                                fs=fs))
 
                 # wheel OOR: radius phasors of the wheel orders, summed per window
                 rho = radius_phasor(env[order_rows], v_abs[out_idx - lo], recipe.wheel_diameter, orders)

@@ -167,6 +167,7 @@ def chunk_dip_member(
     wheel_orders: Callable[[np.ndarray], np.ndarray],
     chunk: Chunk,
     lo: int,
+    fs: float | None = None,
 ) -> dict[str, np.ndarray]:
     """The chunk-file member of one wheel's dip candidates in a chunk.
 
@@ -184,6 +185,8 @@ def chunk_dip_member(
     chunk : Chunk
     lo : int
         Global index of the chunk's first sample.
+    fs : float, optional
+        The run's sampling rate, Hz (a coarse recording's surface is estimated below 0.4 ``fs``).
 
     Returns
     -------
@@ -202,7 +205,8 @@ def chunk_dip_member(
     base = float(recipe.multipliers[recipe.sleeper_row])
     lines = tuple(sorted({*(float(recipe.multipliers[r]) for r in recipe.track_rows),
                           *(h * base for h in range(1, SLEEPER_NOTCH_HARMONICS + 1))}))
-    est = surface_estimate(accel[a:b], travelled_m[a:b], speed_mps[a:b], lines_per_m=lines, subtract=wheel_orders)
+    est = surface_estimate(accel[a:b], travelled_m[a:b], speed_mps[a:b], lines_per_m=lines, subtract=wheel_orders,
+                           fs=fs)
     dips, trace = scan_dips(est)
     out = dict(empty)
     if len(trace):

@@ -69,6 +69,24 @@ def test_the_weld_is_found_reported_and_kept_out_of_the_indicator(weld_and_flat)
     assert before < 0.8 < 0.9 < after  # a false soft spot without the mask, none with it
 
 
+@pytest.mark.parametrize("fs", [2_000.0, 4_000.0])
+def test_the_weld_is_found_on_a_coarse_recording(tmp_path, fs):
+    """A recording with fewer samples than 1 cm cells (2 kHz at 30–42 m/s: one sample every 1.5–2.1 cm)
+    finds the weld as the 10 kHz one does: the cells between samples are interpolated, not gaps that
+    shut out every dip, and the surface is estimated below 0.4 fs (nothing of it is recorded above)."""
+    surface = RailSurface(1, None, (TrackImpact(WELD_M, 1.0, 0.3e-3, 1), TrackImpact(WELD_M, 1.0, 0.3e-3, 2)))
+    line = generate_line(11_900.0, 12_700.0, 5, sections=[TrackSection(11_900.0, 12_700.0, "b91_no_pads")],
+                         anomalies=[], surface=surface)
+    speed = SpeedProfile.from_segments(30.0, [(4.0, 30.0), (6.0, 42.0), (10.0, 42.0)])
+    truth = simulate_run(tmp_path / "run.h5", length_km=0.5, fs=fs, seed=2, line=line, speed_profile=speed,
+                         with_forces=False)
+    p = run_pipeline(truth.run_path, ProcessingSettings(), tmp_path / "w").profiles
+    hit = p[p["track_impact_mm"].notna()]
+    assert sorted(set(hit["wheel"])) == ["11", "12", "41", "42"]
+    x = (hit["bin"].to_numpy() + 0.5) * 0.25
+    assert np.abs(x - WELD_M).max() <= 0.5
+
+
 def test_a_weld_with_the_track_orders_on_the_wheel_orders_band(weld_and_flat, tmp_path):
     """``track_resolution_m = None`` (the track orders share the wheel orders' 0.1-order band, ≈ 21 m at
     0.92 m wheels): the weld's mask follows that resolution (wider than at 3 m), the job does not fail."""

@@ -137,6 +137,7 @@ def surface_estimate(
     lines_per_m: tuple[float, ...] = (),
     line_halfwidth_per_m: float = 0.1,
     subtract: Callable[[np.ndarray], np.ndarray] | None = None,
+    fs: float | None = None,
 ) -> SurfaceEstimate:
     """Estimate the surface height under a wheel from its axle-box acceleration.
 
@@ -167,6 +168,9 @@ def surface_estimate(
         e.g. the wheel's out-of-roundness orders as the VKF extracted them.
         Evaluated per cell, not per sample: right for components much longer
         than a cell.
+    fs : float, optional
+        Sampling rate of ``accel``, Hz: frequencies above 0.4 ``fs`` (where a recording coarser than
+        :data:`F_MAX_HZ` needs it) are left out, as above :data:`F_MAX_HZ`. None: :data:`F_MAX_HZ`.
 
     Notes
     -----
@@ -188,6 +192,9 @@ def surface_estimate(
         raise ValueError("travelled_m, speed_mps: must be finite")
     if np.any(np.diff(s) < -1e-9):
         raise ValueError("travelled_m: must not decrease")
+    if fs is not None and not (math.isfinite(fs) and fs > 0):
+        raise ValueError(f"fs: must be a finite rate > 0 Hz, got {fs!r}")
+    f_max = F_MAX_HZ if fs is None else min(F_MAX_HZ, 0.4 * fs)
     if not (math.isfinite(step_m) and 0 < step_m <= 0.05):
         raise ValueError(f"step_m: must be in (0, 0.05] m, got {step_m!r}")
     lo, hi = (float(x) for x in band_m)
@@ -205,10 +212,15 @@ def surface_estimate(
         y = (np.bincount(idx, weights=a, minlength=n) if all_finite
              else np.bincount(idx[fin], weights=a[fin], minlength=n)) / count
         vc = np.bincount(idx, weights=v, minlength=n) / every
+    sampled = np.flatnonzero(np.isfinite(vc))
+    if sampled.size and sampled.size < n:
+        # a cell without a sample (a coarse recording: fewer samples than cells) moves at the speed of
+        # the cells around it, so that it is interpolated below and not a gap in the valid cells
+        vc = np.interp(np.arange(n), sampled, vc[sampled])
     moving = np.isfinite(vc) & (vc >= min_speed_mps)
     have = (count > 0) & moving
     v_max = float(np.nanmax(np.where(moving, vc, np.nan))) if moving.any() else min_speed_mps
-    lo = max(lo, v_max / F_MAX_HZ, 2.5 * step_m)
+    lo = max(lo, v_max / f_max, 2.5 * step_m)
     valid = np.zeros(n, dtype=bool)
     height = np.zeros(n)
     notches = tuple((float(k0), float(line_halfwidth_per_m)) for k0 in lines_per_m)
@@ -249,10 +261,10 @@ def surface_estimate(
         if g is None:
             f = vbar * kappa
             g = np.zeros(kappa.size, dtype=np.complex128)
-            ok = (f >= fgrid[0]) & (f <= F_MAX_HZ)
+            ok = (f >= fgrid[0]) & (f <= f_max)
             g[ok] = np.interp(f[ok], fgrid, inv.real) + 1j * np.interp(f[ok], fgrid, inv.imag)
-            g *= gain * np.where(f <= 0.8 * F_MAX_HZ, 1.0,
-                                 0.5 * (1.0 + np.cos(np.pi * np.clip((f / F_MAX_HZ - 0.8) / 0.2, 0.0, 1.0))))
+            g *= gain * np.where(f <= 0.8 * f_max, 1.0,
+                                 0.5 * (1.0 + np.cos(np.pi * np.clip((f / f_max - 0.8) / 0.2, 0.0, 1.0))))
             filters[vbar] = g
         buf = np.zeros(n_fft)
         buf[hop : hop + w_n] = yp[start : start + w_n] * win
