@@ -95,7 +95,7 @@ if [[ "$up_to_date" != true ]]; then
   # imported, so pip need not compile every module of every package (40 of its 110 s on a fresh .venv)
   compile=()
   if [[ -z "${PYTHONDONTWRITEBYTECODE:-}" ]]; then compile=(--no-compile); fi
-  if ! .venv/bin/python -m pip install --disable-pip-version-check "${compile[@]}" -e "$target" \
+  if ! .venv/bin/python -m pip install --disable-pip-version-check ${compile[@]+"${compile[@]}"} -e "$target" \
     >.venv/pip-install.log 2>&1; then
     tail -n 40 .venv/pip-install.log >&2
     echo "error: pip install failed (full log: .venv/pip-install.log)" >&2
@@ -108,4 +108,5 @@ fi
 # Every service, worker and CLI process imports ~400 modules of app/ and worker/: compiled here once
 # (only what changed since; ~0.3 s when nothing did), they are not compiled again by each process,
 # also where PYTHONDONTWRITEBYTECODE keeps Python from writing them (2 s CPU saved per process).
-.venv/bin/python -m compileall -q -j 0 app worker migrations >/dev/null
+.venv/bin/python -m compileall -q -j 0 app worker migrations >/dev/null \
+  || echo "setup: note: app/, worker/ or migrations/ not byte-compiled (read-only?); each process compiles them" >&2
