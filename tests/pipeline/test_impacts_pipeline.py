@@ -41,15 +41,20 @@ def _lowest_ratio(profile, x0, truth_x, truth_a, bl=0.25):
     return float(np.nanmin(profile["sleeper_amp"].to_numpy()[m] / np.interp(x[m], truth_x, truth_a)))
 
 
-@pytest.fixture(scope="module")
-def weld_and_flat(tmp_path_factory):
-    work = tmp_path_factory.mktemp("impacts")
+def _simulate_weld(path, fs: float, **kw):
+    """0.5 km of smooth B91 track without pads at 30–42 m/s with the 0.3 mm, 1 m weld at WELD_M on both rails."""
     surface = RailSurface(1, None, (TrackImpact(WELD_M, 1.0, 0.3e-3, 1), TrackImpact(WELD_M, 1.0, 0.3e-3, 2)))
     line = generate_line(11_900.0, 12_700.0, 5, sections=[TrackSection(11_900.0, 12_700.0, "b91_no_pads")],
                          anomalies=[], surface=surface)
     speed = SpeedProfile.from_segments(30.0, [(4.0, 30.0), (6.0, 42.0), (10.0, 42.0)])
-    truth = simulate_run(work / "run.h5", length_km=0.5, fs=10_000.0, seed=2, line=line, speed_profile=speed,
-                         wheel_flats={"11": FLAT}, with_forces=False)
+    return simulate_run(path, length_km=0.5, fs=fs, seed=2, line=line, speed_profile=speed, with_forces=False,
+                        **kw)
+
+
+@pytest.fixture(scope="module")
+def weld_and_flat(tmp_path_factory):
+    work = tmp_path_factory.mktemp("impacts")
+    truth = _simulate_weld(work / "run.h5", 10_000.0, wheel_flats={"11": FLAT})
     res = run_pipeline(truth.run_path, ProcessingSettings(), work / "w")
     return truth, res, sorted((work / "w").glob("chunk-*.npz"))
 
@@ -74,12 +79,7 @@ def test_the_weld_is_found_on_a_coarse_recording(tmp_path, fs):
     """A recording with fewer samples than 1 cm cells (2 kHz at 30–42 m/s: one sample every 1.5–2.1 cm)
     finds the weld as the 10 kHz one does: the cells between samples are interpolated, not gaps that
     shut out every dip, and the surface is estimated below 0.4 fs (nothing of it is recorded above)."""
-    surface = RailSurface(1, None, (TrackImpact(WELD_M, 1.0, 0.3e-3, 1), TrackImpact(WELD_M, 1.0, 0.3e-3, 2)))
-    line = generate_line(11_900.0, 12_700.0, 5, sections=[TrackSection(11_900.0, 12_700.0, "b91_no_pads")],
-                         anomalies=[], surface=surface)
-    speed = SpeedProfile.from_segments(30.0, [(4.0, 30.0), (6.0, 42.0), (10.0, 42.0)])
-    truth = simulate_run(tmp_path / "run.h5", length_km=0.5, fs=fs, seed=2, line=line, speed_profile=speed,
-                         with_forces=False)
+    truth = _simulate_weld(tmp_path / "run.h5", fs)
     p = run_pipeline(truth.run_path, ProcessingSettings(), tmp_path / "w").profiles
     hit = p[p["track_impact_mm"].notna()]
     assert sorted(set(hit["wheel"])) == ["11", "12", "41", "42"]
