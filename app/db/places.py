@@ -19,6 +19,7 @@ from app.db.models import (
     PlaceObservation,
     PlaceRun,
     PlaceStatusChange,
+    Run,
     SegmentCondition,
 )
 
@@ -29,6 +30,7 @@ __all__ = [
     "history_runs",
     "segment_frame",
     "run_time",
+    "run_vehicles",
     "line_places",
     "observations_of",
     "latest_speeds",
@@ -116,6 +118,14 @@ def segment_frame(session: Session, run_ids: Sequence[int], seg_m: int = 10) -> 
 def run_time(session: Session, run_id: int) -> dt.datetime | None:
     """The run's time in the condition store."""
     return session.scalar(select(ConditionRun.run_time).where(ConditionRun.run_id == run_id))
+
+
+def run_vehicles(session: Session, run_ids: Sequence[int]) -> dict[int, str | None]:
+    """The vehicle of each run (None: not stated), by run id."""
+    if not run_ids:
+        return {}
+    rows = session.execute(select(Run.id, Run.vehicle_id).where(Run.id.in_([int(r) for r in run_ids]))).all()
+    return {int(r): (str(v) if v else None) for r, v in rows}
 
 
 def line_places(session: Session, line_key: int) -> list[Place]:

@@ -95,6 +95,7 @@ class PlacesConfig:
             "step_z": p.step_z, "trend_z": p.trend_z, "min_rate_per_year": p.min_rate_per_year,
             "trend_window_days": p.trend_window_days, "min_history": p.min_history,
             "history_runs": p.history_runs, "gap_m": p.gap_m, "watch_days": p.watch_days,
+            "speed_tolerance": p.speed_tolerance,
             "curve_min_locations": self.curve_min_locations, "curve_runs": self.curve_runs, "tolerance_m": lc.tolerance_m,
             "min_confirmations": lc.min_confirmations, "confirm_tier": TIER_NAMES[lc.confirm_tier],
             "drop_after": lc.drop_after, "tier_down_runs": lc.tier_down_runs, "hold_change": lc.hold_change,
@@ -122,6 +123,7 @@ class PlacesConfig:
             trend_window_days=settings.places_trend_window_days, min_history=settings.places_min_history,
             history_runs=max(settings.places_history_runs, settings.places_min_history),
             gap_m=settings.places_gap_m, watch_days=settings.places_watch_days,
+            speed_tolerance=settings.places_speed_tolerance,
         )
         lifecycle = LifecycleParams(
             tolerance_m=settings.places_match_tolerance_m, min_confirmations=settings.places_min_confirmations,

@@ -23,6 +23,8 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.analysis.condition.change import ChangeParams
+from app.analysis.condition.lifecycle import PassHistory
 from app.analysis.condition.run_places import segment_index
 from app.analysis.condition.segment_curves import fit_segment_curves
 from app.analysis.stiffness.superstructure import section_classes
@@ -113,6 +115,12 @@ class RunIndex:
         Superstructure class of each segment (None near a change of class).
     index_sd, history_sd : numpy.ndarray
         The stated 1-σ of ``index`` and ``history`` (the store's ``index_sd``; NaN: none).
+    history_speed : numpy.ndarray
+        (wheels, segments, runs) speed of the history's passes, m/s.
+    vehicle : str or None
+        The run's vehicle (None: not stated).
+    history_vehicle : numpy.ndarray
+        (runs,) object: the vehicle of each history run.
     """
 
     seg: np.ndarray
@@ -124,11 +132,20 @@ class RunIndex:
     classes: np.ndarray
     index_sd: np.ndarray | None = None
     history_sd: np.ndarray | None = None
+    history_speed: np.ndarray | None = None
+    vehicle: str | None = None
+    history_vehicle: np.ndarray | None = None
 
     @property
     def mean_index(self) -> np.ndarray:
         """The index per segment, mean over the wheels (what a place is graded on)."""
         return mean_over_wheels(self.index)
+
+    def passes(self, params: ChangeParams) -> PassHistory:
+        """The history as the run's matched passes (same vehicle, matched speed:
+        :func:`~app.analysis.condition.change.matched_passes`, the step test's rule), mean over the wheels."""
+        return PassHistory.of(self.history, self.history_speed, self.speed, self.history_days, params,
+                              history_vehicle=self.history_vehicle, vehicle=self.vehicle)
 
 
 def mean_over_wheels(a: np.ndarray) -> np.ndarray:
@@ -167,10 +184,15 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
                                                               dtype=object), curves))
             for r, _ in history]
     hist_sd = [_on(grids[r], seg, wheels, grids[r][4]) for r, _ in history]
+    hist_v = [_on(grids[r], seg, wheels, grids[r][3]) for r, _ in history]
+    vehicles = q.run_vehicles(session, run_ids)
+    empty = np.zeros((*idx.shape, 0))
     return RunIndex(seg=seg, wheels=wheels, index=idx, speed=v,
-                    history=np.stack(hist, axis=2) if hist else np.zeros((*idx.shape, 0)),
+                    history=np.stack(hist, axis=2) if hist else empty,
                     history_days=np.array([days_of(t) for _, t in history], dtype=np.float64), classes=classes,
-                    index_sd=la_sd, history_sd=np.stack(hist_sd, axis=2) if hist_sd else np.zeros((*idx.shape, 0)))
+                    index_sd=la_sd, history_sd=np.stack(hist_sd, axis=2) if hist_sd else empty,
+                    history_speed=np.stack(hist_v, axis=2) if hist_v else empty, vehicle=vehicles.get(run_id),
+                    history_vehicle=np.array([vehicles.get(r) for r, _ in history], dtype=object))
 
 
 def run_segment_index(session: Session, line: ConditionLine, run_id: int, *,

@@ -58,6 +58,10 @@ class PlacesSettings(SettingsGroup):
         Earlier runs with a value the step test of a place needs.
     places_history_runs : int
         Most recent earlier runs read for a run's places (baseline, repeatability).
+    places_speed_tolerance : float
+        The places' matched-speed window: a run's places are tested, and a place's change read, against
+        the passes within ``1 + tolerance`` of its speed either way, by the same vehicle (0.25; the
+        speed-conditioned index leaves only the rails' own response's change with speed).
     places_gap_m : float
         Exceeding 10 m segments at most this far apart merge into one place, m.
     places_curve_min_locations : int
@@ -141,6 +145,7 @@ class PlacesSettings(SettingsGroup):
     places_trend_window_days: float = Field(default=_PLACE.trend_window_days, gt=0)
     places_min_history: int = Field(default=_PLACE.min_history, ge=2)
     places_history_runs: int = Field(default=_PLACE.history_runs, ge=2, le=1000)
+    places_speed_tolerance: float = Field(default=_PLACE.speed_tolerance, gt=0, le=1)
     places_gap_m: float = Field(default=_PLACE.gap_m, ge=0)
     places_curve_min_locations: int = Field(default=DEFAULT_MIN_LOCATIONS, ge=0)
     places_curve_runs: int = Field(default=PlacesConfig.curve_runs, ge=1, le=1000)

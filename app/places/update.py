@@ -42,7 +42,13 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from app.analysis.condition.interventions import surface_change_days
-from app.analysis.condition.lifecycle import Action, PlaceState, advance_places, segment_trend
+from app.analysis.condition.lifecycle import (
+    Action,
+    PassHistory,
+    PlaceState,
+    advance_places,
+    segment_trend,
+)
 from app.analysis.condition.outlook import Trend
 from app.analysis.condition.places import EVIDENCE_TREND
 from app.analysis.condition.run_places import find_places
@@ -193,7 +199,8 @@ def prepare_run(session: Session, run_id: int, line: ConditionLine, version: str
                                        now_day)
     found = find_places(ri.seg, ri.index, ri.history, ri.history_days, now_day, ri.classes,
                         segment_m=SEGMENT_M, params=params, index_sd=ri.index_sd, history_sd=ri.history_sd,
-                        surface_days=surface_days)
+                        surface_days=surface_days, speed=ri.speed, history_speed=ri.history_speed,
+                        vehicle=ri.vehicle, history_vehicle=ri.history_vehicle)
     return PreparedRun(run_id, when, version, hist_ids, ri, found)
 
 
@@ -207,11 +214,13 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
     return apply_prepared(session, line, prep, config=config)
 
 
-def developing_trends(known: list[PlaceState], run_id: int, ri: RunIndex, now_day: float) -> dict[int, Trend]:
+def developing_trends(known: list[PlaceState], run_id: int, ri: RunIndex, now_day: float,
+                      passes: PassHistory) -> dict[int, Trend]:
     """The severity trends of the places the run found by their trend (evidence ``trend``), each over its peak
-    segment's history and the run (:func:`~app.analysis.condition.lifecycle.segment_trend`), by place id."""
+    segment's matched passes and the run (:func:`~app.analysis.condition.lifecycle.segment_trend`), by place
+    id."""
     out: dict[int, Trend] = {}
-    days = np.append(np.asarray(ri.history_days, dtype=np.float64), now_day)
+    days = np.append(passes.days, now_day)
     for st in known:
         last = st.observations[-1] if st.observations else None
         if last is None or last.run_id != run_id or not (last.evidence & EVIDENCE_TREND):
@@ -219,7 +228,7 @@ def developing_trends(known: list[PlaceState], run_id: int, ri: RunIndex, now_da
         k = int(np.searchsorted(ri.seg, int(last.peak_m // SEGMENT_M)))
         if k >= ri.seg.size or ri.seg[k] != int(last.peak_m // SEGMENT_M):
             continue
-        values = np.append(mean_over_wheels(ri.history[:, k, :]), ri.mean_index[k])
+        values = np.append(passes.values[k], ri.mean_index[k])
         out[st.id] = segment_trend(st, days, values, now_day=now_day)
     return out
 
@@ -241,14 +250,15 @@ def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
     version_runs = {p.id: {o.run_id for o in obs[p.id] if o.method_version == version} for p in rows}
     before = {k.id: (k.active, k.listed, list(k.actions)) for k in known}
     covered = (float(seg.min() * SEGMENT_M), float((seg.max() + 1) * SEGMENT_M))
+    passes = ri.passes(params.change_params())
     events, _, _ = advance_places(known, found, run_id=run_id, day=now_day, covered_m=covered,
                                   params=config.lifecycle, next_id=q.next_place_id(session), place_params=params,
-                                  actions=acts)
+                                  actions=acts, passes=passes)
     kept = {k.id for k in known}
     q.delete_places(session, [i for i in by_id if i not in kept])
     speed_kmh = mean_over_wheels(v) * KMH_PER_MPS
     written = write_run(session, line, run_id, when, version, known, by_id, before, events, acts, act_rows,
-                     seg, wheels, speed_kmh, version_runs, config, trends=developing_trends(known, run_id, ri, now_day))
+                     seg, wheels, speed_kmh, version_runs, config, trends=developing_trends(known, run_id, ri, now_day, passes))
     session.add(PlaceRun(run_id=run_id, line_key=line.id, run_time=when, method_version=version,
                          start_m=covered[0], end_m=covered[1], n_places=len(found), n_events=len(written)))
     session.flush()

@@ -12,7 +12,13 @@ import numpy as np
 import pytest
 
 from app.analysis.condition.extent_level import extent_level
-from app.analysis.condition.lifecycle import Action, LifecycleParams, advance_places, place_outlook
+from app.analysis.condition.lifecycle import (
+    Action,
+    LifecycleParams,
+    PassHistory,
+    advance_places,
+    place_outlook,
+)
 from app.analysis.condition.maintenance_effect import action_effect
 from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS, find_places, segment_index
 from app.analysis.condition.segment_curves import fit_segment_curves
@@ -83,12 +89,16 @@ def lifecycle_of(spec, runs: list[StoredRun]):
         # with the store's stated 1-sigma, as the publish step grades them
         hist_sd = np.stack([_on(runs[j], run, runs[j].index_sd) for j in range(k)], axis=2) if k \
             else np.zeros((*idx.shape, 0))
+        hist_v = np.stack([_on(runs[j], run, runs[j].speed) for j in range(k)], axis=2) if k \
+            else np.zeros((*idx.shape, 0))
+        # compared with the matched passes (one vehicle: the same speed), as the publish step compares them
         rp = find_places(run.seg, idx, hist, days, run.day, run.classes, segment_m=SEG_M, params=DEFAULT_PLACE_PARAMS,
-                         index_sd=run.index_sd, history_sd=hist_sd)
+                         index_sd=run.index_sd, history_sd=hist_sd, speed=run.speed, history_speed=hist_v)
         covered = (float(run.seg.min() * SEG_M), float((run.seg.max() + 1) * SEG_M))
+        passes = PassHistory.of(hist, hist_v, run.speed, days, DEFAULT_PLACE_PARAMS.change_params())
         events, _, next_id = advance_places(known, rp, run_id=run.run_id, day=run.day, covered_m=covered,
                                             params=LifecycleParams(), next_id=next_id,
-                                            place_params=DEFAULT_PLACE_PARAMS, actions=actions)
+                                            place_params=DEFAULT_PLACE_PARAMS, actions=actions, passes=passes)
         listed = [(p.id, p.start_m, p.end_m, p.tier, p.observations[-1].severity,
                    place_outlook(p, DEFAULT_PLACE_PARAMS.levels).projection.days, p.observations[-1].centre_m,
                    p.direction)

@@ -117,6 +117,7 @@ score is NaN (no test). :func:`detect_changes` runs it all for one wheel.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -132,6 +133,8 @@ __all__ = [
     "SpeedMatch",
     "speed_matched",
     "vehicle_matched",
+    "MatchedPasses",
+    "matched_passes",
     "step_change",
     "stated_variance",
     "trend_change",
@@ -395,6 +398,57 @@ def vehicle_matched(history: np.ndarray, history_vehicle: np.ndarray, vehicle: o
     with np.errstate(invalid="ignore", divide="ignore"):
         var = spread**2 * (np.pi / 2.0) * (1.0 / np.maximum(n_same, 1) + 1.0 / np.maximum(n_other, 1))
     return out, np.where(shift, np.nan_to_num(var), 0.0), own | shift
+
+
+class MatchedPasses(NamedTuple):
+    """The history as matched passes of the newest run (:func:`matched_passes`).
+
+    Attributes
+    ----------
+    history : numpy.ndarray
+        (segments, runs) the matched values (NaN elsewhere).
+    extra_var : numpy.ndarray or None
+        (segments,) variance of a vehicle offset applied, log units² (None: no vehicles given).
+    testable : numpy.ndarray
+        (segments,) bool: enough passes of the newest run's vehicle to compare with.
+    exponent : float
+        The speed exponent the values were moved with (:class:`SpeedMatch`).
+    """
+
+    history: np.ndarray
+    extra_var: np.ndarray | None
+    testable: np.ndarray
+    exponent: float
+
+
+def matched_passes(history: np.ndarray, history_speed: np.ndarray, speed: np.ndarray, params: ChangeParams, *,
+                   history_vehicle: np.ndarray | None = None, vehicle: object = None) -> MatchedPasses:
+    """The history as matched passes of the newest run: the values passed at a matched speed
+    (:func:`speed_matched`), of the same vehicle (:func:`vehicle_matched`, the other vehicles' brought to it
+    where it has too few of its own). The one rule the step and trend tests compare a run with — the condition
+    store's flags and the places' tests and baselines alike.
+
+    Parameters
+    ----------
+    history, history_speed : numpy.ndarray
+        (segments, runs) index and speed (m/s) of earlier runs (NaN = none).
+    speed : numpy.ndarray
+        (segments,) speed of the newest run, m/s.
+    params : ChangeParams
+        ``speed_tolerance``, ``min_history`` and ``min_spread``.
+    history_vehicle, vehicle : numpy.ndarray and object, optional
+        (runs,) vehicle of each history run and the newest run's (None: all runs one vehicle's).
+
+    Returns
+    -------
+    MatchedPasses
+    """
+    sm = speed_matched(history, history_speed, speed, params.speed_tolerance)
+    if history_vehicle is None or vehicle is None:
+        return MatchedPasses(sm.history, None, np.ones(sm.history.shape[0], dtype=bool), sm.exponent)
+    h, extra, testable = vehicle_matched(sm.history, history_vehicle, vehicle, min_history=params.min_history,
+                                         min_spread=params.min_spread)
+    return MatchedPasses(h, extra, testable, sm.exponent)
 
 
 def _blocks(seg: np.ndarray, segment_m: float, block_m: float) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -765,13 +819,8 @@ def detect_changes(
     WheelChange
     """
     x = np.asarray(value, dtype=np.float64)
-    matched = speed_matched(history, history_speed, speed, params.speed_tolerance)
-    h = matched.history
-    extra = None
-    testable = np.ones(x.size, dtype=bool)
-    if history_vehicle is not None and vehicle is not None:
-        h, extra, testable = vehicle_matched(h, history_vehicle, vehicle, min_history=params.min_history,
-                                             min_spread=params.min_spread)
+    matched = matched_passes(history, history_speed, speed, params, history_vehicle=history_vehicle, vehicle=vehicle)
+    h, extra, testable = matched.history, matched.extra_var, matched.testable
     times = np.asarray(history_days, dtype=np.float64)
     finite = np.isfinite(h)
     # per segment the history_runs most recent matched values (columns are oldest first)

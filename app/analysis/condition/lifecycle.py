@@ -10,7 +10,11 @@ after it was marked fixed keeps its id and history). Then:
 * a place keeps the index it had **before it appeared** (its *baseline*: the
   level minus the change of the run that first found it by a step). Its
   change is measured against that baseline from then on, not against a
-  rolling history that slowly absorbs a lasting change. It is read where it
+  rolling history that slowly absorbs a lasting change — given the run's
+  matched passes (:class:`PassHistory`), against its baseline **at the run's
+  pass** (same vehicle, matched speed: the median of those passes before the
+  place was first seen, else its first such pass since; none: the run's own
+  step grades it and does not hold it). It is read where it
   departs most from that baseline on its own ground (the run's extent within
   its known one), not at the run's peak (where the run's step test fired
   against each segment's rolling history: at a developing place that is the
@@ -66,6 +70,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from app.analysis.condition.change import ChangeParams, matched_passes
 from app.analysis.condition.identity import covering_actions, match_places, tendency
 from app.analysis.condition.outlook import Projection, Trend, linear_trend, time_to_limit
 from app.analysis.condition.places import EVIDENCE_STEP
@@ -78,6 +83,7 @@ __all__ = [
     "PlaceState",
     "PlaceEvent",
     "Action",
+    "PassHistory",
     "PlaceOutlook",
     "place_outlook",
     "segment_trend",
@@ -244,6 +250,72 @@ class Action:
     kind: str = "tamping"
 
 
+@dataclass(frozen=True)
+class PassHistory:
+    """A run's history as its **matched passes**, per segment of the run's places (``found.seg``): the
+    values of the earlier runs that passed at a matched speed with the same vehicle
+    (:func:`~app.analysis.condition.change.matched_passes`, the rule of the step test), mean over the wheels.
+
+    On rough rails the index of a 10 m segment is the rails' response as much as the support's, and that
+    response changes with the speed and the vehicle (measured on issue 33's line: one segment read −0.9 by
+    one vehicle at 136 km/h, +0.5 by it at 91 km/h, −0.2 by the other vehicle at 135 km/h, each within
+    ±0.1 run after run). A place's change is therefore read against its baseline **at the run's pass**
+    (:meth:`baseline`), never against a baseline taken at another speed or by another vehicle.
+
+    Attributes
+    ----------
+    values : numpy.ndarray
+        (segments, runs) the matched passes' index, oldest first (NaN: no matched pass).
+    days : numpy.ndarray
+        (runs,) time of each history run, days.
+    """
+
+    values: np.ndarray
+    days: np.ndarray
+
+    def __post_init__(self) -> None:
+        v, d = np.asarray(self.values, dtype=np.float64), np.asarray(self.days, dtype=np.float64)
+        if v.ndim != 2 or d.shape != (v.shape[1],):
+            raise ValueError(f"values, days: must be (segments, runs) and (runs,), got {v.shape} and {d.shape}")
+        object.__setattr__(self, "values", v)
+        object.__setattr__(self, "days", d)
+
+    @classmethod
+    def of(cls, history: np.ndarray, history_speed: np.ndarray | None, speed: np.ndarray | None, days: np.ndarray,
+           params: ChangeParams, *, history_vehicle: np.ndarray | None = None, vehicle: object = None) -> PassHistory:
+        """From a run's history per wheel: ``history`` and ``history_speed`` (W, S, R; speeds in m/s, None: every
+        run at one speed), the run's ``speed`` (W, S), ``days`` (R,), the step test's ``params``
+        (``speed_tolerance``, ``min_history``) and the vehicles (R,) and the run's (None: one vehicle's)."""
+        h = np.asarray(history, dtype=np.float64)
+        if h.ndim != 3:
+            raise ValueError(f"history: must be (wheels, segments, runs), got shape {h.shape}")
+        hv = np.ones(h.shape) if history_speed is None else np.asarray(history_speed, dtype=np.float64)
+        v = np.ones(h.shape[:2]) if speed is None else np.asarray(speed, dtype=np.float64)
+        if hv.shape != h.shape or v.shape != h.shape[:2]:
+            raise ValueError(f"history_speed, speed: must be {h.shape} and {h.shape[:2]}, got {hv.shape} and {v.shape}")
+        out = np.full(h.shape, np.nan)
+        if h.shape[2]:
+            for w in range(h.shape[0]):
+                out[w] = matched_passes(h[w], hv[w], v[w], params, history_vehicle=history_vehicle,
+                                        vehicle=vehicle).history
+        ok = np.isfinite(out)
+        n = ok.sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.where(n > 0, np.where(ok, out, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
+        return cls(mean, np.asarray(days, dtype=np.float64))
+
+    def baseline(self, k: int, first_seen_day: float) -> float | None:
+        """A place's baseline at segment ``k`` for the run's pass: the median of its matched passes before the
+        place was first seen, else (none in the history) its first matched pass since; None: no matched
+        pass (its change cannot be read at this pass)."""
+        v = self.values[k]
+        ok = np.isfinite(v)
+        before = ok & (self.days < first_seen_day)
+        if before.any():
+            return float(np.median(v[before]))
+        return float(v[ok][0]) if ok.any() else None
+
+
 def severity_trend(state: PlaceState, *, now_day: float | None = None, window_days: float | None = None) -> Trend:
     """Trend of the place's level in its own direction (``direction · level``, ln units) over its observations.
 
@@ -360,6 +432,7 @@ def advance_places(
     next_id: int,
     place_params: PlaceParams | None = None,
     actions: Sequence[Action] = (),
+    passes: PassHistory | None = None,
 ) -> tuple[list[PlaceEvent], list[int], int]:
     """Apply one run to the known places (in place) and add its new ones.
 
@@ -382,6 +455,10 @@ def advance_places(
         (else the run's tier stands).
     actions : sequence of Action
         The line's maintenance actions (those after ``day`` are ignored).
+    passes : PassHistory, optional
+        The run's history as its matched passes on ``found.seg``: a known place's change is read against
+        its baseline at the run's pass (:meth:`PassHistory.baseline`; where it has none, the run's own step
+        stands). Without it, against the place's one baseline.
 
     Returns
     -------
@@ -395,6 +472,9 @@ def advance_places(
     lo, hi = covered_m
     if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
         raise ValueError(f"covered_m: must be finite with from <= to, got {covered_m!r}")
+    if passes is not None and passes.values.shape[0] != found.seg.size:
+        raise ValueError(f"passes: must have one row per segment of found ({found.seg.size}), "
+                         f"got {passes.values.shape[0]}")
     acts = [a for a in actions if a.day <= day]
     a_start = np.array([a.start_m for a in acts], dtype=np.float64)
     a_end = np.array([a.end_m for a in acts], dtype=np.float64)
@@ -425,28 +505,32 @@ def advance_places(
             # demo's place developing at −1 ln unit a year was read at its taper's edge, −0.05 from its
             # baseline, and fell to watch with a tier-down alert)
             own_from, own_to = max(float(p.start_m[i]), state.start_m), min(float(p.end_m[i]), state.end_m)
-            k = _worst_segment(state.direction, found, own_from, own_to) if own_from < own_to else None
+            k, base = _reading(state, found, own_from, own_to, passes) if own_from < own_to \
+                else (None, state.baseline if passes is None else None)
             if k is not None:
                 level, peak_m, cls = float(found.seg_index[k]), (float(found.seg[k]) + 0.5) * found.segment_m, \
                     found.seg_class[k]
                 if found.seg_level_sd.size == found.seg.size:
                     level_sd = float(found.seg_level_sd[k])
-            change = level - state.baseline
-            # the change against the baseline is the reading's level less a constant: its 1-σ is the level's
-            # (not the run's step test's at its own peak, another segment against another history)
-            change_sd = level_sd
-            severity, sev_sd = _severity(place_params, cls, level, change, level_sd, severity)
-            severity_sd = sev_sd if place_params is not None else severity_sd
-            if _receding(place_params, state, cls, level, level_sd):
-                # the baseline was an anomaly of the other side and the reading is none of this side: the change
-                # is that anomaly receding towards the typical track, graded as the run graded it
+            if base is not None:
+                change = level - base
+                # the change against the baseline is the reading's level less a constant: its 1-σ is the level's
+                # (not the run's step test's at its own peak, another segment against another history)
+                change_sd = level_sd
+                severity, sev_sd = _severity(place_params, cls, level, change, level_sd, severity)
+                severity_sd = sev_sd if place_params is not None else severity_sd
+            if base is None or _receding(place_params, state, base, cls, level, level_sd):
+                # no baseline at the run's pass (the place never passed so before: its change there is the run's
+                # own step's), or the baseline was an anomaly of the other side and the reading is none of this
+                # side (the change is that anomaly receding towards the typical track): graded as the run graded it
                 change, change_sd = float(found.change[i]), float(found.change_sd[i]) \
                     if found.change_sd.size == len(p) else float("nan")
                 severity = float(found.severity[i])
-        # the change grades a place against its baseline, or where the run's step test fired
-        graded_change = change if (state is not None and state.baseline is not None
-                                   and not _receding(place_params, state, cls, level, level_sd)) \
-            or (p.evidence[i] & EVIDENCE_STEP) else float("nan")
+                base = None
+        else:
+            base = None
+        # the change grades a place against its baseline at the run's pass, or where the run's step test fired
+        graded_change = change if base is not None or (p.evidence[i] & EVIDENCE_STEP) else float("nan")
         tier = _graded(place_params, cls, level, graded_change, int(p.direction[i]), int(found.tier[i]),
                        level_sd, change_sd)
         obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),
@@ -490,7 +574,7 @@ def advance_places(
             continue
         if not (lo <= state.start_m and state.end_m <= hi) or not _observed(state, found):
             continue
-        held = _held(state, found, run_id, day, params, place_params)
+        held = _held(state, found, run_id, day, params, place_params, passes)
         if held is not None:
             was_active = state.active
             _apply_tier(state, held.tier, params, events)
@@ -549,6 +633,29 @@ def _worst_segment(direction: int, found: RunPlaces, start_m: float, end_m: floa
     return a + int(np.argmax(direction * np.nan_to_num(vals, nan=-direction * np.inf)))
 
 
+def _reading(state: PlaceState, found: RunPlaces, start_m: float, end_m: float,
+             passes: PassHistory | None) -> tuple[int | None, float | None]:
+    """Where a run reads a known place over ``start_m … end_m`` and the baseline it is read against: the
+    segment departing most from its baseline at the run's pass (:meth:`PassHistory.baseline`) and that
+    baseline; without ``passes`` the segment furthest in the place's direction and the place's one baseline.
+    (None, None): no index there; (k, None): no segment with a baseline at the run's pass."""
+    if passes is None:
+        return _worst_segment(state.direction, found, start_m, end_m), state.baseline
+    if found.seg.size == 0:
+        return None, None
+    a = int(np.searchsorted(found.seg, int(np.floor(start_m / found.segment_m)), side="left"))
+    b = int(np.searchsorted(found.seg, int(np.ceil(end_m / found.segment_m)), side="left"))
+    best: tuple[float, int, float] | None = None
+    for k in range(a, b):
+        level = float(found.seg_index[k])
+        base = passes.baseline(k, state.first_seen_day) if np.isfinite(level) else None
+        if base is not None and (best is None or state.direction * (level - base) > best[0]):
+            best = (state.direction * (level - base), k, base)
+    if best is None:
+        return _worst_segment(state.direction, found, start_m, end_m), None
+    return best[1], best[2]
+
+
 def _severity(place_params: PlaceParams | None, cls: str | None, level: float, change: float, level_sd: float,
               default: float) -> tuple[float, float]:
     """Severity (the larger of level and change in units of their alert limits) and its 1-σ (the level's share;
@@ -562,15 +669,15 @@ def _severity(place_params: PlaceParams | None, cls: str | None, level: float, c
 
 
 def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: LifecycleParams,
-          place_params: PlaceParams | None) -> Observation | None:
+          place_params: PlaceParams | None, passes: PassHistory | None = None) -> Observation | None:
     """The observation that holds a known place the run did not flag (None: it is back at its baseline)."""
     if state.baseline is None:
         return None
-    k = _worst_segment(state.direction, found, state.start_m, state.end_m)
-    if k is None:
+    k, base = _reading(state, found, state.start_m, state.end_m, passes)
+    if k is None or base is None:
         return None
     level = float(found.seg_index[k])
-    change = level - state.baseline
+    change = level - base
     cls = found.seg_class[k]
     level_sd = float(found.seg_level_sd[k]) if found.seg_level_sd.size == found.seg.size else float("nan")
     # held while the departure from the baseline, less the reading's 1-σ, reaches hold_change: on rough rail one
@@ -578,7 +685,7 @@ def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: 
     # noise run after run (measured: one run's −0.93 held for 5 runs at −0.11 ± 0.39, "immediate")
     if not state.direction * change - (level_sd if np.isfinite(level_sd) else 0.0) >= params.hold_change:
         return None
-    if _receding(place_params, state, cls, level, level_sd):
+    if _receding(place_params, state, base, cls, level, level_sd):
         return None
     tier = _graded(place_params, cls, level, change, state.direction, state.tier, level_sd, level_sd)
     severity, severity_sd = _severity(place_params, cls, level, change, level_sd, 0.0)
@@ -590,8 +697,8 @@ def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: 
                        severity_sd=severity_sd)
 
 
-def _receding(place_params: PlaceParams | None, state: PlaceState, cls: str | None, level: float,
-              level_sd: float) -> bool:
+def _receding(place_params: PlaceParams | None, state: PlaceState, base: float | None, cls: str | None,
+              level: float, level_sd: float) -> bool:
     """The place's baseline was an anomaly of the other side (its size reaches the class's alert limit) and the
     reading is no anomaly of the place's side (its level, less its 1-σ, below the alert limit): the change
     against the baseline is that former anomaly receding towards the typical track — a hard place softening, a
@@ -599,10 +706,10 @@ def _receding(place_params: PlaceParams | None, state: PlaceState, cls: str | No
     :func:`~app.analysis.condition.run_places.find_places` for a step back from a former anomaly, against the
     place's own baseline). Measured: a place with a baseline of +0.45 read at −0.06 ± 0.09 was graded on its
     change of −0.51, "immediate"."""
-    if place_params is None or cls is None or state.baseline is None or not np.isfinite(level):
+    if place_params is None or cls is None or base is None or not np.isfinite(level):
         return False
     alert = place_params.levels.limits_for(cls).alert
-    was_other = state.direction * state.baseline <= -alert
+    was_other = state.direction * base <= -alert
     sd = level_sd if np.isfinite(level_sd) else 0.0
     return bool(was_other and state.direction * level - sd < alert)
 

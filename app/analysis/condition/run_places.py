@@ -8,8 +8,12 @@ stiffness index** ``ln(A / A_ref(class, v))`` of the run and of its history
   its superstructure class (:class:`~app.analysis.condition.tiers.TierTable`
   ``levels``): the place departs from the typical track of its kind *at the
   speed it was passed*, so speed ramps at stations do not read as track;
-* **step** — the index against the segment's own history (every earlier run,
-  whatever its speed: the index is comparable across speeds): median baseline,
+* **step** — the index against the segment's own history of **matched passes**
+  (given the speeds and vehicles: the earlier runs passed at a matched speed by
+  the same vehicle, the flags' rule,
+  :func:`~app.analysis.condition.change.matched_passes`; on rough rails the
+  index is the rails' response as much as the support's, and that response
+  changes with the speed and the vehicle): median baseline,
   robust repeatability, run level per kilometre block taken out, wheels
   combined (:func:`~app.analysis.condition.change.detect_changes`,
   :func:`~app.analysis.condition.change.combine_wheels`); a step counts where
@@ -51,10 +55,11 @@ reaches that limit (a found place keeps at least the alert tier). ``severity_sd`
 ``severity`` (of the size that sets it, in the same units). Without a stated 1-σ (NaN) all this is as
 before.
 
-The speed-conditioned step replaces the stored matched-speed test here
-because on a fleet whose cruise speeds spread over ±10 % the matched-speed test
-finds too few runs within ±10 % of the newest one to test at all (measured:
-``bench/bench_places.py``, ``docs/condition.md``).
+The history is the speed-conditioned index, so passes within the matched-speed tolerance compare however
+their speeds spread inside it. Without the speeds (``speed=None``) every earlier run counts, whatever its
+speed — right on smooth rails, where the index is comparable across speeds, and wrong on rough ones (issue
+33's line: one segment read −0.9 by one vehicle at 136 km/h and +0.5 by it at 91 km/h, each within ±0.1 run
+after run; a place found at one speed was graded at the other on that difference).
 """
 
 from __future__ import annotations
@@ -102,6 +107,15 @@ DEFAULT_LEVEL_LIMITS = TierTable(TierLimits(0.25, 0.375, 0.625), {"b91_pads": Ti
 DEFAULT_CHANGE_LIMITS = TierLimits(0.10, 0.30, 0.50)
 
 
+#: The places' matched-speed window: passes within 25 % of the run's speed either way. The places compare the
+#: speed-conditioned index (the class's curve over speed taken out), so only the rails' own response's change
+#: with speed separates passes: a fleet whose cruise speeds spread over ±10 % (at most 1.1 / 0.9 = 1.22 apart)
+#: stays one group — within the rule's ±10 % a run at the spread's end found 2 of 5 earlier runs and its new
+#: change went untested (tests/condition/test_places_pipeline.py) — while speed groups as far apart as issue
+#: 33's 26 and 40 m/s (1.54) never mix.
+PLACE_SPEED_TOLERANCE = 0.25
+
+
 @dataclass(frozen=True)
 class PlaceParams:
     """How places are found and graded.
@@ -133,6 +147,10 @@ class PlaceParams:
         Block of the run-level correction, m.
     watch_days : float
         A trend alone makes a place (tier watch) where it reaches the alert limit within so many days.
+    speed_tolerance : float
+        The matched-speed rule's tolerance (:mod:`app.analysis.speed_match`): the step and trend tests compare a
+        run with its history's passes within ``1 + speed_tolerance`` of its speed either way (where
+        :func:`find_places` is given the speeds).
     """
 
     levels: TierTable
@@ -147,6 +165,7 @@ class PlaceParams:
     gap_m: float = 10.0
     level_block_m: float = 1000.0
     watch_days: float = 180.0
+    speed_tolerance: float = PLACE_SPEED_TOLERANCE
 
     def __post_init__(self) -> None:
         if not isinstance(self.levels, TierTable):
@@ -154,7 +173,7 @@ class PlaceParams:
         if not isinstance(self.changes, TierLimits):
             raise TypeError("changes: must be a TierLimits")
         for name in ("step_z", "trend_z", "min_rate_per_year", "trend_window_days", "agree_z", "level_block_m",
-                     "watch_days"):
+                     "watch_days", "speed_tolerance"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: must be a finite number > 0, got {v!r}")
@@ -166,11 +185,11 @@ class PlaceParams:
             raise ValueError(f"history_runs: must be >= min_history, got {self.history_runs!r}")
 
     def change_params(self) -> ChangeParams:
-        """The step test's parameters (no speed matching: the index is speed-conditioned)."""
+        """The step and trend tests' parameters (matched passes within ``speed_tolerance``)."""
         return ChangeParams(step_z=self.step_z, trend_z=self.trend_z, trend_window_days=self.trend_window_days,
                             agree_z=self.agree_z, min_history=self.min_history,
                             history_runs=self.history_runs, history_scan_runs=max(self.history_runs, 60),
-                            speed_tolerance=1e6, level_block_m=self.level_block_m)
+                            speed_tolerance=self.speed_tolerance, level_block_m=self.level_block_m)
 
 
 @dataclass(frozen=True)
@@ -304,6 +323,10 @@ def find_places(
     index_sd: np.ndarray | None = None,
     history_sd: np.ndarray | None = None,
     surface_days: np.ndarray | None = None,
+    speed: np.ndarray | None = None,
+    history_speed: np.ndarray | None = None,
+    vehicle: object = None,
+    history_vehicle: np.ndarray | None = None,
 ) -> RunPlaces:
     """Find and grade a run's places (module docstring).
 
@@ -334,6 +357,13 @@ def find_places(
     surface_days : numpy.ndarray, optional
         (S,) day of the latest rail-surface intervention (grinding, rail renewal) on each segment up to
         ``now_day`` (NaN: none; :func:`~app.analysis.condition.interventions.surface_change_days`).
+    speed, history_speed : numpy.ndarray, optional
+        (W, S) and (W, S, R) speed of the run's and the history's passes, m/s: the step and trend tests
+        compare a wheel with its history's passes at a matched speed
+        (:func:`~app.analysis.condition.change.matched_passes`); without them every history run counts.
+    vehicle, history_vehicle : object and numpy.ndarray, optional
+        The run's vehicle and that of each history run (R,): the tests compare with the same vehicle's
+        passes (the other vehicles' brought to it where it has too few; None: all runs one vehicle's).
 
     Returns
     -------
@@ -368,6 +398,15 @@ def find_places(
         raise ValueError(f"history_sd: must have the shape of history {h.shape}, got {hsd.shape}")
     if surface_days is not None and np.shape(surface_days) != s.shape:
         raise ValueError(f"surface_days: must have one day per segment ({s.size}), got shape {np.shape(surface_days)}")
+    v_run = np.ones(x.shape) if speed is None else np.asarray(speed, dtype=np.float64)
+    if v_run.shape != x.shape:
+        raise ValueError(f"speed: must have the shape of index {x.shape}, got {v_run.shape}")
+    v_hist = np.ones(h.shape) if history_speed is None else np.asarray(history_speed, dtype=np.float64)
+    if v_hist.shape != h.shape:
+        raise ValueError(f"history_speed: must have the shape of history {h.shape}, got {v_hist.shape}")
+    if history_vehicle is not None and np.shape(history_vehicle) != (h.shape[2],):
+        raise ValueError(f"history_vehicle: must have one label per history run ({h.shape[2]}), "
+                         f"got shape {np.shape(history_vehicle)}")
 
     level = _mean_over_wheels(x)
     level_sd_seg = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
@@ -387,11 +426,10 @@ def find_places(
     wsd = np.full(x.shape, np.nan)
     if h.shape[2] >= params.min_history:
         cp = params.change_params()
-        ones = np.ones(h.shape[1:])
         for w in range(n_w):
-            ch = detect_changes(h[w], ones, days, x[w], np.ones(s.size), float(now_day), s, segment_m=segment_m,
+            ch = detect_changes(h[w], v_hist[w], days, x[w], v_run[w], float(now_day), s, segment_m=segment_m,
                                 params=cp, trend=True, sd_value=xsd[w], sd_history=hsd[w], surface_days=surface_days,
-                                stated_wheels=n_w)
+                                stated_wheels=n_w, history_vehicle=history_vehicle, vehicle=vehicle)
             wz[w], wchange[w], wtz[w], wrate[w] = ch.change_z, ch.change, ch.trend_z, ch.trend_rate
             wsd[w] = ch.change_sd
     cz, agree = combine_wheels(wz, params.agree_z)
