@@ -145,3 +145,40 @@ def test_a_pass_history_takes_the_passes_before_the_place_else_its_first_since()
     with pytest.raises(ValueError, match="passes"):
         advance_places([], _quiet([0.0, 0.0], 0.05), run_id=1, day=0.0, covered_m=(0.0, 1.0),
                        params=LifecycleParams(), next_id=1, passes=PassHistory(np.zeros((3, 1)), np.zeros(1)))
+
+
+def test_a_level_is_graded_in_units_of_the_healthy_scatter_at_its_pass():
+    from app.analysis.condition.run_places import HEALTHY_ALERT_Z, graded_level
+
+    sigma0 = 0.25 / HEALTHY_ALERT_Z
+    # without a stated 1-σ, as it is; with one, |level| / √(1 + (sd / σ0)²)
+    np.testing.assert_allclose(graded_level([0.5, -0.5, np.nan], [np.nan, 0.0, 0.1], 0.25), [0.5, 0.5, np.nan])
+    assert float(graded_level(0.9, 0.3, 0.25)) == pytest.approx(0.9 / np.sqrt(1 + (0.3 / sigma0) ** 2))
+    # smooth rails (1-σ 0.056): the alert limit needs about the level less its 1-σ, as the lower bound did ...
+    need = 0.25 * np.sqrt(1 + (0.056 / sigma0) ** 2)
+    assert need == pytest.approx(0.25 + 0.056, abs=0.01)
+    # ... rough rails (1-σ 0.3): 3.3 σ of the healthy scatter at the pass, not 1.8 σ
+    need_rough = 0.25 * np.sqrt(1 + (0.3 / sigma0) ** 2)
+    assert need_rough / np.hypot(sigma0, 0.3) == pytest.approx(HEALTHY_ALERT_Z)
+    assert (0.25 + 0.3) / np.hypot(sigma0, 0.3) < 1.9
+    # a class without limits (inf) grades as it is
+    assert float(graded_level(0.4, 0.3, np.inf)) == pytest.approx(0.4)
+
+
+def test_a_rough_rails_level_within_its_scatter_is_no_place_and_a_change_there_is():
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS
+
+    # a rough line: every pass's 10 m level uncertain by 0.3 (the rails' response); a segment reads +0.70 at every
+    # pass (roughness at the sleeper spacing): within 3.3 σ of the healthy scatter there, no place; a −0.36 change of
+    # the support beside it in the newest run, against passes within ±0.02: a step
+    rng = np.random.default_rng(5)
+    n = 9
+    base = track(np.random.default_rng(6)) * 0.3 + box(11_500.0, 11_510.0, 0.70)
+    x = runs(rng, base, n, lambda k: box(12_000.0, 12_020.0, -0.36) if k == n - 1 else 0.0 * base)
+    sd = np.full(x.shape, 0.3)
+    cls = np.full(SEG.size, "b91", dtype=object)
+    rp = find_places(SEG, x[:, :, -1], x[:, :, :-1], np.arange(n - 1.0), n - 1.0, cls, segment_m=10.0,
+                     params=DEFAULT_PLACE_PARAMS, index_sd=sd[:, :, -1], history_sd=sd[:, :, :-1])
+    assert not _at(rp, 11_505.0)
+    hit = _at(rp, 12_010.0)
+    assert len(rp.places) == 1 and hit and rp.places.evidence[hit[0]] & EVIDENCE_STEP

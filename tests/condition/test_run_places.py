@@ -355,20 +355,21 @@ def _trend_args(rng, base, spot, days, cls):
 
 
 def test_a_place_whose_size_is_within_its_uncertainty_is_not_in_the_top_tier():
-    """The tier rests on the size's lower 1-sigma bound: a lasting hard spot of 0.70 (immediate: ≥ 0.625) stated
-    ±0.2 is graded on 0.50 (intervention), ±0.4 on 0.30 (alert); ±0.5 leaves 0.20, within its uncertainty of
-    the typical track (below the alert limit 0.25): no anomaly at all. Without a stated 1-sigma (NaN) it is
-    immediate as before."""
+    """The tier rests on the size in units of the healthy scatter at its pass (``graded_level``: the limits
+    stand for σ0 = 0.25 / 3.3 = 0.076; a pass uncertain by sd has √(σ0² + sd²)): a lasting hard spot of 0.70
+    (immediate: ≥ 0.625) stated ±0.05 is graded on 0.58 (intervention), ±0.15 on 0.32 (alert); ±0.3 leaves 0.17,
+    within what its uncertainty gives the typical track (below the alert limit 0.25): no anomaly at all. Without
+    a stated 1-sigma (NaN) it is immediate as before."""
     rng = np.random.default_rng(11)
     track = _track(rng) * 0.3 + _box(11_000.0, 11_030.0, 0.70)  # lasting, in the history too
     hist = _runs(rng, track, 8)
     new = _runs(rng, track, 1)[:, :, 0]
     cls = np.full(SEG.size, "b91", dtype=object)
     tiers = {}
-    for sd in (np.nan, 0.2, 0.4, 0.5):
+    for sd in (np.nan, 0.05, 0.15, 0.3):
         rp = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls, segment_m=10.0, params=PARAMS,
                          index_sd=np.full(new.shape, sd), history_sd=np.full(hist.shape, sd))
-        if sd == 0.5:
+        if sd == 0.3:
             assert len(rp) == 0
             continue
         assert len(rp) == 1 and rp.places.evidence[0] == EVIDENCE_ANOMALY
@@ -379,7 +380,7 @@ def test_a_place_whose_size_is_within_its_uncertainty_is_not_in_the_top_tier():
         else:
             assert rp.level_sd[0] == pytest.approx(sd) and rp.severity_sd[0] == pytest.approx(sd / 0.25)
         tiers[sd] = int(rp.tier[0])
-    assert tiers[np.nan] == 3 and tiers[0.2] == 2 and tiers[0.4] == 1
+    assert tiers[np.nan] == 3 and tiers[0.05] == 2 and tiers[0.15] == 1
 
 
 def test_a_change_within_its_uncertainty_is_graded_on_its_lower_bound_and_a_grinding_widens_it():

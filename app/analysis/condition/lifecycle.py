@@ -74,7 +74,7 @@ from app.analysis.condition.change import ChangeParams, matched_passes
 from app.analysis.condition.identity import covering_actions, match_places, tendency
 from app.analysis.condition.outlook import Projection, Trend, linear_trend, time_to_limit
 from app.analysis.condition.places import EVIDENCE_STEP
-from app.analysis.condition.run_places import PlaceParams, RunPlaces
+from app.analysis.condition.run_places import PlaceParams, RunPlaces, graded_level
 from app.analysis.condition.tiers import TIER_INTERVENTION, TierTable
 
 __all__ = [
@@ -411,13 +411,18 @@ def _graded(place_params: PlaceParams | None, cls: str | None, level: float, cha
     if not np.isfinite(change):
         return tier
 
-    def on_bound(limits, size: float, sd: float) -> int:
+    def on_bound(limits, size: float, low_size: float) -> int:
         point = int(limits.grade(np.array([size]))[0])
-        low = int(limits.grade(np.array([size - (sd if np.isfinite(sd) else 0.0)]))[0])
+        low = int(limits.grade(np.array([low_size]))[0])
         return max(min(point, low), 1) if point >= 1 else point
 
-    lt = on_bound(place_params.levels.limits_for(cls), abs(level), level_sd) if cls is not None else 0
-    ct = on_bound(place_params.changes, direction * change, change_sd)
+    if cls is not None:
+        limits = place_params.levels.limits_for(cls)
+        lt = on_bound(limits, abs(level), float(graded_level(level, level_sd, limits.alert)))
+    else:
+        lt = 0
+    size = direction * change
+    ct = on_bound(place_params.changes, size, size - (change_sd if np.isfinite(change_sd) else 0.0))
     return max(lt, ct)
 
 
@@ -700,7 +705,7 @@ def _held(state: PlaceState, found: RunPlaces, run_id: int, day: float, params: 
 def _receding(place_params: PlaceParams | None, state: PlaceState, base: float | None, cls: str | None,
               level: float, level_sd: float) -> bool:
     """The place's baseline was an anomaly of the other side (its size reaches the class's alert limit) and the
-    reading is no anomaly of the place's side (its level, less its 1-σ, below the alert limit): the change
+    reading is no anomaly of the place's side (its level, graded on its 1-σ by :func:`~app.analysis.condition.run_places.graded_level`, below the alert limit): the change
     against the baseline is that former anomaly receding towards the typical track — a hard place softening, a
     ground surface running in — not a place of this side (the rule of
     :func:`~app.analysis.condition.run_places.find_places` for a step back from a former anomaly, against the
@@ -710,8 +715,8 @@ def _receding(place_params: PlaceParams | None, state: PlaceState, base: float |
         return False
     alert = place_params.levels.limits_for(cls).alert
     was_other = state.direction * base <= -alert
-    sd = level_sd if np.isfinite(level_sd) else 0.0
-    return bool(was_other and state.direction * level - sd < alert)
+    of_side = state.direction * level > 0 and float(graded_level(level, level_sd, alert)) >= alert
+    return bool(was_other and not of_side)
 
 
 def _near(a: PlaceState, b: PlaceState, gap_m: float) -> bool:

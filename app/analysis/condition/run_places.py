@@ -45,13 +45,17 @@ across a rail-surface intervention — ``surface_days`` — both sides' roughnes
 is not a stiffness change). A place's size carries its 1-σ: the level's is the wheels' mean stated
 1-σ at the peak segment (the wheels of a run meet the same rails at the same speed: their errors are
 taken as fully correlated, the upper bound), the change's that of the wheels' mean change (the step
-test's denominators, the stated part shared by the wheels). **Grading rests on the size's lower 1-σ
-bound**: an *anomaly* is found only where the level less its 1-σ reaches the class's alert limit (on
-rough rail one pass's 10 m level is uncertain by tens of per cent: the rail's roughness, not the
-support, would otherwise make the anomalies), the rule "a step back from a former anomaly is that
-anomaly shrinking" judges the former level the same way (with the history's median stated 1-σ), and a
-place reaches the intervention or immediate-action tier only where its level or change less its 1-σ
-reaches that limit (a found place keeps at least the alert tier). ``severity_sd`` is the 1-σ of
+test's denominators, the stated part shared by the wheels). **Grading rests on the size and its
+1-σ**: a level is graded in units of the healthy scatter at its pass (:func:`graded_level`: the limits
+stand for the class's healthy scatter σ0, a pass uncertain by sd has √(σ0² + sd²); on rough rail one
+pass's 10 m level is uncertain by tens of per cent — the rails' response at the sleeper spacing, which a
+typical support under them gives too — and a level graded on its lower 1-σ bound reached the alert limit
+at 1.8 σ of that scatter: the rails' roughness, not the support, made the anomalies), a change on its
+lower 1-σ bound; an *anomaly* is found only where the graded level reaches the class's alert limit, the
+rule "a step back from a former anomaly is that anomaly shrinking" judges the former level the same way
+(with the history's median stated 1-σ), and a place reaches the intervention or immediate-action tier
+only where its graded level or its change less its 1-σ reaches that limit (a found place keeps at least
+the alert tier). ``severity_sd`` is the 1-σ of
 ``severity`` (of the size that sets it, in the same units). Without a stated 1-σ (NaN) all this is as
 before.
 
@@ -84,6 +88,8 @@ from app.analysis.units import DAYS_PER_YEAR
 
 __all__ = [
     "DEFAULT_LEVEL_LIMITS",
+    "HEALTHY_ALERT_Z",
+    "graded_level",
     "DEFAULT_CHANGE_LIMITS",
     "DEFAULT_PLACE_PARAMS",
     "PlaceParams",
@@ -100,6 +106,46 @@ __all__ = [
 #: times it, the ratios of EN 13848-5's limits for isolated defects. Classes without a row (slab, B91
 #: without pads, …) use the default.
 DEFAULT_LEVEL_LIMITS = TierTable(TierLimits(0.25, 0.375, 0.625), {"b91_pads": TierLimits(0.30, 0.45, 0.75)})
+
+#: A class's alert limit in standard deviations of its healthy 10 m index (the measurement behind
+#: :data:`DEFAULT_LEVEL_LIMITS`): ``alert / HEALTHY_ALERT_Z`` is the healthy scatter the limits stand for.
+HEALTHY_ALERT_Z = 3.3
+
+
+def graded_level(level: np.ndarray | float, level_sd: np.ndarray | float,
+                 alert: np.ndarray | float) -> np.ndarray:
+    """A level's size as its tier limits grade it, given its stated 1-σ: ``|level|`` in units of the healthy
+    scatter at its pass, on the scale of the limits.
+
+    The limits stand for a healthy scatter ``σ0 = alert / HEALTHY_ALERT_Z`` of the class's 10 m index (the
+    track's own variation and a pass's noise on smooth rails); a pass whose level is uncertain by ``sd`` (on
+    rough rails mostly the rails' response at the sleeper spacing, which a support of the typical kind under
+    them gives too) has a healthy scatter ``√(σ0² + sd²)``. A level reaches a limit where it lies that limit's
+    multiple of ``σ0`` beyond the typical track in units of that scatter: graded is
+    ``|level| / √(1 + (sd / σ0)²)``. With a small 1-σ this is the level less about its 1-σ (smooth rails: a
+    stated 0.056 against σ0 0.076 needs 0.31 for the alert limit of 0.25, the lower 1-σ bound 0.306); with a
+    large one it is not: on issue 33's rough line (1-σ 0.2–0.4, the class's spread across the segments of one
+    run alike) the lower 1-σ bound put the alert limit at 1.8 σ of that spread, and every run listed the same
+    segments of the rails' roughness as places.
+
+    Parameters
+    ----------
+    level, level_sd : array_like
+        The index (ln units) and its stated 1-σ (NaN: none stated, graded as it is).
+    alert : array_like
+        The alert limit of each level's class (inf: none).
+
+    Returns
+    -------
+    numpy.ndarray
+        The graded size (ln units, ≥ 0; NaN where ``level`` is NaN).
+    """
+    x = np.abs(np.asarray(level, dtype=np.float64))
+    sd = np.nan_to_num(np.asarray(level_sd, dtype=np.float64), nan=0.0)
+    sigma0 = np.asarray(alert, dtype=np.float64) / HEALTHY_ALERT_Z
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(np.isfinite(sigma0) & (sigma0 > 0), sd / sigma0, 0.0)
+    return x / np.sqrt(1.0 + ratio * ratio)
 #: Limits of ``|change|`` against the own history (ln units): 0.10 is above the largest significant
 #: step of healthy segments between runs at different speeds (0.05–0.10: the VKF's resolution along
 #: the track changes with speed) and below the changes to find (a 20 % change is 0.22: alert); a sudden
@@ -411,13 +457,14 @@ def find_places(
     level = _mean_over_wheels(x)
     level_sd_seg = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
     has_class = np.array([c is not None for c in cls.tolist()], dtype=bool)
+    alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
     level_tier = np.zeros(s.size, np.int64)
     if has_class.any():
-        # graded on the level's lower 1-σ bound: a level within its stated uncertainty of the typical track
-        # is no anomaly (on rough rail one pass's 10 m level is uncertain by tens of per cent)
-        level_lo = np.maximum(np.abs(level) - np.nan_to_num(level_sd_seg), 0.0)
-        level_tier[has_class] = params.levels.grade(np.where(np.isfinite(level), level_lo, np.nan)[has_class],
-                                                    cls[has_class])
+        # graded in units of the healthy scatter at its pass (:func:`graded_level`): a level within what the
+        # rails' roughness gives a typical support is no anomaly (on rough rail one pass's 10 m level is
+        # uncertain by tens of per cent)
+        level_lo = graded_level(level, level_sd_seg, alert)
+        level_tier[has_class] = params.levels.grade(level_lo[has_class], cls[has_class])
     # step against the segment's own history, every wheel
     wz = np.full(x.shape, np.nan)
     wchange = np.full(x.shape, np.nan)
@@ -448,9 +495,9 @@ def find_places(
     before = level - change
     before_tier = np.zeros(s.size, np.int64)
     if has_class.any():
-        # the history's level on its lower bound too (the median stated 1-σ of the history's values)
+        # the history's level graded the same way (with the median stated 1-σ of the history's values)
         before_sd = nan_median(np.where(np.isfinite(h), hsd, np.nan).transpose(1, 0, 2).reshape(s.size, -1), axis=1)
-        before_lo = np.maximum(np.abs(np.nan_to_num(before)) - np.nan_to_num(before_sd), 0.0)
+        before_lo = graded_level(np.nan_to_num(before), before_sd, alert)
         before_tier[has_class] = params.levels.grade(before_lo[has_class], cls[has_class])
     back = (before_tier >= 1) & (np.sign(np.nan_to_num(change)) == -np.sign(np.nan_to_num(before))) \
         & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(change))))
@@ -465,7 +512,6 @@ def find_places(
     # a trend alone (no anomaly, no step: tier watch) counts where the segment reaches its class's alert
     # limit within watch_days at its rate: a segment at typical track with a trend is a year or more away
     # from any limit, and where the curve is thin (a braking end) such trends were noise (measured)
-    alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
     with np.errstate(invalid="ignore", divide="ignore"):
         to_alert = (alert - np.sign(np.nan_to_num(rate)) * level) / np.abs(rate) * DAYS_PER_YEAR
     trend &= anomaly | step | (np.nan_to_num(to_alert, nan=np.inf) <= params.watch_days)
@@ -510,7 +556,7 @@ def find_places(
             / np.sqrt(np.maximum(np.isfinite(wchange).sum(axis=0), 1))
     change_sd = np.where(np.isfinite(level_sd), change_sd, np.nan)
     # the tier rests on the size's lower 1-sigma bound (a found place keeps at least the alert tier)
-    lo_level = np.maximum(np.abs(np.nan_to_num(level[peak])) - np.nan_to_num(level_sd[peak]), 0.0)
+    lo_level = graded_level(np.nan_to_num(level[peak]), level_sd[peak], alert[peak])
     lo_change = np.maximum(np.abs(np.nan_to_num(change[peak])) - np.nan_to_num(change_sd[peak]), 0.0)
     lt_lo = np.zeros(n, np.int64)
     pc = cls[peak]
