@@ -155,6 +155,23 @@ def mean_over_wheels(a: np.ndarray) -> np.ndarray:
     return np.where(n > 0, np.where(ok, a, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
 
 
+def _vehicle_curves(values: np.ndarray, fit: np.ndarray, wheel_of: np.ndarray, row_cls: np.ndarray,
+                    vehicles: dict[int, str | None], config: PlacesConfig) -> dict[str, dict]:
+    """Each vehicle's own curves where the runs are of more than one vehicle (a vehicle's unsprung mass, wheel
+    and sensor change the amplitude the same track gives: its typical track is its own), by vehicle."""
+    run_veh = np.array([vehicles.get(int(r)) for r in values[:, 0].tolist()], dtype=object)
+    names = sorted({v for v in run_veh[fit].tolist() if v is not None})
+    if len(names) < 2:
+        return {}
+    out = {}
+    for name in names:
+        sel = fit & (run_veh == name)
+        out[name] = fit_segment_curves(values[sel, 2].astype(np.int64), values[sel, 3], values[sel, 4],
+                                       values[sel, 0], wheel_of[values[sel, 1].astype(np.int64)], row_cls[sel],
+                                       min_locations=config.curve_min_locations)
+    return out
+
+
 def run_index(session: Session, line: ConditionLine, run_id: int, history: list[tuple[int, dt.datetime]], *,
               config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> RunIndex | None:
     """The index of a run and of ``history`` (run id, time; oldest first) from the store's 10 m rows, with
@@ -177,15 +194,24 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
     curves = fit_segment_curves(values[fit, 2].astype(np.int64), values[fit, 3], values[fit, 4], values[fit, 0],
                                 wheel_of[values[fit, 1].astype(np.int64)], row_cls[fit],
                                 min_locations=config.curve_min_locations)
+    vehicles = q.run_vehicles(session, run_ids)
+    by_vehicle = _vehicle_curves(values, fit, wheel_of, row_cls, vehicles, config)
+
+    def index_of(r: int) -> np.ndarray:
+        r_seg, _, r_la, r_v, _ = grids[r]
+        r_cls = np.array([cls_of[int(s)] for s in r_seg.tolist()], dtype=object)
+        out = segment_index(r_la, r_v, r_cls, curves)
+        own = by_vehicle.get(vehicles.get(r))
+        if own is not None:
+            mine = segment_index(r_la, r_v, r_cls, own)
+            out = np.where(np.isfinite(mine), mine, out)
+        return out
+
     classes = np.array([cls_of[int(s)] for s in seg.tolist()], dtype=object)
-    idx = segment_index(la, v, classes, curves)
-    hist = [_on(grids[r], seg, wheels, segment_index(grids[r][2], grids[r][3],
-                                                     np.array([cls_of[int(s)] for s in grids[r][0].tolist()],
-                                                              dtype=object), curves))
-            for r, _ in history]
+    idx = index_of(run_id)
+    hist = [_on(grids[r], seg, wheels, index_of(r)) for r, _ in history]
     hist_sd = [_on(grids[r], seg, wheels, grids[r][4]) for r, _ in history]
     hist_v = [_on(grids[r], seg, wheels, grids[r][3]) for r, _ in history]
-    vehicles = q.run_vehicles(session, run_ids)
     empty = np.zeros((*idx.shape, 0))
     return RunIndex(seg=seg, wheels=wheels, index=idx, speed=v,
                     history=np.stack(hist, axis=2) if hist else empty,
