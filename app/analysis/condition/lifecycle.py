@@ -74,7 +74,12 @@ from app.analysis.condition.change import ChangeParams, matched_passes
 from app.analysis.condition.identity import covering_actions, match_places, tendency
 from app.analysis.condition.outlook import Projection, Trend, linear_trend, time_to_limit
 from app.analysis.condition.places import EVIDENCE_STEP
-from app.analysis.condition.run_places import PlaceParams, RunPlaces, graded_level
+from app.analysis.condition.run_places import (
+    PlaceParams,
+    RunPlaces,
+    _mean_over_wheels,
+    graded_level,
+)
 from app.analysis.condition.tiers import TIER_INTERVENTION, TierTable
 
 __all__ = [
@@ -298,11 +303,7 @@ class PassHistory:
             for w in range(h.shape[0]):
                 out[w] = matched_passes(h[w], hv[w], v[w], params, history_vehicle=history_vehicle,
                                         vehicle=vehicle).history
-        ok = np.isfinite(out)
-        n = ok.sum(axis=0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = np.where(n > 0, np.where(ok, out, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
-        return cls(mean, np.asarray(days, dtype=np.float64))
+        return cls(_mean_over_wheels(out), np.asarray(days, dtype=np.float64))
 
     def baseline(self, k: int, first_seen_day: float) -> float | None:
         """A place's baseline at segment ``k`` for the run's pass: the median of its matched passes before the
