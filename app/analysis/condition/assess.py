@@ -37,6 +37,7 @@ from app.analysis.condition.change import (
     WheelChange,
     combine_wheels,
     detect_changes,
+    series_labels,
 )
 from app.analysis.condition.interventions import surface_change_days
 from app.analysis.condition.segments import SegmentStats
@@ -152,7 +153,7 @@ class RunAssessment:
 
 
 def _combine(kind: str, seg_m: float, stats: Mapping[str, SegmentStats], changes: Mapping[str, WheelChange],
-             params: ChangeParams, previous: set[tuple[int, int, str, int]]) -> list[Flag]:
+             params: ChangeParams, previous: set[tuple[int, int, str, int]], series: Mapping[str, str]) -> list[Flag]:
     wheels = sorted(changes)
     if not wheels:
         return []
@@ -166,7 +167,7 @@ def _combine(kind: str, seg_m: float, stats: Mapping[str, SegmentStats], changes
         z[i, j] = c.change_z if kind == "step" else c.trend_z
         change[i, j] = c.change
         rate[i, j] = c.trend_rate
-    combined, agree = combine_wheels(z, params.agree_z)
+    combined, agree = combine_wheels(z, params.agree_z, np.array([series.get(w, w) for w in wheels], dtype=object))
     threshold = params.step_z if kind == "step" else params.trend_z
     out = []
     for j in np.flatnonzero(np.abs(np.nan_to_num(combined)) >= threshold):
@@ -229,7 +230,11 @@ def assess_run(
     for seg_m, wheels in run.items():
         trend = abs(seg_m - trend_segment_m) < 1e-9
         changes: dict[str, WheelChange] = {}
-        n_wheels = max(sum(1 for st in wheels.values() if len(st)), 1)
+        scored = [w for w, st in wheels.items() if len(st)]
+        # the wheels that give one index (an axle's two under the two-rail estimate) are one witness
+        series = {w: scored[k] for w, k in zip(scored, series_labels([wheels[w].index for w in scored]).tolist(),
+                                                strict=True)}
+        n_wheels = max(len(set(series.values())), 1)
         for wheel, st in wheels.items():
             if len(st) == 0:
                 continue
@@ -244,9 +249,9 @@ def assess_run(
             )
         out.changes[seg_m] = changes
         out.exponents[seg_m] = {w: c.exponent for w, c in changes.items()}
-        out.flags += _combine("step", seg_m, wheels, changes, params, previous)
+        out.flags += _combine("step", seg_m, wheels, changes, params, previous, series)
         if trend:
-            out.flags += _combine("trend", seg_m, wheels, changes, params, previous)
+            out.flags += _combine("trend", seg_m, wheels, changes, params, previous, series)
     return out
 
 

@@ -106,8 +106,9 @@ A change that covers a whole block in one run is therefore not seen by these
 tests: they look for places that depart from their surroundings.
 
 **Wheels** (:func:`combine_wheels`): the wheels see the same place; their
-scores combine as ``Σ z / √n`` (Stouffer), and the wheels *agreeing* are those
-whose own score has the combined sign and at least ``agree_z``.
+scores combine as ``Σ z / √n`` (Stouffer), wheels that give one value (the
+two-rail estimate: both wheels of an axle) counted as one witness, and the wheels
+*agreeing* are those whose own score has the combined sign and at least ``agree_z``.
 
 The direction is the sign: ``+1`` the index rose (stiffer / higher amplitude),
 ``-1`` it fell. Both tests need ``min_history`` matched runs; otherwise their
@@ -116,6 +117,7 @@ score is NaN (no test). :func:`detect_changes` runs it all for one wheel.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import NamedTuple
 
@@ -143,6 +145,7 @@ __all__ = [
     "WheelChange",
     "detect_changes",
     "combine_wheels",
+    "series_labels",
 ]
 
 
@@ -381,9 +384,11 @@ def vehicle_matched(history: np.ndarray, history_vehicle: np.ndarray, vehicle: o
     if labels.shape != (h.shape[1],):
         raise ValueError(f"history_vehicle: must have one label per history run ({h.shape[1]}), got {labels.shape}")
     zero = np.zeros(h.shape[0])
-    if vehicle is None:
-        return h, zero, np.ones(h.shape[0], dtype=bool)
     mine = np.array([v is None or v == vehicle for v in labels.tolist()], dtype=bool)
+    if vehicle is None or mine.all():
+        # every run one vehicle's: the history as it is (as without vehicles — a segment with few passes still
+        # counts in its block's run level and spread)
+        return h, zero, np.ones(h.shape[0], dtype=bool)
     ok = np.isfinite(h)
     same, other = ok & mine[None, :], ok & ~mine[None, :]
     n_same, n_other = same.sum(axis=1), other.sum(axis=1)
@@ -858,8 +863,39 @@ def detect_changes(
     )
 
 
-def combine_wheels(z: np.ndarray, agree_z: float) -> tuple[np.ndarray, np.ndarray]:
-    """Combined score over wheels (Stouffer: ``Σ z / √n`` over the wheels with a score) and who agrees.
+def series_labels(index: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
+    """Which wheels give one index: wheels whose index is the same at every segment (to rounding) share a
+    label — the two-rail estimate gives both wheels of an axle one value.
+
+    Parameters
+    ----------
+    index : sequence of numpy.ndarray
+        Each wheel's index over the same segments (NaN: none).
+
+    Returns
+    -------
+    numpy.ndarray
+        (wheels,) int64 label of each wheel: the position of the first wheel of its series.
+    """
+    rows = [np.asarray(r, dtype=np.float64) for r in index]
+    labels = np.arange(len(rows), dtype=np.int64)
+    for w, r in enumerate(rows):
+        for v in range(w):
+            o = rows[v]
+            if labels[v] == v and o.shape == r.shape and np.allclose(r, o, rtol=1e-9, atol=1e-12, equal_nan=True):
+                labels[w] = v
+                break
+    return labels
+
+
+def combine_wheels(z: np.ndarray, agree_z: float, series: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Combined score over wheels (Stouffer over the wheels with a score) and who agrees.
+
+    Wheels of one series (``series``: the two-rail estimate gives both wheels of an axle one index,
+    :func:`series_labels`) are one witness counted as often as it appears: the sum is over the wheels, its
+    variance ``Σ n_g²`` over the series ``g`` with ``n_g`` wheels scored — ``Σ z / √n`` where every wheel has
+    its own, ``(z₁ + z₄) / √2`` for two axles of two wheels each (``Σ z / √n`` counted such an axle's score
+    twice: ``z₁ + z₄``, √2 too high).
 
     Parameters
     ----------
@@ -867,6 +903,8 @@ def combine_wheels(z: np.ndarray, agree_z: float) -> tuple[np.ndarray, np.ndarra
         (wheels, segments) scores (NaN = no test).
     agree_z : float
         A wheel agrees when its score has the combined sign and ``|z| ≥ agree_z``.
+    series : numpy.ndarray, optional
+        (wheels,) label of each wheel's series (:func:`series_labels`; default: every wheel its own).
 
     Returns
     -------
@@ -880,7 +918,14 @@ def combine_wheels(z: np.ndarray, agree_z: float) -> tuple[np.ndarray, np.ndarra
         raise ValueError(f"z: must be 2-D (wheels × segments), got shape {zz.shape}")
     ok = np.isfinite(zz)
     n = ok.sum(axis=0)
+    lab = np.arange(zz.shape[0]) if series is None else np.asarray(series)
+    if lab.shape != (zz.shape[0],):
+        raise ValueError(f"series: must have one label per wheel ({zz.shape[0]}), got shape {lab.shape}")
+    # a series scored by n_g wheels is one witness counted n_g times: the sum's variance is Σ n_g²
+    pairs = np.zeros(zz.shape[1], dtype=np.int64)
+    for g in np.unique(lab):
+        pairs += ok[lab == g].sum(axis=0) ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
-        combined = np.where(n > 0, np.where(ok, zz, 0.0).sum(axis=0) / np.sqrt(n), np.nan)
+        combined = np.where(n > 0, np.where(ok, zz, 0.0).sum(axis=0) / np.sqrt(np.maximum(pairs, 1)), np.nan)
     agree = ok & (np.sign(zz) == np.sign(combined)[None, :]) & (np.abs(np.where(ok, zz, 0.0)) >= agree_z)
     return combined, agree

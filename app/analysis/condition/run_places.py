@@ -50,7 +50,8 @@ test's denominators, the stated part shared by the wheels). **Grading rests on t
 stand for the class's healthy scatter σ0, a pass uncertain by sd has √(σ0² + sd²); on rough rail one
 pass's 10 m level is uncertain by tens of per cent — the rails' response at the sleeper spacing, which a
 typical support under them gives too — and a level graded on its lower 1-σ bound reached the alert limit
-at 1.8 σ of that scatter: the rails' roughness, not the support, made the anomalies), a change on its
+at 1.8 σ of that scatter: the rails' roughness, not the support, made the anomalies; a stated 1-σ is at
+least its class's scatter from segment to segment in the run beyond σ0, :func:`class_scatter`), a change on its
 lower 1-σ bound; an *anomaly* is found only where the graded level reaches the class's alert limit, the
 rule "a step back from a former anomaly is that anomaly shrinking" judges the former level the same way
 (with the history's median stated 1-σ), and a place reaches the intervention or immediate-action tier
@@ -73,7 +74,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.analysis.condition.change import ChangeParams, combine_wheels, detect_changes
+from app.analysis.condition.change import (
+    ChangeParams,
+    combine_wheels,
+    detect_changes,
+    series_labels,
+)
 from app.analysis.condition.places import (
     EVIDENCE_ANOMALY,
     EVIDENCE_STEP,
@@ -82,7 +88,7 @@ from app.analysis.condition.places import (
     merge_places,
 )
 from app.analysis.condition.tiers import TierLimits, TierTable
-from app.analysis.robust import nan_median
+from app.analysis.robust import nan_median, robust_spread
 from app.analysis.stiffness.reference_curve import ReferenceCurve
 from app.analysis.units import DAYS_PER_YEAR
 
@@ -355,6 +361,67 @@ def _mean_over_wheels(a: np.ndarray) -> np.ndarray:
         return np.where(n > 0, np.where(ok, a, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
 
 
+#: Pairs of neighbouring segments of a class with an index a run needs for its scatter to count
+#: (:func:`class_scatter`): 20 pairs (200 m) give that scatter to about ±16 %.
+CLASS_SCATTER_MIN_PAIRS = 20
+
+
+def class_scatter(level: np.ndarray, classes: np.ndarray, alert: np.ndarray, seg: np.ndarray, *,
+                  min_pairs: int = CLASS_SCATTER_MIN_PAIRS) -> np.ndarray:
+    """The scatter of each class's index from one 10 m segment to the next in the run, beyond the healthy
+    scatter its limits stand for: a 1-σ every level of that class carries in that run.
+
+    The limits stand for the class's healthy scatter ``σ0 = alert / HEALTHY_ALERT_Z``. The rails' response at
+    the sleeper spacing differs from one 10 m segment to the next (the roughness that makes it is short-wave
+    and each rail's own), while the support varies over longer lengths (a tamped extent, a transition, a soft
+    zone); so the scatter is read from neighbouring segments: ``s`` the robust spread of the differences of
+    neighbouring segments of the class over √2 (a few edges do not move it), and the run carries
+    ``√(s² − σ0²)`` whatever the stated 1-σ of each segment says (:func:`find_places` takes a stated 1-σ as at
+    least this). On issue 33's rough line a class scattered 0.29 in a run while one segment stated 0.14, read
+    +0.6 at every pass and was listed as a place; on smooth rails ``s`` is a pass's noise, below ``σ0``, and
+    this is 0 — also where a long extent of the class departs (the spread across the class's segments, not
+    their differences, read a 200 m tamped extent of a smooth line as a scatter of 0.14).
+
+    Parameters
+    ----------
+    level : numpy.ndarray
+        (S,) the run's index per segment (mean over the wheels; NaN: none).
+    classes : numpy.ndarray
+        (S,) class per segment (None: none).
+    alert : numpy.ndarray
+        (S,) the alert limit of each segment's class.
+    seg : numpy.ndarray
+        (S,) segment numbers, ascending (neighbours: numbers one apart).
+    min_pairs : int
+        Pairs of neighbouring segments with an index a class needs in the run (fewer: NaN for its segments).
+
+    Returns
+    -------
+    numpy.ndarray
+        (S,) the excess scatter, ln units (NaN where not known).
+    """
+    x = np.asarray(level, dtype=np.float64)
+    c = np.asarray(classes, dtype=object)
+    a = np.asarray(alert, dtype=np.float64)
+    sg = np.asarray(seg, dtype=np.int64)
+    if c.shape != x.shape or a.shape != x.shape or sg.shape != x.shape:
+        raise ValueError(f"classes, alert, seg: must have one value per segment ({x.size})")
+    out = np.full(x.shape, np.nan)
+    if x.size < 2:
+        return out
+    pair = (np.diff(sg) == 1) & (c[1:] == c[:-1]) & np.isfinite(x[1:]) & np.isfinite(x[:-1])
+    d = np.diff(x)
+    for name in {v for v in c.tolist() if v is not None}:
+        rows = c == name
+        use = pair & (c[:-1] == name)
+        sigma0 = float(np.nanmedian(a[rows])) / HEALTHY_ALERT_Z
+        if use.sum() < min_pairs or not np.isfinite(sigma0):
+            continue
+        _, spread = robust_spread(d[use][None, :])
+        out[rows] = np.sqrt(max((float(spread[0]) / np.sqrt(2.0)) ** 2 - sigma0**2, 0.0))
+    return out
+
+
 def find_places(
     seg: np.ndarray,
     index: np.ndarray,
@@ -455,9 +522,13 @@ def find_places(
                          f"got shape {np.shape(history_vehicle)}")
 
     level = _mean_over_wheels(x)
-    level_sd_seg = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
     has_class = np.array([c is not None for c in cls.tolist()], dtype=bool)
     alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
+    # where a 1-σ is stated, at least the class's scatter across the run beyond the healthy one (without one,
+    # as before)
+    scatter = class_scatter(level, cls, alert, s)
+    level_sd_seg = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
+    level_sd_seg = np.where(np.isfinite(level_sd_seg), np.fmax(level_sd_seg, scatter), level_sd_seg)
     level_tier = np.zeros(s.size, np.int64)
     if has_class.any():
         # graded in units of the healthy scatter at its pass (:func:`graded_level`): a level within what the
@@ -471,16 +542,18 @@ def find_places(
     wtz = np.full(x.shape, np.nan)
     wrate = np.full(x.shape, np.nan)
     wsd = np.full(x.shape, np.nan)
+    series = series_labels(x)
     if h.shape[2] >= params.min_history:
         cp = params.change_params()
+        n_series = int(np.unique(series).size)
         for w in range(n_w):
             ch = detect_changes(h[w], v_hist[w], days, x[w], v_run[w], float(now_day), s, segment_m=segment_m,
                                 params=cp, trend=True, sd_value=xsd[w], sd_history=hsd[w], surface_days=surface_days,
-                                stated_wheels=n_w, history_vehicle=history_vehicle, vehicle=vehicle)
+                                stated_wheels=n_series, history_vehicle=history_vehicle, vehicle=vehicle)
             wz[w], wchange[w], wtz[w], wrate[w] = ch.change_z, ch.change, ch.trend_z, ch.trend_rate
             wsd[w] = ch.change_sd
-    cz, agree = combine_wheels(wz, params.agree_z)
-    tz, t_agree = combine_wheels(wtz, params.agree_z)
+    cz, agree = combine_wheels(wz, params.agree_z, series)
+    tz, t_agree = combine_wheels(wtz, params.agree_z, series)
     rate = _mean_over_wheels(wrate)
     trend = (np.abs(np.nan_to_num(tz)) >= params.trend_z) & (np.abs(np.nan_to_num(rate)) >= params.min_rate_per_year) \
         & (np.sign(np.nan_to_num(tz)) == np.sign(np.nan_to_num(rate)))
@@ -497,6 +570,7 @@ def find_places(
     if has_class.any():
         # the history's level graded the same way (with the median stated 1-σ of the history's values)
         before_sd = nan_median(np.where(np.isfinite(h), hsd, np.nan).transpose(1, 0, 2).reshape(s.size, -1), axis=1)
+        before_sd = np.where(np.isfinite(before_sd), np.fmax(before_sd, scatter), before_sd)
         before_lo = graded_level(np.nan_to_num(before), before_sd, alert)
         before_tier[has_class] = params.levels.grade(before_lo[has_class], cls[has_class])
     back = (before_tier >= 1) & (np.sign(np.nan_to_num(change)) == -np.sign(np.nan_to_num(before))) \
@@ -551,9 +625,12 @@ def find_places(
     level_sd = level_sd_seg
     # the denominators carry the stated part once per wheel (shared by the wheels): the mean change's 1-σ,
     # answered (and used for the tier) where a 1-σ is stated — without one, as before
+    # (the wheels of one series — an axle's two under the two-rail estimate — are one witness)
+    witnesses = np.zeros(s.size, np.int64)
+    for g in np.unique(series):
+        witnesses += np.isfinite(wchange[series == g]).any(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        change_sd = _mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan)) \
-            / np.sqrt(np.maximum(np.isfinite(wchange).sum(axis=0), 1))
+        change_sd = _mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan)) / np.sqrt(np.maximum(witnesses, 1))
     change_sd = np.where(np.isfinite(level_sd), change_sd, np.nan)
     # the tier rests on the size's lower 1-sigma bound (a found place keeps at least the alert tier)
     lo_level = graded_level(np.nan_to_num(level[peak]), level_sd[peak], alert[peak])
