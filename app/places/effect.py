@@ -48,6 +48,7 @@ from app.core.errors import ApiError, not_found
 from app.core.i18n import _
 from app.db import reference_crud
 from app.db.models import ConditionLine, ConditionRun, MaintenanceAction
+from app.db.places import run_vehicles
 from app.db.session import Database
 from app.places.config import PlacesConfig
 from app.places.index import segment_classes
@@ -66,32 +67,36 @@ _SEG_M = int(FINE_SEGMENT_M)
 
 
 def _readings(db: Database, line: ConditionLine, a: MaintenanceAction,
-              config: PlacesConfig) -> tuple[list[ConditionRun], dict[int, ExtentReading]]:
-    """The line's runs reading the action's extent against its surroundings (oldest first) and their readings."""
+              config: PlacesConfig) -> tuple[list[ConditionRun], dict[int, ExtentReading], dict[int, str | None]]:
+    """The line's runs reading the action's extent against its surroundings (oldest first), their readings and
+    their vehicles."""
     with db.read() as session:
         runs = line_runs(session, line.id)
         got = extent_readings(session, [r.run_id for r in runs], a.km_from * 1000.0, a.km_to * 1000.0,
                               around_m=config.effect_around_m, margin_m=config.effect_margin_m, seg_m=_SEG_M,
                               speed_tolerance=DEFAULT_SPEED_TOLERANCE,
                               classes=lambda seg: segment_classes(session, line, seg, config.section_margin_m))
-    runs = [r for r in runs if r.run_id in got and math.isfinite(got[r.run_id].level)]
-    return runs, got
+        runs = [r for r in runs if r.run_id in got and math.isfinite(got[r.run_id].level)]
+        vehicles = run_vehicles(session, [r.run_id for r in runs])
+    return runs, got, vehicles
 
 
 def _action_day(a: MaintenanceAction) -> float:
     return days_of(dt.datetime.combine(a.date, dt.time(12, 0), tzinfo=dt.UTC))
 
 
-def _effect(a: MaintenanceAction, runs: list[ConditionRun], got: dict[int, ExtentReading], *, before_days: float,
-            after_days: float, regain: float) -> tuple[ActionEffect, SplitEffect]:
+def _effect(a: MaintenanceAction, runs: list[ConditionRun], got: dict[int, ExtentReading],
+            vehicle_of: dict[int, str | None], *, before_days: float, after_days: float,
+            regain: float) -> tuple[ActionEffect, SplitEffect]:
     days = np.array([days_of(r.run_time) for r in runs])
     values = np.array([got[r.run_id].level for r in runs])
     speeds = np.array([got[r.run_id].speed for r in runs])
+    vehicles = np.array([vehicle_of.get(r.run_id) for r in runs], dtype=object)
     day = _action_day(a)
     e = action_effect(days, values, day, before_days=before_days, after_days=after_days, regain_fraction=regain,
-                      speeds=speeds, speed_tolerance=DEFAULT_SPEED_TOLERANCE)
+                      speeds=speeds, speed_tolerance=DEFAULT_SPEED_TOLERANCE, vehicles=vehicles)
     return e, split_effect(str(a.type), days, values, speeds, day, e, after_days=after_days,
-                           speed_tolerance=DEFAULT_SPEED_TOLERANCE)
+                           speed_tolerance=DEFAULT_SPEED_TOLERANCE, vehicles=vehicles)
 
 
 def _pct(x: float | None) -> float | None:
@@ -130,8 +135,9 @@ def action_effects(db: Database, line_id: str, track: str | None, *, types: list
         rows = [session.get(MaintenanceAction, int(i)) for i in actions["id"]]
     items = []
     for a in sorted(rows, key=lambda r: (r.date, r.km_from)):
-        runs, got = _readings(db, line, a, config)
-        effect = _effect(a, runs, got, before_days=before_days, after_days=after_days, regain=regain_fraction)
+        runs, got, vehicles = _readings(db, line, a, config)
+        effect = _effect(a, runs, got, vehicles, before_days=before_days, after_days=after_days,
+                         regain=regain_fraction)
         items.append(_out(a, line, effect, len(runs)))
     return {"regain_fraction": regain_fraction, "items": items}
 
@@ -162,11 +168,11 @@ def action_effect_detail(db: Database, action_id: int, *, before_days: float, af
     if a is None:
         raise not_found("action", action_id)
     line = resolve_line(db, a.line_id, a.track)
-    runs, got = _readings(db, line, a, config)
+    runs, got, vehicles = _readings(db, line, a, config)
     if not runs:
         raise ApiError(409, "action_id", _("no run of line {line} covers action {action_id}", line=repr(line.line_id),
                                                     action_id=action_id))
-    effect = _effect(a, runs, got, before_days=before_days, after_days=after_days, regain=regain_fraction)
+    effect = _effect(a, runs, got, vehicles, before_days=before_days, after_days=after_days, regain=regain_fraction)
     day = _action_day(a)
     days = [days_of(r.run_time) for r in runs]
     before = [r.run_id for r, d in zip(runs, days, strict=True) if day - before_days <= d < day]

@@ -251,6 +251,42 @@ def test_action_effect_at_matched_speed_whatever_the_speed_mix_and_split_by_acti
     assert held.lasted_days_observed is None
 
 
+def test_maintenance_effect_compares_a_run_with_its_own_vehicles_passes():
+    """On rough rails the rails' response differs by vehicle as by speed: two vehicles reading the same extent
+    0.12 apart, alternating so that the grinding's first window holds one run of each and the later runs mostly
+    the first vehicle. Across the vehicles the support's change reads the vehicle mix; compared with each
+    vehicle's own passes it is the truth (0), and a run whose vehicle has no pass before falls back to all."""
+    from app.analysis.condition.maintenance_effect import (
+        action_effect,
+        matched_change,
+        split_effect,
+    )
+
+    days = np.arange(0.0, 300.0, 15.0) + 2.0
+    veh = np.array(["V2" if k % 3 == 1 else "V1" for k in range(days.size)], dtype=object)
+    speeds = np.full(days.size, 40.0)
+    ground = np.where(days > 100, -0.3, 0.0)
+    values = ground + np.where(veh == "V2", 0.12, 0.0)
+    first = (days > 100) & (days <= 130)
+    assert sorted(veh[first].tolist()) == ["V1", "V2"]
+    e = action_effect(days, values, 100.0, speeds=speeds, vehicles=veh)
+    assert e.recovery == pytest.approx(-0.3, abs=1e-9)
+    mixed = split_effect("grinding", days, values, speeds, 100.0, action_effect(days, values, 100.0, speeds=speeds))
+    own = split_effect("grinding", days, values, speeds, 100.0, e, vehicles=veh)
+    assert abs(mixed.support_change) > 0.05
+    assert own.support_change == pytest.approx(0.0, abs=1e-9) and own.rail_surface_change == pytest.approx(-0.3)
+    # a vehicle without a pass before: against every pass at its speed
+    got = matched_change(np.array([0.0, 0.2]), np.array([40.0, 40.0]), np.array([0.5]), np.array([40.0]),
+                         before_vehicle=np.array(["V1", "V2"], dtype=object),
+                         after_vehicle=np.array(["V3"], dtype=object))
+    assert got == pytest.approx(0.4)
+    assert matched_change(np.array([0.0, 0.2]), np.array([40.0, 40.0]), np.array([0.5]), np.array([40.0]),
+                          before_vehicle=np.array(["V1", "V2"], dtype=object),
+                          after_vehicle=np.array(["V2"], dtype=object)) == pytest.approx(0.3)
+    with pytest.raises(ValueError, match="vehicles"):
+        action_effect(days, values, 100.0, speeds=speeds, vehicles=veh[:3])
+
+
 def test_store_index_sd_is_segment_sd_over_the_mean_amplitude():
     """The store's stated 1-σ of a segment's ln A: segment_sd of the valid bins' sd (and shared part) on the
     aligned axis over their mean amplitude (delta method); NaN where no bin states one."""

@@ -24,14 +24,16 @@ A recovery is reported only with runs on both sides (``min_runs`` each).
 index depends on the speed it was passed at, and a median over a window mixes the speed groups in the
 proportions the window happens to hold, so the recovery reads the speed mix as well (measured on the
 real-line bench: a tamping of −20 % read −10.6 %). Each run after the action is then compared with the
-runs before it passed at its own speed (the matched-speed rule, :mod:`app.analysis.speed_match`): the
-extent's own baseline at that speed; the recovery is the median of those differences
+runs before it passed at its own speed (the matched-speed rule, :mod:`app.analysis.speed_match`) — by its
+own vehicle where those hold any (``vehicles`` given: on rough rails the rails' response differs by vehicle
+as it does by speed; the real line's grinding read +8.3 % on the support with the vehicles mixed, +2.4 %
+matched) —: the extent's own baseline at that pass; the recovery is the median of those differences
 (:func:`matched_change`).
 
 **Interval**: ``recovery_low`` / ``recovery_high`` = recovery ∓ 1 σ (≈ 68 %), σ of the median
 difference from the runs' own scatter about their baselines, pooled over both sides (``s`` = 1.4826 ·
 MAD of the before-runs about their matched-speed baseline and of the after-runs' differences about
-their median; a window of two runs states no scatter of its own) and the median's √(π/2) efficiency:
+their median; a window of two runs, a baseline of one run, states no scatter of its own) and the median's √(π/2) efficiency:
 ``σ² = (π/2) · s² · (1 / n_after + 1 / n_before)``, ``n_before`` the before-runs at an after-run's speed
 (median over the after-runs).
 
@@ -123,6 +125,7 @@ def action_effect(
     min_runs: int = 2,
     speeds: np.ndarray | None = None,
     speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
+    vehicles: np.ndarray | None = None,
 ) -> ActionEffect:
     """Effect of an action on day ``action_day`` (see the module docstring).
 
@@ -144,6 +147,9 @@ def action_effect(
         Speed of each run over the extent, m/s: the recovery at matched speed (:func:`matched_change`).
     speed_tolerance : float
         Of the matched-speed rule (> 0).
+    vehicles : numpy.ndarray, optional
+        Vehicle of each run (None: not stated): an after-run is compared with the before-runs of its own
+        vehicle at its speed, where there are any (:func:`matched_change`).
 
     Returns
     -------
@@ -151,6 +157,7 @@ def action_effect(
     """
     t, y = paired_1d(days, values, "days, values")
     vel = paired_1d(days, speeds, "days, speeds")[1] if speeds is not None else np.ones_like(t)
+    veh = _vehicles(vehicles, t.size)
     for name, v in (("before_days", before_days), ("after_days", after_days), ("follow_days", follow_days)):
         if not v > 0:
             raise ValueError(f"{name}: must be > 0, got {v!r}")
@@ -160,7 +167,7 @@ def action_effect(
         raise ValueError("rolling, min_runs: must be >= 1")
     ok = np.isfinite(t) & np.isfinite(y)
     order = np.argsort(t[ok], kind="stable")
-    t, y, vel = t[ok][order], y[ok][order], vel[ok][order]
+    t, y, vel, veh = t[ok][order], y[ok][order], vel[ok][order], veh[ok][order]
     followed = float(t[-1] - action_day) if t.size and t[-1] > action_day else None
     before = (t >= action_day - before_days) & (t < action_day)
     after = (t > action_day) & (t <= action_day + after_days)
@@ -170,7 +177,7 @@ def action_effect(
         return ActionEffect(n_b, n_a, _f(np.median(y[before])) if n_b else None,
                             _f(np.median(y[after])) if n_a else None, None, None, None, None, None, followed)
     ib, ia = float(np.median(y[before])), float(np.median(y[after]))
-    matched = _matched(y[before], vel[before], y[after], vel[after], speed_tolerance)
+    matched = _matched(y[before], vel[before], y[after], vel[after], speed_tolerance, veh[before], veh[after])
     if matched is None:
         return ActionEffect(n_b, n_a, ib, ia, None, None, None, None, None, followed)
     recovery, sigma = matched
@@ -198,24 +205,49 @@ def _f(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
 
 
-def _matched(yb: np.ndarray, vb: np.ndarray, ya: np.ndarray, va: np.ndarray,
-             tolerance: float) -> tuple[float, float] | None:
-    """(change, its 1 σ) of the after-values against the before-values at matched speed (None: no pair)."""
+def _vehicles(vehicles: np.ndarray | None, n: int) -> np.ndarray:
+    """The runs' vehicle labels as an object array (all None where not given)."""
+    if vehicles is None:
+        return np.full(n, None, dtype=object)
+    g = np.asarray(vehicles, dtype=object)
+    if g.shape != (n,):
+        raise ValueError(f"vehicles: must have one label per run ({n}), got shape {g.shape}")
+    return g
+
+
+def _baseline(vb: np.ndarray, gb: np.ndarray, v: float, g: object, tolerance: float) -> np.ndarray:
+    """The before-runs a run of speed ``v`` and vehicle ``g`` is compared with: those at its speed, of its own
+    vehicle where there are any (the flags' and the places' matched passes, :mod:`app.analysis.speed_match`)."""
+    m = speeds_matched(vb, v, tolerance)
+    if g is not None:
+        own = m & (gb == g)
+        if own.any():
+            return own
+    return m
+
+
+def _matched(yb: np.ndarray, vb: np.ndarray, ya: np.ndarray, va: np.ndarray, tolerance: float,
+             gb: np.ndarray | None = None, ga: np.ndarray | None = None) -> tuple[float, float] | None:
+    """(change, its 1 σ) of the after-values against the before-values at matched speed, of the same vehicle
+    where the before-values hold some (None: no pair)."""
+    gb = _vehicles(gb, yb.size)
+    ga = _vehicles(ga, ya.size)
     okb = np.isfinite(yb) & np.isfinite(vb)
-    yb, vb = yb[okb], vb[okb]
+    yb, vb, gb = yb[okb], vb[okb], gb[okb]
     diffs, resid_b, n_base = [], [], []
-    for y, v in zip(ya.tolist(), va.tolist(), strict=True):
+    for y, v, g in zip(ya.tolist(), va.tolist(), ga.tolist(), strict=True):
         if not (np.isfinite(y) and np.isfinite(v)):
             continue
-        m = speeds_matched(vb, v, tolerance)
+        m = _baseline(vb, gb, v, g, tolerance)
         if m.any():
             diffs.append(y - float(np.median(yb[m])))
             n_base.append(int(m.sum()))
     if not diffs:
         return None
-    for v in vb.tolist():  # each before-value about its own baseline at its speed
-        m = speeds_matched(vb, v, tolerance)
-        resid_b.append(yb[m] - np.median(yb[m]))
+    for v, g in zip(vb.tolist(), gb.tolist(), strict=True):  # each before-value about its own baseline
+        m = _baseline(vb, gb, v, g, tolerance)
+        if m.sum() >= 2:  # a baseline of one run is that run: no scatter of its own
+            resid_b.append(yb[m] - np.median(yb[m]))
     d = np.asarray(diffs)
     change = float(np.median(d))
     rb = np.concatenate(resid_b) if resid_b else np.zeros(0)
@@ -227,9 +259,11 @@ def _matched(yb: np.ndarray, vb: np.ndarray, ya: np.ndarray, va: np.ndarray,
 
 
 def matched_change(before: np.ndarray, before_speed: np.ndarray, after: np.ndarray, after_speed: np.ndarray, *,
-                   tolerance: float = DEFAULT_SPEED_TOLERANCE) -> float | None:
-    """The change from ``before`` to ``after`` at matched speed: the median over the after-values of each one
-    less the median of the before-values passed at its speed (its baseline at that speed).
+                   tolerance: float = DEFAULT_SPEED_TOLERANCE, before_vehicle: np.ndarray | None = None,
+                   after_vehicle: np.ndarray | None = None) -> float | None:
+    """The change from ``before`` to ``after`` at matched passes: the median over the after-values of each one
+    less the median of the before-values passed at its speed (its baseline at that speed) — by its own vehicle
+    where the before-values hold any (on rough rails the rails' response differs by vehicle as by speed).
 
     Parameters
     ----------
@@ -237,6 +271,8 @@ def matched_change(before: np.ndarray, before_speed: np.ndarray, after: np.ndarr
         Values (ln units) and speeds (m/s) of the runs on either side.
     tolerance : float
         Of the matched-speed rule (:func:`~app.analysis.speed_match.speeds_matched`).
+    before_vehicle, after_vehicle : numpy.ndarray, optional
+        Vehicle of each run on either side (None: not stated).
 
     Returns
     -------
@@ -245,7 +281,8 @@ def matched_change(before: np.ndarray, before_speed: np.ndarray, after: np.ndarr
     """
     yb, vb = paired_1d(before, before_speed, "before, before_speed")
     ya, va = paired_1d(after, after_speed, "after, after_speed")
-    got = _matched(yb, vb, ya, va, tolerance)
+    got = _matched(yb, vb, ya, va, tolerance, _vehicles(before_vehicle, np.asarray(before).size),
+                   _vehicles(after_vehicle, np.asarray(after).size))
     return None if got is None else got[0]
 
 
@@ -286,17 +323,19 @@ class SplitEffect:
 
 def split_effect(kind: str, days: np.ndarray, values: np.ndarray, speeds: np.ndarray, action_day: float,
                  effect: ActionEffect, *, after_days: float = 30.0, follow_days: float = 365.0,
-                 speed_tolerance: float = DEFAULT_SPEED_TOLERANCE, min_runs: int = 2) -> SplitEffect:
+                 speed_tolerance: float = DEFAULT_SPEED_TOLERANCE, min_runs: int = 2,
+                 vehicles: np.ndarray | None = None) -> SplitEffect:
     """The effect on the support and on the rail surface's response of an action of type ``kind`` (module
-    docstring, "By action type"), from the runs of :func:`action_effect` (``days``, ``values``, ``speeds``:
-    its arguments) and its ``effect``."""
+    docstring, "By action type"), from the runs of :func:`action_effect` (``days``, ``values``, ``speeds``,
+    ``vehicles``: its arguments) and its ``effect``."""
     if kind not in RAIL_SURFACE_ACTIONS:
         return SplitEffect(effect.recovery, None, False, effect.recovery_sigma)
     t, y = paired_1d(days, values, "days, values")
     v = paired_1d(days, speeds, "days, speeds")[1]
+    g = _vehicles(vehicles, t.size)
     first = (t > action_day) & (t <= action_day + after_days)
     later = (t > action_day + after_days) & (t <= action_day + follow_days)
     got = None
     if first.sum() >= min_runs and later.sum() >= min_runs:
-        got = _matched(y[first], v[first], y[later], v[later], speed_tolerance)
+        got = _matched(y[first], v[first], y[later], v[later], speed_tolerance, g[first], g[later])
     return SplitEffect(None if got is None else got[0], effect.recovery, True, None if got is None else got[1])
