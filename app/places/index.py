@@ -25,7 +25,7 @@ from sqlalchemy.orm import Session
 
 from app.analysis.condition.change import ChangeParams
 from app.analysis.condition.lifecycle import PassHistory
-from app.analysis.condition.run_places import segment_index
+from app.analysis.condition.run_places import mean_over_wheels, segment_index
 from app.analysis.condition.segment_curves import fit_segment_curves
 from app.analysis.stiffness.superstructure import section_classes
 from app.condition.writer import days_of
@@ -35,7 +35,7 @@ from app.db.models import ConditionLine, ConditionRun
 from app.pipeline.assemble import ENGINE_VERSION
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
-__all__ = ["SEGMENT_M", "RunIndex", "method_version", "mean_over_wheels", "run_index", "run_segment_index",
+__all__ = ["SEGMENT_M", "RunIndex", "method_version", "run_index", "run_segment_index",
            "segment_classes"]
 
 #: The store's segment length the places are found on, m.
@@ -146,13 +146,6 @@ class RunIndex:
         :func:`~app.analysis.condition.change.matched_passes`, the step test's rule), mean over the wheels."""
         return PassHistory.of(self.history, self.history_speed, self.speed, self.history_days, params,
                               history_vehicle=self.history_vehicle, vehicle=self.vehicle)
-
-
-def mean_over_wheels(a: np.ndarray) -> np.ndarray:
-    """Mean over axis 0 (the wheels) of the finite values (NaN where there is none)."""
-    ok = np.isfinite(a)
-    n = ok.sum(axis=0)
-    return np.where(n > 0, np.where(ok, a, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
 
 
 def _vehicle_curves(values: np.ndarray, fit: np.ndarray, wheel_of: np.ndarray, row_cls: np.ndarray,

@@ -25,6 +25,7 @@ from app.analysis.condition.lifecycle import (
     place_outlook,
 )
 from app.analysis.condition.outlook import Trend
+from app.analysis.condition.places import EVIDENCE_TREND
 from app.db.models import (
     ConditionLine,
     Place,
@@ -117,6 +118,11 @@ def write_run(session: Session, line: ConditionLine, run_id: int, when: dt.datet
         same = replace(st, observations=[o for o in st.observations if o.run_id in mine])
         look = place_outlook(same if same.observations else st, config.levels, trend=(trends or {}).get(st.id))
         last = st.observations[-1]
+        # a developing place's outlook is its segment's trend, fitted by the run that last found it by its trend
+        # (update.developing_trends); a later run that does not read the place keeps it (its few observations
+        # alone have too few runs for a rate: the real line's developing place lost its date that way)
+        keep_outlook = (not fresh and not new_obs and st.id not in (trends or {}) and bool(last.evidence & EVIDENCE_TREND)
+                        and row.rate_per_year is not None and row.tier == st.tier)
         # the peak and level of the latest observation (a held place keeps its extent, its peak moves)
         row.direction, row.start_m, row.end_m, row.peak_m = st.direction, st.start_m, st.end_m, last.peak_m
         row.centre_m, row.cls, row.baseline, row.explained_by = last.centre_m, st.cls, _finite(st.baseline), \
@@ -130,13 +136,14 @@ def write_run(session: Session, line: ConditionLine, run_id: int, when: dt.datet
         if new_obs:
             row.wheel_labels = _wheel_labels(last.wheels, wheels)
         row.runs_confirming = st.confirmations
-        row.tendency = look.tendency
-        row.rate_per_year = _finite(look.trend.rate_per_year) if look.trend.significant or look.trend.n >= 3 \
-            else None
-        row.rate_low = _finite(look.trend.low_per_year) if row.rate_per_year is not None else None
-        row.rate_high = _finite(look.trend.high_per_year) if row.rate_per_year is not None else None
-        row.next_limit = _finite(look.next_limit)
-        row.days_to_next = _finite(look.projection.days)
+        if not keep_outlook:
+            row.tendency = look.tendency
+            row.rate_per_year = _finite(look.trend.rate_per_year) if look.trend.significant or look.trend.n >= 3 \
+                else None
+            row.rate_low = _finite(look.trend.low_per_year) if row.rate_per_year is not None else None
+            row.rate_high = _finite(look.trend.high_per_year) if row.rate_per_year is not None else None
+            row.next_limit = _finite(look.next_limit)
+            row.days_to_next = _finite(look.projection.days)
         row.last_run_id, row.last_confirmed = last.run_id, (when if last.run_id == run_id else row.last_confirmed)
         row.updated_at = now
         for o in new_obs:

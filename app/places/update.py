@@ -51,14 +51,14 @@ from app.analysis.condition.lifecycle import (
 )
 from app.analysis.condition.outlook import Trend
 from app.analysis.condition.places import EVIDENCE_TREND
-from app.analysis.condition.run_places import find_places
+from app.analysis.condition.run_places import find_places, mean_over_wheels
 from app.analysis.units import KMH_PER_MPS
 from app.condition.writer import days_of, rail_surface_interventions
 from app.db import places as q
 from app.db import reference_crud
 from app.db.models import ConditionLine, Job, PlaceEventRow, PlaceRun
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
-from app.places.index import SEGMENT_M, RunIndex, mean_over_wheels, method_version, run_index
+from app.places.index import SEGMENT_M, RunIndex, method_version, run_index
 from app.places.store import place_state, write_run
 
 __all__ = ["PlacesUpdate", "PreparedRun", "update_places", "apply_run", "prepare_run", "apply_prepared",

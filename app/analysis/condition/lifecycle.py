@@ -77,8 +77,8 @@ from app.analysis.condition.places import EVIDENCE_STEP
 from app.analysis.condition.run_places import (
     PlaceParams,
     RunPlaces,
-    _mean_over_wheels,
     graded_level,
+    mean_over_wheels,
 )
 from app.analysis.condition.tiers import TIER_INTERVENTION, TierTable
 
@@ -303,7 +303,7 @@ class PassHistory:
             for w in range(h.shape[0]):
                 out[w] = matched_passes(h[w], hv[w], v[w], params, history_vehicle=history_vehicle,
                                         vehicle=vehicle).history
-        return cls(_mean_over_wheels(out), np.asarray(days, dtype=np.float64))
+        return cls(mean_over_wheels(out), np.asarray(days, dtype=np.float64))
 
     def baseline(self, k: int, first_seen_day: float) -> float | None:
         """A place's baseline at segment ``k`` for the run's pass: the median of its matched passes before the

@@ -102,6 +102,7 @@ __all__ = [
     "RunPlaces",
     "segment_index",
     "find_places",
+    "mean_over_wheels",
 ]
 
 #: Limits of ``|index|`` per superstructure class (ln units), measured (``bench/bench_places.py``: three
@@ -354,7 +355,8 @@ def segment_index(log_amp: np.ndarray, speed_mps: np.ndarray, classes: np.ndarra
     return out
 
 
-def _mean_over_wheels(a: np.ndarray) -> np.ndarray:
+def mean_over_wheels(a: np.ndarray) -> np.ndarray:
+    """Mean over axis 0 (the wheels) of the finite values (NaN where there is none)."""
     ok = np.isfinite(a)
     n = ok.sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -521,13 +523,13 @@ def find_places(
         raise ValueError(f"history_vehicle: must have one label per history run ({h.shape[2]}), "
                          f"got shape {np.shape(history_vehicle)}")
 
-    level = _mean_over_wheels(x)
+    level = mean_over_wheels(x)
     has_class = np.array([c is not None for c in cls.tolist()], dtype=bool)
     alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
     # where a 1-σ is stated, at least the class's scatter across the run beyond the healthy one (without one,
     # as before)
     scatter = class_scatter(level, cls, alert, s)
-    level_sd_seg = _mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
+    level_sd_seg = mean_over_wheels(np.where(np.isfinite(x), xsd, np.nan))
     level_sd_seg = np.where(np.isfinite(level_sd_seg), np.fmax(level_sd_seg, scatter), level_sd_seg)
     level_tier = np.zeros(s.size, np.int64)
     if has_class.any():
@@ -554,10 +556,10 @@ def find_places(
             wsd[w] = ch.change_sd
     cz, agree = combine_wheels(wz, params.agree_z, series)
     tz, t_agree = combine_wheels(wtz, params.agree_z, series)
-    rate = _mean_over_wheels(wrate)
+    rate = mean_over_wheels(wrate)
     trend = (np.abs(np.nan_to_num(tz)) >= params.trend_z) & (np.abs(np.nan_to_num(rate)) >= params.min_rate_per_year) \
         & (np.sign(np.nan_to_num(tz)) == np.sign(np.nan_to_num(rate)))
-    change = _mean_over_wheels(wchange)
+    change = mean_over_wheels(wchange)
     change_tier = params.changes.grade(np.abs(change))
     step = (np.abs(np.nan_to_num(cz)) >= params.step_z) & (change_tier >= 1) & (np.sign(np.nan_to_num(cz))
                                                                                == np.sign(np.nan_to_num(change)))
@@ -630,7 +632,7 @@ def find_places(
     for g in np.unique(series):
         witnesses += np.isfinite(wchange[series == g]).any(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        change_sd = _mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan)) / np.sqrt(np.maximum(witnesses, 1))
+        change_sd = mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan)) / np.sqrt(np.maximum(witnesses, 1))
     change_sd = np.where(np.isfinite(level_sd), change_sd, np.nan)
     # the tier rests on the size's lower 1-sigma bound (a found place keeps at least the alert tier)
     lo_level = graded_level(np.nan_to_num(level[peak]), level_sd[peak], alert[peak])
