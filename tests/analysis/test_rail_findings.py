@@ -28,9 +28,10 @@ def test_findings_keep_their_identity_and_count_the_runs_that_saw_them():
     assert weld.runs_seen == 4 and weld.runs_passed == 4 and weld.kind == "weld"
     assert [s.run_id for s in weld.sightings] == [1, 2, 3, 4]
     assert second.runs_seen == 1  # one sighting per run: the second impact of run 3 near 100 m is another finding
+    assert second.runs_passed == 4  # every run passed it, also the two before run 3 saw it
     assert joint.runs_seen == 2 and joint.runs_passed == 4 and joint.kind == "insulated_joint"
     assert joint.asset["name"] == "IJ 7"
-    assert late.runs_seen == 2 and late.runs_passed == 2 and late.kind == "weld"
+    assert late.runs_seen == 2 and late.runs_passed == 3 and late.kind == "weld"  # run 1 passed it unseen
     tr = weld.depth_trend()
     assert tr.rate_per_year == pytest.approx(0.02 / 14.0 * 365.25, rel=1e-6) and tr.significant
     assert weld.depth_mm == pytest.approx(0.36) and weld.track_m == pytest.approx(100.1)
@@ -57,7 +58,12 @@ def test_a_run_off_by_metres_is_registered_on_the_known_findings():
     found = follow_findings([first, off])
     assert [f.runs_seen for f in found] == [2, 2, 2, 2, 2, 2, 1, 1]
     assert found[0].sightings[1].track_m == pytest.approx(103.9) and found[-1].anchor_m == pytest.approx(827.1)
-    assert found[-1].runs_passed == 1 and found[-2].runs_passed == 2  # the covered stretch moved along
+    # both runs covered both: the first passed where the second found a new one, the second where it saw none
+    assert found[-1].runs_passed == 2 and found[-2].runs_passed == 2
+    # a run that saw it passed it, also where its covered stretch ends short of the anchor
+    edge = follow_findings([_run(1, 0.0, [(999.5, 0.3, 1.0)], covered=(0.0, 999.0)),
+                            _run(2, 15.0, [(999.6, 0.3, 1.0)], covered=(0.0, 999.9))])
+    assert edge[0].runs_seen == 2 and edge[0].runs_passed == 2
     assert run_offset(np.array(welds[:4]) - 2.9, np.array(welds)) == pytest.approx(2.9)
     assert run_offset(np.array([150.0, 333.0, 520.0]), np.array(welds)) == 0.0  # no offset most agree on
     assert len(follow_findings([first, off], register_m=0.0)) == 14  # not registered: each of its 7 a new one

@@ -194,9 +194,11 @@ def follow_findings(runs: Sequence[RunImpacts], *, assets: Sequence[Mapping[str,
         raise ValueError("match_m: must be > 0, asset_m and register_m: >= 0")
     found: list[RailFinding] = []
     anchors = np.zeros(0)
+    coverage: list[tuple[int, float, float]] = []
     for run in sorted(runs, key=lambda r: (float(r.day), int(r.run_id))):
         off = run_offset(np.array([float(i[0]) for i in run.impacts]), anchors, register_m=register_m)
         lo, hi = sorted(float(v) + off for v in run.covered_m)
+        coverage.append((int(run.run_id), lo, hi))
         taken: set[int] = set()
         for x, depth, length in sorted(run.impacts, key=lambda i: float(i[0])):
             x = float(x) + off
@@ -215,10 +217,12 @@ def follow_findings(runs: Sequence[RunImpacts], *, assets: Sequence[Mapping[str,
                 j = len(found) - 1
             taken.add(j)
             found[j].sightings.append(Sighting(int(run.run_id), float(run.day), x, float(depth), float(length)))
-        for f in found:
-            if lo <= f.anchor_m <= hi:
-                f.passed.append(int(run.run_id))
     for f in found:
+        # every run that covered its position, also those before the first that saw it: a finding one run of 24
+        # saw was "seen 1 of 1" when counted from its first sighting on
+        # (a run that saw it passed it, also where its covered stretch ends just short of the anchor)
+        seen = {s.run_id for s in f.sightings}
+        f.passed = [rid for rid, lo, hi in coverage if lo <= f.anchor_m <= hi or rid in seen]
         pos = f.track_m
         near = [a for a in assets if abs(float(a["track_m"]) - pos) <= asset_m]  # type: ignore[arg-type]
         best = min(near, key=lambda a: abs(float(a["track_m"]) - pos)) if near else None  # type: ignore[arg-type]
