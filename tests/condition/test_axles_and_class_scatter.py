@@ -72,6 +72,15 @@ def test_a_runs_axle_scores_combine_as_two_witnesses():
     np.testing.assert_allclose(rp.seg_change_z, (z[0] + z[1]) / np.sqrt(2.0), rtol=1e-9, equal_nan=True)
     k = int(np.searchsorted(SEG, 1100))
     assert rp.seg_change_z[k] < -4.5  # the planted step is found
+    # one wheel measured (the others without an index): one witness, its stated error its own
+    one = np.full(x.shape, np.nan)
+    one[0] = x[0]
+    rp1 = find_places(SEG, one[:, :, n], one[:, :, :n], days[:n], days[n], CLS, segment_m=10.0, params=PARAMS,
+                      index_sd=sd[:, :, n], history_sd=sd[:, :, :n])
+    z1 = detect_changes(x[0, :, :n], np.ones((SEG.size, n)), days[:n], x[0, :, n], np.ones(SEG.size), days[n], SEG,
+                        segment_m=10.0, params=PARAMS.change_params(), trend=True, sd_value=sd[0, :, n],
+                        sd_history=sd[0, :, :n], stated_wheels=1).change_z
+    np.testing.assert_allclose(rp1.seg_change_z, z1, rtol=1e-9, equal_nan=True)
 
 
 def test_class_scatter_is_the_runs_scatter_from_segment_to_segment_beyond_the_healthy_one():

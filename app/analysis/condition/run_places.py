@@ -547,7 +547,8 @@ def find_places(
     series = series_labels(x)
     if h.shape[2] >= params.min_history:
         cp = params.change_params()
-        n_series = int(np.unique(series).size)
+        # the series with an index in this run (a wheel without any is no witness)
+        n_series = max(int(np.unique(series[np.isfinite(x).any(axis=1)]).size), 1)
         for w in range(n_w):
             ch = detect_changes(h[w], v_hist[w], days, x[w], v_run[w], float(now_day), s, segment_m=segment_m,
                                 params=cp, trend=True, sd_value=xsd[w], sd_history=hsd[w], surface_days=surface_days,
