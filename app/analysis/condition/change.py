@@ -146,6 +146,7 @@ __all__ = [
     "detect_changes",
     "combine_wheels",
     "series_labels",
+    "series_counts",
 ]
 
 
@@ -888,6 +889,32 @@ def series_labels(index: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
     return labels
 
 
+def series_counts(ok: np.ndarray, series: np.ndarray | None = None) -> np.ndarray:
+    """How many wheels of each series (:func:`series_labels`) have a value, per segment.
+
+    Parameters
+    ----------
+    ok : numpy.ndarray
+        (wheels, segments) bool: the wheel has a value there.
+    series : numpy.ndarray, optional
+        (wheels,) label of each wheel's series (default: every wheel its own).
+
+    Returns
+    -------
+    numpy.ndarray
+        (series, segments) int64 counts, series in the order of their sorted labels.
+    """
+    okk = np.asarray(ok, dtype=bool)
+    lab = np.arange(okk.shape[0]) if series is None else np.asarray(series)
+    if lab.shape != (okk.shape[0],):
+        raise ValueError(f"series: must have one label per wheel ({okk.shape[0]}), got shape {lab.shape}")
+    groups = np.unique(lab)
+    out = np.zeros((groups.size, okk.shape[1]), dtype=np.int64)
+    for k, g in enumerate(groups):
+        out[k] = okk[lab == g].sum(axis=0)
+    return out
+
+
 def combine_wheels(z: np.ndarray, agree_z: float, series: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Combined score over wheels (Stouffer over the wheels with a score) and who agrees.
 
@@ -918,13 +945,8 @@ def combine_wheels(z: np.ndarray, agree_z: float, series: np.ndarray | None = No
         raise ValueError(f"z: must be 2-D (wheels × segments), got shape {zz.shape}")
     ok = np.isfinite(zz)
     n = ok.sum(axis=0)
-    lab = np.arange(zz.shape[0]) if series is None else np.asarray(series)
-    if lab.shape != (zz.shape[0],):
-        raise ValueError(f"series: must have one label per wheel ({zz.shape[0]}), got shape {lab.shape}")
     # a series scored by n_g wheels is one witness counted n_g times: the sum's variance is Σ n_g²
-    pairs = np.zeros(zz.shape[1], dtype=np.int64)
-    for g in np.unique(lab):
-        pairs += ok[lab == g].sum(axis=0) ** 2
+    pairs = (series_counts(ok, series) ** 2).sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         combined = np.where(n > 0, np.where(ok, zz, 0.0).sum(axis=0) / np.sqrt(np.maximum(pairs, 1)), np.nan)
     agree = ok & (np.sign(zz) == np.sign(combined)[None, :]) & (np.abs(np.where(ok, zz, 0.0)) >= agree_z)

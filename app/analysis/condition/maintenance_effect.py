@@ -281,8 +281,7 @@ def matched_change(before: np.ndarray, before_speed: np.ndarray, after: np.ndarr
     """
     yb, vb = paired_1d(before, before_speed, "before, before_speed")
     ya, va = paired_1d(after, after_speed, "after, after_speed")
-    got = _matched(yb, vb, ya, va, tolerance, _vehicles(before_vehicle, np.asarray(before).size),
-                   _vehicles(after_vehicle, np.asarray(after).size))
+    got = _matched(yb, vb, ya, va, tolerance, before_vehicle, after_vehicle)
     return None if got is None else got[0]
 
 

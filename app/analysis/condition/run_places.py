@@ -78,6 +78,7 @@ from app.analysis.condition.change import (
     ChangeParams,
     combine_wheels,
     detect_changes,
+    series_counts,
     series_labels,
 )
 from app.analysis.condition.places import (
@@ -548,7 +549,7 @@ def find_places(
     if h.shape[2] >= params.min_history:
         cp = params.change_params()
         # the series with an index in this run (a wheel without any is no witness)
-        n_series = max(int(np.unique(series[np.isfinite(x).any(axis=1)]).size), 1)
+        n_series = max(int((series_counts(np.isfinite(x), series).sum(axis=1) > 0).sum()), 1)
         for w in range(n_w):
             ch = detect_changes(h[w], v_hist[w], days, x[w], v_run[w], float(now_day), s, segment_m=segment_m,
                                 params=cp, trend=True, sd_value=xsd[w], sd_history=hsd[w], surface_days=surface_days,
@@ -629,9 +630,7 @@ def find_places(
     # the denominators carry the stated part once per wheel (shared by the wheels): the mean change's 1-σ,
     # answered (and used for the tier) where a 1-σ is stated — without one, as before
     # (the wheels of one series — an axle's two under the two-rail estimate — are one witness)
-    witnesses = np.zeros(s.size, np.int64)
-    for g in np.unique(series):
-        witnesses += np.isfinite(wchange[series == g]).any(axis=0)
+    witnesses = (series_counts(np.isfinite(wchange), series) > 0).sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         change_sd = mean_over_wheels(np.where(np.isfinite(wchange), wsd, np.nan)) / np.sqrt(np.maximum(witnesses, 1))
     change_sd = np.where(np.isfinite(level_sd), change_sd, np.nan)
