@@ -58,7 +58,8 @@ class StatusIn(BaseModel):
 
 @router.get("/places", summary="Work list: places ranked by tier, time to the next tier, severity")
 def places(db: DbDep, settings: SettingsDep, q: PlaceQ) -> dict:
-    """Listed places (open ones unless ``include_closed`` or a ``status`` filter), each with its
+    """Listed places (active open ones; a ``status`` filter: those statuses, open ones while active;
+    ``include_closed``: also inactive and closed ones), each with its
     extent, peak, tier and action, evidence, wheels, runs, trend and time to the next tier, status."""
     return worklist.list_places(db, q, PlacesConfig.from_settings(settings))
 

@@ -4,7 +4,8 @@ The list holds the **listed** places that are not a maintenance action's effect,
 the newest run that covered them found and the lifecycle has not confirmed yet (``confirmed: false``:
 found by one run, to be confirmed by the next; an engineer learns of a new change from the run that
 finds it, the alerts still wait for the confirmation); by default only the open ones (active, status
-not ``fixed`` / ``false_alarm``), with ``include_closed`` also the inactive and closed ones. Ranked by
+not ``fixed`` / ``false_alarm``); a ``status`` filter lists the places of those statuses, the open ones
+among them only while active; ``include_closed`` also the inactive and closed ones. Ranked by
 tier (highest first), within a tier the confirmed places before the new ones, then by the days to the
 next tier (soonest first; places without a projection after those with one), then by severity (the
 magnitude in units of the alert limit that gives the tier), then id — in the database, so a page of a
@@ -98,8 +99,12 @@ ON_LIST = or_(Place.listed.is_(True), and_(Place.active.is_(True), Place.misses 
 
 def _where(qy: PlaceQuery, line_keys: Sequence[int]):
     cond = [ON_LIST, Place.explained_by.is_(None), Place.line_key.in_(list(line_keys))]
-    if not qy.include_closed and not qy.statuses:
-        cond += [Place.active.is_(True), Place.status.not_in(CLOSED_STATUSES)]
+    if not qy.include_closed:
+        # an open place not seen lately is off the list whatever the statuses asked for (the page always
+        # asks for some: it listed them beside its unticked "also places not seen lately"); a closed one
+        # is on it when its status is asked for
+        cond.append(or_(Place.active.is_(True), Place.status.in_(CLOSED_STATUSES)) if qy.statuses
+                    else and_(Place.active.is_(True), Place.status.not_in(CLOSED_STATUSES)))
     if qy.statuses:
         cond.append(Place.status.in_(list(qy.statuses)))
     if qy.tiers:
