@@ -116,7 +116,8 @@ def write_run(session: Session, line: ConditionLine, run_id: int, when: dt.datet
         # the outlook over the observations of the place's current method version
         mine = version_runs.get(st.id, set()) | {run_id}
         same = replace(st, observations=[o for o in st.observations if o.run_id in mine])
-        look = place_outlook(same if same.observations else st, config.levels, trend=(trends or {}).get(st.id))
+        look = place_outlook(same if same.observations else st, config.levels, trend=(trends or {}).get(st.id),
+                             changes=config.place.changes)
         last = st.observations[-1]
         # a developing place's outlook is its segment's trend, fitted by the run that last found it by its trend
         # (update.developing_trends); a later run that does not read the place keeps it (its few observations

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,12 +19,14 @@ from app.analysis.condition.lifecycle import (
     Observation,
     PlaceEvent,
     PlaceState,
+    _graded,
     advance_places,
+    graded_next_limit,
     place_outlook,
     segment_trend,
 )
 from app.analysis.condition.maintenance_effect import action_effect
-from app.analysis.condition.places import EVIDENCE_STEP
+from app.analysis.condition.places import EVIDENCE_ANOMALY, EVIDENCE_STEP
 from app.analysis.condition.run_places import find_places
 from app.analysis.condition.tiers import TIER_ALERT, TIER_IMMEDIATE, TIER_INTERVENTION
 from tests.condition.places_support import COVERED, PARAMS, SEG, box, runs, track
@@ -244,6 +247,61 @@ def test_place_outlook_window_reads_a_place_that_stopped_growing_as_stable():
     assert place_outlook(st, PARAMS.levels).tendency == "growing"  # over its whole life
     recent = place_outlook(st, PARAMS.levels, window_days=7 * EVERY)
     assert recent.tendency == "stable" and recent.trend.n == 8 and math.isnan(recent.projection.days)
+
+
+def test_the_time_to_limit_is_the_time_to_the_next_tier_as_the_tier_is_graded():
+    """Issue 33: the real line's developing place (rough rails on pads, a stated 1-σ of 0.64) at −0.93, an
+    intervention, read "≈ 0 d to immediate": its level lay beyond the immediate level limit (0.75) as it
+    is, while its tier is graded on its 1-σ. The projection now reaches the severity at which the grading
+    gives the next tier: just below it the tier stands, just beyond it rises."""
+    from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS as P
+
+    days = 14.0 * np.arange(11)
+    hist = np.linspace(-0.20, -0.93, days.size)  # −0.73 / 140 d: growing at 1.9 ln units a year
+    st = PlaceState(id=6, direction=-1, start_m=14_420.0, end_m=14_430.0, peak_m=14_425.0, cls="b91_pads",
+                    baseline=-0.45, tier=TIER_INTERVENTION, listed=True)
+    st.observations.append(Observation(22, days[-1], 14_420.0, 14_430.0, 14_425.0, 14_425.0, -0.93, -0.48,
+                                       TIER_INTERVENTION, 4.8, 4, 3, level_sd=0.64, change_sd=0.64))
+    trend = segment_trend(st, days, hist, now_day=days[-1])
+    assert trend.level == pytest.approx(0.93) and trend.significant
+    as_is = place_outlook(st, P.levels, trend=trend)
+    assert as_is.projection.days == 0.0  # what the page showed
+    out = place_outlook(st, P.levels, trend=trend, changes=P.changes)
+    assert out.next_limit == 0.75 and out.projection.days > 30.0
+    reach = graded_next_limit(st, P.levels, P.changes, trend.level)
+    # here the change's route is the nearer one: 0.5 + 0.64 beyond its −0.48 (the level's needs 0.75 × 7.1)
+    assert reach == pytest.approx(0.93 + 0.50 + 0.64 - 0.48)
+    assert out.projection.days == pytest.approx((reach - 0.93) / trend.rate_per_year * 365.25)
+
+    def tier_at(severity: float) -> int:
+        grow = severity - 0.93
+        return _graded(P, "b91_pads", -severity, -0.48 - grow, -1, TIER_INTERVENTION, 0.64, 0.64)
+
+    assert tier_at(reach - 1e-3) == TIER_INTERVENTION and tier_at(reach + 1e-6) == TIER_IMMEDIATE
+    # smooth rails (a stated 1-σ of 0.056, no change): the intervention limit of 0.375 graded is 0.466 as it
+    # is; the alert tier comes at its limit as it is (a point size beyond a limit keeps at least the alert tier)
+    def calm(tier: int) -> PlaceState:
+        st = PlaceState(id=7, direction=1, start_m=0.0, end_m=10.0, peak_m=5.0, cls="b91", tier=tier)
+        st.observations.append(Observation(1, 0.0, 0.0, 10.0, 5.0, 5.0, 0.2, math.nan, tier, 0.8, 4, 3,
+                                           level_sd=0.056))
+        return st
+
+    lim = graded_next_limit(calm(TIER_ALERT), P.levels, P.changes, 0.3)
+    assert lim == pytest.approx(0.375 * math.sqrt(1 + (0.056 / (0.25 / 3.3)) ** 2)) and 0.46 < lim < 0.47
+    assert _graded(P, "b91", lim + 1e-6, 0.0, 1, TIER_ALERT, 0.056) == TIER_INTERVENTION
+    assert _graded(P, "b91", lim - 1e-3, 0.0, 1, TIER_ALERT, 0.056) == TIER_ALERT
+    # the alert tier at its limit as it is where the place's change is graded (a step's or a trend's); a place
+    # first found by its level alone is graded by its run, its level graded throughout — its change as the
+    # run read it (0.05 here) does not grade it
+    stepped = calm(0)
+    stepped.observations[-1] = replace(stepped.observations[-1], change=0.08, evidence=EVIDENCE_STEP)
+    assert graded_next_limit(stepped, P.levels, P.changes, 0.2) == pytest.approx(0.2 + 0.10 - 0.08)  # the change's
+    stepped.observations[-1] = replace(stepped.observations[-1], change=0.02)
+    assert graded_next_limit(stepped, P.levels, P.changes, 0.2) == 0.25  # the level's
+    by_level = calm(0)
+    by_level.observations[-1] = replace(by_level.observations[-1], change=0.05, evidence=EVIDENCE_ANOMALY)
+    assert graded_next_limit(by_level, P.levels, P.changes, 0.2) == pytest.approx(0.25 * lim / 0.375)
+    assert _graded(P, "b91", 0.25 + 1e-6, 0.0, 1, 0, 0.056) == TIER_ALERT > _graded(P, "b91", 0.249, 0.0, 1, 0, 0.056)
 
 
 # --- an action's effect: the extent against the track around it ---------------------------------------

@@ -349,6 +349,27 @@ def test_a_trend_alone_makes_a_watch_place_only_where_it_reaches_the_alert_limit
         PlaceParams(PARAMS.levels, PARAMS.changes, watch_days=0.0)
 
 
+def test_a_trend_on_rough_rails_is_graded_by_its_change_against_its_matched_passes():
+    """Issue 33: the real line's place developing on pads read −0.55 ± 0.61 in the run that found it by its
+    trend: watch by its level (graded on a 1-σ that is mostly the rails' response at the sleeper spacing),
+    while its change against its own passes (−0.24) is what the rails' response, the same at every pass,
+    leaves out. A trend's change so far grades it as a step's does: here alert (|change| ≥ 0.10)."""
+    rng = np.random.default_rng(33)
+    rails = rng.normal(0, 0.4, (W // 2, SEG.size)).repeat(2, axis=0)  # each rail's response, the same every run
+    base = _track(rng) * 0.3
+    spot = _box(12_000.0, 12_040.0, 1.0)
+    days = np.arange(13) * 14.0
+    runs = _runs(rng, base, 13, lambda r: spot * -0.8 * max(days[r] - days[3], 0.0) / 365.25) + rails[:, :, None]
+    cls = np.full(SEG.size, "b91", dtype=object)
+    rp = find_places(SEG, runs[:, :, -1], runs[:, :, :-1], days[:-1], days[-1], cls, segment_m=10.0, params=PARAMS,
+                     index_sd=np.full(runs[:, :, -1].shape, 0.5), history_sd=np.full(runs[:, :, :-1].shape, 0.2))
+    assert len(rp) >= 1 and all(e == EVIDENCE_TREND for e in rp.places.evidence)  # no step: its 1-σ is too wide
+    assert all(12_000.0 <= c <= 12_040.0 for c in rp.places.centre_m)
+    assert np.all(rp.change <= -0.10) and np.all(rp.rate_per_year < -0.5)
+    assert np.all(rp.level_tier == 0)  # its level alone: watch
+    assert np.all(rp.change_tier == 1) and np.all(rp.tier == 1)
+
+
 def _trend_args(rng, base, spot, days, cls):
     runs = _runs(rng, base, days.size, lambda r: spot * (0.05 + 0.35 * (days[r] - days[-1]) / 365.25))
     return SEG, runs[:, :, -1], runs[:, :, :-1], days[:-1], days[-1], cls

@@ -73,14 +73,14 @@ import numpy as np
 from app.analysis.condition.change import ChangeParams, matched_passes
 from app.analysis.condition.identity import covering_actions, match_places, tendency
 from app.analysis.condition.outlook import Projection, Trend, linear_trend, time_to_limit
-from app.analysis.condition.places import EVIDENCE_STEP
+from app.analysis.condition.places import EVIDENCE_STEP, EVIDENCE_TREND
 from app.analysis.condition.run_places import (
     PlaceParams,
     RunPlaces,
     graded_level,
     mean_over_wheels,
 )
-from app.analysis.condition.tiers import TIER_INTERVENTION, TierTable
+from app.analysis.condition.tiers import TIER_ALERT, TIER_INTERVENTION, TierLimits, TierTable
 
 __all__ = [
     "LifecycleParams",
@@ -90,6 +90,7 @@ __all__ = [
     "Action",
     "PassHistory",
     "PlaceOutlook",
+    "graded_next_limit",
     "place_outlook",
     "segment_trend",
     "advance_places",
@@ -353,15 +354,75 @@ class PlaceOutlook:
 
 
 def place_outlook(state: PlaceState, levels: TierTable, *, window_days: float | None = None,
-                  trend: Trend | None = None) -> PlaceOutlook:
+                  trend: Trend | None = None, changes: TierLimits | None = None) -> PlaceOutlook:
     """Trend, next limit, time to it and tendency of a place (the limits of its class in ``levels``).
 
     ``trend``: the severity's trend when fitted elsewhere (a developing place: over its segment's history,
-    :func:`segment_trend`), else over the place's observations."""
+    :func:`segment_trend`), else over the place's observations. ``changes``: the change limits; with them
+    the time to the next tier is that of the tier's own grading (:func:`graded_next_limit`), else the
+    time for the level to reach the next level limit as it is."""
     tr = trend if trend is not None else severity_trend(state, window_days=window_days)
     nxt = float(levels.limits_for(state.cls).next_limit(np.array([state.tier]))[0]) if state.cls is not None \
         else float("nan")
-    return PlaceOutlook(trend=tr, next_limit=nxt, projection=time_to_limit(tr, nxt), tendency=tendency(tr))
+    reach = nxt if changes is None else graded_next_limit(state, levels, changes, tr.level)
+    return PlaceOutlook(trend=tr, next_limit=nxt, projection=time_to_limit(tr, reach), tendency=tendency(tr))
+
+
+def graded_next_limit(state: PlaceState, levels: TierLimits | TierTable, changes: TierLimits,
+                      severity_now: float) -> float:
+    """The severity (``direction · level``, ln units) at which the place's tier rises to the next, as its
+    observations are graded.
+
+    A place's tier is the higher of its level's and its change's, each on its stated 1-σ
+    (:func:`_graded`): the level graded in units of the healthy scatter at its pass
+    (:func:`~app.analysis.condition.run_places.graded_level`: it reaches the next level limit ``L`` at
+    ``L · √(1 + (sd / σ0)²)``), the change on its lower 1-σ bound (it reaches the next change limit ``C``
+    at ``C + sd``); a size whose point value reaches a limit keeps at least the alert tier, so the alert
+    tier comes at its limits as they are — for a place without a graded change (first found by its trend
+    alone, graded as its run graded it) at its level graded, as every tier. A trend moves level and change alike, so the next tier comes at
+    the nearer of the two, from the last observation's 1-σ (a stated 1-σ as it is now). Projecting the level to the level limit
+    as it is read a place on rough rails (1-σ 0.64) as at its next limit today while its tier lay a tier
+    below; on smooth rails (1-σ 0.056) a limit of 0.25 graded is reached at 0.31.
+
+    Parameters
+    ----------
+    state : PlaceState
+        The place (class, tier, direction and its last observation's level, change and 1-σ).
+    levels : TierTable
+        The level limits by class.
+    changes : TierLimits
+        The change limits.
+    severity_now : float
+        The severity the trend stands at now (``Trend.level``), ln units.
+
+    Returns
+    -------
+    float
+        The severity to reach, ln units (NaN at the immediate tier, or with no limit above).
+    """
+    if not state.observations:
+        return float("nan")
+    last = state.observations[-1]
+    tier = np.array([state.tier])
+    # the change grades the tier where the reading had a baseline (advance_places: the place's, or its
+    # matched passes' once known) or the run's step test fired; a place first found by its trend alone is
+    # graded as its run graded it (find_places: its level graded on the 1-σ for every tier)
+    has_change = bool(np.isfinite(last.change) and (state.baseline is not None
+                                                    or last.evidence & (EVIDENCE_STEP | EVIDENCE_TREND)
+                                                    or len(state.observations) > 1))
+    graded = state.tier >= TIER_ALERT or not has_change
+    routes = []
+    if state.cls is not None:
+        limits = levels.limits_for(state.cls) if isinstance(levels, TierTable) else levels
+        nxt = float(limits.next_limit(tier)[0])
+        if np.isfinite(nxt):
+            # graded_level(1, sd, alert) = 1 / √(1 + (sd/σ0)²)
+            routes.append(nxt / float(graded_level(1.0, last.level_sd, limits.alert)) if graded else nxt)
+    c_next = float(changes.next_limit(tier)[0])
+    if np.isfinite(c_next) and has_change and np.isfinite(severity_now):
+        sd = last.change_sd if graded and np.isfinite(last.change_sd) else 0.0
+        routes.append(severity_now + c_next + sd - state.direction * last.change)
+    return min(routes) if routes else float("nan")
 
 
 def segment_trend(state: PlaceState, days: np.ndarray, index: np.ndarray, *, now_day: float) -> Trend:
@@ -536,7 +597,8 @@ def advance_places(
         else:
             base = None
         # the change grades a place against its baseline at the run's pass, or where the run's step test fired
-        graded_change = change if base is not None or (p.evidence[i] & EVIDENCE_STEP) else float("nan")
+        graded_change = change if base is not None or (p.evidence[i] & (EVIDENCE_STEP | EVIDENCE_TREND)) \
+            else float("nan")
         tier = _graded(place_params, cls, level, graded_change, int(p.direction[i]), int(found.tier[i]),
                        level_sd, change_sd)
         obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),

@@ -580,6 +580,7 @@ def find_places(
     back = (before_tier >= 1) & (np.sign(np.nan_to_num(change)) == -np.sign(np.nan_to_num(before))) \
         & ~(anomaly & (np.sign(np.nan_to_num(level)) == np.sign(np.nan_to_num(change))))
     step &= ~back
+    change_size_tier = change_tier
     change_tier = np.where(step, change_tier, 0)
     # a trend counts where the index grows away from the class's typical track (a place recovering
     # towards it is no work): not against an anomaly's own side, nor back from a former anomaly unless
@@ -599,6 +600,11 @@ def find_places(
     if surface_days is not None:
         with np.errstate(invalid="ignore"):
             trend &= ~(float(now_day) - np.asarray(surface_days, dtype=np.float64) < params.trend_window_days)
+    # a trend's change so far against the segment's matched passes (the way it grows) grades it as a step's
+    # does: on rough rails the rails' response at a pass is the same at every matched pass and drops out of
+    # the change, not out of the level (a place developing on pads read −0.55 ± 0.61: watch by its level)
+    grows = trend & (np.sign(np.nan_to_num(change)) == np.sign(np.nan_to_num(rate)))
+    change_tier = np.where(step | grows, change_size_tier, 0)
     evidence = (np.where(anomaly, EVIDENCE_ANOMALY, 0) | np.where(step, EVIDENCE_STEP, 0)
                 | np.where(trend, EVIDENCE_TREND, 0))
     # a step segment goes the way of its change, a trend the way of its rate, an anomaly the way of its index
