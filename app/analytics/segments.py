@@ -91,7 +91,8 @@ def _table(db: Database, settings: Settings, sel: Selection, km_from: float | No
         info.append({"run_id": run.id, "start_time": run.start_time.isoformat() if run.start_time else None,
                      "shift_m": shift if align else None, "shift_confidence": conf if align else None})
     table = segment_table(runs, shifts, bin_length_m=sel.bin_length, segment_m=segment_m, speeds=speeds,
-                          speed_tolerance=settings.analytics_speed_tolerance)
+                          speed_tolerance=settings.analytics_speed_tolerance,
+                          statistic="median" if value == "index" else "mean")
     return ref_id, info, table
 
 

@@ -26,7 +26,13 @@ from typing import Any
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.analysis.impacts.findings import FINDING_KINDS, RailFinding, RunImpacts, follow_findings
+from app.analysis.impacts.findings import (
+    FINDING_KINDS,
+    RailFinding,
+    RunImpacts,
+    follow_findings,
+    run_coverage,
+)
 from app.condition import readers as reader
 from app.condition.lines import resolve_line
 from app.core.csv_export import csv_text
@@ -46,7 +52,7 @@ __all__ = ["FINDING_TYPES", "CSV_COLUMNS", "check_types", "line_findings", "find
 FINDING_TYPES: tuple[str, ...] = FINDING_KINDS
 #: The columns of the CSV (one row per finding).
 CSV_COLUMNS: tuple[str, ...] = ("id", "line_id", "track", "type", "km", "depth_mm", "length_m", "runs_seen",
-                                "runs_passed", "first_seen", "last_seen", "depth_trend_mm_per_year",
+                                "runs_passed", "steady", "first_seen", "last_seen", "depth_trend_mm_per_year",
                                 "depth_trend_significant", "asset_type", "asset_name")
 _ID = re.compile(r"^([1-9][0-9]{0,9})-(-?[0-9]{1,9})$")
 #: The store's row length taken for a run's covered stretch, m.
@@ -84,10 +90,9 @@ def _run_impacts(session: Session, run: ConditionRun, t0: dt.datetime) -> RunImp
                    for g in group_impacts(track_impact_bins(session, run.job_id))]
     lo, hi = session.execute(select(func.min(SegmentCondition.seg), func.max(SegmentCondition.seg)).where(
         SegmentCondition.run_id == run.run_id, SegmentCondition.seg_m == _COVER_SEG_M)).one()
-    xs = [x for x, _, _ in impacts]
-    bounds = [] if lo is None else [float(lo) * _COVER_SEG_M, float(hi + 1) * _COVER_SEG_M]
-    covered = (min(bounds + xs), max(bounds + xs)) if bounds or xs else (math.nan, math.nan)
-    return RunImpacts(run.run_id, _day(run.run_time, t0), covered, impacts)
+    rows = None if lo is None else (float(lo) * _COVER_SEG_M, float(hi + 1) * _COVER_SEG_M)
+    covered, inside = run_coverage(impacts, rows)
+    return RunImpacts(run.run_id, _day(run.run_time, t0), covered, inside)
 
 
 def _follow(session: Session, line: ConditionLine) -> tuple[list[RailFinding], dict[int, dt.datetime]]:
@@ -110,6 +115,7 @@ def _item(line: ConditionLine, f: RailFinding, times: dict[int, dt.datetime]) ->
         "id": finding_id(f), "line_id": line.line_id, "track": line.track, "type": f.kind,
         "km": round(f.track_m / 1000.0, 6), "depth_mm": finite_or_none(round(f.depth_mm, 4)),
         "length_m": finite_or_none(f.length_m), "runs_seen": f.runs_seen, "runs_passed": f.runs_passed,
+        "steady": f.steady,
         "first_seen": iso_time(times.get(f.sightings[0].run_id)),
         "last_seen": iso_time(times.get(f.sightings[-1].run_id)),
         "depth_trend_mm_per_year": finite_or_none(trend.rate_per_year),
@@ -119,16 +125,21 @@ def _item(line: ConditionLine, f: RailFinding, times: dict[int, dt.datetime]) ->
     }
 
 
-def line_findings(db: Database, line_id: str, track: str | None, types: Sequence[str] | None = None) -> dict:
+def line_findings(db: Database, line_id: str, track: str | None, types: Sequence[str] | None = None, *,
+                  steady_only: bool = False) -> dict:
     """The rail findings of a line and track, ascending km (``GET /condition/rail-findings``); 404 naming
-    ``line_id`` without runs in the store, 422 naming ``type`` for an unknown type."""
+    ``line_id`` without runs in the store, 422 naming ``type`` for an unknown type. ``steady_only``: only
+    those seen by at least half the runs that passed them (:attr:`RailFinding.steady`); ``unsteady``: how
+    many of the type filter's findings that leaves out."""
     wanted = check_types(types)
     line = resolve_line(db, line_id, track)
     with db.read() as session:
         found, times = _follow(session, line)
-    items = [_item(line, f, times) for f in found if not wanted or f.kind in wanted]
+    typed = [f for f in found if not wanted or f.kind in wanted]
+    items = [_item(line, f, times) for f in typed if f.steady or not steady_only]
     return {"line_id": line.line_id, "track": line.track, "types": list(wanted) or list(FINDING_TYPES),
-            "runs": len(times), "items": items}
+            "runs": len(times), "steady_only": bool(steady_only),
+            "unsteady": sum(1 for f in typed if not f.steady), "items": items}
 
 
 def finding(db: Database, ident: str) -> dict:
@@ -155,12 +166,12 @@ def finding(db: Database, ident: str) -> dict:
 
 
 def findings_csv(db: Database, line_id: str, track: str | None, types: Sequence[str] | None = None,
-                 lang: str | None = None) -> str:
+                 lang: str | None = None, *, steady_only: bool = False) -> str:
     """The rail findings as CSV (:data:`CSV_COLUMNS`, one row per finding), written by
     :mod:`app.core.csv_export` (an asset name a spreadsheet would run as a formula is defused); the
     header is the field names, or given ``lang`` the columns' labels and units in it."""
     rows = []
-    for item in line_findings(db, line_id, track, types)["items"]:
+    for item in line_findings(db, line_id, track, types, steady_only=steady_only)["items"]:
         asset = item["asset"] or {}
         row = {**item, "asset_type": asset.get("type"), "asset_name": asset.get("name")}
         rows.append([row.get(c) for c in CSV_COLUMNS])

@@ -100,6 +100,7 @@ COLUMN_LABELS: dict[str, tuple[str, str | None]] = {
     "depth_mm": (N_("dip depth"), _MM),
     "runs_seen": (N_("runs seen"), None),
     "runs_passed": (N_("runs passed"), None),
+    "steady": (N_("seen by half the runs or more"), None),
     "last_seen": (N_("last seen"), None),
     "depth_trend_mm_per_year": (N_("dip depth trend"), _MM_YEAR),
     "depth_trend_significant": (N_("trend significant"), None),

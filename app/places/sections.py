@@ -3,7 +3,7 @@ class A … E from the speed-conditioned stiffness index of the store's 10 m row
 run and for the newest run at least a year before it, with the length per class.
 
 The index is ``ln(A / A_ref(class, v))`` per 10 m segment, mean over the wheels, exactly as the
-places use it (:func:`app.places.index.run_segment_index`: the curves of the run's method-version
+places use it (:func:`app.places.index.run_segment_rails`: the curves of the run's method-version
 history; docs/places.md); the classes come from
 :func:`app.analysis.condition.section_class.section_classes` with ``TRACKVKF_PLACES_SECTION_M`` and
 ``TRACKVKF_PLACES_SECTION_LIMITS``.
@@ -30,7 +30,7 @@ from app.db.models import ConditionLine, ConditionRun
 from app.db.session import Database
 from app.places.class_scheme import class_scheme
 from app.places.config import PlacesConfig
-from app.places.index import SEGMENT_M, run_segment_index
+from app.places.index import SEGMENT_M, run_segment_rails
 
 __all__ = ["SEGMENT_M", "CSV_COLUMNS", "line_sections", "section_limits", "sections_csv"]
 
@@ -38,9 +38,10 @@ _YEAR = dt.timedelta(days=365)
 
 
 def _run_index(session: Session, line: ConditionLine, run: ConditionRun,
-               config: PlacesConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The index of a run per 10 m segment (mean over wheels) exactly as the places use it."""
-    return run_segment_index(session, line, run.run_id, config=config)
+               config: PlacesConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The index of a run per 10 m segment (mean over wheels) exactly as the places use it, and the rails'
+    scatter at each segment (:func:`app.places.index.run_segment_rails`)."""
+    return run_segment_rails(session, line, run.run_id, config=config)
 
 
 def _finite(x: float) -> float | None:
@@ -73,8 +74,8 @@ def line_sections(db: Database, settings: Any, line_id: str, track: str | None, 
     Returns
     -------
     dict
-        ``section_m, limits, sections [{km_from, km_to, class, scheme_class, level, spread, rms,
-        fill}], length_by_class {A..E, "": m}, length_by_class_year_ago (or None), the same per
+        ``section_m, limits, sections [{km_from, km_to, class, scheme_class, level, spread (the support's),
+        rms, rail_spread (the rails' scatter from segment to segment taken out of the spread), fill}], length_by_class {A..E, "": m}, length_by_class_year_ago (or None), the same per
         class of the railway's scheme (``scheme``: :mod:`app.places.class_scheme`), run_id,
         run_time, run_id_year_ago, run_time_year_ago``.
     """
@@ -85,20 +86,22 @@ def line_sections(db: Database, settings: Any, line_id: str, track: str | None, 
     with db.read() as session:
         runs = reader.line_runs(session, line.id)
         k = len(runs) - 1
-        segs, idx = _run_index(session, line, runs[k], config)
-        sc = section_classes(segs, idx, segment_m=SEGMENT_M, limits=limits, section_m=section_m)
+        segs, idx, rail = _run_index(session, line, runs[k], config)
+        sc = section_classes(segs, idx, segment_m=SEGMENT_M, limits=limits, section_m=section_m, rail_scatter=rail)
         before = [i for i, r in enumerate(runs) if r.run_time <= runs[k].run_time - _YEAR]
         old = None
         if before:
             j = before[-1]
-            osegs, oidx = _run_index(session, line, runs[j], config)
-            old = (runs[j], section_classes(osegs, oidx, segment_m=SEGMENT_M, limits=limits, section_m=section_m))
+            osegs, oidx, orail = _run_index(session, line, runs[j], config)
+            old = (runs[j], section_classes(osegs, oidx, segment_m=SEGMENT_M, limits=limits, section_m=section_m,
+                                            rail_scatter=orail))
     per = int(round(section_m / SEGMENT_M))
     scheme = class_scheme(settings)
     sections = [
         {"km_from": float(sc.start_m[i]) / 1000.0, "km_to": float(sc.end_m[i]) / 1000.0, "class": str(sc.cls[i]),
          "scheme_class": scheme.code(str(sc.cls[i])),
          "level": _finite(sc.level[i]), "spread": _finite(sc.spread[i]), "rms": _finite(sc.rms[i]),
+         "rail_spread": _finite(sc.rail_spread[i]) if sc.rail_spread is not None else None,
          "fill": float(sc.n_segments[i]) / per}
         for i in range(len(sc))
     ]

@@ -8,7 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from app.analysis.impacts.findings import RunImpacts, finding_kind, follow_findings, run_offset
+from app.analysis.impacts.findings import (
+    RunImpacts,
+    finding_kind,
+    follow_findings,
+    run_coverage,
+    run_offset,
+)
 
 
 def _run(run_id: int, day: float, impacts, covered=(0.0, 1000.0)) -> RunImpacts:
@@ -39,6 +45,33 @@ def test_findings_keep_their_identity_and_count_the_runs_that_saw_them():
     more = follow_findings([*runs, _run(5, 56.0, [(100.1, 0.37, 1.0)])])
     assert [(f.first_run_id, f.anchor_m) for f in more] == [(f.first_run_id, f.anchor_m) for f in found]
     assert follow_findings(list(reversed(runs)))[0].sightings == weld.sightings  # time order, whatever the input
+
+
+def test_a_finding_is_steady_where_half_the_runs_that_passed_it_saw_it():
+    runs = [_run(k, 14.0 * k, [(100.0, 0.3, 1.0)] + ([(500.0, 0.2, 1.0)] if k in (2, 3) else [])
+                 + ([(800.0, 0.4, 1.0)] if k == 4 else [])) for k in range(1, 5)]
+    weld, pair, once = follow_findings(runs)
+    assert (weld.runs_seen, weld.runs_passed, weld.steady) == (4, 4, True)
+    assert (pair.runs_seen, pair.runs_passed, pair.steady) == (2, 4, True)  # half
+    assert (once.runs_seen, once.runs_passed, once.steady) == (1, 4, False)
+
+
+def test_a_run_covers_its_rows_and_finds_only_there():
+    """An impact beyond the run's condition rows (a record's end, where the store kept none of its values)
+    is no sighting: counted, it made the run pass there while the runs that did not find it had not — issue
+    33's line end, a false finding 'seen 3 of 3' by 3 of 24 runs."""
+    hits = [(120.0, 0.3, 1.0), (955.0, 0.3, 1.0), (90.0, 0.2, 1.0)]
+    covered, inside = run_coverage(hits, (100.0, 950.0))
+    assert covered == (100.0, 950.0) and inside == [(120.0, 0.3, 1.0)]
+    assert run_coverage(hits, None) == ((90.0, 955.0), hits)  # no rows: the impacts' own extent
+    assert all(map(math.isnan, run_coverage([], None)[0]))
+    with pytest.raises(ValueError, match="rows_m"):
+        run_coverage(hits, (950.0, 100.0))
+    # three runs end at 950 m, one at 960 m and finds something at 955 m: it passed it, the others did not
+    runs = [_run(k, 14.0 * k, *reversed(run_coverage([(500.0, 0.3, 1.0)], (0.0, 950.0)))) for k in (1, 2, 3)]
+    end = _run(4, 56.0, *reversed(run_coverage([(500.0, 0.3, 1.0), (955.0, 0.3, 1.0)], (0.0, 960.0))))
+    weld, tail = follow_findings([*runs, end])
+    assert weld.runs_passed == 4 and (tail.runs_seen, tail.runs_passed) == (1, 1)
 
 
 def test_the_kind_of_a_finding():

@@ -185,6 +185,32 @@ def test_segment_table():
     assert t.change[0] == 3 and np.isnan(t.change[1])
 
 
+def test_segment_table_median_of_an_index_with_a_long_low_tail():
+    """A stiffness index is ``ln A`` against a curve of 10 m blocks' medians: its segment value is the bins'
+    median. On rough rails a bin's ``ln A`` has a long low tail (the rails' response cancelling the support's):
+    the bins' mean of a typical segment reads well below 0, their median at it; a segment 20 % softer reads
+    its −0.22 by the median."""
+    from app.analysis.stiffness.alignment import _segment_medians
+
+    rng = np.random.default_rng(33)
+    b = np.arange(0, 800)  # two 100 m segments
+    support = np.where(b < 400, 0.0, np.log(0.8))
+    # |S + R| of a support phasor 1 and a rail phasor of random phase, |R| ~ 0.6: ln|S + R| − its median
+    rail = 0.6 * rng.rayleigh(1.0, b.size) * np.exp(2j * np.pi * rng.random(b.size))
+    ln_a = np.log(np.abs(1.0 + rail))
+    ln_a -= np.median(ln_a)
+    index = support + ln_a
+    mean = segment_table([(b, index)], [0.0], segment_m=100)
+    median = segment_table([(b, index)], [0.0], segment_m=100, statistic="median")
+    assert mean.matrix[0, 0] < -0.05  # the long low tail
+    assert abs(median.matrix[0, 0]) < 0.05 and median.matrix[0, 1] == pytest.approx(np.log(0.8), abs=0.06)
+    j = np.array([0, 0, 0, 2, 2, 2, 2])
+    v = np.array([3.0, 1.0, 2.0, 9.0, 7.0, 1.0, 5.0])
+    np.testing.assert_allclose(_segment_medians(j, v, 3), [2.0, np.nan, 6.0])
+    with pytest.raises(ValueError, match="statistic"):
+        segment_table([(b, index)], [0.0], segment_m=100, statistic="mode")
+
+
 def test_speed_exponent_outside_the_physical_range_is_flagged():
     """A pooled fit over sections where the stiffer track is passed faster gives an
     exponent no track has: it is flagged with the reason, a plausible one is not."""

@@ -230,6 +230,45 @@ def test_section_classes_from_level_and_spread():
         SectionClassLimits(0.1, 0.1, 0.2, 0.3)
 
 
+def test_a_section_on_rough_rails_is_classed_by_its_support_not_the_rails_scatter():
+    """Issue 33: the rails' response at the sleeper spacing changes from one 10 m segment to the next (each
+    rail's short-wave roughness): on the rough line it scattered 0.3 and read "E: very poor" over 1.6 of
+    2.9 km of sound support. Given that scatter (the places' :func:`class_scatter` of the run), the section's
+    spread is the support's; a support that does vary (a soft 60 m) still does; smooth rails (no scatter
+    beyond the healthy one: 0) are classed as before."""
+    from app.analysis.condition.run_places import class_scatter
+
+    limits = SectionClassLimits(0.05, 0.10, 0.17, 0.25)
+    rng = np.random.default_rng(33)
+    seg = np.arange(1000, 1160)  # 1.6 km, eight sections
+    support = np.zeros(seg.size)
+    support[100:106] = -0.5  # a soft 60 m in the sixth section
+    rails = rng.normal(0.0, 0.30, seg.size)
+    x = support + rails + rng.normal(0.0, 0.03, seg.size)
+    cls = np.full(seg.size, "b91", dtype=object)
+    alert = np.full(seg.size, 0.25)
+    scatter = class_scatter(x, cls, alert, seg)
+    assert np.all(np.abs(scatter - 0.30) < 0.06)
+    plain = section_classes(seg, x, segment_m=10.0, limits=limits)
+    assert sum(plain.cls == "E") >= 6 and np.all(np.isin(plain.cls, ["D", "E"]))  # what the page showed
+    sc = section_classes(seg, x, segment_m=10.0, limits=limits, rail_scatter=scatter)
+    assert sc.rail_spread == pytest.approx(scatter[::20], abs=1e-12)
+    sound = [k for k in range(8) if k != 5]
+    assert sum(c in ("A", "B", "C") for c in sc.cls[sound]) >= 5 and sc.cls[5] in ("D", "E")
+    assert sc.rms[5] > max(sc.rms[sound])
+    assert np.all(sc.spread <= plain.spread) and np.all(sc.level == plain.level)
+    # smooth rails: the scatter is a pass's noise, below the healthy one: 0, the classes as without it
+    calm = support + rng.normal(0.0, 0.03, seg.size)
+    none = class_scatter(calm, cls, alert, seg)
+    assert np.all(none == 0.0)
+    same = section_classes(seg, calm, segment_m=10.0, limits=limits, rail_scatter=none)
+    assert list(same.cls) == list(section_classes(seg, calm, segment_m=10.0, limits=limits).cls)
+    with pytest.raises(ValueError, match="rail_scatter"):
+        section_classes(seg, x, segment_m=10.0, limits=limits, rail_scatter=scatter[:5])
+    with pytest.raises(ValueError, match="rail_scatter"):
+        section_classes(seg, x, segment_m=10.0, limits=limits, rail_scatter=-scatter)
+
+
 # --- known discontinuities -----------------------------------------------------------------------
 
 

@@ -107,12 +107,21 @@ def test_rail_findings_follow_the_impacts_over_the_runs_and_are_never_places(lin
     true_welds = [f.track_m for f in SPEC.rail_features() if f.kind == "weld"]
     often = [i for i in welds if i["runs_seen"] >= n - 1]
     assert often and all(min(abs(1000.0 * i["km"] - x) for x in true_welds) <= 1.0 for i in often)
+    # steady: seen by at least half the runs that passed it; ``steady=true`` lists those, counting the others
+    assert all(i["steady"] == (2 * i["runs_seen"] >= i["runs_passed"]) for i in items)
+    assert all(i["steady"] for i in items if i["type"] == "insulated_joint") and any(i["steady"] for i in welds)
+    kept = client.get("/api/v1/condition/rail-findings", params={"line_id": SPEC.line_id, "steady": True}).json()
+    assert [i["id"] for i in kept["items"]] == [i["id"] for i in items if i["steady"]]
+    assert kept["steady_only"] and kept["unsteady"] == body["unsteady"] == sum(not i["steady"] for i in items)
+    kept_csv = client.get("/api/v1/condition/rail-findings.csv", params={"line_id": SPEC.line_id, "steady": True})
+    assert len(kept_csv.text.strip().split("\n")) == len(kept["items"]) + 1
     only = client.get("/api/v1/condition/rail-findings", params={"line_id": SPEC.line_id, "type": "insulated_joint"})
     assert [i["id"] for i in only.json()["items"]] == [i["id"] for i in items if i["type"] == "insulated_joint"]
     csv = client.get("/api/v1/condition/rail-findings.csv", params={"line_id": SPEC.line_id})
     assert csv.status_code == 200 and csv.headers["content-type"].startswith("text/csv")
     rows = csv.text.strip().split("\n")
     assert rows[0].startswith("id,line_id,track,type,km,depth_mm") and len(rows) == len(items) + 1
+    assert "runs_passed,steady," in rows[0]
     one = client.get(f"/api/v1/condition/rail-findings/{often[0]['id']}").json()
     assert one["id"] == often[0]["id"] and len(one["sightings"]) == one["runs_seen"] == often[0]["runs_seen"]
     assert set(s["run_id"] for s in one["sightings"]) <= set(one["passed_run_ids"]) <= set(processed.run_ids)

@@ -15,6 +15,14 @@ section of a run gets
 and a class ``A`` (best) … ``E`` from ``rms`` against four increasing
 limits (:class:`SectionClassLimits`). A section needs ``min_fill`` of its
 segments with data, else it has no class (``""``).
+
+On rough rails the spread holds the rails' response at the sleeper spacing,
+which changes from one 10 m segment to the next (each rail's own short-wave
+roughness) and is no property of the support: given that scatter
+(``rail_scatter``, :func:`~app.analysis.condition.run_places.class_scatter`:
+0 on smooth rails) the section's spread is taken as the support's,
+``√(spread² − mean rail_scatter²)`` (issue 33's line read "E: very poor"
+over 1.6 of its 2.9 km, a rough rail over a sound support).
 """
 
 from __future__ import annotations
@@ -69,7 +77,9 @@ class SectionClasses:
     start_m, end_m : numpy.ndarray
         Extent, m.
     level, spread, rms : numpy.ndarray
-        ln units (NaN without enough data).
+        ln units (NaN without enough data); ``spread`` the support's (the rails' scatter taken out).
+    rail_spread : numpy.ndarray
+        The rails' scatter taken out of the spread, ln units (0: none given).
     n_segments : numpy.ndarray
         int64 segments with data.
     cls : numpy.ndarray
@@ -84,6 +94,7 @@ class SectionClasses:
     rms: np.ndarray
     n_segments: np.ndarray
     cls: np.ndarray
+    rail_spread: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.section.size)
@@ -102,6 +113,7 @@ def section_classes(
     limits: SectionClassLimits,
     section_m: float = 200.0,
     min_fill: float = 0.5,
+    rail_scatter: np.ndarray | None = None,
 ) -> SectionClasses:
     """Class every section holding segments.
 
@@ -118,6 +130,10 @@ def section_classes(
         Section length, m (> 0; a whole number of segments).
     min_fill : float
         Fraction of a section's segments that must have data, in (0, 1].
+    rail_scatter : numpy.ndarray, optional
+        The rails' scatter from segment to segment per segment, ln units (NaN: none known, taken as 0;
+        :func:`~app.analysis.condition.run_places.class_scatter`): its mean square over a section's
+        segments with data is taken out of the section's spread.
 
     Returns
     -------
@@ -137,6 +153,12 @@ def section_classes(
     x = np.asarray(index, dtype=np.float64)
     if s.ndim != 1 or x.shape != s.shape:
         raise ValueError("seg, index: must be 1-D of equal length")
+    rail = np.zeros(x.shape) if rail_scatter is None else np.asarray(rail_scatter, dtype=np.float64)
+    if rail.shape != x.shape:
+        raise ValueError(f"rail_scatter: must have one value per segment ({x.size}), got shape {rail.shape}")
+    rail = np.nan_to_num(rail, nan=0.0)
+    if np.any(rail < 0) or not np.all(np.isfinite(rail)):
+        raise ValueError("rail_scatter: must be >= 0 and finite (NaN: none known)")
     s = s.astype(np.int64)
     per = int(round(ratio))
     sec = np.floor_divide(s, per)
@@ -150,13 +172,16 @@ def section_classes(
         level = sx / n
         dev = np.where(ok, x - level[inv], 0.0)
         var = np.bincount(inv, weights=dev * dev, minlength=ids.size) / np.maximum(n - 1, 1)
-    spread = np.where(n >= 2, np.sqrt(var), 0.0)
+    rail_ms = np.bincount(inv, weights=np.where(ok, rail * rail, 0.0), minlength=ids.size) / np.maximum(n, 1)
+    spread = np.where(n >= 2, np.sqrt(np.maximum(var - rail_ms, 0.0)), 0.0)
     level = np.where(enough, level, np.nan)
     spread = np.where(enough, spread, np.nan)
+    rail_spread = np.where(enough, np.sqrt(rail_ms), np.nan)
     rms = np.sqrt(level**2 + spread**2)
     # a class holds its upper limit (a section exactly at it is not pushed over by rounding of the mean)
     k = np.searchsorted(limits.limits, np.nan_to_num(rms, nan=0.0) - 1e-12, side="left")
     labels = np.array(SECTION_CLASSES, dtype=object)[np.minimum(k, len(SECTION_CLASSES) - 1)]
     cls = np.where(enough, labels, "").astype(object)
     return SectionClasses(section=ids.astype(np.int64), start_m=ids * section_m, end_m=(ids + 1) * section_m,
-                          level=level, spread=spread, rms=rms, n_segments=n.astype(np.int64), cls=cls)
+                          level=level, spread=spread, rms=rms, n_segments=n.astype(np.int64), cls=cls,
+                          rail_spread=rail_spread)

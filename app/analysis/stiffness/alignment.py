@@ -237,6 +237,20 @@ class SegmentTable:
     speed: np.ndarray | None = None
 
 
+def _segment_medians(j: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """The median of ``values`` per group ``j`` (0 … n−1; NaN for an empty group)."""
+    order = np.lexsort((values, j))
+    js, vs = j[order], values[order]
+    groups = np.arange(n)
+    lo = np.searchsorted(js, groups, side="left")
+    count = np.searchsorted(js, groups, side="right") - lo
+    if vs.size == 0:
+        return np.full(n, np.nan)
+    a = np.clip(lo + (count - 1) // 2, 0, vs.size - 1)
+    b = np.clip(lo + count // 2, 0, vs.size - 1)
+    return np.where(count > 0, 0.5 * (vs[a] + vs[b]), np.nan)
+
+
 def segment_table(
     runs: list[tuple[np.ndarray, np.ndarray]],
     shifts_m: list[float],
@@ -246,8 +260,9 @@ def segment_table(
     min_coverage: float = 0.5,
     speeds: list[np.ndarray] | None = None,
     speed_tolerance: float = DEFAULT_SPEED_TOLERANCE,
+    statistic: str = "mean",
 ) -> SegmentTable:
-    """Per-segment mean amplitude of several runs after shifting each by its alignment.
+    """Per-segment mean (or median) value of several runs after shifting each by its alignment.
 
     Parameters
     ----------
@@ -266,9 +281,18 @@ def segment_table(
     speed_tolerance : float
         A change needs the two runs at matched speed, ``|ln(v_last / v_first)| <= ln(1 + speed_tolerance)``
         (:func:`app.analysis.speed_match.speeds_matched`).
+    statistic : {"mean", "median"}
+        Of a run's bins in a segment: ``"median"`` for a value whose zero is a median — the stiffness index,
+        ``ln A`` less the reference curve fitted to 10 m blocks' medians
+        (:mod:`app.analysis.stiffness.reference_curve`): on rough rails a bin's ``ln A`` has a long low tail
+        (the rails' response cancelling the support's at a bin), so the bins' mean lies below their median
+        and a mean index read every 100 m of issue 33's rough line 0.1–0.6 below typical track. The speed
+        stays the mean.
     """
     if len(runs) != len(shifts_m) or (speeds is not None and len(speeds) != len(runs)):
         raise ValueError("runs, shifts_m, speeds: must have equal lengths")
+    if statistic not in ("mean", "median"):
+        raise ValueError(f"statistic: must be 'mean' or 'median', got {statistic!r}")
     if not segment_m > 0 or not bin_length_m > 0:
         raise ValueError("segment_m, bin_length_m: must be > 0")
     per_run = []
@@ -287,9 +311,12 @@ def segment_table(
         if seg.size == 0:
             continue
         j = np.searchsorted(all_segs, seg)
-        s = np.bincount(j, weights=amp, minlength=all_segs.size)
         c = np.bincount(j, minlength=all_segs.size)
-        matrix[i] = np.where(c >= need, s / np.maximum(c, 1), np.nan)
+        if statistic == "median":
+            value = _segment_medians(j, amp, all_segs.size)
+        else:
+            value = np.bincount(j, weights=amp, minlength=all_segs.size) / np.maximum(c, 1)
+        matrix[i] = np.where(c >= need, value, np.nan)
         if speed is not None:
             speed[i] = np.where(c >= need, np.bincount(j, weights=v, minlength=all_segs.size) / np.maximum(c, 1),
                                 np.nan)

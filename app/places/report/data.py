@@ -45,9 +45,11 @@ class ReportData:
     effects: list[dict[str, Any]]
     geometry: LineGeometry | None
     km_range: tuple[float, float]
-    #: the line's rail findings (``GET /condition/rail-findings``'s items: km, type, dip depth in mm,
-    #: runs seen of runs passed, the depth's trend in mm a year), ascending km
+    #: the line's steady rail findings (``GET /condition/rail-findings?steady=true``'s items: km, type, dip
+    #: depth in mm, runs seen of runs passed, the depth's trend in mm a year), ascending km
     rail_findings: list[dict[str, Any]] = field(default_factory=list)
+    #: the findings left out: seen by fewer than half the runs that passed them
+    rail_unsteady: int = 0
 
 
 def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date: dt.date,
@@ -60,7 +62,7 @@ def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date
     listed = list_places(db, PlaceQuery(line_id=line.line_id, track=line.track, limit=MAX_PLACES), config)
     places = listed["items"]
     histories = {p["id"]: place_history(db, p["id"], config) for p in places}
-    rails = line_findings(db, line.line_id, line.track)["items"]
+    rails = line_findings(db, line.line_id, line.track, steady_only=True)
     effects = action_effects(db, line.line_id, line.track, types=None, since=None, km_from=None, km_to=None,
                              before_days=EFFECT_BEFORE_DAYS, after_days=EFFECT_AFTER_DAYS,
                              regain_fraction=EFFECT_REGAIN, config=config)["items"]
@@ -72,4 +74,4 @@ def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date
     km_range = (min(a for a, _ in kms), max(b for _, b in kms)) if kms else (0.0, 1.0)
     return ReportData(line_id=line.line_id, track=line.track, date=date, sections=sections, places=places,
                       total_places=int(listed["total"]), histories=histories, effects=effects, geometry=geometry,
-                      km_range=km_range, rail_findings=rails)
+                      km_range=km_range, rail_findings=rails["items"], rail_unsteady=int(rails["unsteady"]))

@@ -43,16 +43,21 @@
     const body = $("rails-body");
     if (!view.live()) return null;  // a draw for a line no longer chosen writes nothing
     const { line_id, track } = view;
-    const q = C.qs({ line_id, track });
+    // the steady findings (seen by at least half the runs that passed them), or every one on request
+    const q = C.qs({ line_id, track, steady: $("rails-all").checked ? undefined : "true" });
     $("rails-csv").href = `${T.boot.api}/condition/rail-findings.csv?${q}&header=labels`;
     const res = await T.api.get(`/condition/rail-findings?${q}`);
     if (!view.live()) return null;  // another line was chosen meanwhile
     state.rails = { key: view.key, items: res.items };
     body.dataset.line = view.key;
+    const hidden = res.steady_only ? res.unsteady : 0;
     $("rails-info").textContent = T.ngettext("{n} rail finding", "{n} rail findings", res.items.length) + ", " +
-      T.ngettext("{n} run", "{n} runs", res.runs);
+      T.ngettext("{n} run", "{n} runs", res.runs) +
+      (hidden ? ", " + T.ngettext("{n} seen by fewer than half the runs not shown", "{n} seen by fewer than half the runs not shown", hidden) : "");
     if (!res.items.length) {
-      body.innerHTML = `<tr><td colspan="${COLS}" class="muted">${T.esc(T._("No rail finding on this line: no run found a track impact (weld, joint)."))}</td></tr>`;
+      const none = hidden ? T._("No rail finding seen by half the runs or more.")
+        : T._("No rail finding on this line: no run found a track impact (weld, joint).");
+      body.innerHTML = `<tr><td colspan="${COLS}" class="muted">${T.esc(none)}</td></tr>`;
       return res;
     }
     const seenTitle = T.esc(T._("runs that found it / runs that passed it"));
@@ -67,4 +72,11 @@
   }
 
   C.drawRails = drawRails;
+  // the list and the heat map's marks of the findings shown
+  $("rails-all").addEventListener("change", async () => {
+    try {
+      const view = C.view();
+      if (await drawRails(view)) await C.drawHeatmap(view);
+    } catch (e) { C.fail(T._("Rail findings"))(e); }
+  });
 })();
