@@ -178,7 +178,38 @@ def evaluate(client: Any, spec: HistorySpec, run_ids: list[int], *, last_runs: i
     effects = score_effects(spec, r.json()["items"])
     return {"work_list": work, "flags": {k: v for k, v in fl.items() if k != "false_flags"},
             "false_flags": fl["false_flags"], "ground_flags_after_grinding": on_ground,
-            "runs_after_grinding": len(after), "effects": effects, "rail_findings": score_rail_findings(client, spec)}
+            "runs_after_grinding": len(after), "effects": effects, "rail_findings": score_rail_findings(client, spec),
+            "sections": score_sections(client, spec)}
+
+
+def score_sections(client: Any, spec: HistorySpec) -> dict[str, Any]:
+    """The section classes of the newest run (``/condition/sections``) against the line model's support on its
+    day: per section with a class, the class of the rms of the truth's 10 m means (ln of the factor, the two
+    rails' mean) under the same limits; the length per class of each and the sections read within one class of
+    the truth."""
+    r = client.get("/api/v1/condition/sections", params={"line_id": spec.line_id, "track": spec.track})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    limits = np.asarray(body["limits"], dtype=np.float64)
+    names = body["classes"]
+    line = spec.line_at(spec.runs[-1].day)
+    read: dict[str, float] = {c: 0.0 for c in names}
+    truth: dict[str, float] = {c: 0.0 for c in names}
+    near = n = 0
+    for sec in body["sections"]:
+        if not sec["class"]:
+            continue
+        a, b = 1000.0 * sec["km_from"], 1000.0 * sec["km_to"]
+        x = np.arange(a, b, 0.25) + 0.125
+        f = 0.5 * (np.log(line.stiffness_factor(x, 1)) + np.log(line.stiffness_factor(x, 2)))
+        seg = f[: (f.size // 40) * 40].reshape(-1, 40).mean(axis=1)
+        rms = float(np.sqrt(seg.mean() ** 2 + (seg.std(ddof=1) if seg.size > 1 else 0.0) ** 2))
+        t = names[min(int(np.searchsorted(limits, rms - 1e-12)), len(names) - 1)]
+        read[sec["class"]] += b - a
+        truth[t] += b - a
+        n += 1
+        near += abs(names.index(sec["class"]) - names.index(t)) <= 1
+    return {"read_m": read, "truth_m": truth, "sections": n, "within_one_class": near / n if n else math.nan}
 
 
 def score_rail_findings(client: Any, spec: HistorySpec, *, within_m: float = 1.0, edge_m: float = 30.0) -> dict[str, Any]:
@@ -192,7 +223,7 @@ def score_rail_findings(client: Any, spec: HistorySpec, *, within_m: float = 1.0
     lo, hi = 1000.0 * spec.km_start + edge_m, 1000.0 * (spec.km_start + spec.length_km) - edge_m
     feats = [f for f in spec.rail_features() if lo < f.track_m < hi]
     inside = [i for i in items if lo < 1000.0 * i["km"] < hi]
-    steady = [i for i in inside if 2 * i["runs_seen"] >= i["runs_passed"]]
+    steady = [i for i in inside if i["steady"]]  # the service's rule (RailFinding.steady): what its page lists
 
     def near(i: dict, kinds: tuple[str, ...]) -> bool:
         return any(f.kind in kinds and abs(1000.0 * i["km"] - f.track_m) <= within_m for f in feats)
@@ -284,6 +315,13 @@ def main(argv: list[str] | None = None) -> int:
         rf = res["rail_findings"]
         print(f"| {res['seed']} | {rf['welds_found']} / {rf['welds']} ({_fmt(rf['welds_found'] / max(rf['welds'], 1), True)}) "
               f"| {rf['false_per_km']:.2f} / {rf['false_steady_per_km']:.2f} | {rf['joints_typed']} / {rf['joints']} |")
+    print("\n| seed | section classes read (km, A / B / C / D / E) | the line model's support | sections within one "
+          "class of it |")
+    print("|---|---|---|---|")
+    for res in results:
+        sc = res["sections"]
+        km = lambda d: " / ".join(f"{d[c] / 1000:.1f}" for c in sorted(d))  # noqa: E731
+        print(f"| {res['seed']} | {km(sc['read_m'])} | {km(sc['truth_m'])} | {_fmt(sc['within_one_class'], True)} |")
     print("\nWhat the listed places lie on (all seeds):", causes)
     fc: dict[str, int] = {}
     for res in results:
