@@ -241,8 +241,8 @@ def run_segment_index(session: Session, line: ConditionLine, run_id: int, *,
     A run applied to its line's places: the curves of its method version's history, exactly as the places
     were found on it. Another run: the curves of the line's most recent runs up to it (``history_runs``).
     """
-    seg, index, _ = run_segment_rails(session, line, run_id, config=config)
-    return seg, index
+    ri = _run_index_as_placed(session, line, run_id, config)
+    return (ri.seg, ri.mean_index) if ri is not None else (np.zeros(0, np.int64), np.zeros(0))
 
 
 def run_segment_rails(session: Session, line: ConditionLine, run_id: int, *,
@@ -257,5 +257,4 @@ def run_segment_rails(session: Session, line: ConditionLine, run_id: int, *,
     if ri is None:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     level = ri.mean_index
-    alert = np.array([config.levels.limits_for(c).alert if c is not None else np.inf for c in ri.classes.tolist()])
-    return ri.seg, level, class_scatter(level, ri.classes, alert, ri.seg)
+    return ri.seg, level, class_scatter(level, ri.classes, config.levels.alert_limits(ri.classes), ri.seg)

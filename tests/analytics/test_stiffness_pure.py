@@ -190,8 +190,6 @@ def test_segment_table_median_of_an_index_with_a_long_low_tail():
     median. On rough rails a bin's ``ln A`` has a long low tail (the rails' response cancelling the support's):
     the bins' mean of a typical segment reads well below 0, their median at it; a segment 20 % softer reads
     its −0.22 by the median."""
-    from app.analysis.stiffness.alignment import _segment_medians
-
     rng = np.random.default_rng(33)
     b = np.arange(0, 800)  # two 100 m segments
     support = np.where(b < 400, 0.0, np.log(0.8))
@@ -204,9 +202,10 @@ def test_segment_table_median_of_an_index_with_a_long_low_tail():
     median = segment_table([(b, index)], [0.0], segment_m=100, statistic="median")
     assert mean.matrix[0, 0] < -0.05  # the long low tail
     assert abs(median.matrix[0, 0]) < 0.05 and median.matrix[0, 1] == pytest.approx(np.log(0.8), abs=0.06)
-    j = np.array([0, 0, 0, 2, 2, 2, 2])
-    v = np.array([3.0, 1.0, 2.0, 9.0, 7.0, 1.0, 5.0])
-    np.testing.assert_allclose(_segment_medians(j, v, 3), [2.0, np.nan, 6.0])
+    exact = segment_table([(np.array([0, 1, 2, 8, 9, 10, 11]), np.array([3.0, 1.0, 2.0, 9.0, 7.0, 1.0, 5.0]))], [0.0],
+                          bin_length_m=0.25, segment_m=1.0, statistic="median")
+    assert exact.start_m.tolist() == [0.0, 2.0]
+    np.testing.assert_allclose(exact.matrix, [[2.0, 6.0]])
     with pytest.raises(ValueError, match="statistic"):
         segment_table([(b, index)], [0.0], segment_m=100, statistic="mode")
 

@@ -267,6 +267,8 @@ def test_a_section_on_rough_rails_is_classed_by_its_support_not_the_rails_scatte
         section_classes(seg, x, segment_m=10.0, limits=limits, rail_scatter=scatter[:5])
     with pytest.raises(ValueError, match="rail_scatter"):
         section_classes(seg, x, segment_m=10.0, limits=limits, rail_scatter=-scatter)
+    with pytest.raises(ValueError, match="rail_scatter"):
+        section_classes(seg, x, segment_m=10.0, limits=limits, rail_scatter=np.full(seg.size, np.inf))
 
 
 # --- known discontinuities -----------------------------------------------------------------------

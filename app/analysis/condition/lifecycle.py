@@ -82,7 +82,12 @@ from app.analysis.condition.run_places import (
 )
 from app.analysis.condition.tiers import TIER_ALERT, TIER_INTERVENTION, TierLimits, TierTable
 
+#: The evidence whose change against the history grades a found place's tier (find_places: a step's, and a
+#: trend's change so far against its matched passes); a place found by its level alone is graded by its level.
+CHANGE_GRADES = EVIDENCE_STEP | EVIDENCE_TREND
+
 __all__ = [
+    "CHANGE_GRADES",
     "LifecycleParams",
     "Observation",
     "PlaceState",
@@ -368,8 +373,7 @@ def place_outlook(state: PlaceState, levels: TierTable, *, window_days: float | 
     return PlaceOutlook(trend=tr, next_limit=nxt, projection=time_to_limit(tr, reach), tendency=tendency(tr))
 
 
-def graded_next_limit(state: PlaceState, levels: TierLimits | TierTable, changes: TierLimits,
-                      severity_now: float) -> float:
+def graded_next_limit(state: PlaceState, levels: TierTable, changes: TierLimits, severity_now: float) -> float:
     """The severity (``direction · level``, ln units) at which the place's tier rises to the next, as its
     observations are graded.
 
@@ -378,11 +382,12 @@ def graded_next_limit(state: PlaceState, levels: TierLimits | TierTable, changes
     (:func:`~app.analysis.condition.run_places.graded_level`: it reaches the next level limit ``L`` at
     ``L · √(1 + (sd / σ0)²)``), the change on its lower 1-σ bound (it reaches the next change limit ``C``
     at ``C + sd``); a size whose point value reaches a limit keeps at least the alert tier, so the alert
-    tier comes at its limits as they are — for a place without a graded change (first found by its trend
-    alone, graded as its run graded it) at its level graded, as every tier. A trend moves level and change alike, so the next tier comes at
-    the nearer of the two, from the last observation's 1-σ (a stated 1-σ as it is now). Projecting the level to the level limit
-    as it is read a place on rough rails (1-σ 0.64) as at its next limit today while its tier lay a tier
-    below; on smooth rails (1-σ 0.056) a limit of 0.25 graded is reached at 0.31.
+    tier comes at its limits as they are — for a place without a graded change (first found by its level
+    alone, graded as its run graded it) at its level graded, as every tier. A trend moves level and change
+    alike, so the next tier comes at the nearer of the two, from the last observation's 1-σ (a stated 1-σ as
+    it is now). Projecting the level to the level limit as it is read a place on rough rails (1-σ 0.64) as
+    at its next limit today while its tier lay a tier below; on smooth rails (1-σ 0.056) a limit of 0.25
+    graded is reached at 0.31.
 
     Parameters
     ----------
@@ -405,15 +410,14 @@ def graded_next_limit(state: PlaceState, levels: TierLimits | TierTable, changes
     last = state.observations[-1]
     tier = np.array([state.tier])
     # the change grades the tier where the reading had a baseline (advance_places: the place's, or its
-    # matched passes' once known) or the run's step test fired; a place first found by its trend alone is
-    # graded as its run graded it (find_places: its level graded on the 1-σ for every tier)
-    has_change = bool(np.isfinite(last.change) and (state.baseline is not None
-                                                    or last.evidence & (EVIDENCE_STEP | EVIDENCE_TREND)
+    # matched passes' once known) or its run's evidence grades by the change; a place first found by its
+    # level alone is graded as its run graded it (find_places: its level graded on the 1-σ for every tier)
+    has_change = bool(np.isfinite(last.change) and (state.baseline is not None or last.evidence & CHANGE_GRADES
                                                     or len(state.observations) > 1))
     graded = state.tier >= TIER_ALERT or not has_change
     routes = []
     if state.cls is not None:
-        limits = levels.limits_for(state.cls) if isinstance(levels, TierTable) else levels
+        limits = levels.limits_for(state.cls)
         nxt = float(limits.next_limit(tier)[0])
         if np.isfinite(nxt):
             # graded_level(1, sd, alert) = 1 / √(1 + (sd/σ0)²)
@@ -597,8 +601,7 @@ def advance_places(
         else:
             base = None
         # the change grades a place against its baseline at the run's pass, or where the run's step test fired
-        graded_change = change if base is not None or (p.evidence[i] & (EVIDENCE_STEP | EVIDENCE_TREND)) \
-            else float("nan")
+        graded_change = change if base is not None or (p.evidence[i] & CHANGE_GRADES) else float("nan")
         tier = _graded(place_params, cls, level, graded_change, int(p.direction[i]), int(found.tier[i]),
                        level_sd, change_sd)
         obs = Observation(run_id=run_id, day=float(day), start_m=float(p.start_m[i]), end_m=float(p.end_m[i]),

@@ -526,7 +526,7 @@ def find_places(
 
     level = mean_over_wheels(x)
     has_class = np.array([c is not None for c in cls.tolist()], dtype=bool)
-    alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf for c in cls.tolist()])
+    alert = params.levels.alert_limits(cls)
     # where a 1-σ is stated, at least the class's scatter across the run beyond the healthy one (without one,
     # as before)
     scatter = class_scatter(level, cls, alert, s)
@@ -652,8 +652,7 @@ def find_places(
     lt = np.where(lt >= 1, np.maximum(np.minimum(lt, lt_lo), 1), lt)
     ct = np.where(ct >= 1, np.maximum(np.minimum(ct, ct_lo), 1), ct)
     tier = np.maximum(lt, ct)
-    lvl_alert = np.array([params.levels.limits_for(c).alert if c is not None else np.inf
-                          for c in cls[peak].tolist()], dtype=np.float64)
+    lvl_alert = alert[peak]
     sev_level = np.abs(np.nan_to_num(level[peak])) / lvl_alert
     sev_change = np.where(ct >= 1, np.abs(np.nan_to_num(change[peak])) / params.changes.alert, 0.0)
     severity_sd = np.where(sev_change > sev_level, change_sd[peak] / params.changes.alert,

@@ -156,7 +156,7 @@ def section_classes(
     rail = np.zeros(x.shape) if rail_scatter is None else np.asarray(rail_scatter, dtype=np.float64)
     if rail.shape != x.shape:
         raise ValueError(f"rail_scatter: must have one value per segment ({x.size}), got shape {rail.shape}")
-    rail = np.nan_to_num(rail, nan=0.0)
+    rail = np.where(np.isnan(rail), 0.0, rail)
     if np.any(rail < 0) or not np.all(np.isfinite(rail)):
         raise ValueError("rail_scatter: must be >= 0 and finite (NaN: none known)")
     s = s.astype(np.int64)

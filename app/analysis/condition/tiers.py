@@ -153,6 +153,14 @@ class TierTable:
             out[m] = self.limits_for(name).next_limit(t[m])
         return out
 
+    def alert_limits(self, classes: object) -> np.ndarray:
+        """The alert limit of each segment's class (1-D labels; inf where a segment has none: ``None``)."""
+        c = np.asarray(classes, dtype=object)
+        if c.ndim != 1:
+            raise ValueError("classes: must be 1-D")
+        return np.array([self.limits_for(x).alert if x is not None else np.inf for x in c.tolist()],
+                        dtype=np.float64)
+
     def to_dict(self) -> dict[str, dict[str, float]]:
         """``{"": default, class: limits, …}`` as plain numbers (for answers and provenance)."""
         out = {"": {"alert": self.default.alert, "intervention": self.default.intervention,

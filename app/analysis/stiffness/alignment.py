@@ -20,6 +20,7 @@ import numpy as np
 
 from app.analysis._checks import check_positive
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE, speeds_matched
+from app.analysis.stiffness.reference_curve.smoother import group_median
 
 __all__ = ["Alignment", "signature", "align_runs", "SegmentTable", "segment_table", "DEFAULT_SEGMENT_M",
            "DEFAULT_MAX_SHIFT_M", "DEFAULT_DETREND_M"]
@@ -237,20 +238,6 @@ class SegmentTable:
     speed: np.ndarray | None = None
 
 
-def _segment_medians(j: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
-    """The median of ``values`` per group ``j`` (0 … n−1; NaN for an empty group)."""
-    order = np.lexsort((values, j))
-    js, vs = j[order], values[order]
-    groups = np.arange(n)
-    lo = np.searchsorted(js, groups, side="left")
-    count = np.searchsorted(js, groups, side="right") - lo
-    if vs.size == 0:
-        return np.full(n, np.nan)
-    a = np.clip(lo + (count - 1) // 2, 0, vs.size - 1)
-    b = np.clip(lo + count // 2, 0, vs.size - 1)
-    return np.where(count > 0, 0.5 * (vs[a] + vs[b]), np.nan)
-
-
 def segment_table(
     runs: list[tuple[np.ndarray, np.ndarray]],
     shifts_m: list[float],
@@ -313,7 +300,7 @@ def segment_table(
         j = np.searchsorted(all_segs, seg)
         c = np.bincount(j, minlength=all_segs.size)
         if statistic == "median":
-            value = _segment_medians(j, amp, all_segs.size)
+            value = group_median(amp, j, all_segs.size)
         else:
             value = np.bincount(j, weights=amp, minlength=all_segs.size) / np.maximum(c, 1)
         matrix[i] = np.where(c >= need, value, np.nan)
