@@ -35,8 +35,8 @@ from app.db.models import ConditionLine, ConditionRun
 from app.pipeline.assemble import ENGINE_VERSION
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
-__all__ = ["SEGMENT_M", "RunIndex", "method_version", "run_index", "run_segment_index", "run_segment_rails",
-           "segment_classes"]
+__all__ = ["SEGMENT_M", "RunIndex", "history_runs_of", "method_version", "run_index", "run_segment_index",
+           "run_segment_rails", "segment_classes", "version_history"]
 
 #: The store's segment length the places are found on, m.
 SEGMENT_M = 10
@@ -214,23 +214,38 @@ def run_index(session: Session, line: ConditionLine, run_id: int, history: list[
                     history_vehicle=np.array([vehicles.get(r) for r, _ in history], dtype=object))
 
 
+def version_history(session: Session, line: ConditionLine, when: dt.datetime, version: str,
+                    config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> list[tuple[int, dt.datetime]]:
+    """The history runs a run of ``when`` is tested against (run id, time; oldest first): the earlier runs
+    applied to the line's places with method ``version`` (:func:`app.db.places.history_runs`: the newest, and
+    over the trend window some spread evenly)."""
+    return q.history_runs(session, line.id, when, version, scan_runs=max(config.place.history_runs, 60),
+                          window_days=config.place.trend_window_days)
+
+
+def history_runs_of(session: Session, line: ConditionLine, run_id: int,
+                    config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> list[tuple[int, dt.datetime]]:
+    """The history (run id, time; oldest first) a run's index is read with: a run applied to its line's places,
+    its method version's history as the places read it; another run, the line's most recent runs before it
+    (``history_runs``). Empty for an unknown run."""
+    when = q.run_time(session, run_id)
+    if when is None:
+        return []
+    applied = q.applied_run(session, run_id)
+    if applied is not None:
+        return version_history(session, line, when, applied.method_version, config)
+    rows = session.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(
+        ConditionRun.line_key == line.id, ConditionRun.run_time < when)
+        .order_by(ConditionRun.run_time.desc()).limit(config.place.history_runs)).all()
+    return sorted(((int(r), t) for r, t in rows), key=lambda x: (x[1], x[0]))
+
+
 def _run_index_as_placed(session: Session, line: ConditionLine, run_id: int,
                          config: PlacesConfig) -> RunIndex | None:
     """A run's index as the places read it (:func:`run_segment_index`)."""
-    when = q.run_time(session, run_id)
-    if when is None:
+    if q.run_time(session, run_id) is None:
         return None
-    applied = q.applied_run(session, run_id)
-    if applied is not None:
-        history = q.history_runs(session, line.id, when, applied.method_version,
-                                 scan_runs=max(config.place.history_runs, 60),
-                                 window_days=config.place.trend_window_days)
-    else:
-        rows = session.execute(select(ConditionRun.run_id, ConditionRun.run_time).where(
-            ConditionRun.line_key == line.id, ConditionRun.run_time < when)
-            .order_by(ConditionRun.run_time.desc()).limit(config.place.history_runs)).all()
-        history = sorted(((int(r), t) for r, t in rows), key=lambda x: (x[1], x[0]))
-    return run_index(session, line, run_id, history, config=config)
+    return run_index(session, line, run_id, history_runs_of(session, line, run_id, config), config=config)
 
 
 def run_segment_index(session: Session, line: ConditionLine, run_id: int, *,

@@ -58,7 +58,7 @@ from app.db import places as q
 from app.db import reference_crud
 from app.db.models import ConditionLine, Job, PlaceEventRow, PlaceRun
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
-from app.places.index import SEGMENT_M, RunIndex, method_version, run_index
+from app.places.index import SEGMENT_M, RunIndex, method_version, run_index, version_history
 from app.places.store import place_state, write_run
 
 __all__ = ["PlacesUpdate", "PreparedRun", "update_places", "apply_run", "prepare_run", "apply_prepared",
@@ -178,9 +178,7 @@ def _not_applicable(session: Session, run_id: int, line: ConditionLine, version:
 def history_of(session: Session, run_id: int, line: ConditionLine, version: str, *,
                config: PlacesConfig = DEFAULT_PLACES_CONFIG) -> list[tuple[int, dt.datetime]]:
     """The history runs a run's tests see (run id, time; oldest first): earlier applied runs of its version."""
-    params = config.place
-    return q.history_runs(session, line.id, q.run_time(session, run_id), version,
-                          scan_runs=max(params.history_runs, 60), window_days=params.trend_window_days)
+    return version_history(session, line, q.run_time(session, run_id), version, config)
 
 
 def prepare_run(session: Session, run_id: int, line: ConditionLine, version: str, *,
@@ -220,7 +218,6 @@ def developing_trends(known: list[PlaceState], run_id: int, ri: RunIndex, now_da
     segment's matched passes and the run (:func:`~app.analysis.condition.lifecycle.segment_trend`), by place
     id."""
     out: dict[int, Trend] = {}
-    days = np.append(passes.days, now_day)
     for st in known:
         last = st.observations[-1] if st.observations else None
         if last is None or last.run_id != run_id or not (last.evidence & EVIDENCE_TREND):
@@ -228,7 +225,7 @@ def developing_trends(known: list[PlaceState], run_id: int, ri: RunIndex, now_da
         k = int(np.searchsorted(ri.seg, int(last.peak_m // SEGMENT_M)))
         if k >= ri.seg.size or ri.seg[k] != int(last.peak_m // SEGMENT_M):
             continue
-        values = np.append(passes.values[k], ri.mean_index[k])
+        days, values = passes.series(k, float(ri.mean_index[k]), now_day)
         out[st.id] = segment_trend(st, days, values, now_day=now_day)
     return out
 

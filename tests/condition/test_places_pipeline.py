@@ -70,9 +70,12 @@ def _service_answers(client, spec, processed) -> dict:
     url = "/api/v1/condition/places"
     open_ = client.get(url, params={"line_id": spec.line_id, "limit": 1000}).json()
     every = client.get(url, params={"line_id": spec.line_id, "limit": 1000, "include_closed": True}).json()
+    missing = client.get(f"{url}/999999/passes")
     return {"summaries": [j["meta"]["condition"]["places"] for j in processed.jobs], "open": open_["items"],
             "all": every["items"], "history": {p["id"]: client.get(f"{url}/{p['id']}").json()
-                                              for p in every["items"]}}
+                                              for p in every["items"]},
+            "passes": {p["id"]: client.get(f"{url}/{p['id']}/passes").json() for p in every["items"]},
+            "missing_passes": (missing.status_code, missing.json())}
 
 
 def lifecycle_of(spec, runs: list[StoredRun]):
@@ -216,3 +219,37 @@ def test_the_publish_step_keeps_the_same_places_as_the_lifecycle(history):
     # the service's alerts are the lifecycle's events of listed places: news once per place, all real
     news = [e for s in service["summaries"] for e in s["events"] if e["kind"] == "new"]
     assert len(news) == len({e["place_id"] for e in news}) == len([p for p in known if p.listed])
+
+
+def test_a_place_shows_the_passes_it_was_read_against(history):
+    """``GET …/places/{id}/passes``: the place's peak segment in its newest run is the place's level there, the
+    earlier runs come before it, the matched passes are those the place's change was read against (a place
+    found by a step has some), and a place found by its trend states the line through them, at the rate the
+    place was given (within that rate's 95 % interval: the line is fitted on the rows as stored now)."""
+    spec, runs, known, steps, actions, service = history
+    code, body = service["missing_passes"]
+    assert code == 404 and "999999" in str(body), body
+    trended = 0
+    for p in service["all"]:
+        pp = service["passes"][p["id"]]
+        obs = service["history"][p["id"]]["observations"][-1]
+        assert pp["place_id"] == p["id"] and pp["run_id"] == obs["run_id"] == p["last_run_id"]
+        assert pp["km_from"] <= obs["peak_km"] < pp["km_to"], (pp, obs)
+        (this,) = [x for x in pp["passes"] if x["this_run"]]
+        assert this == pp["passes"][-1] and this["run_id"] == p["last_run_id"]
+        assert this["matched_index"] == this["index"] and math.isclose(this["index"], obs["level"], abs_tol=1e-6)
+        times = [x["run_time"] for x in pp["passes"]]
+        assert times == sorted(times) and len(set(times)) == len(times)
+        earlier = [x for x in pp["passes"][:-1] if x["matched_index"] is not None]
+        if "step" in obs["evidence"]:
+            assert earlier, p
+        if "trend" in obs["evidence"]:
+            tr = pp["trend"]
+            assert tr is not None and tr["n"] == len(earlier) + 1, tr
+            sign = 1 if p["direction"] == "hard" else -1
+            assert tr["rate_low"] <= sign * p["rate_per_year"] <= tr["rate_high"], (tr, p["rate_per_year"])
+            assert tr["from_time"] == earlier[0]["run_time"] and tr["to_time"] == this["run_time"]
+            trended += 1
+        else:
+            assert pp["trend"] is None
+    assert trended >= 1

@@ -145,6 +145,10 @@ def test_the_page_is_an_exception_report_with_every_part_filled(engineer_page, h
     page.wait_for_function(f"() => document.getElementById('place-title').textContent.startsWith('Place {on[0]['id']}')")
     obs = page.evaluate("document.getElementById('place-history').data[0].x.length")
     assert obs >= 2
+    # beside its observations, the passes of its peak segment it was read against (a step: some before it)
+    traces = page.evaluate("document.getElementById('place-history').data.map(t => [t.name, t.x.length])")
+    matched = [n for name, n in traces if name.startswith("matched passes at its peak segment (km ")]
+    assert matched and matched[0] >= 2, traces
     assert page.locator("#place-events-body tr").count() >= 1 and "new" in page.inner_text("#place-events-body")
     assert page.locator("#banner").is_hidden()
     save_screenshot(page, "condition")

@@ -311,6 +311,12 @@ class PassHistory:
                                         vehicle=vehicle).history
         return cls(mean_over_wheels(out), np.asarray(days, dtype=np.float64))
 
+    def series(self, k: int, value: float, day: float) -> tuple[np.ndarray, np.ndarray]:
+        """Segment ``k``'s matched passes and the run's own ``value`` on ``day``: days and index, oldest first
+        (NaN where a history run is not a matched pass) — the series a developing place's trend is fitted on
+        (:func:`segment_trend`)."""
+        return np.append(self.days, float(day)), np.append(self.values[k], float(value))
+
     def baseline(self, k: int, first_seen_day: float) -> float | None:
         """A place's baseline at segment ``k`` for the run's pass: the median of its matched passes before the
         place was first seen, else (none in the history) its first matched pass since; None: no matched

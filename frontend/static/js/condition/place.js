@@ -1,5 +1,5 @@
 /* Condition page: one place's history — its observations over the runs against its class's tier
- * limits (from the boot data), the events, the maintenance over it within its runs' span, the
+ * limits (from the boot data), its peak segment's matched passes (and a developing place's trend), the events, the maintenance over it within its runs' span, the
  * status history — and its status workflow (engineers change it with a comment; viewers read it). */
 (function () {
   "use strict";
@@ -71,10 +71,36 @@
     return Object.entries(limits).map(([tier, v]) => ({ tier, y: sign * Math.abs(v) }));
   }
 
+  /* The place's peak segment run by run (GET …/passes): its matched passes as the place was read against
+   * them, the other passes (another speed or vehicle; off until asked for) and a developing place's trend. */
+  function passTraces(pp) {
+    if (!pp || !pp.passes.length) return [];
+    const seg = `km ${T.fmt(pp.km_from, 3)}–${T.fmt(pp.km_to, 3)}`;
+    const hover = `%{x|${T.DATE_FMT}} ${T.esc(T._("run {run}", { run: "%{customdata[0]}" }))}<br>${T.esc(T._("stiffness index"))} %{y:.3f}` +
+      "<br>%{customdata[1]:.0f} km/h, %{customdata[2]}<extra></extra>";
+    const matched = pp.passes.filter((o) => o.matched_index !== null);
+    const other = pp.passes.filter((o) => o.matched_index === null);
+    const out = [];
+    if (matched.length) out.push({ type: "scatter", mode: "markers", name: T._("matched passes at its peak segment ({segment})", { segment: seg }),
+      x: matched.map((o) => o.run_time), y: matched.map((o) => o.matched_index),
+      marker: { symbol: "circle-open", size: 8, color: "#3f6ea5", line: { width: 1.5 } },
+      customdata: matched.map((o) => [o.run_id, o.speed_kmh, o.vehicle || "–"]), hovertemplate: hover });
+    if (other.length) out.push({ type: "scatter", mode: "markers", name: T._("other passes (another speed or vehicle)"), visible: "legendonly",
+      x: other.map((o) => o.run_time), y: other.map((o) => o.index), marker: { size: 5, color: "#aab6c2" },
+      customdata: other.map((o) => [o.run_id, o.speed_kmh, o.vehicle || "–"]), hovertemplate: hover });
+    const tr = pp.trend;
+    if (tr) out.push({ type: "scatter", mode: "lines", name: T._("trend over the matched passes ({rate} a year)", { rate: `${C.signed(C.ampRate(tr.rate_per_year), 0)} %` }),
+      x: [tr.from_time, tr.to_time], y: [tr.from_index, tr.to_index], line: { color: "#b5651d", width: 2, dash: "dash" },
+      hovertemplate: `%{x|${T.DATE_FMT}}: %{y:.3f}<extra></extra>` });
+    return out;
+  }
+
   async function drawPlaceHistory(p) {
     const el = $("place-history");
     const obs = p.observations;
     if (!obs.length) { T.emptyState(el, T._("No observation of this place."), ""); return; }
+    const pp = await T.api.get(`/condition/places/${p.id}/passes`);
+    if (state.placeId !== p.id) return;
     const x = obs.map((o) => o.run_time);
     const traces = [
       { type: "scatter", mode: "lines+markers", name: T._("stiffness index at the place (ln units)"), x, y: obs.map((o) => o.level),
@@ -83,6 +109,7 @@
         hovertemplate: `%{x|${T.DATE_FMT}} ${T.esc(T._("run {run}", { run: "%{customdata[0]}" }))}<br>${T.esc(T._("stiffness index"))} %{y:.3f} (%{customdata[1]})` +
           "<br>km %{customdata[3]:.3f}–%{customdata[4]:.3f}, %{customdata[2]:.0f} km/h<extra></extra>" },
     ];
+    traces.push(...passTraces(pp));
     const withChange = obs.filter((o) => o.change !== null);
     if (withChange.length) traces.push({ type: "scatter", mode: "markers", name: T._("change against its baseline"), x: withChange.map((o) => o.run_time),
       y: withChange.map((o) => o.change), marker: { symbol: "diamond-open", size: 8, color: "#5d6b7a" },
@@ -100,13 +127,15 @@
       annotations.push({ x: m.date, y: 1, xref: "x", yref: "paper", yanchor: "bottom", showarrow: false, text: T.esc(T.label("maintenance type", m.kind || m.type)), font: { size: 11, color: "#2e7d32" } });
     }
     await T.plot(el, traces, {
-      xaxis: T.dateAxis(T._("Run date"), x, {}, 30),
+      xaxis: T.dateAxis(T._("Run date"), [...x, ...(pp ? pp.passes.map((o) => o.run_time) : [])], {}, 30),
       yaxis: T.axis(T._("Stiffness index ln(A / A_ref) (ln units)"), { zeroline: true }),
       shapes, annotations, margin: { l: 80, r: 30, t: 30, b: 55 },
     }, {
       filename: `place-${p.id}-history`,
-      csv: () => ({ columns: ["run_id", "run_time", "speed_kmh", "level", "change", "tier", "km_from", "km_to", "method_version"],
-                    rows: obs.map((o) => [o.run_id, o.run_time, o.speed_kmh, o.level, o.change, o.tier, o.km_from, o.km_to, o.method_version]) }),
+      // the place's observations, then its peak segment's passes (series "pass"; matched_index: as read against)
+      csv: () => ({ columns: ["series", "run_id", "run_time", "speed_kmh", "level", "change", "tier", "km_from", "km_to", "method_version", "vehicle", "matched_index"],
+                    rows: [...obs.map((o) => ["observation", o.run_id, o.run_time, o.speed_kmh, o.level, o.change, o.tier, o.km_from, o.km_to, o.method_version, null, null]),
+                           ...(pp ? pp.passes.map((o) => ["pass", o.run_id, o.run_time, o.speed_kmh, o.index, null, null, pp.km_from, pp.km_to, null, o.vehicle, o.matched_index]) : [])] }),
     });
   }
 
