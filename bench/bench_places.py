@@ -49,6 +49,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from app.analysis.condition.change import combine_wheels  # noqa: E402
 from app.analysis.condition.extent_level import extent_level  # noqa: E402
+from app.analysis.condition.interventions import latest_action_days
 from app.analysis.condition.lifecycle import (  # noqa: E402
     Action,
     LifecycleParams,
@@ -256,13 +257,16 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
         p = merge_places(run.seg, cz, np.abs(np.nan_to_num(cz)) >= 4.5, segment_m=SEG_M, gap_m=10.0)
         found_by["stored step (lnA, matched speed)"] = (p.start_m, p.end_m, p.centre_m, np.argsort(-np.abs(p.peak)))
         covered = (float(run.seg.min() * SEG_M), float((run.seg.max() + 1) * SEG_M))
+        # every design: a segment's history starts anew after the tamping over it, as the service reads it
+        support = latest_action_days(run.seg, SEG_M, np.array([a.start_m for a in actions]),
+                                     np.array([a.end_m for a in actions]), np.array([a.day for a in actions]), run.day)
         for name, params in variants().items():
             if name == STATED:
                 n = MIN_LOCATIONS[-1]
                 hist_sd = np.stack([_on(runs[j], run, runs[j].index_sd) for j in range(k)], axis=2) if k \
                     else np.zeros((*idx.shape, 0))
                 rp = find_places(run.seg, idx_s[n], hist_s[n], days, run.day, cls, segment_m=SEG_M, params=params,
-                                 index_sd=run.index_sd, history_sd=hist_sd)
+                                 index_sd=run.index_sd, history_sd=hist_sd, support_days=support)
                 tier_log.append({"history": which, "seed": seed, "run": k,
                                  "median index_sd": float(np.nanmedian(run.index_sd)),
                                  "places": len(rp), "tier >= 2": int((rp.tier >= 2).sum()),
@@ -270,9 +274,11 @@ def evaluate(which: str, seed: int, spec: HistorySpec, url: str, results: list[d
                                  "median severity_sd": float(np.nanmedian(rp.severity_sd)) if len(rp) else np.nan})
             elif "store curves" in name:
                 n = int(name.split("≥ ")[1].split(" ")[0]) if "≥" in name else 0
-                rp = find_places(run.seg, idx_s[n], hist_s[n], days, run.day, cls, segment_m=SEG_M, params=params)
+                rp = find_places(run.seg, idx_s[n], hist_s[n], days, run.day, cls, segment_m=SEG_M, params=params,
+                                 support_days=support)
             else:
-                rp = find_places(run.seg, idx, hist, days, run.day, cls, segment_m=SEG_M, params=params)
+                rp = find_places(run.seg, idx, hist, days, run.day, cls, segment_m=SEG_M, params=params,
+                                 support_days=support)
             order = rank_places(rp.tier, np.full(len(rp), np.nan), rp.severity)
             found_tiers[name] = rp.tier
             found_by[name] = (rp.places.start_m, rp.places.end_m, rp.places.centre_m, order)

@@ -3,8 +3,8 @@
 ``GET /condition/places`` (``.csv``, ``.geojson``) — the listed places ranked by tier, then days to the
 next tier, then severity; ``GET /condition/places/events`` — the feed of place events (``since=``);
 ``GET /condition/places/{id}`` — a place with its observations, events,
-status history and maintenance; ``GET /condition/places/{id}/passes`` — its peak segment run by run, its
-matched passes marked; ``PATCH /condition/places/{id}/status`` — an engineer sets its
+status history and maintenance; ``GET /condition/places/{id}/passes`` — the segment it is read at run by run,
+its matched passes marked; ``PATCH /condition/places/{id}/status`` — an engineer sets its
 workflow status with a comment (audited). Every value is the speed-conditioned stiffness index
 ``ln(A / A_ref(class, v))``. Routes parse, authorise and call one function of :mod:`app.places`.
 """
@@ -100,9 +100,10 @@ def place(db: DbDep, settings: SettingsDep, place_id: PlaceId) -> dict:
     return worklist.place_history(db, place_id, PlacesConfig.from_settings(settings))
 
 
-@router.get("/places/{place_id}/passes", summary="A place's peak segment run by run: its matched passes")
+@router.get("/places/{place_id}/passes", summary="A place's segment run by run: its matched passes")
 def place_passes(db: DbDep, settings: SettingsDep, place_id: PlaceId) -> dict:
-    """The index at the place's peak 10 m segment in its newest run and in the earlier runs, each marked
+    """The index at the 10 m segment the place is read at (its peak; for a place found by its trend where it
+    grows fastest) in its newest run and in the earlier runs, each marked
     whether it passed at a matched speed with the same vehicle (what the place's change and trend are read
     against); for a place found by its trend, the line fitted through those passes."""
     return passes.place_passes(db, place_id, PlacesConfig.from_settings(settings))

@@ -69,6 +69,7 @@ from app.db import reference_crud, results_reader
 from app.db.bulk import insert_frame
 from app.db.condition_store import delete_run_condition, line_of
 from app.db.models import (
+    MAINTENANCE_TYPES,
     ConditionFlag,
     ConditionLine,
     ConditionOverview,
@@ -91,6 +92,7 @@ __all__ = [
     "wheel_segments",
     "uncertainty_settings",
     "rail_surface_interventions",
+    "support_interventions",
 ]
 
 #: advisory lock key of the flag feed (PostgreSQL): flag ids become visible in order
@@ -156,17 +158,30 @@ def _job_bins(session: Session, job_id: int, profiles: pd.DataFrame | None) -> d
     return out
 
 
-def rail_surface_interventions(session: Session, line_id: str, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The line's imported maintenance actions that change the rails' surface (grinding, rail renewal:
-    :data:`~app.analysis.condition.interventions.RAIL_SURFACE_ACTIONS`) as ``(start_m, end_m, day)`` arrays
-    (m on the km axis, days since 1970)."""
-    frame = reference_crud.reference_frame(session, "maintenance", line_id=line_id, track=track,
-                                           types=list(RAIL_SURFACE_ACTIONS))
+def _interventions(session: Session, line_id: str, track: str,
+                   types: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The line's imported maintenance actions of ``types`` as ``(start_m, end_m, day)`` arrays (m on the km
+    axis, days since 1970)."""
+    frame = reference_crud.reference_frame(session, "maintenance", line_id=line_id, track=track, types=types)
     if frame.empty:
         return np.zeros(0), np.zeros(0), np.zeros(0)
     day = np.array([days_of(dt.datetime.combine(d, dt.time(), tzinfo=dt.UTC)) for d in frame["date"]])
     return (frame["km_from"].to_numpy(dtype=np.float64) * 1000.0, frame["km_to"].to_numpy(dtype=np.float64) * 1000.0,
             day)
+
+
+def rail_surface_interventions(session: Session, line_id: str, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The line's imported maintenance actions that change the rails' surface (grinding, rail renewal:
+    :data:`~app.analysis.condition.interventions.RAIL_SURFACE_ACTIONS`) as ``(start_m, end_m, day)`` arrays
+    (m on the km axis, days since 1970)."""
+    return _interventions(session, line_id, track, list(RAIL_SURFACE_ACTIONS))
+
+
+def support_interventions(session: Session, line_id: str, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The line's imported maintenance actions on the support — every type that is not on the rails' surface
+    (tamping, ballast cleaning, other) — as ``(start_m, end_m, day)`` arrays: a segment's history starts anew
+    after the latest one over it (:func:`~app.analysis.condition.interventions.since_actions`)."""
+    return _interventions(session, line_id, track, [t for t in MAINTENANCE_TYPES if t not in RAIL_SURFACE_ACTIONS])
 
 
 def uncertainty_settings(settings: Mapping[str, Any] | None) -> tuple[float, int]:
@@ -577,6 +592,7 @@ def store_run_condition(
     assessment = assess_run(segments, history, days_of(when), params=config.change,
                             previous_flags=history.previous_flags(),
                             interventions=rail_surface_interventions(session, run.line_id, run.track or ""),
+                            support=support_interventions(session, run.line_id, run.track or ""),
                             intervention_margin_m=intervention_margin_m(res_m, order), vehicle=run.vehicle_id)
     flags = write_assessed_run(session, run_id=run_id, job_id=job_id, line=line, when=when, segments=segments,
                                assessment=assessment, shift_m=shift, shift_confidence=confidence)

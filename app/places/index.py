@@ -141,11 +141,12 @@ class RunIndex:
         """The index per segment, mean over the wheels (what a place is graded on)."""
         return mean_over_wheels(self.index)
 
-    def passes(self, params: ChangeParams) -> PassHistory:
+    def passes(self, params: ChangeParams, *, support_days: np.ndarray | None = None) -> PassHistory:
         """The history as the run's matched passes (same vehicle, matched speed:
-        :func:`~app.analysis.condition.change.matched_passes`, the step test's rule), mean over the wheels."""
+        :func:`~app.analysis.condition.change.matched_passes`, the step test's rule), mean over the wheels;
+        with ``support_days`` (per segment, NaN: none) only the passes since the latest action on the support."""
         return PassHistory.of(self.history, self.history_speed, self.speed, self.history_days, params,
-                              history_vehicle=self.history_vehicle, vehicle=self.vehicle)
+                              history_vehicle=self.history_vehicle, vehicle=self.vehicle, support_days=support_days)
 
 
 def _vehicle_curves(values: np.ndarray, fit: np.ndarray, wheel_of: np.ndarray, row_cls: np.ndarray,

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
-from app.analysis.condition.interventions import surface_change_days
+from app.analysis.condition.interventions import latest_action_days
 from app.analysis.condition.lifecycle import (
     Action,
     PassHistory,
@@ -53,7 +53,7 @@ from app.analysis.condition.outlook import Trend
 from app.analysis.condition.places import EVIDENCE_TREND
 from app.analysis.condition.run_places import find_places, mean_over_wheels
 from app.analysis.units import KMH_PER_MPS
-from app.condition.writer import days_of, rail_surface_interventions
+from app.condition.writer import days_of, rail_surface_interventions, support_interventions
 from app.db import places as q
 from app.db import reference_crud
 from app.db.models import ConditionLine, Job, PlaceEventRow, PlaceRun
@@ -151,6 +151,9 @@ class PreparedRun:
         The run's index and its history's.
     found : list
         The run's places (:func:`~app.analysis.condition.run_places.find_places`).
+    support_days : numpy.ndarray or None
+        Per segment of ``index`` the day of the latest action on the support over it (NaN: none; None: no
+        such action on the line): the history its tests and its places' passes start from.
     """
 
     run_id: int
@@ -159,6 +162,7 @@ class PreparedRun:
     history: list[tuple[int, dt.datetime]]
     index: RunIndex
     found: list
+    support_days: np.ndarray | None = None
 
 
 def _not_applicable(session: Session, run_id: int, line: ConditionLine, version: str) -> PlacesUpdate | None:
@@ -193,13 +197,22 @@ def prepare_run(session: Session, run_id: int, line: ConditionLine, version: str
     if ri is None:
         return PlacesUpdate(False, "the run has no 10 m condition rows", version)
     now_day = days_of(when)
-    surface_days = surface_change_days(ri.seg, SEGMENT_M, *rail_surface_interventions(session, line.line_id, line.track),
-                                       now_day)
+    surface_days = latest_action_days(ri.seg, SEGMENT_M, *rail_surface_interventions(session, line.line_id, line.track),
+                                      now_day)
+    support = support_days_of(session, line, ri.seg, now_day)
     found = find_places(ri.seg, ri.index, ri.history, ri.history_days, now_day, ri.classes,
                         segment_m=SEGMENT_M, params=params, index_sd=ri.index_sd, history_sd=ri.history_sd,
                         surface_days=surface_days, speed=ri.speed, history_speed=ri.history_speed,
-                        vehicle=ri.vehicle, history_vehicle=ri.history_vehicle)
-    return PreparedRun(run_id, when, version, hist_ids, ri, found)
+                        vehicle=ri.vehicle, history_vehicle=ri.history_vehicle, support_days=support)
+    return PreparedRun(run_id, when, version, hist_ids, ri, found, support)
+
+
+def support_days_of(session: Session, line: ConditionLine, seg: np.ndarray, now_day: float) -> np.ndarray | None:
+    """Per segment (``SEGMENT_M`` m each) the day of the latest action on the support over it up to
+    ``now_day`` (NaN: none; None: the line has no such action): where a segment's history starts anew
+    (:func:`~app.analysis.condition.interventions.since_actions`)."""
+    acts = support_interventions(session, line.line_id, line.track)
+    return latest_action_days(seg, SEGMENT_M, *acts, now_day) if acts[0].size else None
 
 
 def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, *,
@@ -212,21 +225,55 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
     return apply_prepared(session, line, prep, config=config)
 
 
+def developing_segment(st: PlaceState, ri: RunIndex, passes: PassHistory, now_day: float) -> tuple[int, Trend] | None:
+    """The segment a developing place's trend is read at, and that trend: its peak segment where the matched
+    passes and the run grow its way there with a significant rate
+    (:func:`~app.analysis.condition.lifecycle.segment_trend`), else of its other segments in the run (its newest observation's extent) the one growing
+    fastest its way with a significant rate, else its peak; None where the run has no index at its peak.
+
+    A place is graded at its peak, its most severe segment; where it grows may be beside it. Measured on the
+    test demo's history: the place developing softer at −1 ln unit a year lies inside a lasting soft spot whose
+    peak does not move, and read "stable" at the peak (+0.06 a year, not significant) while its segments
+    30–60 m beside it fell −0.5 … −1.1 a year, each significant. The peak first: the fastest of several noisy
+    rates is biased high (the demo's place growing harder, truth +1.2 a year, read +1.23 at its peak, +1.35 at
+    its fastest segment).
+    """
+    last = st.observations[-1]
+
+    def at(k: int) -> Trend:
+        days, values = passes.series(k, float(ri.mean_index[k]), now_day)
+        return segment_trend(st, days, values, now_day=now_day)
+
+    peak = int(last.peak_m // SEGMENT_M)
+    kp = int(np.searchsorted(ri.seg, peak))
+    on_peak = kp < ri.seg.size and ri.seg[kp] == peak
+    peak_trend = at(kp) if on_peak else None
+    if peak_trend is not None and peak_trend.significant and peak_trend.rate_per_year > 0:
+        return kp, peak_trend
+    inside = np.flatnonzero((ri.seg >= int(last.start_m // SEGMENT_M)) & (ri.seg * SEGMENT_M < last.end_m))
+    best: tuple[int, Trend] | None = None
+    for k in inside.tolist():
+        tr = at(k)
+        if tr.significant and tr.rate_per_year > 0 and (best is None or tr.rate_per_year > best[1].rate_per_year):
+            best = (k, tr)
+    if best is not None:
+        return best
+    return (kp, peak_trend) if peak_trend is not None else None
+
+
 def developing_trends(known: list[PlaceState], run_id: int, ri: RunIndex, now_day: float,
                       passes: PassHistory) -> dict[int, Trend]:
-    """The severity trends of the places the run found by their trend (evidence ``trend``), each over its peak
-    segment's matched passes and the run (:func:`~app.analysis.condition.lifecycle.segment_trend`), by place
+    """The severity trends of the places the run found by their trend (evidence ``trend``), each at the segment
+    it develops fastest (:func:`developing_segment`), over that segment's matched passes and the run, by place
     id."""
     out: dict[int, Trend] = {}
     for st in known:
         last = st.observations[-1] if st.observations else None
         if last is None or last.run_id != run_id or not (last.evidence & EVIDENCE_TREND):
             continue
-        k = int(np.searchsorted(ri.seg, int(last.peak_m // SEGMENT_M)))
-        if k >= ri.seg.size or ri.seg[k] != int(last.peak_m // SEGMENT_M):
-            continue
-        days, values = passes.series(k, float(ri.mean_index[k]), now_day)
-        out[st.id] = segment_trend(st, days, values, now_day=now_day)
+        got = developing_segment(st, ri, passes, now_day)
+        if got is not None:
+            out[st.id] = got[1]
     return out
 
 
@@ -247,7 +294,7 @@ def apply_prepared(session: Session, line: ConditionLine, prep: PreparedRun, *,
     version_runs = {p.id: {o.run_id for o in obs[p.id] if o.method_version == version} for p in rows}
     before = {k.id: (k.active, k.listed, list(k.actions)) for k in known}
     covered = (float(seg.min() * SEGMENT_M), float((seg.max() + 1) * SEGMENT_M))
-    passes = ri.passes(params.change_params())
+    passes = ri.passes(params.change_params(), support_days=prep.support_days)
     events, _, _ = advance_places(known, found, run_id=run_id, day=now_day, covered_m=covered,
                                   params=config.lifecycle, next_id=q.next_place_id(session), place_params=params,
                                   actions=acts, passes=passes)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from app.analysis.condition.extent_level import extent_level
+from app.analysis.condition.interventions import latest_action_days
 from app.analysis.condition.lifecycle import (
     Action,
     LifecycleParams,
@@ -94,11 +95,16 @@ def lifecycle_of(spec, runs: list[StoredRun]):
             else np.zeros((*idx.shape, 0))
         hist_v = np.stack([_on(runs[j], run, runs[j].speed) for j in range(k)], axis=2) if k \
             else np.zeros((*idx.shape, 0))
+        # the history starts anew after the tamping on its segments, as the publish step reads it
+        support = latest_action_days(run.seg, SEG_M, np.array([a.start_m for a in actions]),
+                                     np.array([a.end_m for a in actions]), np.array([a.day for a in actions]), run.day)
         # compared with the matched passes (one vehicle: the same speed), as the publish step compares them
         rp = find_places(run.seg, idx, hist, days, run.day, run.classes, segment_m=SEG_M, params=DEFAULT_PLACE_PARAMS,
-                         index_sd=run.index_sd, history_sd=hist_sd, speed=run.speed, history_speed=hist_v)
+                         index_sd=run.index_sd, history_sd=hist_sd, speed=run.speed, history_speed=hist_v,
+                         support_days=support)
         covered = (float(run.seg.min() * SEG_M), float((run.seg.max() + 1) * SEG_M))
-        passes = PassHistory.of(hist, hist_v, run.speed, days, DEFAULT_PLACE_PARAMS.change_params())
+        passes = PassHistory.of(hist, hist_v, run.speed, days, DEFAULT_PLACE_PARAMS.change_params(),
+                                support_days=support)
         events, _, next_id = advance_places(known, rp, run_id=run.run_id, day=run.day, covered_m=covered,
                                             params=LifecycleParams(), next_id=next_id,
                                             place_params=DEFAULT_PLACE_PARAMS, actions=actions, passes=passes)
@@ -222,8 +228,8 @@ def test_the_publish_step_keeps_the_same_places_as_the_lifecycle(history):
 
 
 def test_a_place_shows_the_passes_it_was_read_against(history):
-    """``GET …/places/{id}/passes``: the place's peak segment in its newest run is the place's level there, the
-    earlier runs come before it, the matched passes are those the place's change was read against (a place
+    """``GET …/places/{id}/passes``: the segment a place is read at in its newest run (its peak: the place's level;
+    a developing place: a segment of it), the earlier runs before it, the matched passes are those the place's change was read against (a place
     found by a step has some), and a place found by its trend states the line through them, at the rate the
     place was given (within that rate's 95 % interval: the line is fitted on the rows as stored now)."""
     spec, runs, known, steps, actions, service = history
@@ -234,10 +240,14 @@ def test_a_place_shows_the_passes_it_was_read_against(history):
         pp = service["passes"][p["id"]]
         obs = service["history"][p["id"]]["observations"][-1]
         assert pp["place_id"] == p["id"] and pp["run_id"] == obs["run_id"] == p["last_run_id"]
-        assert pp["km_from"] <= obs["peak_km"] < pp["km_to"], (pp, obs)
         (this,) = [x for x in pp["passes"] if x["this_run"]]
-        assert this == pp["passes"][-1] and this["run_id"] == p["last_run_id"]
-        assert this["matched_index"] == this["index"] and math.isclose(this["index"], obs["level"], abs_tol=1e-6)
+        assert this == pp["passes"][-1] and this["run_id"] == p["last_run_id"] and this["matched_index"] == this["index"]
+        if pp["at"] == "peak":  # read at its peak: the place's level
+            assert pp["km_from"] <= obs["peak_km"] < pp["km_to"], (pp, obs)
+            assert math.isclose(this["index"], obs["level"], abs_tol=1e-6)
+        else:  # a developing place: where it grows fastest, inside it
+            assert pp["at"] == "trend" and "trend" in obs["evidence"]
+            assert obs["km_from"] <= pp["km_from"] < obs["km_to"], (pp, obs)
         times = [x["run_time"] for x in pp["passes"]]
         assert times == sorted(times) and len(set(times)) == len(times)
         earlier = [x for x in pp["passes"][:-1] if x["matched_index"] is not None]

@@ -434,3 +434,41 @@ def test_a_change_within_its_uncertainty_is_graded_on_its_lower_bound_and_a_grin
     assert not any(e & EVIDENCE_STEP for e in across.places.evidence)  # 0.36 / sqrt(0.1² + 0.1²) ≈ 2.5
     same = find_places(SEG, new, hist, np.arange(8.0), 8.0, cls, segment_m=10.0, params=PARAMS, **sd)
     assert len(same) == 1 and same.change_tier[0] == 2  # the same sd without a grinding: repeats, no widening
+
+
+def test_after_a_tamping_the_history_starts_anew():
+    """The demo's case: a place growing harder (+1.2 a year) tamped to 15 % below typical track between runs 6
+    and 7. Read across the tamping, the runs after it make a soft place — its change against the runs
+    before and its trend through them measure the work; with the tamping's day on its segments
+    (``support_days``) the step and the trend tests see only the runs since, and nothing is found there."""
+    from app.analysis.condition.interventions import latest_action_days, since_actions
+
+    rng = np.random.default_rng(21)
+    track = _track(rng) * 0.3
+    spot = _box(12_000.0, 12_040.0, 1.0)
+    extent = _box(11_900.0, 12_100.0, 1.0)
+    days = np.arange(10) * 14.0
+    tamped = 77.0
+
+    def change(r: int) -> np.ndarray:
+        if days[r] < tamped:
+            return spot * (0.3 + 1.2 * days[r] / 365.25)
+        return extent * np.log(0.85) + extent * 0.1 * (days[r] - tamped) / 365.25
+
+    runs = _runs(rng, track, 10, change)
+    cls = np.full(SEG.size, "b91", dtype=object)
+    args = (SEG, runs[:, :, -1], runs[:, :, :-1], days[:-1], days[-1], cls)
+    across = find_places(*args, segment_m=10.0, params=PARAMS)
+    on = [i for i in range(len(across)) if 11_900 <= across.places.centre_m[i] <= 12_100]
+    assert on and all(across.places.direction[i] < 0 for i in on)  # the work read as a soft place
+    support = latest_action_days(SEG, 10.0, np.array([11_900.0]), np.array([12_100.0]), np.array([tamped]), days[-1])
+    assert np.isfinite(support[(SEG >= 1190) & (SEG < 1210)]).all() and np.isnan(support[SEG < 1170]).all()
+    since = find_places(*args, segment_m=10.0, params=PARAMS, support_days=support)
+    assert not [i for i in range(len(since)) if 11_850 <= since.places.centre_m[i] <= 12_150]
+    # the history as the tests see it: the runs before the tamping gone on its segments only
+    h = since_actions(runs[:, :, :-1], days[:-1], support)
+    k = int(np.searchsorted(SEG, 1200))
+    assert np.isnan(h[:, k, days[:-1] < tamped]).all() and np.isfinite(h[:, k, days[:-1] > tamped]).all()
+    assert np.array_equal(h[:, 0, :], runs[:, 0, :-1])
+    with pytest.raises(ValueError, match="segments, runs"):
+        since_actions(runs[:, :, :-1], days[:-2], support)

@@ -142,7 +142,8 @@ def test_the_page_is_an_exception_report_with_every_part_filled(engineer_page, h
     assert "weld" in row.inner_text()
     # a place opens its history: observations over runs, events
     row.locator("button[data-act='history']").click()
-    page.wait_for_function(f"() => document.getElementById('place-title').textContent.startsWith('Place {on[0]['id']}')")
+    page.wait_for_function(f"() => document.getElementById('place-title').textContent.startsWith('Place {on[0]['id']}:')")
+    page.wait_for_selector(f"#place-card[data-place='{on[0]['id']}']")
     obs = page.evaluate("document.getElementById('place-history').data[0].x.length")
     assert obs >= 2
     # beside its observations, the passes of its peak segment it was read against (a step: some before it)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import datetime as dt
 
 import numpy as np
+import pytest
 from sqlalchemy import select
 
 from app.analysis.condition.lifecycle import Observation, PlaceState
@@ -70,3 +71,39 @@ def test_a_developing_place_keeps_its_trends_outlook_while_runs_do_not_read_it(d
         assert row.rate_per_year is not None  # the trend given
         row = _write(s, line, 23, 345.0, [st])
         assert row.rate_per_year is None and row.days_to_next is None
+
+
+def test_a_developing_place_is_read_where_it_grows():
+    """The test demo's case: a place developing softer (−1 ln unit a year) inside a lasting soft spot whose peak
+    does not move is read where it grows — at the peak it read "stable" — while a place growing at its peak is
+    read there, not at a neighbour that reads faster by chance (the fastest of noisy rates is biased high)."""
+    from app.analysis.condition.change import DEFAULT_CHANGE_PARAMS
+    from app.places.index import RunIndex
+    from app.places.update import developing_segment
+
+    rng = np.random.default_rng(5)
+    seg = np.arange(1300, 1320)
+    days = 14.0 * np.arange(10)
+    base = np.where((seg >= 1305) & (seg < 1319), -0.8, 0.0)[:, None]
+    grow = np.where((seg >= 1310) & (seg < 1314), -1.0, 0.0)[:, None] * days[None, :] / 365.25
+    grow[seg == 1311] *= 1.6  # the fastest of it, beside the peak
+    series = base + grow + rng.normal(0.0, 0.01, (seg.size, days.size))
+    series[seg == 1317] -= 0.1  # the lasting spot's peak, steady
+    wheels = np.repeat(series[None], 2, axis=0)
+    ri = RunIndex(seg=seg, wheels=["11", "12"], index=wheels[:, :, -1], speed=np.full((2, seg.size), 28.0),
+                  history=wheels[:, :, :-1], history_days=days[:-1], classes=np.full(seg.size, "b91", dtype=object),
+                  history_speed=np.full((2, seg.size, days.size - 1), 28.0))
+    passes = ri.passes(DEFAULT_CHANGE_PARAMS)
+
+    def place(peak_m: float) -> PlaceState:
+        obs = Observation(run_id=10, day=days[-1], start_m=13_050.0, end_m=13_190.0, centre_m=13_120.0, peak_m=peak_m,
+                          level=-0.9, change=-0.1, tier=3, severity=3.6, evidence=EVIDENCE_TREND | 1, wheels=3)
+        return PlaceState(id=1, direction=-1, start_m=13_050.0, end_m=13_190.0, peak_m=peak_m, cls="b91", tier=3,
+                          listed=True, observations=[obs])
+
+    at_peak = linear_trend(days, -series[seg == 1317][0])
+    assert not (at_peak.significant and at_peak.rate_per_year > 0)  # what the peak says: not growing
+    k, trend = developing_segment(place(13_175.0), ri, passes, days[-1])
+    assert seg[k] == 1311 and trend.significant and trend.rate_per_year == pytest.approx(1.6, rel=0.1)
+    k, trend = developing_segment(place(13_125.0), ri, passes, days[-1])  # growing at its peak: read there
+    assert seg[k] == 1312 and trend.rate_per_year == pytest.approx(1.0, rel=0.1)

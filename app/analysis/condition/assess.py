@@ -39,7 +39,7 @@ from app.analysis.condition.change import (
     detect_changes,
     series_labels,
 )
-from app.analysis.condition.interventions import surface_change_days
+from app.analysis.condition.interventions import latest_action_days, since_actions
 from app.analysis.condition.segments import SegmentStats
 
 __all__ = [
@@ -195,6 +195,7 @@ def assess_run(
     interventions: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     intervention_margin_m: float | None = None,
     vehicle: object = None,
+    support: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> RunAssessment:
     """Change tests of a run's segments against their history, and the flags.
 
@@ -213,13 +214,17 @@ def assess_run(
         Segment length the trend test runs on.
     interventions : tuple of numpy.ndarray, optional
         ``(start_m, end_m, day)`` of the line's rail-surface interventions (grinding, rail renewal) on
-        the run's km axis and time axis (:func:`~app.analysis.condition.interventions.surface_change_days`).
+        the run's km axis and time axis (:func:`~app.analysis.condition.interventions.latest_action_days`).
     intervention_margin_m : float, optional
         Their extents widened by this much, m (default
         :func:`~app.analysis.condition.interventions.intervention_margin_m` at 3 m resolution).
     vehicle : object, optional
         The run's vehicle: the step tests' passes are the same vehicle's where the history says which
         vehicle each run was (``HistoryMatrix.vehicle``; :func:`~app.analysis.condition.change.vehicle_matched`).
+    support : tuple of numpy.ndarray, optional
+        ``(start_m, end_m, day)`` of the line's actions on the support (a tamping, ballast cleaning …), widened
+        as the interventions are: a segment's history starts anew after the latest one over it
+        (:func:`~app.analysis.condition.interventions.since_actions`).
 
     Returns
     -------
@@ -241,9 +246,13 @@ def assess_run(
             hist = history.matrix(seg_m, wheel, st.seg, trend=trend)
             surface = None
             if interventions is not None:
-                surface = surface_change_days(st.seg, seg_m, *interventions, now_days, margin_m=intervention_margin_m)
+                surface = latest_action_days(st.seg, seg_m, *interventions, now_days, margin_m=intervention_margin_m)
+            index = hist.index
+            if support is not None:
+                index = since_actions(index, hist.days, latest_action_days(st.seg, seg_m, *support, now_days,
+                                                                            margin_m=intervention_margin_m))
             changes[wheel] = detect_changes(
-                hist.index, hist.speed, hist.days, st.index, st.speed_mean, now_days, st.seg,
+                index, hist.speed, hist.days, st.index, st.speed_mean, now_days, st.seg,
                 segment_m=seg_m, params=params, trend=trend, sd_value=st.index_sd, sd_history=hist.index_sd,
                 surface_days=surface, stated_wheels=n_wheels, history_vehicle=hist.vehicle, vehicle=vehicle,
             )

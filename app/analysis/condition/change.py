@@ -51,8 +51,9 @@ the physics says the errors no longer cancel:
   surface), and the run level (below) is taken from the segments it did not cover. The
   intervention's extent counts with a margin (:func:`~app.analysis.condition.interventions.intervention_margin_m`): a bin's estimate
   reaches half the floor window and the filter's correlation beyond itself. Tamping and other
-  actions change the support, not the rail's surface: the test stays as it was, so their effect is
-  found. Measured (``bench/bench_uncertainty.py``, BENCHMARKS.md): a recorded grinding over 200 m of a
+  actions change the support, not the rail's surface: after them a segment's history starts anew (the
+  caller leaves the runs before out, :func:`~app.analysis.condition.interventions.since_actions`), as a
+  step or a trend read across the work measures the work. Measured (``bench/bench_uncertainty.py``, BENCHMARKS.md): a recorded grinding over 200 m of a
   rough line, 15–20 step flags over its extent before, none after; a −30 % support change beside it
   flagged either way.
 
@@ -813,7 +814,7 @@ def detect_changes(
         (segments,) and (segments, runs) stated 1-σ of the newest and the history's index (NaN: none).
     surface_days : numpy.ndarray, optional
         (segments,) day of the latest rail-surface intervention on the segment up to the newest run
-        (:func:`~app.analysis.condition.interventions.surface_change_days`; NaN: none).
+        (:func:`~app.analysis.condition.interventions.latest_action_days`; NaN: none).
     stated_wheels : int, optional
         Wheels whose scores will be combined (:func:`step_change`; default 1).
     history_vehicle, vehicle : numpy.ndarray and object, optional

@@ -72,6 +72,7 @@ import numpy as np
 
 from app.analysis.condition.change import ChangeParams, matched_passes
 from app.analysis.condition.identity import covering_actions, match_places, tendency
+from app.analysis.condition.interventions import since_actions
 from app.analysis.condition.outlook import Projection, Trend, linear_trend, time_to_limit
 from app.analysis.condition.places import EVIDENCE_STEP, EVIDENCE_TREND
 from app.analysis.condition.run_places import (
@@ -293,13 +294,18 @@ class PassHistory:
 
     @classmethod
     def of(cls, history: np.ndarray, history_speed: np.ndarray | None, speed: np.ndarray | None, days: np.ndarray,
-           params: ChangeParams, *, history_vehicle: np.ndarray | None = None, vehicle: object = None) -> PassHistory:
+           params: ChangeParams, *, history_vehicle: np.ndarray | None = None, vehicle: object = None,
+           support_days: np.ndarray | None = None) -> PassHistory:
         """From a run's history per wheel: ``history`` and ``history_speed`` (W, S, R; speeds in m/s, None: every
         run at one speed), the run's ``speed`` (W, S), ``days`` (R,), the step test's ``params``
-        (``speed_tolerance``, ``min_history``) and the vehicles (R,) and the run's (None: one vehicle's)."""
+        (``speed_tolerance``, ``min_history``), the vehicles (R,) and the run's (None: one vehicle's) and the day
+        of the latest action on the support of each segment (S,; NaN: none): the passes before it are not the
+        track's since (:func:`~app.analysis.condition.interventions.since_actions`, as the tests see them)."""
         h = np.asarray(history, dtype=np.float64)
         if h.ndim != 3:
             raise ValueError(f"history: must be (wheels, segments, runs), got shape {h.shape}")
+        if support_days is not None:
+            h = since_actions(h, days, support_days)
         hv = np.ones(h.shape) if history_speed is None else np.asarray(history_speed, dtype=np.float64)
         v = np.ones(h.shape[:2]) if speed is None else np.asarray(speed, dtype=np.float64)
         if hv.shape != h.shape or v.shape != h.shape[:2]:

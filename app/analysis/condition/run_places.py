@@ -32,6 +32,12 @@ stiffness index** ``ln(A / A_ref(class, v))`` of the run and of its history
   have reached a limit yet: the trend finds it (tier *watch* until it does). Not on a segment whose
   rail surface was changed (``surface_days``) within the trend window: a new surface runs in.
 
+**After maintenance on the support** (``support_days``: a tamping, ballast cleaning — every action that is
+not on the rails' surface) a segment's history starts anew: the step and the trend tests see only the runs
+after the latest such action on it (:func:`~app.analysis.condition.interventions.since_actions`). The work
+changed the support by intent; read across it, a step or a trend measures the work (the demo's tamped place
+was listed a month later as a new soft place "growing" at −174 % a year).
+
 Exceeding segments merge into places (:func:`~app.analysis.condition.places.merge_places`;
 a step segment's direction is that of its change, a trend's that of its rate,
 an anomaly's that of its index). A place's **level** is the index at its peak segment, its **change**
@@ -81,6 +87,7 @@ from app.analysis.condition.change import (
     series_counts,
     series_labels,
 )
+from app.analysis.condition.interventions import since_actions
 from app.analysis.condition.places import (
     EVIDENCE_ANOMALY,
     EVIDENCE_STEP,
@@ -443,6 +450,7 @@ def find_places(
     history_speed: np.ndarray | None = None,
     vehicle: object = None,
     history_vehicle: np.ndarray | None = None,
+    support_days: np.ndarray | None = None,
 ) -> RunPlaces:
     """Find and grade a run's places (module docstring).
 
@@ -472,7 +480,7 @@ def find_places(
         (W, S, R) stated 1-σ of ``history`` (NaN: none).
     surface_days : numpy.ndarray, optional
         (S,) day of the latest rail-surface intervention (grinding, rail renewal) on each segment up to
-        ``now_day`` (NaN: none; :func:`~app.analysis.condition.interventions.surface_change_days`).
+        ``now_day`` (NaN: none; :func:`~app.analysis.condition.interventions.latest_action_days`).
     speed, history_speed : numpy.ndarray, optional
         (W, S) and (W, S, R) speed of the run's and the history's passes, m/s: the step and trend tests
         compare a wheel with its history's passes at a matched speed
@@ -480,6 +488,10 @@ def find_places(
     vehicle, history_vehicle : object and numpy.ndarray, optional
         The run's vehicle and that of each history run (R,): the tests compare with the same vehicle's
         passes (the other vehicles' brought to it where it has too few; None: all runs one vehicle's).
+    support_days : numpy.ndarray, optional
+        (S,) day of the latest action on the support (a tamping, ballast cleaning …) on each segment up to
+        ``now_day`` (NaN: none; :func:`~app.analysis.condition.interventions.latest_action_days`): the
+        segment's history starts anew there (:func:`~app.analysis.condition.interventions.since_actions`).
 
     Returns
     -------
@@ -512,8 +524,9 @@ def find_places(
     hsd = np.full(h.shape, np.nan) if history_sd is None else np.asarray(history_sd, dtype=np.float64)
     if hsd.shape != h.shape:
         raise ValueError(f"history_sd: must have the shape of history {h.shape}, got {hsd.shape}")
-    if surface_days is not None and np.shape(surface_days) != s.shape:
-        raise ValueError(f"surface_days: must have one day per segment ({s.size}), got shape {np.shape(surface_days)}")
+    for name, per_seg in (("surface_days", surface_days), ("support_days", support_days)):
+        if per_seg is not None and np.shape(per_seg) != s.shape:
+            raise ValueError(f"{name}: must have one day per segment ({s.size}), got shape {np.shape(per_seg)}")
     v_run = np.ones(x.shape) if speed is None else np.asarray(speed, dtype=np.float64)
     if v_run.shape != x.shape:
         raise ValueError(f"speed: must have the shape of index {x.shape}, got {v_run.shape}")
@@ -524,6 +537,9 @@ def find_places(
         raise ValueError(f"history_vehicle: must have one label per history run ({h.shape[2]}), "
                          f"got shape {np.shape(history_vehicle)}")
 
+    if support_days is not None:
+        # an action on the support starts each segment's history anew: the track before it is another
+        h = since_actions(h, days, support_days)
     level = mean_over_wheels(x)
     has_class = np.array([c is not None for c in cls.tolist()], dtype=bool)
     alert = params.levels.alert_limits(cls)

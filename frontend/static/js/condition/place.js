@@ -1,5 +1,5 @@
 /* Condition page: one place's history — its observations over the runs against its class's tier
- * limits (from the boot data), its peak segment's matched passes (and a developing place's trend), the events, the maintenance over it within its runs' span, the
+ * limits (from the boot data), the matched passes of the segment it is read at (and a developing place's trend), the events, the maintenance over it within its runs' span, the
  * status history — and its status workflow (engineers change it with a comment; viewers read it). */
 (function () {
   "use strict";
@@ -18,7 +18,9 @@
     state.placeId = Number(id);
     for (const tr of document.querySelectorAll("#places-body tr[data-place]")) tr.classList.toggle("selected", Number(tr.dataset.place) === state.placeId);
     const mine = ++state.placeSeq;
-    const p = await T.api.get(`/condition/places/${state.placeId}`);
+    // the place and its passes together: the card's title and its chart change at once
+    const [p, pp] = await Promise.all([T.api.get(`/condition/places/${state.placeId}`),
+                                       T.api.get(`/condition/places/${state.placeId}/passes`)]);
     // another place (or a newer state of this one) is on its way, or another line was chosen meanwhile
     if (mine !== state.placeSeq || !view.live()) return null;
     $("place-title").innerHTML = `${T.esc(T._("Place {id}: km {from}–{to}", { id: p.id, from: T.fmt(p.km_from, 3), to: T.fmt(p.km_to, 3) }))} ${C.tierBadge(p.tier)}`;
@@ -38,7 +40,7 @@
       [T._("Assets"), C.assetsText(p)], [T._("Method version"), `<span class="muted" translate="no">${T.esc(p.method_version || "–")}</span>`],
     ];
     $("place-kv").innerHTML = kv.map(([k, v]) => `<div><span>${T.esc(k)}</span><b>${v}</b></div>`).join("");
-    await drawPlaceHistory(p);
+    await drawPlaceHistory(p, pp);
     if (!view.live()) return null;
     $("place-events-body").innerHTML = p.events.length ? p.events.map((e) => `<tr><td>${T.date(e.time)}</td><td>${T.esc(T.label("place event", e.kind))}</td>
       <td>${e.run_id ?? "–"}</td><td>${tierChange(e)}</td></tr>`).join("")
@@ -71,7 +73,8 @@
     return Object.entries(limits).map(([tier, v]) => ({ tier, y: sign * Math.abs(v) }));
   }
 
-  /* The place's peak segment run by run (GET …/passes): its matched passes as the place was read against
+  /* The segment the place is read at, run by run (GET …/passes: its peak, or where a developing place grows
+   * fastest): its matched passes as the place was read against
    * them, the other passes (another speed or vehicle; off until asked for) and a developing place's trend. */
   function passTraces(pp) {
     if (!pp || !pp.passes.length) return [];
@@ -81,7 +84,8 @@
     const matched = pp.passes.filter((o) => o.matched_index !== null);
     const other = pp.passes.filter((o) => o.matched_index === null);
     const out = [];
-    if (matched.length) out.push({ type: "scatter", mode: "markers", name: T._("matched passes at its peak segment ({segment})", { segment: seg }),
+    if (matched.length) out.push({ type: "scatter", mode: "markers", name: pp.at === "trend" ? T._("matched passes where it grows fastest ({segment})", { segment: seg })
+      : T._("matched passes at its peak segment ({segment})", { segment: seg }),
       x: matched.map((o) => o.run_time), y: matched.map((o) => o.matched_index),
       marker: { symbol: "circle-open", size: 8, color: "#3f6ea5", line: { width: 1.5 } },
       customdata: matched.map((o) => [o.run_id, o.speed_kmh, o.vehicle || "–"]), hovertemplate: hover });
@@ -95,12 +99,10 @@
     return out;
   }
 
-  async function drawPlaceHistory(p) {
+  async function drawPlaceHistory(p, pp) {
     const el = $("place-history");
     const obs = p.observations;
     if (!obs.length) { T.emptyState(el, T._("No observation of this place."), ""); return; }
-    const pp = await T.api.get(`/condition/places/${p.id}/passes`);
-    if (state.placeId !== p.id) return;
     const x = obs.map((o) => o.run_time);
     const traces = [
       { type: "scatter", mode: "lines+markers", name: T._("stiffness index at the place (ln units)"), x, y: obs.map((o) => o.level),
@@ -132,7 +134,7 @@
       shapes, annotations, margin: { l: 80, r: 30, t: 30, b: 55 },
     }, {
       filename: `place-${p.id}-history`,
-      // the place's observations, then its peak segment's passes (series "pass"; matched_index: as read against)
+      // the place's observations, then its segment's passes (series "pass"; matched_index: as read against)
       csv: () => ({ columns: ["series", "run_id", "run_time", "speed_kmh", "level", "change", "tier", "km_from", "km_to", "method_version", "vehicle", "matched_index"],
                     rows: [...obs.map((o) => ["observation", o.run_id, o.run_time, o.speed_kmh, o.level, o.change, o.tier, o.km_from, o.km_to, o.method_version, null, null]),
                            ...(pp ? pp.passes.map((o) => ["pass", o.run_id, o.run_time, o.speed_kmh, o.index, null, null, pp.km_from, pp.km_to, null, o.vehicle, o.matched_index]) : [])] }),
