@@ -456,6 +456,11 @@ def test_the_planning_report_has_a_sheet_with_its_plot_per_open_place(engineer_p
         rgb = np.asarray(Image.open(images[sheet[0]]).convert("RGB"), dtype=int)
         blue = int((np.abs(rgb - np.array([0x1F, 0x77, 0xB4])) < 40).all(axis=2).sum())
         assert blue > 20, (p["id"], blue)
+        if "trend" in p["evidence"]:  # a developing place: the matched passes its trend rests on, and the trend
+            flat = " ".join(text.split())
+            assert "Circles: the matched passes of km" in flat and "dashed: their trend" in flat, (p["id"], flat)
+            trend = int((np.abs(rgb - np.array([0xB5, 0x65, 0x1D])) < 40).all(axis=2).sum())
+            assert trend > 5, (p["id"], trend)
     save_screenshot(page, "condition-report-button")
     shutil.copy(images[0], SCREENSHOTS / "condition-report-page-1.png")
     shutil.copy(images[[i for i, t in enumerate(texts) if "History" in t][0]], SCREENSHOTS / "condition-report-sheet.png")

@@ -20,6 +20,7 @@ from app.db.session import Database
 from app.io.geometry import LineGeometry
 from app.places.config import PlacesConfig
 from app.places.effect import action_effects
+from app.places.passes import place_passes
 from app.places.sections import line_sections
 from app.places.worklist import PlaceQuery, list_places, place_history
 
@@ -50,6 +51,9 @@ class ReportData:
     rail_findings: list[dict[str, Any]] = field(default_factory=list)
     #: the findings left out: seen by fewer than half the runs that passed them
     rail_unsteady: int = 0
+    #: the passes of the places found by their trend, by place id (``GET /condition/places/{id}/passes``: the
+    #: matched passes their trend is fitted on, and the trend): their own observations are the few runs since
+    passes: dict[int, dict[str, Any]] = field(default_factory=dict)
 
 
 def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date: dt.date,
@@ -62,6 +66,7 @@ def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date
     listed = list_places(db, PlaceQuery(line_id=line.line_id, track=line.track, limit=MAX_PLACES), config)
     places = listed["items"]
     histories = {p["id"]: place_history(db, p["id"], config) for p in places}
+    passes = {p["id"]: place_passes(db, p["id"], config) for p in places if "trend" in p["evidence"]}
     rails = line_findings(db, line.line_id, line.track, steady_only=True)
     effects = action_effects(db, line.line_id, line.track, types=None, since=None, km_from=None, km_to=None,
                              before_days=EFFECT_BEFORE_DAYS, after_days=EFFECT_AFTER_DAYS,
@@ -74,4 +79,5 @@ def gather(db: Database, settings: Any, line_id: str, track: str | None, *, date
     km_range = (min(a for a, _ in kms), max(b for _, b in kms)) if kms else (0.0, 1.0)
     return ReportData(line_id=line.line_id, track=line.track, date=date, sections=sections, places=places,
                       total_places=int(listed["total"]), histories=histories, effects=effects, geometry=geometry,
-                      km_range=km_range, rail_findings=rails["items"], rail_unsteady=int(rails["unsteady"]))
+                      km_range=km_range, rail_findings=rails["items"], rail_unsteady=int(rails["unsteady"]),
+                      passes=passes)

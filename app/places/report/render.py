@@ -137,6 +137,8 @@ def _environment(speech: Speech) -> jinja2.Environment:
     env.filters["num"] = speech.num
     env.filters["signed"] = lambda value, digits=2: speech.num(value, digits, sign=True)
     env.filters["date"] = speech.date
+    # a rate in ln units a year as the amplitude's change a year, per cent (100 · expm1), as the page shows it
+    env.filters["amp_rate"] = lambda rate: 100.0 * math.expm1(rate)
     env.globals["label"] = lambda kind, code: speech.label(kind, code) if code else "–"
     return env
 
@@ -160,8 +162,13 @@ def _sheet(data: ReportData, place: dict[str, Any], spans: list[tuple[float, flo
         sign = 1.0 if place["direction"] == "hard" else -1.0
         limits.append((sign * place["next_limit"], speech._("limit {tier}", tier=speech.label("tier", place["next_tier"])),
                        _TIER_COLOURS.get(place["next_tier"], "#c62828")))
+    pp = data.passes.get(place["id"])
+    matched = [(_time(x["run_time"]), x["matched_index"]) for x in (pp or {}).get("passes", [])
+               if x["matched_index"] is not None]
+    tr = (pp or {}).get("trend")
+    trend = ((_time(tr["from_time"]), tr["from_index"]), (_time(tr["to_time"]), tr["to_index"])) if tr else None
     plot = svg.history_plot([_time(o["run_time"]) for o in obs], [o["level"] for o in obs],
-                            [o.get("level_sd") for o in obs], limits=limits,
+                            [o.get("level_sd") for o in obs], limits=limits, passes=matched, trend=trend,
                             markers=[(dt.date.fromisoformat(m["date"]), speech.label("maintenance type", m["kind"]))
                                      for m in maint],
                             y_label=speech._("index (ln units)"), label=speech._("Place {id}", id=place["id"]),
@@ -177,7 +184,7 @@ def _sheet(data: ReportData, place: dict[str, Any], spans: list[tuple[float, flo
         mx, my = g.to_local(lon, lat)
         mini = svg.mini_map(gx, gy, mx, my, label=speech._("Place {id} on the map", id=place["id"]),
                             number=speech.tick)
-    return {"place": place, "history": history, "plot": Markup(plot), "strip": Markup(strip),
+    return {"place": place, "history": history, "plot": Markup(plot), "strip": Markup(strip), "passes": pp if matched else None,
             "map": Markup(mini) if mini else None}
 
 

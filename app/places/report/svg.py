@@ -17,6 +17,9 @@ __all__ = ["history_plot", "line_strip", "mini_map"]
 _FONT = 'font-family="DejaVu Sans, sans-serif" font-size="10"'
 _AXIS = "#444"
 _GRID = "#ddd"
+#: a place's matched passes (open circles) and their fitted trend (dashed), as the Condition page draws them
+_PASS = "#3f6ea5"
+_TREND = "#b5651d"
 
 
 def _svg(width: int, height: int, body: list[str], label: str) -> str:
@@ -53,24 +56,31 @@ Month = Callable[[dt.date], str]
 
 def history_plot(times: Sequence[dt.datetime], values: Sequence[float], sds: Sequence[float | None], *,
                  limits: Sequence[tuple[float, str, str]] = (), markers: Sequence[tuple[dt.date, str]] = (),
+                 passes: Sequence[tuple[dt.datetime, float]] = (),
+                 trend: tuple[tuple[dt.datetime, float], tuple[dt.datetime, float]] | None = None,
                  y_label: str, width: int = 520, height: int = 220, label: str = "history",
                  number: Number = _fmt, month: Month = _iso_month) -> str:
     """Values over time with ±1σ bars, horizontal limits ``(value, label, colour)`` and vertical
-    markers ``(date, label)`` (maintenance); ticks written by ``number`` and ``month``."""
+    markers ``(date, label)`` (maintenance); ``passes`` ``(time, value)`` as open circles (a place's matched
+    passes) and ``trend`` ``((time, value), (time, value))`` as a dashed line (their fitted trend); ticks
+    written by ``number`` and ``month``."""
     left, right, top, bottom = 52, 12, 12, 34
     pw, ph = width - left - right, height - top - bottom
     t = np.array([x.timestamp() for x in times], dtype=float)
     v = np.array(values, dtype=float)
     s = np.array([np.nan if x is None else x for x in sds], dtype=float)
+    extra = [*passes, *(trend or ())]
+    et = np.array([x.timestamp() for x, _ in extra], dtype=float)
+    ev = np.array([y for _, y in extra], dtype=float)
     mt = [dt.datetime.combine(d, dt.time(12), tzinfo=dt.UTC).timestamp() for d, _ in markers]
-    t_all = np.concatenate([t, mt]) if mt else t
+    t_all = np.concatenate([t, et, mt])
     t0, t1 = (float(t_all.min()), float(t_all.max())) if t_all.size else (0.0, 1.0)
     if t1 - t0 < 86400:
         t0, t1 = t0 - 86400 * 15, t1 + 86400 * 15
     pad_t = 0.04 * (t1 - t0)
     t0, t1 = t0 - pad_t, t1 + pad_t
-    lo_v = np.nanmin(np.concatenate([v - np.nan_to_num(s), [x for x, _, _ in limits], [0.0]])) if v.size else 0.0
-    hi_v = np.nanmax(np.concatenate([v + np.nan_to_num(s), [x for x, _, _ in limits], [0.0]])) if v.size else 1.0
+    lo_v = np.nanmin(np.concatenate([v - np.nan_to_num(s), ev, [x for x, _, _ in limits], [0.0]])) if v.size else 0.0
+    hi_v = np.nanmax(np.concatenate([v + np.nan_to_num(s), ev, [x for x, _, _ in limits], [0.0]])) if v.size else 1.0
     pad_v = 0.08 * (hi_v - lo_v or 1.0)
     lo_v, hi_v = lo_v - pad_v, hi_v + pad_v
 
@@ -110,6 +120,12 @@ def history_plot(times: Sequence[dt.datetime], values: Sequence[float], sds: Seq
         body.append('<polyline fill="none" stroke="#1f77b4" stroke-width="1.5" points="'
                     + " ".join(f"{x:.1f},{y:.1f}" for x, y in pts) + '"/>')
     body.extend(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="2.6" fill="#1f77b4"/>' for x, y in pts)
+    body.extend(f'<circle cx="{x_of(a.timestamp()):.1f}" cy="{y_of(b):.1f}" r="2.8" fill="none" stroke="{_PASS}" '
+                f'stroke-width="1.2"/>' for a, b in passes if math.isfinite(b))
+    if trend is not None:
+        (ta, va), (tb, vb) = trend
+        body.append(f'<line x1="{x_of(ta.timestamp()):.1f}" y1="{y_of(va):.1f}" x2="{x_of(tb.timestamp()):.1f}" '
+                    f'y2="{y_of(vb):.1f}" stroke="{_TREND}" stroke-width="1.5" stroke-dasharray="6 3"/>')
     body.append(f'<text x="12" y="{top + ph / 2:.1f}" transform="rotate(-90 12 {top + ph / 2:.1f})" '
                 f'text-anchor="middle" {_FONT}>{escape(y_label)}</text>')
     return _svg(width, height, body, label)
