@@ -1,8 +1,8 @@
 """A place's passes: the index at the segment it is read at in its newest run and in the earlier runs, each
 marked whether it is one of that run's **matched passes** (``GET /condition/places/{id}/passes``).
 
-The segment (``at``): its peak, or for a place found by its trend the segment its trend is read at — where it
-grows fastest (:func:`app.places.update.developing_segment`). The matched passes are the history a place's
+The segment (``at``): its peak (``"peak"``), or for a place found by its trend that does not grow at its peak
+the segment where it grows fastest (``"trend"``, :func:`app.places.update.developing_segment`). The matched passes are the history a place's
 change and trend are read against (:class:`~app.analysis.condition.lifecycle.PassHistory`: the earlier runs
 that passed the segment at a matched speed with the same vehicle, the step test's rule; since the latest
 action on the support over the segment, where the history starts anew:
@@ -85,7 +85,7 @@ def _answer(session: Session, p: Place, config: PlacesConfig) -> dict:
     got = developing_segment(state, ri, passes, now_day) if last.evidence & EVIDENCE_TREND else None
     if got is not None:
         k, trend = got
-        out["at"] = "trend"
+        out["at"] = "peak" if int(ri.seg[k]) == peak else "trend"
     else:
         k, trend = int(np.searchsorted(ri.seg, peak)), None
         if k >= ri.seg.size or int(ri.seg[k]) != peak:

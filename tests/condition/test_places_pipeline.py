@@ -245,7 +245,7 @@ def test_a_place_shows_the_passes_it_was_read_against(history):
         if pp["at"] == "peak":  # read at its peak: the place's level
             assert pp["km_from"] <= obs["peak_km"] < pp["km_to"], (pp, obs)
             assert math.isclose(this["index"], obs["level"], abs_tol=1e-6)
-        else:  # a developing place: where it grows fastest, inside it
+        else:  # a developing place that does not grow at its peak: where it grows fastest, inside it
             assert pp["at"] == "trend" and "trend" in obs["evidence"]
             assert obs["km_from"] <= pp["km_from"] < obs["km_to"], (pp, obs)
         times = [x["run_time"] for x in pp["passes"]]
