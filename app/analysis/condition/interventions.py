@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.analysis.uncertainty import correlation_zero, shared_window_m
-
 __all__ = ["RAIL_SURFACE_ACTIONS", "intervention_margin_m", "latest_action_days", "since_actions"]
 
 #: Maintenance types (the reference import's ``type``) that change the rails' running surface, hence
@@ -30,6 +28,10 @@ def intervention_margin_m(resolution_m: float = 3.0, filter_order: int = 2) -> f
     the floor window (:func:`app.analysis.uncertainty.shared_window_m`, whose estimates mix both surfaces)
     plus the first zero of the envelope's correlation (:func:`app.analysis.uncertainty.correlation_zero`);
     14.2 m at 3 m resolution, q = 2."""
+    # imported here: the lifecycle (and with it the settings) reads this module, and the uncertainty's scipy costs
+    # every CLI command seconds (tests/core/test_settings_defaults.py)
+    from app.analysis.uncertainty import correlation_zero, shared_window_m
+
     return shared_window_m(resolution_m, filter_order) / 2.0 + correlation_zero(resolution_m, filter_order)
 
 
