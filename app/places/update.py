@@ -228,8 +228,9 @@ def apply_run(session: Session, run_id: int, line: ConditionLine, version: str, 
 def developing_segment(st: PlaceState, ri: RunIndex, passes: PassHistory, now_day: float) -> tuple[int, Trend] | None:
     """The segment a developing place's trend is read at, and that trend: its peak segment where the matched
     passes and the run grow its way there with a significant rate
-    (:func:`~app.analysis.condition.lifecycle.segment_trend`), else of its other segments in the run (its newest observation's extent) the one growing
-    fastest its way with a significant rate, else its peak; None where the run has no index at its peak.
+    (:func:`~app.analysis.condition.lifecycle.segment_trend`); else, of its segments in the run (its newest
+    observation's extent), the one growing fastest its way with a significant rate; else its peak. None where
+    the run has no index at its peak and none of its segments grows significantly.
 
     A place is graded at its peak, its most severe segment; where it grows may be beside it. Measured on the
     test demo's history: the place developing softer at −1 ln unit a year lies inside a lasting soft spot whose
@@ -263,9 +264,9 @@ def developing_segment(st: PlaceState, ri: RunIndex, passes: PassHistory, now_da
 
 def developing_trends(known: list[PlaceState], run_id: int, ri: RunIndex, now_day: float,
                       passes: PassHistory) -> dict[int, Trend]:
-    """The severity trends of the places the run found by their trend (evidence ``trend``), each at the segment
-    it develops fastest (:func:`developing_segment`), over that segment's matched passes and the run, by place
-    id."""
+    """The severity trends of the places the run found by their trend (evidence ``trend``), each at the segment it
+    is read at (:func:`developing_segment`: its peak where it grows there, else where it grows fastest), over
+    that segment's matched passes and the run, by place id."""
     out: dict[int, Trend] = {}
     for st in known:
         last = st.observations[-1] if st.observations else None
