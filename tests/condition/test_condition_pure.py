@@ -343,3 +343,39 @@ def test_the_rolling_history_gives_each_earlier_run_on_the_asked_segments():
     np.testing.assert_allclose(m.index_sd, 0.01 * m.index)
     np.testing.assert_array_equal(m.days, [0.0, 1.0, 2.0])
     assert h.matrix(10.0, "12", np.array([3, 4]), trend=False).index.shape == (2, 0)
+
+
+def test_after_an_action_on_the_support_the_store_tests_only_the_runs_since():
+    """assess_run's ``support``: a tamping over km 0.40–0.60 between the history and the newest run lowers the
+    index there by 0.3 — read across it, its segments are flagged (and the run level they shift can flag others);
+    with the tamping given, the segments it covers (and its margin) have no run since to test against and
+    nothing is flagged, while the rest of the line is tested as before."""
+    from app.analysis.condition import RollingHistory, assess_run
+    from app.analysis.condition.segments import SegmentStats
+
+    rng = np.random.default_rng(33)
+    seg = np.arange(100, dtype=np.int64)
+    track = rng.normal(0.0, 0.1, seg.size)
+
+    def run(extra: np.ndarray) -> dict:
+        f = track + extra + rng.normal(0.0, 0.02, seg.size)
+        wheels = {}
+        for w in ("11", "12", "41", "42"):
+            g = f + rng.normal(0.0, 0.02, seg.size)
+            wheels[w] = SegmentStats(seg, np.full(seg.size, 40), np.exp(g), np.exp(g), np.full(seg.size, 30.0), g,
+                                     np.full(seg.size, np.nan))
+        return {10.0: wheels}
+
+    hist = RollingHistory()
+    for day in range(8):
+        hist.append(float(day * 14), run(np.zeros(seg.size)))
+    tamped = np.where((seg >= 40) & (seg < 60), np.log(0.74), 0.0)
+    new = run(tamped)
+    action = (np.array([400.0]), np.array([600.0]), np.array([7.5 * 14]))
+    across = assess_run(new, hist, 8 * 14.0, support=None)
+    steps = sorted({f.seg for f in across.flags if f.kind == "step"})
+    assert set(range(42, 58)) <= set(steps), steps
+    since = assess_run(new, hist, 8 * 14.0, support=action, intervention_margin_m=14.2)
+    assert [f for f in since.flags if f.kind == "step"] == []
+    n = since.changes[10.0]["11"].n_history
+    assert (n[(seg >= 40) & (seg < 60)] == 0).all() and (n[seg < 30] > 0).all() and (n[seg >= 70] > 0).all()
