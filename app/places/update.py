@@ -254,6 +254,8 @@ def developing_segment(st: PlaceState, ri: RunIndex, passes: PassHistory, now_da
     inside = np.flatnonzero((ri.seg >= int(last.start_m // SEGMENT_M)) & (ri.seg * SEGMENT_M < last.end_m))
     best: tuple[int, Trend] | None = None
     for k in inside.tolist():
+        if on_peak and k == kp:  # its trend is read above: no significant growth
+            continue
         tr = at(k)
         if tr.significant and tr.rate_per_year > 0 and (best is None or tr.rate_per_year > best[1].rate_per_year):
             best = (k, tr)
