@@ -46,8 +46,8 @@ HEAVY_FIRST: tuple[str, ...] = (
     "tests/e2e/test_backup_restore.py",                 # ~90 s: two backends, three runs each
     "tests/analytics/test_index_across_speed_profiles.py",  # ~90 s: two data sets
     "tests/condition/test_grinding_pipeline.py",        # ~70 s: 10-run rough history
-    "tests/condition/test_real_line_pipeline.py",       # ~60 s: 6 runs of the real line, 1.2 km
-    "tests/condition/test_condition_store.py",          # ~60 s: 12-run store histories, four of them
+    "tests/condition/test_condition_store.py",          # ~60 s: 12-run store histories, five of them
+    "tests/condition/test_real_line_pipeline.py",       # ~45 s: 6 runs of the real line, 1.2 km
     "tests/e2e/test_readme.py",                         # ~55 s: the README's commands verbatim
     "tests/e2e/test_refactor_identity.py",              # ~50 s: the processed demo's fingerprint
     "tests/faults/test_worker_supervision.py",          # ~50 s: supervised worker processes
