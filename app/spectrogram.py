@@ -11,9 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from app.analysis.recipe import order_overlap, wheel_recipe
 from app.analysis.settings import ProcessingSettings, SettingError
-from app.analysis.spectrogram import window_spectrograms
 from app.analysis.units import KMH_PER_MPS
 from app.core.errors import ApiError, not_found
 from app.core.i18n import Msg, _
@@ -77,6 +75,11 @@ def spectrogram_answer(db: Database, store: RunStore, run_id: int, *, wheel: str
     window of at most 500 m, the PSD of the sum of the VKF-extracted orders (same
     settings as the run's processing job), the tracked order frequencies (Hz) and
     the speed (km/h) per frame, with the km of every frame."""
+    # here, not at the module's top: the VKF engine (numba, scipy.signal) loads with the first spectrogram,
+    # not with every API process
+    from app.analysis.recipe import order_overlap, wheel_recipe
+    from app.analysis.spectrogram import window_spectrograms
+
     w = wheel
     if not (math.isfinite(km_from) and math.isfinite(km_to)):
         raise ApiError(422, "km_from", _("must be finite numbers"))

@@ -28,6 +28,8 @@ have_lib() {  # have_lib SONAME: the dynamic linker knows it
 missing_pkgs=()
 have_lib libpango-1.0.so.0 || missing_pkgs+=(libpango-1.0-0)
 have_lib libpangoft2-1.0.so.0 || missing_pkgs+=(libpangoft2-1.0-0)
+# WeasyPrint ≥ 70 subsets the fonts it embeds with HarfBuzz and warns without it (an error in the tests)
+have_lib libharfbuzz-subset.so.0 || missing_pkgs+=(libharfbuzz-subset0)
 have_lib libfontconfig.so.1 || missing_pkgs+=(libfontconfig1)
 [[ -e /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf ]] || fc-list 2>/dev/null | grep -q . || missing_pkgs+=(fonts-dejavu-core)
 if [[ "$want_kind" == dev ]]; then

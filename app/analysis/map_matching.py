@@ -14,9 +14,12 @@ signed distance from the line (positive to the left of the km direction).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:  # scipy.spatial loads with the first polyline, not with every API process
+    from scipy.spatial import cKDTree
 
 __all__ = ["Polyline", "MatchResult", "match_points"]
 
@@ -72,6 +75,8 @@ class Polyline:
         owner = np.append(owner, seg.size - 1)
         for name, value in (("x", x), ("y", y), ("chainage_m", c)):
             object.__setattr__(self, name, value)
+        from scipy.spatial import cKDTree
+
         object.__setattr__(self, "_tree", cKDTree(np.column_stack((px, py))))
         object.__setattr__(self, "_owner", owner)
 

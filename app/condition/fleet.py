@@ -28,8 +28,9 @@ from sqlalchemy import func, select
 from app.analysis.condition import DEFAULT_CHANGE_PARAMS, ChangeParams, RollingHistory, assess_run
 from app.analysis.settings import ProcessingSettings
 from app.analysis.units import KMH_PER_MPS
+from app.condition.actions import days_of
 from app.condition.config import FLEET_SOURCE_FORMAT
-from app.condition.writer import days_of, wheel_segments, write_assessed_run
+from app.condition.writer import wheel_segments, write_assessed_run
 from app.db import reference_crud
 from app.db.condition_store import line_of
 from app.db.models import Job, JobStatus, Run, SegmentCondition, utcnow

@@ -58,18 +58,18 @@ from app.analysis.condition import (
     assess_run,
     segment_stats,
 )
-from app.analysis.condition.interventions import RAIL_SURFACE_ACTIONS, intervention_margin_m
+from app.analysis.condition.interventions import intervention_margin_m
 from app.analysis.impacts.mask import DEFAULT_RATIO, impact_mask, mask_half_width
 from app.analysis.speed_match import speeds_matched
 from app.analysis.stiffness.alignment import align_runs
+from app.condition.actions import days_of, rail_surface_interventions, support_interventions
 from app.condition.config import DEFAULT_CONDITION_CONFIG, ConditionConfig
 from app.condition.index import STORE_INDEX, store_index, store_index_sd
 from app.core.jsonable import finite_or_none
-from app.db import reference_crud, results_reader
+from app.db import results_reader
 from app.db.bulk import insert_frame
 from app.db.condition_store import delete_run_condition, line_of
 from app.db.models import (
-    MAINTENANCE_TYPES,
     ConditionFlag,
     ConditionLine,
     ConditionOverview,
@@ -97,7 +97,6 @@ __all__ = [
 
 #: advisory lock key of the flag feed (PostgreSQL): flag ids become visible in order
 _FLAG_FEED_LOCK = 0x7476_6B66_16
-_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
 #: PostgreSQL binary types of a segment row (app.db.models.SegmentCondition)
 _SEGMENT_PG_TYPES: dict[str, str] = {
     "run_id": "int4", "seg_m": "int2", "wheel": "text", "seg": "int4", "line_key": "int4", "job_id": "int4",
@@ -132,11 +131,6 @@ def run_time_of(run: Run) -> dt.datetime:
     return run.start_time or run.created_at
 
 
-def days_of(when: dt.datetime) -> float:
-    """Days since 1970-01-01 UTC (the time axis of the change tests)."""
-    return (when - _EPOCH).total_seconds() / 86400.0
-
-
 _SD_COLUMNS = ("sleeper_amp_sd", "sleeper_amp_sd_shared")
 
 
@@ -156,32 +150,6 @@ def _job_bins(session: Session, job_id: int, profiles: pd.DataFrame | None) -> d
             g["bin"].to_numpy(dtype=np.int64)[g[IMPACT_COLUMN].notna().to_numpy()] if IMPACT_COLUMN in g else None,
         )
     return out
-
-
-def _interventions(session: Session, line_id: str, track: str,
-                   types: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The line's imported maintenance actions of ``types`` as ``(start_m, end_m, day)`` arrays (m on the km
-    axis, days since 1970)."""
-    frame = reference_crud.reference_frame(session, "maintenance", line_id=line_id, track=track, types=types)
-    if frame.empty:
-        return np.zeros(0), np.zeros(0), np.zeros(0)
-    day = np.array([days_of(dt.datetime.combine(d, dt.time(), tzinfo=dt.UTC)) for d in frame["date"]])
-    return (frame["km_from"].to_numpy(dtype=np.float64) * 1000.0, frame["km_to"].to_numpy(dtype=np.float64) * 1000.0,
-            day)
-
-
-def rail_surface_interventions(session: Session, line_id: str, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The line's imported maintenance actions that change the rails' surface (grinding, rail renewal:
-    :data:`~app.analysis.condition.interventions.RAIL_SURFACE_ACTIONS`) as ``(start_m, end_m, day)`` arrays
-    (m on the km axis, days since 1970)."""
-    return _interventions(session, line_id, track, list(RAIL_SURFACE_ACTIONS))
-
-
-def support_interventions(session: Session, line_id: str, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The line's imported maintenance actions on the support — every type that is not on the rails' surface
-    (tamping, ballast cleaning, other) — as ``(start_m, end_m, day)`` arrays: a segment's history starts anew
-    after the latest one over it (:func:`~app.analysis.condition.interventions.since_actions`)."""
-    return _interventions(session, line_id, track, [t for t in MAINTENANCE_TYPES if t not in RAIL_SURFACE_ACTIONS])
 
 
 def uncertainty_settings(settings: Mapping[str, Any] | None) -> tuple[float, int]:

@@ -41,9 +41,9 @@ from app.analysis.condition.maintenance_effect import (
     split_effect,
 )
 from app.analysis.speed_match import DEFAULT_SPEED_TOLERANCE
+from app.condition.actions import days_of
 from app.condition.lines import check_line_km, resolve_line
 from app.condition.readers import ExtentReading, extent_readings, line_runs
-from app.condition.writer import days_of
 from app.core.errors import ApiError, not_found
 from app.core.i18n import _
 from app.db import reference_crud

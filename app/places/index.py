@@ -28,11 +28,11 @@ from app.analysis.condition.lifecycle import PassHistory
 from app.analysis.condition.run_places import class_scatter, mean_over_wheels, segment_index
 from app.analysis.condition.segment_curves import fit_segment_curves
 from app.analysis.stiffness.superstructure import section_classes
-from app.condition.writer import days_of
+from app.condition.actions import days_of
+from app.core.profile_schema import ENGINE_VERSION
 from app.db import places as q
 from app.db import reference_crud
 from app.db.models import ConditionLine, ConditionRun
-from app.pipeline.assemble import ENGINE_VERSION
 from app.places.config import DEFAULT_PLACES_CONFIG, PlacesConfig
 
 __all__ = ["SEGMENT_M", "RunIndex", "history_runs_of", "method_version", "run_index", "run_segment_index",

@@ -32,7 +32,7 @@ from app.analysis.condition.outlook import Trend
 from app.analysis.condition.places import EVIDENCE_TREND
 from app.analysis.condition.run_places import mean_over_wheels
 from app.analysis.units import DAYS_PER_YEAR, KMH_PER_MPS
-from app.condition.writer import days_of
+from app.condition.actions import days_of
 from app.core.errors import not_found
 from app.core.jsonable import finite_or_none, iso_time
 from app.db import places as q

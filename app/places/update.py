@@ -53,7 +53,7 @@ from app.analysis.condition.outlook import Trend
 from app.analysis.condition.places import EVIDENCE_TREND
 from app.analysis.condition.run_places import find_places, mean_over_wheels
 from app.analysis.units import KMH_PER_MPS
-from app.condition.writer import days_of, rail_surface_interventions, support_interventions
+from app.condition.actions import days_of, rail_surface_interventions, support_interventions
 from app.db import places as q
 from app.db import reference_crud
 from app.db.models import ConditionLine, Job, PlaceEventRow, PlaceRun

@@ -13,11 +13,11 @@ from datetime import datetime
 from app.analytics.stiffness_index import IndexContext, index_context
 from app.core.errors import ApiError
 from app.core.i18n import _
+from app.core.profile_schema import STEP_COLUMN
 from app.db import crud, results_reader
 from app.db.display_arrays import DisplayArrays
 from app.db.models import PROFILE_VALUE_COLUMNS
 from app.db.session import Database
-from app.pipeline.assemble import STEP_COLUMN
 from app.profiles.encoding import etag
 from app.runs.lookup import run_with_results
 from app.settings import Settings

@@ -205,7 +205,7 @@ def places_without_sd(db: Any, run_id: int) -> list[tuple[float, float, int]]:
     the stated 1-σ and the rail-surface interventions (the places before issue 26 item 3)."""
 
     from app.analysis.condition.run_places import DEFAULT_PLACE_PARAMS, find_places
-    from app.condition.writer import days_of
+    from app.condition.actions import days_of
     from app.db import places as q
     from app.db.models import ConditionLine, ConditionRun, Job
     from app.places.index import method_version, run_index

@@ -401,8 +401,8 @@ def _report_tools() -> None:
     import ctypes.util
     import shutil
 
-    missing = [] if ctypes.util.find_library("pango-1.0") and ctypes.util.find_library("pangoft2-1.0") else [
-        "libpango-1.0-0", "libpangoft2-1.0-0"]
+    missing = [pkg for lib, pkg in (("pango-1.0", "libpango-1.0-0"), ("pangoft2-1.0", "libpangoft2-1.0-0"),
+                                    ("harfbuzz-subset", "libharfbuzz-subset0")) if not ctypes.util.find_library(lib)]
     if not (shutil.which("pdftotext") and shutil.which("pdftoppm") and shutil.which("pdfinfo")):
         missing.append("poppler-utils")
     if missing:

@@ -104,9 +104,11 @@ def linear_trend(days: np.ndarray, values: np.ndarray, *, now_day: float | None 
     resid = y - y.mean() - slope * tc
     s2 = float(np.sum(resid * resid)) / (n - 2)
     se = math.sqrt(s2 / sxx)
-    from scipy import stats  # here: the settings name this module's constants (light import)
+    from scipy.special import (
+        stdtrit,  # here: the settings name this module's constants (light import)
+    )
 
-    q = float(stats.t.ppf(0.5 + confidence / 2, n - 2))
+    q = float(stdtrit(n - 2, 0.5 + confidence / 2))  # Student's t quantile
     lo, hi = slope - q * se, slope + q * se
     level = float(y.mean() + slope * (now - t.mean()))
     significant = bool(se > 0 and (lo > 0 or hi < 0)) or bool(se == 0 and slope != 0)

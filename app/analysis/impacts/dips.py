@@ -29,7 +29,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import find_peaks, welch
 
 from app.analysis.impacts.surface import SurfaceEstimate
 from app.analysis.robust import mad_sd
@@ -174,6 +173,10 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     waves an order of magnitude too low, over-weighting them (the long filters
     then lose a quarter of a weld's score).
     """
+    from scipy.signal import (
+        welch,  # here: scipy.signal imports scipy.stats (≈ 1 s); the API needs neither
+    )
+
     x = np.where(valid, h, 0.0)
     frac = float(valid.mean()) if valid.size else 0.0
     nper = min(nperseg, 1 << int(math.floor(math.log2(max(x.size, 16)))))
@@ -391,6 +394,8 @@ def scan_dips(
             best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
                                     for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
         best[_covered(ends - edge, ends + edge, n)] = -np.inf
+        from scipy.signal import find_peaks  # here: see _background_psd
+
         peaks, _ = find_peaks(np.where(np.isfinite(best), best, -1e300), height=threshold,
                               distance=max(1, int(separation_m / step)))
         peaks = peaks[best_d[peaks] >= MIN_DEPTH_M]

@@ -36,7 +36,7 @@ from app.places.report.data import ReportData
 __all__ = ["ENGLISH", "Speech", "render_html", "render_pdf", "SYSTEM_PACKAGES", "TEMPLATES_DIR"]
 
 #: the Debian packages WeasyPrint needs (scripts/setup.sh installs them)
-SYSTEM_PACKAGES = ("libpango-1.0-0", "libpangoft2-1.0-0", "fonts-dejavu-core")
+SYSTEM_PACKAGES = ("libpango-1.0-0", "libpangoft2-1.0-0", "libharfbuzz-subset0", "fonts-dejavu-core")
 
 TEMPLATES_DIR = Path(__file__).resolve().parents[3] / "frontend" / "templates"
 _STATIC = Path(__file__).resolve().parents[3] / "frontend" / "static"

@@ -470,11 +470,13 @@ def fit_reference_curve(
         finite = np.isfinite(rep).sum(axis=0) >= max(3, n_boot // 2)
         se = np.full(nodes.size, np.nan)
         se[finite] = np.nanstd(rep[:, finite], axis=0, ddof=1)
-        from scipy import stats  # here: the settings name this module's constants (a light import)
+        from scipy.special import (
+            ndtri,  # here: the settings name this module's constants (a light import)
+        )
 
         with np.errstate(invalid="ignore"):
             alpha = (1 - confidence) / 2
-            z = stats.norm.ppf(1 - alpha)
+            z = ndtri(1 - alpha)
             low = np.where(finite, g - z * se, np.nan)
             high = np.where(finite, g + z * se, np.nan)
     ok = np.isfinite(g) & (support >= min_support)
