@@ -57,19 +57,14 @@ def ensure_installed() -> Path:
         If the binaries are missing and cannot be installed (not root, no apt-get,
         or the installation failed).
     """
+    from tests.system_packages import AptUnavailable, apt_install
+
+    try:
+        apt_install(["postgresql"], installed=lambda: find_bindir() is not None)
+    except AptUnavailable as exc:
+        raise PgUnavailable(str(exc)) from None
     bindir = find_bindir()
-    if bindir is not None:
-        return bindir
-    if os.geteuid() != 0 or shutil.which("apt-get") is None:
-        raise PgUnavailable("PostgreSQL server binaries missing and apt-get unusable (not root or no apt)")
-    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    for cmd in (["apt-get", "update"], ["apt-get", "install", "-y", "--no-install-recommends", "postgresql"]):
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=900)
-        if proc.returncode != 0:
-            raise PgUnavailable(f"{' '.join(cmd)} failed: {proc.stderr[-2000:]}")
-    bindir = find_bindir()
-    if bindir is None:
-        raise PgUnavailable("apt-get installed postgresql but no /usr/lib/postgresql/*/bin/initdb")
+    assert bindir is not None  # apt_install checked it
     return bindir
 
 

@@ -19,7 +19,8 @@ take a job through the same steps, written once here:
 * :func:`job_meta`: the provenance stored with the results (pipeline and
   worker metadata, ``meta["worker"]``);
 * :func:`refresh_line_reference`: after a publish, recompute the reference
-  curves of the run's line (stiffness index; :mod:`app.analytics.reference_curves`).
+  curves of the run's line (stiffness index; :mod:`app.analytics.reference_curves`)
+  when no other job of the line is queued or running.
 
 The ends of a job, one function each: :func:`end_published` (the publish step,
 :func:`app.publish.publish_job`, then the files go and the line's curves are
@@ -356,8 +357,10 @@ def job_meta(
     return out
 
 
-def refresh_line_reference(rt: WorkerRuntime, run: Run | None) -> None:
-    """Recompute the reference curves of the stiffness index of ``run``'s line (after a publish).
+def refresh_line_reference(rt: WorkerRuntime, run: Run | None, *, job_id: int | None = None) -> None:
+    """Recompute the reference curves of the stiffness index of ``run``'s line (after a publish of job
+    ``job_id``), unless another job of the line is queued or running: its publish refreshes them (a history
+    uploaded at once refits them once, not once per run; each refit reads every run of the line).
 
     Best effort: the job's results are already published, so a failure is only
     logged (the API computes stale curves on demand).
@@ -365,6 +368,9 @@ def refresh_line_reference(rt: WorkerRuntime, run: Run | None) -> None:
     if run is None or run.line_id is None:
         return
     try:
+        if queue.line_has_active_jobs(rt.db, run.line_id, run.track, besides=job_id):
+            log.info("reference curves of line %s track %s left to the line's next publish", run.line_id, run.track)
+            return
         stored = refresh_reference(rt.db, run.line_id, run.track, CurveParams.from_settings(rt.settings))
     except Exception:  # noqa: BLE001 - never fail a published job for its reference curves
         log.exception("reference curves of line %s track %s not refreshed", run.line_id, run.track)
@@ -394,7 +400,7 @@ def end_published(rt: WorkerRuntime, record: JobRecord, profiles: Any, wheels: S
                                  condition=rt.condition, places=rt.places, places_followup=rt.places_followup)
     discard_job_files(rt, run_id)  # its chunk (and wheel) files, and those of the jobs it supersedes
     if stored:
-        refresh_line_reference(rt, record.run)
+        refresh_line_reference(rt, record.run, job_id=record.job.id)
     return stored
 
 

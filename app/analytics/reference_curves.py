@@ -3,8 +3,9 @@
 :func:`current_reference` is the one way to get the curves the stiffness index
 uses: it returns the cached row when it is current and otherwise computes and
 stores it (on demand); the worker calls :func:`refresh_reference` when a job of
-the line is published, so requests rarely pay for the computation (it reads
-every 25 cm row of every run of the line).
+the line is published and no other job of the line is queued or running, so
+requests rarely pay for the computation (it reads every 25 cm row of every run
+of the line: a history uploaded at once is fitted once, not once per run).
 
 A cached row is current when its **fingerprint** equals the line's current one:
 a hash of the result jobs of the line's runs, its superstructure sections and

@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 from app.core.i18n import N_, Msg, stored_message
 from app.core.jsonable import jsonable
 from app.db import results_writer
-from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, UTCDateTime, utcnow
+from app.db.models import ChunkStatus, Job, JobChunk, JobStatus, Run, UTCDateTime, utcnow
 from app.db.session import Database
 
 __all__ = [
@@ -322,6 +322,24 @@ def queued_job_ids(db: Database, limit: int = 100) -> list[int]:
             .limit(limit)
         ).all()
     return [int(r) for r in rows]
+
+
+def line_has_active_jobs(db: Database, line_id: str, track: str | None, *, besides: int | None = None) -> bool:
+    """Whether a job of a run on ``line_id`` (and ``track``, if given) is queued or running (other than job
+    ``besides``).
+
+    The worker refreshes a line's reference curves after the publish of the line's last such job only
+    (:func:`worker.steps.refresh_line_reference`): a history uploaded at once refits them once, not once per
+    run (each refit reads every run of the line).
+    """
+    query = (select(Job.id).join(Run, Run.id == Job.run_id)
+             .where(Job.status.in_(JobStatus.ACTIVE), Run.line_id == line_id))
+    if track is not None:
+        query = query.where(Run.track == track)
+    if besides is not None:
+        query = query.where(Job.id != besides)
+    with db.read() as session:
+        return session.scalar(query.limit(1)) is not None
 
 
 def claim_for_fanout(db: Database, job_id: int, owner: str) -> bool:

@@ -11,8 +11,6 @@ with apt-get when it is missing (the CI machine runs as root).
 from __future__ import annotations
 
 import os
-import shutil
-import subprocess
 import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -43,18 +41,12 @@ USER, PASSWORD = "dash-engineer", "dashboard tests password"
 
 def _install_chromium() -> None:
     """apt-get install Debian's chromium (idempotent; only when /usr/bin/chromium is missing)."""
-    if CHROMIUM.exists():
-        return
-    if shutil.which("apt-get") is None or os.geteuid() != 0:
-        pytest.fail("/usr/bin/chromium is missing: install the Debian package `chromium` (needs root and apt-get)")
-    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    for cmd in (["apt-get", "update", "-qq"],
-                ["apt-get", "install", "-y", "-qq", "--no-install-recommends", "chromium", "fonts-dejavu-core"]):
-        done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=900)
-        if done.returncode != 0:
-            pytest.fail(f"{' '.join(cmd)} failed:\n{done.stdout[-2000:]}\n{done.stderr[-2000:]}")
-    if not CHROMIUM.exists():
-        pytest.fail("apt-get installed chromium but /usr/bin/chromium is missing")
+    from tests.system_packages import AptUnavailable, apt_install
+
+    try:
+        apt_install(["chromium", "fonts-dejavu-core"], installed=CHROMIUM.exists)
+    except AptUnavailable as exc:
+        pytest.fail(f"/usr/bin/chromium is missing: install the Debian package `chromium` ({exc})")
 
 
 @dataclass

@@ -124,3 +124,24 @@ def test_the_database_url_picks_the_mode(monkeypatch):
 
     monkeypatch.setattr(worker.runner, "run_worker", interrupted)
     assert modes.run(sqlite) == 130
+
+
+def test_the_line_curves_wait_for_the_lines_last_active_job(claimed, caplog):
+    """While another job of the line is queued or running, a publish leaves the reference curves to that
+    job's publish (a history uploaded at once refits them once); the job itself does not count."""
+    from app.db.models import ReferenceCurveRow
+    from worker.steps import refresh_line_reference
+
+    _, rt, record = claimed
+    run = record.run
+    assert run.line_id is not None
+    assert queue.line_has_active_jobs(rt.db, run.line_id, run.track)
+    assert queue.line_has_active_jobs(rt.db, run.line_id, None)
+    assert not queue.line_has_active_jobs(rt.db, run.line_id, run.track, besides=record.job.id)
+    assert not queue.line_has_active_jobs(rt.db, run.line_id + "-other", run.track)
+    assert not queue.line_has_active_jobs(rt.db, run.line_id, (run.track or "") + "-other")
+    with caplog.at_level("INFO", logger="worker.steps"):
+        refresh_line_reference(rt, run)
+    assert "left to the line's next publish" in caplog.text
+    with rt.db.read() as session:
+        assert session.query(ReferenceCurveRow).count() == 0
