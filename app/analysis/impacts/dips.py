@@ -25,6 +25,7 @@ are candidates; which of them are impacts is decided across the wheels
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -309,13 +310,17 @@ def _without_side_lobes(peaks: np.ndarray, score: np.ndarray, step: float) -> np
     if peaks.size < 2:
         return peaks
     order = peaks[np.argsort(-score[peaks], kind="stable")]
-    kept: list[int] = []
     reach = SIDE_LOBE_M / step
-    for p in order:
-        if any(abs(p - k) <= reach and score[k] >= SIDE_LOBE_RATIO * score[p] for k in kept):
+    kept: list[int] = []  # by position: the peaks within reach of one are a slice (bisect), not a scan of all
+    kept_score: list[float] = []
+    for p, sp in zip(order.tolist(), score[order].tolist(), strict=True):
+        i, j = bisect.bisect_left(kept, p - reach), bisect.bisect_right(kept, p + reach)
+        if any(sk >= SIDE_LOBE_RATIO * sp for sk in kept_score[i:j]):
             continue
-        kept.append(int(p))
-    return np.sort(np.array(kept, dtype=peaks.dtype))
+        at = bisect.bisect_left(kept, p)
+        kept.insert(at, p)
+        kept_score.insert(at, sp)
+    return np.array(kept, dtype=peaks.dtype)
 
 
 def find_dips(
