@@ -280,3 +280,32 @@ def test_combined_track_dips_checks_its_arguments():
         combined_track_dips({"11": _trace({}), "12": _trace({}, lengths=(0.5, 2.0))})
     with pytest.raises(ValueError, match="score"):
         WheelTrace(np.arange(3.0), np.array([1.0]), np.zeros((2, 3)), np.zeros((1, 3)))
+
+
+def _side_lobes_reference(peaks: np.ndarray, score: np.ndarray, step: float) -> np.ndarray:
+    """The side-lobe rule read literally: strongest first, a peak goes when a kept one within reach scores
+    SIDE_LOBE_RATIO times more (every kept peak checked)."""
+    from app.analysis.impacts.dips import SIDE_LOBE_M, SIDE_LOBE_RATIO
+
+    kept: list[int] = []
+    for p in sorted(peaks.tolist(), key=lambda q: -score[q]):
+        if not any(abs(p - k) <= SIDE_LOBE_M / step and score[k] >= SIDE_LOBE_RATIO * score[p] for k in kept):
+            kept.append(p)
+    return np.array(sorted(kept), dtype=peaks.dtype)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_side_lobes_go_as_the_rule_says(seed):
+    """Random candidates (ties among them) against the literal rule: the same peaks kept."""
+    from app.analysis.impacts.dips import _without_side_lobes
+
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        n = int(rng.integers(2, 4000))
+        score = rng.gamma(1.0, 1.0, n) * rng.choice([1.0, 1.0, 1.0, 5.0], n)
+        if seed % 2:
+            score = np.round(score, 1)  # ties: the stable order decides, as in the rule
+        peaks = np.sort(rng.choice(n, int(rng.integers(2, min(n, 600) + 1)), replace=False))
+        step = float(rng.choice([0.01, 0.05, 0.25]))
+        np.testing.assert_array_equal(_without_side_lobes(peaks, score, step),
+                                      _side_lobes_reference(peaks, score, step))
