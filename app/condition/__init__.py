@@ -5,6 +5,8 @@ into and out of the store's tables (:mod:`app.db.models.condition`):
 
 - :mod:`~app.condition.config`: how runs become condition rows (from the settings);
 - :mod:`~app.condition.writer`: a published job's segment rows, change tests and flags;
+- :mod:`~app.condition.actions`: the line's recorded maintenance actions on the change tests' time axis
+  (on the rails' surface or on the support);
 - :mod:`~app.condition.alerts`: the alerts outbox of new flags (one delivery per webhook);
 - :mod:`~app.condition.readers`: lines, heat maps, segment histories, flags, the feed, an extent against its
   surroundings (the one rule: :func:`~app.condition.readers.extent_readings`);
