@@ -169,9 +169,15 @@ def correlation_length(resolution_m: float = 3.0, filter_order: int = 2) -> floa
     """
     q = _check_q(filter_order)
     res = _check_resolution(resolution_m)
+    return res / (STEP_WIDTH_FACTORS[q] * _response_integral(q))
+
+
+@lru_cache(maxsize=3)
+def _response_integral(q: int) -> float:
+    """``∫H(κ)² dκ`` of the envelope low-pass (on the grid of :func:`_correlation_table`; 10 ms a call, and the
+    places and the store ask for it per run and per wheel)."""
     kappa = (np.arange(_NK) - _NK // 2) * _DK
-    integral = float(np.sum(_response_squared(kappa, q)) * _DK)
-    return res / (STEP_WIDTH_FACTORS[q] * integral)
+    return float(np.sum(_response_squared(kappa, q)) * _DK)
 
 
 def shared_window_m(resolution_m: float = 3.0, filter_order: int = 2) -> float:
