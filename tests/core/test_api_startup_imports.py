@@ -1,6 +1,7 @@
 """Every API process (uvicorn, each of its workers) starts without the processing engine: the VKF
 (numba), scipy.signal (which loads scipy.stats) and the weld scan load where a request first needs
-them (a spectrogram: tests/pipeline/test_one_recipe.py), not at start-up. A start-up import of them costs every service ≈ 1.3 s of CPU."""
+them (a spectrogram: tests/pipeline/test_one_recipe.py), not at start-up. A start-up import of them
+costs every service ≈ 1.3 s of CPU."""
 
 from __future__ import annotations
 

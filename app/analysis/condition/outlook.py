@@ -104,9 +104,8 @@ def linear_trend(days: np.ndarray, values: np.ndarray, *, now_day: float | None 
     resid = y - y.mean() - slope * tc
     s2 = float(np.sum(resid * resid)) / (n - 2)
     se = math.sqrt(s2 / sxx)
-    from scipy.special import (
-        stdtrit,  # here: the settings name this module's constants (light import)
-    )
+    # here: the settings name this module's constants (a light import)
+    from scipy.special import stdtrit
 
     q = float(stdtrit(n - 2, 0.5 + confidence / 2))  # Student's t quantile
     lo, hi = slope - q * se, slope + q * se

@@ -174,9 +174,8 @@ def _background_psd(h: np.ndarray, valid: np.ndarray, step: float, nperseg: int,
     waves an order of magnitude too low, over-weighting them (the long filters
     then lose a quarter of a weld's score).
     """
-    from scipy.signal import (
-        welch,  # here: scipy.signal imports scipy.stats (≈ 1 s); the API needs neither
-    )
+    # here: scipy.signal imports scipy.stats (≈ 1 s), which the API, reading this package, does not need
+    from scipy.signal import welch
 
     x = np.where(valid, h, 0.0)
     frac = float(valid.mean()) if valid.size else 0.0
@@ -369,6 +368,8 @@ def scan_dips(
     n = est.height.size
     if est.valid.sum() < 1024:
         return Dips.empty(), DipTrace.empty()
+    from scipy.signal import find_peaks  # here: see _background_psd
+
     step = est.step
     short = tuple(x for x in lengths_m if x < _COARSE_FROM_M)
     long = tuple(x for x in lengths_m if x >= _COARSE_FROM_M)
@@ -399,8 +400,6 @@ def scan_dips(
             best, best_l, best_d = (np.concatenate([np.repeat(a, q), np.full(n - m * q, fill)])
                                     for a, fill in ((bc, -np.inf), (lc, 0.0), (dc, 0.0)))
         best[_covered(ends - edge, ends + edge, n)] = -np.inf
-        from scipy.signal import find_peaks  # here: see _background_psd
-
         peaks, _ = find_peaks(np.where(np.isfinite(best), best, -1e300), height=threshold,
                               distance=max(1, int(separation_m / step)))
         peaks = peaks[best_d[peaks] >= MIN_DEPTH_M]

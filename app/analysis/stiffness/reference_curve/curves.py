@@ -470,9 +470,8 @@ def fit_reference_curve(
         finite = np.isfinite(rep).sum(axis=0) >= max(3, n_boot // 2)
         se = np.full(nodes.size, np.nan)
         se[finite] = np.nanstd(rep[:, finite], axis=0, ddof=1)
-        from scipy.special import (
-            ndtri,  # here: the settings name this module's constants (a light import)
-        )
+        # here: the settings name this module's constants (a light import)
+        from scipy.special import ndtri
 
         with np.errstate(invalid="ignore"):
             alpha = (1 - confidence) / 2
