@@ -34,6 +34,7 @@ from app.analysis.impacts.classify import (
     TrackImpactFinding,
     WheelDips,
     WheelFlatFinding,
+    one_per_dip,
     track_impacts,
     wheel_flats,
 )
@@ -318,8 +319,8 @@ def run_impacts(
     flats, used = wheel_flats(dips, diam)
     # welds: the single-wheel candidates' test (clear dips: smooth rail, joints) and the weld filters'
     # evidence combined over the wheels (welds on rough rail, app.analysis.impacts.welds)
-    combined = combined_track_dips(read_traces(chunk_paths, names), wheels_measured=tuple(names))
-    single = track_impacts(dips, exclude=used, wheels_measured=tuple(names))
+    combined = one_per_dip(combined_track_dips(read_traces(chunk_paths, names), wheels_measured=tuple(names)))
+    single = one_per_dip(track_impacts(dips, exclude=used, wheels_measured=tuple(names)))
     # where both found one, the single-wheel test's (its length and depth fit one wheel's dip alone)
     merged = list(single)
     for imp in combined:

@@ -18,6 +18,7 @@ from app.analysis.impacts.classify import (
     PAIR_THRESHOLD,
     SINGLE_RAIL_THRESHOLD,
     WheelDips,
+    one_per_dip,
     track_impacts,
     wheel_flats,
 )
@@ -146,6 +147,21 @@ def test_track_impacts_need_both_axles_and_enough_evidence():
     assert track_impacts(weld, exclude={w: np.ones(1, bool) for w in all4}, wheels_measured=all4) == []
     with pytest.raises(ValueError, match="wheel ids"):
         track_impacts({"1": weld["11"]})
+
+
+def test_one_track_impact_per_dip_its_ringing_dropped():
+    """A dip and its ringing 1.9 m on (scoring 0.6 of it: within the single wheel's side-lobe ratio) are one
+    impact, the one with more evidence; rail features 3 m or more apart stay two."""
+    all4 = ("11", "12", "41", "42")
+    dips = {w: _dips([60.22, 62.15, 120.0, 123.5], [15.3, 9.5, 8.0, 12.0]) for w in all4}
+    found = track_impacts(dips, wheels_measured=all4)
+    assert [round(f.track_m, 2) for f in found] == [60.22, 62.15, 120.0, 123.5]
+    kept = one_per_dip(found)
+    assert [round(f.track_m, 2) for f in kept] == [60.22, 120.0, 123.5]
+    assert [round(f.track_m, 2) for f in one_per_dip(found, within_m=4.0)] == [60.22, 123.5]
+    assert one_per_dip([]) == []
+    with pytest.raises(ValueError, match="within_m"):
+        one_per_dip(found, within_m=0.0)
 
 
 def test_wheel_flat_is_the_chain_one_circumference_apart():
