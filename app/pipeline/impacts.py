@@ -39,7 +39,7 @@ from app.analysis.impacts.classify import (
     wheel_flats,
 )
 from app.analysis.impacts.dips import scan_dips
-from app.analysis.impacts.mask import bridge, impact_mask, impact_ratio, mask_half_width
+from app.analysis.impacts.mask import bridge, impact_mask, impact_response, mask_half_width
 from app.analysis.impacts.welds import WheelTrace, combined_track_dips
 from app.analysis.recipe import OrderRecipe
 from app.analysis.settings import ProcessingSettings
@@ -333,10 +333,11 @@ def impact_extents(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding]
                    settings: ProcessingSettings, resolution_m: float | None = None) -> list[tuple[float, float]]:
     """Per track impact its size relative to the local sleeper-passage level and its mask's half width.
 
-    The ratio (:func:`app.analysis.impacts.mask.impact_ratio`) is the largest over the wheels' own
-    amplitude (``sleeper_amp_raw``, else ``sleeper_amp``) before bridging, the other impacts' cores left
-    out of the level; the half width (:func:`app.analysis.impacts.mask.mask_half_width`) follows from it,
-    the dip's length and the track orders' resolution and filter order.
+    The ratio and the offset of the largest disturbance (:func:`app.analysis.impacts.mask.impact_response`)
+    are the largest over the wheels' own amplitude (``sleeper_amp_raw``, else ``sleeper_amp``) before
+    bridging, the other impacts' cores left out of the level; the half width
+    (:func:`app.analysis.impacts.mask.mask_half_width`) follows from them, the dip's length and the track
+    orders' resolution and filter order.
 
     Parameters
     ----------
@@ -360,6 +361,7 @@ def impact_extents(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding]
     q = int(settings.filter_order)
     col = "sleeper_amp_raw" if "sleeper_amp_raw" in profiles.columns else "sleeper_amp"
     ratios = np.full(len(impacts), np.nan)
+    offsets = np.full(len(impacts), np.nan)
     if not profiles.empty and col in profiles.columns:
         bl = float(settings.bin_length_m)
         for _, sub in profiles.groupby(profiles["wheel"].astype(str), sort=False):
@@ -369,10 +371,12 @@ def impact_extents(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding]
             for i, imp in enumerate(impacts):
                 others = impact_mask(x, [o.track_m for j, o in enumerate(impacts) if j != i],
                                      [0.5 * o.length_m + res for j, o in enumerate(impacts) if j != i])
-                r = impact_ratio(x, v, imp.track_m, imp.length_m, res, exclude=others)
+                r, off = impact_response(x, v, imp.track_m, imp.length_m, res, exclude=others)
                 if np.isfinite(r):
                     ratios[i] = r if not np.isfinite(ratios[i]) else max(ratios[i], r)
-    return [(float(r), mask_half_width(imp.length_m, res, r, q)) for r, imp in zip(ratios, impacts, strict=True)]
+                    offsets[i] = off if not np.isfinite(offsets[i]) else max(offsets[i], off)
+    return [(float(r), mask_half_width(imp.length_m, res, r, q, offset_m=float(o)))
+            for r, o, imp in zip(ratios, offsets, impacts, strict=True)]
 
 
 def mask_track_impacts(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding],

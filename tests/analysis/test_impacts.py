@@ -26,6 +26,7 @@ from app.analysis.impacts.mask import (
     bridge,
     impact_mask,
     impact_ratio,
+    impact_response,
     mask_half_width,
     response_reach,
 )
@@ -245,6 +246,23 @@ def test_the_impact_ratio_from_a_profile():
     half = mask_half_width(1.0, 3.0, impact_ratio(x, bump, 50.0, 1.0, 3.0))
     assert half == pytest.approx(0.5 + response_reach(impact_ratio(x, bump, 50.0, 1.0, 3.0), 3.0) + 0.5)
     assert mask_half_width(1.0, 3.0, float("nan")) == mask_half_width(1.0, 3.0, 10.0)
+
+
+def test_a_response_that_lags_the_dip_widens_its_mask_by_the_lag():
+    """The wheel–track system answers a dip with its own delay: where the largest disturbance lies 2.5 m after
+    the dip (an FE weld at 90 MN/m, 40 m/s: 2.6 m), the mask reaches that much further."""
+    x = (np.arange(400) + 0.5) * 0.25
+    level = np.full(x.size, 2.0)
+    lagging = level - 0.7 * np.exp(-0.5 * ((x - 52.5) / 1.0) ** 2)
+    r, off = impact_response(x, lagging, 50.0, 1.0, 3.0)
+    assert r == pytest.approx(0.35, rel=1e-2) and off == pytest.approx(2.5, abs=0.13)
+    centred = level - 0.7 * np.exp(-0.5 * ((x - 50.0) / 1.0) ** 2)
+    assert impact_response(x, centred, 50.0, 1.0, 3.0)[1] == pytest.approx(0.0, abs=0.13)
+    assert mask_half_width(1.0, 3.0, r, offset_m=off) == pytest.approx(mask_half_width(1.0, 3.0, r) + off)
+    assert mask_half_width(1.0, 3.0, r, offset_m=float("nan")) == mask_half_width(1.0, 3.0, r)
+    assert all(math.isnan(v) for v in impact_response(x[:40], lagging[:40], 5.0, 1.0, 3.0))
+    with pytest.raises(ValueError, match="offset_m"):
+        mask_half_width(1.0, 3.0, r, offset_m=-1.0)
 
 
 def _trace(peaks: dict[float, float], offset_m: float = 0.0, lengths=(0.5, 1.0)) -> WheelTrace:
