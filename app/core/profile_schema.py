@@ -8,8 +8,9 @@ index keys) name them from here, without loading the processing engine (the VKF,
 #: bump when the stored numbers would change for the same input and settings
 #: (3: real-signal VKF model, per-order bandwidths, sleeper harmonics, static load out of Q;
 #: 4: track impacts bridged out of the sleeper columns, track_impact_mm, wheel flats;
-#: 5: and sleeper_amp the roughness-corrected estimate, sleeper_amp_raw / sleeper_amp_sd beside it)
-ENGINE_VERSION = "trackvkf-pipeline/5"
+#: 5: and sleeper_amp the roughness-corrected estimate, sleeper_amp_raw / sleeper_amp_sd beside it;
+#: 6: one track impact per dip, and each impact's mask reaching the offset of its largest disturbance)
+ENGINE_VERSION = "trackvkf-pipeline/6"
 #: the sleeper-passage columns of a profile row: the fundamental (m/s²), its 2nd and
 #: 3rd harmonics (m/s², NaN where not extracted) and their RMS (the energy indicator, m/s²)
 TRACK_COLUMNS: tuple[str, ...] = ("sleeper_amp", "sleeper_2_amp", "sleeper_3_amp", "sleeper_rms")
