@@ -37,7 +37,7 @@ import numpy as np
 
 from app.analysis.recipe import STEP_WIDTH_FACTOR
 
-__all__ = ["MASK_TOLERANCE", "POSITION_M", "DEFAULT_RATIO", "response_reach", "impact_response", "impact_ratio",
+__all__ = ["MASK_TOLERANCE", "POSITION_M", "DEFAULT_RATIO", "OFFSET_SPREADS", "response_reach", "impact_response", "impact_ratio",
            "mask_half_width", "impact_mask", "bridge"]
 
 #: The disturbance an impact may leave outside its mask, relative to the local level: half the 10 % the
@@ -47,6 +47,9 @@ MASK_TOLERANCE = 0.05
 POSITION_M = 0.5
 #: The size/level ratio assumed where it cannot be measured (no undisturbed level beside the impact).
 DEFAULT_RATIO = 10.0
+#: The largest disturbance near an impact gives the mask's offset only where it exceeds this many robust spreads
+#: of the profile beside the impact (:func:`impact_response`).
+OFFSET_SPREADS = 3.0
 #: Grid of the impulse response's tabulated tail, in track resolutions.
 _TAIL_STEP = 0.005
 _TAIL_SPAN = 40.0
@@ -115,7 +118,9 @@ def impact_response(x: np.ndarray, values: np.ndarray, impact_m: float, length_m
     dip ``m`` (relative to the level) of the magnitude ``|S + W h|`` give ``R ≥ sqrt(M² − 1)`` (the
     response in quadrature with the sleeper passage: the largest ``R`` a peak ``M`` allows, up to where
     the response dominates) and ``R ≥ 1 − m`` (in antiphase): the larger. The offset is the distance from
-    the impact to the bin of the largest ``|value / level − 1|`` there.
+    the impact to the bin of the largest ``|value / level − 1|`` there, where that exceeds
+    :data:`OFFSET_SPREADS` robust spreads of ``value / level`` beside the impact (else 0: on rough rail the
+    largest deviation near a weld is the roughness's own scatter, not the impact's).
 
     Parameters
     ----------
@@ -155,7 +160,13 @@ def impact_response(x: np.ndarray, values: np.ndarray, impact_m: float, length_m
         return math.nan, math.nan
     rel = v[core] / level
     peak, dip = float(rel.max()), float(rel.min())
-    offset = float(d[core][int(np.argmax(np.abs(rel - 1.0)))])
+    dev = np.abs(rel - 1.0)
+    k = int(np.argmax(dev))
+    # the disturbance is located only where it stands out of the profile's own scatter beside the impact
+    # (on rough rail a bin's scatter is 30-50 % of the level: the largest deviation near a weld is the roughness's)
+    side_rel = v[side] / level
+    spread = 1.4826 * float(np.median(np.abs(side_rel - np.median(side_rel))))
+    offset = float(d[core][k]) if dev[k] >= OFFSET_SPREADS * spread else 0.0
     return max(math.sqrt(max(peak * peak - 1.0, 0.0)), 1.0 - dip, 0.0), offset
 
 
