@@ -323,9 +323,10 @@ def one_per_dip(impacts: Sequence[TrackImpactFinding], within_m: float = ONE_DIP
     acceleration to a surface uses a generic track (80 MN/m), not the one under the wheel: where they
     differ (FE runs of 120 MN/m track at 50 m/s, ``bench_impacts.py --case fe-welds``) the estimated
     surface carries the dip's ringing as further dips 1.7–1.9 m after or before it, scoring 0.6 of the
-    dip itself — within the single wheel's side-lobe ratio (:data:`~app.analysis.impacts.dips.SIDE_LOBE_RATIO`,
-    made for a flat's hits, which score alike) and reported as rail features of their own. Two real rail features closer than this
-    (a weld beside a joint) are reported as the one with more evidence; its mask covers both.
+    dip itself — within the single wheel's side-lobe ratio
+    (:data:`~app.analysis.impacts.dips.SIDE_LOBE_RATIO`, made for a flat's hits, which score alike) —
+    and they were reported as rail features of their own. Two real rail features closer than this (a
+    weld beside a joint) are reported as the one with more evidence; its mask covers both.
 
     Parameters
     ----------

@@ -18,10 +18,11 @@ default 3 m, q = 2, 5 %). The response is not always centred on the dip: the
 wheel–track system answers the dip at ``f_s`` with its own delay, and on FE runs
 of our own (90 MN/m, 40 m/s) the largest disturbance lay 2.6 m after a weld and
 reached 10 % of the level 4.4 m after it, beyond a mask centred on the dip
-(3.9 m). So the mask also reaches as far as that offset
-(:func:`impact_response`). Within :func:`mask_half_width` (half the dip, the
-offset, the reach, the position's uncertainty) of a detected track impact the indicator
-is not measured but bridged for display, replaced per wheel by the straight
+(3.9 m). So the mask also reaches as far as that offset, where it stands out
+of the profile's own scatter (:func:`impact_response`). Within
+:func:`mask_half_width` (half the dip, the offset, the reach, the position's
+uncertainty) of a detected track impact the indicator is not measured but
+bridged for display, replaced per wheel by the straight
 line between the nearest undisturbed bins on either side (:func:`bridge`),
 and kept out of every quantity graded on it. A wheel flat needs no mask: it
 is periodic in the wheel's revolution, so the wheel orders take it.
@@ -37,8 +38,8 @@ import numpy as np
 
 from app.analysis.recipe import STEP_WIDTH_FACTOR
 
-__all__ = ["MASK_TOLERANCE", "POSITION_M", "DEFAULT_RATIO", "OFFSET_SPREADS", "response_reach", "impact_response", "impact_ratio",
-           "mask_half_width", "impact_mask", "bridge"]
+__all__ = ["MASK_TOLERANCE", "POSITION_M", "DEFAULT_RATIO", "OFFSET_SPREADS", "response_reach", "impact_response",
+           "impact_ratio", "mask_half_width", "impact_mask", "bridge"]
 
 #: The disturbance an impact may leave outside its mask, relative to the local level: half the 10 % the
 #: indicator is held to beside an impact (issue 33), the rest for the level's own scatter.
