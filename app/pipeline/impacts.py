@@ -372,9 +372,7 @@ def impact_extents(profiles: pd.DataFrame, impacts: Sequence[TrackImpactFinding]
                 others = impact_mask(x, [o.track_m for j, o in enumerate(impacts) if j != i],
                                      [0.5 * o.length_m + res for j, o in enumerate(impacts) if j != i])
                 r, off = impact_response(x, v, imp.track_m, imp.length_m, res, exclude=others)
-                if np.isfinite(r):
-                    ratios[i] = r if not np.isfinite(ratios[i]) else max(ratios[i], r)
-                    offsets[i] = off if not np.isfinite(offsets[i]) else max(offsets[i], off)
+                ratios[i], offsets[i] = np.fmax(ratios[i], r), np.fmax(offsets[i], off)  # NaN: not measured
     return [(float(r), mask_half_width(imp.length_m, res, r, q, offset_m=float(o)))
             for r, o, imp in zip(ratios, offsets, impacts, strict=True)]
 

@@ -25,7 +25,6 @@ from app.analysis.impacts.classify import (
 from app.analysis.impacts.mask import (
     bridge,
     impact_mask,
-    impact_ratio,
     impact_response,
     mask_half_width,
     response_reach,
@@ -234,17 +233,17 @@ def test_the_impact_ratio_from_a_profile():
     level = np.full(x.size, 2.0)
     # a peak of 3× the level at the impact: at least sqrt(9 - 1) = 2.83 times the level in quadrature
     bump = level + 4.0 * np.exp(-0.5 * ((x - 50.0) / 1.0) ** 2)
-    assert impact_ratio(x, bump, 50.0, 1.0, 3.0) == pytest.approx(math.sqrt(3.0**2 - 1), rel=1e-2)
+    assert impact_response(x, bump, 50.0, 1.0, 3.0)[0] == pytest.approx(math.sqrt(3.0**2 - 1), rel=1e-2)
     # a dip to 0.3 of the level: at least 0.7 (in antiphase)
     dip = level - 1.4 * np.exp(-0.5 * ((x - 50.0) / 1.0) ** 2)
-    assert impact_ratio(x, dip, 50.0, 1.0, 3.0) == pytest.approx(0.7, rel=1e-2)
+    assert impact_response(x, dip, 50.0, 1.0, 3.0)[0] == pytest.approx(0.7, rel=1e-2)
     # the level from beside the impact only, other impacts' bins left out
     other = bump + 30.0 * (np.abs(x - 66.0) < 2.0)
-    assert impact_ratio(x, other, 50.0, 1.0, 3.0, exclude=np.abs(x - 66.0) < 3.0) == pytest.approx(
+    assert impact_response(x, other, 50.0, 1.0, 3.0, exclude=np.abs(x - 66.0) < 3.0)[0] == pytest.approx(
         math.sqrt(8), rel=1e-2)
-    assert math.isnan(impact_ratio(x[:40], bump[:40], 5.0, 1.0, 3.0))  # no level beside it
-    half = mask_half_width(1.0, 3.0, impact_ratio(x, bump, 50.0, 1.0, 3.0))
-    assert half == pytest.approx(0.5 + response_reach(impact_ratio(x, bump, 50.0, 1.0, 3.0), 3.0) + 0.5)
+    assert math.isnan(impact_response(x[:40], bump[:40], 5.0, 1.0, 3.0)[0])  # no level beside it
+    half = mask_half_width(1.0, 3.0, impact_response(x, bump, 50.0, 1.0, 3.0)[0])
+    assert half == pytest.approx(0.5 + response_reach(impact_response(x, bump, 50.0, 1.0, 3.0)[0], 3.0) + 0.5)
     assert mask_half_width(1.0, 3.0, float("nan")) == mask_half_width(1.0, 3.0, 10.0)
 
 

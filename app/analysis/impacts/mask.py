@@ -9,7 +9,7 @@ so the impact adds ``W h(x − x_w)`` to the envelope: ``h`` the order's
 impulse response, ``W`` the impact's content at ``f_s``. Against the local
 sleeper-passage amplitude ``S`` the profile is disturbed by up to
 ``|W h(x)| / S`` — the impact's size relative to the local level, ``R = |W
-h(0)| / S`` (:func:`impact_ratio`), times the impulse response's tail
+h(0)| / S`` (:func:`impact_response`), times the impulse response's tail
 ``|h(x)| / h(0)``. A weld 50 times the sleeper signal (soft track, a speed
 where the sleeper response is weak) therefore reaches further than one twice
 it: the disturbance stays below ``tolerance`` of the level beyond
@@ -37,9 +37,10 @@ from functools import lru_cache
 import numpy as np
 
 from app.analysis.recipe import STEP_WIDTH_FACTOR
+from app.analysis.robust import mad_sd
 
 __all__ = ["MASK_TOLERANCE", "POSITION_M", "DEFAULT_RATIO", "OFFSET_SPREADS", "response_reach", "impact_response",
-           "impact_ratio", "mask_half_width", "impact_mask", "bridge"]
+           "mask_half_width", "impact_mask", "bridge"]
 
 #: The disturbance an impact may leave outside its mask, relative to the local level: half the 10 % the
 #: indicator is held to beside an impact (issue 33), the rest for the level's own scatter.
@@ -79,7 +80,7 @@ def response_reach(ratio: float, track_resolution_m: float, filter_order: int = 
     ----------
     ratio : float
         The impact's response at its centre relative to the local sleeper-passage level (``R``, ≥ 0;
-        :func:`impact_ratio`).
+        :func:`impact_response`).
     track_resolution_m : float
         The track orders' resolution (10–90 % step width), m.
     filter_order : int
@@ -165,17 +166,8 @@ def impact_response(x: np.ndarray, values: np.ndarray, impact_m: float, length_m
     k = int(np.argmax(dev))
     # the disturbance is located only where it stands out of the profile's own scatter beside the impact
     # (on rough rail a bin's scatter is 30-50 % of the level: the largest deviation near a weld is the roughness's)
-    side_rel = v[side] / level
-    spread = 1.4826 * float(np.median(np.abs(side_rel - np.median(side_rel))))
-    offset = float(d[core][k]) if dev[k] >= OFFSET_SPREADS * spread else 0.0
+    offset = float(d[core][k]) if dev[k] >= OFFSET_SPREADS * mad_sd(v[side] / level) else 0.0
     return max(math.sqrt(max(peak * peak - 1.0, 0.0)), 1.0 - dip, 0.0), offset
-
-
-def impact_ratio(x: np.ndarray, values: np.ndarray, impact_m: float, length_m: float, track_resolution_m: float,
-                 *, exclude: np.ndarray | None = None, level_m: float = 20.0) -> float:
-    """An impact's response at its centre relative to the local sleeper-passage level (``R``, ≥ 0; NaN where it
-    cannot be measured): the ratio of :func:`impact_response`."""
-    return impact_response(x, values, impact_m, length_m, track_resolution_m, exclude=exclude, level_m=level_m)[0]
 
 
 def mask_half_width(length_m: float, track_resolution_m: float | None, ratio: float = DEFAULT_RATIO,
