@@ -130,6 +130,34 @@ class Speech:
 ENGLISH = Speech()
 
 
+#: An amplitude's change a year above this (per cent) is printed as "> +999": the page's rule
+#: (``frontend/static/js/condition/common.js``). The end of a rate's 95 % interval fitted over a few runs
+#: weeks apart can be tens of ln units a year (issue 33's real line, seed 4: a place's 3 runs over 45 days,
+#: −38.6 … +34.9), which as 100 · expm1 is a number of 19 digits on the printed list.
+AMPLITUDE_PERCENT_SHOWN = 999.0
+
+
+def amplitude_percent(rate: float | None) -> float | None:
+    """A rate in ln units a year as the amplitude's change a year, per cent (``100 · expm1``; None: no rate,
+    inf where it overflows)."""
+    if rate is None or not math.isfinite(rate):
+        return None
+    try:
+        return 100.0 * math.expm1(rate)
+    except OverflowError:
+        return math.inf
+
+
+def amplitude_percent_text(speech: Speech, value: float | None) -> str:
+    """An amplitude's change a year (per cent) as printed: signed, no decimals, ``> +999`` above
+    :data:`AMPLITUDE_PERCENT_SHOWN`, "–" for none."""
+    if value is None or math.isnan(value):
+        return "–"
+    if value > AMPLITUDE_PERCENT_SHOWN:
+        return "> " + speech.num(AMPLITUDE_PERCENT_SHOWN, 0, sign=True)
+    return speech.num(value, 0, sign=True)
+
+
 def _environment(speech: Speech) -> jinja2.Environment:
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES_DIR)), autoescape=True,
                              undefined=jinja2.StrictUndefined, extensions=["jinja2.ext.i18n"])
@@ -138,7 +166,8 @@ def _environment(speech: Speech) -> jinja2.Environment:
     env.filters["signed"] = lambda value, digits=2: speech.num(value, digits, sign=True)
     env.filters["date"] = speech.date
     # a rate in ln units a year as the amplitude's change a year, per cent (100 · expm1), as the page shows it
-    env.filters["amp_rate"] = lambda rate: 100.0 * math.expm1(rate)
+    env.filters["amp_rate"] = amplitude_percent
+    env.filters["amp_pct"] = lambda value: amplitude_percent_text(speech, value)
     env.globals["label"] = lambda kind, code: speech.label(kind, code) if code else "–"
     return env
 
