@@ -234,10 +234,17 @@ def score_rail_findings(client: Any, spec: HistorySpec, *, within_m: float = 1.0
     joints_typed = sum(1 for f in joints if any(abs(1000.0 * i["km"] - f.track_m) <= 2.0
                                                 and i["type"] == "insulated_joint" for i in inside))
     km = (hi - lo) / 1000.0
+    # a weld's dip does not change in the history: a significant depth trend of a steady finding is false
+    ground = [(g.track_from_m, g.track_to_m) for g in (spec.line.surface.grindings if spec.line.surface else ())]
+    on_ground = [i for i in steady if any(a <= 1000.0 * i["km"] <= b for a, b in ground)]
+    trends = {"ground": sum(1 for i in on_ground if i["depth_trend_significant"]), "ground_of": len(on_ground),
+              "elsewhere": sum(1 for i in steady if i["depth_trend_significant"] and i not in on_ground),
+              "elsewhere_of": len(steady) - len(on_ground)}
     false_all = sum(1 for i in inside if not near(i, ("weld", "joint")))
     false_steady = sum(1 for i in steady if not near(i, ("weld", "joint")))
     return {"welds": len(welds), "welds_found": found, "joints": len(joints), "joints_typed": joints_typed,
             "findings": len(inside), "false": false_all, "false_steady": false_steady,
+            "depth_trends_significant": trends,
             "false_per_km": false_all / km if km > 0 else math.nan,
             "false_steady_per_km": false_steady / km if km > 0 else math.nan}
 
@@ -309,12 +316,15 @@ def main(argv: list[str] | None = None) -> int:
         for k, v in res["work_list"]["causes"].items():
             causes[k] = causes.get(k, 0) + v
     print("\n| seed | welds found (seen in ≥ half the runs, within 1 m) | findings: false per km (all / seen in ≥ half "
-          "the runs) | joints typed from the register |")
-    print("|---|---|---|---|")
+          "the runs) | joints typed from the register | significant depth trends (of steady findings): ground "
+          "stretch / elsewhere |")
+    print("|---|---|---|---|---|")
     for res in results:
         rf = res["rail_findings"]
+        dt_ = rf["depth_trends_significant"]
         print(f"| {res['seed']} | {rf['welds_found']} / {rf['welds']} ({_fmt(rf['welds_found'] / max(rf['welds'], 1), True)}) "
-              f"| {rf['false_per_km']:.2f} / {rf['false_steady_per_km']:.2f} | {rf['joints_typed']} / {rf['joints']} |")
+              f"| {rf['false_per_km']:.2f} / {rf['false_steady_per_km']:.2f} | {rf['joints_typed']} / {rf['joints']} | "
+              f"{dt_['ground']} of {dt_['ground_of']} / {dt_['elsewhere']} of {dt_['elsewhere_of']} |")
     print("\n| seed | section classes read (km, A / B / C / D / E) | the line model's support | sections within one "
           "class of it |")
     print("|---|---|---|---|")

@@ -7,7 +7,10 @@ dip length and depth; a job processed before they were kept, or by the fan-out t
 profile's ``track_impact_mm`` rows, :mod:`app.profiles.impacts`, without a length) moved onto the line's
 km axis by the run's alignment shift, and the stretch it covered (its 10 m rows, widened to its own
 impacts); :func:`app.analysis.impacts.findings.follow_findings` follows them over the runs, with the
-asset register's kind where an asset lies on the finding.
+asset register's kind where an asset lies on the finding. A finding's depth trend is read over its sightings
+since the latest work on the rails' surface over it that the line's maintenance records hold (grinding, rail
+renewal: :func:`app.condition.actions.rail_surface_interventions`), and says since when
+(``depth_trend_since``, ``depth_trend_runs``).
 
 A finding's id is ``{first run id}-{its first position on the line in dm}``: fixed by the run that
 found it first, so a later run never changes an existing id. ``GET /condition/rail-findings``
@@ -34,6 +37,7 @@ from app.analysis.impacts.findings import (
     run_coverage,
 )
 from app.condition import readers as reader
+from app.condition.actions import days_of, rail_surface_interventions
 from app.condition.lines import resolve_line
 from app.core.csv_export import csv_text
 from app.core.errors import ApiError
@@ -53,7 +57,7 @@ FINDING_TYPES: tuple[str, ...] = FINDING_KINDS
 #: The columns of the CSV (one row per finding).
 CSV_COLUMNS: tuple[str, ...] = ("id", "line_id", "track", "type", "km", "depth_mm", "length_m", "runs_seen",
                                 "runs_passed", "steady", "first_seen", "last_seen", "depth_trend_mm_per_year",
-                                "depth_trend_significant", "asset_type", "asset_name")
+                                "depth_trend_significant", "depth_trend_since", "asset_type", "asset_name")
 _ID = re.compile(r"^([1-9][0-9]{0,9})-(-?[0-9]{1,9})$")
 #: The store's row length taken for a run's covered stretch, m.
 _COVER_SEG_M = 10
@@ -78,6 +82,17 @@ def _day(t: dt.datetime, t0: dt.datetime) -> float:
     return (t - t0).total_seconds() / 86400.0
 
 
+def _utc(t: dt.datetime) -> dt.datetime:
+    return t if t.tzinfo is not None else t.replace(tzinfo=dt.UTC)
+
+
+def _surface_work(session: Session, line: ConditionLine, t0: dt.datetime) -> list[tuple[float, float, float]]:
+    """The line's recorded work on the rails' surface as ``(start_m, end_m, day)``, days since ``t0``."""
+    start, end, day = rail_surface_interventions(session, line.line_id, line.track)
+    origin = days_of(_utc(t0))
+    return [(float(a), float(b), float(d) - origin) for a, b, d in zip(start, end, day, strict=True)]
+
+
 def _run_impacts(session: Session, run: ConditionRun, t0: dt.datetime) -> RunImpacts:
     """One run's track impacts on the line's km axis and the stretch it covered."""
     job = session.get(Job, run.job_id)
@@ -95,20 +110,26 @@ def _run_impacts(session: Session, run: ConditionRun, t0: dt.datetime) -> RunImp
     return RunImpacts(run.run_id, _day(run.run_time, t0), covered, inside)
 
 
-def _follow(session: Session, line: ConditionLine) -> tuple[list[RailFinding], dict[int, dt.datetime]]:
+def _follow(session: Session, line: ConditionLine) -> tuple[list[RailFinding], dict[int, dt.datetime], dt.datetime | None]:
+    """The line's findings, its runs' times and the time the findings' days count from (None: no runs)."""
     runs = reader.line_runs(session, line.id)
     if not runs:
-        return [], {}
+        return [], {}, None
     t0 = runs[0].run_time
     per_run = [_run_impacts(session, r, t0) for r in runs]
     assets = [{"type": a.type, "track_m": 1000.0 * a.km, "name": a.name}
               for a in assets_crud.line_assets(session, line.line_id, line.track)]
     times = {r.run_id: r.run_time for r in runs}
-    return follow_findings([r for r in per_run if all(map(math.isfinite, r.covered_m))], assets=assets), times
+    found = follow_findings([r for r in per_run if all(map(math.isfinite, r.covered_m))], assets=assets,
+                            surface_work=_surface_work(session, line, t0))
+    return found, times, t0
 
 
-def _item(line: ConditionLine, f: RailFinding, times: dict[int, dt.datetime]) -> dict[str, Any]:
+def _item(line: ConditionLine, f: RailFinding, times: dict[int, dt.datetime], t0: dt.datetime | None) -> dict[str, Any]:
     trend = f.depth_trend()
+    since = None
+    if t0 is not None and math.isfinite(f.surface_day):
+        since = (_utc(t0) + dt.timedelta(days=f.surface_day)).date().isoformat()
     asset = None if f.asset is None else {"type": f.asset["type"], "km": float(f.asset["track_m"]) / 1000.0,  # type: ignore[arg-type]
                                           "name": f.asset.get("name")}
     return {
@@ -121,6 +142,7 @@ def _item(line: ConditionLine, f: RailFinding, times: dict[int, dt.datetime]) ->
         "depth_trend_mm_per_year": finite_or_none(trend.rate_per_year),
         "depth_trend_se_mm_per_year": finite_or_none(trend.se_per_year),
         "depth_trend_significant": bool(trend.significant),
+        "depth_trend_since": since, "depth_trend_runs": len(f.trend_sightings),
         "asset": asset,
     }
 
@@ -134,9 +156,9 @@ def line_findings(db: Database, line_id: str, track: str | None, types: Sequence
     wanted = check_types(types)
     line = resolve_line(db, line_id, track)
     with db.read() as session:
-        found, times = _follow(session, line)
+        found, times, t0 = _follow(session, line)
     typed = [f for f in found if not wanted or f.kind in wanted]
-    items = [_item(line, f, times) for f in typed if f.steady or not steady_only]
+    items = [_item(line, f, times, t0) for f in typed if f.steady or not steady_only]
     return {"line_id": line.line_id, "track": line.track, "types": list(wanted) or list(FINDING_TYPES),
             "runs": len(times), "steady_only": bool(steady_only),
             "unsteady": sum(1 for f in typed if not f.steady), "items": items}
@@ -153,11 +175,11 @@ def finding(db: Database, ident: str) -> dict:
         line = session.get(ConditionLine, first.line_key) if first is not None else None
         if line is None:
             raise missing
-        found, times = _follow(session, line)
+        found, times, t0 = _follow(session, line)
     f = next((f for f in found if finding_id(f) == ident), None)
     if f is None:
         raise missing
-    out = _item(line, f, times)
+    out = _item(line, f, times, t0)
     out["sightings"] = [{"run_id": s.run_id, "run_time": iso_time(times.get(s.run_id)),
                          "km": round(s.track_m / 1000.0, 6), "depth_mm": finite_or_none(round(s.depth_mm, 4)),
                          "length_m": finite_or_none(s.length_m)} for s in f.sightings]

@@ -104,6 +104,7 @@ COLUMN_LABELS: dict[str, tuple[str, str | None]] = {
     "last_seen": (N_("last seen"), None),
     "depth_trend_mm_per_year": (N_("dip depth trend"), _MM_YEAR),
     "depth_trend_significant": (N_("trend significant"), None),
+    "depth_trend_since": (N_("trend since the rail work of"), None),
     "asset_type": (N_("asset type"), None),
     "asset_name": (N_("asset name"), None),
     # a run's profile (app.profiles.export): its 25 cm bins, or segments of them (below)

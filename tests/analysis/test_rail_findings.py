@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 from app.analysis.impacts.findings import (
+    SURFACE_MARGIN_M,
     RunImpacts,
     finding_kind,
     follow_findings,
+    latest_surface_work,
     run_coverage,
     run_offset,
 )
@@ -100,3 +102,37 @@ def test_a_run_off_by_metres_is_registered_on_the_known_findings():
     assert run_offset(np.array(welds[:4]) - 2.9, np.array(welds)) == pytest.approx(2.9)
     assert run_offset(np.array([150.0, 333.0, 520.0]), np.array(welds)) == 0.0  # no offset most agree on
     assert len(follow_findings([first, off], register_m=0.0)) == 14  # not registered: each of its 7 a new one
+
+
+def test_a_depth_trend_starts_anew_after_work_on_the_rail_surface():
+    """A grinding changes the dip with the surface (issue 33's real line: 10 of 25 steady findings on the ground
+    stretch had a significant depth trend across it, 1 of 129 elsewhere): the trend reads the sightings after it."""
+    depth = {100.0: [0.30, 0.30, 0.31, 0.30, 0.20, 0.21, 0.20], 500.0: [0.25, 0.25, 0.26, 0.25, 0.25, 0.26, 0.25]}
+    runs = [_run(k + 1, 15.0 * k, [(x, d[k], 1.0) for x, d in depth.items()]) for k in range(7)]
+    across, beside = follow_findings(runs)
+    assert across.depth_trend().significant and across.depth_trend().rate_per_year < 0  # the work's step
+    grinding = [(90.0, 300.0, 50.0)]  # start_m, end_m, day: between the 4th and the 5th run
+    ground, untouched = follow_findings(runs, surface_work=grinding)
+    assert ground.surface_day == 50.0 and math.isnan(untouched.surface_day)
+    assert [s.run_id for s in ground.trend_sightings] == [5, 6, 7]
+    assert not ground.depth_trend().significant and abs(ground.depth_trend().rate_per_year) < 0.1
+    assert untouched.depth_trend() == beside.depth_trend() and len(untouched.trend_sightings) == 7
+    # identity, runs seen and the newest depth do not change with it
+    assert (ground.first_run_id, ground.anchor_m, ground.runs_seen, ground.depth_mm) == \
+        (across.first_run_id, across.anchor_m, across.runs_seen, across.depth_mm)
+    # the latest work counts; one after the newest run leaves no trend (the rail it measured is gone)
+    assert follow_findings(runs, surface_work=[*grinding, (0.0, 150.0, 20.0)])[0].surface_day == 50.0
+    late = follow_findings(runs, surface_work=[(90.0, 110.0, 200.0)])[0]
+    assert late.trend_sightings == [] and math.isnan(late.depth_trend().rate_per_year)
+
+
+def test_the_work_over_a_position():
+    work = [(200.0, 100.0, 10.0), (150.0, 400.0, 30.0), (0.0, 50.0, float("nan"))]
+    assert latest_surface_work(120.0, work) == 10.0  # an extent in either order
+    assert latest_surface_work(160.0, work) == 30.0  # the latest of two
+    assert latest_surface_work(400.0 + SURFACE_MARGIN_M, work) == 30.0  # its ends widened by the margin
+    assert math.isnan(latest_surface_work(400.0 + SURFACE_MARGIN_M + 0.1, work))
+    assert math.isnan(latest_surface_work(20.0, work))  # no valid day
+    assert math.isnan(latest_surface_work(120.0, []))
+    with pytest.raises(ValueError, match="margin_m"):
+        latest_surface_work(120.0, work, margin_m=-1.0)

@@ -133,3 +133,28 @@ def test_rail_findings_follow_the_impacts_over_the_runs_and_are_never_places(lin
     places = client.get("/api/v1/condition/places", params={"line_id": SPEC.line_id}).json()["items"]
     for p in places:
         assert not any(p["km_from"] <= i["km"] <= p["km_to"] for i in often if i["runs_seen"] >= n - 1), p
+
+
+def test_a_findings_depth_trend_starts_anew_after_the_recorded_grinding(line):
+    """A finding on the recorded grinding reads its depth trend over the runs after it (``depth_trend_since``:
+    the work's date, ``depth_trend_runs``: its sightings since); the others over every sighting."""
+    client, processed, _ = line
+    work = SPEC.maintenance()
+    ((a, b, day),) = [(1000.0 * r.km_from, 1000.0 * r.km_to, str(r.date)) for r in work.itertuples()
+                      if r.type == "grinding"]
+    items = client.get("/api/v1/condition/rail-findings", params={"line_id": SPEC.line_id}).json()["items"]
+    ground = [i for i in items if a - 1.5 <= 1000.0 * i["km"] <= b + 1.5]
+    assert ground and len(ground) < len(items)
+    for i in ground:
+        one = client.get(f"/api/v1/condition/rail-findings/{i['id']}").json()
+        after = [s for s in one["sightings"] if s["run_time"][:10] > day]
+        assert i["depth_trend_since"] == day and i["depth_trend_runs"] == len(after) < i["runs_seen"], i
+        if len(after) < 3:
+            assert i["depth_trend_mm_per_year"] is None and not i["depth_trend_significant"]
+    for i in items:
+        if i not in ground:
+            assert i["depth_trend_since"] is None and i["depth_trend_runs"] == i["runs_seen"], i
+    csv = client.get("/api/v1/condition/rail-findings.csv", params={"line_id": SPEC.line_id}).text.strip().split("\n")
+    head = csv[0].split(",")
+    k = head.index("depth_trend_since")
+    assert sorted(r.split(",")[k] for r in csv[1:] if r.split(",")[k]) == [day] * len(ground)

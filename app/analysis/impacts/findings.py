@@ -12,7 +12,11 @@ known (:func:`run_offset`: the offset most of its impacts agree on, within :data
 sightings join the findings they are. Per finding: its position (median of the sightings), its kind (the
 asset register's where an asset lies within :data:`ASSET_M`, else by the dip's length: a joint's dip is
 short, a weld's about a metre), the depth of each sighting, the runs that saw it out of those that passed
-it, and the depth's trend (:func:`app.analysis.condition.outlook.linear_trend`, mm a year).
+it, and the depth's trend (:func:`app.analysis.condition.outlook.linear_trend`, mm a year) over the
+sightings since the latest work on the rails' surface over it (``surface_work``: a grinding or a rail renewal
+recorded in the maintenance records; it changes the dip as it changes the surface, so a trend across it is
+the work's step, not the rail wearing: on issue 33's real line, five seeds, 10 of 25 steady findings on the
+ground stretch had a significant depth trend across the grinding, 1 of 129 elsewhere).
 
 Pure: positions in metres, days from any origin, depths in mm.
 """
@@ -28,7 +32,7 @@ import numpy as np
 from app.analysis.condition.outlook import Trend, linear_trend
 
 __all__ = ["MATCH_M", "REGISTER_M", "MIN_AGREE", "AGREE_M", "run_offset", "ASSET_M", "JOINT_MAX_LENGTH_M", "FINDING_KINDS", "Sighting", "RunImpacts", "RailFinding",
-           "finding_kind", "follow_findings", "run_coverage"]
+           "SURFACE_MARGIN_M", "finding_kind", "follow_findings", "run_coverage", "latest_surface_work"]
 
 #: An impact this close to a finding (its first sighting's position) is that finding again, m.
 MATCH_M = 1.5
@@ -40,6 +44,9 @@ MIN_AGREE = 3
 AGREE_M = 0.3
 #: A finding this close to an asset of the register takes the asset's kind, m.
 ASSET_M = 2.0
+#: Work on the rails' surface over a finding: its recorded extent widened by this, m (the finding's position
+#: is known to a few decimetres, a record's extent to its own rounding).
+SURFACE_MARGIN_M = MATCH_M
 #: A dip this short or shorter is a joint's (a rail end: 0.3–0.5 m), longer a weld's (0.8–1.2 m), m.
 JOINT_MAX_LENGTH_M = 0.6
 #: Kinds of rail findings: from the asset register, else from the dip.
@@ -89,6 +96,9 @@ class RailFinding:
         :data:`FINDING_KINDS` (set by :func:`follow_findings`).
     asset : dict, optional
         The register's asset it lies on (``type``, ``track_m``, ``name``), if any.
+    surface_day : float
+        Day of the latest work on the rails' surface over it (NaN: none; set by :func:`follow_findings`): its
+        depth's trend is read over the sightings after it.
     """
 
     first_run_id: int
@@ -97,6 +107,7 @@ class RailFinding:
     passed: list[int] = field(default_factory=list)
     kind: str = "weld"
     asset: Mapping[str, object] | None = None
+    surface_day: float = math.nan
 
     @property
     def track_m(self) -> float:
@@ -131,9 +142,17 @@ class RailFinding:
         lengths = [s.length_m for s in self.sightings if math.isfinite(s.length_m)]
         return float(np.median(lengths)) if lengths else math.nan
 
+    @property
+    def trend_sightings(self) -> list[Sighting]:
+        """The sightings its depth's trend is read over: those after :attr:`surface_day` (all where none)."""
+        if not math.isfinite(self.surface_day):
+            return list(self.sightings)
+        return [s for s in self.sightings if s.day > self.surface_day]
+
     def depth_trend(self) -> Trend:
-        """The depth's least-squares trend over the sightings, mm a year."""
-        return linear_trend(np.array([s.day for s in self.sightings]), np.array([s.depth_mm for s in self.sightings]))
+        """The depth's least-squares trend over :attr:`trend_sightings`, mm a year."""
+        seen = self.trend_sightings
+        return linear_trend(np.array([s.day for s in seen]), np.array([s.depth_mm for s in seen]))
 
 
 def run_coverage(impacts: Sequence[tuple[float, float, float]], rows_m: tuple[float, float] | None,
@@ -207,7 +226,28 @@ def run_offset(impacts_m: np.ndarray, anchors_m: np.ndarray, *, register_m: floa
     return off if abs(off) > 0.5 * agree_m else 0.0
 
 
+def latest_surface_work(track_m: float, surface_work: Sequence[tuple[float, float, float]], *,
+                        margin_m: float = SURFACE_MARGIN_M) -> float:
+    """Day of the latest work on the rails' surface over ``track_m`` (NaN: none).
+
+    Parameters
+    ----------
+    track_m : float
+        Position on the line's km axis, m.
+    surface_work : sequence of (start_m, end_m, day)
+        The recorded work on the rails' surface (grinding, rail renewal): extent (m, either order) and day.
+    margin_m : float
+        The extents widened by this, m (≥ 0).
+    """
+    if not (math.isfinite(margin_m) and margin_m >= 0):
+        raise ValueError(f"margin_m: must be >= 0, got {margin_m!r}")
+    days = [float(d) for a, b, d in surface_work
+            if min(a, b) - margin_m <= track_m <= max(a, b) + margin_m and math.isfinite(float(d))]
+    return max(days) if days else math.nan
+
+
 def follow_findings(runs: Sequence[RunImpacts], *, assets: Sequence[Mapping[str, object]] = (),
+                    surface_work: Sequence[tuple[float, float, float]] = (),
                     match_m: float = MATCH_M, asset_m: float = ASSET_M, register_m: float = REGISTER_M
                     ) -> list[RailFinding]:
     """The line's rail findings from its runs' track impacts (module docstring).
@@ -218,6 +258,9 @@ def follow_findings(runs: Sequence[RunImpacts], *, assets: Sequence[Mapping[str,
         Any order (taken in time order, then run id).
     assets : sequence of dict
         The register's assets of the line and track: ``type``, ``track_m`` (m), optional ``name``.
+    surface_work : sequence of (start_m, end_m, day)
+        The recorded work on the rails' surface (grinding, rail renewal; days on the runs' axis): each
+        finding's :attr:`RailFinding.surface_day` (:func:`latest_surface_work`).
     match_m, asset_m, register_m : float
         See :data:`MATCH_M`, :data:`ASSET_M`, :data:`REGISTER_M` (0: runs are taken as aligned).
 
@@ -265,4 +308,5 @@ def follow_findings(runs: Sequence[RunImpacts], *, assets: Sequence[Mapping[str,
         best = min(near, key=lambda a: abs(float(a["track_m"]) - pos)) if near else None  # type: ignore[arg-type]
         f.asset = best
         f.kind = finding_kind(f.length_m, None if best is None else str(best["type"]))
+        f.surface_day = latest_surface_work(pos, surface_work)
     return sorted(found, key=lambda f: f.track_m)

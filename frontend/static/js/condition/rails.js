@@ -9,12 +9,15 @@
   const { T, $, state } = C;
   const COLS = 7;
 
-  /* The depth's trend (mm a year, ± its standard error), with what it says where it is significant. */
+  /* The depth's trend (mm a year, ± its standard error), with what it says where it is significant, and since
+   * when: the latest work on the rails' surface over the finding (grinding, rail renewal) starts it anew. */
   function trendText(f) {
     const rate = f.depth_trend_mm_per_year;
+    const since = f.depth_trend_since
+      ? ` <span class="muted">${T.esc(T._("since the rail work of {date}", { date: T.date(f.depth_trend_since) }))}</span>` : "";
     if (rate === null || rate === undefined) {
       const why = T._("a trend needs the finding in three runs or more");
-      return `<span class="muted" title="${T.esc(why)}">–</span>`;
+      return `<span class="muted" title="${T.esc(why)}">–</span>${since}`;
     }
     const se = f.depth_trend_se_mm_per_year;
     const value = se === null || se === undefined
@@ -22,7 +25,7 @@
       : T._("{rate} ± {se} mm a year", { rate: C.signed(rate, 3), se: T.fmt(se, 3) });
     const words = !f.depth_trend_significant ? T._("not significant")
       : rate > 0 ? T._("deepening") : T._("getting shallower");
-    return `${T.esc(value)} <span class="${f.depth_trend_significant ? "" : "muted"}">(${T.esc(words)})</span>`;
+    return `${T.esc(value)} <span class="${f.depth_trend_significant ? "" : "muted"}">(${T.esc(words)})</span>${since}`;
   }
 
   function depthText(f) {
