@@ -12,7 +12,7 @@
 # Default 4 on the 2-core CI machine: a test process often waits (on services, workers, browsers
 # and their polls) and another fills the cores meanwhile; clean clone: 26:17 with 2, 24:37 with 3,
 # 22:31 with 4 (then: 15:52 to 17:18 with the byte code kept, below); 2026-11-30, 2021 tests: 20:40 with 4,
-# 22:18 with 6 (the suite is CPU-bound: 1 986 CPU s with 4); 2029–2031 tests: 18:20 to 21:13 with 4 (1 727 to 2 003 CPU s).
+# 22:18 with 6 (the suite is CPU-bound: 1 986 CPU s with 4); 2029–2037 tests: 17:40 to 21:13 with 4 (1 655 to 2 003 CPU s).
 # 0: everything in this one process.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
