@@ -72,7 +72,7 @@ def test_the_service_answers_are_scored_against_the_truth(line):
     _, processed, score = line
     work = score["work_list"]
     assert work["real_truth"] == 4 and work["listed"] >= 0
-    assert set(work["causes"]) <= {"real", "weld", "joint", "ramp", "grinding", "class edge", "noise"}
+    assert set(work["causes"]) <= {"real", "tamped extent", "weld", "joint", "ramp", "grinding", "class edge", "noise"}
     assert sum(work["causes"].values()) == work["listed"]
     flags = score["flags"]
     assert {"ramps"} <= set(flags) and any(k.endswith("m/s") for k in flags)

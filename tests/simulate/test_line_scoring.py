@@ -11,6 +11,7 @@ import pytest
 
 from app.simulate.history import REAL_LINE_SPEEDS_MPS, real_line_history
 from app.simulate.line_scoring import (
+    TAMPING_NEW_DAYS,
     place_cause,
     score_effects,
     score_flags,
@@ -81,6 +82,20 @@ def test_causes_of_places_that_are_not_real():
         assert place_cause(SPEC, (mid, mid + 10.0), gday - 1.0) == "noise"
     edge = SPEC.line.sections[2].track_from_m
     assert place_cause(SPEC, (edge + 20.0, edge + 30.0), LAST) in ("class edge", "weld")
+
+
+def test_a_tamped_extent_is_real_within_the_window_or_by_its_level():
+    """A step or trend found on a tamped extent after the places' window for an action's effect is measured
+    against the tamped track (the service starts its history anew), not across the work."""
+    tamp = _truth("tamping")
+    ext = (tamp.track_from_m + 50.0, tamp.track_from_m + 60.0)
+    assert place_cause(SPEC, ext, tamp.since_day + 15.0) == "real"
+    assert place_cause(SPEC, ext, tamp.since_day + TAMPING_NEW_DAYS + 1.0) == "tamped extent"  # a flag: no evidence
+    assert place_cause(SPEC, ext, LAST, evidence=["step"]) == "tamped extent"
+    assert place_cause(SPEC, ext, LAST, evidence=["anomaly", "step"]) == "real"
+    assert place_cause(SPEC, ext, tamp.since_day - 1.0) != "real"  # before the work, nothing was planted there
+    s = score_work_list(SPEC, [_place(*ext, evidence=["step"]), _place(*ext, evidence=["anomaly"])], LAST)
+    assert s["causes"] == {"tamped extent": 1, "real": 1} and s["real_truth"] == 4
 
 
 def test_false_flags_per_speed_group_on_the_ramps_and_per_vehicle():
