@@ -80,8 +80,8 @@ def pattern(spec: HistorySpec, root: Path) -> dict:
         lo, hi = max(0, j - AROUND_SEGMENTS), j + AROUND_SEGMENTS + 1
         contrast[:, j] = index[:, j] - np.nanmedian(index[:, lo:hi], axis=1)
     cruise = spec.ramps()
-    lasting = [p for p in spec.truth_places(spec.runs[-1].day) if p.kind == "anomaly"]
     planted = spec.truth_places(spec.runs[-1].day)
+    lasting = [p for p in planted if p.kind == "anomaly"]
     clean = (centres > cruise[0]) & (centres < cruise[1])
     for p in planted:
         clean &= (centres < p.track_from_m - PLACE_MARGIN_M) | (centres > p.track_to_m + PLACE_MARGIN_M)

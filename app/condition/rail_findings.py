@@ -82,14 +82,11 @@ def _day(t: dt.datetime, t0: dt.datetime) -> float:
     return (t - t0).total_seconds() / 86400.0
 
 
-def _utc(t: dt.datetime) -> dt.datetime:
-    return t if t.tzinfo is not None else t.replace(tzinfo=dt.UTC)
-
-
 def _surface_work(session: Session, line: ConditionLine, t0: dt.datetime) -> list[tuple[float, float, float]]:
-    """The line's recorded work on the rails' surface as ``(start_m, end_m, day)``, days since ``t0``."""
+    """The line's recorded work on the rails' surface as ``(start_m, end_m, day)``, days since ``t0`` (a run time:
+    timezone-aware, as the store's ``UTCDateTime`` gives it)."""
     start, end, day = rail_surface_interventions(session, line.line_id, line.track)
-    origin = days_of(_utc(t0))
+    origin = days_of(t0)
     return [(float(a), float(b), float(d) - origin) for a, b, d in zip(start, end, day, strict=True)]
 
 
@@ -129,7 +126,7 @@ def _item(line: ConditionLine, f: RailFinding, times: dict[int, dt.datetime], t0
     trend = f.depth_trend()
     since = None
     if t0 is not None and math.isfinite(f.surface_day):
-        since = (_utc(t0) + dt.timedelta(days=f.surface_day)).date().isoformat()
+        since = (t0 + dt.timedelta(days=f.surface_day)).date().isoformat()
     asset = None if f.asset is None else {"type": f.asset["type"], "km": float(f.asset["track_m"]) / 1000.0,  # type: ignore[arg-type]
                                           "name": f.asset.get("name")}
     return {

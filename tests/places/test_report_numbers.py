@@ -12,9 +12,12 @@ from app.places.report.render import (
     AMPLITUDE_PERCENT_SHOWN,
     ENGLISH,
     Speech,
-    amplitude_percent,
+    _environment,
     amplitude_percent_text,
 )
+
+#: the report's own filter: a rate in ln units a year as the amplitude's change a year, per cent
+amplitude_percent = _environment(ENGLISH).filters["amp_rate"]
 
 
 def test_a_rate_in_ln_units_is_the_amplitudes_change_in_per_cent():

@@ -27,6 +27,7 @@ from babel.dates import format_date, format_datetime, format_skeleton
 from babel.numbers import format_decimal
 from markupsafe import Markup
 
+from app.analysis.condition.reading import amplitude_percent_per_year
 from app.analysis.condition.tiers import TIER_ACTIONS
 from app.core.errors import ApiError
 from app.core.i18n import _
@@ -137,17 +138,6 @@ ENGLISH = Speech()
 AMPLITUDE_PERCENT_SHOWN = 999.0
 
 
-def amplitude_percent(rate: float | None) -> float | None:
-    """A rate in ln units a year as the amplitude's change a year, per cent (``100 · expm1``; None: no rate,
-    inf where it overflows)."""
-    if rate is None or not math.isfinite(rate):
-        return None
-    try:
-        return 100.0 * math.expm1(rate)
-    except OverflowError:
-        return math.inf
-
-
 def amplitude_percent_text(speech: Speech, value: float | None) -> str:
     """An amplitude's change a year (per cent) as printed: signed, no decimals, ``> +999`` above
     :data:`AMPLITUDE_PERCENT_SHOWN`, "–" for none."""
@@ -166,7 +156,7 @@ def _environment(speech: Speech) -> jinja2.Environment:
     env.filters["signed"] = lambda value, digits=2: speech.num(value, digits, sign=True)
     env.filters["date"] = speech.date
     # a rate in ln units a year as the amplitude's change a year, per cent (100 · expm1), as the page shows it
-    env.filters["amp_rate"] = amplitude_percent
+    env.filters["amp_rate"] = lambda rate: amplitude_percent_per_year(1, rate)
     env.filters["amp_pct"] = lambda value: amplitude_percent_text(speech, value)
     env.globals["label"] = lambda kind, code: speech.label(kind, code) if code else "–"
     return env
