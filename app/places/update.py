@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
+from app.analysis.condition.change import axle_labels
 from app.analysis.condition.interventions import latest_action_days
 from app.analysis.condition.lifecycle import (
     Action,
@@ -203,7 +204,8 @@ def prepare_run(session: Session, run_id: int, line: ConditionLine, version: str
     found = find_places(ri.seg, ri.index, ri.history, ri.history_days, now_day, ri.classes,
                         segment_m=SEGMENT_M, params=params, index_sd=ri.index_sd, history_sd=ri.history_sd,
                         surface_days=surface_days, speed=ri.speed, history_speed=ri.history_speed,
-                        vehicle=ri.vehicle, history_vehicle=ri.history_vehicle, support_days=support)
+                        vehicle=ri.vehicle, history_vehicle=ri.history_vehicle, support_days=support,
+                        axles=axle_labels(ri.wheels))
     return PreparedRun(run_id, when, version, hist_ids, ri, found, support)
 
 

@@ -56,7 +56,8 @@ def test_series_labels_name_the_wheels_with_an_index_of_their_own():
 
 def test_a_runs_axle_scores_combine_as_two_witnesses():
     # the run's places combine their wheels as the two axles they are: the combined step score is the axles'
-    # scores over √2, each axle tested with the stated error shared by two
+    # scores over √2, each axle tested with the stated error shared by two, and divided by the axles'
+    # disagreement beyond their 1-σ where there is any (two axles: S² = (c₁ − c₄)² / (s₁² + s₄²))
     rng = np.random.default_rng(11)
     n = 10
     x = runs(rng, track(np.random.default_rng(12)), n + 1,
@@ -66,10 +67,13 @@ def test_a_runs_axle_scores_combine_as_two_witnesses():
     days = np.arange(n + 1) * 15.0
     rp = find_places(SEG, x[:, :, n], x[:, :, :n], days[:n], days[n], CLS, segment_m=10.0, params=PARAMS,
                      index_sd=sd[:, :, n], history_sd=sd[:, :, :n])
-    z = [detect_changes(x[w, :, :n], np.ones((SEG.size, n)), days[:n], x[w, :, n], np.ones(SEG.size), days[n], SEG,
-                        segment_m=10.0, params=PARAMS.change_params(), trend=True, sd_value=sd[w, :, n],
-                        sd_history=sd[w, :, :n], stated_wheels=2).change_z for w in (0, 2)]
-    np.testing.assert_allclose(rp.seg_change_z, (z[0] + z[1]) / np.sqrt(2.0), rtol=1e-9, equal_nan=True)
+    ch = [detect_changes(x[w, :, :n], np.ones((SEG.size, n)), days[:n], x[w, :, n], np.ones(SEG.size), days[n], SEG,
+                         segment_m=10.0, params=PARAMS.change_params(), trend=True, sd_value=sd[w, :, n],
+                         sd_history=sd[w, :, :n], stated_wheels=2) for w in (0, 2)]
+    z = [c.change_z for c in ch]
+    birge = np.sqrt(np.fmax((ch[0].change - ch[1].change) ** 2 / (ch[0].change_sd**2 + ch[1].change_sd**2), 1.0))
+    assert 0 < int((birge > 1.0).sum()) < SEG.size  # both kinds of segment are tested
+    np.testing.assert_allclose(rp.seg_change_z, (z[0] + z[1]) / np.sqrt(2.0) / birge, rtol=1e-9, equal_nan=True)
     k = int(np.searchsorted(SEG, 1100))
     assert rp.seg_change_z[k] < -4.5  # the planted step is found
     # one wheel measured (the others without an index): one witness, its stated error its own

@@ -35,6 +35,7 @@ from app.analysis.condition.change import (
     DEFAULT_CHANGE_PARAMS,
     ChangeParams,
     WheelChange,
+    axle_labels,
     combine_wheels,
     detect_changes,
     series_labels,
@@ -161,13 +162,21 @@ def _combine(kind: str, seg_m: float, stats: Mapping[str, SegmentStats], changes
     z = np.full((len(wheels), segs.size), np.nan)
     change = np.full_like(z, np.nan)
     rate = np.full_like(z, np.nan)
+    sd = np.full_like(z, np.nan)
     for i, w in enumerate(wheels):
         j = np.searchsorted(segs, stats[w].seg)
         c = changes[w]
         z[i, j] = c.change_z if kind == "step" else c.trend_z
         change[i, j] = c.change
         rate[i, j] = c.trend_rate
-    combined, agree = combine_wheels(z, params.agree_z, np.array([series.get(w, w) for w in wheels], dtype=object))
+        if c.change_sd is not None:
+            sd[i, j] = c.change_sd
+    labels = np.array([series.get(w, w) for w in wheels], dtype=object)
+    if kind == "step":
+        # a change of the support is one change under every axle (:func:`combine_wheels`)
+        combined, agree = combine_wheels(z, params.agree_z, labels, change=change, sd=sd, axles=axle_labels(wheels))
+    else:
+        combined, agree = combine_wheels(z, params.agree_z, labels)
     threshold = params.step_z if kind == "step" else params.trend_z
     out = []
     for j in np.flatnonzero(np.abs(np.nan_to_num(combined)) >= threshold):

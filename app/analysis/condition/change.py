@@ -109,7 +109,13 @@ tests: they look for places that depart from their surroundings.
 **Wheels** (:func:`combine_wheels`): the wheels see the same place; their
 scores combine as ``Σ z / √n`` (Stouffer), wheels that give one value (the
 two-rail estimate: both wheels of an axle) counted as one witness, and the wheels
-*agreeing* are those whose own score has the combined sign and at least ``agree_z``.
+*agreeing* are those whose own score has the combined sign and at least ``agree_z``. A change of the
+support is one change under every axle (each passes the same support under the same rails at the same
+speed): the step's combined score is divided by the axles' disagreement beyond their 1-σ, the Birge ratio
+``√max(1, χ² / (n_axles − 1))`` of their changes about the weighted mean (:func:`axle_consistency`; the
+places' steps and the store's step flags alike). On issue 33's line a step that one axle read
+(−0.28 ± 0.04) and the other did not (−0.05 ± 0.06) was listed from a combined score of −5.3; with the
+ratio (3.1) it is −1.7.
 
 The direction is the sign: ``+1`` the index rose (stiffer / higher amplitude),
 ``-1`` it fell. Both tests need ``min_history`` matched runs; otherwise their
@@ -146,6 +152,8 @@ __all__ = [
     "WheelChange",
     "detect_changes",
     "combine_wheels",
+    "axle_labels",
+    "axle_consistency",
     "series_labels",
     "series_counts",
 ]
@@ -581,7 +589,6 @@ def stated_variance(history: np.ndarray, sd_value: np.ndarray | None, sd_history
     value : numpy.ndarray, optional
         (segments,) the newest value (log units): the history's 1-σ are brought to its amplitude for
         the excess (a), ``sd · e^(h − x)``; without it they are taken as they are.
-
     Returns
     -------
     numpy.ndarray
@@ -916,7 +923,79 @@ def series_counts(ok: np.ndarray, series: np.ndarray | None = None) -> np.ndarra
     return out
 
 
-def combine_wheels(z: np.ndarray, agree_z: float, series: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def axle_labels(wheels: Sequence[str]) -> np.ndarray:
+    """The axle of each wheel from its name: the digits less the last (``"11"``, ``"Z12"`` → ``"1"``; the side
+    is the last digit). A name without two digits is its own axle.
+
+    Parameters
+    ----------
+    wheels : sequence of str
+        Wheel names.
+
+    Returns
+    -------
+    numpy.ndarray
+        (wheels,) object labels.
+    """
+    out = []
+    for w in wheels:
+        digits = "".join(ch for ch in str(w) if ch.isdigit())
+        out.append(digits[:-1] if len(digits) >= 2 else str(w))
+    return np.array(out, dtype=object)
+
+
+def axle_consistency(change: np.ndarray, sd: np.ndarray, axles: np.ndarray) -> np.ndarray:
+    """How far the axles' changes disagree beyond their 1-σ: the Birge ratio ``S`` (≥ 1) per segment.
+
+    Every axle of a run passes the same support under the same rails at the same speed, so a change of the
+    support is one change under all of them. Per axle the mean change ``c_a`` of its wheels with a value and
+    their mean 1-σ ``s_a`` (the wheels of an axle taken as fully correlated: the upper bound) give
+    ``χ² = Σ (c_a − ĉ)² / s_a²`` about the weighted mean ``ĉ``; ``S = √max(1, χ² / (n_axles − 1))`` scales the
+    combined score down where they disagree more than their errors allow (the scale factor of a weighted
+    mean of inconsistent measurements). The 1-σ hold the stated part too, counted as the wheels share it
+    (:func:`step_change`): the difference of two axles sees less of it, so ``S`` is the smaller, lower bound.
+
+    Parameters
+    ----------
+    change, sd : numpy.ndarray
+        (wheels, segments) change and its 1-σ, log units (NaN: none).
+    axles : numpy.ndarray
+        (wheels,) axle of each wheel (:func:`axle_labels`).
+
+    Returns
+    -------
+    numpy.ndarray
+        (segments,) ``S ≥ 1``; 1 where fewer than two axles have a value.
+    """
+    c = np.asarray(change, dtype=np.float64)
+    s = np.asarray(sd, dtype=np.float64)
+    if c.ndim != 2 or s.shape != c.shape:
+        raise ValueError(f"change, sd: must be 2-D of one shape (wheels × segments), got {c.shape} and {s.shape}")
+    lab = np.asarray(axles, dtype=object)
+    if lab.shape != (c.shape[0],):
+        raise ValueError(f"axles: must have one label per wheel ({c.shape[0]}), got shape {lab.shape}")
+    ok = np.isfinite(c) & np.isfinite(s) & (s > 0)
+    groups = list(dict.fromkeys(lab.tolist()))
+    ca = np.full((len(groups), c.shape[1]), np.nan)
+    sa = np.full_like(ca, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for k, g in enumerate(groups):
+            rows = lab == g
+            n = ok[rows].sum(axis=0)
+            ca[k] = np.where(n > 0, np.where(ok[rows], c[rows], 0.0).sum(axis=0) / n, np.nan)
+            sa[k] = np.where(n > 0, np.where(ok[rows], s[rows], 0.0).sum(axis=0) / n, np.nan)
+        has = np.isfinite(ca)
+        n_axles = has.sum(axis=0)
+        w = np.where(has, 1.0 / sa**2, 0.0)
+        mean = (w * np.where(has, ca, 0.0)).sum(axis=0) / w.sum(axis=0)
+        chi2 = (w * np.where(has, ca - mean[None, :], 0.0) ** 2).sum(axis=0)
+        ratio = np.where(n_axles >= 2, chi2 / np.maximum(n_axles - 1, 1), 1.0)
+    return np.sqrt(np.fmax(np.nan_to_num(ratio, nan=1.0), 1.0))
+
+
+def combine_wheels(z: np.ndarray, agree_z: float, series: np.ndarray | None = None, *,
+                   change: np.ndarray | None = None, sd: np.ndarray | None = None,
+                   axles: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Combined score over wheels (Stouffer over the wheels with a score) and who agrees.
 
     Wheels of one series (``series``: the two-rail estimate gives both wheels of an axle one index,
@@ -924,6 +1003,11 @@ def combine_wheels(z: np.ndarray, agree_z: float, series: np.ndarray | None = No
     variance ``Σ n_g²`` over the series ``g`` with ``n_g`` wheels scored — ``Σ z / √n`` where every wheel has
     its own, ``(z₁ + z₄) / √2`` for two axles of two wheels each (``Σ z / √n`` counted such an axle's score
     twice: ``z₁ + z₄``, √2 too high).
+
+    With the wheels' ``change`` and its 1-σ ``sd`` and their ``axles``, the combined score is divided by the
+    axles' disagreement (:func:`axle_consistency`): one axle reading a change that the other, over the same
+    support and rails, does not read is not a change of the support (issue 33's line: a false step read
+    −0.28 ± 0.04 on axle 1 and −0.05 ± 0.06 on axle 4, combined z −5.3).
 
     Parameters
     ----------
@@ -933,6 +1017,10 @@ def combine_wheels(z: np.ndarray, agree_z: float, series: np.ndarray | None = No
         A wheel agrees when its score has the combined sign and ``|z| ≥ agree_z``.
     series : numpy.ndarray, optional
         (wheels,) label of each wheel's series (:func:`series_labels`; default: every wheel its own).
+    change, sd : numpy.ndarray, optional
+        (wheels, segments) each wheel's change and the 1-σ its score divides it by, log units.
+    axles : numpy.ndarray, optional
+        (wheels,) axle of each wheel (:func:`axle_labels`); default: the series.
 
     Returns
     -------
@@ -944,11 +1032,20 @@ def combine_wheels(z: np.ndarray, agree_z: float, series: np.ndarray | None = No
     zz = np.asarray(z, dtype=np.float64)
     if zz.ndim != 2:
         raise ValueError(f"z: must be 2-D (wheels × segments), got shape {zz.shape}")
+    if (change is None) != (sd is None):
+        raise ValueError("change, sd: give both or neither")
     ok = np.isfinite(zz)
     n = ok.sum(axis=0)
     # a series scored by n_g wheels is one witness counted n_g times: the sum's variance is Σ n_g²
     pairs = (series_counts(ok, series) ** 2).sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         combined = np.where(n > 0, np.where(ok, zz, 0.0).sum(axis=0) / np.sqrt(np.maximum(pairs, 1)), np.nan)
+    if change is not None and sd is not None:
+        c = np.asarray(change, dtype=np.float64)
+        if c.shape != zz.shape:
+            raise ValueError(f"change: must have the shape of z {zz.shape}, got {c.shape}")
+        labels = axles if axles is not None else (np.arange(zz.shape[0]) if series is None else series)
+        combined = combined / axle_consistency(np.where(ok, c, np.nan), np.asarray(sd, dtype=np.float64),
+                                               np.asarray(labels, dtype=object))
     agree = ok & (np.sign(zz) == np.sign(combined)[None, :]) & (np.abs(np.where(ok, zz, 0.0)) >= agree_z)
     return combined, agree

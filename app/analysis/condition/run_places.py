@@ -16,7 +16,8 @@ stiffness index** ``ln(A / A_ref(class, v))`` of the run and of its history
   changes with the speed and the vehicle): median baseline,
   robust repeatability, run level per kilometre block taken out, wheels
   combined (:func:`~app.analysis.condition.change.detect_changes`,
-  :func:`~app.analysis.condition.change.combine_wheels`); a step counts where
+  :func:`~app.analysis.condition.change.combine_wheels`: a change of the support is one change under
+  every axle, and the axles' disagreement beyond their 1-σ divides the combined score); a step counts where
   ``|z| ≥ step_z`` **and** the change reaches the alert limit of ``changes``
   (a significant change too small to act on is not a place). A step back towards the typical
   track on a segment that was an anomaly before (a hard place softening, a repair) is that anomaly
@@ -451,6 +452,7 @@ def find_places(
     vehicle: object = None,
     history_vehicle: np.ndarray | None = None,
     support_days: np.ndarray | None = None,
+    axles: Sequence[object] | None = None,
 ) -> RunPlaces:
     """Find and grade a run's places (module docstring).
 
@@ -492,6 +494,10 @@ def find_places(
         (S,) day of the latest action on the support (a tamping, ballast cleaning …) on each segment up to
         ``now_day`` (NaN: none; :func:`~app.analysis.condition.interventions.latest_action_days`): the
         segment's history starts anew there (:func:`~app.analysis.condition.interventions.since_actions`).
+    axles : sequence, optional
+        (W,) axle of each wheel (:func:`~app.analysis.condition.change.axle_labels`; default: the wheels'
+        series): a step is one change under every axle, the combined score is scaled down by the axles'
+        disagreement (:func:`~app.analysis.condition.change.combine_wheels`).
 
     Returns
     -------
@@ -562,6 +568,9 @@ def find_places(
     wrate = np.full(x.shape, np.nan)
     wsd = np.full(x.shape, np.nan)
     series = series_labels(x)
+    axle_of = series if axles is None else np.asarray(list(axles), dtype=object)
+    if axle_of.shape != (n_w,):
+        raise ValueError(f"axles: must have one label per wheel ({n_w}), got shape {axle_of.shape}")
     if h.shape[2] >= params.min_history:
         cp = params.change_params()
         # the series with an index in this run (a wheel without any is no witness)
@@ -572,7 +581,7 @@ def find_places(
                                 stated_wheels=n_series, history_vehicle=history_vehicle, vehicle=vehicle)
             wz[w], wchange[w], wtz[w], wrate[w] = ch.change_z, ch.change, ch.trend_z, ch.trend_rate
             wsd[w] = ch.change_sd
-    cz, agree = combine_wheels(wz, params.agree_z, series)
+    cz, agree = combine_wheels(wz, params.agree_z, series, change=wchange, sd=wsd, axles=axle_of)
     tz, t_agree = combine_wheels(wtz, params.agree_z, series)
     rate = mean_over_wheels(wrate)
     trend = (np.abs(np.nan_to_num(tz)) >= params.trend_z) & (np.abs(np.nan_to_num(rate)) >= params.min_rate_per_year) \
