@@ -589,6 +589,7 @@ def stated_variance(history: np.ndarray, sd_value: np.ndarray | None, sd_history
     value : numpy.ndarray, optional
         (segments,) the newest value (log units): the history's 1-σ are brought to its amplitude for
         the excess (a), ``sd · e^(h − x)``; without it they are taken as they are.
+
     Returns
     -------
     numpy.ndarray
